@@ -1,0 +1,54 @@
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from wgpu_rt.errors import NoAdapterError
+from wgpu_rt.gpu import select_adapter
+
+
+def test_roundtrip_and_compute(gpu):
+    code = """
+    @group(0) @binding(0) var<storage, read_write> data: array<f32>;
+    @compute @workgroup_size(64) fn main(@builtin(global_invocation_id) id: vec3u) {
+        if (id.x < arrayLength(&data)) { data[id.x] = data[id.x] * 2.0 + 1.0; }
+    }"""
+    values = np.arange(100, dtype=np.float32)
+    buf = gpu.upload(values)
+    pipeline = gpu.compute_pipeline(code)
+    enc = gpu.device.create_command_encoder()
+    cp = enc.begin_compute_pass()
+    cp.set_pipeline(pipeline)
+    cp.set_bind_group(0, gpu.bind_group(pipeline, [buf]))
+    cp.dispatch_workgroups(2)
+    cp.end()
+    gpu.device.queue.submit([enc.finish()])
+    np.testing.assert_array_equal(gpu.read(buf, shape=(100,)), values * 2 + 1)
+
+
+def test_prefers_vulkan_over_opengl(gpu):
+    assert "OpenGL" not in gpu.label
+
+
+def test_unknown_adapter_name_lists_available(gpu):
+    with pytest.raises(NoAdapterError, match="no adapter matches 'no-such-gpu'"):
+        select_adapter("no-such-gpu")
+
+
+def test_buffer_limit_error_names_what(gpu):
+    from wgpu_rt.errors import DeviceLimitError
+    with pytest.raises(DeviceLimitError, match="BVH nodes"):
+        gpu.check_buffer_size(1 << 40, "BVH nodes")
+
+
+def test_info_command(gpu):
+    out = subprocess.run([sys.executable, "-m", "wgpu_rt", "info"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert "chosen:" in out.stdout and "shader-f16" in out.stdout
+
+
+def test_bad_adapter_flag_exits_nonzero(gpu):
+    out = subprocess.run([sys.executable, "-m", "wgpu_rt", "--adapter", "nope", "info"],
+                         capture_output=True, text=True)
+    assert out.returncode == 2 and "no adapter matches 'nope'" in out.stderr

@@ -1,0 +1,51 @@
+"""The ``wgpu-rt`` command line.
+
+Each subcommand is a module of ``wgpu_rt.commands`` with ``HELP`` (one line), ``add_arguments(parser)``
+and ``run(args) -> int``; modules import their heavy dependencies inside ``run`` so that ``--help``
+stays fast. Errors a user can cause (``WgpuRtError``) print one line and exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from . import commands
+from .errors import WgpuRtError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="wgpu-rt", description=__doc__.splitlines()[0])
+    parser.add_argument("--adapter", help="use the adapter whose name contains this text "
+                        "(default: $WGPU_RT_ADAPTER, else the best: a real GPU before lavapipe)")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"{commands.__name__}.{info.name}")
+        name = info.name.replace("_", "-")
+        command = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        module.add_arguments(command)
+        command.set_defaults(run=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.adapter:
+        import os
+
+        from .gpu import ADAPTER_ENV
+        os.environ[ADAPTER_ENV] = args.adapter
+    try:
+        return int(args.run(args) or 0)
+    except WgpuRtError as err:
+        print(f"wgpu-rt {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"wgpu-rt {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

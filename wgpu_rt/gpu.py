@@ -1,0 +1,184 @@
+"""GPU context: adapter choice, the device, and the few buffer/pipeline helpers every pass shares.
+
+One device per process. Adapters are ranked so that a real GPU beats a CPU rasterizer and Vulkan beats
+the other backends (Mesa's lavapipe is exposed twice, via Vulkan and via OpenGL; only the Vulkan one
+has compute with f16 and subgroups). ``WGPU_RT_ADAPTER`` (or ``--adapter`` on the CLI) picks one by a
+case-insensitive substring of its name or backend.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import wgpu
+
+from .errors import DeviceLimitError, NoAdapterError
+
+ADAPTER_ENV = "WGPU_RT_ADAPTER"
+
+NO_ADAPTER_HELP = (
+    "no WebGPU adapter found. wgpu-rt needs a Vulkan driver: on Debian/Ubuntu without a GPU run "
+    "`sudo apt-get install -y mesa-vulkan-drivers` (Mesa's lavapipe, a CPU Vulkan driver); with a GPU "
+    "install its vendor's Vulkan driver."
+)
+
+# Features used when the adapter has them; none is required.
+OPTIONAL_FEATURES = ("shader-f16", "timestamp-query", "subgroup")
+
+_BACKEND_RANK = {"Vulkan": 0, "Metal": 0, "D3D12": 1, "OpenGL": 3}
+_TYPE_RANK = {"DiscreteGPU": 0, "IntegratedGPU": 1, "VirtualGPU": 2, "CPU": 3, "Unknown": 4}
+
+
+def adapter_label(adapter) -> str:
+    """A one-line name such as 'llvmpipe (LLVM 15.0.6, 256 bits) (CPU) via Vulkan'."""
+    return adapter.summary
+
+
+def list_adapters() -> list:
+    """All adapters wgpu can see, best first (see module docstring for the ranking)."""
+    adapters = wgpu.gpu.enumerate_adapters_sync()
+
+    def rank(adapter):
+        info = adapter.info
+        return (_TYPE_RANK.get(info.get("adapter_type", "Unknown"), 4),
+                _BACKEND_RANK.get(info.get("backend_type", ""), 2))
+
+    return sorted(adapters, key=rank)
+
+
+def select_adapter(name: str | None = None):
+    """The adapter to use: the first whose label contains ``name`` (or $WGPU_RT_ADAPTER), else the best."""
+    adapters = list_adapters()
+    if not adapters:
+        raise NoAdapterError(NO_ADAPTER_HELP)
+    wanted = name or os.environ.get(ADAPTER_ENV)
+    if not wanted:
+        return adapters[0]
+    for adapter in adapters:
+        if wanted.lower() in adapter_label(adapter).lower():
+            return adapter
+    labels = "\n  ".join(adapter_label(a) for a in adapters)
+    raise NoAdapterError(f"no adapter matches {wanted!r} (from --adapter or ${ADAPTER_ENV}); available:\n  {labels}")
+
+
+@dataclass
+class GpuContext:
+    """The adapter, its device and what it can do."""
+
+    adapter: object
+    device: object
+    features: frozenset = field(default_factory=frozenset)
+
+    @property
+    def label(self) -> str:
+        return adapter_label(self.adapter)
+
+    @property
+    def has_f16(self) -> bool:
+        return "shader-f16" in self.features
+
+    @property
+    def has_timestamps(self) -> bool:
+        return "timestamp-query" in self.features
+
+    @property
+    def has_subgroups(self) -> bool:
+        return "subgroup" in self.features
+
+    @cached_property
+    def limits(self) -> dict:
+        return dict(self.device.limits)
+
+    def check_buffer_size(self, nbytes: int, what: str) -> None:
+        """Raise a DeviceLimitError naming ``what`` if one storage binding cannot hold ``nbytes``."""
+        limit = min(self.limits["max-storage-buffer-binding-size"], self.limits["max-buffer-size"])
+        if nbytes > limit:
+            raise DeviceLimitError(
+                f"{what} needs {nbytes / 2**20:.1f} MiB in one storage buffer, over this device's "
+                f"max-storage-buffer-binding-size of {limit / 2**20:.1f} MiB ({self.label})")
+
+    # -- buffers -------------------------------------------------------------------------------------
+    def upload(self, array: np.ndarray, usage=0, label: str = "") -> object:
+        """A storage buffer holding ``array`` (padded to 4 bytes; at least 16 bytes so empty arrays bind)."""
+        data = np.ascontiguousarray(array).tobytes()
+        self.check_buffer_size(len(data), label or "an uploaded array")
+        padded = data + b"\0" * ((-len(data)) % 4 + max(0, 16 - len(data)))
+        return self.device.create_buffer_with_data(
+            data=padded, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC
+            | wgpu.BufferUsage.COPY_DST | usage, label=label)
+
+    def storage(self, nbytes: int, label: str = "", usage=0) -> object:
+        """An uninitialised (zeroed) storage buffer of ``nbytes`` (rounded up to 16)."""
+        self.check_buffer_size(nbytes, label or "a storage buffer")
+        return self.device.create_buffer(
+            size=max(16, (nbytes + 15) // 16 * 16), label=label,
+            usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC | wgpu.BufferUsage.COPY_DST | usage)
+
+    def uniform(self, data: bytes, label: str = "") -> object:
+        padded = data + b"\0" * ((-len(data)) % 16)
+        return self.device.create_buffer_with_data(
+            data=padded, usage=wgpu.BufferUsage.UNIFORM | wgpu.BufferUsage.COPY_DST, label=label)
+
+    def read(self, buffer, dtype=np.float32, shape=None, nbytes: int | None = None) -> np.ndarray:
+        """Copy a GPU buffer back into a numpy array (the only way data leaves the device)."""
+        raw = self.device.queue.read_buffer(buffer, 0, nbytes)
+        out = np.frombuffer(raw, dtype=dtype)
+        if shape is not None:
+            out = out[: int(np.prod(shape))].reshape(shape)
+        return out.copy()
+
+    # -- pipelines -----------------------------------------------------------------------------------
+    def compute_pipeline(self, code: str, entry_point: str = "main", constants: dict | None = None,
+                         label: str = "") -> object:
+        """A compute pipeline for WGSL ``code``; cached by (code, entry point, override constants)."""
+        key = (code, entry_point, tuple(sorted((constants or {}).items())))
+        pipeline = self._pipelines.get(key)
+        if pipeline is None:
+            module = self._modules.get(code)
+            if module is None:
+                module = self._modules[code] = self.device.create_shader_module(code=code, label=label)
+            compute = {"module": module, "entry_point": entry_point}
+            if constants:
+                compute["constants"] = {k: float(v) for k, v in constants.items()}
+            pipeline = self.device.create_compute_pipeline(layout="auto", compute=compute, label=label)
+            self._pipelines[key] = pipeline
+        return pipeline
+
+    def bind_group(self, pipeline, buffers: list, group: int = 0) -> object:
+        """A bind group for ``pipeline``'s ``group``: binding i gets buffers[i] (whole buffer)."""
+        return self.device.create_bind_group(
+            layout=pipeline.get_bind_group_layout(group),
+            entries=[{"binding": i, "resource": {"buffer": b, "offset": 0, "size": b.size}}
+                     for i, b in enumerate(buffers) if b is not None])
+
+    @cached_property
+    def _pipelines(self) -> dict:
+        return {}
+
+    @cached_property
+    def _modules(self) -> dict:
+        return {}
+
+
+_CONTEXTS: dict[str, GpuContext] = {}
+
+
+def get_context(adapter_name: str | None = None) -> GpuContext:
+    """The process-wide context for ``adapter_name`` (default: $WGPU_RT_ADAPTER or the best adapter)."""
+    key = adapter_name or os.environ.get(ADAPTER_ENV) or ""
+    if key not in _CONTEXTS:
+        adapter = select_adapter(adapter_name)
+        features = [f for f in OPTIONAL_FEATURES if f in adapter.features]
+        limit_names = ("max-storage-buffer-binding-size", "max-buffer-size",
+                       "max-storage-buffers-per-shader-stage", "max-compute-workgroup-storage-size",
+                       "max-compute-invocations-per-workgroup", "max-compute-workgroup-size-x",
+                       "max-compute-workgroup-size-y", "max-compute-workgroups-per-dimension",
+                       "max-bind-groups")
+        limits = {n: adapter.limits[n] for n in limit_names if n in adapter.limits}
+        device = adapter.request_device_sync(required_features=features, required_limits=limits,
+                                             label="wgpu-rt")
+        _CONTEXTS[key] = GpuContext(adapter=adapter, device=device, features=frozenset(features))
+    return _CONTEXTS[key]

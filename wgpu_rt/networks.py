@@ -1,0 +1,111 @@
+"""The three networks, defined in torch (training only) and exported to ONNX for the WGSL engine.
+
+- ``UNet``: the denoiser. Input: 10 channels, NCHW — log1p(noisy HDR RGB), albedo RGB, normals mapped
+  to [0, 1], normalized depth. Output: log1p of the clean RGB (the pipeline applies expm1). Levels of
+  ``widths`` channels, each a double 3×3 conv + ReLU; 2×2 max-pool down; 2×2 stride-2 transposed conv
+  up; skips concatenated on channels; a 1×1 conv to RGB. H and W must be multiples of 2**(levels-1)
+  (the engine pads and crops).
+- ``ErrorPredictor``: 1-spp log1p RGB → a [0, 1] heatmap of where error will be (3×3 convs, sigmoid).
+- ``ConfidencePredictor``: current RGB, reprojected history RGB, current depth, reprojected previous
+  depth (8 channels) → confidence that history is invalid, in [0, 1] (3×3 convs, sigmoid).
+
+Only the ops the engine lowers are used (Conv, Relu, Sigmoid, MaxPool, ConvTranspose, Concat).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+from torch import nn
+
+DENOISER_CHANNELS = 10
+ERROR_PREDICTOR_CHANNELS = 3
+CONFIDENCE_CHANNELS = 8
+ONNX_OPSET = 17
+
+
+def _double_conv(cin: int, cout: int) -> nn.Sequential:
+    return nn.Sequential(nn.Conv2d(cin, cout, 3, padding=1), nn.ReLU(inplace=True),
+                         nn.Conv2d(cout, cout, 3, padding=1), nn.ReLU(inplace=True))
+
+
+class UNet(nn.Module):
+    def __init__(self, in_channels: int = DENOISER_CHANNELS, out_channels: int = 3,
+                 widths: tuple[int, ...] = (32, 64, 128)):
+        super().__init__()
+        self.widths = tuple(widths)
+        self.down = nn.ModuleList()
+        cin = in_channels
+        for w in widths:
+            self.down.append(_double_conv(cin, w))
+            cin = w
+        self.pool = nn.MaxPool2d(2)
+        self.up = nn.ModuleList()
+        self.merge = nn.ModuleList()
+        for w_hi, w_lo in zip(widths[::-1][:-1], widths[::-1][1:]):
+            self.up.append(nn.ConvTranspose2d(w_hi, w_lo, 2, stride=2))
+            self.merge.append(_double_conv(2 * w_lo, w_lo))
+        self.head = nn.Conv2d(widths[0], out_channels, 1)
+
+    @property
+    def multiple(self) -> int:
+        """H and W must be multiples of this."""
+        return 2 ** (len(self.widths) - 1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        skips = []
+        for i, block in enumerate(self.down):
+            if i:
+                x = self.pool(x)
+            x = block(x)
+            skips.append(x)
+        for up, merge, skip in zip(self.up, self.merge, skips[-2::-1]):
+            x = merge(torch.cat([up(x), skip], dim=1))
+        return self.head(x)
+
+
+class _HeatmapCNN(nn.Module):
+    """3×3 conv + ReLU layers of ``hidden`` channels, then a 3×3 conv to one sigmoid channel."""
+
+    def __init__(self, in_channels: int, hidden: int = 16, layers: int = 2):
+        super().__init__()
+        body, cin = [], in_channels
+        for _ in range(layers):
+            body += [nn.Conv2d(cin, hidden, 3, padding=1), nn.ReLU(inplace=True)]
+            cin = hidden
+        self.body = nn.Sequential(*body, nn.Conv2d(cin, 1, 3, padding=1), nn.Sigmoid())
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.body(x)
+
+
+class ErrorPredictor(_HeatmapCNN):
+    def __init__(self, hidden: int = 16, layers: int = 2):
+        super().__init__(ERROR_PREDICTOR_CHANNELS, hidden, layers)
+
+
+class ConfidencePredictor(_HeatmapCNN):
+    def __init__(self, hidden: int = 16, layers: int = 1):
+        super().__init__(CONFIDENCE_CHANNELS, hidden, layers)
+
+
+def input_channels(model: nn.Module) -> int:
+    first = next(m for m in model.modules() if isinstance(m, nn.Conv2d))
+    return first.in_channels
+
+
+def export_onnx(model: nn.Module, path: str | Path, height: int = 64, width: int = 64) -> Path:
+    """Write ``model`` to ONNX (opset 17) with dynamic batch, height and width."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    model = model.eval()
+    example = torch.zeros(1, input_channels(model), height, width)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    torch.onnx.export(
+        model, (example,), str(tmp), input_names=["input"], output_names=["output"],
+        opset_version=ONNX_OPSET, dynamo=False,
+        dynamic_axes={"input": {0: "batch", 2: "height", 3: "width"},
+                      "output": {0: "batch", 2: "height", 3: "width"}})
+    tmp.replace(path)
+    return path

@@ -1,0 +1,192 @@
+"""The scene model: plain dataclasses that every loader produces and the GPU packers consume.
+
+Units and conventions follow Mitsuba 3 so that scenes can be compared pixel for pixel: right-handed
+world space, a look-at camera with a field of view in degrees measured along ``fov_axis``, linear RGB
+reflectances in [0, 1], emitted radiance in W·sr⁻¹·m⁻² per channel. Animation is per integer frame:
+``Camera`` and object transforms are given as keyframes and linearly interpolated (look-at vectors for
+the camera, matrices element-wise for objects; keyframes are meant to be dense enough for that).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+MATERIAL_KINDS = ("diffuse", "conductor", "dielectric")
+FOV_AXES = ("x", "y", "smaller", "larger")
+
+
+def _rgb(value, what: str) -> np.ndarray:
+    arr = np.broadcast_to(np.asarray(value, dtype=np.float32), (3,)).copy()
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{what} must be finite, got {value!r}")
+    return arr
+
+
+@dataclass
+class Material:
+    """A surface.
+
+    - ``diffuse``: Lambertian with ``reflectance``.
+    - ``conductor``: GGX microfacet metal, complex IOR ``eta`` + i·``k`` per channel, tinted by
+      ``reflectance`` (Mitsuba's specular_reflectance); ``roughness`` is the GGX alpha (0 = mirror).
+      The default eta=0, k=1 is a perfect mirror, as Mitsuba's material 'none'.
+    - ``dielectric``: glass with interior ``ior`` over exterior 1.0; ``roughness`` 0 = smooth.
+    Any material may also emit ``emission`` (radiance, front side only, as Mitsuba's area emitter).
+    """
+
+    kind: str = "diffuse"
+    reflectance: np.ndarray = field(default_factory=lambda: np.full(3, 0.5, np.float32))
+    roughness: float = 0.0
+    ior: float = 1.5
+    eta: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    k: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
+    emission: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+
+    def __post_init__(self):
+        if self.kind not in MATERIAL_KINDS:
+            raise ValueError(f"unknown material kind {self.kind!r}; expected one of {MATERIAL_KINDS}")
+        self.reflectance = _rgb(self.reflectance, "reflectance")
+        self.eta = _rgb(self.eta, "eta")
+        self.k = _rgb(self.k, "k")
+        self.emission = _rgb(self.emission, "emission")
+        if not (0.0 <= float(self.roughness) <= 1.0):
+            raise ValueError(f"roughness must be in [0, 1], got {self.roughness}")
+        if not float(self.ior) > 0.0:
+            raise ValueError(f"ior must be positive, got {self.ior}")
+
+    @property
+    def is_emissive(self) -> bool:
+        return bool(np.any(self.emission > 0))
+
+
+@dataclass
+class Camera:
+    """A pinhole look-at camera (Mitsuba's ``perspective`` sensor with a box filter)."""
+
+    origin: np.ndarray
+    target: np.ndarray
+    up: np.ndarray = field(default_factory=lambda: np.array([0, 1, 0], np.float32))
+    fov: float = 39.3077
+    fov_axis: str = "smaller"
+
+    def __post_init__(self):
+        self.origin = np.asarray(self.origin, np.float32)
+        self.target = np.asarray(self.target, np.float32)
+        self.up = np.asarray(self.up, np.float32)
+        if self.fov_axis not in FOV_AXES:
+            raise ValueError(f"unknown fov_axis {self.fov_axis!r}; expected one of {FOV_AXES}")
+        if not (0.0 < float(self.fov) < 180.0):
+            raise ValueError(f"fov must be in (0, 180) degrees, got {self.fov}")
+
+    def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Unit (right, up, forward) vectors. Image +x goes along ``right`` and image +y (rows, top
+        to bottom) along ``-up``, which is how Mitsuba's perspective sensor lays out its film."""
+        forward = self.target - self.origin
+        forward = forward / np.linalg.norm(forward)
+        right = np.cross(forward, self.up)
+        right = right / np.linalg.norm(right)
+        up = np.cross(right, forward)
+        return right.astype(np.float32), up.astype(np.float32), forward.astype(np.float32)
+
+    def tan_half_fov(self, width: int, height: int) -> tuple[float, float]:
+        """tan of half the horizontal and vertical field of view for a width×height image."""
+        t = float(np.tan(np.radians(self.fov) / 2))
+        aspect = width / height
+        axis = self.fov_axis
+        if axis == "smaller":
+            axis = "x" if width <= height else "y"
+        elif axis == "larger":
+            axis = "x" if width >= height else "y"
+        return (t, t / aspect) if axis == "x" else (t * aspect, t)
+
+
+@dataclass
+class Mesh:
+    """A triangle mesh in object space, placed by ``transform`` (4×4, object → world).
+
+    ``keyframes`` maps frame → 4×4 transform for animated objects; between keyframes the matrix is
+    interpolated element-wise, outside them the nearest keyframe holds.
+    """
+
+    name: str
+    vertices: np.ndarray            # (V, 3) float32
+    faces: np.ndarray               # (F, 3) uint32
+    material: str                   # key into Scene.materials
+    normals: np.ndarray | None = None  # (V, 3) per-vertex shading normals, or None for flat shading
+    transform: np.ndarray = field(default_factory=lambda: np.eye(4, dtype=np.float32))
+    keyframes: dict[int, np.ndarray] = field(default_factory=dict)
+
+    def transform_at(self, frame: int) -> np.ndarray:
+        return _interpolate(self.keyframes, frame, self.transform)
+
+    @property
+    def is_animated(self) -> bool:
+        return len({m.tobytes() for m in self.keyframes.values()}) > 1
+
+
+@dataclass
+class PointLight:
+    position: np.ndarray
+    intensity: np.ndarray           # W·sr⁻¹ per channel
+
+
+@dataclass
+class DirectionalLight:
+    direction: np.ndarray           # direction the light travels (from the light toward the scene)
+    irradiance: np.ndarray          # W·m⁻² per channel on a surface facing it
+
+
+@dataclass
+class Scene:
+    """Everything that is rendered. ``camera_keyframes`` animates the camera like Mesh.keyframes."""
+
+    camera: Camera
+    meshes: list[Mesh]
+    materials: dict[str, Material]
+    lights: list = field(default_factory=list)          # PointLight | DirectionalLight
+    background: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    camera_keyframes: dict[int, Camera] = field(default_factory=dict)
+    frame_count: int = 1
+    name: str = "scene"
+
+    def camera_at(self, frame: int) -> Camera:
+        if not self.camera_keyframes:
+            return self.camera
+        keys = sorted(self.camera_keyframes)
+        if frame <= keys[0]:
+            return self.camera_keyframes[keys[0]]
+        if frame >= keys[-1]:
+            return self.camera_keyframes[keys[-1]]
+        hi = next(k for k in keys if k >= frame)
+        lo = max(k for k in keys if k <= frame)
+        a, b = self.camera_keyframes[lo], self.camera_keyframes[hi]
+        if hi == lo:
+            return a
+        w = (frame - lo) / (hi - lo)
+        mix = lambda x, y: ((1 - w) * x + w * y).astype(np.float32)  # noqa: E731
+        return Camera(mix(a.origin, b.origin), mix(a.target, b.target), mix(a.up, b.up),
+                      (1 - w) * a.fov + w * b.fov, a.fov_axis)
+
+    @property
+    def has_motion(self) -> bool:
+        cams = {(c.origin.tobytes(), c.target.tobytes(), c.up.tobytes(), c.fov)
+                for c in self.camera_keyframes.values()}
+        return len(cams) > 1 or any(m.is_animated for m in self.meshes)
+
+
+def _interpolate(keyframes: dict[int, np.ndarray], frame: int, default: np.ndarray) -> np.ndarray:
+    if not keyframes:
+        return np.asarray(default, np.float32)
+    keys = sorted(keyframes)
+    if frame <= keys[0]:
+        return np.asarray(keyframes[keys[0]], np.float32)
+    if frame >= keys[-1]:
+        return np.asarray(keyframes[keys[-1]], np.float32)
+    lo = max(k for k in keys if k <= frame)
+    hi = min(k for k in keys if k >= frame)
+    if lo == hi:
+        return np.asarray(keyframes[lo], np.float32)
+    w = (frame - lo) / (hi - lo)
+    return ((1 - w) * np.asarray(keyframes[lo]) + w * np.asarray(keyframes[hi])).astype(np.float32)

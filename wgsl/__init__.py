@@ -1,0 +1,1 @@
+"""Path-tracing WGSL modules (resource package: see wgpu_rt.shaders)."""
