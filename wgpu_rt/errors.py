@@ -24,3 +24,7 @@ class ModelError(WgpuRtError):
 
 class DeviceLimitError(WgpuRtError):
     """Work exceeds a limit of the WebGPU device (buffer size, bindings, workgroup memory)."""
+
+
+class ImageError(WgpuRtError):
+    """An image file is missing, unreadable, or lacks a layer that is needed."""
