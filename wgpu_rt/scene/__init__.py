@@ -1,5 +1,32 @@
-"""Scenes: the data model, loaders (scene files, meshes) and the built-in scenes."""
+"""Scenes: the data model, loaders (scene files, meshes) and the built-in scenes.
 
+``load_scene(spec, mesh=None)`` is the one entry point: ``spec`` is a built-in name (see
+``BUILTIN_SCENES``), a path to a .json/.toml scene file, or a ``Scene`` (returned as is).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import SceneError
+from .builtin import BUILTIN_SCENES, builtin_scene
+from .loader import SCENE_SUFFIXES, load_scene_file
 from .model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene
 
-__all__ = ["Camera", "DirectionalLight", "Material", "Mesh", "PointLight", "Scene"]
+
+def load_scene(spec, mesh=None) -> Scene:
+    """The Scene that ``spec`` names; ``mesh`` is the mesh file of the built-in 'mesh' scene."""
+    if isinstance(spec, Scene):
+        return spec
+    if not isinstance(spec, (str, Path)):
+        raise SceneError(f"a scene is a built-in name, a scene file path or a Scene, not {type(spec).__name__}")
+    if isinstance(spec, str) and spec in BUILTIN_SCENES:
+        return builtin_scene(spec, mesh=mesh)
+    if Path(spec).suffix.lower() in SCENE_SUFFIXES or Path(spec).exists():
+        return load_scene_file(spec)
+    raise SceneError(f"{spec}: neither a built-in scene ({', '.join(sorted(BUILTIN_SCENES))}) "
+                     f"nor a .json/.toml scene file")
+
+
+__all__ = ["BUILTIN_SCENES", "Camera", "DirectionalLight", "Material", "Mesh", "PointLight", "Scene",
+           "load_scene"]

@@ -1,0 +1,115 @@
+"""BVH build time and size for 10k / 100k / 1M triangles and the Stanford bunny, plus GPU traversal
+throughput (closest-hit rays per second through wgsl/ray_query.wgsl).
+
+Peer: Mitsuba 3 (scalar_rgb) loading a scene that holds the same triangles, which includes building
+its own acceleration structure, timed in the same run; the last column is Mitsuba's time over ours
+(> 1: we build faster). Run: ``python3 benchmarks/bench_bvh.py [--sizes 10000,100000,1000000]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wgpu_rt.bvh import build_bvh
+
+BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
+
+
+def random_soup(count: int, seed: int = 0) -> np.ndarray:
+    """``count`` small random triangles in a unit cube (edge ~ 2/cbrt(count))."""
+    rng = np.random.default_rng(seed)
+    size = 2.0 / np.cbrt(count)
+    return (rng.uniform(-1, 1, (count, 1, 3)) + rng.normal(0, size, (count, 3, 3))).astype(np.float32)
+
+
+def best_of(repeats: int, fn) -> tuple[float, object]:
+    best, result = np.inf, None
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = fn()
+        best = min(best, time.perf_counter() - start)
+    return best, result
+
+
+def mitsuba_load_seconds(triangles: np.ndarray) -> float | None:
+    try:
+        import mitsuba as mi
+    except ImportError:
+        return None
+    mi.set_variant("scalar_rgb")
+    from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
+    from wgpu_rt.scene.mitsuba import to_mitsuba
+
+    faces = np.arange(3 * len(triangles), dtype=np.uint32).reshape(-1, 3)
+    scene = Scene(Camera([0, 0, 3], [0, 0, 0]), [Mesh("m", triangles.reshape(-1, 3), faces, "grey")],
+                  {"grey": Material()})
+    converted = to_mitsuba(scene, 8, 8, 1, 2)
+    seconds, _ = best_of(2, lambda: mi.load_dict(converted))
+    return seconds
+
+
+def traversal_rate(triangles: np.ndarray, rays: int = 512 * 512) -> float | None:
+    """Closest-hit rays per second on the GPU for rays from random outside points toward the mesh."""
+    from wgpu_rt.errors import NoAdapterError
+    from wgpu_rt.gpu import get_context
+    from wgpu_rt.scene.geometry import GeometryBuffers
+    from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
+    from wgpu_rt.scene.ray_query import HIT_DTYPE, SURFACE_DTYPE, RayQuery, query_rays
+
+    try:
+        ctx = get_context()
+    except NoAdapterError:
+        return None
+    faces = np.arange(3 * len(triangles), dtype=np.uint32).reshape(-1, 3)
+    scene = Scene(Camera([0, 0, 3], [0, 0, 0]), [Mesh("m", triangles.reshape(-1, 3), faces, "grey")],
+                  {"grey": Material()})
+    query = RayQuery(ctx, GeometryBuffers.build(scene))
+    points = triangles.reshape(-1, 3)
+    center, radius = points.mean(axis=0), np.ptp(points, axis=0).max()
+    rng = np.random.default_rng(1)
+    origins = center + rng.normal(0, 1, (rays, 3)) * radius * 2
+    targets = center + rng.normal(0, 0.25, (rays, 3)) * radius
+    ray_buffer = ctx.upload(query_rays(origins, targets - origins), label="rays")
+    outputs = [ctx.storage(rays * HIT_DTYPE.itemsize), ctx.storage(rays * SURFACE_DTYPE.itemsize), None]
+
+    def dispatch():
+        encoder = ctx.device.create_command_encoder()
+        query.record(encoder, "intersect", ray_buffer, outputs, rays)
+        ctx.device.queue.submit([encoder.finish()])
+        ctx.read(outputs[0], nbytes=16)        # waits for the GPU
+
+    dispatch()
+    seconds, _ = best_of(3, dispatch)
+    return rays / seconds
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", default="10000,100000,1000000")
+    parser.add_argument("--no-traversal", action="store_true", help="skip the GPU traversal column")
+    args = parser.parse_args()
+    cases = [(f"random {int(n):,}", random_soup(int(n))) for n in args.sizes.split(",")]
+    if BUNNY.exists():
+        import trimesh
+
+        bunny = trimesh.load(BUNNY, force="mesh", process=False)
+        cases.append(("stanford bunny", np.asarray(bunny.vertices, np.float32)[bunny.faces]))
+    header = (f"{'mesh':>18} {'triangles':>10} {'build s':>8} {'nodes':>9} {'depth':>5} {'mean leaf':>9} "
+              f"{'Mrays/s':>8} {'mitsuba s':>9} {'mitsuba/ours':>12}")
+    print(header)
+    for name, triangles in cases:
+        seconds, bvh = best_of(2, lambda: build_bvh(triangles))
+        rate = None if args.no_traversal or len(triangles) > 200_000 else traversal_rate(triangles)
+        peer = mitsuba_load_seconds(triangles)
+        print(f"{name:>18} {len(triangles):>10,} {seconds:>8.3f} {bvh.node_count:>9,} {bvh.depth():>5} "
+              f"{bvh.leaf_sizes.mean():>9.2f} {'-' if rate is None else f'{rate / 1e6:.2f}':>8} "
+              f"{'-' if peer is None else f'{peer:.3f}':>9} {'-' if peer is None else f'{peer / seconds:.2f}×':>12}",
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()

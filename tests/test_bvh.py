@@ -1,0 +1,307 @@
+"""BVH build and GPU traversal (wgsl/bvh.wgsl through wgsl/ray_query.wgsl) against brute force.
+
+The reference intersects every ray with every triangle in float64. Rays whose answer is numerically
+ambiguous (the nearest hit within 1e-4 of a triangle edge, or two hits within 1e-4 in t) may go
+either way in f32, so agreement is required on all other rays and at least 90% of rays must be
+unambiguous, which keeps the check meaningful.
+"""
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from wgpu_rt import bvh as bvh_module
+from wgpu_rt.bvh import MAX_DEPTH, MAX_LEAF_SIZE, build_bvh
+from wgpu_rt.scene.geometry import GeometryBuffers
+from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
+from wgpu_rt.scene.ray_query import NO_HIT, RayQuery, query_rays
+from wgpu_rt.shaders import read_wgsl
+
+BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
+EDGE_MARGIN = 1e-4
+
+
+def brute_force(triangles, origins, dirs, t_max=np.inf):
+    """Per ray: (nearest t, its triangle or -1, ambiguous flag) over all triangles, in float64."""
+    tri = np.asarray(triangles, np.float64)
+    o = np.asarray(origins, np.float64)[:, None]
+    d = np.asarray(dirs, np.float64)[:, None]
+    e1, e2 = tri[None, :, 1] - tri[None, :, 0], tri[None, :, 2] - tri[None, :, 0]
+    p = np.cross(d, e2)
+    det = np.sum(e1 * p, axis=-1)
+    ok = np.abs(det) > 1e-12 * np.linalg.norm(np.cross(e1, e2), axis=-1).clip(1e-300) * np.linalg.norm(d, axis=-1)
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = o - tri[None, :, 0]
+    u = np.sum(s * p, axis=-1) * inv
+    q = np.cross(s, e1)
+    v = np.sum(d * q, axis=-1) * inv
+    t = np.sum(e2 * q, axis=-1) * inv
+    w = 1 - u - v
+    hit = ok & (u >= 0) & (v >= 0) & (w >= 0) & (t > 0) & (t < t_max)
+    near_edge = ok & (np.minimum(np.minimum(u, v), w) > -EDGE_MARGIN) & (t > -EDGE_MARGIN) & (t < t_max + EDGE_MARGIN)
+    t_hit = np.where(hit, t, np.inf)
+    nearest = np.argmin(t_hit, axis=1)
+    t_near = t_hit[np.arange(len(t_hit)), nearest]
+    prim = np.where(np.isfinite(t_near), nearest, -1)
+    # Ambiguous: a barely-hit or barely-missed triangle competes with the answer.
+    close_call = near_edge & (np.abs(np.minimum(np.minimum(u, v), w)) < EDGE_MARGIN)
+    t_candidate = np.where(close_call, t, np.inf)
+    reach = np.where(np.isfinite(t_near), t_near, t_max)[:, None] + EDGE_MARGIN
+    competing = np.any(close_call & (t_candidate <= reach), axis=1)
+    second = np.sort(t_hit, axis=1)[:, 1] if t_hit.shape[1] > 1 else np.full(len(t_hit), np.inf)
+    with np.errstate(invalid="ignore"):          # inf - inf where a ray hits nothing
+        ambiguous = competing | (np.abs(second - t_near) < EDGE_MARGIN) | (np.abs(t_near - t_max) < EDGE_MARGIN)
+    ambiguous |= np.isfinite(t_near) & (t_near < EDGE_MARGIN)
+    return t_near, prim, ambiguous
+
+
+def triangle_scene(triangles) -> Scene:
+    triangles = np.asarray(triangles, np.float32)
+    mesh = Mesh("soup", triangles.reshape(-1, 3), np.arange(3 * len(triangles), dtype=np.uint32).reshape(-1, 3),
+                "grey")
+    return Scene(Camera([0, 0, 5], [0, 0, 0]), [mesh], {"grey": Material()})
+
+
+def check_against_brute_force(gpu, triangles, origins, dirs, t_max=np.inf, min_clear=0.9):
+    geometry = GeometryBuffers.build(triangle_scene(triangles))
+    query = RayQuery(gpu, geometry)
+    rays = query_rays(origins, dirs, t_max)
+    hits, _ = query.intersect(rays)
+    occluded = query.occluded(rays)
+    t_ref, prim_ref, ambiguous = brute_force(geometry.triangles, origins, dirs, t_max)
+    clear = ~ambiguous
+    assert clear.mean() >= min_clear, f"only {clear.mean():.0%} of rays are unambiguous: a weak test"
+    hit_ref = prim_ref >= 0
+    ours_hit = hits["prim"] != NO_HIT
+    np.testing.assert_array_equal(ours_hit[clear], hit_ref[clear], "hit/miss differs from brute force")
+    np.testing.assert_array_equal(hits["prim"][clear & hit_ref], prim_ref[clear & hit_ref])
+    both = clear & hit_ref
+    np.testing.assert_allclose(hits["t"][both], t_ref[both], rtol=1e-4, atol=1e-5)
+    np.testing.assert_array_equal(occluded[clear], hit_ref[clear], "scene_occluded differs from brute force")
+    assert np.all(hits["t"][~ours_hit] == np.float32(t_max)), "a miss must report t = t_max"
+    uv = np.stack([hits["u"], hits["v"]], axis=1)[ours_hit]
+    assert np.all(uv >= -1e-6) and np.all(uv.sum(axis=1) <= 1 + 1e-5)
+    return hits, geometry
+
+
+# -- BVH structure (no GPU) ---------------------------------------------------------------------------
+def check_structure(triangles, bvh):
+    nodes = bvh.nodes
+    assert np.array_equal(np.sort(bvh.order), np.arange(len(triangles))), "every triangle exactly once"
+    leaf = nodes["count"] > 0
+    covered = np.zeros(len(triangles), int)
+    for index in np.nonzero(leaf)[0]:
+        first, count = nodes["first"][index], nodes["count"][index]
+        covered[first:first + count] += 1
+        tri = triangles[bvh.order[first:first + count]]
+        assert np.all(tri.min(axis=(0, 1)) >= nodes["lo"][index]) and np.all(tri.max(axis=(0, 1)) <= nodes["hi"][index])
+    assert np.all(covered == 1), "leaf ranges must tile the triangle list"
+    interior = np.nonzero(~leaf)[0]
+    children = nodes["first"][interior].astype(np.int64)
+    assert np.all(children > interior) and np.all(children + 1 < len(nodes))
+    for child in (children, children + 1):
+        assert np.all(nodes["lo"][child] >= nodes["lo"][interior]) and np.all(nodes["hi"][child] <= nodes["hi"][interior])
+    referenced = np.concatenate([[0], children, children + 1])
+    assert np.array_equal(np.sort(referenced), np.arange(len(nodes))), "every node reachable exactly once"
+    assert bvh.depth() <= MAX_DEPTH
+
+
+def test_structure_random_soup():
+    rng = np.random.default_rng(1)
+    centers = rng.uniform(-5, 5, (3000, 1, 3))
+    triangles = (centers + rng.normal(0, 0.2, (3000, 3, 3))).astype(np.float32)
+    bvh = build_bvh(triangles)
+    check_structure(triangles, bvh)
+    sizes = bvh.leaf_sizes
+    assert sizes.max() <= MAX_LEAF_SIZE and 1.5 <= sizes.mean() <= MAX_LEAF_SIZE, sizes.mean()
+
+
+def test_structure_identical_and_degenerate_triangles():
+    same = np.tile(np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32), (500, 1, 1))
+    points = np.zeros((300, 3, 3), np.float32)      # zero-area: all three vertices coincide
+    triangles = np.concatenate([same, points])
+    bvh = build_bvh(triangles)
+    check_structure(triangles, bvh)
+    assert bvh.leaf_sizes.max() <= MAX_LEAF_SIZE
+
+
+def test_depth_limit_matches_traversal_stack():
+    stack = re.search(r"const BVH_STACK_SIZE: u32 = (\d+)u;", read_wgsl("bvh.wgsl"))
+    assert stack and int(stack.group(1)) == MAX_DEPTH
+
+
+def test_depth_limit_is_enforced(monkeypatch):
+    monkeypatch.setattr(bvh_module, "MAX_DEPTH", 4)
+    rng = np.random.default_rng(2)
+    triangles = rng.uniform(-1, 1, (2000, 3, 3)).astype(np.float32)
+    bvh = build_bvh(triangles)
+    assert bvh.depth() <= 4
+
+
+def test_zero_triangles_rejected():
+    with pytest.raises(ValueError, match="zero triangles"):
+        build_bvh(np.zeros((0, 3, 3), np.float32))
+
+
+# -- traversal against brute force ------------------------------------------------------------------
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**31 - 1), triangle_count=st.integers(1, 300), spread=st.floats(0.05, 1.0))
+def test_random_soup_matches_brute_force(gpu, seed, triangle_count, spread):
+    rng = np.random.default_rng(seed)
+    centers = rng.uniform(-1, 1, (triangle_count, 1, 3))
+    triangles = centers + rng.normal(0, spread, (triangle_count, 3, 3))
+    origins = rng.uniform(-2, 2, (256, 3))
+    targets = rng.uniform(-1, 1, (256, 3))
+    dirs = targets - origins
+    t_max = rng.choice([np.inf, 0.5, 1.0])
+    check_against_brute_force(gpu, triangles, origins, dirs, t_max, min_clear=0.8)
+
+
+def _grid(n=8, z=0.0):
+    """An n×n grid of unit quads in the plane z, two triangles each, sharing edges and vertices."""
+    xs = np.arange(n, dtype=np.float64)
+    x, y = np.meshgrid(xs, xs, indexing="ij")
+    a = np.stack([x, y, np.full_like(x, z)], -1).reshape(-1, 3)
+    b, c, d = a + [1, 0, 0], a + [1, 1, 0], a + [0, 1, 0]
+    return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.float32)
+
+
+def test_watertight_at_shared_edges_and_vertices(gpu):
+    """Rays aimed exactly at shared vertices and edges of a grid, from random directions, must not
+    slip through."""
+    triangles = _grid()
+    ticks = np.arange(1, 7.01, 0.5)      # interior vertices and midpoints of the axis-aligned edges
+    x, y = np.meshgrid(ticks, ticks, indexing="ij")
+    on_grid_lines = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], 1)
+    cells, fractions = np.meshgrid(np.arange(1, 7), [0.125, 0.25, 0.5, 0.75], indexing="ij")
+    on_diagonals = np.stack([(cells + fractions).ravel(), (cells + fractions).ravel(), np.zeros(cells.size)], 1)
+    targets = np.concatenate([on_grid_lines, on_diagonals])
+    rng = np.random.default_rng(3)
+    origins = targets + np.column_stack([rng.uniform(-1, 1, (len(targets), 2)), np.full(len(targets), 2.0)])
+    geometry = GeometryBuffers.build(triangle_scene(triangles))
+    hits, _ = RayQuery(gpu, geometry).intersect(query_rays(origins, targets - origins))
+    assert np.all(hits["prim"] != NO_HIT), f"{np.sum(hits['prim'] == NO_HIT)} rays leaked through the grid"
+    np.testing.assert_allclose(hits["t"], 1.0, rtol=1e-5)
+
+
+def test_axis_aligned_rays(gpu):
+    """Rays along ±x, ±y, ±z (zero direction components) through a closed cube and random triangles."""
+    rng = np.random.default_rng(4)
+    cube = trimesh.creation.box(extents=(1, 1, 1))
+    triangles = np.concatenate([cube.vertices[cube.faces], rng.uniform(-2, 2, (60, 3, 3))])
+    axes = np.concatenate([np.eye(3), -np.eye(3)])
+    dirs = axes[rng.integers(0, 6, 600)]
+    origins = rng.uniform(-2, 2, (600, 3))
+    hits, _ = check_against_brute_force(gpu, triangles, origins, dirs)
+    # Rays starting inside the cube must always hit it (it is closed).
+    inside = np.all(np.abs(origins) < 0.49, axis=1)
+    assert np.all(hits["prim"][inside] != NO_HIT)
+
+
+def test_grazing_rays(gpu):
+    """Rays in or almost in the grid's plane: exactly coplanar rays hit nothing; near-coplanar ones
+    hit where brute force says."""
+    triangles = _grid()
+    rng = np.random.default_rng(5)
+    origins = np.column_stack([rng.uniform(-1, 0, 400), rng.uniform(0.5, 7.5, 400), np.zeros(400)])
+    dirs = np.column_stack([np.ones(400), rng.uniform(-0.2, 0.2, 400), np.zeros(400)])
+    geometry = GeometryBuffers.build(triangle_scene(triangles))
+    query = RayQuery(gpu, geometry)
+    hits, _ = query.intersect(query_rays(origins, dirs))
+    assert np.all(hits["prim"] == NO_HIT), "a ray inside the plane of a triangle must not hit it"
+    origins[:, 2] = 1e-3
+    dirs[:, 2] = -rng.uniform(1e-4, 1e-3, 400)
+    check_against_brute_force(gpu, triangles, origins, dirs)
+
+
+def test_degenerate_triangles_never_hit(gpu):
+    rng = np.random.default_rng(6)
+    good = rng.uniform(-1, 1, (100, 3, 3))
+    line = rng.uniform(-1, 1, (100, 1, 3)) + rng.uniform(0, 1, (100, 3, 1)) * rng.uniform(-1, 1, (100, 1, 3))
+    point = np.repeat(rng.uniform(-1, 1, (100, 1, 3)), 3, axis=1)
+    triangles = np.concatenate([good, line, point])
+    origins = rng.uniform(-2, 2, (512, 3))
+    dirs = rng.uniform(-1, 1, (512, 3)) - origins
+    hits, geometry = check_against_brute_force(gpu, triangles, origins, dirs)
+    hit_prims = hits["prim"][hits["prim"] != NO_HIT]
+    area = np.linalg.norm(np.cross(geometry.triangles[:, 1] - geometry.triangles[:, 0],
+                                   geometry.triangles[:, 2] - geometry.triangles[:, 0]), axis=1)
+    assert len(hit_prims) > 50 and np.all(area[hit_prims] > 1e-6)
+
+
+def test_rays_leaving_surfaces(gpu):
+    """Rays spawned on surfaces through offset_ray_origin (bvh.wgsl) hit what brute force from the
+    offset origin hits, never their own triangle at t ≈ 0."""
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    triangles = np.concatenate([sphere.vertices[sphere.faces], sphere.vertices[sphere.faces] * 0.3 + [0.2, 0, 0]])
+    rng = np.random.default_rng(7)
+    start = rng.integers(0, len(triangles), 500)
+    weights = rng.dirichlet([4, 4, 4], 500)
+    points = np.einsum("nk,nkj->nj", weights, triangles[start])
+    normals = np.cross(triangles[start, 1] - triangles[start, 0], triangles[start, 2] - triangles[start, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    dirs = rng.normal(size=(500, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    dirs[np.abs(np.sum(dirs * normals, axis=1)) < 0.05] = normals[np.abs(np.sum(dirs * normals, axis=1)) < 0.05]
+    geometry = GeometryBuffers.build(triangle_scene(triangles))
+    hits, _ = RayQuery(gpu, geometry).intersect(query_rays(points, dirs, offset_normals=normals))
+    side = np.where(np.sum(normals * dirs, axis=1, keepdims=True) >= 0, normals, -normals)
+    offset = side * 1e-5 * np.maximum(np.abs(points).max(axis=1, keepdims=True), 1.0)   # bvh.wgsl's rule
+    t_ref, prim_ref, ambiguous = brute_force(geometry.triangles, points + offset, dirs)
+    clear = ~ambiguous
+    assert clear.mean() > 0.9
+    ours = hits["prim"] != NO_HIT
+    np.testing.assert_array_equal(ours[clear], (prim_ref >= 0)[clear])
+    both = clear & (prim_ref >= 0)
+    np.testing.assert_array_equal(hits["prim"][both], prim_ref[both], "a spawned ray re-hit its own surface?")
+    np.testing.assert_allclose(hits["t"][both], t_ref[both], rtol=1e-4, atol=1e-5)
+
+
+def test_surface_attributes_at_hits(gpu):
+    """Material/object ids, interpolated shading normals and object motion reported at GPU hits."""
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    smooth = Mesh("ball", np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32), "metal",
+                  normals=np.asarray(sphere.vertex_normals, np.float32))
+    flat = Mesh("slab", np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32), "chalk")
+    flat.keyframes = {0: np.eye(4, dtype=np.float32),
+                      1: np.array([[1, 0, 0, 3], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], np.float32)}
+    flat.transform = flat.keyframes[1]
+    scene = Scene(Camera([0, 0, 5], [0, 0, 0]), [smooth, flat],
+                  {"chalk": Material(), "metal": Material("conductor", roughness=0.1)}, frame_count=2)
+    geometry = GeometryBuffers.build(scene, frame=1)
+    rng = np.random.default_rng(8)
+    targets = np.concatenate([rng.normal(0, 0.3, (100, 3)), rng.normal(0, 0.3, (100, 3)) + [3, 0, 0]])
+    origins = targets + [0, 0, 5]
+    hits, surfaces = RayQuery(gpu, geometry).intersect(query_rays(origins, targets - origins))
+    hit = hits["prim"] != NO_HIT
+    assert hit.sum() > 150
+    prim = hits["prim"][hit]
+    np.testing.assert_array_equal(surfaces["material"][hit], geometry.material_ids[prim])
+    np.testing.assert_array_equal(surfaces["object"][hit], geometry.object_ids[prim])
+    on_ball = surfaces["object"][hit] == 0
+    assert np.all(surfaces["material"][hit][on_ball] == 1) and np.all(surfaces["material"][hit][~on_ball] == 0)
+    u, v = hits["u"][hit], hits["v"][hit]
+    expected = np.einsum("nk,nkj->nj", np.stack([1 - u - v, u, v], 1), geometry.shading_normals[prim])
+    expected /= np.linalg.norm(expected, axis=1, keepdims=True)
+    np.testing.assert_allclose(surfaces["shading_normal"][hit], expected, atol=1e-5)
+    position = origins[hit] + (targets - origins)[hit] * hits["t"][hit][:, None]
+    previous = position - np.where(on_ball[:, None], 0.0, [3.0, 0, 0])
+    np.testing.assert_allclose(surfaces["previous_position"][hit], previous, atol=1e-4)
+
+
+def test_bunny_traversal(gpu):
+    if not BUNNY.exists():
+        pytest.skip(f"{BUNNY} not present")
+    mesh = trimesh.load(BUNNY, force="mesh", process=False)
+    triangles = np.asarray(mesh.vertices, np.float32)[mesh.faces]
+    check_structure(triangles, build_bvh(triangles))
+    rng = np.random.default_rng(9)
+    center, size = triangles.reshape(-1, 3).mean(0), np.ptp(triangles.reshape(-1, 3), 0).max()
+    origins = center + rng.normal(0, size, (64, 3))
+    dirs = center + rng.normal(0, size * 0.2, (64, 3)) - origins
+    check_against_brute_force(gpu, triangles, origins, dirs, min_clear=0.85)

@@ -1,0 +1,389 @@
+"""Scene layer: built-in scenes (cornell against Mitsuba 3), scene files, mesh files, errors,
+GeometryBuffers, and the Mitsuba converter."""
+
+import json
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from wgpu_rt.errors import DeviceLimitError, SceneError
+from wgpu_rt.gpu import GpuContext
+from wgpu_rt.scene import BUILTIN_SCENES, Scene, load_scene
+from wgpu_rt.scene.geometry import GeometryBuffers, scene_material_names
+from wgpu_rt.scene.transforms import transform_points
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = sorted((ROOT / "examples").glob("*.json")) + sorted((ROOT / "examples").glob("*.toml"))
+
+
+def canonical_triangles(triangles, decimals=5):
+    """Triangles as a sorted list, each rotated to start at its smallest vertex (winding kept)."""
+    out = []
+    for tri in np.round(np.asarray(triangles, np.float64), decimals) + 0.0:
+        start = min(range(3), key=lambda i: tuple(tri[i]))
+        out.append(tuple(map(tuple, np.roll(tri, -start, axis=0))))
+    return sorted(out)
+
+
+def world_triangles(scene, frame=0):
+    return {m.name: transform_points(m.transform_at(frame), m.vertices)[m.faces.astype(np.int64)]
+            for m in scene.meshes}
+
+
+# -- built-in scenes ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", [n for n in BUILTIN_SCENES if n != "mesh"])
+def test_builtin_scenes_build(name):
+    scene = load_scene(name)
+    geometry = GeometryBuffers.build(scene, frame=scene.frame_count - 1)
+    assert geometry.triangle_count > 0 and np.all(np.isfinite(geometry.triangles))
+    assert np.allclose(np.linalg.norm(geometry.shading_normals, axis=2), 1, atol=1e-5)
+    assert any(m.is_emissive for m in scene.materials.values()) or scene.lights
+
+
+def test_moving_scene_moves():
+    scene = load_scene("moving")
+    assert scene.frame_count >= 16 and scene.has_motion
+    first, last = scene.camera_at(0), scene.camera_at(scene.frame_count - 1)
+    assert not np.allclose(first.origin, last.origin)
+    moving = GeometryBuffers.build(scene, frame=5)
+    assert not np.allclose(moving.object_motion, np.eye(4)), "some object must move between frames"
+    assert np.allclose(GeometryBuffers.build(scene, frame=0).object_motion, np.eye(4))
+
+
+def test_sun_room_dynamic_range():
+    scene = load_scene("sun-room")
+    emission = max(float(m.emission.max()) for m in scene.materials.values())
+    assert emission >= 1e4
+
+
+def test_mesh_scene_needs_and_fits_a_mesh(tmp_path):
+    with pytest.raises(SceneError, match="needs a mesh file"):
+        load_scene("mesh")
+    path = tmp_path / "big.obj"
+    trimesh.creation.box(extents=(50, 20, 10)).export(path)
+    scene = load_scene("mesh", mesh=path)
+    world = world_triangles(scene)["big"].reshape(-1, 3)
+    assert np.isclose(world[:, 1].min(), -1, atol=1e-5), "the mesh stands on the floor"
+    assert np.ptp(world, axis=0).max() <= 1.2 + 1e-5
+
+
+def test_load_scene_dispatch(tmp_path):
+    scene = load_scene("cornell")
+    assert load_scene(scene) is scene
+    with pytest.raises(SceneError, match="neither a built-in scene"):
+        load_scene("no-such-scene")
+    with pytest.raises(SceneError, match="missing.json: scene file not found"):
+        load_scene(tmp_path / "missing.json")
+
+
+# -- cornell against Mitsuba 3 ----------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def mi():
+    mitsuba = pytest.importorskip("mitsuba")
+    mitsuba.set_variant("scalar_rgb")
+    return mitsuba
+
+
+def test_cornell_equals_mitsuba(mi):
+    reference = mi.load_dict(mi.cornell_box())
+    ours = load_scene("cornell")
+    theirs = {}
+    for shape in reference.shapes():
+        vertices = np.array(shape.vertex_positions_buffer()).reshape(-1, 3)
+        faces = np.array(shape.faces_buffer()).reshape(-1, 3)
+        theirs[shape.id()] = (vertices[faces], shape)
+    ours_world = world_triangles(ours)
+    # Mitsuba merges shapes that share a BSDF; compare per BSDF colour and emitter.
+    all_theirs = canonical_triangles(np.concatenate([t for t, _ in theirs.values()]))
+    all_ours = canonical_triangles(np.concatenate(list(ours_world.values())))
+    assert all_theirs == all_ours
+    light_theirs = next(t for t, s in theirs.values() if s.emitter() is not None)
+    assert canonical_triangles(light_theirs) == canonical_triangles(ours_world["light"])
+    params = mi.traverse(reference)
+    radiance = next(np.array(params[k]) for k in params.keys() if k.endswith("emitter.radiance.value"))
+    np.testing.assert_allclose(ours.materials["light"].emission, radiance.ravel(), rtol=1e-6)
+    reflectances = sorted(tuple(np.round(np.array(params[k], np.float64).ravel(), 6)) for k in params.keys()
+                          if k.endswith("reflectance.value"))
+    ours_reflectances = sorted({tuple(np.round(m.reflectance.astype(np.float64), 6))
+                                for m in ours.materials.values()})
+    assert sorted(set(reflectances)) == ours_reflectances
+    sensor = mi.cornell_box()["sensor"]
+    to_world = np.array(sensor["to_world"].matrix)
+    camera = ours.camera
+    np.testing.assert_allclose(to_world[:3, 3], camera.origin, atol=1e-6)
+    right, up, forward = camera.basis()
+    np.testing.assert_allclose(to_world[:3, 2], forward, atol=1e-6)
+    np.testing.assert_allclose(to_world[:3, 1], up, atol=1e-6)
+    assert camera.fov == sensor["fov"] and camera.fov_axis == sensor["fov_axis"]
+
+
+def test_to_mitsuba_cornell_renders_like_mitsubas_own(mi):
+    from wgpu_rt.scene.mitsuba import to_mitsuba
+
+    size, spp = 16, 1024
+
+    def reference(seed):
+        scene = mi.cornell_box()
+        scene["sensor"]["film"].update(width=size, height=size, rfilter={"type": "box"})
+        scene["sensor"]["sampler"].update(sample_count=spp, seed=seed)
+        return np.array(mi.render(mi.load_dict(scene)))
+
+    converted = to_mitsuba(load_scene("cornell"), size, size, spp, max_depth=8, seed=1)
+    ours = np.array(mi.render(mi.load_dict(converted)))
+    first, second = reference(1), reference(2)
+    noise = np.abs(first - second).mean()
+    assert np.abs(ours - first).mean() < 1.5 * noise
+    np.testing.assert_allclose(ours.mean(axis=(0, 1)), first.mean(axis=(0, 1)), rtol=0.02)
+
+
+@pytest.mark.parametrize("spec", ["cornell-glossy", "sun-room", "moving", *map(str, EXAMPLES)])
+def test_to_mitsuba_converts_every_feature(mi, spec):
+    from wgpu_rt.scene.mitsuba import to_mitsuba
+
+    scene = load_scene(spec)
+    converted = to_mitsuba(scene, 8, 6, 2, max_depth=5, frame=scene.frame_count - 1, seed=3)
+    assert converted["integrator"] == {"type": "path", "max_depth": 5}
+    assert converted["sensor"]["film"]["rfilter"] == {"type": "box"}
+    image = np.array(mi.render(mi.load_dict(converted)))
+    assert image.shape == (6, 8, 3) and np.all(np.isfinite(image)) and image.max() > 0
+    loaded = mi.load_dict(converted)
+    assert len(loaded.emitters()) >= len(scene.lights) + sum(
+        scene.materials[m.material].is_emissive for m in scene.meshes)
+
+
+def test_to_mitsuba_material_mapping():
+    from wgpu_rt.scene.mitsuba import material_to_bsdf
+    from wgpu_rt.scene.model import Material
+
+    assert material_to_bsdf(Material("conductor", roughness=0.3))["type"] == "roughconductor"
+    assert material_to_bsdf(Material("conductor", roughness=0.3))["distribution"] == "ggx"
+    assert material_to_bsdf(Material("conductor"))["type"] == "conductor"
+    assert material_to_bsdf(Material("dielectric", ior=1.33))["int_ior"] == pytest.approx(1.33)
+    assert material_to_bsdf(Material("dielectric", roughness=0.1))["type"] == "roughdielectric"
+
+
+# -- scene files -------------------------------------------------------------------------------------
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
+def test_examples_load(path):
+    scene = load_scene(path)
+    assert isinstance(scene, Scene) and scene.meshes
+    GeometryBuffers.build(scene, frame=scene.frame_count - 1)
+
+
+def test_showroom_example_features():
+    scene = load_scene(ROOT / "examples" / "showroom.json")
+    assert scene.frame_count == 8 and scene.has_motion and len(scene.lights) == 2
+    pyramid = next(m for m in scene.meshes if m.name == "pyramid")
+    assert pyramid.normals is not None, "the OBJ's vertex normals are kept"
+    ball = next(m for m in scene.meshes if m.name == "ball")
+    np.testing.assert_allclose(ball.transform_at(7)[:3, 3], [0.45, -0.4, 0.2], atol=1e-6)
+    np.testing.assert_allclose(scene.camera_at(7).origin, [0.3, 0.2, 3.9], atol=1e-6)
+    np.testing.assert_allclose(scene.camera_at(7).target, [0, -0.2, 0], atol=1e-6)
+
+
+MINIMAL = {
+    "camera": {"origin": [0, 0, 3], "target": [0, 0, 0]},
+    "materials": {"white": {"reflectance": 0.8}, "lamp": {"emission": [5, 5, 5]}},
+    "meshes": [{"shape": "cube", "material": "white"},
+               {"shape": "rectangle", "material": "lamp", "transform": {"translate": [0, 2, 0]}},
+               {"shape": "sphere", "material": "white"}],
+}
+
+
+def write_json(tmp_path, data, name="scene.json"):
+    path = tmp_path / name
+    path.write_text(json.dumps(data))
+    return path
+
+
+def test_json_and_toml_agree(tmp_path):
+    toml = """
+[camera]
+origin = [0, 0, 3]
+target = [0, 0, 0]
+[materials.white]
+reflectance = 0.8
+[materials.lamp]
+emission = [5, 5, 5]
+[[meshes]]
+shape = "cube"
+material = "white"
+[[meshes]]
+shape = "rectangle"
+material = "lamp"
+transform = { translate = [0, 2, 0] }
+[[meshes]]
+shape = "sphere"
+material = "white"
+"""
+    (tmp_path / "scene.toml").write_text(toml)
+    a, b = load_scene(write_json(tmp_path, MINIMAL)), load_scene(tmp_path / "scene.toml")
+    assert [m.name for m in a.meshes] == [m.name for m in b.meshes]
+    for x, y in zip(a.meshes, b.meshes):
+        np.testing.assert_array_equal(x.transform, y.transform)
+    assert a.materials.keys() == b.materials.keys()
+
+
+def test_transform_order_and_matrix(tmp_path):
+    data = json.loads(json.dumps(MINIMAL))
+    data["meshes"][0]["transform"] = {"translate": [1, 2, 3], "rotate": {"axis": [0, 0, 1], "angle": 90},
+                                      "scale": [2, 1, 1]}
+    scene = load_scene(write_json(tmp_path, data))
+    # scale first: (1,0,0) → (2,0,0); then rotate 90° about z → (0,2,0); then translate.
+    np.testing.assert_allclose(transform_points(scene.meshes[0].transform, [[1, 0, 0]]), [[1, 4, 3]], atol=1e-6)
+    matrix = np.array(scene.meshes[0].transform, float).tolist()
+    data["meshes"][0]["transform"] = {"matrix": matrix}
+    np.testing.assert_allclose(load_scene(write_json(tmp_path, data)).meshes[0].transform, matrix, atol=1e-7)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["meshes"].append({"shape": "cube", "material": "gold"}),
+     "scene.json: meshes[3].material: unknown material 'gold'"),
+    (lambda d: d["camera"].update(fov="wide"), "scene.json: camera.fov: expected a number, got 'wide'"),
+    (lambda d: d.update(colour=[1, 2, 3]), "scene.json: (top level): unknown key 'colour'"),
+    (lambda d: d["materials"]["white"].update(shine=1), "scene.json: materials.white: unknown key 'shine'"),
+    (lambda d: d["materials"]["white"].update(kind="plastic"), "scene.json: materials.white.kind: expected one of"),
+    (lambda d: d["materials"]["white"].update(roughness=3), "scene.json: materials.white: roughness must be in"),
+    (lambda d: d["meshes"][0].update(transform={"matrix": [[1, 0], [0, 1]]}),
+     "scene.json: meshes[0].transform.matrix: expected a 4×4"),
+    (lambda d: d["meshes"][0].update(transform={"translate": [1, 2]}),
+     "scene.json: meshes[0].transform.translate: expected a list of 3 numbers"),
+    (lambda d: d["meshes"][0].update(transform={"rotate": {"axis": [0, 1, 0]}}),
+     r"scene.json: meshes\[0\].transform.rotate\[0\].angle: required field is missing"),
+    (lambda d: d["meshes"][1].update(file="x.obj"), r"scene.json: meshes\[1\]: give exactly one of 'file'"),
+    (lambda d: d["meshes"][2].update(shape="torus"), r"scene.json: meshes\[2\].shape: expected one of"),
+    (lambda d: d["meshes"][0].update(keyframes=[{"frame": -1}]), r"meshes\[0\].keyframes\[0\].frame: frames are"),
+    (lambda d: d["camera"].update(keyframes=[{"frame": 2, "origni": [0, 0, 1]}]),
+     r"camera.keyframes\[0\]: unknown key 'origni'"),
+    (lambda d: d.pop("camera"), "scene.json: camera: required field is missing"),
+    (lambda d: d["camera"].update(up=[0, 0, 1]), "scene.json: camera.up: up must not be parallel"),
+    (lambda d: d.update(lights=[{"type": "spot"}]), r"scene.json: lights\[0\].type: expected one of"),
+    (lambda d: d.update(lights=[{"type": "point", "position": [0, 0, 0], "intensity": True}]),
+     r"scene.json: lights\[0\].intensity: expected a number or a list of 3 numbers"),
+    (lambda d: d.update(meshes="cube"), "scene.json: meshes: expected a list"),
+    (lambda d: d.update(frame_count=0), "scene.json: frame_count: expected at least 1 frame"),
+])
+def test_scene_file_errors_name_file_and_field(tmp_path, edit, message):
+    data = json.loads(json.dumps(MINIMAL))
+    edit(data)
+    with pytest.raises(SceneError, match=message if "\\" in message else message.replace("(", r"\(")
+                       .replace(")", r"\)").replace("[", r"\[").replace("]", r"\]")):
+        load_scene(write_json(tmp_path, data))
+
+
+def test_exact_error_message_for_unknown_material(tmp_path):
+    data = json.loads(json.dumps(MINIMAL))
+    data["meshes"][2]["material"] = "gold"
+    path = write_json(tmp_path, data)
+    with pytest.raises(SceneError) as caught:
+        load_scene(path)
+    assert str(caught.value) == f"{path}: meshes[2].material: unknown material 'gold'"
+
+
+def test_unparsable_files(tmp_path):
+    (tmp_path / "bad.json").write_text("{ not json")
+    with pytest.raises(SceneError, match="bad.json: cannot parse"):
+        load_scene(tmp_path / "bad.json")
+    (tmp_path / "bad.toml").write_text("[camera\norigin = ")
+    with pytest.raises(SceneError, match="bad.toml: cannot parse"):
+        load_scene(tmp_path / "bad.toml")
+
+
+# -- mesh files ---------------------------------------------------------------------------------------
+def scene_with_mesh(tmp_path, file):
+    data = json.loads(json.dumps(MINIMAL))
+    data["meshes"][0] = {"file": file, "material": "white"}
+    return write_json(tmp_path, data)
+
+
+@pytest.mark.parametrize("content, message", [
+    (None, "mesh file not found"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", "face index out of range"),
+    ("v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "NaN or infinite"),
+    ("v 0 0 0\nv 1 0 0\n", "no triangles"),
+])
+def test_bad_mesh_files(tmp_path, content, message):
+    name = "missing.obj" if content is None else "mesh.obj"
+    if content is not None:
+        (tmp_path / name).write_text(content)
+    with pytest.raises(SceneError, match=f"scene.json: meshes\\[0\\].file: .*{name}.*{message}"):
+        load_scene(scene_with_mesh(tmp_path, name))
+
+
+def test_malformed_binary_mesh(tmp_path):
+    (tmp_path / "mesh.glb").write_bytes(b"glTF\x02\x00\x00\x00garbage")
+    with pytest.raises(SceneError, match="mesh.glb: cannot read mesh file"):
+        load_scene(scene_with_mesh(tmp_path, "mesh.glb"))
+
+
+def test_ply_and_multi_geometry_glb(tmp_path):
+    box = trimesh.creation.box(extents=(1, 1, 1))
+    box.export(tmp_path / "box.ply")
+    scene = load_scene(scene_with_mesh(tmp_path, "box.ply"))
+    assert canonical_triangles(world_triangles(scene)["box"]) == canonical_triangles(box.vertices[box.faces])
+
+    group = trimesh.Scene()
+    lift = np.eye(4)
+    lift[:3, 3] = [0, 5, 0]
+    group.add_geometry(box, node_name="low")
+    group.add_geometry(trimesh.creation.icosphere(subdivisions=1), node_name="high", transform=lift)
+    group.export(tmp_path / "group.glb", include_normals=True)
+    scene = load_scene(scene_with_mesh(tmp_path, "group.glb"))
+    parts = [m for m in scene.meshes if m.name.startswith("group/")]
+    assert len(parts) == 2
+    reference = group.to_mesh() if hasattr(group, "to_mesh") else group.dump(concatenate=True)
+    ours = np.concatenate([world_triangles(scene)[m.name] for m in parts])
+    assert canonical_triangles(ours, 4) == canonical_triangles(reference.vertices[reference.faces], 4)
+    sphere = next(m for m in parts if len(m.faces) != 12)
+    assert sphere.normals is not None, "glTF vertex normals are kept"
+
+
+# -- geometry buffers ---------------------------------------------------------------------------------
+def test_geometry_ids_and_order():
+    scene = load_scene("cornell")
+    geometry = GeometryBuffers.build(scene)
+    names = scene_material_names(scene)
+    assert names == list(scene.materials)
+    # Every triangle keeps its own mesh's material and its world position.
+    for object_id, mesh in enumerate(scene.meshes):
+        ours = geometry.triangles[geometry.object_ids == object_id]
+        assert canonical_triangles(ours) == canonical_triangles(world_triangles(scene)[mesh.name])
+        assert set(geometry.material_ids[geometry.object_ids == object_id]) == {names.index(mesh.material)}
+    # Triangles are in BVH leaf order.
+    np.testing.assert_array_equal(geometry.triangles,
+                                  np.concatenate(list(world_triangles(scene).values()))[geometry.bvh.order])
+    nodes, positions, attributes, motion = geometry.packed_arrays()
+    assert nodes.itemsize == 32 and positions.nbytes == 48 * geometry.triangle_count
+    assert attributes.nbytes == 48 * geometry.triangle_count and motion.nbytes == 64 * len(scene.meshes)
+
+
+def test_unknown_material_in_programmatic_scene():
+    scene = load_scene("cornell")
+    scene.meshes[3].material = "gold"
+    with pytest.raises(SceneError, match="mesh 'back': unknown material 'gold'"):
+        GeometryBuffers.build(scene)
+
+
+def test_device_limit_names_the_buffer():
+    fake = GpuContext(adapter=types.SimpleNamespace(summary="tiny test device"), device=None)
+    geometry = GeometryBuffers.build(load_scene("cornell-glossy"))
+    nodes_bytes = geometry.packed_arrays()[0].nbytes       # the nodes fit, the 48-byte triangles do not
+    fake.__dict__["limits"] = {"max-storage-buffer-binding-size": nodes_bytes, "max-buffer-size": 1 << 30}
+    with pytest.raises(DeviceLimitError, match="triangle positions .*max-storage-buffer-binding-size.*tiny test"):
+        geometry.upload(fake)
+
+
+def test_documented_examples_load(tmp_path):
+    """The JSON and TOML examples in docs/scene-format.md stay valid."""
+    import re
+    import shutil
+
+    text = (ROOT / "docs" / "scene-format.md").read_text()
+    shutil.copytree(ROOT / "examples" / "meshes", tmp_path / "meshes")
+    for suffix in ("json", "toml"):
+        block = re.search(rf"```{suffix}\n(.*?)```", text, re.S).group(1)
+        (tmp_path / f"doc.{suffix}").write_text(block)
+        assert load_scene(tmp_path / f"doc.{suffix}").name == "showroom"

@@ -1,0 +1,190 @@
+"""Binned SAH BVH over triangles, built level by level with vectorized numpy.
+
+Every level of the tree is processed at once: the triangles of all nodes still to split are gathered,
+binned along each axis (``BINS`` bins over the centroid bounds, bin bounds via ``np.minimum.at``), and
+the surface area heuristic picks, per node, the cheapest axis and bin boundary (or a leaf, when the SAH
+says a leaf is cheaper and it holds at most ``MAX_LEAF_SIZE`` triangles). Triangles are partitioned
+stably in place with cumulative sums, so the cost per level is O(triangles) with no Python loop over
+nodes or triangles. Nodes whose centroids all coincide (duplicates, degenerate input) are split at the
+middle of their range; nodes at depth ``MAX_DEPTH`` become leaves, which bounds the traversal stack in
+wgsl/bvh.wgsl (``BVH_STACK_SIZE``; a test checks they agree).
+
+Flattened layout, 32 bytes per node (``NODE_DTYPE``), root at 0, the two children of a node adjacent:
+``lo`` (3 × f32), ``first`` (u32), ``hi`` (3 × f32), ``count`` (u32). ``count == 0`` marks an interior
+node whose children are ``first`` and ``first + 1``; otherwise the node is a leaf over triangles
+``first .. first + count`` of the reordered triangle list (``Bvh.order`` maps them to input indices).
+Zero-area triangles keep their (flat) bounds and are simply never hit by the watertight test.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+BINS = 16
+MAX_LEAF_SIZE = 8
+MAX_DEPTH = 32
+TRAVERSAL_COST = 2.0      # one node visit (two box tests) relative to one ray/triangle test
+NODE_DTYPE = np.dtype([("lo", "<f4", 3), ("first", "<u4"), ("hi", "<f4", 3), ("count", "<u4")])
+
+
+@dataclass
+class Bvh:
+    nodes: np.ndarray       # (M,) NODE_DTYPE
+    order: np.ndarray       # (T,) input triangle index of each leaf slot
+
+    @property
+    def node_count(self) -> int:
+        return len(self.nodes)
+
+    @property
+    def leaf_sizes(self) -> np.ndarray:
+        return self.nodes["count"][self.nodes["count"] > 0]
+
+    def depth(self) -> int:
+        """Number of levels from the root to the deepest leaf (a single leaf has depth 1)."""
+        level, depth = np.array([0]), 0
+        while len(level):
+            depth += 1
+            interior = level[self.nodes["count"][level] == 0]
+            first = self.nodes["first"][interior].astype(np.int64)
+            level = np.concatenate([first, first + 1])
+        return depth
+
+
+def _surface_area(lo: np.ndarray, hi: np.ndarray, axis: int = -1) -> np.ndarray:
+    """Surface areas of boxes whose x, y, z run along ``axis`` (empty boxes, lo > hi, give 0)."""
+    x, y, z = np.moveaxis(np.maximum(hi - lo, 0.0), axis, 0)
+    return 2.0 * (x * y + y * z + z * x)
+
+
+def _segment_index(starts: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For segments [start, start + count): every position, and which segment it belongs to."""
+    segment = np.repeat(np.arange(len(counts)), counts)
+    offsets = np.cumsum(counts) - counts
+    return starts[segment] + (np.arange(int(counts.sum())) - offsets[segment]), segment
+
+
+# Bins per node by triangle count: (more than, at most, bins). Small nodes need few bins, and most nodes
+# are small, so this keeps the per-level tables near the triangle count in size. Nodes with at most
+# TRAVERSAL_COST triangles are never binned: no split can beat their leaf cost.
+BIN_COUNTS = ((32, np.iinfo(np.int64).max, BINS), (8, 32, 8), (int(TRAVERSAL_COST), 8, 4))
+
+
+def _sah_costs(bounds, segment, counts, c_lo, c_hi, bins):
+    """SAH cost (3, bins - 1, nodes) of every bin boundary of every axis, and each triangle's bin
+    (n, 3). ``bounds`` is (9, n): lo, hi and centroid rows of the nodes' triangles. Tables are
+    bins-major so the prefix scans run as ``bins`` vector operations."""
+    nodes_here = len(counts)
+    extent = c_hi - c_lo
+    bin_scale = np.where(extent > 0, bins * (1 - 1e-6) / np.where(extent > 0, extent, 1), 0.0).astype(np.float32)
+    prim_bins = ((bounds[6:9] - c_lo.T[:, segment]) * bin_scale.T[:, segment]).astype(np.int32)
+    np.clip(prim_bins, 0, bins - 1, out=prim_bins)
+    costs = np.empty((3, bins - 1, nodes_here), np.float32)
+    prim_lo, prim_hi = bounds[0:3], bounds[3:6]
+    for axis in range(3):
+        key = prim_bins[axis] * nodes_here + segment
+        bin_count = np.bincount(key, minlength=nodes_here * bins).reshape(bins, nodes_here)
+        bin_lo = np.full((3, bins * nodes_here), np.inf, np.float32)
+        bin_hi = np.full((3, bins * nodes_here), -np.inf, np.float32)
+        for component in range(3):   # 1-D ufunc.at takes numpy's fast path
+            np.minimum.at(bin_lo[component], key, prim_lo[component])
+            np.maximum.at(bin_hi[component], key, prim_hi[component])
+        bin_lo, bin_hi = bin_lo.reshape(3, bins, nodes_here), bin_hi.reshape(3, bins, nodes_here)
+        n_left = np.cumsum(bin_count, axis=0)[:-1]
+        n_right = counts[None, :] - n_left
+        area_left = _surface_area(np.minimum.accumulate(bin_lo, axis=1), np.maximum.accumulate(bin_hi, axis=1), 0)[:-1]
+        area_right = _surface_area(np.minimum.accumulate(bin_lo[:, ::-1], axis=1),
+                                   np.maximum.accumulate(bin_hi[:, ::-1], axis=1), 0)[::-1][1:]
+        cost = area_left * n_left + area_right * n_right      # empty sides give 0 · 0
+        costs[axis] = np.where((n_left > 0) & (n_right > 0), cost, np.inf)
+    return costs, prim_bins
+
+
+def build_bvh(triangles: np.ndarray) -> Bvh:
+    """The BVH of ``triangles`` (T, 3, 3) float32 world-space vertices (T ≥ 1)."""
+    triangles = np.asarray(triangles, np.float32)
+    count = len(triangles)
+    if count == 0:
+        raise ValueError("cannot build a BVH over zero triangles")
+    tri_lo, tri_hi = triangles.min(axis=1), triangles.max(axis=1)
+    # Per triangle lo, hi, centroid as rows: one gather per level fetches everything binning needs.
+    tri_bounds = np.concatenate([tri_lo.T, tri_hi.T, ((tri_lo + tri_hi) * 0.5).T])
+    order = np.arange(count, dtype=np.int64)
+    capacity = 2 * count
+    node_lo = np.zeros((capacity, 3), np.float32)
+    node_hi = np.zeros((capacity, 3), np.float32)
+    node_first = np.zeros(capacity, np.int64)
+    node_count = np.zeros(capacity, np.int64)
+    # Nodes still to process: their triangle range in ``order`` and their node index.
+    starts, counts, nodes = np.array([0]), np.array([count]), np.array([0])
+    node_total, depth = 1, 0
+    while len(nodes):
+        positions, segment = _segment_index(starts, counts)
+        prims = order[positions]
+        bounds = tri_bounds[:, prims]
+        offsets = np.cumsum(counts) - counts
+        lo = np.minimum.reduceat(bounds[0:3], offsets, axis=1).T
+        hi = np.maximum.reduceat(bounds[3:6], offsets, axis=1).T
+        node_lo[nodes], node_hi[nodes] = lo, hi
+        c_lo = np.minimum.reduceat(bounds[6:9], offsets, axis=1).T
+        c_hi = np.maximum.reduceat(bounds[6:9], offsets, axis=1).T
+
+        nodes_here = len(nodes)
+        best_cost = np.full(nodes_here, np.inf)
+        best_axis = np.zeros(nodes_here, np.int64)
+        best_split = np.zeros(nodes_here, np.int64)       # triangles in bins >= best_split go right
+        prim_bin = np.zeros(len(prims), np.int64)          # each triangle's bin along its node's best axis
+        for above, at_most, bins in BIN_COUNTS:
+            group = (counts > above) & (counts <= at_most)
+            if not np.any(group):
+                continue
+            in_group = group[segment]
+            local_segment = (np.cumsum(group) - 1)[segment[in_group]]
+            costs, chosen_bins = _sah_costs(bounds[:, in_group], local_segment, counts[group], c_lo[group],
+                                            c_hi[group], bins)
+            flat = costs.reshape(-1, int(group.sum()))
+            best = np.argmin(flat, axis=0)
+            best_cost[group] = flat[best, np.arange(flat.shape[1])]
+            best_axis[group], best_split[group] = best // (bins - 1), best % (bins - 1) + 1
+            prim_bin[in_group] = chosen_bins[best_axis[group][local_segment], np.arange(len(local_segment))]
+        node_area = _surface_area(lo.astype(np.float64), hi.astype(np.float64))
+        split_cost = TRAVERSAL_COST + best_cost / np.where(node_area > 0, node_area, 1.0)
+        has_split = np.isfinite(best_cost)
+        must_split = counts > MAX_LEAF_SIZE
+        split = (must_split | (has_split & (split_cost < counts))) & (counts > 1) & (depth < MAX_DEPTH - 1)
+        median = split & ~has_split
+
+        leaves = ~split
+        node_first[nodes[leaves]], node_count[nodes[leaves]] = starts[leaves], counts[leaves]
+        if not np.any(split):
+            break
+        # Stable partition of each splitting node's range: left side first.
+        in_split = split[segment]
+        local = positions - starts[segment]
+        goes_right = np.where(median[segment], local >= counts[segment] // 2,
+                              prim_bin >= best_split[segment])
+        goes_right, seg, pos, prim = goes_right[in_split], segment[in_split], positions[in_split], prims[in_split]
+        right_before = np.cumsum(goes_right) - goes_right
+        split_counts = np.where(split, counts, 0)
+        first_of_segment = (np.cumsum(split_counts) - split_counts)[seg]   # where seg's range starts here
+        right_rank = right_before - right_before[first_of_segment]
+        left_rank = (pos - starts[seg]) - right_rank
+        n_left_all = np.bincount(seg, weights=~goes_right, minlength=nodes_here).astype(np.int64)
+        order[np.where(goes_right, starts[seg] + n_left_all[seg] + right_rank, starts[seg] + left_rank)] = prim
+
+        parents = nodes[split]
+        children = node_total + 2 * np.arange(len(parents))
+        node_first[parents], node_count[parents] = children, 0
+        node_total += 2 * len(parents)
+        n_left = n_left_all[split]
+        starts = np.concatenate([starts[split], starts[split] + n_left])
+        counts = np.concatenate([n_left, counts[split] - n_left])
+        nodes = np.concatenate([children, children + 1])
+        depth += 1
+
+    packed = np.zeros(node_total, NODE_DTYPE)
+    packed["lo"], packed["hi"] = node_lo[:node_total], node_hi[:node_total]
+    packed["first"], packed["count"] = node_first[:node_total], node_count[:node_total]
+    return Bvh(packed, order)

@@ -1,0 +1,161 @@
+"""The built-in scenes, by name (``BUILTIN_SCENES``; ``builtin_scene(name, mesh=None)`` builds one).
+
+- ``cornell``: Mitsuba 3's ``mi.cornell_box()`` exactly: same rectangles and cubes, transforms,
+  reflectances, one-sided emitter (radiance 18.387, 13.9873, 6.75357) over a white diffuse BSDF, camera.
+- ``cornell-glossy``: the same box; the tall box is rough gold (GGX, alpha 0.2) and the short box is
+  replaced by a glass sphere (IOR 1.5).
+- ``sun-room``: a dark room lit by one tiny, very bright source (radiance 5·10⁴), so images span about
+  nine orders of magnitude: a hot spot, a sunlit floor, and a box that opens away from the light, whose
+  inside sees light only after several dark bounces (~10⁻⁴).
+- ``mesh``: any mesh file (``mesh=PATH``), centred, scaled to fit and set on the floor of a lit room.
+- ``moving``: the Cornell box over 16 frames: the camera orbits slightly and the short box slides and
+  turns, for temporal filtering and motion vectors.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneError
+from .meshio import load_mesh_file
+from .model import Camera, Material, Mesh, Scene
+from .primitives import primitive
+from .transforms import compose, rotate, scale, translate
+
+CORNELL_WHITE = (0.885809, 0.698859, 0.666422)
+CORNELL_GREEN = (0.105421, 0.37798, 0.076425)
+CORNELL_RED = (0.570068, 0.0430135, 0.0443706)
+CORNELL_LIGHT_RADIANCE = (18.387, 13.9873, 6.75357)
+GOLD_ETA = (0.143119, 0.374957, 1.44248)     # Mitsuba's 'Au' conductor data at its RGB wavelengths
+GOLD_K = (3.98316, 2.38572, 1.60322)
+
+
+def shape(name: str, kind: str, material: str, transform) -> Mesh:
+    """A built-in primitive (see primitives.py) placed by ``transform``."""
+    vertices, faces, normals = primitive(kind)
+    return Mesh(name, vertices, faces, material, normals=normals, transform=np.asarray(transform, np.float32))
+
+
+def _cornell_camera() -> Camera:
+    return Camera(origin=[0, 0, 3.9], target=[0, 0, 0], up=[0, 1, 0], fov=39.3077, fov_axis="smaller")
+
+
+def _cornell_room() -> tuple[dict[str, Material], list[Mesh]]:
+    """Materials and the six rectangles (light, floor, ceiling, back, side walls) of mi.cornell_box()."""
+    materials = {
+        "white": Material("diffuse", reflectance=CORNELL_WHITE),
+        "green": Material("diffuse", reflectance=CORNELL_GREEN),
+        "red": Material("diffuse", reflectance=CORNELL_RED),
+        "light": Material("diffuse", reflectance=CORNELL_WHITE, emission=CORNELL_LIGHT_RADIANCE),
+    }
+    meshes = [
+        shape("light", "rectangle", "light",
+              compose(translate([0, 0.99, 0.01]), rotate([1, 0, 0], 90), scale([0.23, 0.19, 0.19]))),
+        shape("floor", "rectangle", "white", compose(translate([0, -1, 0]), rotate([1, 0, 0], -90))),
+        shape("ceiling", "rectangle", "white", compose(translate([0, 1, 0]), rotate([1, 0, 0], 90))),
+        shape("back", "rectangle", "white", compose(translate([0, 0, -1]))),
+        shape("green-wall", "rectangle", "green", compose(translate([1, 0, 0]), rotate([0, 1, 0], -90))),
+        shape("red-wall", "rectangle", "red", compose(translate([-1, 0, 0]), rotate([0, 1, 0], 90))),
+    ]
+    return materials, meshes
+
+
+SMALL_BOX = compose(translate([0.335, -0.7, 0.38]), rotate([0, 1, 0], -17), scale(0.3))
+LARGE_BOX = compose(translate([-0.33, -0.4, -0.28]), rotate([0, 1, 0], 18.25), scale([0.3, 0.61, 0.3]))
+
+
+def cornell() -> Scene:
+    materials, meshes = _cornell_room()
+    meshes += [shape("small-box", "cube", "white", SMALL_BOX), shape("large-box", "cube", "white", LARGE_BOX)]
+    return Scene(_cornell_camera(), meshes, materials, name="cornell")
+
+
+def cornell_glossy() -> Scene:
+    materials, meshes = _cornell_room()
+    materials["gold"] = Material("conductor", reflectance=1.0, roughness=0.2, eta=GOLD_ETA, k=GOLD_K)
+    materials["glass"] = Material("dielectric", ior=1.5, roughness=0.0)
+    meshes += [shape("glass-sphere", "sphere", "glass", compose(translate([0.335, -0.67, 0.38]), scale(0.33))),
+               shape("gold-box", "cube", "gold", LARGE_BOX)]
+    return Scene(_cornell_camera(), meshes, materials, name="cornell-glossy")
+
+
+def sun_room() -> Scene:
+    materials = {
+        "wall": Material("diffuse", reflectance=0.05),
+        "floor": Material("diffuse", reflectance=0.6),
+        "box": Material("diffuse", reflectance=0.05),
+        "sun": Material("diffuse", reflectance=0.0, emission=5e4),
+    }
+    meshes = [
+        # A 2 cm square sun near the ceiling's left corner, facing down and tilted toward the room.
+        shape("sun", "rectangle", "sun",
+              compose(translate([-0.85, 0.9, 0.2]), rotate([0, 0, 1], -35), rotate([1, 0, 0], 90), scale(0.01))),
+        shape("floor", "rectangle", "floor", compose(translate([0, -1, 0]), rotate([1, 0, 0], -90))),
+        shape("ceiling", "rectangle", "wall", compose(translate([0, 1, 0]), rotate([1, 0, 0], 90))),
+        shape("back", "rectangle", "wall", compose(translate([0, 0, -1]))),
+        shape("right-wall", "rectangle", "wall", compose(translate([1, 0, 0]), rotate([0, 1, 0], -90))),
+        shape("left-wall", "rectangle", "wall", compose(translate([-1, 0, 0]), rotate([0, 1, 0], 90))),
+        shape("pillar", "cube", "box", compose(translate([-0.2, -0.45, -0.1]), scale([0.12, 0.55, 0.12]))),
+    ]
+    # An open crate: four sides and a bottom, its opening toward the camera and away from the sun.
+    crate = [("crate-bottom", [0.5, -0.99, 0.25], [1, 0, 0], -90), ("crate-top", [0.5, -0.59, 0.25], [1, 0, 0], 90),
+             ("crate-left", [0.3, -0.79, 0.25], [0, 1, 0], 90), ("crate-right", [0.7, -0.79, 0.25], [0, 1, 0], -90),
+             ("crate-back", [0.5, -0.79, 0.05], [0, 1, 0], 0)]
+    for name, position, axis, degrees in crate:
+        meshes.append(shape(name, "rectangle", "box",
+                            compose(translate(position), rotate(axis, degrees), scale(0.2))))
+    return Scene(_cornell_camera(), meshes, materials, name="sun-room")
+
+
+def mesh_room(path) -> Scene:
+    """The Cornell room (without its boxes) with the mesh at ``path`` standing on the floor."""
+    if path is None:
+        raise SceneError("the 'mesh' scene needs a mesh file: load_scene('mesh', mesh=PATH) or --mesh PATH")
+    materials, meshes = _cornell_room()
+    materials["clay"] = Material("diffuse", reflectance=(0.7, 0.7, 0.7))
+    loaded = load_mesh_file(Path(path), material="clay")
+    lo = np.min([m.vertices.min(axis=0) for m in loaded], axis=0).astype(np.float64)
+    hi = np.max([m.vertices.max(axis=0) for m in loaded], axis=0).astype(np.float64)
+    size = float(np.max(hi - lo))
+    if not size > 0:
+        raise SceneError(f"{path}: the mesh has no extent (all vertices coincide)")
+    fit = 1.2 / size
+    center = (lo + hi) / 2
+    place = compose(translate([0, -1 + fit * (hi[1] - lo[1]) / 2, 0]), scale(fit), translate(-center))
+    for item in loaded:
+        item.transform = compose(place, item.transform)
+    return Scene(_cornell_camera(), meshes + loaded, materials, name=f"mesh:{Path(path).name}")
+
+
+MOVING_FRAMES = 16
+
+
+def moving() -> Scene:
+    scene = cornell()
+    scene.name = "moving"
+    scene.frame_count = MOVING_FRAMES
+    for frame in range(MOVING_FRAMES):
+        phase = frame / (MOVING_FRAMES - 1)
+        angle = np.radians(-6 + 12 * phase)
+        origin = [3.9 * np.sin(angle), 0.05 * np.sin(2 * np.pi * phase), 3.9 * np.cos(angle)]
+        scene.camera_keyframes[frame] = Camera(origin=origin, target=[0, 0, 0], up=[0, 1, 0], fov=39.3077)
+    small_box = next(m for m in scene.meshes if m.name == "small-box")
+    for frame in range(MOVING_FRAMES):
+        phase = frame / (MOVING_FRAMES - 1)
+        small_box.keyframes[frame] = compose(
+            translate([0.335 - 0.25 * phase, -0.7, 0.38 + 0.1 * phase]), rotate([0, 1, 0], -17 + 40 * phase),
+            scale(0.3))
+    return scene
+
+
+BUILTIN_SCENES = {"cornell": cornell, "cornell-glossy": cornell_glossy, "sun-room": sun_room,
+                  "mesh": mesh_room, "moving": moving}
+
+
+def builtin_scene(name: str, mesh=None) -> Scene:
+    """The built-in scene ``name``; ``mesh`` is the mesh file of the 'mesh' scene."""
+    if name not in BUILTIN_SCENES:
+        raise SceneError(f"unknown built-in scene {name!r}; expected one of {sorted(BUILTIN_SCENES)}")
+    return mesh_room(mesh) if name == "mesh" else BUILTIN_SCENES[name]()

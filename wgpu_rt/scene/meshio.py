@@ -1,0 +1,74 @@
+"""Mesh files (OBJ, PLY, glTF/GLB, anything trimesh reads) → ``Mesh`` objects.
+
+A file may hold several geometries placed by a scene graph (glTF nodes, OBJ groups); each placed
+geometry becomes one ``Mesh`` whose ``transform`` is its node's world transform, so instancing and
+hierarchy survive. Vertex normals are kept when the file has them (trimesh keeps loaded normals in
+its cache; without them we leave ``normals`` None and the tracer shades flat). Files are loaded with
+``process=False`` so vertices are neither merged nor reordered. Every problem is a SceneError naming
+the file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from ..errors import SceneError
+
+
+def _has_file_normals(mesh: trimesh.Trimesh) -> bool:
+    """True when the loader supplied vertex normals (trimesh would otherwise compute them lazily)."""
+    return "vertex_normals" in mesh._cache.cache
+
+
+def validate_mesh_arrays(vertices: np.ndarray, faces: np.ndarray, where: str) -> None:
+    """Raise SceneError (prefixed by ``where``) on no triangles, non-finite vertices or bad indices."""
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+        raise SceneError(f"{where}: the mesh has no triangles")
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise SceneError(f"{where}: vertices must be an (N, 3) array, got shape {vertices.shape}")
+    bad = ~np.all(np.isfinite(vertices), axis=1)
+    if np.any(bad):
+        raise SceneError(f"{where}: {int(bad.sum())} vertices are NaN or infinite "
+                         f"(first: vertex {int(np.argmax(bad))})")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise SceneError(f"{where}: face index {int(faces.max() if faces.max() >= len(vertices) else faces.min())} "
+                         f"out of range for {len(vertices)} vertices")
+
+
+def load_mesh_file(path: Path, material: str, name: str | None = None) -> list:
+    """The meshes of the file at ``path``, all with ``material``, named ``name`` (default: file stem)."""
+    from .model import Mesh
+
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"{path}: mesh file not found")
+    try:
+        scene = trimesh.load(str(path), force="scene", process=False)
+    except IndexError as err:
+        raise SceneError(f"{path}: malformed mesh file: face index out of range ({err})") from err
+    except Exception as err:  # trimesh raises many types for bad input; all mean "unreadable"
+        raise SceneError(f"{path}: cannot read mesh file ({type(err).__name__}: {err})") from err
+    base = name or path.stem
+    meshes = []
+    for node in scene.graph.nodes_geometry:
+        transform, geometry_name = scene.graph[node]
+        geometry = scene.geometry[geometry_name]
+        if not isinstance(geometry, trimesh.Trimesh) or len(geometry.faces) == 0:
+            continue
+        vertices = np.asarray(geometry.vertices, np.float64)
+        faces = np.asarray(geometry.faces, np.int64)
+        validate_mesh_arrays(vertices, faces, f"{path} (geometry {geometry_name!r})")
+        normals = None
+        if _has_file_normals(geometry):
+            normals = np.asarray(geometry.vertex_normals, np.float32)
+            if normals.shape != vertices.shape or not np.all(np.isfinite(normals)):
+                normals = None
+        label = base if not meshes and len(scene.graph.nodes_geometry) == 1 else f"{base}/{node}"
+        meshes.append(Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32), material,
+                           normals=normals, transform=np.asarray(transform, np.float32)))
+    if not meshes:
+        raise SceneError(f"{path}: the mesh file has no triangles")
+    return meshes

@@ -1,0 +1,50 @@
+"""4×4 affine transforms (column vectors, object → world), built the way Mitsuba's ScalarTransform4f
+chains them: ``compose(translate(t), rotate(axis, deg), scale(s))`` applies the scale first."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def translate(offset) -> np.ndarray:
+    matrix = np.eye(4)
+    matrix[:3, 3] = np.asarray(offset, dtype=np.float64)
+    return matrix
+
+
+def scale(factors) -> np.ndarray:
+    return np.diag([*np.broadcast_to(np.asarray(factors, dtype=np.float64), (3,)), 1.0])
+
+
+def rotate(axis, degrees: float) -> np.ndarray:
+    """Right-handed rotation by ``degrees`` about ``axis`` (Rodrigues' formula, as Mitsuba's rotate)."""
+    axis = np.asarray(axis, dtype=np.float64)
+    axis = axis / np.linalg.norm(axis)
+    angle = np.radians(degrees)
+    cos, sin = np.cos(angle), np.sin(angle)
+    cross = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    matrix = np.eye(4)
+    matrix[:3, :3] = cos * np.eye(3) + sin * cross + (1 - cos) * np.outer(axis, axis)
+    return matrix
+
+
+def compose(*matrices) -> np.ndarray:
+    """The product left to right as float32 (the rightmost transform is applied first)."""
+    result = np.eye(4)
+    for matrix in matrices:
+        result = result @ np.asarray(matrix, dtype=np.float64)
+    return result.astype(np.float32)
+
+
+def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``points`` (N, 3) mapped by the affine ``matrix``, computed in float64, returned as float32."""
+    matrix = np.asarray(matrix, dtype=np.float64)
+    return (np.asarray(points, dtype=np.float64) @ matrix[:3, :3].T + matrix[:3, 3]).astype(np.float32)
+
+
+def transform_normals(matrix: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Unit ``normals`` (N, 3) mapped by the inverse transpose of ``matrix``'s linear part."""
+    linear = np.asarray(matrix, dtype=np.float64)[:3, :3]
+    mapped = np.asarray(normals, dtype=np.float64) @ np.linalg.inv(linear)
+    length = np.linalg.norm(mapped, axis=1, keepdims=True)
+    return (mapped / np.where(length > 0, length, 1.0)).astype(np.float32)
