@@ -2,3 +2,15 @@
 hand-written WGSL kernels on the same device."""
 
 __version__ = "0.1.0"
+
+__all__ = ["render"]
+
+
+def __getattr__(name: str):
+    # `render` pulls in wgpu and numpy; importing it lazily keeps `import wgpu_rt` (and `--help`) light.
+    if name == "render":
+        from .render import render
+
+        globals()["render"] = render  # shadows the submodule attribute that the import just set
+        return render
+    raise AttributeError(f"module 'wgpu_rt' has no attribute {name!r}")

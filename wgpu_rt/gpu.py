@@ -132,9 +132,12 @@ class GpuContext:
 
     # -- pipelines -----------------------------------------------------------------------------------
     def compute_pipeline(self, code: str, entry_point: str = "main", constants: dict | None = None,
-                         label: str = "") -> object:
-        """A compute pipeline for WGSL ``code``; cached by (code, entry point, override constants)."""
-        key = (code, entry_point, tuple(sorted((constants or {}).items())))
+                         label: str = "", layout=None) -> object:
+        """A compute pipeline for WGSL ``code``; cached by (code, entry point, override constants, layout).
+
+        ``layout`` (a GPUPipelineLayout) defaults to "auto", which drops bindings that the specialized
+        code no longer uses; pass the unspecialized pipeline's layout to keep bind groups uniform."""
+        key = (code, entry_point, tuple(sorted((constants or {}).items())), layout)
         pipeline = self._pipelines.get(key)
         if pipeline is None:
             module = self._modules.get(code)
@@ -143,7 +146,8 @@ class GpuContext:
             compute = {"module": module, "entry_point": entry_point}
             if constants:
                 compute["constants"] = {k: float(v) for k, v in constants.items()}
-            pipeline = self.device.create_compute_pipeline(layout="auto", compute=compute, label=label)
+            pipeline = self.device.create_compute_pipeline(layout=layout or "auto", compute=compute,
+                                                           label=label)
             self._pipelines[key] = pipeline
         return pipeline
 

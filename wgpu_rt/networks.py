@@ -7,7 +7,9 @@
   (the engine pads and crops).
 - ``ErrorPredictor``: 1-spp log1p RGB → a [0, 1] heatmap of where error will be (3×3 convs, sigmoid).
 - ``ConfidencePredictor``: current RGB, reprojected history RGB, current depth, reprojected previous
-  depth (8 channels) → confidence that history is invalid, in [0, 1] (3×3 convs, sigmoid).
+  depth (8 channels) → confidence in [0, 1] that the reprojected history is still valid for the pixel
+  (1 = keep history: the temporal pass blends with alpha = mix(1, 0.01, confidence)). Its training
+  target is 1 minus the mask where the warped gold frame t disagrees with gold frame t+1.
 
 Only the ops the engine lowers are used (Conv, Relu, Sigmoid, MaxPool, ConvTranspose, Concat).
 """
@@ -109,3 +111,18 @@ def export_onnx(model: nn.Module, path: str | Path, height: int = 64, width: int
                       "output": {0: "batch", 2: "height", 3: "width"}})
     tmp.replace(path)
     return path
+
+
+SEED_MODEL_FILES = {"denoiser.onnx": UNet, "error_predictor.onnx": ErrorPredictor,
+                    "confidence.onnx": ConfidencePredictor}
+
+
+def export_seed_models(folder: str | Path, seed: int = 0, **denoiser_options) -> Path:
+    """Untrained networks (torch's default initialisation, seeded) exported under the file names the
+    frame pipeline loads: for exercising the pipeline's mechanics (tests, benchmark dry runs) before
+    trained models exist. ``denoiser_options`` go to ``UNet`` (e.g. small ``widths`` for fast tests)."""
+    folder = Path(folder)
+    torch.manual_seed(seed)
+    for name, network in SEED_MODEL_FILES.items():
+        export_onnx(network(**denoiser_options) if network is UNet else network(), folder / name)
+    return folder

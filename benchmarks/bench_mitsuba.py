@@ -1,0 +1,59 @@
+"""Converged cross-validation against Mitsuba 3: `cornell` and `cornell-glossy`, box filter, max depth 8.
+
+Per scene: channel means of ours over Mitsuba's (goal: within 1%), and relMSE (epsilon 0.01) of ours
+against one Mitsuba render divided by relMSE between two independently seeded Mitsuba renders (its own
+noise at this spp; goal: at most 2).
+
+    python3 benchmarks/bench_mitsuba.py [--spp 4096] [--size 256]
+"""
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from _mitsuba_setup import mitsuba, render_mitsuba
+from common import print_header
+
+from wgpu_rt.render import render
+from wgpu_rt.scene import load_scene
+
+
+def rel_mse(image, reference, epsilon=0.01) -> float:
+    return float(np.mean((image - reference) ** 2 / (reference ** 2 + epsilon)))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--spp", type=int, default=4096)
+    parser.add_argument("--size", type=int, default=256)
+    parser.add_argument("--scenes", default="cornell,cornell-glossy")
+    args = parser.parse_args()
+    print_header(args)
+    mi = mitsuba()
+    size = (args.size, args.size)
+    ok = True
+    for name in args.scenes.split(","):
+        scene = load_scene(name)
+        started = time.perf_counter()
+        ours = render(scene, spp=args.spp, size=size, max_depth=8, aovs=(), progress=True).color
+        ours_s = time.perf_counter() - started
+        started = time.perf_counter()
+        mi_a = render_mitsuba(mi, scene, size, args.spp, 8, seed=1)
+        mi_b = render_mitsuba(mi, scene, size, args.spp, 8, seed=2)
+        mi_s = (time.perf_counter() - started) / 2
+        means = ours.reshape(-1, 3).mean(0) / mi_a.reshape(-1, 3).mean(0)
+        noise = rel_mse(mi_b, mi_a)
+        ratio = rel_mse(ours, mi_a) / noise
+        passed = bool(np.all(np.abs(means - 1) < 0.01) and ratio <= 2.0)
+        ok &= passed
+        print(f"{name}: {size[0]}x{size[1]} {args.spp} spp ({mi.variant()}) | mean ratio "
+              f"{np.array2string(means, precision=4)} | relMSE ours-vs-mitsuba / mitsuba-vs-mitsuba = "
+              f"{ratio:.3f} (mitsuba noise {noise:.3e}) | {ours_s:.1f} s ours, {mi_s:.1f} s mitsuba | "
+              f"{'PASS' if passed else 'FAIL'}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

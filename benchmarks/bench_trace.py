@@ -1,0 +1,46 @@
+"""Tracing throughput: samples/s on `cornell` (256², max depth 8) for wgpu-rt and for Mitsuba 3
+(llvm_ad_rgb when LLVM 19 is installed, else scalar_rgb) measured in the same run, and their ratio.
+Compile time is excluded on both sides (one warm-up render each).
+
+    python3 benchmarks/bench_trace.py [--spp 64] [--size 256] [--scene cornell]
+"""
+
+import argparse
+import sys
+import time
+
+from _mitsuba_setup import mitsuba, render_mitsuba
+from common import print_header
+
+from wgpu_rt.render import render
+from wgpu_rt.scene import load_scene
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--spp", type=int, default=64)
+    parser.add_argument("--size", type=int, default=256)
+    parser.add_argument("--scene", default="cornell")
+    parser.add_argument("--max-depth", type=int, default=8)
+    args = parser.parse_args()
+    print_header(args)
+    size, samples = (args.size, args.size), args.spp * args.size * args.size
+    scene = load_scene(args.scene)
+
+    render(scene, spp=1, size=size, max_depth=args.max_depth, aovs=())
+    ours = render(scene, spp=args.spp, size=size, max_depth=args.max_depth, aovs=())
+    ours_rate = samples / ours.seconds
+
+    mi = mitsuba()
+    render_mitsuba(mi, scene, size, 1, args.max_depth)
+    started = time.perf_counter()
+    render_mitsuba(mi, scene, size, args.spp, args.max_depth)
+    mi_rate = samples / (time.perf_counter() - started)
+    print(f"{args.scene} {size[0]}x{size[1]} {args.spp} spp max depth {args.max_depth}: "
+          f"wgpu-rt {ours_rate / 1e6:.3f} M samples/s, Mitsuba {mi.variant()} {mi_rate / 1e6:.3f} M samples/s, "
+          f"ratio {ours_rate / mi_rate:.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,54 @@
+"""Cross-validation against Mitsuba 3 (scalar_rgb; skipped without the bench extra): the same scene,
+film, box filter and max depth must give the same channel means within the noise of a small, quick
+render. The converged version (4096 spp, relMSE against Mitsuba's own noise) is
+benchmarks/bench_mitsuba.py."""
+
+import numpy as np
+import pytest
+
+mi = pytest.importorskip("mitsuba")
+
+from wgpu_rt.render import render  # noqa: E402
+from wgpu_rt.scene import load_scene  # noqa: E402
+from wgpu_rt.scene.mitsuba import to_mitsuba  # noqa: E402
+
+pytestmark = pytest.mark.mitsuba
+
+
+def mitsuba_render(scene, size, spp, max_depth, seed=0) -> np.ndarray:
+    if mi.variant() is None:
+        mi.set_variant("scalar_rgb")
+    loaded = mi.load_dict(to_mitsuba(scene, size[0], size[1], spp, max_depth, seed=seed))
+    return np.array(mi.render(loaded, spp=spp, seed=seed))[..., :3]
+
+
+@pytest.mark.parametrize("name, spp, tolerance", [("cornell", 128, 0.02), ("cornell-glossy", 64, 0.03)])
+@pytest.mark.parametrize("max_depth", [2, 8])
+def test_channel_means_match_mitsuba(gpu, name, spp, tolerance, max_depth):
+    size = (32, 32)
+    scene = load_scene(name)
+    ours = render(scene, spp=spp, size=size, max_depth=max_depth, aovs=()).color
+    reference = mitsuba_render(scene, size, 4 * spp, max_depth)
+    assert np.all(np.isfinite(ours))
+    ratio = ours.reshape(-1, 3).mean(0) / reference.reshape(-1, 3).mean(0)
+    assert np.all(np.abs(ratio - 1) < tolerance), ratio
+    # pixel-level agreement too: a 4×4 downsampled image within a loose relative bound
+    coarse = lambda im: im.reshape(8, 4, 8, 4, 3).mean((1, 3))  # noqa: E731
+    rel = np.abs(coarse(ours) - coarse(reference)) / (coarse(reference) + 0.05)
+    assert np.mean(rel) < 0.05, np.mean(rel)
+
+
+def test_analytic_lights_and_background_match_mitsuba(gpu):
+    """Point and directional lights and a constant background (no area light) on the glossy box."""
+    from wgpu_rt.scene import DirectionalLight, PointLight
+
+    scene = load_scene("cornell-glossy")
+    scene.meshes = [m for m in scene.meshes if m.name != "light"]
+    scene.lights = [PointLight(np.array([0.3, 0.6, 0.5], np.float32), np.array([2.0, 1.5, 1.0], np.float32)),
+                    DirectionalLight(np.array([-0.3, -0.4, -1.0], np.float32), np.array([0.8, 0.8, 0.9], np.float32))]
+    scene.background = np.array([0.2, 0.3, 0.4], np.float32)
+    size = (32, 32)
+    ours = render(scene, spp=64, size=size, max_depth=8, aovs=()).color
+    reference = mitsuba_render(scene, size, 256, 8)
+    ratio = ours.reshape(-1, 3).mean(0) / reference.reshape(-1, 3).mean(0)
+    assert np.all(np.abs(ratio - 1) < 0.02), ratio

@@ -1,0 +1,58 @@
+"""``wgpu-rt render``: outputs for good arguments, one clear error, exit 2 and no file for bad ones."""
+
+import numpy as np
+import pytest
+
+from wgpu_rt.cli import main
+from wgpu_rt.io import read_exr
+
+
+def test_exr_holds_color_and_requested_aovs(gpu, tmp_path):
+    out = tmp_path / "c.exr"
+    assert main(["render", "cornell", "--spp", "2", "--size", "20x12", "--aov", "albedo,depth",
+                 "--out", str(out)]) == 0
+    layers = read_exr(out)
+    assert layers["color"].shape == (12, 20, 3) and np.all(np.isfinite(layers["color"]))
+    assert layers["albedo"].shape == (12, 20, 3) and layers["depth"].shape[:2] == (12, 20)
+    assert "normal" not in layers
+
+
+def test_png_preview_and_frame_pattern(gpu, tmp_path):
+    assert main(["render", "moving", "--spp", "1", "--size", "8x8", "--frames", "2:4",
+                 "--out", str(tmp_path / "f{frame:03d}.png")]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f002.png", "f003.png"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--size", "12"], "WIDTHxHEIGHT"),
+    (["--size", "0x10"], "1..16384"),
+    (["--spp", "0"], "--spp"),
+    (["--max-depth", "0"], "--max-depth"),
+    (["--aov", "albedo,velocity"], "velocity"),
+    (["--frames", "3"], "--frames"),
+    (["--frames", "4:2"], "--frames"),
+    (["--frames", "0:3"], "{frame}"),
+    (["--out", "OUT.jpg"], ".exr or .png"),
+])
+def test_bad_arguments(tmp_path, capsys, args, message):
+    argv = ["render", "cornell", "--size", "8x8", "--spp", "1", "--out", str(tmp_path / "x.exr")] + args
+    argv = [a.replace("OUT", str(tmp_path / "x")) for a in argv]
+    assert main(argv) == 2
+    assert message in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_malformed_scene_file(tmp_path, capsys):
+    scene = tmp_path / "bad.json"
+    scene.write_text('{"camera": {"origin": [0, 0, 1]}, "meshes": [')
+    out = tmp_path / "x.exr"
+    assert main(["render", str(scene), "--size", "8x8", "--out", str(out)]) == 2
+    assert "bad.json" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_unknown_scene_name(tmp_path, capsys):
+    out = tmp_path / "x.exr"
+    assert main(["render", "no-such-scene", "--out", str(out)]) == 2
+    assert "no-such-scene" in capsys.readouterr().err
+    assert not out.exists()

@@ -1,0 +1,137 @@
+"""The tracer's sampling contract: reproducible from the seed, extra passes add distinct samples and
+keep the running means consistent, the alias table picks emitters in proportion to power, the
+G-buffers hold what ARCHITECTURE.md says they hold."""
+
+import numpy as np
+import pytest
+
+from wgpu_rt.render import render
+from wgpu_rt.render_pass import FrameBuffers
+from wgpu_rt.scene import load_scene
+from wgpu_rt.scene.geometry import GeometryBuffers
+from wgpu_rt.trace import TracePass
+from wgpu_rt.trace.scene_data import alias_table
+
+SIZE = (24, 24)
+
+
+def test_same_seed_same_bits_other_seed_other_noise(gpu):
+    a = render("cornell", spp=4, size=SIZE, seed=7)
+    b = render("cornell", spp=4, size=SIZE, seed=7)
+    c = render("cornell", spp=4, size=SIZE, seed=8)
+    assert a.color.tobytes() == b.color.tobytes()
+    assert all(a.aovs[k].tobytes() == b.aovs[k].tobytes() for k in a.aovs)
+    assert np.mean(np.abs(a.color - c.color)) > 1e-3
+
+
+def _trace(gpu, scene_name, counts=None, passes=(4,)):
+    scene = load_scene(scene_name)
+    trace = TracePass(gpu, scene, GeometryBuffers.build(scene), *SIZE, chunk_size=3)
+    buffers = FrameBuffers(gpu, *SIZE)
+    encoder = gpu.device.create_command_encoder()
+    trace.clear(encoder, buffers)
+    for samples in passes:
+        trace.schedule.samples = samples
+        trace.execute(encoder, buffers)
+    if counts is not None:
+        trace.schedule.samples = int(counts.max())
+        trace.schedule.sample_counts = gpu.upload(counts.astype(np.uint32))
+        trace.execute(encoder, buffers)
+    gpu.device.queue.submit([encoder.finish()])
+    return buffers
+
+
+def test_split_passes_equal_one_pass(gpu):
+    """Chunks and passes continue each pixel's sequence: 3 + 5 samples are the 8 samples of one pass."""
+    whole = _trace(gpu, "cornell", passes=(8,))
+    split = _trace(gpu, "cornell", passes=(3, 5))
+    np.testing.assert_allclose(split.read("radiance"), whole.read("radiance"), rtol=1e-5, atol=1e-6)
+    assert np.all(split.read("spp") == 8)
+
+
+def test_extra_sample_counts_add_distinct_samples(gpu):
+    rng = np.random.default_rng(1)
+    counts = rng.integers(0, 7, size=SIZE[0] * SIZE[1])
+    uniform_then_extra = _trace(gpu, "cornell", counts=counts, passes=(2,))
+    spp = uniform_then_extra.read("spp").ravel()
+    np.testing.assert_array_equal(spp, 2 + counts)
+    # a pixel with 2 + k samples must equal a uniform render's mean of its first 2 + k samples
+    for k in (0, 3, 6):
+        reference = _trace(gpu, "cornell", passes=(2 + k,)).read("radiance").reshape(3, -1)
+        pick = counts == k
+        np.testing.assert_allclose(uniform_then_extra.read("radiance").reshape(3, -1)[:, pick],
+                                   reference[:, pick], rtol=1e-5, atol=1e-6)
+
+
+def test_alias_table_matches_weights():
+    weights = np.array([5.0, 1.0, 0.5, 3.0, 0.01, 7.0])
+    threshold, alias = alias_table(weights)
+    u = (np.arange(200000) + 0.5) / 200000
+    slot = np.minimum((u * len(weights)).astype(int), len(weights) - 1)
+    picked = np.where(u * len(weights) - slot < threshold[slot], slot, alias[slot])
+    frequency = np.bincount(picked, minlength=len(weights)) / len(u)
+    np.testing.assert_allclose(frequency, weights / weights.sum(), atol=2e-4)
+
+
+def test_gbuffers_match_the_geometry(gpu):
+    """Normals are unit, depth is the camera-axis distance of the first hit (4.9 on the
+    back wall, z = -1, seen from z = 3.9 above the boxes), albedo is the material's."""
+    result = render("cornell", spp=8, size=SIZE, aovs=("albedo", "normal", "depth", "spp"))
+    normal, depth, albedo = result.aovs["normal"], result.aovs["depth"][..., 0], result.aovs["albedo"]
+    assert np.all(np.isfinite(result.color)) and np.all(result.aovs["spp"] == 8)
+    np.testing.assert_allclose(np.linalg.norm(normal, axis=-1), 1.0, atol=1e-4)
+    # pixels of the back wall (z = -1, normal +z) between the ceiling and the boxes
+    back_wall = (slice(6, 9), slice(10, 14))
+    np.testing.assert_allclose(depth[back_wall], 4.9, rtol=1e-3)
+    np.testing.assert_allclose(normal[back_wall], np.broadcast_to([0, 0, 1], normal[back_wall].shape), atol=1e-4)
+    np.testing.assert_allclose(albedo[back_wall], np.broadcast_to([0.885809, 0.698859, 0.666422],
+                                                                   albedo[back_wall].shape), atol=1e-5)
+
+
+def _project(camera, point):
+    """Film position (pixels, x right, y down) of a world point, by numpy."""
+    right, up, forward = camera.basis()
+    tan_x, tan_y = camera.tan_half_fov(*SIZE)
+    offset = np.asarray(point, np.float64) - camera.origin
+    z = np.dot(offset, forward)
+    sx, sy = np.dot(offset, right) / z / tan_x, np.dot(offset, up) / z / tan_y
+    return np.array([(sx + 1) / 2 * SIZE[0], (1 - sy) / 2 * SIZE[1]])
+
+
+def test_motion_vectors_follow_camera_and_objects(gpu):
+    """In the 'moving' scene (orbiting camera, sliding box) a pixel's motion vector is where its surface
+    point was on the previous frame's film minus where it is now: checked with numpy by rebuilding the
+    point from the depth plane, moving it back with its object's transforms and projecting it."""
+    scene = load_scene("moving")
+    frame = 6
+    result = render(scene, spp=4, size=SIZE, frame=frame, aovs=("depth", "motion"))
+    depth, motion = result.aovs["depth"][..., 0], result.aovs["motion"]
+    now, before = scene.camera_at(frame), scene.camera_at(frame - 1)
+    box = next(m for m in scene.meshes if m.name == "small-box")
+    box_to_previous = box.transform_at(frame - 1).astype(np.float64) @ np.linalg.inv(box.transform_at(frame))
+    box_front = box.transform_at(frame) @ np.array([0.0, 0.0, 1.0, 1.0])   # centre of the cube's +z face
+    bx, by = np.floor(_project(now, box_front[:3])).astype(int)
+    cases = [(3, 12, np.eye(4)), (12, 3, np.eye(4)), (12, 20, np.eye(4)), (by, bx, box_to_previous)]
+    right, up, forward = now.basis()
+    tan_x, tan_y = now.tan_half_fov(*SIZE)
+    for y, x, to_previous in cases:
+        ndc = np.array([2 * (x + 0.5) / SIZE[0] - 1, 1 - 2 * (y + 0.5) / SIZE[1]])
+        direction = forward + ndc[0] * tan_x * right + ndc[1] * tan_y * up
+        point = now.origin + direction / np.dot(direction, forward) * depth[y, x]
+        previous_point = (to_previous @ np.append(point, 1.0))[:3]
+        expected = _project(before, previous_point) - np.array([x + 0.5, y + 0.5])
+        np.testing.assert_allclose(motion[y, x], expected, atol=0.05, err_msg=f"pixel ({x}, {y})")
+    # the box moves against the walls behind it
+    assert np.abs(motion[by, bx] - motion[12, 20]).max() > 0.1
+
+
+def test_static_scene_has_zero_motion(gpu):
+    assert np.all(render("cornell", spp=2, size=SIZE, aovs=("motion",)).aovs["motion"] == 0)
+
+
+@pytest.mark.parametrize("max_depth", [0, -1])
+def test_bad_max_depth_is_an_error(gpu, max_depth):
+    from wgpu_rt.errors import WgpuRtError
+
+    with pytest.raises(WgpuRtError, match="max_depth"):
+        render("cornell", spp=1, size=SIZE, max_depth=max_depth)

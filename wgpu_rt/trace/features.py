@@ -1,0 +1,53 @@
+"""Which parts of the path-tracing kernel a scene needs.
+
+The kernel (wgsl/trace.wgsl) has one override constant per optional feature (wgsl/features.wgsl).
+``SceneFeatures.of(scene)`` reads them off a scene; ``constants()`` turns them into pipeline override
+constants, so each distinct feature set compiles (once, cached by GpuContext) to a kernel without the
+code it cannot reach.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+
+from ..scene.model import Scene
+
+
+@dataclass(frozen=True)
+class SceneFeatures:
+    has_dielectric: bool = True
+    has_conductor: bool = True
+    has_area_lights: bool = True
+    has_analytic_lights: bool = True  # point or directional lights, or a non-black background
+    has_motion: bool = True
+    write_aovs: bool = True
+
+    @classmethod
+    def of(cls, scene: Scene, write_aovs: bool = True) -> "SceneFeatures":
+        used = {mesh.material for mesh in scene.meshes}
+        kinds = {scene.materials[name].kind for name in used}
+        return cls(
+            has_dielectric="dielectric" in kinds,
+            has_conductor="conductor" in kinds,
+            has_area_lights=any(scene.materials[name].is_emissive for name in used),
+            has_analytic_lights=bool(scene.lights) or bool(np.any(np.asarray(scene.background) > 0)),
+            has_motion=scene.has_motion,
+            write_aovs=write_aovs,
+        )
+
+    @classmethod
+    def everything(cls) -> "SceneFeatures":
+        """The unspecialized kernel (every switch on)."""
+        return cls()
+
+    @classmethod
+    def all_combinations(cls) -> list["SceneFeatures"]:
+        """Every feature set the renderer can request (the shader tests compile each)."""
+        names = [f.name for f in fields(cls)]
+        return [cls(**{n: bool(bits >> i & 1) for i, n in enumerate(names)}) for bits in range(2 ** len(names))]
+
+    def constants(self) -> dict[str, bool]:
+        """Pipeline override constants, named as in wgsl/features.wgsl."""
+        return {name.upper(): value for name, value in asdict(self).items()}

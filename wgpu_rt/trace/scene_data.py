@@ -1,0 +1,131 @@
+"""Packing the shading side of a scene for the kernel: materials, the emitter table and the frame
+parameters (bind group 1; record layouts as in wgsl/material.wgsl and wgsl/trace_bindings.wgsl).
+
+Emitters are sampled in proportion to their power through an alias table (Vose's method), so next-event
+estimation picks a light in O(1): emissive triangles by luminance·area (uniform in area within one),
+point lights by 4π·intensity, a directional light by its irradiance through the scene's cross-section,
+the constant background by its radiance over a sphere around the scene.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..scene.model import DirectionalLight, Material, PointLight, Scene
+
+MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2}
+EMITTER_TRIANGLE, EMITTER_POINT, EMITTER_DIRECTIONAL, EMITTER_BACKGROUND = range(4)
+NO_EMITTER = 0xFFFFFFFF
+LUMINANCE = np.array([0.212671, 0.715160, 0.072169])
+
+MATERIAL_DTYPE = np.dtype([
+    ("reflectance", "<f4", 3), ("kind", "<u4"), ("emission", "<f4", 3), ("roughness", "<f4"),
+    ("eta", "<f4", 3), ("ior", "<f4"), ("k", "<f4", 3), ("is_emissive", "<u4")])
+
+EMITTER_DTYPE = np.dtype([
+    ("position", "<f4", 3), ("kind", "<u4"), ("edge1", "<f4", 3), ("pmf", "<f4"),
+    ("edge2", "<f4", 3), ("area", "<f4"), ("radiance", "<f4", 3), ("alias_threshold", "<f4"),
+    ("alias_index", "<u4"), ("pad", "<u4", 3)])
+
+FRAME_PARAMS_DTYPE = np.dtype([
+    ("camera_origin", "<f4", 3), ("width", "<u4"), ("camera_right", "<f4", 3), ("height", "<u4"),
+    ("camera_up", "<f4", 3), ("seed", "<u4"), ("camera_forward", "<f4", 3), ("max_depth", "<u4"),
+    ("previous_origin", "<f4", 3), ("sample_offset", "<u4"), ("previous_right", "<f4", 3),
+    ("emitter_count", "<u4"), ("previous_up", "<f4", 3), ("use_sample_counts", "<u4"),
+    ("previous_forward", "<f4", 3), ("background_pmf", "<f4"), ("background", "<f4", 3),
+    ("chunk_start", "<u4"), ("chunk_size", "<u4"), ("pass_samples", "<u4"), ("pad", "<u4", 2)])
+
+
+def pack_materials(materials: list[Material]) -> np.ndarray:
+    """Material records in material-id order."""
+    out = np.zeros(max(1, len(materials)), MATERIAL_DTYPE)
+    for i, m in enumerate(materials):
+        out[i] = (m.reflectance, MATERIAL_KIND_CODES[m.kind], m.emission, m.roughness, m.eta, m.ior, m.k,
+                  int(m.is_emissive))
+    return out
+
+
+def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Vose's alias table for ``weights`` (> 0): per slot, the threshold below which the slot keeps
+    itself, and the slot it defers to otherwise. Picking slot floor(u·N) then testing frac(u·N) against
+    the threshold selects index i with probability weights[i] / sum(weights)."""
+    n = len(weights)
+    scaled = np.asarray(weights, np.float64) * n / np.sum(weights)
+    threshold = np.ones(n)
+    alias = np.arange(n, dtype=np.uint32)
+    small = [i for i in range(n) if scaled[i] < 1.0]
+    large = [i for i in range(n) if scaled[i] >= 1.0]
+    while small and large:
+        s, g = small.pop(), large.pop()
+        threshold[s], alias[s] = scaled[s], g
+        scaled[g] -= 1.0 - scaled[s]
+        (small if scaled[g] < 1.0 else large).append(g)
+    return threshold.astype(np.float32), alias
+
+
+@dataclass
+class EmitterTable:
+    records: np.ndarray            # EMITTER_DTYPE, at least one record (a black one when there is none)
+    triangle_emitter: np.ndarray   # (T,) u32: record index per triangle, NO_EMITTER if not emissive
+    background_pmf: float
+
+    @property
+    def count(self) -> int:
+        return len(self.records)
+
+
+def build_emitter_table(scene: Scene, triangles: np.ndarray, triangle_materials: list[Material],
+                        scene_radius: float) -> EmitterTable:
+    """The emitter table for world-space ``triangles`` (T, 3, 3) whose materials are given per triangle."""
+    emissive = np.array([m.is_emissive for m in triangle_materials], bool)
+    index = np.flatnonzero(emissive)
+    tri = triangles[index].astype(np.float64)
+    edge1, edge2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    area = 0.5 * np.linalg.norm(np.cross(edge1, edge2), axis=1)
+    keep = area > 0
+    index, tri, edge1, edge2, area = index[keep], tri[keep], edge1[keep], edge2[keep], area[keep]
+    emission = np.array([triangle_materials[i].emission for i in index], np.float64).reshape(-1, 3)
+
+    rows = []  # (kind, position, edge1, edge2, area, radiance, power)
+    for k in range(len(index)):
+        power = np.pi * area[k] * float(LUMINANCE @ emission[k])
+        rows.append((EMITTER_TRIANGLE, tri[k, 0], edge1[k], edge2[k], area[k], emission[k], power))
+    cross_section = np.pi * scene_radius ** 2
+    for light in scene.lights:
+        if isinstance(light, PointLight):
+            intensity = np.asarray(light.intensity, np.float64)
+            rows.append((EMITTER_POINT, light.position, 0, 0, 0, intensity, 4 * np.pi * LUMINANCE @ intensity))
+        elif isinstance(light, DirectionalLight):
+            irradiance = np.asarray(light.irradiance, np.float64)
+            rows.append((EMITTER_DIRECTIONAL, 0, light.direction, 0, 0, irradiance,
+                         cross_section * LUMINANCE @ irradiance))
+    background = np.asarray(scene.background, np.float64)
+    if np.any(background > 0):
+        rows.append((EMITTER_BACKGROUND, 0, 0, 0, 0, background,
+                     4 * np.pi ** 2 * scene_radius ** 2 * max(float(LUMINANCE @ background), 1e-6)))
+
+    rows = [r for r in rows if r[6] > 0]
+    records = np.zeros(max(1, len(rows)), EMITTER_DTYPE)
+    triangle_emitter = np.full(len(triangles), NO_EMITTER, np.uint32)
+    background_pmf = 0.0
+    if rows:
+        power = np.array([r[6] for r in rows])
+        pmf = power / power.sum()
+        threshold, alias = alias_table(power)
+        for i, (kind, position, e1, e2, a, radiance, _) in enumerate(rows):
+            records[i] = (np.broadcast_to(position, 3), kind, np.broadcast_to(e1, 3), pmf[i],
+                          np.broadcast_to(e2, 3), a, radiance, threshold[i], alias[i], 0)
+            if kind == EMITTER_BACKGROUND:
+                background_pmf = float(pmf[i])
+        triangle_emitter[index] = np.arange(len(index), dtype=np.uint32)
+    return EmitterTable(records, triangle_emitter, background_pmf)
+
+
+def camera_vectors(camera, width: int, height: int) -> dict[str, np.ndarray]:
+    """origin, unit basis, right·tan_x, up·tan_y and the tans of ``camera`` for a width×height film."""
+    right, up, forward = camera.basis()
+    tan_x, tan_y = camera.tan_half_fov(width, height)
+    return {"origin": camera.origin, "unit_right": right, "unit_up": up, "right": right * tan_x,
+            "up": up * tan_y, "forward": forward, "tan": (tan_x, tan_y)}

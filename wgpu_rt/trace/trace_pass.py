@@ -1,0 +1,166 @@
+"""The path-tracing pass: records dispatches of wgsl/trace.wgsl that add samples to the output planes.
+
+Every dispatch takes at most ``chunk_size`` samples per pixel, so no single dispatch runs long on a CPU
+driver; the per-dispatch chunk start is copied into the frame parameters between dispatches (copies
+and dispatches run in recording order), so a whole pass records into one encoder. Samples are numbered
+per pixel in the order taken (the spp plane holds how many a pixel has), so any later pass, uniform or
+per-pixel (adaptive), adds new sample indices and the planes stay unbiased running means.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import shaders
+from ..render_pass import ComputePass, FrameBuffers, PlaneSpec
+from ..scene.geometry import scene_material_names
+from ..scene.model import Scene
+from .features import SceneFeatures
+from .scene_data import FRAME_PARAMS_DTYPE, build_emitter_table, camera_vectors, pack_materials
+
+RADIANCE = PlaneSpec("radiance", 3)
+ALBEDO = PlaneSpec("albedo", 3)
+NORMAL = PlaneSpec("normal", 3)
+DEPTH = PlaneSpec("depth", 1)
+MOTION = PlaneSpec("motion", 2)
+SPP = PlaneSpec("spp", 1, "u32")
+
+WORKGROUP = (8, 8)
+KERNEL = "trace.wgsl"
+
+
+def trace_kernel_source() -> str:
+    return shaders.compose(KERNEL)
+
+
+def trace_layout(ctx, geometry_bindings: int):
+    """The kernel's pipeline layout, spelled out: "auto" would drop the bindings that a specialization
+    no longer reads, and then one set of bind groups could not serve every specialization.
+    Group 0 is the geometry's read-only storage buffers, group 1 the frame uniform and four read-only
+    tables, group 2 the six output planes."""
+    import wgpu
+
+    key = (id(ctx.device), geometry_bindings)
+    if key not in _layouts:
+        def group(kinds):
+            return ctx.device.create_bind_group_layout(entries=[
+                {"binding": i, "visibility": wgpu.ShaderStage.COMPUTE, "buffer": {"type": kind}}
+                for i, kind in enumerate(kinds)])
+
+        read_only, uniform = wgpu.BufferBindingType.read_only_storage, wgpu.BufferBindingType.uniform
+        _layouts[key] = ctx.device.create_pipeline_layout(bind_group_layouts=[
+            group([read_only] * geometry_bindings),
+            group([uniform] + [read_only] * 4),
+            group([wgpu.BufferBindingType.storage] * len(TracePass.outputs))])
+    return _layouts[key]
+
+
+_layouts: dict = {}
+
+
+def trace_pipeline(ctx, features: SceneFeatures, geometry_bindings: int):
+    """The kernel specialized to ``features`` (pipelines are cached by GpuContext)."""
+    constants = dict(features.constants(), WORKGROUP_X=WORKGROUP[0], WORKGROUP_Y=WORKGROUP[1])
+    return ctx.compute_pipeline(trace_kernel_source(), "main", constants=constants, label=f"trace {features}",
+                                layout=trace_layout(ctx, geometry_bindings))
+
+
+@dataclass
+class SampleSchedule:
+    """What the next ``execute`` adds: ``samples`` per pixel, or per pixel from ``sample_counts``
+    (a u32 plane; ``samples`` is then its maximum), with sample indices shifted by ``sample_offset``."""
+
+    samples: int = 1
+    sample_counts: object | None = None
+    sample_offset: int = 0
+
+
+class TracePass(ComputePass):
+    """Path tracing of one frame of ``scene`` into the radiance and G-buffer planes."""
+
+    outputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, MOTION, SPP)
+
+    def __init__(self, ctx, scene: Scene, geometry, width: int, height: int, frame: int = 0,
+                 max_depth: int = 8, seed: int = 0, features: SceneFeatures | None = None,
+                 chunk_size: int | None = None):
+        if max_depth < 1:
+            raise ValueError(f"max_depth must be at least 1, got {max_depth}")
+        self.ctx, self.width, self.height = ctx, width, height
+        self.features = features or SceneFeatures.of(scene)
+        geometry_buffers = geometry.upload(ctx)
+        self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers))
+        # enough samples per dispatch to keep the device busy, few enough to stay well under a second
+        self.chunk_size = chunk_size or max(1, min(16, (1 << 18) // (width * height)))
+        self.schedule = SampleSchedule()
+
+        materials = [scene.materials[n] for n in scene_material_names(scene)]
+        triangle_materials = [materials[i] for i in geometry.material_ids]
+        radius = _scene_radius(geometry.triangles)
+        emitters = build_emitter_table(scene, geometry.triangles, triangle_materials, radius)
+        self._params = self._frame_params(scene, frame, max_depth, seed, emitters)
+        self._geometry_group = ctx.bind_group(self.pipeline, geometry_buffers, group=0)
+        self._materials = ctx.upload(pack_materials(materials), label="materials")
+        self._emitters = ctx.upload(emitters.records, label="emitters")
+        self._triangle_emitter = ctx.upload(emitters.triangle_emitter, label="triangle emitters")
+        self._no_counts = ctx.storage(16, label="no sample counts")
+
+    def _frame_params(self, scene, frame, max_depth, seed, emitters) -> np.ndarray:
+        w, h = self.width, self.height
+        now = camera_vectors(scene.camera_at(frame), w, h)
+        before = camera_vectors(scene.camera_at(frame - 1), w, h)
+        tan_x, tan_y = before["tan"]
+        params = np.zeros((), FRAME_PARAMS_DTYPE)
+        params["camera_origin"], params["camera_right"] = now["origin"], now["right"]
+        params["camera_up"], params["camera_forward"] = now["up"], now["forward"]
+        params["previous_origin"], params["previous_forward"] = before["origin"], before["forward"]
+        params["previous_right"] = before["unit_right"] / tan_x
+        params["previous_up"] = before["unit_up"] / tan_y
+        params["width"], params["height"], params["seed"], params["max_depth"] = w, h, seed, max_depth
+        params["emitter_count"], params["background_pmf"] = emitters.count, emitters.background_pmf
+        params["background"] = scene.background
+        return params
+
+    @property
+    def dispatch_count(self) -> int:
+        return -(-self.schedule.samples // self.chunk_size)
+
+    def clear(self, encoder, buffers: FrameBuffers) -> None:
+        """Reset the output planes (a new frame starts from zero samples)."""
+        for spec in self.outputs:
+            encoder.clear_buffer(buffers.get(spec))
+
+    def execute(self, encoder, buffers: FrameBuffers) -> None:
+        """Record the dispatches that add ``self.schedule``'s samples to ``buffers``."""
+        ctx, schedule = self.ctx, self.schedule
+        params = self._params.copy()
+        params["sample_offset"] = schedule.sample_offset
+        params["use_sample_counts"] = int(schedule.sample_counts is not None)
+        params["pass_samples"] = schedule.samples
+        params["chunk_size"] = self.chunk_size
+        uniform = ctx.uniform(params.tobytes(), label="frame params")
+        chunk_starts = ctx.upload(np.arange(self.dispatch_count, dtype=np.uint32) * self.chunk_size,
+                                  label="chunk starts")
+        shading = ctx.bind_group(self.pipeline, [
+            uniform, self._materials, self._emitters, self._triangle_emitter,
+            schedule.sample_counts if schedule.sample_counts is not None else self._no_counts], group=1)
+        planes = ctx.bind_group(self.pipeline, [buffers.get(spec) for spec in self.outputs], group=2)
+        groups = (-(-self.width // WORKGROUP[0]), -(-self.height // WORKGROUP[1]), 1)
+        chunk_offset = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
+        for chunk in range(self.dispatch_count):
+            encoder.copy_buffer_to_buffer(chunk_starts, 4 * chunk, uniform, chunk_offset, 4)
+            compute = encoder.begin_compute_pass(label="trace")
+            compute.set_pipeline(self.pipeline)
+            compute.set_bind_group(0, self._geometry_group)
+            compute.set_bind_group(1, shading)
+            compute.set_bind_group(2, planes)
+            compute.dispatch_workgroups(*groups)
+            compute.end()
+
+
+def _scene_radius(triangles: np.ndarray) -> float:
+    if len(triangles) == 0:
+        return 1.0
+    points = triangles.reshape(-1, 3)
+    return float(max(1e-3, 0.5 * np.linalg.norm(points.max(0) - points.min(0))))

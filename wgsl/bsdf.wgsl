@@ -1,0 +1,39 @@
+// The BSDF dispatcher: routes evaluation and sampling by material kind. The glass and metal arms sit
+// behind the HAS_DIELECTRIC / HAS_CONDUCTOR switches, so a specialized kernel contains only the
+// models its scene uses.
+
+// #import features.wgsl
+// #import bsdf_diffuse.wgsl
+// #import bsdf_conductor.wgsl
+// #import bsdf_dielectric.wgsl
+
+fn bsdf_eval(m: Material, wi: vec3f, wo: vec3f) -> BsdfEval {
+    if HAS_CONDUCTOR && m.kind == MATERIAL_CONDUCTOR {
+        return conductor_eval(m, wi, wo);
+    }
+    if HAS_DIELECTRIC && m.kind == MATERIAL_DIELECTRIC {
+        return dielectric_eval(m, wi, wo);
+    }
+    return diffuse_eval(m, wi, wo);
+}
+
+fn bsdf_sample(m: Material, wi: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
+    if HAS_CONDUCTOR && m.kind == MATERIAL_CONDUCTOR {
+        return conductor_sample(m, wi, u);
+    }
+    if HAS_DIELECTRIC && m.kind == MATERIAL_DIELECTRIC {
+        return dielectric_sample(m, wi, u_lobe, u);
+    }
+    return diffuse_sample(m, wi, u);
+}
+
+// The albedo the denoiser sees for a non-delta surface.
+fn bsdf_albedo(m: Material) -> vec3f {
+    if HAS_CONDUCTOR && m.kind == MATERIAL_CONDUCTOR {
+        return m.reflectance * fresnel_conductor(1.0, m.eta, m.k);
+    }
+    if HAS_DIELECTRIC && m.kind == MATERIAL_DIELECTRIC {
+        return vec3f(1.0);
+    }
+    return m.reflectance;
+}

@@ -1,0 +1,10 @@
+// Scene-feature switches of the path-tracing kernel. The renderer sets them per scene as pipeline
+// override constants; code under a false switch is constant-folded away when the pipeline is created,
+// so a diffuse-only scene never pays for glass, metal, light-type branching or motion vectors.
+
+override HAS_DIELECTRIC: bool = true;       // any smooth or rough glass
+override HAS_CONDUCTOR: bool = true;        // any smooth or rough metal
+override HAS_AREA_LIGHTS: bool = true;      // any emissive triangle
+override HAS_ANALYTIC_LIGHTS: bool = true;  // any point or directional light, or a non-black background
+override HAS_MOTION: bool = true;           // camera or object motion between this frame and the last
+override WRITE_AOVS: bool = true;           // albedo, normal, depth and motion planes are wanted

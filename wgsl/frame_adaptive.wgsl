@@ -1,0 +1,204 @@
+// Adaptive sampling: turns a per-pixel importance (the error predictor's heatmap in [0, 1], a
+// half-buffer error estimate, or a constant) into the u32 plane of extra samples the targeted tracer
+// pass takes.
+//   extra_from_heat: extra = floor(heat^K · 31), heat clamped to [0, 1].
+//   budget (exact total TARGET extra samples, at most CAP per pixel), deterministic (same importance →
+//   same counts, bit for bit: only integer atomics and fixed-order reductions, no race decides anything):
+//     weigh:          w = max(importance, 0)^K (or 1 when UNIFORM); per-8×8-tile sums → tile_sums.
+//     sum_weights:    one workgroup adds the tile sums → budget.weight_sum.
+//     assign:         ideal = w·TARGET/Σw (TARGET/N when Σw = 0); extra = min(floor(ideal), CAP);
+//                     the fractional part is kept as the pixel's claim on the remainder (−1 if capped).
+//     then rounds of three kernels hand out the remainder R = TARGET − Σextra, one sample per pixel per
+//     round. Candidates are pixels below CAP whose claim ≥ THRESHOLD, ranked in scan order (tile by
+//     tile, row-major inside a tile):
+//       count_candidates: per-tile candidate counts → tile_offsets.
+//       scan_candidates:  one workgroup turns the counts into exclusive prefix offsets, giving the total
+//                         C; the round hands out q = min(R, C) (budget.quota, budget.candidates).
+//       take:             a candidate of rank r takes one sample iff q = C or (r·q mod C) + q ≥ C, i.e.
+//                         floor((r+1)q/C) > floor(rq/C): exactly q samples, spread evenly over the scan
+//                         order (so over the image) rather than bunched at its top.
+//     Rounds with THRESHOLD 0.5 then 0 round claims up, larger first; later rounds (THRESHOLD −2) let
+//     any pixel below CAP take one more until the budget is met (what capped pixels could not take).
+//   half_buffer_error: Cycles' estimate from the mean of all samples I and of the first half A:
+//                     Σ|I − A| / (1e-4 + sqrt(ΣI)) (the variance-based baseline's importance).
+// #import frame_common.wgsl
+
+override K: f32 = 3.0;
+override UNIFORM: bool = false;
+override TARGET: u32 = 0u;
+override CAP: u32 = 31u;
+override THRESHOLD: f32 = 0.5;
+
+struct Budget {
+    weight_sum: f32,
+    assigned: atomic<u32>,   // extra samples given so far
+    quota: u32,              // samples the current round hands out
+    candidates: u32,         // candidates of the current round
+}
+
+@group(0) @binding(0) var<storage, read> source: array<f32>;   // importance, or full radiance
+@group(0) @binding(1) var<storage, read_write> extra: array<u32>;
+@group(0) @binding(2) var<storage, read_write> claim: array<f32>;
+@group(0) @binding(3) var<storage, read_write> tile_sums: array<f32>;
+@group(0) @binding(4) var<storage, read_write> budget: Budget;
+@group(0) @binding(5) var<storage, read> half_radiance: array<f32>;
+@group(0) @binding(6) var<storage, read_write> error: array<f32>;
+@group(0) @binding(7) var<storage, read_write> tile_offsets: array<u32>;
+
+var<workgroup> partial: array<f32, 64>;
+var<workgroup> ranks: array<u32, 64>;
+
+fn tiles_x() -> u32 { return (WIDTH + TILE - 1u) / TILE; }
+
+fn tile_count() -> u32 { return tiles_x() * ((HEIGHT + TILE - 1u) / TILE); }
+
+@compute @workgroup_size(8, 8)
+fn extra_from_heat(@builtin(global_invocation_id) id: vec3u) {
+    if (!in_frame(id)) { return; }
+    let i = pixel_index(id);
+    extra[i] = u32(floor(pow(clamp(finite_or_zero(source[i]), 0.0, 1.0), K) * 31.0));
+}
+
+@compute @workgroup_size(8, 8)
+fn weigh(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation_index) lane: u32,
+         @builtin(workgroup_id) tile: vec3u) {
+    var w = 0.0;
+    if (in_frame(id)) {
+        w = select(pow(sanitize(source[pixel_index(id)]), K), 1.0, UNIFORM);
+        w = min(w, 1.0e30);
+        claim[pixel_index(id)] = w;
+    }
+    partial[lane] = w;
+    workgroupBarrier();
+    for (var stride = 32u; stride > 0u; stride = stride >> 1u) {
+        if (lane < stride) { partial[lane] += partial[lane + stride]; }
+        workgroupBarrier();
+    }
+    if (lane == 0u) { tile_sums[tile.y * tiles_x() + tile.x] = partial[0]; }
+}
+
+@compute @workgroup_size(64)
+fn sum_weights(@builtin(local_invocation_index) lane: u32) {
+    let tiles = tile_count();
+    var total = 0.0;
+    for (var t = lane; t < tiles; t += 64u) { total += tile_sums[t]; }
+    partial[lane] = total;
+    workgroupBarrier();
+    for (var stride = 32u; stride > 0u; stride = stride >> 1u) {
+        if (lane < stride) { partial[lane] += partial[lane + stride]; }
+        workgroupBarrier();
+    }
+    if (lane == 0u) {
+        budget.weight_sum = partial[0];
+        atomicStore(&budget.assigned, 0u);
+    }
+}
+
+@compute @workgroup_size(8, 8)
+fn assign(@builtin(global_invocation_id) id: vec3u) {
+    if (!in_frame(id)) { return; }
+    let i = pixel_index(id);
+    var ideal = f32(TARGET) / f32(pixel_count());
+    if (budget.weight_sum > 0.0) { ideal = claim[i] * (f32(TARGET) / budget.weight_sum); }
+    let whole = floor(ideal);
+    let count = u32(min(whole, f32(CAP)));
+    extra[i] = count;
+    claim[i] = select(ideal - whole, -1.0, count >= CAP);
+    atomicAdd(&budget.assigned, count);
+}
+
+fn is_candidate(id: vec3u) -> bool {
+    if (!in_frame(id)) { return false; }
+    let i = pixel_index(id);
+    return extra[i] < CAP && claim[i] >= THRESHOLD;
+}
+
+// Inclusive prefix sum of ranks[0..64) in place (Hillis–Steele); every lane of the workgroup calls it.
+fn scan_ranks(lane: u32) {
+    for (var offset = 1u; offset < 64u; offset = offset << 1u) {
+        var sum = ranks[lane];
+        if (lane >= offset) { sum += ranks[lane - offset]; }
+        workgroupBarrier();
+        ranks[lane] = sum;
+        workgroupBarrier();
+    }
+}
+
+@compute @workgroup_size(8, 8)
+fn count_candidates(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation_index) lane: u32,
+                    @builtin(workgroup_id) tile: vec3u) {
+    ranks[lane] = select(0u, 1u, is_candidate(id));
+    workgroupBarrier();
+    for (var stride = 32u; stride > 0u; stride = stride >> 1u) {
+        if (lane < stride) { ranks[lane] += ranks[lane + stride]; }
+        workgroupBarrier();
+    }
+    if (lane == 0u) { tile_offsets[tile.y * tiles_x() + tile.x] = ranks[0]; }
+}
+
+@compute @workgroup_size(64)
+fn scan_candidates(@builtin(local_invocation_index) lane: u32) {
+    let tiles = tile_count();
+    var running = 0u;
+    for (var base = 0u; base < tiles; base += 64u) {
+        let t = base + lane;
+        var count = 0u;
+        if (t < tiles) { count = tile_offsets[t]; }
+        ranks[lane] = count;
+        workgroupBarrier();
+        scan_ranks(lane);
+        if (t < tiles) { tile_offsets[t] = running + ranks[lane] - count; }
+        running += ranks[63];
+        workgroupBarrier();
+    }
+    if (lane == 0u) {
+        let assigned = atomicLoad(&budget.assigned);
+        let quota = min(select(0u, TARGET - assigned, TARGET > assigned), running);
+        budget.quota = quota;
+        budget.candidates = running;
+        atomicStore(&budget.assigned, assigned + quota);
+    }
+}
+
+// (a · b) mod m for a, b < m < 2^31, by doubling (no 64-bit product needed).
+fn mul_mod(a: u32, b: u32, m: u32) -> u32 {
+    var result = 0u;
+    for (var bit = 31i; bit >= 0i; bit--) {
+        result = (result << 1u) % m;
+        if (((b >> u32(bit)) & 1u) == 1u) { result = (result + a) % m; }
+    }
+    return result;
+}
+
+@compute @workgroup_size(8, 8)
+fn take(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation_index) lane: u32,
+        @builtin(workgroup_id) tile: vec3u) {
+    let candidate = is_candidate(id);
+    ranks[lane] = select(0u, 1u, candidate);
+    workgroupBarrier();
+    scan_ranks(lane);
+    let quota = budget.quota;
+    let total = budget.candidates;
+    if (!candidate || quota == 0u) { return; }
+    let rank = tile_offsets[tile.y * tiles_x() + tile.x] + ranks[lane] - 1u;
+    if (quota == total || mul_mod(rank, quota, total) + quota >= total) {
+        let i = pixel_index(id);
+        extra[i] += 1u;
+        claim[i] = -1.0;
+    }
+}
+
+@compute @workgroup_size(8, 8)
+fn half_buffer_error(@builtin(global_invocation_id) id: vec3u) {
+    if (!in_frame(id)) { return; }
+    let i = pixel_index(id);
+    let n = pixel_count();
+    var difference = 0.0;
+    var intensity = 0.0;
+    for (var c = 0u; c < 3u; c++) {
+        let full = sanitize(source[c * n + i]);
+        difference += abs(full - sanitize(half_radiance[c * n + i]));
+        intensity += full;
+    }
+    error[i] = difference / (1e-4 + sqrt(intensity));
+}

@@ -1,0 +1,220 @@
+// Unidirectional path tracing with next-event estimation, following Mitsuba 3's `path` integrator so
+// that images agree: emission seen directly (or through delta lobes) counts in full; at every non-delta
+// vertex one emitter sample is combined with the BSDF sample by the power heuristic; max_depth counts
+// path segments (1 = emission only, 2 = direct lighting); Russian roulette from depth 5 on with
+// continuation probability min(max(throughput)·eta², 0.95). Diffuse and metal surfaces are two-sided
+// (the shading frame faces the incoming ray); glass keeps its outward normal to tell inside from out.
+//
+// One invocation is one pixel. It takes the samples [chunk_start, chunk_start + chunk_size) of this
+// pass's count (uniform, or per pixel from sample_counts for adaptive passes), numbered after the
+// samples the pixel already holds (the spp plane) so extra passes add new, distinct sample indices,
+// and folds their mean into the running means of the output planes.
+
+// #import features.wgsl
+// #import trace_bindings.wgsl
+// #import bvh.wgsl
+// #import bsdf.wgsl
+// #import emitters.wgsl
+// #import camera.wgsl
+
+override WORKGROUP_X: u32 = 8u;
+override WORKGROUP_Y: u32 = 8u;
+
+const RR_DEPTH: u32 = 5u;
+
+// Everything one path carries from vertex to vertex, and what it has gathered for its sample.
+struct Path {
+    origin: vec3f,
+    depth: u32,                 // segments traced so far
+    dir: vec3f,
+    eta_scale: f32,             // product of relative indices crossed (Russian roulette uses eta²)
+    throughput: vec3f,
+    previous_pdf: f32,          // solid-angle pdf of the BSDF sample that made `dir`
+    radiance: vec3f,
+    previous_delta: bool,       // that sample came from a delta lobe (no MIS for what it hits)
+    albedo: vec3f,
+    albedo_pending: bool,       // no non-delta surface met yet
+    normal: vec3f,
+    linear_depth: f32,
+    film: vec2f,
+    motion: vec2f,
+}
+
+fn start_path(sampler: ptr<function, Sampler>, pixel_corner: vec2f) -> Path {
+    let film = pixel_corner + next_2d(sampler);
+    return Path(params.camera_origin, 0u, camera_ray_direction(film), 1.0, vec3f(1.0), 0.0, vec3f(0.0), true,
+                vec3f(0.0), WRITE_AOVS, vec3f(0.0), 0.0, film, vec2f(0.0));
+}
+
+// Traces one segment of `path` and shades where it lands; returns false once the path has ended.
+fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>) -> bool {
+    let origin = (*path).origin;
+    let dir = (*path).dir;
+    let depth = (*path).depth;
+    let hit = scene_intersect(origin, dir, FAR_AWAY);
+    if hit.prim == NO_HIT {
+        if HAS_ANALYTIC_LIGHTS && params.background_pmf > 0.0 {
+            let light_pdf = params.background_pmf * INV_FOUR_PI;
+            let weight = select(power_heuristic((*path).previous_pdf, light_pdf), 1.0, (*path).previous_delta);
+            (*path).radiance += (*path).throughput * params.background * weight;
+        }
+        if WRITE_AOVS && HAS_MOTION && depth == 0u {
+            (*path).motion = previous_film_position(dir, (*path).film) - (*path).film;
+        }
+        return false;
+    }
+    let geometric_normal = tri_geometric_normal(hit.prim);
+    let position = origin + hit.t * dir;
+    let material = materials[tri_material(hit.prim)];
+    let cos_front = -dot(geometric_normal, dir);
+
+    if HAS_AREA_LIGHTS && material.is_emissive != 0u && cos_front > 0.0 {
+        var weight = 1.0;
+        if !(*path).previous_delta {
+            weight = power_heuristic((*path).previous_pdf, triangle_emitter_pdf(hit.prim, hit.t, cos_front));
+        }
+        (*path).radiance += (*path).throughput * material.emission * weight;
+    }
+
+    var shading_normal = tri_shading_normal(hit.prim, hit.u, hit.v);
+    let is_glass = HAS_DIELECTRIC && material.kind == MATERIAL_DIELECTRIC;
+    if !is_glass && cos_front < 0.0 {
+        shading_normal = -shading_normal;
+    }
+    if WRITE_AOVS {
+        if depth == 0u {
+            (*path).normal = shading_normal;
+            (*path).linear_depth = dot(position - params.camera_origin, params.camera_forward);
+            if HAS_MOTION {
+                let previous_position = (object_to_previous(tri_object(hit.prim)) * vec4f(position, 1.0)).xyz;
+                let film = (*path).film;
+                (*path).motion = previous_film_position(previous_position - params.previous_origin, film) - film;
+            }
+        }
+        if (*path).albedo_pending && !material_is_delta(material) {
+            (*path).albedo = bsdf_albedo(material);
+            (*path).albedo_pending = false;
+        }
+    }
+    if depth + 1u >= params.max_depth {
+        return false;
+    }
+
+    let frame = frame_from_normal(shading_normal);
+    let wi = to_local(frame, -dir);
+
+    if !material_is_delta(material) {
+        let u_pick = next_1d(sampler);
+        let light = sample_emitter(position, u_pick, next_2d(sampler));
+        if any(light.value > vec3f(0.0)) {
+            let wo = to_local(frame, light.direction);
+            let f = bsdf_eval(material, wi, wo);
+            if any(f.value > vec3f(0.0)) {
+                let shadow_origin = offset_ray_origin(position, geometric_normal, light.direction);
+                let shadow_length = select(light.distance * (1.0 - 2e-4), FAR_AWAY, light.distance >= FAR_AWAY);
+                if !scene_occluded(shadow_origin, light.direction, shadow_length) {
+                    let weight = select(power_heuristic(light.pdf, f.pdf), 1.0, light.pdf == 0.0);
+                    (*path).radiance += (*path).throughput * f.value * light.value * weight;
+                }
+            }
+        }
+    }
+
+    let u_lobe = next_1d(sampler);
+    let bs = bsdf_sample(material, wi, u_lobe, next_2d(sampler));
+    if all(bs.weight == vec3f(0.0)) {
+        return false;
+    }
+    var throughput = (*path).throughput * bs.weight;
+    let eta_scale = (*path).eta_scale * bs.eta;
+    let next_dir = normalize(to_world(frame, bs.wo));
+    (*path).dir = next_dir;
+    (*path).origin = offset_ray_origin(position, geometric_normal, next_dir);
+    (*path).previous_pdf = bs.pdf;
+    (*path).previous_delta = bs.is_delta;
+    (*path).eta_scale = eta_scale;
+    (*path).depth = depth + 1u;
+    if depth + 1u >= RR_DEPTH {
+        let continue_probability = min(max(throughput.x, max(throughput.y, throughput.z)) * eta_scale * eta_scale, 0.95);
+        if next_1d(sampler) >= continue_probability {
+            return false;
+        }
+        throughput /= continue_probability;
+    }
+    (*path).throughput = throughput;
+    return true;
+}
+
+// Running mean of `count_before` values updated with `batch_sum` over `batch_count` new ones.
+fn fold_mean(mean: f32, batch_sum: f32, count_before: f32, batch_count: f32) -> f32 {
+    return mean + (batch_sum - batch_count * mean) / (count_before + batch_count);
+}
+
+@compute @workgroup_size(WORKGROUP_X, WORKGROUP_Y)
+fn main(@builtin(global_invocation_id) gid: vec3u) {
+    if gid.x >= params.width || gid.y >= params.height {
+        return;
+    }
+    let pixel = gid.y * params.width + gid.x;
+    let plane = params.width * params.height;
+    let pass_count = select(params.pass_samples, sample_counts[pixel], params.use_sample_counts != 0u);
+    let taken = min(params.chunk_size, max(pass_count, params.chunk_start) - params.chunk_start);
+    if taken == 0u {
+        return;
+    }
+    let held = out_spp[pixel];
+    var radiance = vec3f(0.0);
+    var albedo = vec3f(0.0);
+    var normal = vec3f(0.0);
+    var depth = 0.0;
+    var motion = vec2f(0.0);
+    // Path regeneration: when a path ends the invocation starts its next sample in the same loop, so
+    // the SIMD lanes of a subgroup stay busy until all of them have traced all their samples, instead
+    // of each sample waiting for the longest path of its subgroup.
+    let pixel_corner = vec2f(gid.xy);
+    var index = 0u;
+    var sampler = sampler_start(pixel, params.sample_offset + held, params.seed);
+    var path = start_path(&sampler, pixel_corner);
+    loop {
+        if extend_path(&path, &sampler) {
+            continue;
+        }
+        // a non-finite sample (a degenerate configuration) is dropped rather than poisoning the pixel
+        radiance += select(vec3f(0.0), path.radiance, is_finite_vec3(path.radiance));
+        if WRITE_AOVS {
+            albedo += path.albedo;
+            normal += path.normal;
+            depth += path.linear_depth;
+            motion += path.motion;
+        }
+        index += 1u;
+        if index == taken {
+            break;
+        }
+        sampler = sampler_start(pixel, params.sample_offset + held + index, params.seed);
+        path = start_path(&sampler, pixel_corner);
+    }
+    let before = f32(held);
+    let batch = f32(taken);
+    for (var c = 0u; c < 3u; c += 1u) {
+        let at = c * plane + pixel;
+        out_radiance[at] = fold_mean(out_radiance[at], radiance[c], before, batch);
+    }
+    out_spp[pixel] = held + taken;
+    if WRITE_AOVS {
+        let previous_normal = vec3f(out_normal[pixel], out_normal[plane + pixel], out_normal[2u * plane + pixel]);
+        let summed_normal = previous_normal * before + normal;
+        let magnitude = length(summed_normal);
+        let new_normal = select(vec3f(0.0), summed_normal / magnitude, magnitude > 0.0);
+        for (var c = 0u; c < 3u; c += 1u) {
+            let at = c * plane + pixel;
+            out_albedo[at] = fold_mean(out_albedo[at], albedo[c], before, batch);
+            out_normal[at] = new_normal[c];
+        }
+        out_depth[pixel] = fold_mean(out_depth[pixel], depth, before, batch);
+        for (var c = 0u; c < 2u; c += 1u) {
+            let at = c * plane + pixel;
+            out_motion[at] = fold_mean(out_motion[at], motion[c], before, batch);
+        }
+    }
+}

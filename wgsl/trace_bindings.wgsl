@@ -1,0 +1,66 @@
+// Bind groups 1 (scene shading data and frame parameters) and 2 (output planes) of the path-tracing
+// kernel; layouts mirror wgpu_rt/trace/scene_data.py (FrameParams, Material, Emitter records).
+// Output planes are planar (channel-major): channel c of pixel i lives at c·pixel_count + i.
+
+// #import material.wgsl
+
+const EMITTER_TRIANGLE: u32 = 0u;
+const EMITTER_POINT: u32 = 1u;
+const EMITTER_DIRECTIONAL: u32 = 2u;
+const EMITTER_BACKGROUND: u32 = 3u;
+const NO_EMITTER: u32 = 0xffffffffu;
+
+struct FrameParams {
+    camera_origin: vec3f,
+    width: u32,
+    camera_right: vec3f,      // unit right vector times tan(horizontal half-fov)
+    height: u32,
+    camera_up: vec3f,         // unit up vector times tan(vertical half-fov)
+    seed: u32,
+    camera_forward: vec3f,
+    max_depth: u32,
+    previous_origin: vec3f,   // the previous frame's camera, for motion vectors
+    sample_offset: u32,
+    previous_right: vec3f,    // unit right vector / tan(horizontal half-fov) of the previous camera
+    emitter_count: u32,
+    previous_up: vec3f,       // unit up vector / tan(vertical half-fov) of the previous camera
+    use_sample_counts: u32,   // 1: sample_counts[pixel] says how many samples this pass takes
+    previous_forward: vec3f,
+    background_pmf: f32,      // probability that emitter sampling picks the background
+    background: vec3f,
+    chunk_start: u32,         // this dispatch takes samples [chunk_start, chunk_start + chunk_size)
+    chunk_size: u32,          //   of each pixel's count for this pass
+    pass_samples: u32,        // the count for this pass when use_sample_counts is 0
+    pad0: u32,
+    pad1: u32,
+}
+
+// One entry of the emitter table. Sampling picks an entry through its alias-table fields in O(1):
+// take i = floor(u·N); keep i if frac(u·N) < alias_threshold, else use alias_index.
+struct Emitter {
+    position: vec3f,      // triangle: vertex 0; point light: position
+    kind: u32,
+    edge1: vec3f,         // triangle: v1 - v0; directional light: direction of travel
+    pmf: f32,             // probability that sampling picks this entry
+    edge2: vec3f,         // triangle: v2 - v0
+    area: f32,
+    radiance: vec3f,      // radiance, intensity or irradiance by kind
+    alias_threshold: f32,
+    alias_index: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(1) @binding(0) var<uniform> params: FrameParams;
+@group(1) @binding(1) var<storage, read> materials: array<Material>;
+@group(1) @binding(2) var<storage, read> emitters: array<Emitter>;
+@group(1) @binding(3) var<storage, read> triangle_emitter: array<u32>;   // per triangle: entry or NO_EMITTER
+@group(1) @binding(4) var<storage, read> sample_counts: array<u32>;      // per pixel (adaptive passes)
+
+@group(2) @binding(0) var<storage, read_write> out_radiance: array<f32>;
+@group(2) @binding(1) var<storage, read_write> out_albedo: array<f32>;
+@group(2) @binding(2) var<storage, read_write> out_normal: array<f32>;
+@group(2) @binding(3) var<storage, read_write> out_depth: array<f32>;
+@group(2) @binding(4) var<storage, read_write> out_motion: array<f32>;
+@group(2) @binding(5) var<storage, read_write> out_spp: array<u32>;
