@@ -1,0 +1,48 @@
+"""Fused frame pipeline cost: per-stage GPU time (timestamp queries) and wall time per frame of
+denoise (+ adaptive, + temporal) against the plain 1-spp trace measured in the same run.
+
+Needs the trained models in models/ (denoiser.onnx; error_predictor.onnx for --adaptive).
+    python3 benchmarks/bench_pipeline.py --size 128x128 --frames 8 [--adaptive 4] [--temporal]
+"""
+
+import argparse
+import time
+
+import numpy as np
+
+from wgpu_rt.frame import render_frames
+from wgpu_rt.render import parse_size
+from wgpu_rt.scene import load_scene
+
+
+def timed(scene, **settings):
+    frames = settings.pop("frames")
+    render_frames(scene, frames=[0], **settings)                       # compile and warm up
+    start = time.perf_counter()
+    out = render_frames(scene, frames=frames, **settings)
+    per_frame = (time.perf_counter() - start) / len(frames)
+    stages = {name: np.median([f.stage_ms.get(name, 0.0) for f in out]) for name in out[-1].stage_ms}
+    return per_frame, stages
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default="moving")
+    parser.add_argument("--size", default="128x128")
+    parser.add_argument("--frames", type=int, default=8)
+    parser.add_argument("--adaptive", type=float)
+    parser.add_argument("--temporal", action="store_true")
+    args = parser.parse_args()
+    width, height = parse_size(args.size)
+    scene = load_scene(args.scene)
+    common = dict(width=width, height=height, frames=range(args.frames), max_depth=8)
+    plain, plain_stages = timed(scene, denoise=False, **common)
+    fused, fused_stages = timed(scene, denoise=True, adaptive=args.adaptive, temporal=args.temporal, **common)
+    print(f"{args.scene} {width}x{height}, {args.frames} frames")
+    print(f"plain 1-spp trace : {plain * 1e3:8.1f} ms/frame  stages {plain_stages}")
+    print(f"fused pipeline    : {fused * 1e3:8.1f} ms/frame  stages {fused_stages}")
+    print(f"ratio fused/plain : {fused / plain:.2f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,124 @@
+"""The packing passes against their numpy references (which training uses), and sanitising stress."""
+
+import numpy as np
+import pytest
+from parity import check_parity
+
+from wgpu_rt.frame.pack import (DepthMaxPass, PackConfidencePass, PackDenoiserPass, PackErrorPass,
+                                pack_confidence_input, pack_denoiser_input, pack_error_input)
+from wgpu_rt.frame.planes import (ALBEDO, CONFIDENCE_INPUT, DENOISER_INPUT, DEPTH, ERROR_INPUT, NORMAL,
+                                  RADIANCE, write_plane)
+from wgpu_rt.render_pass import FrameBuffers, PlaneSpec
+
+H, W = 24, 40   # not multiples of the 8×8 tile, so edge guards are exercised
+
+
+def run(gpu, passes, planes):
+    buffers = FrameBuffers(gpu, W, H)
+    for spec, image in planes.items():
+        write_plane(buffers, spec, image)
+    encoder = gpu.device.create_command_encoder()
+    for p in passes:
+        p.execute(encoder, buffers)
+    gpu.device.queue.submit([encoder.finish()])
+    return buffers
+
+
+def denoiser_on_gpu(gpu, color, albedo, normal, depth):
+    depth_max = DepthMaxPass(gpu, W, H)
+    buffers = run(gpu, [depth_max, PackDenoiserPass(gpu, W, H, depth_max.result)],
+                  {RADIANCE: color, ALBEDO: albedo, NORMAL: normal, DEPTH: depth})
+    return buffers.read(DENOISER_INPUT.name)
+
+
+def random_planes(rng):
+    color = rng.exponential(2.0, (H, W, 3)).astype(np.float32)
+    albedo = rng.uniform(0, 1, (H, W, 3)).astype(np.float32)
+    normal = rng.normal(size=(H, W, 3)).astype(np.float32)
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    depth = rng.uniform(0.5, 30, (H, W)).astype(np.float32)
+    depth[rng.uniform(size=(H, W)) < 0.2] = 0.0          # misses
+    return color, albedo, normal, depth
+
+
+def test_pack_denoiser_matches_reference(gpu):
+    inputs = random_planes(np.random.default_rng(1))
+    out, ref = check_parity(None, pack_denoiser_input, lambda *a: denoiser_on_gpu(gpu, *a),
+                            atol=1e-6, rtol=1e-6, inputs=inputs, name="pack_denoiser")
+    assert ref.shape == (10, H, W)
+    assert ref[9].max() == pytest.approx(1.0)              # depth normalised by the frame max
+
+
+def test_pack_denoiser_reference_layout():
+    """The reference itself, against values worked out by hand (so a wrong reference cannot pass)."""
+    color = np.zeros((1, 2, 3), np.float32)
+    color[0, 0] = [np.e - 1, -5, np.nan]
+    color[0, 1] = [np.inf, 0, 1e-8]
+    albedo = np.full((1, 2, 3), 2.0, np.float32)
+    normal = np.array([[[0, 0, 1], [np.nan, -1, 0]]], np.float32)
+    depth = np.array([[2.0, 8.0]], np.float32)
+    x = pack_denoiser_input(color, albedo, normal, depth)
+    np.testing.assert_allclose(x[:3, 0, 0], [1, 0, 0], atol=1e-7)
+    np.testing.assert_allclose(x[:3, 0, 1], [0, 0, 1e-8], rtol=1e-6)
+    np.testing.assert_array_equal(x[3:6], 1.0)
+    np.testing.assert_allclose(x[6:9, 0, 0], [0.5, 0.5, 1.0])
+    np.testing.assert_allclose(x[6:9, 0, 1], [0.5, 0.0, 0.5])
+    np.testing.assert_allclose(x[9, 0], [0.25, 1.0])
+
+
+def test_pack_denoiser_no_hit_frame_packs_zero_depth(gpu):
+    color, albedo, normal, _ = random_planes(np.random.default_rng(2))
+    out = denoiser_on_gpu(gpu, color, albedo, normal, np.zeros((H, W), np.float32))
+    assert np.all(out[9] == 0)
+
+
+@pytest.mark.parametrize("poison", [np.nan, np.inf, -np.inf, -1e30])
+def test_pack_denoiser_never_emits_non_finite(gpu, poison):
+    rng = np.random.default_rng(3)
+    planes = list(random_planes(rng))
+    for plane in planes:
+        plane[rng.uniform(size=plane.shape) < 0.1] = poison
+    out = denoiser_on_gpu(gpu, *planes)
+    assert np.all(np.isfinite(out))
+    np.testing.assert_allclose(out, pack_denoiser_input(*planes), atol=1e-6, rtol=1e-6)
+    assert out.min() >= 0 and out[3:].max() <= 1.0
+
+
+def test_pack_keeps_fp16_range(gpu):
+    """Radiance up to f16's max lands near 11 in log space, representable in half precision."""
+    color = np.full((H, W, 3), 65504.0, np.float32)
+    color[::2] = np.float32(1e-3)
+    _, albedo, normal, depth = random_planes(np.random.default_rng(4))
+    out = denoiser_on_gpu(gpu, color, albedo, normal, depth)
+    assert out[:3].max() == pytest.approx(np.log1p(65504.0), rel=1e-6)
+    assert np.all(np.isfinite(out.astype(np.float16)))
+
+
+def test_pack_error_matches_reference(gpu):
+    color = np.random.default_rng(5).exponential(1.0, (H, W, 3)).astype(np.float32)
+    color[0, 0] = np.nan
+
+    def ours(c):
+        return run(gpu, [PackErrorPass(gpu, W, H)], {RADIANCE: c}).read(ERROR_INPUT.name)
+
+    check_parity(None, pack_error_input, ours, atol=1e-6, rtol=1e-6, inputs=[color], name="pack_error")
+
+
+def test_pack_confidence_matches_reference(gpu):
+    rng = np.random.default_rng(6)
+    color, _, _, depth = random_planes(rng)
+    history = rng.exponential(2.0, (H, W, 3)).astype(np.float32)
+    previous_depth = rng.uniform(0, 40, (H, W)).astype(np.float32)
+    history[1, 1] = np.inf
+    current = PlaneSpec("current", 3)
+    reprojected = PlaneSpec("reprojected", 5)   # frame_temporal.wgsl: RGB, previous depth, history length
+
+    def ours(c, h, d, pd):
+        depth_max = DepthMaxPass(gpu, W, H)
+        packing = PackConfidencePass(gpu, W, H, current, reprojected, depth_max.result)
+        reprojected_planes = np.concatenate([h, pd[..., None], np.ones_like(pd)[..., None]], axis=-1)
+        return run(gpu, [depth_max, packing], {current: c, reprojected: reprojected_planes, DEPTH: d}
+                   ).read(CONFIDENCE_INPUT.name)
+
+    check_parity(None, pack_confidence_input, ours, atol=1e-6, rtol=1e-6,
+                 inputs=[color, history, depth, previous_depth], name="pack_confidence")

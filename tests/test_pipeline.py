@@ -1,0 +1,174 @@
+"""The fused frame pipeline: one readback per frame, no uploads of its own, and each mode's output
+equal to the numpy references applied to the traced planes. Networks are stand-ins recorded on the
+device (an identity denoiser, a fixed heatmap), so the test checks the wiring, not a trained model."""
+
+import numpy as np
+import pytest
+
+from wgpu_rt.frame import render_frames
+from wgpu_rt.frame.adaptive import AdaptiveSettings
+from wgpu_rt.frame.planes import RADIANCE, SPP
+from wgpu_rt.frame.temporal import TemporalSettings
+from wgpu_rt.frame.tonemap import tonemap
+from wgpu_rt.scene.builtin import builtin_scene
+
+W, H = 24, 16
+
+
+class IdentityDenoiser:
+    """Copies the packed log1p colour (channels 0–2) to its output: denoised = sanitised radiance."""
+
+    def __init__(self, gpu):
+        self.output = gpu.storage(3 * W * H * 4, label="identity output")
+
+    def record(self, encoder, input_buffer, height, width):
+        encoder.copy_buffer_to_buffer(input_buffer, 0, self.output, 0, 3 * width * height * 4)
+        return self.output
+
+
+class FixedHeat:
+    def __init__(self, gpu, heat):
+        self.output = gpu.upload(heat.astype(np.float32))
+
+    def record(self, encoder, input_buffer, height, width):
+        return self.output
+
+
+class TrafficCounter:
+    """Counts host ↔ device traffic at the lowest level wgpu-py offers, so no route escapes it: every
+    readback (queue.read_buffer, buffer.map_sync/map_async + read_mapped, GpuContext.read) ends in
+    GPUBuffer.read_mapped; every upload is queue.write_buffer/write_texture or GPUBuffer.write_mapped
+    (which create_buffer_with_data and mapped_at_creation buffers use)."""
+
+    def __init__(self, monkeypatch, gpu):
+        self.reads = self.uploads = 0
+        buffer_type, queue_type = type(gpu.storage(16)), type(gpu.device.queue)
+        for owner, name, counter in ((buffer_type, "read_mapped", "reads"),
+                                     (buffer_type, "_experimental_get_mapped_range", "reads"),
+                                     (buffer_type, "write_mapped", "uploads"),
+                                     (queue_type, "write_buffer", "uploads"),
+                                     (queue_type, "write_texture", "uploads")):
+            monkeypatch.setattr(owner, name, self._counted(getattr(owner, name), counter))
+
+    def _counted(self, method, counter):
+        def wrapper(*args, **kwargs):
+            setattr(self, counter, getattr(self, counter) + 1)
+            return method(*args, **kwargs)
+
+        return wrapper
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return builtin_scene("cornell")
+
+
+def frames_and_traffic(monkeypatch, gpu, scene, frames, **settings):
+    counter = TrafficCounter(monkeypatch, gpu)
+    out = render_frames(scene, frames=frames, width=W, height=H, max_depth=3, ctx=gpu, **settings)
+    monkeypatch.undo()
+    return out, counter
+
+
+def test_one_readback_and_no_uploads_of_its_own(gpu, scene, monkeypatch):
+    """The full pipeline (denoise, adaptive, temporal) moves exactly what a plain trace does, plus nothing:
+    one readback per frame and the tracer's own parameter uploads."""
+    heat = np.linspace(0, 1, W * H).astype(np.float32)
+    plain, plain_traffic = frames_and_traffic(monkeypatch, gpu, scene, [0, 1], denoise=False)
+    full, full_traffic = frames_and_traffic(
+        monkeypatch, gpu, scene, [0, 1], denoiser=IdentityDenoiser(gpu), error_model=FixedHeat(gpu, heat),
+        adaptive=AdaptiveSettings(budget=2.0), temporal=TemporalSettings())
+    assert plain_traffic.reads == full_traffic.reads == 2
+    tracer_uploads_per_schedule = plain_traffic.uploads / 2
+    assert full_traffic.uploads == 2 * (tracer_uploads_per_schedule + 2)   # + targeted pass's 2 uploads
+    assert all(f.image.shape == (H, W, 4) and f.image.dtype == np.uint8 for f in full)
+
+
+class LeakyDenoiser(IdentityDenoiser):
+    """An identity denoiser that also moves data between host and device the way a careless stage
+    would: ``leak`` names the route."""
+
+    def __init__(self, gpu, leak):
+        super().__init__(gpu)
+        self.gpu, self.leak = gpu, leak
+
+    def record(self, encoder, input_buffer, height, width):
+        import wgpu
+
+        if self.leak == "GpuContext.read":
+            self.gpu.read(input_buffer, nbytes=16)
+        elif self.leak == "map_sync":
+            staging = self.gpu.device.create_buffer(size=16, usage=wgpu.BufferUsage.MAP_READ)
+            staging.map_sync(wgpu.MapMode.READ)
+            staging.read_mapped()
+            staging.unmap()
+        elif self.leak == "write_buffer":
+            self.gpu.device.queue.write_buffer(self.output, 0, np.zeros(4, np.float32))
+        elif self.leak == "GpuContext.upload":
+            self.gpu.upload(np.zeros(4, np.float32))
+        return super().record(encoder, input_buffer, height, width)
+
+
+@pytest.mark.parametrize("leak", ["GpuContext.read", "map_sync", "write_buffer", "GpuContext.upload"])
+def test_traffic_counter_catches_a_stage_that_leaks(gpu, scene, monkeypatch, leak):
+    """The counting test above can fail: one stray transfer per frame inside a stage shows up."""
+    _, clean = frames_and_traffic(monkeypatch, gpu, scene, [0, 1], denoiser=IdentityDenoiser(gpu))
+    _, leaky = frames_and_traffic(monkeypatch, gpu, scene, [0, 1], denoiser=LeakyDenoiser(gpu, leak))
+    reads, uploads = leaky.reads - clean.reads, leaky.uploads - clean.uploads
+    assert (reads, uploads) == ((2, 0) if leak in ("GpuContext.read", "map_sync") else (0, 2))
+
+
+def test_identity_denoiser_gives_tonemapped_radiance(gpu, scene):
+    from wgpu_rt.frame.pipeline import FramePipeline
+    from wgpu_rt.scene.geometry import GeometryBuffers
+    from wgpu_rt.trace.trace_pass import TracePass
+
+    geometry = GeometryBuffers.build(scene, 0)
+    pipeline = FramePipeline(gpu, W, H, lambda f: TracePass(gpu, scene, geometry, W, H, frame=f, max_depth=3),
+                             denoiser=IdentityDenoiser(gpu), operator="reinhard")
+    frame = pipeline.render(scene, 0)
+    radiance = pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0)
+    assert radiance.max() > 0
+    expected = tonemap(radiance, "reinhard")
+    assert np.abs(frame.image.astype(int) - expected.astype(int)).max() <= 1
+    if gpu.has_timestamps:
+        assert {"trace", "pack", "denoise", "tonemap"} <= set(frame.stage_ms)
+        assert all(ms >= 0 for ms in frame.stage_ms.values())
+
+
+def test_adaptive_budget_reaches_the_spp_plane(gpu, scene):
+    from wgpu_rt.frame.pipeline import FramePipeline
+    from wgpu_rt.scene.geometry import GeometryBuffers
+    from wgpu_rt.trace.trace_pass import TracePass
+
+    geometry = GeometryBuffers.build(scene, 0)
+    heat = np.zeros((H, W), np.float32)
+    heat[:, : W // 2] = 1.0
+    for sampler, error_model in (("heat", FixedHeat(gpu, heat)), ("uniform", None), ("variance", None)):
+        pipeline = FramePipeline(gpu, W, H, lambda f: TracePass(gpu, scene, geometry, W, H, max_depth=2),
+                                 adaptive=AdaptiveSettings(sampler=sampler, budget=3.5), error_model=error_model)
+        pipeline.render(scene, 0)
+        spp = pipeline.buffers.read(SPP.name)[0]
+        assert int(spp.sum()) == round(3.5 * W * H), sampler
+        if sampler == "heat":
+            assert spp[:, W // 2:].max() <= 2 and spp[:, : W // 2].min() >= 4
+
+
+def test_temporal_static_frames_converge(gpu, scene):
+    """A static scene accumulates: the temporal output of 4 frames is smoother than one frame."""
+    frames = render_frames(scene, denoise=False, temporal=TemporalSettings(), frames=range(4), width=W,
+                           height=H, max_depth=3, ctx=gpu, output="f32", operator="none")
+    single = render_frames(scene, denoise=False, frames=[3], width=W, height=H, max_depth=3, ctx=gpu,
+                           output="f32", operator="none", seed=0)[0].image
+    reference = render_frames(scene, denoise=False, frames=[0], width=W, height=H, max_depth=3, ctx=gpu,
+                              output="f32", operator="none", seed=100)[0].image
+    assert np.all(np.isfinite(frames[-1].image))
+    error_accumulated = np.abs(frames[-1].image - reference).mean()
+    assert error_accumulated < np.abs(single - reference).mean()
+
+
+def test_missing_model_is_named(tmp_path, scene, gpu):
+    from wgpu_rt.errors import ModelError
+
+    with pytest.raises(ModelError, match="denoiser.onnx"):
+        render_frames(scene, frames=[0], width=W, height=H, ctx=gpu, models_dir=tmp_path)

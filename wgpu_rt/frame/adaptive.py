@@ -1,0 +1,178 @@
+"""Adaptive sampling: per-pixel extra samples from an importance map, for the tracer's targeted pass.
+
+The tracer keeps its planes as running means over every sample a pixel has taken (its spp plane counts
+them), so a targeted pass that adds ``extra`` samples on top of the 1-spp probe leaves radiance the
+plain average of 1 + extra samples, weighted by count, with no extra bookkeeping here. (The counts are
+chosen from the probe itself, as in every a-posteriori adaptive sampler; the averaging adds no bias of
+its own.) See ``wgsl/frame_adaptive.wgsl`` for the kernels.
+
+Samplers:
+- ``heat``: the Error Predictor's heatmap, extra = floor(heat^k · 31), or with ``budget`` (mean spp
+  including the probe) weights heat^k scaled so the total is exactly (budget − 1)·pixels. The
+  remainder after rounding down is handed out deterministically (prefix ranks, not atomic races), so
+  the same heatmap always gives the same sample map, bit for bit.
+- ``uniform``: the same budget spread evenly (equal total rays baseline).
+- ``variance``: Cycles' half-buffer error of a 2-spp probe as the weights (classic baseline).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import WgpuRtError
+from ..render_pass import ComputePass, PlaneSpec
+from .kernel import TILE, FrameKernel, ceil_div, nonnegative_finite
+from .planes import RADIANCE
+
+HEAT = PlaneSpec("heat", 1)
+EXTRA_SAMPLES = PlaneSpec("extra_samples", 1, "u32")
+SAMPLE_ERROR = PlaneSpec("sample_error", 1)
+HALF_RADIANCE = PlaneSpec("half_radiance", 3)
+CLAIM = PlaneSpec("sample_claim", 1)
+MAX_HEAT_SAMPLES = 31
+SAMPLERS = ("heat", "uniform", "variance")
+SHADER = "frame_adaptive.wgsl"
+# frame_adaptive.wgsl's bindings, per entry point (None: not used by that entry).
+ENTRY_BINDINGS = {
+    "extra_from_heat": ("source", "extra", None, None, None, None, None, None),
+    "weigh": ("source", None, "claim", "tile_sums", None, None, None, None),
+    "sum_weights": (None, None, None, "tile_sums", "budget", None, None, None),
+    "assign": (None, "extra", "claim", None, "budget", None, None, None),
+    "count_candidates": (None, "extra", "claim", None, None, None, None, "tile_offsets"),
+    "scan_candidates": (None, None, None, None, "budget", None, None, "tile_offsets"),
+    "take": (None, "extra", "claim", None, "budget", None, None, "tile_offsets"),
+    "half_buffer_error": ("source", None, None, None, None, "half_radiance", "error", None),
+}
+# Entry points run by a single workgroup rather than one invocation per pixel.
+SINGLE_WORKGROUP = ("sum_weights", "scan_candidates")
+# Claim thresholds of the remainder rounds: round claims up (larger first), then spread what capped
+# pixels could not take.
+ROUNDING_THRESHOLDS = (0.5, 0.0)
+SPILL_THRESHOLD = -2.0
+
+
+@dataclass(frozen=True)
+class AdaptiveSettings:
+    sampler: str = "heat"
+    budget: float | None = None     # mean spp including the probe; None: floor(heat^k · 31) extra
+    k: float = 3.0
+    cap: int = MAX_HEAT_SAMPLES     # most extra samples one pixel may take under a budget
+
+    def __post_init__(self):
+        if self.sampler not in SAMPLERS:
+            raise WgpuRtError(f"adaptive sampler {self.sampler!r} is not one of {', '.join(SAMPLERS)}")
+        if self.budget is None and self.sampler != "heat":
+            raise WgpuRtError(f"the {self.sampler} sampler needs a budget (mean samples per pixel)")
+        low = self.probe_samples
+        if self.budget is not None and not (low <= self.budget <= low + self.cap):
+            raise WgpuRtError(f"adaptive budget {self.budget} spp is outside [{low}, {low + self.cap}] "
+                              f"(the {low}-spp probe plus at most {self.cap} extra per pixel)")
+
+    @property
+    def probe_samples(self) -> int:
+        return 2 if self.sampler == "variance" else 1
+
+    def extra_total(self, pixels: int) -> int:
+        """Extra samples the budget leaves after the probe, over ``pixels``."""
+        total = int(round((self.budget - self.probe_samples) * pixels))
+        if total >= 2 ** 32:
+            raise WgpuRtError(f"adaptive budget {self.budget} spp over {pixels} pixels exceeds 2^32 samples")
+        return total
+
+    @property
+    def max_extra(self) -> int:
+        """Upper bound of any pixel's extra samples (the targeted pass's dispatch count follows it)."""
+        return MAX_HEAT_SAMPLES if self.budget is None else self.cap
+
+
+# -- numpy references ---------------------------------------------------------------------------------
+def extra_samples_from_heat(heat: np.ndarray, k: float = 3.0) -> np.ndarray:
+    """(H, W) heat → (H, W) uint32 extra samples floor(clip(heat, 0, 1)^k · 31)."""
+    heat = np.clip(np.where(np.isfinite(heat), heat, 0.0), 0.0, 1.0).astype(np.float64)
+    return np.floor(heat ** k * MAX_HEAT_SAMPLES).astype(np.uint32)
+
+
+def ideal_budget_samples(importance: np.ndarray, total: int, k: float = 3.0,
+                         uniform: bool = False) -> np.ndarray:
+    """The real-valued share of ``total`` extra samples per pixel, ∝ importance^k (before the per-pixel
+    cap and rounding; the device's integer counts sum to ``total`` exactly and stay within 1 of this
+    wherever no pixel hits the cap)."""
+    weights = np.ones(importance.shape) if uniform else nonnegative_finite(importance).astype(np.float64) ** k
+    weight_sum = weights.sum()
+    if weight_sum <= 0:
+        return np.full(importance.shape, total / importance.size)
+    return weights * (total / weight_sum)
+
+
+def half_buffer_error(full: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Cycles' per-pixel error estimate from the mean of all samples and of the first half, (H, W, 3)
+    each: Σ_c |full − half| / (1e-4 + sqrt(Σ_c full))."""
+    full, half = nonnegative_finite(full).astype(np.float64), nonnegative_finite(half).astype(np.float64)
+    return (np.abs(full - half).sum(-1) / (1e-4 + np.sqrt(full.sum(-1)))).astype(np.float32)
+
+
+# -- passes -------------------------------------------------------------------------------------------
+class ExtraSamplesPass(ComputePass):
+    """``source`` (heat, or the sample error for the variance sampler) → extra_samples (u32)."""
+
+    outputs = (EXTRA_SAMPLES,)
+
+    def __init__(self, ctx, width: int, height: int, settings: AdaptiveSettings, source: PlaneSpec = HEAT):
+        self.settings, self.source = settings, source
+        self.inputs = (source,)
+        k = 1.0 if settings.sampler == "variance" else settings.k
+
+        def kernel(entry, **constants):
+            return FrameKernel(ctx, SHADER, entry, ENTRY_BINDINGS[entry], width, height, constants)
+
+        if settings.budget is None:
+            self.kernels = [kernel("extra_from_heat", K=k)]
+            return
+        target, cap = settings.extra_total(width * height), settings.cap
+        tiles = ceil_div(width, TILE) * ceil_div(height, TILE)
+        self.tile_sums = ctx.storage(4 * tiles, label="tile sums")
+        self.tile_offsets = ctx.storage(4 * tiles, label="tile candidate offsets")
+        self.budget = ctx.storage(16, label="sample budget")
+        self.kernels = [kernel("weigh", K=k, UNIFORM=settings.sampler == "uniform"),
+                        kernel("sum_weights"),
+                        kernel("assign", TARGET=target, CAP=cap)]
+
+        def remainder_round(threshold):
+            return [kernel(entry, TARGET=target, CAP=cap, THRESHOLD=threshold)
+                    for entry in ("count_candidates", "scan_candidates", "take")]
+
+        for threshold in ROUNDING_THRESHOLDS:
+            self.kernels += remainder_round(threshold)
+        # Without capped pixels the two rounds above already hand out the whole remainder (it is the sum
+        # of the claims, each < 1), so every count is its ideal share rounded down or up. What capped
+        # pixels could not take is spread by rounds of at most one sample per pixel: cap + 1 rounds always
+        # meet the budget.
+        self.kernels += remainder_round(SPILL_THRESHOLD) * (cap + 1)
+
+    def execute(self, encoder, buffers) -> None:
+        planes = {"source": buffers.get(self.source), "extra": buffers.get(EXTRA_SAMPLES)}
+        if self.settings.budget is not None:
+            planes |= {"claim": buffers.get(CLAIM), "tile_sums": self.tile_sums, "budget": self.budget,
+                       "tile_offsets": self.tile_offsets}
+        compute_pass = encoder.begin_compute_pass(label="extra samples")
+        for kernel in self.kernels:
+            kernel.record(compute_pass, planes, (1, 1) if kernel.entry in SINGLE_WORKGROUP else None)
+        compute_pass.end()
+
+
+class HalfBufferErrorPass(ComputePass):
+    """radiance (mean of all probe samples), half_radiance (mean of the first half) → sample_error."""
+
+    inputs = (RADIANCE, HALF_RADIANCE)
+    outputs = (SAMPLE_ERROR,)
+
+    def __init__(self, ctx, width: int, height: int):
+        self.kernel = FrameKernel(ctx, SHADER, "half_buffer_error", ENTRY_BINDINGS["half_buffer_error"],
+                                  width, height)
+
+    def execute(self, encoder, buffers) -> None:
+        self.kernel.dispatch(encoder, {"source": buffers.get(RADIANCE),
+                                       "half_radiance": buffers.get(HALF_RADIANCE),
+                                       "error": buffers.get(SAMPLE_ERROR)})

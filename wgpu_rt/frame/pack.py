@@ -1,0 +1,128 @@
+"""Packing the tracer's planes into the networks' inputs, on the device and as numpy references.
+
+Training builds its inputs with the numpy functions below, so the two sides cannot drift apart: a
+change here changes both, and tests/test_frame_pack.py holds them equal.
+
+Depth is normalised by the frame's max depth (ARCHITECTURE.md's contract), found on the device by an
+atomic max over the depth's bit pattern (``wgsl/frame_depth_max.wgsl``), so no value travels to the
+CPU. Sanitising: NaN/±Inf become 0 and negatives are clamped to 0 in colour, albedo and depth (a
+failed sample adds nothing); non-finite normal components become 0 (mapping to 0.5).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..render_pass import ComputePass
+from .kernel import FrameKernel, finite, nonnegative_finite
+from .planes import ALBEDO, CONFIDENCE_INPUT, DENOISER_INPUT, DEPTH, ERROR_INPUT, NORMAL, RADIANCE
+
+# frame_pack.wgsl's bindings, per entry point (None: not used by that entry).
+DENOISER_BINDINGS = ("color", "albedo", "normal", "depth", "depth_max_bits", None, "packed")
+ERROR_BINDINGS = ("color", None, None, None, None, None, "packed")
+CONFIDENCE_BINDINGS = ("color", None, None, "depth", "depth_max_bits", "reprojected", "packed")
+
+
+# -- numpy references ---------------------------------------------------------------------------------
+def log_color(color: np.ndarray) -> np.ndarray:
+    """(H, W, 3) radiance → (3, H, W) log1p of the sanitised radiance."""
+    return np.log1p(nonnegative_finite(color)).transpose(2, 0, 1).astype(np.float32)
+
+
+def normalize_depth(depth: np.ndarray, frame_max: float) -> np.ndarray:
+    """(H, W) depth divided by ``frame_max`` (0 everywhere when nothing was hit)."""
+    depth = nonnegative_finite(np.asarray(depth).reshape(np.shape(depth)[:2]))
+    return (depth / np.float32(frame_max) if frame_max > 0 else np.zeros_like(depth)).astype(np.float32)
+
+
+def frame_max_depth(depth: np.ndarray) -> float:
+    return float(nonnegative_finite(depth).max(initial=0.0))
+
+
+def pack_denoiser_input(color, albedo, normal, depth) -> np.ndarray:
+    """(H, W, 3) radiance, albedo, normal and (H, W[, 1]) depth → the denoiser's (10, H, W) float32 input:
+    log1p RGB, albedo clamped to [0, 1], normal·0.5+0.5 clamped to [0, 1], depth / frame max depth."""
+    albedo = np.clip(nonnegative_finite(albedo), 0.0, 1.0).transpose(2, 0, 1)
+    normal = np.clip(finite(normal) * 0.5 + 0.5, 0.0, 1.0).transpose(2, 0, 1)
+    depth = normalize_depth(depth, frame_max_depth(depth))[None]
+    return np.concatenate([log_color(color), albedo, normal, depth]).astype(np.float32)
+
+
+def pack_error_input(color) -> np.ndarray:
+    """(H, W, 3) 1-spp radiance → the error predictor's (3, H, W) input (log1p RGB)."""
+    return log_color(color)
+
+
+def pack_confidence_input(color, history, depth, previous_depth) -> np.ndarray:
+    """The confidence predictor's (8, H, W) input: log1p current RGB, log1p reprojected history RGB,
+    current depth and reprojected previous depth, both divided by the current frame's max depth."""
+    frame_max = frame_max_depth(depth)
+    return np.concatenate([log_color(color), log_color(history),
+                           normalize_depth(depth, frame_max)[None],
+                           normalize_depth(previous_depth, frame_max)[None]]).astype(np.float32)
+
+
+# -- passes -------------------------------------------------------------------------------------------
+class DepthMaxPass(ComputePass):
+    """depth → ``self.result``, a one-u32 buffer holding the bit pattern of the frame's max depth (not a
+    per-pixel plane, so the pass owns it; the packing passes are handed it)."""
+
+    inputs = (DEPTH,)
+
+    def __init__(self, ctx, width: int, height: int):
+        self.kernel = FrameKernel(ctx, "frame_depth_max.wgsl", "main", ("depth", "depth_max_bits"),
+                                  width, height)
+        self.result = ctx.storage(4, label="depth_max_bits")
+
+    def execute(self, encoder, buffers) -> None:
+        encoder.clear_buffer(self.result)
+        self.kernel.dispatch(encoder, {"depth": buffers.get(DEPTH), "depth_max_bits": self.result})
+
+
+class PackDenoiserPass(ComputePass):
+    """radiance, albedo, normal, depth → denoiser_input (10 planes); ``depth_max`` is a DepthMaxPass's
+    result, recorded earlier in the same encoder."""
+
+    inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH)
+    outputs = (DENOISER_INPUT,)
+
+    def __init__(self, ctx, width: int, height: int, depth_max):
+        self.depth_max = depth_max
+        self.kernel = FrameKernel(ctx, "frame_pack.wgsl", "pack_denoiser", DENOISER_BINDINGS, width, height)
+
+    def execute(self, encoder, buffers) -> None:
+        self.kernel.dispatch(encoder, {
+            "color": buffers.get(RADIANCE), "albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL),
+            "depth": buffers.get(DEPTH), "depth_max_bits": self.depth_max,
+            "packed": buffers.get(DENOISER_INPUT)})
+
+
+class PackErrorPass(ComputePass):
+    """radiance → error_input (3 planes of log1p RGB)."""
+
+    inputs = (RADIANCE,)
+    outputs = (ERROR_INPUT,)
+
+    def __init__(self, ctx, width: int, height: int):
+        self.kernel = FrameKernel(ctx, "frame_pack.wgsl", "pack_error", ERROR_BINDINGS, width, height)
+
+    def execute(self, encoder, buffers) -> None:
+        self.kernel.dispatch(encoder, {"color": buffers.get(RADIANCE),
+                                       "packed": buffers.get(ERROR_INPUT)})
+
+
+class PackConfidencePass(ComputePass):
+    """``color`` (the current denoised frame), ``reprojected`` history (frame_temporal.wgsl's planes),
+    depth → confidence_input; ``depth_max`` as for PackDenoiserPass."""
+
+    def __init__(self, ctx, width: int, height: int, color, reprojected, depth_max):
+        self.color, self.reprojected, self.depth_max = color, reprojected, depth_max
+        self.inputs = (color, reprojected, DEPTH)
+        self.outputs = (CONFIDENCE_INPUT,)
+        self.kernel = FrameKernel(ctx, "frame_pack.wgsl", "pack_confidence", CONFIDENCE_BINDINGS, width, height)
+
+    def execute(self, encoder, buffers) -> None:
+        self.kernel.dispatch(encoder, {
+            "color": buffers.get(self.color), "reprojected": buffers.get(self.reprojected),
+            "depth": buffers.get(DEPTH), "depth_max_bits": self.depth_max,
+            "packed": buffers.get(CONFIDENCE_INPUT)})

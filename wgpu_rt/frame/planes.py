@@ -1,0 +1,37 @@
+"""The planes the frame passes read and write (names from ARCHITECTURE.md's planar-buffer contract).
+
+Conventions of this package: numpy references take and return images as (H, W, C) arrays and network
+tensors as planar (C, H, W) arrays, the layouts their callers (training, tests, image files) hold.
+"""
+
+import numpy as np
+
+from ..render_pass import NUMPY_DTYPE, PlaneSpec
+
+RADIANCE = PlaneSpec("radiance", 3)
+ALBEDO = PlaneSpec("albedo", 3)
+NORMAL = PlaneSpec("normal", 3)
+DEPTH = PlaneSpec("depth", 1)
+MOTION = PlaneSpec("motion", 2)
+SPP = PlaneSpec("spp", 1, "u32")
+
+DENOISER_INPUT = PlaneSpec("denoiser_input", 10)
+ERROR_INPUT = PlaneSpec("error_input", 3)
+CONFIDENCE_INPUT = PlaneSpec("confidence_input", 8)
+DENOISED = PlaneSpec("denoised", 3)
+
+
+def to_planar(image: np.ndarray) -> np.ndarray:
+    """(H, W[, C]) image → contiguous (C, H, W), the device layout."""
+    image = np.asarray(image)
+    return np.ascontiguousarray((image[..., None] if image.ndim == 2 else image).transpose(2, 0, 1))
+
+
+def write_plane(buffers, spec: PlaneSpec, image: np.ndarray) -> None:
+    """Upload an (H, W[, C]) image into ``buffers``' plane ``spec`` (for tests, benchmarks and feeding
+    recorded G-buffers; a rendered frame never needs it)."""
+    data = to_planar(image).astype(NUMPY_DTYPE[spec.dtype])
+    expected = (spec.channels, buffers.height, buffers.width)
+    if data.shape != expected:
+        raise ValueError(f"plane {spec.name!r} wants shape {expected}, got {data.shape}")
+    buffers.ctx.device.queue.write_buffer(buffers.get(spec), 0, data.tobytes())

@@ -1,0 +1,212 @@
+"""Temporal stability: reprojected, disocclusion-tested, clamped history blended with the denoised frame.
+
+See ``wgsl/frame_temporal.wgsl`` for the algorithm. Which path a frame takes depends on how it relates
+to the previous one (``frame_change``): a cut (first frame, skipped frames, a camera jump) clears the
+history; a static camera over a static scene accumulates plainly (no reprojection or clamping, so noise
+averages out over up to ``max_frames`` frames); anything else reprojects and blends.
+
+Confidence (the optional Confidence Predictor's output) is read as trust in the history: α =
+mix(1, 0.01, confidence), so 1 keeps 99 % history and 0 takes the current frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import WgpuRtError
+from ..render_pass import ComputePass, PlaneSpec
+from .kernel import FrameKernel, finite, nonnegative_finite
+from .pack import PackConfidencePass
+from .planes import CONFIDENCE_INPUT, DEPTH, MOTION, NORMAL
+
+CLAMP_MODES = ("none", "box", "variance")
+HISTORY = PlaneSpec("history", 8)           # RGB, depth, normal xyz, history length
+REPROJECTED = PlaneSpec("reprojected", 5)   # RGB, previous depth, history length (0 = disoccluded)
+CONFIDENCE = PlaneSpec("confidence", 1)
+TEMPORAL = PlaneSpec("temporal", 3)
+# frame_temporal.wgsl's bindings, per entry point (None: not used by that entry).
+ENTRY_BINDINGS = {
+    "reproject": (None, "depth", "normal", "motion", "history", "reprojected", None, None),
+    "blend": ("color", "depth", "normal", None, "history", "reprojected", "confidence", "output"),
+    "accumulate": ("color", "depth", "normal", None, "history", None, None, "output"),
+}
+CUT_ANGLE_DEGREES = 30.0
+CUT_DISTANCE_FRACTION = 0.25
+
+
+@dataclass(frozen=True)
+class TemporalSettings:
+    clamp: str = "variance"        # history clamp: none, box (3×3 min/max) or variance (mean ± γσ)
+    gamma: float = 1.0             # width of the variance box in standard deviations
+    max_frames: int = 32           # α never drops below 1/max_frames
+    depth_tolerance: float = 0.05  # relative depth difference that still counts as the same surface
+    normal_threshold: float = 0.9  # smallest normal dot product that counts as the same surface
+
+    def __post_init__(self):
+        if self.clamp not in CLAMP_MODES:
+            raise WgpuRtError(f"temporal clamp {self.clamp!r} is not one of {', '.join(CLAMP_MODES)}")
+        if not (self.max_frames >= 1 and self.gamma > 0):
+            raise WgpuRtError(f"temporal max_frames must be ≥ 1 and gamma > 0, got {self.max_frames}, "
+                              f"{self.gamma}")
+
+    def constants(self) -> dict:
+        return {"CLAMP_MODE": CLAMP_MODES.index(self.clamp), "GAMMA": self.gamma,
+                "MAX_FRAMES": self.max_frames, "DEPTH_TOLERANCE": self.depth_tolerance,
+                "NORMAL_THRESHOLD": self.normal_threshold}
+
+
+def frame_change(scene, previous_frame: int | None, frame: int) -> str:
+    """How ``frame`` relates to ``previous_frame``: ``cut`` (no usable history: first frame, a jump in
+    time, or a camera move beyond CUT_ANGLE_DEGREES / CUT_DISTANCE_FRACTION of the view distance),
+    ``static`` (same camera and object transforms) or ``moving``."""
+    if previous_frame is None or frame - previous_frame != 1:
+        return "cut"
+    before, now = scene.camera_at(previous_frame), scene.camera_at(frame)
+    forward_before = before.basis()[2]
+    forward_now = now.basis()[2]
+    angle = np.degrees(np.arccos(np.clip(np.dot(forward_before, forward_now), -1.0, 1.0)))
+    view_distance = float(np.linalg.norm(before.target - before.origin))
+    if angle > CUT_ANGLE_DEGREES or np.linalg.norm(now.origin - before.origin) > CUT_DISTANCE_FRACTION * view_distance:
+        return "cut"
+    same_camera = (np.array_equal(before.origin, now.origin) and np.array_equal(before.target, now.target)
+                   and np.array_equal(before.up, now.up) and before.fov == now.fov)
+    same_objects = all(np.array_equal(m.transform_at(previous_frame), m.transform_at(frame))
+                       for m in scene.meshes)
+    return "static" if same_camera and same_objects else "moving"
+
+
+# -- numpy references (images (H, W, C); history (H, W, 8), reprojected (H, W, 5)) ---------------------
+def _surfaces_match(history_texel, current_depth, current_normal, settings):
+    previous_depth = history_texel[3]
+    if current_depth <= 0 or previous_depth <= 0:
+        return current_depth <= 0 and previous_depth <= 0
+    if abs(previous_depth - current_depth) > settings.depth_tolerance * current_depth:
+        return False
+    return float(np.dot(history_texel[4:7], current_normal)) >= settings.normal_threshold
+
+
+def reproject_history(history, depth, normal, motion, settings=TemporalSettings()) -> np.ndarray:
+    """Bilinear, disocclusion-tested lookup of ``history`` at each pixel's previous position."""
+    height, width = depth.shape[:2]
+    depth = nonnegative_finite(depth).reshape(height, width)
+    normal = finite(normal)
+    out = np.zeros((height, width, 5), np.float64)
+    for y in range(height):
+        for x in range(width):
+            mx, my = motion[y, x]
+            if not (np.isfinite(mx) and np.isfinite(my)):
+                continue
+            px, py = np.float32(x + mx), np.float32(y + my)
+            bx, by = np.floor(px), np.floor(py)
+            fx, fy = px - bx, py - by
+            total, weight = np.zeros(5), 0.0
+            for ox, oy in ((0, 0), (1, 0), (0, 1), (1, 1)):
+                w = (fx if ox else 1 - fx) * (fy if oy else 1 - fy)
+                tx, ty = int(bx) + ox, int(by) + oy
+                if w <= 0 or not (0 <= tx < width and 0 <= ty < height):
+                    continue
+                texel = history[ty, tx]
+                if texel[7] <= 0 or not _surfaces_match(texel, depth[y, x], normal[y, x], settings):
+                    continue
+                total += w * texel[[0, 1, 2, 3, 7]]
+                weight += w
+            if weight > 1e-3:
+                out[y, x] = total / weight
+    return out.astype(np.float32)
+
+
+def _neighbourhood_clamp(color, value, y, x, settings):
+    height, width = color.shape[:2]
+    ys = np.clip(np.arange(y - 1, y + 2), 0, height - 1)
+    xs = np.clip(np.arange(x - 1, x + 2), 0, width - 1)
+    window = color[np.ix_(ys, xs)].reshape(9, 3).astype(np.float64)
+    low, high = window.min(0), window.max(0)
+    if settings.clamp == "variance":
+        mean = window.mean(0)
+        sigma = np.sqrt(np.maximum((window ** 2).mean(0) - mean ** 2, 0))
+        low, high = np.maximum(mean - settings.gamma * sigma, 0), mean + settings.gamma * sigma
+    return np.clip(value, low, high)
+
+
+def _new_history(output, depth, normal, length):
+    return np.concatenate([output, nonnegative_finite(depth).reshape(output.shape[:2] + (1,)),
+                           finite(normal), length[..., None]], axis=-1).astype(np.float32)
+
+
+def blend_history(color, depth, normal, reprojected, confidence=None, settings=TemporalSettings()):
+    """(output (H, W, 3), new history (H, W, 8)) of the blend step."""
+    color = nonnegative_finite(color)
+    output = color.astype(np.float64).copy()
+    length = np.ones(color.shape[:2])
+    for y, x in zip(*np.nonzero(reprojected[..., 4] > 0)):
+        previous = reprojected[y, x, :3].astype(np.float64)
+        if settings.clamp != "none":
+            previous = _neighbourhood_clamp(color, previous, y, x, settings)
+        count = reprojected[y, x, 4]
+        alpha = 1.0 / (count + 1.0)
+        if confidence is not None:
+            alpha = 1.0 + (0.01 - 1.0) * np.clip(finite(confidence[y, x]), 0, 1)
+        alpha = max(alpha, 1.0 / settings.max_frames)
+        output[y, x] = previous + alpha * (color[y, x] - previous)
+        length[y, x] = min(count + 1.0, settings.max_frames)
+    return output.astype(np.float32), _new_history(output, depth, normal, length)
+
+
+def accumulate_history(color, depth, normal, history, settings=TemporalSettings()):
+    """(output, new history) of plain per-pixel accumulation (static camera and scene)."""
+    count = history[..., 7].astype(np.float64)
+    alpha = np.maximum(1.0 / (count + 1.0), 1.0 / settings.max_frames)[..., None]
+    previous = history[..., :3].astype(np.float64)
+    output = previous + alpha * (nonnegative_finite(color) - previous)
+    return output.astype(np.float32), _new_history(output, depth, normal, np.minimum(count + 1, settings.max_frames))
+
+
+# -- the pass -----------------------------------------------------------------------------------------
+class TemporalPass(ComputePass):
+    """``source`` (the denoised frame), depth, normal, motion, history → temporal (3 planes), history.
+
+    Set ``change`` (``frame_change``'s answer) before each execute. With a ``confidence_model`` (an
+    object with ``record(encoder, input_buffer, height, width) -> output_buffer``, such as
+    ``wgpu_rt.nn.WgslModel``) and the frame's ``depth_max`` buffer, moving frames run the Confidence
+    Predictor on the packed (current, reprojected) pair and blend by its output.
+    """
+
+    outputs = (TEMPORAL, HISTORY)
+
+    def __init__(self, ctx, width: int, height: int, source: PlaneSpec,
+                 settings: TemporalSettings = TemporalSettings(), confidence_model=None, depth_max=None):
+        if confidence_model is not None and depth_max is None:
+            raise ValueError("a confidence model needs the frame's depth_max buffer")
+        self.ctx, self.width, self.height = ctx, width, height
+        self.source, self.settings, self.confidence_model = source, settings, confidence_model
+        self.inputs = (source, DEPTH, NORMAL, MOTION)
+        self.change = "cut"
+        constants = {**settings.constants(), "USE_CONFIDENCE": confidence_model is not None}
+        self.kernels = {entry: FrameKernel(ctx, "frame_temporal.wgsl", entry, bindings, width, height,
+                                           constants)
+                        for entry, bindings in ENTRY_BINDINGS.items()}
+        self.pack_confidence = (PackConfidencePass(ctx, width, height, source, REPROJECTED, depth_max)
+                                if confidence_model is not None else None)
+
+    def execute(self, encoder, buffers) -> None:
+        planes = {"color": buffers.get(self.source), "depth": buffers.get(DEPTH),
+                  "normal": buffers.get(NORMAL), "history": buffers.get(HISTORY),
+                  "output": buffers.get(TEMPORAL)}
+        if self.change in ("cut", "static"):
+            if self.change == "cut":
+                encoder.clear_buffer(planes["history"])
+            self.kernels["accumulate"].dispatch(encoder, planes)
+            return
+        if self.change != "moving":
+            raise ValueError(f"unknown frame change {self.change!r}")
+        planes |= {"motion": buffers.get(MOTION), "reprojected": buffers.get(REPROJECTED)}
+        self.kernels["reproject"].dispatch(encoder, planes)
+        if self.confidence_model is not None:
+            self.pack_confidence.execute(encoder, buffers)
+            confidence = self.confidence_model.record(encoder, buffers.get(CONFIDENCE_INPUT),
+                                                      self.height, self.width)
+        else:
+            confidence = buffers.get(CONFIDENCE)   # bound but never read
+        self.kernels["blend"].dispatch(encoder, planes | {"confidence": confidence})
