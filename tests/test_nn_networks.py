@@ -1,0 +1,132 @@
+"""The three seed networks (random weights) through the WGSL engine vs onnxruntime, fp32 and fp16.
+
+The U-Net needs H and W to be multiples of 4; at other sizes the engine pads the canvas with zeros and
+crops, so its reference is onnxruntime on the same zero-padded input, cropped. Big sizes of the U-Net
+are marked slow (run with -m slow).
+"""
+
+import math
+
+import numpy as np
+import onnxruntime as ort
+import pytest
+import torch
+
+from parity import check_parity
+from wgpu_rt.networks import ConfidencePredictor, ErrorPredictor, UNet, export_onnx
+
+FP32_ATOL = 1e-4
+FP16_ATOL = 1e-2
+LOG1P_HALF_MAX = math.log1p(65504.0)
+
+pytestmark = pytest.mark.gpu
+
+NETWORKS = {"unet": UNet, "error_predictor": ErrorPredictor, "confidence_predictor": ConfidencePredictor}
+SMALL_NET_SIZES = [(37, 53), (1, 1), (255, 257), (256, 256), (512, 512)]
+UNET_SIZES = [(37, 53), (1, 1), pytest.param((256, 256), marks=pytest.mark.slow),
+              pytest.param((255, 257), marks=pytest.mark.slow), pytest.param((512, 512), marks=pytest.mark.slow)]
+
+
+@pytest.fixture(scope="module")
+def networks(tmp_path_factory, gpu):
+    """name -> (onnx path, onnxruntime session, {precision: WgslModel}), random weights, built lazily."""
+    from wgpu_rt.nn import WgslModel
+
+    folder = tmp_path_factory.mktemp("networks")
+    cache = {}
+
+    def get(name, precision):
+        if name not in cache:
+            torch.manual_seed(list(NETWORKS).index(name))
+            path = export_onnx(NETWORKS[name](), folder / f"{name}.onnx")
+            cache[name] = (path, ort.InferenceSession(str(path), providers=["CPUExecutionProvider"]), {})
+        path, session, models = cache[name]
+        if precision not in models:
+            models[precision] = WgslModel(path, precision, ctx=gpu)
+        return session, models[precision]
+    return get
+
+
+def padded_reference(session, multiple):
+    """onnxruntime on the input zero-padded to ``multiple``, cropped back (the engine's semantics)."""
+    def run(x):
+        _, _, h, w = x.shape
+        canvas = np.zeros((*x.shape[:2], -(-h // multiple) * multiple, -(-w // multiple) * multiple), np.float32)
+        canvas[:, :, :h, :w] = x
+        return session.run(None, {"input": canvas})[0][:, :, :h, :w]
+    return run
+
+
+def check_network(networks, name, size, precision, low=0.0, high=1.0, seed=0):
+    session, model = networks(name, precision)
+    if precision == "fp16" and not model.ctx.has_f16:
+        pytest.skip("adapter lacks shader-f16")
+    reference = padded_reference(session, model.graph.multiple)
+    atol = FP32_ATOL if precision == "fp32" else FP16_ATOL
+    return check_parity([(1, model.input_channels, *size)], reference, model, atol=atol, low=low, high=high,
+                        seed=seed, name=f"{name} {precision} {size}")
+
+
+@pytest.mark.parametrize("precision", ["fp32", "fp16"])
+@pytest.mark.parametrize("size", SMALL_NET_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+@pytest.mark.parametrize("name", ["error_predictor", "confidence_predictor"])
+def test_small_networks(networks, name, size, precision):
+    check_network(networks, name, size, precision)
+
+
+@pytest.mark.parametrize("precision", ["fp32", "fp16"])
+@pytest.mark.parametrize("size", UNET_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
+def test_unet(networks, size, precision):
+    check_network(networks, "unet", size, precision)
+
+
+@pytest.mark.parametrize("name", list(NETWORKS))
+def test_fp16_over_the_whole_log1p_half_range(networks, name):
+    """Inputs anywhere in [0, log1p(65504)] (the denoiser's log1p radiance range) stay within the fp16
+    bound and never produce NaN/Inf; includes an image that is at the top of the range everywhere."""
+    ours, _ = check_network(networks, name, (40, 44), "fp16", low=0.0, high=LOG1P_HALF_MAX, seed=3)
+    _, model = networks(name, "fp16")
+    saturated = np.full((1, model.input_channels, 40, 44), LOG1P_HALF_MAX, np.float32)
+    assert np.all(np.isfinite(model(saturated)))
+
+
+def test_unet_plan_reuses_memory_and_concat_is_free(networks):
+    _, model = networks("unet", "fp32")
+    plan = model.plan(64, 64)
+    assert all(copies == [] for copies in model.graph.concat_copies.values())
+    assert not any(d.label.startswith("/Concat") for d in plan.dispatches)
+    assert plan.peak_bytes < 0.5 * plan.unplanned_bytes, (plan.peak_bytes, plan.unplanned_bytes)
+    assert model.plan(64, 64) is plan  # planned once per resolution
+    assert plan.canvas == (64, 64) and model.plan(37, 53).canvas == (40, 56)
+
+
+def test_record_on_gpu_buffers_matches_numpy_call(networks, gpu):
+    """The frame pipeline's path: planar input buffer in, planar output buffer out, one encoder."""
+    _, model = networks("error_predictor", "fp32")
+    x = np.random.default_rng(5).uniform(0, 1, (3, 21, 34)).astype(np.float32)
+    encoder = gpu.device.create_command_encoder()
+    output = model.record(encoder, gpu.upload(x), 21, 34)
+    gpu.device.queue.submit([encoder.finish()])
+    np.testing.assert_array_equal(gpu.read(output, np.float32, (1, 21, 34)), model(x))
+
+
+def test_batch_of_two(networks):
+    session, model = networks("confidence_predictor", "fp32")
+    x = np.random.default_rng(6).uniform(0, 1, (2, 8, 9, 11)).astype(np.float32)
+    np.testing.assert_allclose(model(x), session.run(None, {"input": x})[0], atol=FP32_ATOL)
+
+
+def test_frames_over_the_binding_limit_run_in_bands_with_identical_results(tmp_path, gpu):
+    """A frame whose activations exceed max-storage-buffer-binding-size (1080p U-Net on lavapipe) runs
+    as bands of rows with receptive-field context; shrink the limit to force that at a small size."""
+    from wgpu_rt.gpu import GpuContext
+    from wgpu_rt.nn import WgslModel
+
+    torch.manual_seed(4)
+    path = export_onnx(UNet(widths=(8, 16, 32)), tmp_path / "unet.onnx")
+    small = GpuContext(gpu.adapter, gpu.device, gpu.features)
+    small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": 760_000}
+    x = np.random.default_rng(7).uniform(0, 1, (1, 10, 403, 45)).astype(np.float32)
+    banded = WgslModel(path, ctx=small)
+    assert len(banded.plan(403, 45).bands) == 3
+    np.testing.assert_array_equal(banded(x), WgslModel(path, ctx=gpu)(x))

@@ -1,0 +1,228 @@
+"""Every op the ONNX → WGSL engine lowers, alone (and fused), against onnxruntime via check_parity.
+
+Graphs are built with onnx.helper (dynamic H and W), so each test names exactly the node it checks.
+Channel counts are deliberately not multiples of 4 (the engine packs channels in blocks of 4) and sizes
+are odd (37×53) and degenerate (1×1) where the op allows.
+"""
+
+import numpy as np
+import onnx
+import onnxruntime as ort
+import pytest
+from onnx import TensorProto, helper, numpy_helper
+
+from parity import check_parity
+
+FP32_ATOL = 1e-4
+FP16_ATOL = 1e-2  # documented fp16 bound: |Δ| ≤ 1e-2·max(1, max|ref|)
+SIZES = {"odd": (37, 53), "tiny": (1, 1)}
+TINIEST = {"maxpool": (2, 2), "conv2x2_stride2_unpadded": (2, 2),  # at 1×1 these have no output
+           "conv5x5_asymmetric_pads_no_bias": (3, 3)}
+
+pytestmark = pytest.mark.gpu
+
+
+def make_model(tmp_path, name, nodes, in_channels, initializers=(), opset=17):
+    """An ONNX file with input 'x' (1, C, H, W), output 'y' (the last node's output)."""
+    x = helper.make_tensor_value_info("x", TensorProto.FLOAT, [1, in_channels, "H", "W"])
+    y = helper.make_tensor_value_info("y", TensorProto.FLOAT, [1, "C", "OH", "OW"])
+    graph = helper.make_graph(nodes, name, [x], [y],
+                              [numpy_helper.from_array(np.asarray(v, np.float32), k) for k, v in initializers])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", opset)])
+    model.ir_version = 8
+    onnx.checker.check_model(model)
+    path = tmp_path / f"{name}.onnx"
+    onnx.save(model, path)
+    return path
+
+
+def onnxruntime_fn(path):
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    return lambda x: session.run(None, {"x": x})[0]
+
+
+def weights(shape, seed=1):
+    return np.random.default_rng(seed).normal(0, 0.3, shape).astype(np.float32)
+
+
+def conv(name, x, y, cin, cout, k, pads=None, stride=1, bias=True, seed=1):
+    inputs = [x, f"{name}_w"] + ([f"{name}_b"] if bias else [])
+    node = helper.make_node("Conv", inputs, [y], name=name, kernel_shape=[k, k], strides=[stride, stride],
+                            pads=pads if pads is not None else [k // 2] * 4)
+    inits = [(f"{name}_w", weights((cout, cin, k, k), seed))]
+    if bias:
+        inits.append((f"{name}_b", weights((cout,), seed + 100)))
+    return [node], inits
+
+
+GRAPHS = {
+    "conv3x3": (5, lambda: conv("conv", "x", "y", 5, 6, 3)),
+    "conv3x3_register_tile": (5, lambda: conv("conv", "x", "y", 5, 16, 3)),  # conv3x3.wgsl (16k outputs)
+    "conv3x3_stride2": (5, lambda: conv("conv", "x", "y", 5, 7, 3, stride=2)),
+    "conv5x5_asymmetric_pads_no_bias": (3, lambda: conv("conv", "x", "y", 3, 4, 5, pads=[2, 1, 0, 2],
+                                                        bias=False)),
+    "conv2x2_stride2_unpadded": (4, lambda: conv("conv", "x", "y", 4, 8, 2, pads=[0, 0, 0, 0], stride=2)),
+    "conv1x1_gemm": (7, lambda: conv("conv", "x", "y", 7, 9, 1, pads=[0, 0, 0, 0])),
+    "relu": (3, lambda: ([helper.make_node("Relu", ["x"], ["y"], name="relu")], [])),
+    "leaky_relu": (3, lambda: ([helper.make_node("LeakyRelu", ["x"], ["y"], name="leaky", alpha=0.2)], [])),
+    "sigmoid": (3, lambda: ([helper.make_node("Sigmoid", ["x"], ["y"], name="sigmoid")], [])),
+    "clip": (3, lambda: ([helper.make_node("Clip", ["x", "lo", "hi"], ["y"], name="clip")],
+                         [("lo", -0.3), ("hi", 0.4)])),
+    "add_tensors": (3, lambda: ([helper.make_node("Add", ["x", "x"], ["y"], name="add")], [])),
+    "add_per_channel_constant": (3, lambda: ([helper.make_node("Add", ["x", "c"], ["y"], name="add")],
+                                             [("c", weights((3, 1, 1)))])),
+    "mul_scalar_constant": (5, lambda: ([helper.make_node("Mul", ["c", "x"], ["y"], name="mul")],
+                                        [("c", np.float32(-1.5))])),
+}
+
+POOLING_GRAPHS = {
+    "maxpool": (6, lambda: ([helper.make_node("MaxPool", ["x"], ["y"], name="pool", kernel_shape=[2, 2],
+                                              strides=[2, 2])], [])),
+    "conv_transpose": (6, lambda: ([helper.make_node("ConvTranspose", ["x", "w", "b"], ["y"], name="up",
+                                                     kernel_shape=[2, 2], strides=[2, 2])],
+                                   [("w", weights((6, 5, 2, 2))), ("b", weights((5,), 7))])),
+    "resize_nearest": (5, lambda: ([helper.make_node("Resize", ["x", "", "scales"], ["y"], name="resize",
+                                                     mode="nearest")],
+                                   [("scales", np.array([1, 1, 2, 2], np.float32))])),
+}
+
+
+def fused(activation_node):
+    """Conv followed by an activation: the engine folds it into the conv's epilogue."""
+    def build():
+        nodes, inits = conv("conv", "x", "t", 5, 6, 3)
+        node, extra = activation_node
+        return nodes + [node], inits + extra
+    return 5, build
+
+
+FUSED = {
+    "conv_relu": fused((helper.make_node("Relu", ["t"], ["y"], name="relu"), [])),
+    "conv_sigmoid": fused((helper.make_node("Sigmoid", ["t"], ["y"], name="sigmoid"), [])),
+    "conv_leaky_relu": fused((helper.make_node("LeakyRelu", ["t"], ["y"], name="leaky", alpha=0.1), [])),
+    "conv_clip": fused((helper.make_node("Clip", ["t", "lo", "hi"], ["y"], name="clip"),
+                        [("lo", 0.0), ("hi", 0.5)])),
+}
+
+
+def concat_graph(aligned: bool):
+    """Aligned: 8 + 4 + 3 channels from convs (all written in place). Misaligned: the graph input (3)
+    then convs of 5 and 6 channels (copied by copy_channels)."""
+    def build():
+        widths = (8, 4, 3) if aligned else (5, 6)
+        nodes, inits, names = [], [], [] if aligned else ["x"]
+        for i, width in enumerate(widths):
+            n, w = conv(f"c{i}", "x", f"t{i}", 3, width, 3, seed=i + 1)
+            nodes += n
+            inits += w
+            names.append(f"t{i}")
+        nodes.append(helper.make_node("Concat", names, ["cat"], name="concat", axis=1))
+        n, w = conv("mix", "cat", "y", sum(widths) + (0 if aligned else 3), 5, 3, seed=9)
+        return nodes + n, inits + w
+    return 3, build
+
+
+CONCATS = {"concat_aligned": concat_graph(True), "concat_misaligned": concat_graph(False)}
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory, gpu):
+    """name -> (onnx path, {precision: WgslModel}); built lazily and shared by the tests."""
+    from wgpu_rt.nn import WgslModel
+
+    built = {}
+    folder = tmp_path_factory.mktemp("ops")
+
+    def get(name, spec, precision):
+        if name not in built:
+            channels, build = spec
+            nodes, inits = build()
+            built[name] = (make_model(folder, name, nodes, channels, inits), channels, {})
+        path, channels, per_precision = built[name]
+        if precision not in per_precision:
+            per_precision[precision] = WgslModel(path, precision, ctx=gpu)
+        return path, channels, per_precision[precision]
+    return get
+
+
+ALL = {**GRAPHS, **POOLING_GRAPHS, **FUSED, **CONCATS}
+
+
+@pytest.mark.parametrize("size", list(SIZES))
+@pytest.mark.parametrize("name", list(ALL))
+def test_op_fp32(models, name, size):
+    path, channels, model = models(name, ALL[name], "fp32")
+    height, width = TINIEST.get(name, SIZES[size]) if size == "tiny" else SIZES[size]
+    check_parity([(1, channels, height, width)], onnxruntime_fn(path), model, atol=FP32_ATOL, name=name)
+
+
+def test_maxpool_fp32_floor_mode(models):
+    """37×53 pools to 18×26 (ONNX floor mode: the odd row and column are dropped)."""
+    path, channels, model = models("maxpool", POOLING_GRAPHS["maxpool"], "fp32")
+    ours, _ = check_parity([(1, channels, 37, 53)], onnxruntime_fn(path), model, atol=FP32_ATOL)
+    assert ours.shape == (1, 6, 18, 26)
+
+
+@pytest.mark.parametrize("name", list(ALL))
+def test_op_fp16(models, gpu, name):
+    if not gpu.has_f16:
+        pytest.skip("adapter lacks shader-f16")
+    path, channels, model = models(name, ALL[name], "fp16")
+    check_parity([(1, channels, 37, 53)], onnxruntime_fn(path), model, atol=FP16_ATOL, name=name)
+
+
+def test_activation_is_fused_into_conv(models):
+    """Conv+ReLU and Conv+Sigmoid are one layer, so one dispatch per output-block group."""
+    for name in ("conv_relu", "conv_sigmoid"):
+        _, _, model = models(name, FUSED[name], "fp32")
+        assert [layer.kind for layer in model.graph.layers] == ["conv"]
+        assert model.graph.layers[0].activation.kind in (1, 3)
+        labels = [d.label for d in model.plan(8, 8).dispatches]
+        assert not any("relu" in label or "sigmoid" in label for label in labels), labels
+
+
+def test_aligned_concat_is_free(models):
+    _, _, model = models("concat_aligned", CONCATS["concat_aligned"], "fp32")
+    assert model.graph.concat_copies["concat"] == []
+    assert not any(d.label.startswith("concat") for d in model.plan(8, 8).dispatches)
+
+
+def test_misaligned_concat_copies(models):
+    _, _, model = models("concat_misaligned", CONCATS["concat_misaligned"], "fp32")
+    # x: a graph input; t0: starts at channel 3; t1 starts at 8 and is last, so it is written in place
+    assert model.graph.concat_copies["concat"] == ["x", "t0"]
+
+
+def test_register_tile_kernel_is_used_for_3x3_with_16k_outputs(models):
+    _, _, tiled = models("conv3x3_register_tile", GRAPHS["conv3x3_register_tile"], "fp32")
+    _, _, plain = models("conv3x3", GRAPHS["conv3x3"], "fp32")
+    assert type(tiled.kernel_for(tiled.graph.layers[0])).__name__ == "Conv3x3Kernel"
+    assert type(plain.kernel_for(plain.graph.layers[0])).__name__ == "ConvKernel"
+
+
+@pytest.mark.parametrize("tiling", ["none", "loop"])
+def test_benchmark_baseline_tilings_agree(tmp_path, gpu, tiling):
+    """The benchmark's naive and loop-tiled steps are real engine configurations: check them too."""
+    from wgpu_rt.nn import WgslModel
+
+    channels, build = FUSED["conv_relu"]
+    nodes, inits = build()
+    path = make_model(tmp_path, "conv_relu", nodes, channels, inits)
+    model = WgslModel(path, ctx=gpu, conv_tiling=tiling)
+    check_parity([(1, channels, 37, 53)], onnxruntime_fn(path), model, atol=FP32_ATOL)
+
+
+@pytest.mark.parametrize("cin", [5, 128], ids=["uniform_window", "storage_window"])
+def test_without_subgroups_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, cin):
+    """Adapters without subgroups read weight blocks directly (weights_uniform.wgsl): from a uniform
+    window when it fits 64 KiB, else from read-only storage (128 input channels × 3×3 × 16 outputs)."""
+    from wgpu_rt.gpu import GpuContext
+    from wgpu_rt.nn import WgslModel
+
+    plain = GpuContext(gpu.adapter, gpu.device, frozenset(gpu.features - {"subgroup"}))
+    nodes, inits = conv("conv", "x", "y", cin, 16, 3)
+    path = make_model(tmp_path, f"conv{cin}", nodes, cin, inits)
+    model = WgslModel(path, ctx=plain)
+    packed = model.prepared["conv"]
+    assert packed.weight_space == ("uniform" if cin == 5 else "storage, read")
+    check_parity([(1, cin, 19, 23)], onnxruntime_fn(path), model, atol=FP32_ATOL)

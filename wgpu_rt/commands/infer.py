@@ -1,0 +1,40 @@
+"""``wgpu-rt infer``: run an ONNX network on a .npy tensor with the WGSL engine."""
+
+HELP = "run an ONNX model (NCHW float32 .npy in, .npy out) on the GPU with the WGSL engine"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("model", help="ONNX file (ops: Conv, ConvTranspose, MaxPool, Resize, Concat, "
+                        "Add, Mul, Relu, LeakyRelu, Sigmoid, Clip)")
+    parser.add_argument("--input", required=True, help=".npy array, (N, C, H, W) or (C, H, W)")
+    parser.add_argument("--output", required=True, help=".npy file to write (same rank as the input)")
+    parser.add_argument("--precision", choices=("fp32", "fp16"), default="fp32",
+                        help="activation storage type (fp16 needs the shader-f16 feature)")
+
+
+def run(args) -> int:
+    import os
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..errors import ModelError
+    from ..nn import WgslModel
+
+    try:
+        x = np.load(args.input, allow_pickle=False)
+    except (OSError, ValueError) as err:
+        raise ModelError(f"{args.input}: cannot read the input array ({err})") from None
+    if not np.issubdtype(x.dtype, np.number):
+        raise ModelError(f"{args.input}: input array has dtype {x.dtype}, expected a numeric type")
+    model = WgslModel(args.model, precision=args.precision)
+    y = model(x.astype(np.float32))
+    output = Path(args.output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    tmp = output.with_name(output.name + ".tmp.npy")
+    np.save(tmp, y)
+    os.replace(tmp, output)
+    plan = model.plan(*x.shape[-2:])
+    print(f"{args.model} ({args.precision}): {x.shape} -> {y.shape}, peak activation memory "
+          f"{plan.peak_bytes / 2**20:.2f} MiB -> {output}")
+    return 0
