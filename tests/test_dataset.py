@@ -1,0 +1,246 @@
+"""The truth engine (with a fake renderer: no GPU needed), the dataset reader's errors, scene variety
+and the training targets."""
+
+import json
+
+import numpy as np
+import pytest
+from dataset_fakes import fake_render
+
+from wgpu_rt.dataset import DatasetConfig, DatasetError, TruthEngine, load_views, plan_views
+from wgpu_rt.dataset.truth import frame_file
+from wgpu_rt.dataset.variety import HELD_OUT_SHAPES, TRAINING_SHAPES, catmull_rom, vary_scene
+from wgpu_rt.io import read_exr, write_exr
+from wgpu_rt.train.targets import disocclusion_mask, error_heatmap, reproject
+
+CONFIG = DatasetConfig(scenes=("cornell", "sun-room"), views=10, size=16, spp=(1, 4), gold=64,
+                       sequence_fraction=0.4)
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("data")
+    TruthEngine(CONFIG, out, renderer=fake_render).run(progress=False)
+    return out
+
+
+def test_plan_is_deterministic_and_shards_partition_it():
+    full = plan_views(CONFIG)
+    assert full == plan_views(CONFIG)
+    shards = [plan_views(CONFIG, (i, 3)) for i in range(3)]
+    assert sorted(v.view_id for s in shards for v in s) == sorted(v.view_id for v in full)
+    assert {v.split for v in full} == {"train", "val", "test"}
+    assert {v.frames for v in full} == {1, CONFIG.sequence_length}
+
+
+def test_engine_writes_every_file_and_a_manifest(dataset):
+    manifest = json.loads((dataset / "manifest.json").read_text())
+    assert len(manifest["views"]) == 20
+    for record in manifest["views"]:
+        for f in range(record["frames"]):
+            for spp in (*CONFIG.spp, "gold"):
+                image = read_exr(dataset / "views" / record["view_id"] / frame_file(f, spp))
+                assert {"color", "albedo", "normal", "depth", "motion"} <= set(image)
+    assert not list(dataset.rglob("*.tmp"))
+
+
+def test_test_views_hold_only_held_out_shapes(dataset):
+    for record in json.loads((dataset / "manifest.json").read_text())["views"]:
+        added = {name.rsplit("_", 1)[0] for name in record["objects"]
+                 if name.rsplit("_", 1)[0] in TRAINING_SHAPES + HELD_OUT_SHAPES}
+        assert added, record
+        assert added <= set(HELD_OUT_SHAPES if record["split"] == "test" else TRAINING_SHAPES), record
+
+
+def test_rerun_skips_finished_views_and_rerenders_identically(dataset, tmp_path):
+    calls = []
+    counting = lambda *a, **k: calls.append(1) or fake_render(*a, **k)  # noqa: E731
+    assert TruthEngine(CONFIG, dataset, renderer=counting).run(progress=False) == []
+    assert not calls
+    victim = dataset / "views" / "v00003" / frame_file(0, 4)
+    before = read_exr(victim)["color"]
+    victim.unlink()
+    redone = TruthEngine(CONFIG, dataset, renderer=counting).run(progress=False)
+    assert [r.view_id for r in redone] == ["v00003"] and len(calls) == 1
+    np.testing.assert_array_equal(read_exr(victim)["color"], before)
+
+
+def test_an_interrupted_run_resumes_without_losing_work(tmp_path):
+    config = DatasetConfig(scenes=("cornell",), views=4, size=8, spp=(1,), gold=4,
+                           sequence_fraction=0.0)
+    budget = iter(range(5))
+
+    def dies_midway(*args, **kwargs):
+        if next(budget, None) is None:
+            raise KeyboardInterrupt
+        return fake_render(*args, **kwargs)
+
+    with pytest.raises(KeyboardInterrupt):
+        TruthEngine(config, tmp_path, renderer=dies_midway).run(progress=False)
+    finished = sorted(p.parent.name for p in tmp_path.glob("views/*/view.json"))
+    assert finished == ["v00000", "v00001"]
+    assert not list(tmp_path.rglob("*.tmp"))
+    rest = TruthEngine(config, tmp_path, renderer=fake_render).run(progress=False)
+    assert [r.view_id for r in rest] == ["v00002", "v00003"]
+    assert len(json.loads((tmp_path / "manifest.json").read_text())["views"]) == 4
+
+
+def test_resuming_with_other_settings_is_refused(dataset):
+    other = DatasetConfig(**{**CONFIG.__dict__, "gold": 128})
+    with pytest.raises(DatasetError, match=r"config\.json.*gold=64"):
+        TruthEngine(other, dataset, renderer=fake_render).run(progress=False)
+
+
+def test_reader_loads_splits(dataset):
+    val = load_views(dataset, "val")
+    assert val and all(v.split == "val" for v in val)
+    assert val[0].spp == [1, 4]
+    assert val[0].frames[0].gold["color"].shape == (16, 16, 3)
+
+
+def _copy(dataset, tmp_path):
+    import shutil
+
+    target = tmp_path / "copy"
+    shutil.copytree(dataset, target)
+    return target
+
+
+def test_reader_names_a_missing_file(dataset, tmp_path):
+    root = _copy(dataset, tmp_path)
+    victim = root / "views" / "v00000" / frame_file(0, "gold")
+    victim.unlink()
+    with pytest.raises(DatasetError, match=f"{victim}: no such file"):
+        load_views(root)
+
+
+def test_reader_names_a_corrupt_file(dataset, tmp_path):
+    root = _copy(dataset, tmp_path)
+    victim = root / "views" / "v00001" / frame_file(0, 1)
+    victim.write_bytes(victim.read_bytes()[:100])
+    with pytest.raises(DatasetError, match=f"{victim}: not a readable OpenEXR"):
+        load_views(root)
+
+
+def test_reader_names_a_file_of_the_wrong_size(dataset, tmp_path):
+    root = _copy(dataset, tmp_path)
+    victim = root / "views" / "v00002" / frame_file(0, 4)
+    write_exr(victim, np.zeros((8, 16, 3)), {k: np.zeros((8, 16, c)) for k, c in
+                                             (("albedo", 3), ("normal", 3), ("depth", 1), ("motion", 2))})
+    with pytest.raises(DatasetError, match=f"{victim}: layer 'color' is 16×8, but this view's images are 16×16"):
+        load_views(root)
+
+
+def test_reader_names_a_missing_layer(dataset, tmp_path):
+    root = _copy(dataset, tmp_path)
+    victim = root / "views" / "v00002" / frame_file(0, 1)
+    write_exr(victim, np.zeros((16, 16, 3)), {"albedo": np.zeros((16, 16, 3))})
+    with pytest.raises(DatasetError, match=f"{victim}: missing layer 'normal'"):
+        load_views(root)
+
+
+def test_reader_without_manifest_says_how_to_make_one(tmp_path):
+    with pytest.raises(DatasetError, match="no manifest"):
+        load_views(tmp_path)
+
+
+def test_variety_is_seeded_and_leaves_the_input_alone():
+    from wgpu_rt.scene import load_scene
+
+    base = load_scene("cornell")
+    meshes, camera = len(base.meshes), base.camera.origin.copy()
+    a = vary_scene(base, np.random.default_rng(5), frames=3)
+    b = vary_scene(base, np.random.default_rng(5), frames=3)
+    assert len(base.meshes) == meshes and np.array_equal(base.camera.origin, camera)
+    assert [m.name for m in a.meshes] == [m.name for m in b.meshes]
+    assert np.array_equal(a.camera_at(2).origin, b.camera_at(2).origin)
+    assert a.has_motion and len(a.meshes) > meshes
+
+
+def test_catmull_rom_passes_through_its_control_points():
+    points = np.array([[0.0, 0.0], [1.0, 2.0], [3.0, 1.0], [4.0, 4.0]])
+    path = catmull_rom(points, 7)
+    np.testing.assert_allclose(path[::2], points, atol=1e-12)
+
+
+def test_reproject_with_integer_motion_is_a_shift():
+    rng = np.random.default_rng(0)
+    previous = rng.uniform(size=(6, 7, 3)).astype(np.float32)
+    motion = np.zeros((6, 7, 2), np.float32)
+    motion[..., 0], motion[..., 1] = 2.0, -1.0
+    warped, valid = reproject(previous, motion)
+    for y in range(6):
+        for x in range(7):
+            sx, sy = x + 2, y - 1
+            inside = 0 <= sx < 7 and 0 <= sy < 6
+            assert valid[y, x] == inside
+            if inside:
+                np.testing.assert_allclose(warped[y, x], previous[sy, sx], rtol=1e-6)
+
+
+def test_disocclusion_mask_flags_only_changed_or_offscreen_pixels():
+    gold = np.ones((8, 8, 3), np.float32)
+    current = gold.copy()
+    current[2:4, 2:4] = 5.0
+    motion = np.zeros((8, 8, 2), np.float32)
+    motion[..., 0] = 1.0
+    mask = disocclusion_mask(gold, current, motion)
+    expected = np.zeros((8, 8), np.float32)
+    expected[2:4, 2:4] = 1
+    expected[:, 7] = 1
+    np.testing.assert_array_equal(mask, expected)
+
+
+def test_error_heatmap_is_a_normalized_rank_of_the_log_error():
+    gold = np.ones((10, 10, 3), np.float32)
+    noisy = gold.copy()
+    noisy[0, :5] = 3.0
+    noisy[1, :5] = 1.5
+    heat = error_heatmap(noisy, gold)
+    assert heat.min() == 0.0 and heat.max() == 1.0
+    assert heat[0, 0] > heat[1, 0] > heat[5, 5]
+
+
+def test_the_real_tracer_fills_a_tiny_dataset(gpu, tmp_path):
+    pytest.importorskip("wgpu_rt.render")
+    from wgpu_rt import metrics
+
+    config = DatasetConfig(scenes=("cornell",), views=3, size=16, spp=(1, 4), gold=64,
+                           sequence_length=2, sequence_fraction=1.0, max_depth=3)
+    TruthEngine(config, tmp_path).run(progress=False)
+    views = load_views(tmp_path)
+    assert len(views) == 3 and all(len(v.frames) == 2 for v in views)
+    for view in views:
+        frame = view.frames[0]
+        gold = frame.gold["color"]
+        assert gold.max() > 0 and np.all(np.isfinite(gold))
+    errors = {s: np.mean([metrics.rel_mse(v.frames[0].gold["color"], v.frames[0].noisy[s]["color"]) for v in views])
+              for s in (1, 4)}
+    assert errors[4] < errors[1]
+
+
+def test_a_folder_of_meshes_feeds_the_views(tmp_path):
+    import trimesh
+
+    from wgpu_rt.dataset.variety import load_mesh_folder
+    from wgpu_rt.scene import load_scene
+
+    trimesh.creation.annulus(r_min=0.2, r_max=0.5, height=0.3).export(tmp_path / "ring.obj")
+    (tmp_path / "notes.txt").write_text("not a mesh")
+    files = load_mesh_folder(tmp_path)
+    assert files == [tmp_path / "ring.obj"]
+    names = set()
+    for seed in range(8):
+        names |= {m.name for m in vary_scene(load_scene("cornell"), np.random.default_rng(seed), mesh_files=files).meshes}
+    ring = [n for n in names if n.startswith("ring_")]
+    assert ring
+
+
+def test_cli_rejects_a_bad_shard_and_names_a_missing_manifest(tmp_path, capsys):
+    from wgpu_rt.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["dataset", "--out", str(tmp_path), "--shard", "3/2"])
+    assert "0 ≤ i < n" in capsys.readouterr().err
+    assert main(["train", "denoiser", "--data", str(tmp_path), "--out", str(tmp_path / "m")]) == 2
+    assert f"{tmp_path / 'manifest.json'}: no manifest" in capsys.readouterr().err

@@ -1,0 +1,118 @@
+"""``wgpu-rt denoise``: clear errors for bad input files; with the WGSL engine, output equal to the same
+model under onnxruntime; exported models in the WGSL engine match onnxruntime (parity)."""
+
+import numpy as np
+import pytest
+import torch
+
+from wgpu_rt.cli import main
+from wgpu_rt.io import read_exr, write_exr
+from wgpu_rt.networks import ConfidencePredictor, ErrorPredictor, UNet, export_onnx
+
+
+def _render_like(h=20, w=28, seed=0):
+    rng = np.random.default_rng(seed)
+    color = rng.gamma(0.5, 2.0, size=(h, w, 3)).astype(np.float32)
+    normal = rng.normal(size=(h, w, 3)).astype(np.float32)
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    return color, {"albedo": rng.uniform(size=(h, w, 3)), "normal": normal,
+                   "depth": rng.uniform(1, 5, size=(h, w, 1)), "motion": np.zeros((h, w, 2))}
+
+
+def test_missing_input_file_is_named(tmp_path, capsys):
+    missing = tmp_path / "nope.exr"
+    assert main(["denoise", str(missing), "--out", str(tmp_path / "o.exr")]) == 2
+    assert f"{missing}: no such file" in capsys.readouterr().err
+
+
+def test_corrupt_input_file_is_named(tmp_path, capsys):
+    bad = tmp_path / "bad.exr"
+    bad.write_bytes(b"not an exr at all")
+    assert main(["denoise", str(bad), "--out", str(tmp_path / "o.exr")]) == 2
+    assert f"{bad}: not a readable OpenEXR" in capsys.readouterr().err
+
+
+def test_missing_layer_is_named(tmp_path, capsys):
+    color, layers = _render_like()
+    path = tmp_path / "in.exr"
+    write_exr(path, color, {k: v for k, v in layers.items() if k != "normal"})
+    assert main(["denoise", str(path), "--out", str(tmp_path / "o.exr")]) == 2
+    err = capsys.readouterr().err
+    assert f"{path}: missing layer 'normal'" in err
+    assert not (tmp_path / "o.exr").exists()
+
+
+def test_missing_model_is_named(tmp_path, capsys):
+    pytest.importorskip("wgpu_rt.nn")
+    color, layers = _render_like()
+    write_exr(tmp_path / "in.exr", color, layers)
+    model = tmp_path / "absent.onnx"
+    assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "o.exr"), "--model", str(model)]) == 2
+    assert f"{model}: no such model file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("precision, tolerance", [("fp32", 1e-3), ("fp16", 3e-2)])
+def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
+    pytest.importorskip("wgpu_rt.nn")
+    if precision == "fp16" and not gpu.has_f16:
+        pytest.skip("no shader-f16 on this adapter")
+    import onnxruntime
+
+    from wgpu_rt.commands.denoise import PAD_MULTIPLE
+    from wgpu_rt.frame.pack import pack_denoiser_input
+    from wgpu_rt.train.trainer import pad_to_multiple
+
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    write_exr(tmp_path / "in.exr", color, layers)
+    assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.exr"), "--model", str(model),
+                 "--precision", precision]) == 0
+    written = read_exr(tmp_path / "out.exr")
+    np.testing.assert_allclose(written["depth"], layers["depth"], rtol=1e-6)
+    x = pad_to_multiple(pack_denoiser_input(color, layers["albedo"], layers["normal"], layers["depth"])[None],
+                        PAD_MULTIPLE)
+    session = onnxruntime.InferenceSession(str(model), providers=["CPUExecutionProvider"])
+    expected = np.maximum(np.expm1(session.run(None, {"input": x})[0][0, :, :20, :28].transpose(1, 2, 0)), 0)
+    np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
+
+
+@pytest.mark.parametrize("network", ["denoiser", "error-predictor", "confidence"])
+def test_exported_models_run_in_the_wgsl_engine_with_parity(network, gpu, tmp_path):
+    pytest.importorskip("wgpu_rt.nn")
+    import onnxruntime
+    from parity import check_parity
+
+    from wgpu_rt.nn import WgslModel
+
+    torch.manual_seed(1)
+    net = {"denoiser": lambda: UNet(widths=(8, 16)), "error-predictor": ErrorPredictor,
+           "confidence": ConfidencePredictor}[network]()
+    path = export_onnx(net, tmp_path / "m.onnx")
+    session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    channels = session.get_inputs()[0].shape[1]
+    ours = WgslModel(path)
+    check_parity([(1, channels, 16, 24)], lambda x: session.run(None, {"input": x})[0], ours,
+                 atol=1e-4, low=0.0, high=2.0, name=network)
+
+
+def test_shipped_models_have_cards_and_the_default_model_denoises(gpu, tmp_path):
+    pytest.importorskip("wgpu_rt.nn")
+    from importlib import resources
+
+    from wgpu_rt import metrics
+
+    shipped = resources.files("wgpu_rt.models")
+    for name in ("denoiser", "error_predictor", "confidence"):
+        assert shipped.joinpath(f"{name}.onnx").is_file(), name
+        assert "## Validation" in shipped.joinpath(f"{name}.md").read_text(), name
+    # A flat grey wall seen at 1 spp: the shipped denoiser must bring it closer to the clean value.
+    rng = np.random.default_rng(4)
+    clean = np.full((32, 32, 3), 0.5, np.float32)
+    noisy = (clean * rng.gamma(1.0, 1.0, size=clean.shape)).astype(np.float32)
+    layers = {"albedo": np.full((32, 32, 3), 0.6), "normal": np.dstack([np.zeros((32, 32, 2)), np.ones((32, 32))]),
+              "depth": np.full((32, 32, 1), 3.0)}
+    write_exr(tmp_path / "in.exr", noisy, layers)
+    assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.exr")]) == 0
+    denoised = read_exr(tmp_path / "out.exr")["color"]
+    assert metrics.rel_mse(clean, denoised) < metrics.rel_mse(clean, noisy)

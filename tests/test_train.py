@@ -1,0 +1,115 @@
+"""Training: the torch SSIM against scikit-image, a few-step smoke run of each network on a tiny fake
+dataset (export, ONNX equality, model card, resume), and the NaN guard."""
+
+import numpy as np
+import pytest
+import torch
+from dataset_fakes import fake_render
+
+from wgpu_rt.dataset import DatasetConfig, TruthEngine
+from wgpu_rt.train import TrainConfig, TrainingError, train
+from wgpu_rt.train.losses import denoiser_loss, ssim
+from wgpu_rt.train.samples import curriculum_spp
+from wgpu_rt.train.trainer import Trainer, roc_auc
+
+
+@pytest.fixture(scope="module")
+def tiny_dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("tiny")
+    config = DatasetConfig(scenes=("cornell",), views=10, size=24, spp=(1, 4, 16), gold=32,
+                           sequence_fraction=0.5)
+    TruthEngine(config, out, renderer=fake_render).run(progress=False)
+    return out
+
+
+def test_torch_ssim_matches_scikit_image():
+    from skimage.metrics import structural_similarity
+
+    rng = np.random.default_rng(1)
+    a = rng.uniform(size=(3, 32, 40))
+    b = np.clip(a + rng.normal(0, 0.1, a.shape), 0, 1)
+    reference = structural_similarity(a, b, channel_axis=0, data_range=1.0, gaussian_weights=True, sigma=1.5,
+                                      use_sample_covariance=False)
+    ours = ssim(torch.from_numpy(a[None]), torch.from_numpy(b[None]))
+    assert float(ours) == pytest.approx(reference, abs=1e-6)
+
+
+def test_denoiser_loss_is_zero_only_at_the_target_and_differentiable():
+    target = torch.rand(2, 3, 16, 16)
+    assert float(denoiser_loss(target, target)) == pytest.approx(0.0, abs=1e-6)
+    guess = (target + 0.1 * torch.randn_like(target)).requires_grad_()
+    loss = denoiser_loss(guess, target, "charbonnier")
+    loss.backward()
+    assert float(loss.detach()) > 0 and torch.isfinite(guess.grad).all() and guess.grad.abs().sum() > 0
+
+
+def test_curriculum_goes_16_then_4_then_1():
+    assert [curriculum_spp(p, [1, 4, 16]) for p in (0.0, 0.3, 0.4, 0.6, 0.7, 0.99)] == [16, 16, 4, 4, 1, 1]
+    assert curriculum_spp(0.0, [1, 4]) == 4
+
+
+def test_roc_auc_against_brute_force_pair_counting():
+    rng = np.random.default_rng(2)
+    scores, labels = rng.uniform(size=60), rng.uniform(size=60) > 0.6
+    pairs = [(p > n) + 0.5 * (p == n) for p in scores[labels] for n in scores[~labels]]
+    assert roc_auc(scores, labels) == pytest.approx(np.mean(pairs))
+
+
+@pytest.mark.parametrize("task", ["denoiser", "error-predictor", "confidence"])
+def test_smoke_training_exports_a_model_equal_to_torch(task, tiny_dataset, tmp_path):
+    import onnxruntime
+
+    config = TrainConfig(task=task, data=str(tiny_dataset), out=str(tmp_path), epochs=1, batch=2,
+                         crop_min=12, crop_max=16, widths=(4, 8))
+    summary = train(config, progress=False)
+    card = (tmp_path / f"{config.model_name}.md").read_text()
+    assert "## Validation" in card and "training views" in card
+    key = {"denoiser": "val_psnr", "error-predictor": "val_spearman", "confidence": "val_roc_auc"}[task]
+    assert np.isfinite(summary["metrics"][key])
+    trainer = Trainer(config, progress=False)
+    trainer._load_checkpoint()
+    x, _ = trainer.val_set.full(trainer.val_set.items[0], 1, 1.0)
+    session = onnxruntime.InferenceSession(summary["onnx"], providers=["CPUExecutionProvider"])
+    exported = session.run(None, {"input": x[None]})[0][0]
+    np.testing.assert_allclose(exported, trainer.predict(x), atol=1e-4)
+
+
+def test_resume_continues_from_the_checkpoint(tiny_dataset, tmp_path):
+    base = dict(task="error-predictor", data=str(tiny_dataset), out=str(tmp_path), batch=2, crop_min=8,
+                crop_max=16)
+    train(TrainConfig(epochs=1, **base), progress=False)
+    resumed = Trainer(TrainConfig(epochs=2, resume=True, **base), progress=False)
+    assert resumed.epoch == 1 and resumed.step == resumed.steps_per_epoch
+    resumed.run()
+    assert [h["epoch"] for h in resumed.history] == [1, 2]
+
+
+def test_a_nan_loss_stops_training_with_a_clear_message(tiny_dataset, tmp_path, monkeypatch):
+    config = TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), epochs=1, batch=2,
+                         crop_min=12, crop_max=16, widths=(4, 8))
+    trainer = Trainer(config, progress=False)
+    monkeypatch.setattr(trainer, "loss", lambda prediction, target: (prediction * float("nan")).mean())
+    with pytest.raises(TrainingError, match="denoiser: loss became nan at step 0"):
+        trainer.run()
+
+
+def test_confidence_needs_sequences(tmp_path):
+    config = DatasetConfig(scenes=("cornell",), views=5, size=8, spp=(1,), gold=4,
+                           sequence_fraction=0.0)
+    TruthEngine(config, tmp_path, renderer=fake_render).run(progress=False)
+    with pytest.raises(TrainingError, match="no train samples for confidence.*sequences"):
+        Trainer(TrainConfig(task="confidence", data=str(tmp_path)), progress=False)
+
+
+def test_confidence_target_is_one_where_history_is_valid(tiny_dataset):
+    from wgpu_rt.dataset import load_views
+    from wgpu_rt.train.samples import ConfidenceSamples
+    from wgpu_rt.train.targets import disocclusion_mask
+
+    samples = ConfidenceSamples(load_views(tiny_dataset, "train"))
+    view_index, t = samples.items[0]
+    frames = samples.views[view_index].frames
+    _, target = samples.full((view_index, t), 1, 1.0)
+    mask = disocclusion_mask(frames[t].gold["color"], frames[t + 1].gold["color"], frames[t + 1].gold["motion"])
+    assert 0 < mask.mean() < 1
+    np.testing.assert_array_equal(target[0], 1 - mask)

@@ -1,0 +1,238 @@
+"""The truth engine: renders training data (noisy renders at several spp, G-buffers, gold images).
+
+Layout of a dataset folder::
+
+    DIR/config.json              what was asked for (checked on resume: a mismatch is an error)
+    DIR/manifest.json            every finished view (rebuilt from the per-view records at each run end)
+    DIR/views/v00012/view.json   one view's record, written last: its presence means "finished"
+    DIR/views/v00012/f0_spp1.exr noisy colour + albedo/normal/depth/motion layers, frame 0, 1 spp
+    DIR/views/v00012/f0_gold.exr the converged image (+ layers) of frame 0
+
+A *view* is a still (one frame) or a temporal sequence (consecutive frames with camera and object
+motion, a gold image for each). View ``i`` of scene ``s`` is seeded from (seed, s, i) alone, so any
+subset of views can be rendered in any order, on any shard, and reruns reproduce it bit for bit.
+Every file is written atomically and a finished view is skipped, so an interrupted run loses at most
+the image being rendered. Splits: the last tenth of each scene's views are ``test`` (with shapes no
+training view has) and the tenth before them ``val``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import WgpuRtError
+from .variety import HELD_OUT_SHAPES, TRAINING_SHAPES, load_mesh_folder, vary_scene
+
+GBUFFERS = ("albedo", "normal", "depth", "motion")
+# View numbers, seeds and images depend on all of these, so a resumed run must keep them.
+CONFIG_KEYS_THAT_MUST_MATCH = ("scenes", "views", "size", "spp", "gold", "seed", "max_depth",
+                               "sequence_length", "sequence_fraction", "mesh_dir")
+
+
+class DatasetError(WgpuRtError):
+    """A dataset folder, its manifest or one of its images is missing, corrupt or inconsistent."""
+
+
+@dataclass(frozen=True)
+class DatasetConfig:
+    scenes: tuple[str, ...]
+    views: int = 16                      # per scene
+    size: int = 256
+    spp: tuple[int, ...] = (1, 4, 16)
+    gold: int = 4096
+    seed: int = 0
+    max_depth: int = 8
+    sequence_length: int = 3
+    sequence_fraction: float = 0.25
+    mesh_dir: str | None = None
+
+
+@dataclass(frozen=True)
+class ViewPlan:
+    view_id: str
+    scene: str
+    index: int              # within its scene
+    scene_index: int
+    split: str              # train | val | test
+    frames: int
+
+    def files(self, config: DatasetConfig) -> list[str]:
+        return [frame_file(f, s) for f in range(self.frames) for s in (*config.spp, "gold")]
+
+
+def frame_file(frame: int, spp: int | str) -> str:
+    """File name of one frame's render: ``spp`` is a sample count or ``"gold"``."""
+    return f"f{frame}_gold.exr" if spp == "gold" else f"f{frame}_spp{spp}.exr"
+
+
+def split_of(index: int, views: int) -> str:
+    held = max(1, round(0.1 * views)) if views >= 3 else 0
+    if index >= views - held:
+        return "test"
+    if index >= views - 2 * held:
+        return "val"
+    return "train"
+
+
+def _generator(config: DatasetConfig, scene_index: int, index: int, *salt: int) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence([config.seed, scene_index, index, *salt]))
+
+
+def _render_seed(config: DatasetConfig, view: ViewPlan, *salt: int) -> int:
+    state = np.random.SeedSequence([config.seed, view.scene_index, view.index, 7919, *salt]).generate_state(1)
+    return int(state[0] & 0x7FFFFFFF)
+
+
+def plan_views(config: DatasetConfig, shard: tuple[int, int] = (0, 1)) -> list[ViewPlan]:
+    """Every view of the dataset that belongs to ``shard`` (i, n): global view numbers ≡ i mod n."""
+    plans = []
+    for scene_index, scene in enumerate(config.scenes):
+        for index in range(config.views):
+            number = scene_index * config.views + index
+            if number % shard[1] != shard[0]:
+                continue
+            rng = _generator(config, scene_index, index, 1)
+            split = split_of(index, config.views)
+            # The first held-out view of each split is always a sequence, so the confidence model
+            # has validation and test pairs however few views there are.
+            first_of_split = split != "train" and split_of(index - 1, config.views) != split
+            sequence = config.sequence_fraction > 0 and (first_of_split or rng.uniform() < config.sequence_fraction)
+            frames = config.sequence_length if sequence else 1
+            plans.append(ViewPlan(f"v{number:05d}", scene, index, scene_index, split, frames))
+    return plans
+
+
+@dataclass
+class ViewRecord:
+    """What view.json holds: the plan, the files and how long it took."""
+
+    view_id: str
+    scene: str
+    split: str
+    frames: int
+    size: int
+    spp: list[int]
+    gold: int
+    objects: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+
+def write_json_atomic(path: Path, payload) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(json.dumps(payload, indent=1))
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def check_config(out: Path, config: DatasetConfig) -> None:
+    """Record ``config`` in ``out``; on resume, refuse a config that would change existing views."""
+    path = out / "config.json"
+    wanted = asdict(config)
+    if path.exists():
+        try:
+            held = json.loads(path.read_text())
+        except json.JSONDecodeError as err:
+            raise DatasetError(f"{path}: not valid JSON ({err})") from None
+        for key in CONFIG_KEYS_THAT_MUST_MATCH:
+            if held.get(key) != json.loads(json.dumps(wanted[key])):
+                raise DatasetError(f"{path}: this dataset was rendered with {key}={held.get(key)!r}, "
+                                   f"not {wanted[key]!r}; use another --out or the same settings")
+    out.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(path, wanted)
+
+
+def is_finished(out: Path, view: ViewPlan, config: DatasetConfig) -> bool:
+    folder = out / "views" / view.view_id
+    return (folder / "view.json").exists() and all((folder / f).exists() for f in view.files(config))
+
+
+class TruthEngine:
+    """Renders planned views into a dataset folder (see the module docstring)."""
+
+    def __init__(self, config: DatasetConfig, out: str | Path, renderer=None):
+        """``renderer`` has ``wgpu_rt.render.render``'s signature (the default); tests pass a fake."""
+        if renderer is None:
+            from ..render import render as renderer
+        self.render = renderer
+        self.config = config
+        self.out = Path(out)
+        self._bases: dict[str, object] = {}
+        self._mesh_files = load_mesh_folder(config.mesh_dir) if config.mesh_dir else []
+
+    def scene_for(self, view: ViewPlan):
+        """The randomized scene of ``view`` (deterministic in its seed)."""
+        from ..scene import load_scene
+
+        if view.scene not in self._bases:
+            self._bases[view.scene] = load_scene(view.scene)
+        shapes = HELD_OUT_SHAPES if view.split == "test" else TRAINING_SHAPES
+        return vary_scene(self._bases[view.scene], _generator(self.config, view.scene_index, view.index, 2),
+                          frames=view.frames, shapes=shapes, mesh_files=self._mesh_files)
+
+    def render_view(self, view: ViewPlan) -> ViewRecord:
+        from ..io import write_exr
+
+        cfg = self.config
+        folder = self.out / "views" / view.view_id
+        folder.mkdir(parents=True, exist_ok=True)
+        scene = self.scene_for(view)
+        started = time.perf_counter()
+        size = (cfg.size, cfg.size)
+        for frame in range(view.frames):
+            for spp in cfg.spp:
+                path = folder / frame_file(frame, spp)
+                if not path.exists():
+                    result = self.render(scene, spp=spp, size=size, max_depth=cfg.max_depth,
+                                    seed=_render_seed(cfg, view, frame, spp), frame=frame, aovs=GBUFFERS)
+                    write_exr(path, _finite(result.color), {k: _finite(result.aovs[k]) for k in GBUFFERS})
+            path = folder / frame_file(frame, "gold")
+            if not path.exists():
+                result = self.render(scene, spp=cfg.gold, size=size, max_depth=cfg.max_depth,
+                                     seed=_render_seed(cfg, view, frame, 0), frame=frame, aovs=GBUFFERS)
+                write_exr(path, _finite(result.color), {k: _finite(result.aovs[k]) for k in GBUFFERS})
+        record = ViewRecord(view.view_id, view.scene, view.split, view.frames, cfg.size, list(cfg.spp),
+                            cfg.gold, [m.name for m in scene.meshes], round(time.perf_counter() - started, 3))
+        write_json_atomic(folder / "view.json", asdict(record))
+        return record
+
+    def run(self, shard: tuple[int, int] = (0, 1), progress: bool = True) -> list[ViewRecord]:
+        """Render every unfinished view of ``shard``; returns the records of the views rendered now."""
+        from tqdm import tqdm
+
+        check_config(self.out, self.config)
+        todo = [v for v in plan_views(self.config, shard) if not is_finished(self.out, v, self.config)]
+        done = []
+        with tqdm(todo, desc=f"views (shard {shard[0]}/{shard[1]})", unit="view", disable=not progress) as bar:
+            for view in bar:
+                bar.set_postfix_str(f"{view.view_id} {view.scene} {view.split} ×{view.frames}")
+                done.append(self.render_view(view))
+        write_manifest(self.out)
+        return done
+
+
+def _finite(array) -> np.ndarray:
+    """NaN/Inf never reach a dataset file (a firefly of Inf would poison every metric)."""
+    return np.nan_to_num(np.asarray(array, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def write_manifest(out: str | Path) -> dict:
+    """Rebuild ``manifest.json`` from the finished views' records (safe with several shards)."""
+    out = Path(out)
+    views = []
+    for record in sorted((out / "views").glob("*/view.json")):
+        try:
+            views.append(json.loads(record.read_text()))
+        except json.JSONDecodeError as err:
+            raise DatasetError(f"{record}: not valid JSON ({err}); delete it to re-render the view") from None
+    config = json.loads((out / "config.json").read_text()) if (out / "config.json").exists() else {}
+    manifest = {"config": config, "views": views}
+    write_json_atomic(out / "manifest.json", manifest)
+    return manifest

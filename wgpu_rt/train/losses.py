@@ -1,0 +1,50 @@
+"""Differentiable losses in torch.
+
+SSIM is the standard one of Wang et al. (2004): an 11×11 Gaussian window with σ = 1.5, constants
+C1 = (0.01·L)², C2 = (0.03·L)² with L = 1, local statistics by a depthwise convolution, zero padding
+avoided by computing only the 'valid' region (as scikit-image with its defaults crops the border).
+The denoiser is trained on log1p colour, where values mostly stay in [0, 2], so L = 1 keeps the
+constants in the usual proportion.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+
+SSIM_WINDOW = 11
+SSIM_SIGMA = 1.5
+SSIM_WEIGHT = 0.8
+CHARBONNIER_EPSILON = 1e-3
+
+
+def _gaussian_window(channels: int, dtype, device) -> torch.Tensor:
+    coords = torch.arange(SSIM_WINDOW, dtype=dtype, device=device) - (SSIM_WINDOW - 1) / 2
+    g = torch.exp(-coords ** 2 / (2 * SSIM_SIGMA ** 2))
+    g = g / g.sum()
+    return (g[:, None] * g[None, :]).expand(channels, 1, SSIM_WINDOW, SSIM_WINDOW).contiguous()
+
+
+def ssim(x: torch.Tensor, y: torch.Tensor, data_range: float = 1.0) -> torch.Tensor:
+    """Mean SSIM of two NCHW batches (each at least 11×11)."""
+    channels = x.shape[1]
+    window = _gaussian_window(channels, x.dtype, x.device)
+    blur = lambda t: F.conv2d(t, window, groups=channels)  # noqa: E731
+    c1, c2 = (0.01 * data_range) ** 2, (0.03 * data_range) ** 2
+    mu_x, mu_y = blur(x), blur(y)
+    var_x = blur(x * x) - mu_x ** 2
+    var_y = blur(y * y) - mu_y ** 2
+    cov = blur(x * y) - mu_x * mu_y
+    index = ((2 * mu_x * mu_y + c1) * (2 * cov + c2)) / ((mu_x ** 2 + mu_y ** 2 + c1) * (var_x + var_y + c2))
+    return index.mean()
+
+
+def charbonnier(x: torch.Tensor, y: torch.Tensor, epsilon: float = CHARBONNIER_EPSILON) -> torch.Tensor:
+    """A smooth L1: mean of sqrt((x − y)² + ε²)."""
+    return torch.sqrt((x - y) ** 2 + epsilon ** 2).mean()
+
+
+def denoiser_loss(prediction: torch.Tensor, target: torch.Tensor, pixel_loss: str = "l1") -> torch.Tensor:
+    """0.8·(1 − SSIM) + 0.2·(L1 or Charbonnier), both on log1p colour."""
+    pixel = charbonnier(prediction, target) if pixel_loss == "charbonnier" else F.l1_loss(prediction, target)
+    return SSIM_WEIGHT * (1.0 - ssim(prediction, target)) + (1.0 - SSIM_WEIGHT) * pixel

@@ -1,0 +1,132 @@
+"""Training samples for the three networks, built from a loaded dataset.
+
+Inputs are packed by ``wgpu_rt.frame.pack``'s numpy references on the *full* frame (so the depth
+normalisation sees the frame's true max depth, as at runtime), then cropped and augmented:
+
+- exposure jitter: colour and gold scaled by 2^U(−1, 1) before packing (the log1p compression makes
+  this a non-trivial change of the input, which is the point);
+- a random square crop of ``crop`` ∈ [crop_min, crop_max] (a multiple of ``multiple``, at most the
+  frame), the same for a whole batch;
+- one of the 8 flips/90° rotations;
+- small Gaussian noise on the auxiliary channels (albedo, normal, depth), so the network does not
+  trust G-buffers blindly;
+- for the denoiser, a curriculum over sample counts: 16 spp first, then 4, then 1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..dataset.store import View
+from ..frame.pack import log_color, pack_confidence_input, pack_denoiser_input, pack_error_input
+from .targets import disocclusion_mask, error_heatmap, reproject
+
+TASKS = ("denoiser", "error-predictor", "confidence")
+
+
+@dataclass(frozen=True)
+class Augmentation:
+    crop_min: int = 128
+    crop_max: int = 256
+    multiple: int = 4
+    exposure_stops: float = 1.0
+    aux_noise: float = 0.01
+
+
+class TaskSamples:
+    """The (input, target) pairs of one task over a list of views; subclasses define ``full``."""
+
+    aux_channels: slice = slice(0, 0)
+
+    def __init__(self, views: list[View]):
+        self.views = views
+        self.items = self._items()
+
+    def _items(self) -> list[tuple[int, int]]:
+        return [(v, f) for v, view in enumerate(self.views) for f in range(len(view.frames))]
+
+    def full(self, item: tuple[int, int], spp: int, exposure: float) -> tuple[np.ndarray, np.ndarray]:
+        """The full-frame (C, H, W) input and target of ``item``."""
+        raise NotImplementedError
+
+    def batch(self, items, rng: np.random.Generator, aug: Augmentation, spp: int = 1):
+        """A (B, C, S, S) input batch and its targets, augmented as the module docstring says."""
+        inputs, targets = [], []
+        frame = self.views[items[0][0]].frames[0].gold["color"].shape[:2]
+        largest = min(aug.crop_max, *frame) // aug.multiple * aug.multiple
+        smallest = min(aug.crop_min, largest) // aug.multiple
+        crop = int(rng.integers(smallest, largest // aug.multiple + 1)) * aug.multiple
+        for item in items:
+            exposure = float(2.0 ** rng.uniform(-aug.exposure_stops, aug.exposure_stops))
+            x, y = self.full(item, spp, exposure)
+            top = int(rng.integers(0, x.shape[1] - crop + 1))
+            left = int(rng.integers(0, x.shape[2] - crop + 1))
+            x, y = x[:, top:top + crop, left:left + crop], y[:, top:top + crop, left:left + crop]
+            turns, flip = int(rng.integers(4)), bool(rng.integers(2))
+            x, y = (np.rot90(a, turns, axes=(1, 2)) for a in (x, y))
+            if flip:
+                x, y = x[:, :, ::-1], y[:, :, ::-1]
+            x = np.array(x, np.float32)
+            if aug.aux_noise > 0 and self.aux_channels.stop > self.aux_channels.start:
+                aux = x[self.aux_channels]
+                x[self.aux_channels] = aux + rng.normal(0.0, aug.aux_noise, aux.shape).astype(np.float32)
+            inputs.append(x)
+            targets.append(np.array(y, np.float32))
+        return np.stack(inputs), np.stack(targets)
+
+
+class DenoiserSamples(TaskSamples):
+    """Noisy render at ``spp`` + G-buffers → log1p gold."""
+
+    aux_channels = slice(3, 10)
+
+    def full(self, item, spp, exposure):
+        frame = self.views[item[0]].frames[item[1]]
+        noisy = frame.noisy[spp]
+        x = pack_denoiser_input(noisy["color"] * exposure, noisy["albedo"], noisy["normal"], noisy["depth"])
+        return x, log_color(frame.gold["color"] * exposure)
+
+
+class ErrorSamples(TaskSamples):
+    """1-spp colour → the normalized |1 spp − gold| log-space heatmap."""
+
+    def full(self, item, spp, exposure):
+        frame = self.views[item[0]].frames[item[1]]
+        noisy, gold = frame.noisy[1]["color"] * exposure, frame.gold["color"] * exposure
+        return pack_error_input(noisy), error_heatmap(noisy, gold)[None]
+
+
+class ConfidenceSamples(TaskSamples):
+    """Frame t+1 at 1 spp + gold frame t reprojected → confidence that history is valid: 1 minus the
+    disocclusion mask (needs sequences). The reprojected gold frame stands in for the runtime's history
+    (the previous denoised output)."""
+
+    aux_channels = slice(6, 8)
+
+    def _items(self):
+        return [(v, t) for v, view in enumerate(self.views) for t in range(len(view.frames) - 1)]
+
+    def full(self, item, spp, exposure):
+        view = self.views[item[0]]
+        previous, current = view.frames[item[1]], view.frames[item[1] + 1]
+        motion = current.gold["motion"]
+        history, _ = reproject(previous.gold["color"] * exposure, motion)
+        previous_depth, _ = reproject(previous.gold["depth"], motion)
+        x = pack_confidence_input(current.noisy[1]["color"] * exposure, history, current.noisy[1]["depth"],
+                                  previous_depth)
+        mask = disocclusion_mask(previous.gold["color"], current.gold["color"], motion)
+        return x, 1.0 - mask[None]
+
+
+def samples_for(task: str, views: list[View]) -> TaskSamples:
+    classes = {"denoiser": DenoiserSamples, "error-predictor": ErrorSamples, "confidence": ConfidenceSamples}
+    return classes[task](views)
+
+
+def curriculum_spp(progress: float, available: list[int], stages: tuple[int, ...] = (16, 4, 1)) -> int:
+    """The sample count for training ``progress`` ∈ [0, 1): equal thirds of 16, 4 and 1 spp (stages
+    the dataset lacks are skipped)."""
+    usable = [s for s in stages if s in available] or [min(available)]
+    return usable[min(int(progress * len(usable)), len(usable) - 1)]

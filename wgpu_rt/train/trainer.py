@@ -1,0 +1,318 @@
+"""The training loop shared by the three networks: Adam with warm-up + cosine decay, gradient-norm clipping,
+checkpoints every epoch (resumable), validation on held-out views every epoch, then ONNX export with a
+model card.
+
+An epoch is one pass over the training items (view frames, or frame pairs for the confidence model) in
+a shuffled order, in batches. Validation uses the ``val`` split, which no training batch ever touches:
+the denoiser is scored at 1 spp on full frames (PSNR, SSIM, relMSE, FLIP against gold), the error
+predictor by the Spearman correlation of its heatmap with the true error, the confidence model by the
+ROC AUC of its output against the true disocclusion mask.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import WgpuRtError
+from .samples import Augmentation, curriculum_spp, samples_for
+
+MODEL_FILES = {"denoiser": "denoiser", "error-predictor": "error_predictor", "confidence": "confidence"}
+
+
+class TrainingError(WgpuRtError):
+    """Training cannot go on: no usable data, or the loss became NaN/Inf."""
+
+
+@dataclass
+class TrainConfig:
+    task: str
+    data: str
+    out: str = "models"
+    epochs: int = 20
+    batch: int = 4
+    lr: float = 1e-3
+    seed: int = 0
+    crop_min: int = 128
+    crop_max: int = 256
+    pixel_loss: str = "l1"               # or "charbonnier"
+    widths: tuple[int, ...] = (32, 64, 128)
+    grad_clip: float = 1.0
+    resume: bool = False
+    max_views: int | None = None
+    checkpoints: str | None = None       # default OUT/checkpoints
+
+    @property
+    def model_name(self) -> str:
+        return MODEL_FILES[self.task]
+
+
+def build_model(config: TrainConfig):
+    from ..networks import ConfidencePredictor, ErrorPredictor, UNet
+
+    if config.task == "denoiser":
+        return UNet(widths=tuple(config.widths))
+    return ErrorPredictor() if config.task == "error-predictor" else ConfidencePredictor()
+
+
+def rank_correlation(a, b) -> float:
+    from scipy.stats import spearmanr
+
+    value = spearmanr(np.ravel(a), np.ravel(b)).statistic
+    return float(value) if np.isfinite(value) else 0.0
+
+
+def roc_auc(scores, labels) -> float:
+    """Area under the ROC curve by the Mann–Whitney rank sum (0.5 when one class is absent)."""
+    from scipy.stats import rankdata
+
+    scores, labels = np.ravel(scores), np.ravel(labels) > 0.5
+    positives, negatives = int(labels.sum()), int((~labels).sum())
+    if positives == 0 or negatives == 0:
+        return 0.5
+    ranks = rankdata(scores)
+    return float((ranks[labels].sum() - positives * (positives + 1) / 2) / (positives * negatives))
+
+
+def pad_to_multiple(x: np.ndarray, multiple: int) -> np.ndarray:
+    """Edge-pad a (N, C, H, W) array so H and W are multiples of ``multiple`` (crop the output back)."""
+    pad_h, pad_w = (-x.shape[2]) % multiple, (-x.shape[3]) % multiple
+    return np.pad(x, ((0, 0), (0, 0), (0, pad_h), (0, pad_w)), mode="edge") if pad_h or pad_w else x
+
+
+class Trainer:
+    def __init__(self, config: TrainConfig, progress: bool = True):
+        import torch
+
+        from ..dataset.store import load_views
+
+        self.config, self.progress = config, progress
+        if config.task not in MODEL_FILES:
+            raise TrainingError(f"unknown task {config.task!r}; expected one of {sorted(MODEL_FILES)}")
+        self.train_set = samples_for(config.task, load_views(config.data, "train", config.max_views))
+        self.val_set = samples_for(config.task, load_views(config.data, "val", config.max_views))
+        for name, subset in (("train", self.train_set), ("val", self.val_set)):
+            if not subset.items:
+                need = " (the confidence model needs temporal sequences)" if config.task == "confidence" else ""
+                raise TrainingError(f"{config.data}: no {name} samples for {config.task}{need}")
+        torch.manual_seed(config.seed)
+        self.model = build_model(config)
+        self.multiple = getattr(self.model, "multiple", 1)
+        self.steps_per_epoch = math.ceil(len(self.train_set.items) / config.batch)
+        self.total_steps = self.steps_per_epoch * config.epochs
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
+        self.schedule = torch.optim.lr_scheduler.LambdaLR(self.optimizer, self.learning_rate_factor)
+        self.augmentation = Augmentation(config.crop_min, config.crop_max, self.multiple)
+        self.rng = np.random.default_rng(config.seed)
+        self.epoch, self.step, self.seconds, self.history = 0, 0, 0.0, []
+        self.checkpoint_path = Path(config.checkpoints or Path(config.out) / "checkpoints") / f"{config.model_name}.pt"
+        if config.resume and self.checkpoint_path.exists():
+            self._load_checkpoint()
+
+    def learning_rate_factor(self, step: int) -> float:
+        """Linear warm-up over the first 5 % of steps, then cosine decay to 0 at ``total_steps`` (read
+        live, so a resumed run with more epochs stretches the decay)."""
+        warmup = max(1, self.total_steps // 20)
+        progress = min(step / max(self.total_steps, 1), 1.0)
+        return min(1.0, (step + 1) / warmup) * 0.5 * (1.0 + math.cos(math.pi * progress))
+
+    # -- checkpoints -------------------------------------------------------------------------------
+    def _save_checkpoint(self) -> None:
+        import torch
+
+        self.checkpoint_path.parent.mkdir(parents=True, exist_ok=True)
+        state = {"model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
+                 "schedule": self.schedule.state_dict(), "epoch": self.epoch, "step": self.step,
+                 "seconds": self.seconds, "history": self.history, "rng": self.rng.bit_generator.state,
+                 "torch_rng": torch.get_rng_state(), "config": asdict(self.config)}
+        tmp = self.checkpoint_path.with_name(f".{self.checkpoint_path.name}.{os.getpid()}.tmp")
+        torch.save(state, tmp)
+        os.replace(tmp, self.checkpoint_path)
+
+    def _load_checkpoint(self) -> None:
+        import torch
+
+        try:
+            state = torch.load(self.checkpoint_path, weights_only=False)
+            self.model.load_state_dict(state["model"])
+        except Exception as err:  # torch raises many types for corrupt or mismatched files
+            raise TrainingError(f"{self.checkpoint_path}: cannot resume from this checkpoint ({err})") from None
+        self.optimizer.load_state_dict(state["optimizer"])
+        self.schedule.load_state_dict(state["schedule"])
+        self.epoch, self.step, self.seconds = state["epoch"], state["step"], state["seconds"]
+        self.history = state["history"]
+        self.rng.bit_generator.state = state["rng"]
+        torch.set_rng_state(state["torch_rng"])
+
+    # -- training ----------------------------------------------------------------------------------
+    def loss(self, prediction, target):
+        import torch.nn.functional as F
+
+        from .losses import denoiser_loss
+
+        if self.config.task == "denoiser":
+            return denoiser_loss(prediction, target, self.config.pixel_loss)
+        if self.config.task == "confidence":
+            # Disocclusions (target 0: history invalid) are rare: weight them by the batch's class ratio.
+            invalid = (1 - target).mean().clamp(0.01, 0.99)
+            weight = (1 - target) * (1 - invalid) / invalid + target
+            return F.binary_cross_entropy(prediction.clamp(1e-6, 1 - 1e-6), target, weight=weight)
+        return F.binary_cross_entropy(prediction.clamp(1e-6, 1 - 1e-6), target)
+
+    def train_step(self, items, spp: int) -> float:
+        import torch
+
+        x, y = self.train_set.batch(items, self.rng, self.augmentation, spp)
+        self.model.train()
+        prediction = self.model(torch.from_numpy(x))
+        loss = self.loss(prediction, torch.from_numpy(y))
+        value = float(loss.detach())
+        if not math.isfinite(value):
+            raise TrainingError(f"{self.config.task}: loss became {value} at step {self.step} (epoch "
+                                f"{self.epoch}); lower --lr, or check {self.config.data} for bad images")
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
+        self.optimizer.step()
+        self.schedule.step()
+        self.step += 1
+        return value
+
+    def run(self) -> dict:
+        """Train the remaining epochs (all, or those after a resumed checkpoint); returns the last
+        validation metrics."""
+        from tqdm import tqdm
+
+        available = self.train_set.views[0].spp
+        with tqdm(total=self.total_steps, initial=self.step, desc=f"train {self.config.task}", unit="step",
+                  disable=not self.progress) as bar:
+            while self.epoch < self.config.epochs:
+                started = time.perf_counter()
+                order = self.rng.permutation(len(self.train_set.items))
+                spp = curriculum_spp(self.epoch / self.config.epochs, available) if self.config.task == "denoiser" else 1
+                losses = []
+                for first in range(0, len(order), self.config.batch):
+                    items = [self.train_set.items[i] for i in order[first:first + self.config.batch]]
+                    losses.append(self.train_step(items, spp))
+                    bar.update(1)
+                    bar.set_postfix(loss=f"{losses[-1]:.4f}", spp=spp)
+                self.epoch += 1
+                metrics = self.validate()
+                self.seconds += time.perf_counter() - started
+                self.history.append({"epoch": self.epoch, "step": self.step, "spp": spp,
+                                     "train_loss": float(np.mean(losses)), **metrics})
+                bar.write(f"epoch {self.epoch}: " + ", ".join(f"{k} {v:.4g}" for k, v in self.history[-1].items()
+                                                              if isinstance(v, float)))
+                self._save_checkpoint()
+        return self.history[-1] if self.history else {}
+
+    # -- validation --------------------------------------------------------------------------------
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """The model on one full (C, H, W) input, padded to its size multiple and cropped back."""
+        import torch
+
+        self.model.eval()
+        with torch.no_grad():
+            padded = pad_to_multiple(x[None], self.multiple)
+            out = self.model(torch.from_numpy(padded)).numpy()[0]
+        return out[:, :x.shape[1], :x.shape[2]]
+
+    def validate(self) -> dict[str, float]:
+        from .. import metrics
+
+        scores: dict[str, list[float]] = {}
+        for item in self.val_set.items:
+            x, y = self.val_set.full(item, 1, 1.0)
+            out = self.predict(x)
+            if self.config.task == "denoiser":
+                gold = self.val_set.views[item[0]].frames[item[1]].gold["color"]
+                denoised = np.maximum(np.expm1(np.nan_to_num(out.transpose(1, 2, 0))), 0.0)
+                values = metrics.all_metrics(gold, denoised)
+            elif self.config.task == "error-predictor":
+                values = {"spearman": rank_correlation(out, y)}
+            else:
+                values = {"roc_auc": roc_auc(out, y)}   # = AUC of 1 − output against the mask
+            for key, value in values.items():
+                scores.setdefault(key, []).append(value)
+        return {f"val_{k}": float(np.mean(v)) for k, v in scores.items()}
+
+    # -- export ------------------------------------------------------------------------------------
+    def export(self) -> tuple[Path, Path]:
+        """``OUT/<name>.onnx`` and its model card ``OUT/<name>.md``."""
+        from ..networks import export_onnx
+
+        out = Path(self.config.out)
+        onnx_path = export_onnx(self.model, out / f"{self.config.model_name}.onnx")
+        card = out / f"{self.config.model_name}.md"
+        tmp = card.with_name(f".{card.name}.{os.getpid()}.tmp")
+        tmp.write_text(self.model_card())
+        os.replace(tmp, card)
+        return onnx_path, card
+
+    def model_card(self) -> str:
+        from ..dataset.store import read_manifest
+
+        cfg = self.config
+        manifest = read_manifest(cfg.data)
+        dataset = manifest["config"]
+        render_minutes = sum(v.get("seconds", 0.0) for v in manifest["views"]) / 60
+        last = self.history[-1] if self.history else {}
+        train_views = sorted({self.train_set.views[v].view_id for v, _ in self.train_set.items})
+        val_views = sorted({self.val_set.views[v].view_id for v, _ in self.val_set.items})
+        parameters = sum(p.numel() for p in self.model.parameters())
+        lines = [
+            f"# {cfg.model_name}.onnx — {cfg.task}",
+            "",
+            f"Trained by `wgpu-rt train {cfg.task}` (wgpu_rt/train). {parameters:,} parameters"
+            + (f", UNet widths {tuple(cfg.widths)}" if cfg.task == "denoiser" else "") + ".",
+            "",
+            "## Data",
+            f"- dataset: `{cfg.data}`, rendered by `wgpu-rt dataset` on this machine's adapter",
+            f"- scenes: {', '.join(dataset.get('scenes', []))}; {dataset.get('size')}² px; noisy at "
+            f"{dataset.get('spp')} spp; gold at {dataset.get('gold')} spp; max depth {dataset.get('max_depth')}; "
+            f"{len(manifest['views'])} views rendered in {render_minutes:.1f} min",
+            f"- training views: {len(train_views)} ({len(self.train_set.items)} samples); validation views "
+            f"(never trained on): {len(val_views)} ({len(self.val_set.items)} samples)",
+            "",
+            "## Recipe",
+            f"- epochs {cfg.epochs}, steps {self.step}, batch {cfg.batch}, Adam, LR {cfg.lr} with warm-up + cosine decay, "
+            f"grad-norm clip {cfg.grad_clip}, seed {cfg.seed}",
+            f"- crops {cfg.crop_min}–{cfg.crop_max} px (clamped to the frame), flips + 90° rotations, "
+            "exposure jitter ±1 stop, aux-channel noise σ 0.01",
+        ]
+        if cfg.task == "denoiser":
+            lines.append(f"- loss 0.8·(1 − SSIM) + 0.2·{cfg.pixel_loss} on log1p colour; curriculum 16 → 4 → 1 spp")
+        elif cfg.task == "error-predictor":
+            lines.append("- target |log1p(1 spp) − log1p(gold)| / its 99th percentile, clipped to [0, 1]; BCE loss")
+        else:
+            lines.append("- target: confidence that history is valid = 1 − mask, the mask being where gold frame t "
+                         "warped by exact motion disagrees with gold t+1 (mean |Δlog1p| > 0.1) or comes from off "
+                         "screen; class-balanced BCE; ROC AUC scores the mask against 1 − output")
+        lines.append(f"- wall time: {self.seconds / 60:.1f} min on {os.cpu_count()} CPU cores (CPU torch)")
+        if int(dataset.get("gold", 0)) < 1024:
+            lines.append(f"- note: gold at {dataset.get('gold')} spp is itself noisy, so it is a soft target and "
+                         "the metrics below are against a noisy reference (a small recipe sized for a 2-core "
+                         "machine; rerun examples/train_models.sh with larger VIEWS/SIZE/GOLD for better models)")
+        lines += ["",
+                  "## Validation (last epoch, held-out views)"]
+        lines += [f"- {k[4:]}: {v:.4f}" for k, v in last.items() if k.startswith("val_")]
+        lines += ["", "## History", "", "| epoch | step | spp | train loss | "
+                  + " | ".join(k[4:] for k in last if k.startswith("val_")) + " |",
+                  "|" + " --- |" * (4 + sum(k.startswith("val_") for k in last))]
+        for h in self.history:
+            lines.append(f"| {h['epoch']} | {h['step']} | {h['spp']} | {h['train_loss']:.4f} | "
+                         + " | ".join(f"{h[k]:.4f}" for k in last if k.startswith("val_")) + " |")
+        return "\n".join(lines) + "\n"
+
+
+def train(config: TrainConfig, progress: bool = True) -> dict:
+    """Train, export ``OUT/<name>.onnx`` + model card; returns {"onnx", "card", "metrics", "seconds"}."""
+    trainer = Trainer(config, progress)
+    metrics = trainer.run()
+    onnx_path, card = trainer.export()
+    return {"onnx": str(onnx_path), "card": str(card), "metrics": metrics, "seconds": trainer.seconds}
