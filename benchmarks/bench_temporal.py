@@ -1,0 +1,115 @@
+"""Temporal stability on the animated ``moving`` scene, and accumulation under a static camera.
+
+On ``moving`` (camera and a box move every frame), for per-frame ours (1 spp + denoiser), per-frame
+OIDN (pyoidn, hdr=True, albedo + normal, on our 1-spp frames) and temporal ours (the fused pipeline
+with reprojection, clamping and the Confidence Predictor when the models folder has one):
+- flicker: mean |Δ| between consecutive output frames, on display values (Reinhard + gamma 2.2, as
+  wgpu_rt.metrics' PSNR), minus the same for the gold sequence (0 = as steady as the truth);
+- ghosting: relMSE over disoccluded pixels only (where the warped previous gold frame disagrees with
+  the current one: wgpu_rt.train.targets.disocclusion_mask, the Confidence Predictor's target);
+- relMSE over all pixels, for context.
+On a static camera (``cornell``): PSNR of the temporal output after --static-frames frames minus the
+PSNR of one denoised frame. Gold: our own render of each frame at --gold-spp.
+
+    python3 benchmarks/bench_temporal.py [--quick] [--size 96x96] [--frames 16] [--gold-spp 4096]
+        [--models DIR | --seed-models]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+from common import (add_model_arguments, hdr_pipeline, linear_frame, oidn, parse_with_quick_defaults,
+                    print_header, print_table, resolve_models)
+
+from wgpu_rt import metrics
+from wgpu_rt.render import parse_size, render
+from wgpu_rt.scene import load_scene
+from wgpu_rt.train.targets import disocclusion_mask
+
+QUICK = {"size": "32x32", "frames": 8, "gold_spp": 1024, "static_frames": 16}
+
+
+def parse_args():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scene", default="moving")
+    parser.add_argument("--static-scene", default="cornell")
+    parser.add_argument("--size", default="96x96")
+    parser.add_argument("--frames", type=int, default=16)
+    parser.add_argument("--static-frames", type=int, default=16)
+    parser.add_argument("--gold-spp", type=int, default=4096)
+    parser.add_argument("--max-depth", type=int, default=8)
+    parser.add_argument("--quick", action="store_true",
+                        help=f"small and fast defaults: {', '.join(f'{k}={v}' for k, v in QUICK.items())}")
+    add_model_arguments(parser)
+    return parse_with_quick_defaults(parser, QUICK)
+
+
+def flicker(sequence) -> float:
+    display = [metrics.to_display(frame) for frame in sequence]
+    return float(np.mean([np.abs(b - a).mean() for a, b in zip(display, display[1:])]))
+
+
+def masked_rel_mse(reference, image, mask) -> float | None:
+    if not mask.any():
+        return None
+    error = (image - reference) ** 2 / (reference ** 2 + metrics.REL_MSE_EPSILON)
+    return float(error[mask > 0].mean())
+
+
+def main() -> None:
+    args = parse_args()
+    resolve_models(args)
+    print_header(args)
+    size = parse_size(args.size)
+    scene = load_scene(args.scene)
+    frames = range(min(args.frames, scene.frame_count))
+    print(f"{scene.name}: {len(frames)} frames at {size[0]}x{size[1]}, gold {args.gold_spp} spp, "
+          f"max depth {args.max_depth}")
+
+    def gold_render(frame, scene=scene, aovs=("motion",)):
+        return render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=10000 + frame,
+                      frame=frame, aovs=aovs)
+
+    golds = [gold_render(f) for f in frames]
+    gold = [g.color for g in golds]
+    masks = [np.zeros(size[::-1], np.float32)] + [
+        disocclusion_mask(gold[t - 1], gold[t], golds[t].aovs["motion"]) for t in range(1, len(gold))]
+
+    def noisy_oidn(frame):
+        one = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=frame, frame=frame,
+                     aovs=("albedo", "normal"))
+        return oidn(one.color, one.aovs["albedo"], one.aovs["normal"])
+
+    per_frame = hdr_pipeline(scene, size, args, denoise=True)
+    temporal = hdr_pipeline(scene, size, args, denoise=True, temporal=True)
+    print("temporal confidence network: " + ("yes" if temporal.temporal.confidence_model else "no (none in models)"))
+    sequences = {"per-frame ours": [linear_frame(per_frame, scene, f) for f in frames],
+                 "per-frame OIDN": [noisy_oidn(f) for f in frames],
+                 "temporal ours": [linear_frame(temporal, scene, f) for f in frames]}
+    gold_flicker = flicker(gold)
+    rows = []
+    for name, sequence in sequences.items():
+        ghosting = [masked_rel_mse(g, o, m) for g, o, m in zip(gold[1:], sequence[1:], masks[1:])]
+        ghosting = [v for v in ghosting if v is not None]
+        rows.append([name, flicker(sequence) - gold_flicker, float(np.mean(ghosting)) if ghosting else None,
+                     float(np.mean([metrics.rel_mse(g, o) for g, o in zip(gold, sequence)]))])
+    print_table(f"{scene.name}: flicker (gold's own {gold_flicker:.4g} subtracted), ghosting, error "
+                f"(disoccluded: {np.mean([m.mean() for m in masks[1:]]):.1%} of pixels)",
+                ["method", "flicker", "ghosting relMSE", "relMSE"], rows)
+
+    static = load_scene(args.static_scene)
+    static_gold = render(static, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=10000, aovs=()).color
+    single = linear_frame(hdr_pipeline(static, size, args, denoise=True), static, 0)
+    accumulating = hdr_pipeline(static, size, args, denoise=True, temporal=True)
+    accumulated = [linear_frame(accumulating, static, f) for f in range(args.static_frames)][-1]
+    single_psnr, accumulated_psnr = metrics.psnr(static_gold, single), metrics.psnr(static_gold, accumulated)
+    print_table(f"{static.name} (static camera): {args.static_frames} temporal frames vs one denoised frame",
+                ["output", "PSNR dB"], [["one denoised frame", single_psnr],
+                                        [f"temporal, frame {args.static_frames}", accumulated_psnr],
+                                        ["gain", accumulated_psnr - single_psnr]])
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,189 @@
+"""Shared helpers of the evidence benchmarks (bench_time_error, bench_adaptive, bench_temporal): the
+command header every output starts with, scene and model selection, steady-state timing, error
+metrics (wgpu_rt.metrics), log-log curve crossings, tables and plots.
+
+Every script prints the exact command that produced its numbers first, so a pasted table always
+says how to reproduce it. Times are wall-clock seconds on this machine's adapter (printed too);
+the first call of anything that compiles kernels is a warm-up and is not timed.
+"""
+
+from __future__ import annotations
+
+import os
+import shlex
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wgpu_rt import metrics
+
+REPO = Path(__file__).resolve().parents[1]
+BUNNY = REPO.parent / "shared" / "meshes" / "stanford-bunny.obj"
+PLOTS = Path(__file__).resolve().parent / "plots"
+MESH_SCENE = "bunny"
+
+
+def print_header(args) -> None:
+    """The command line, the adapter and the model folder: the first lines of every benchmark."""
+    from wgpu_rt.gpu import get_context
+
+    print("command: " + shlex.join(["python3", os.path.relpath(sys.argv[0], REPO)] + sys.argv[1:]))
+    print(f"adapter: {get_context().label}")
+    if hasattr(args, "models"):
+        print(f"models:  {args.models or 'packaged models/'}"
+              + (" (UNTRAINED seed networks: mechanics only, quality numbers are meaningless)"
+                 if getattr(args, "seed_models", False) else ""))
+    sys.stdout.flush()
+
+
+def add_model_arguments(parser) -> None:
+    parser.add_argument("--models", metavar="DIR", help="folder of denoiser/error_predictor/confidence .onnx "
+                        "(default: the packaged models/)")
+    parser.add_argument("--seed-models", action="store_true",
+                        help="export untrained seed networks into a temp folder and use those (checks the "
+                             "script's mechanics before trained models exist)")
+    parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32", help="network precision")
+
+
+def parse_with_quick_defaults(parser, quick: dict):
+    """Parse; with --quick, the values in ``quick`` replace the defaults (flags given still win)."""
+    args = parser.parse_args()
+    if args.quick:
+        parser.set_defaults(**quick)
+        args = parser.parse_args()
+    return args
+
+
+def resolve_models(args) -> None:
+    """With --seed-models, export the seed networks and point ``args.models`` at them."""
+    if args.seed_models:
+        from wgpu_rt.networks import export_seed_models
+
+        args.models = str(export_seed_models(tempfile.mkdtemp(prefix="wgpu-rt-seed-models-")))
+
+
+def load_scenes(names: list[str]) -> list:
+    """The scenes named (built-ins, or ``bunny``: the mesh scene with ../shared/meshes' Stanford bunny,
+    skipped with a message when the file is absent)."""
+    from wgpu_rt.scene import load_scene
+
+    scenes = []
+    for name in names:
+        if name == MESH_SCENE:
+            if not BUNNY.exists():
+                print(f"skipping {MESH_SCENE}: {BUNNY} not found")
+                continue
+            scene = load_scene("mesh", mesh=BUNNY)
+            scene.name = MESH_SCENE
+        else:
+            scene = load_scene(name)
+        scenes.append(scene)
+    return scenes
+
+
+def steady(function, repeats: int = 1):
+    """(result of the last call, median seconds of ``repeats`` calls) after one untimed warm-up call."""
+    function()
+    seconds, result = [], None
+    for _ in range(repeats):
+        started = time.perf_counter()
+        result = function()
+        seconds.append(time.perf_counter() - started)
+    return result, float(np.median(seconds))
+
+
+def hdr_pipeline(scene, size, args, **settings):
+    """A fused frame pipeline whose display output is linear HDR radiance (no curve, no sRGB)."""
+    from wgpu_rt.frame import make_pipeline
+
+    return make_pipeline(scene, width=size[0], height=size[1], max_depth=args.max_depth,
+                         precision=args.precision, models_dir=args.models, output="f32", operator="none",
+                         srgb=False, **settings)
+
+
+def linear_frame(pipeline, scene, frame: int = 0) -> np.ndarray:
+    """One rendered frame of an ``hdr_pipeline`` as (H, W, 3) radiance."""
+    return pipeline.render(scene, frame).image[..., :3]
+
+
+def oidn(color, albedo, normal) -> np.ndarray:
+    """Intel Open Image Denoise (pyoidn, HDR mode, with albedo and normal guides) on the CPU."""
+    import pyoidn
+
+    return np.asarray(pyoidn.denoise(*(np.ascontiguousarray(a, np.float32) for a in (color, albedo, normal)),
+                                     hdr=True), np.float32)
+
+
+def errors(reference, image) -> dict[str, float]:
+    """relMSE, FLIP (when flip-evaluator is installed) and PSNR of ``image`` against ``reference``."""
+    image = np.nan_to_num(np.asarray(image, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    result = {"relMSE": metrics.rel_mse(reference, image)}
+    if metrics.flip_available():
+        result["FLIP"] = metrics.flip(reference, image)
+    result["PSNR"] = metrics.psnr(reference, image)
+    return result
+
+
+def crossing(xs, ys, target: float) -> float | None:
+    """The first x where the curve (xs ascending, ys an error) falls to ``target``, interpolated in
+    log-log between the two points around it; the first x if it starts at or below it; None if the
+    curve never gets there."""
+    xs, ys = np.asarray(xs, float), np.asarray(ys, float)
+    if ys[0] <= target:
+        return float(xs[0])
+    for i in range(1, len(xs)):
+        if ys[i] <= target:
+            x0, x1, y0, y1 = np.log(xs[i - 1]), np.log(xs[i]), np.log(ys[i - 1]), np.log(ys[i])
+            return float(np.exp(x0 + (np.log(target) - y0) * (x1 - x0) / (y1 - y0)))
+    return None
+
+
+def print_table(title: str, headers: list[str], rows: list[list]) -> None:
+    """A plain-text table; floats print with 4 significant digits, None as '—'."""
+    def cell(value):
+        if value is None:
+            return "—"
+        if isinstance(value, float):
+            return f"{value:.4g}"
+        return str(value)
+
+    text = [[cell(v) for v in row] for row in rows]
+    widths = [max(len(h), *(len(r[i]) for r in text)) for i, h in enumerate(headers)]
+    print(f"\n{title}")
+    print("  ".join(h.ljust(w) for h, w in zip(headers, widths)))
+    print("  ".join("-" * w for w in widths))
+    for row in text:
+        print("  ".join(v.ljust(w) for v, w in zip(row, widths)))
+    sys.stdout.flush()
+
+
+def save_figure(figure, name: str) -> Path:
+    """Write ``figure`` to benchmarks/plots/``name`` through a temp file (never a half-written PNG)."""
+    PLOTS.mkdir(parents=True, exist_ok=True)
+    path = PLOTS / name
+    temp = path.with_name(f".{path.name}.tmp.png")
+    figure.savefig(temp, dpi=110, bbox_inches="tight")
+    os.replace(temp, path)
+    return path
+
+
+def mitsuba():
+    """Mitsuba 3 in its fastest CPU variant here (llvm_ad_rgb with LLVM 19, else scalar_rgb; chosen by
+    benchmarks/_mitsuba_setup.py) and that variant's name."""
+    from _mitsuba_setup import mitsuba as set_up
+
+    mi = set_up()
+    return mi, mi.variant()
+
+
+def mitsuba_render(mi, scene, size, spp: int, max_depth: int, seed: int = 0):
+    """(image (H, W, 3), seconds) of Mitsuba's path tracer on ``scene``; the scene load is not timed."""
+    from wgpu_rt.scene.mitsuba import to_mitsuba
+
+    loaded = mi.load_dict(to_mitsuba(scene, size[0], size[1], spp, max_depth, seed=seed))
+    started = time.perf_counter()
+    image = np.array(mi.render(loaded, spp=spp, seed=seed), np.float32)[..., :3]
+    return image, time.perf_counter() - started
