@@ -172,3 +172,8 @@ def test_missing_model_is_named(tmp_path, scene, gpu):
 
     with pytest.raises(ModelError, match="denoiser.onnx"):
         render_frames(scene, frames=[0], width=W, height=H, ctx=gpu, models_dir=tmp_path)
+
+
+def test_render_frames_takes_a_builtin_name_like_render(gpu):
+    frames = render_frames("cornell", denoise=False, frames=[0], width=8, height=8, max_depth=2, ctx=gpu)
+    assert len(frames) == 1 and frames[0].image.shape[:2] == (8, 8)

@@ -243,6 +243,8 @@ def render_frames(scene, denoise: bool = True, adaptive: float | AdaptiveSetting
                   temporal: bool | TemporalSettings = False, frames=None, **options) -> list[RenderedFrame]:
     """Render ``frames`` (default: every frame of the scene) to display images on the device.
 
+    ``scene`` is a Scene, a built-in name or a scene-file path (``mesh`` for the built-in 'mesh').
+
     ``adaptive`` is a mean-spp budget for the Error-Predictor-guided sampler (or full AdaptiveSettings);
     ``temporal`` True uses the default TemporalSettings (with the Confidence Predictor when models/
     has one). ``options`` are ``make_pipeline``'s: width, height, max_depth, seed (frame f uses seed + f),
@@ -250,6 +252,9 @@ def render_frames(scene, denoise: bool = True, adaptive: float | AdaptiveSetting
     networks (denoiser, error_model, confidence_model) — those not given are loaded from ``models_dir``
     (default: the packaged models/).
     """
+    from ..scene import load_scene
+
+    scene = load_scene(scene, mesh=options.pop("mesh", None))
     pipeline = make_pipeline(scene, denoise, adaptive, temporal, **options)
     frames = range(scene.frame_count) if frames is None else frames
     return [pipeline.render(scene, frame) for frame in frames]
