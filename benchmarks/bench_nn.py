@@ -7,7 +7,9 @@ column compares it), GFLOP/s of the whole network (per wall second) and of the c
 here with nn_kernels/fma_peak.wgsl), the planned peak activation memory, and the ratio to onnxruntime's
 time (intra-op threads = CPU cores). Steps: ``naive`` = one output pixel per invocation,
 ``loop-tiled`` = 4-pixel tiles in loops, ``reg-tiled`` = plus conv3x3.wgsl's written-out 4-pixel ×
-16-channel tile (the engine's default), ``fp16`` = reg-tiled with f16 activations.
+16-channel tile (the default on CPU and integrated adapters), ``staged`` = that tile with its input
+staged in workgroup memory (conv3x3_staged.wgsl, the default on discrete GPUs), ``fp16`` = the
+adapter's default tiling with f16 activations.
 
     python3 benchmarks/bench_nn.py --sizes 256 512            # add 1080p for the full-HD run (slow)
 """
@@ -27,7 +29,8 @@ SIZES = {"256": (256, 256), "512": (512, 512), "1080p": (1080, 1920)}
 STEPS = {"naive": {"precision": "fp32", "conv_tiling": "none"},
          "loop-tiled": {"precision": "fp32", "conv_tiling": "loop"},
          "reg-tiled": {"precision": "fp32", "conv_tiling": "register"},
-         "fp16": {"precision": "fp16", "conv_tiling": "register"}}
+         "staged": {"precision": "fp32", "conv_tiling": "staged"},
+         "fp16": {"precision": "fp16", "conv_tiling": None}}
 
 
 def fma_ceiling(ctx, iterations: int = 4096, invocations: int = 64 * 512) -> float:

@@ -28,7 +28,7 @@ struct GroupHeader {
 // invocations read a clamped pixel and store nothing.
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_id: vec3u,
-        {{LANE}}) {
+        lane: WeightLane) {
     let local = local_id.x;
     let x_unclamped = i32(wid.x) * 8 + i32(local % 8u);
     let y_unclamped = i32(wid.y) * 8 + i32(local / 8u);

@@ -1,10 +1,26 @@
-// Weight blocks fetched cooperatively: every lane of a subgroup needs the same mat4x4, so lane k loads
-// column k % 4 (one vec4 load per lane instead of four per lane) and the four columns are broadcast
-// from lanes 0..3 (WebGPU subgroups have at least 4 lanes). Call from uniform control flow only.
-@group(0) @binding(2) var<storage, read> weights: array<vec4f>;
+// Weight blocks fetched cooperatively: every lane of a subgroup needs the same mat4x4 (16 floats), so
+// the lanes split its loads and broadcast the values. With 8 or more lanes, lane k < 8 loads floats
+// 2k and 2k + 1 (two scalar loads per lane); with 4 (WebGPU's minimum), lane k loads column k.
+// SUBGROUP_LANES is a constant of the pipeline, so only one branch is compiled. On lavapipe a load
+// from a uniform block is a vector gather and one from storage a loop over the lanes, so the window is
+// a uniform block when it fits, else read-only storage (conv3x3 on lavapipe: ≈ 1.28× the GFLOP/s of
+// one vec4 storage load per lane). Call from uniform control flow only.
+@group(0) @binding({{WEIGHT_BINDING}}) var<{{WEIGHT_SPACE}}> {{WEIGHT}}s: array<mat4x4f, {{WEIGHT_MATS}}>;
 
-fn weight_block(index: i32, lane: u32) -> mat4x4f {
-    let column = weights[index * 4 + i32(lane % 4u)];
+fn {{WEIGHT}}_block(index: i32, lane: WeightLane) -> mat4x4f {
+    if (SUBGROUP_LANES >= 8u) {
+        let column = (lane.id % 8u) / 2u;
+        let row = (lane.id % 2u) * 2u;
+        let a = {{WEIGHT}}s[index][column][row];
+        let b = {{WEIGHT}}s[index][column][row + 1u];
+        return mat4x4f(subgroupBroadcast(a, 0u), subgroupBroadcast(b, 0u), subgroupBroadcast(a, 1u),
+                       subgroupBroadcast(b, 1u), subgroupBroadcast(a, 2u), subgroupBroadcast(b, 2u),
+                       subgroupBroadcast(a, 3u), subgroupBroadcast(b, 3u), subgroupBroadcast(a, 4u),
+                       subgroupBroadcast(b, 4u), subgroupBroadcast(a, 5u), subgroupBroadcast(b, 5u),
+                       subgroupBroadcast(a, 6u), subgroupBroadcast(b, 6u), subgroupBroadcast(a, 7u),
+                       subgroupBroadcast(b, 7u));
+    }
+    let column = {{WEIGHT}}s[index][lane.id % 4u];
     return mat4x4f(subgroupBroadcast(column, 0u), subgroupBroadcast(column, 1u),
                    subgroupBroadcast(column, 2u), subgroupBroadcast(column, 3u));
 }

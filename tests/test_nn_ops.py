@@ -212,17 +212,67 @@ def test_benchmark_baseline_tilings_agree(tmp_path, gpu, tiling):
     check_parity([(1, channels, 37, 53)], onnxruntime_fn(path), model, atol=FP32_ATOL)
 
 
-@pytest.mark.parametrize("cin", [5, 128], ids=["uniform_window", "storage_window"])
-def test_without_subgroups_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, cin):
-    """Adapters without subgroups read weight blocks directly (weights_uniform.wgsl): from a uniform
-    window when it fits 64 KiB, else from read-only storage (128 input channels × 3×3 × 16 outputs)."""
-    from wgpu_rt.gpu import GpuContext
+@pytest.mark.parametrize("tiling", ["register", "staged"])
+@pytest.mark.parametrize("pads", [[1, 1, 1, 1], [0, 1, 2, 0]], ids=["same", "asymmetric"])
+@pytest.mark.parametrize("precision", ["fp32", "fp16"])
+def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision):
+    """Both 3×3 tile kernels, whichever the adapter's default: conv3x3.wgsl and conv3x3_staged.wgsl
+    (workgroup-memory halo tiles). 9 input channels = 3 blocks, one padded; 32 outputs = 2 groups; 37×71
+    cuts the 8-row × 32-pixel workgroup tiles on both edges; asymmetric pads shift the halo."""
     from wgpu_rt.nn import WgslModel
 
-    plain = GpuContext(gpu.adapter, gpu.device, frozenset(gpu.features - {"subgroup"}))
+    if precision == "fp16" and not gpu.has_f16:
+        pytest.skip(f"{gpu.label} has no shader-f16")
+    nodes, inits = conv("conv", "x", "y", 9, 32, 3, pads=pads)
+    path = make_model(tmp_path, "conv3x3_tiles", nodes, 9, inits)
+    model = WgslModel(path, precision, ctx=gpu, conv_tiling=tiling)
+    expected = "conv3x3_staged.wgsl" if tiling == "staged" else "conv3x3.wgsl"
+    assert model.kernel_for(model.graph.layers[0]).shader == expected
+    check_parity([(1, 9, 37, 71)], onnxruntime_fn(path), model,
+                 atol=FP32_ATOL if precision == "fp32" else FP16_ATOL)
+
+
+def test_staged_tiles_are_the_default_on_discrete_gpus(gpu):
+    from types import SimpleNamespace
+
+    from wgpu_rt.nn.model import default_conv_tiling
+
+    def adapter(kind):
+        return SimpleNamespace(adapter=SimpleNamespace(info={"adapter_type": kind}))
+    assert default_conv_tiling(adapter("DiscreteGPU")) == "staged"
+    assert [default_conv_tiling(adapter(k)) for k in ("IntegratedGPU", "CPU", "Unknown")] == ["register"] * 3
+
+
+@pytest.mark.parametrize("lanes", [8, 4, 0], ids=["subgroup8_fetch", "subgroup4_fetch", "direct_fetch"])
+@pytest.mark.parametrize("cin", [5, 128, 256], ids=["uniform_window", "uniform_halves", "storage_window"])
+def test_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, monkeypatch, cin, lanes):
+    """Weight blocks come from a uniform window when it fits 64 KiB, else from read-only storage (256
+    input channels × 3×3 × 8 outputs per half window: 73 KiB; 128 channels still fit), read cooperatively
+    (weights_subgroup.wgsl: two floats per lane on ≥ 8-lane subgroups, a column per lane on 4-lane ones;
+    the 4-lane fetch is forced here, it is correct on wider subgroups) or, on adapters without subgroups,
+    directly (weights_uniform.wgsl)."""
+    from wgpu_rt.gpu import GpuContext
+    from wgpu_rt.nn import WgslModel, kernels
+
+    if lanes and not gpu.has_subgroups:
+        pytest.skip(f"{gpu.label} has no subgroups")
+    if lanes and kernels.subgroup_lanes(gpu) < lanes:
+        pytest.skip(f"{gpu.label} has {kernels.subgroup_lanes(gpu)}-lane subgroups")
+    monkeypatch.setattr(kernels, "subgroup_lanes", lambda ctx: lanes)
+    features = gpu.features if lanes else gpu.features - {"subgroup"}
+    ctx = GpuContext(gpu.adapter, gpu.device, frozenset(features))
     nodes, inits = conv("conv", "x", "y", cin, 16, 3)
     path = make_model(tmp_path, f"conv{cin}", nodes, cin, inits)
-    model = WgslModel(path, ctx=plain)
+    model = WgslModel(path, ctx=ctx)
     packed = model.prepared["conv"]
-    assert packed.weight_space == ("uniform" if cin == 5 else "storage, read")
+    assert packed.weight_space == ("uniform" if cin <= 128 else "storage, read")
     check_parity([(1, cin, 19, 23)], onnxruntime_fn(path), model, atol=FP32_ATOL)
+
+
+def test_subgroup_probe_sees_a_valid_width(gpu):
+    from wgpu_rt.nn.kernels import subgroup_lanes
+
+    if not gpu.has_subgroups:
+        pytest.skip(f"{gpu.label} has no subgroups")
+    lanes = subgroup_lanes(gpu)
+    assert 4 <= lanes <= 128 and lanes & (lanes - 1) == 0

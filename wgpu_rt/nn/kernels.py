@@ -99,6 +99,32 @@ def groups_of(count: int, size: int) -> int:
     return (count + size - 1) // size
 
 
+_SUBGROUP_LANES: dict[int, int] = {}  # id(device) -> probed subgroup width
+
+
+def subgroup_lanes(ctx) -> int:
+    """The subgroup width kernels may rely on: the smallest that subgroup_probe.wgsl sees (once per
+    device). WebGPU adapters do not report it (lavapipe: 8, one AVX2 register) and only promise 4. A
+    driver may pick the width per pipeline; the probe's answer only decides between the 4-lane and the
+    ≥ 8-lane weight fetch (weights_subgroup.wgsl), which assumes that an adapter running the probe on
+    ≥ 8 lanes never runs a kernel on 4 (true of the documented widths: Intel 8–32, AMD 32/64, NVIDIA
+    and Apple 32)."""
+    key = id(ctx.device)
+    if key not in _SUBGROUP_LANES:
+        pipeline = ctx.compute_pipeline(shaders.compose("subgroup_probe.wgsl", shaders.NN_KERNELS),
+                                        label="subgroup probe")
+        sizes = ctx.storage(64 * 4, label="subgroup probe")
+        encoder = ctx.device.create_command_encoder()
+        compute = encoder.begin_compute_pass()
+        compute.set_pipeline(pipeline)
+        compute.set_bind_group(0, ctx.bind_group(pipeline, [sizes]))
+        compute.dispatch_workgroups(1)
+        compute.end()
+        ctx.device.queue.submit([encoder.finish()])
+        _SUBGROUP_LANES[key] = max(4, int(ctx.read(sizes, np.uint32).min()))
+    return _SUBGROUP_LANES[key]
+
+
 class NnKernel:
     """Base: ``shader`` names the .wgsl file, ``bindings`` its bind group 0 in binding order."""
 
@@ -115,18 +141,26 @@ class NnKernel:
                          "CLIP_LO": wgsl_float(activation.lo), "CLIP_HI": wgsl_float(activation.hi),
                          **constants}
         if "WEIGHT_SPACE" in constants:
-            substitutions.update(self.weight_fetch(constants["WEIGHT_SPACE"], constants["WEIGHT_MATS"]))
+            substitutions.update(self.weight_fetch(constants["WEIGHT_SPACE"], constants["WEIGHT_MATS"],
+                                                   constants.get("WEIGHT_WINDOWS", (("weight", 2),))))
         code = shaders.compose(self.shader, shaders.NN_KERNELS, substitutions)
         return self.ctx.compute_pipeline(code, label=self.shader)
 
-    def weight_fetch(self, space: str, mats: int) -> dict:
-        """Substitutions choosing how conv-family kernels read weight blocks (see weights_*.wgsl)."""
+    def weight_fetch(self, space: str, mats: int, windows: tuple = (("weight", 2),)) -> dict:
+        """Substitutions choosing how conv-family kernels read weight blocks (see weights_*.wgsl): per
+        (name, binding) of ``windows`` the window ``{name}s``, read by ``{name}_block(index, lane)``
+        (``lane: WeightLane`` is a parameter of the kernels' entry points)."""
         if self.ctx.has_subgroups:
-            return {"WEIGHT_FETCH": shaders.compose("weights_subgroup.wgsl", shaders.NN_KERNELS),
-                    "LANE": "@builtin(subgroup_invocation_id) lane: u32"}
-        return {"WEIGHT_FETCH": shaders.compose("weights_uniform.wgsl", shaders.NN_KERNELS,
-                                                {"WEIGHT_SPACE": space, "WEIGHT_MATS": mats}),
-                "LANE": "@builtin(local_invocation_index) lane: u32"}
+            fetch = "weights_subgroup.wgsl"
+            code = [shaders.compose("weight_lane_subgroup.wgsl", shaders.NN_KERNELS,
+                                    {"SUBGROUP_LANES": subgroup_lanes(self.ctx)})]
+        else:
+            fetch = "weights_uniform.wgsl"
+            code = [shaders.compose("weight_lane_invocation.wgsl", shaders.NN_KERNELS)]
+        for name, binding in windows:
+            code.append(shaders.compose(fetch, shaders.NN_KERNELS, {
+                "WEIGHT_SPACE": space, "WEIGHT_MATS": mats, "WEIGHT": name, "WEIGHT_BINDING": binding}))
+        return {"WEIGHT_FETCH": "\n".join(code)}
 
     def bind(self, pipeline, resources: dict) -> object:
         """A bind group from ``resources`` (binding name -> buffer or (buffer, offset, size)); names the
@@ -142,33 +176,40 @@ class NnKernel:
         return self.ctx.device.create_bind_group(layout=layout, entries=entries)
 
 
+WINDOW_BINDINGS = ("weights", "high_weights")  # binding names of a group's windows (see PackedWeights)
+
+
 class PackedWeights:
-    """A conv-family layer's weights, uploaded once, cut into one window per output-block group.
+    """A conv-family layer's weights, uploaded once, cut into windows per output-block group.
 
     Window g holds, for each input block, tap and output block t of the group, a mat4x4 whose column j
     is the 4 output channels' weights for input channel j; the group's header holds its bias and its
-    first output block (relative to the output tensor, the view's block is added per plan)."""
+    first output block (relative to the output tensor, the view's block is added per plan). With
+    ``halves=2`` a group's output blocks are split over two windows (bound as ``weights`` and
+    ``high_weights``), so a group of 4 blocks over 128 input channels (73 KiB) still fits two 64 KiB
+    uniform bindings (conv3x3: a uniform load is the fast one on lavapipe, see weights_subgroup.wgsl)."""
 
-    def __init__(self, ctx, layer: Layer, tile_c: int):
+    def __init__(self, ctx, layer: Layer, tile_c: int, halves: int = 1):
         cout, cin, kh, kw = layer.weight.shape
         self.out_blocks, self.in_blocks = groups_of(cout, 4), groups_of(cin, 4)
         self.tile_c = max(t for t in range(1, tile_c + 1) if self.out_blocks % t == 0)
         self.groups = self.out_blocks // self.tile_c
+        self.halves = halves
         self.taps = kh * kw
         padded = np.zeros((self.out_blocks * 4, self.in_blocks * 4, kh, kw), np.float32)
         padded[:cout, :cin] = layer.weight
-        blocks = padded.reshape(self.groups, self.tile_c, 4, self.in_blocks, 4, kh, kw)
-        windows = blocks.transpose(0, 3, 5, 6, 1, 4, 2).reshape(self.groups, -1)
-        self.mats = self.in_blocks * self.taps * self.tile_c
+        blocks = padded.reshape(self.groups, halves, self.tile_c // halves, 4, self.in_blocks, 4, kh, kw)
+        windows = blocks.transpose(0, 1, 4, 6, 7, 2, 5, 3).reshape(self.groups * halves, -1)
+        self.mats = self.in_blocks * self.taps * self.tile_c // halves
         window_bytes = self.mats * 64
         limits = ctx.limits
         fits_uniform = window_bytes <= min(UNIFORM_WINDOW_LIMIT, limits.get("max-uniform-buffer-binding-size",
                                                                             UNIFORM_WINDOW_LIMIT))
-        self.weight_space = "uniform" if fits_uniform and not ctx.has_subgroups else "storage, read"
+        self.weight_space = "uniform" if fits_uniform else "storage, read"
         alignment = limits.get("min-uniform-buffer-offset-alignment" if self.weight_space == "uniform"
                                else "min-storage-buffer-offset-alignment", 256)
         self.window_bytes, self.window_stride = window_bytes, -(-window_bytes // alignment) * alignment
-        data = np.zeros((self.groups, self.window_stride // 4), np.float32)
+        data = np.zeros((self.groups * halves, self.window_stride // 4), np.float32)
         data[:, : windows.shape[1]] = windows
         self.buffer = ctx.upload(data, usage=wgpu.BufferUsage.UNIFORM, label=f"{layer.name} weights")
         bias = np.zeros(self.out_blocks * 4, np.float32)
@@ -191,7 +232,8 @@ class PackedWeights:
         return self._headers[out_block]
 
     def windows(self, group: int) -> dict:
-        return {"weights": (self.buffer, group * self.window_stride, self.window_bytes)}
+        return {name: (self.buffer, (group * self.halves + half) * self.window_stride, self.window_bytes)
+                for half, name in enumerate(WINDOW_BINDINGS[: self.halves])}
 
     def header(self, out_block: int, group: int) -> tuple:
         return (self.headers(out_block), group * self.header_stride, self.header_bytes)
@@ -235,15 +277,36 @@ class ConvKernel(ConvFamilyKernel):
 
 
 class Conv3x3Kernel(ConvFamilyKernel):
-    """conv3x3.wgsl: the hot path — 3×3 stride-1 convolutions whose output has a multiple of 16
-    channels, with a written-out 4-pixel × 4-block register tile."""
+    """The hot path — 3×3 stride-1 convolutions whose output has a multiple of 16 channels, with a
+    written-out 4-pixel × 16-channel register tile (conv3x3_tile.wgsl) per invocation, in one of two
+    variants that differ only in where the input pixels come from:
 
-    shader = "conv3x3.wgsl"
+    * conv3x3.wgsl (``staged=False``) reads each invocation's 3 × 6 input pixels from device memory;
+    * conv3x3_staged.wgsl (``staged=True``) first copies the workgroup's input tile and halo into
+      workgroup memory (cooperative, coalesced loads and a barrier per input block) and reads them from
+      there, cutting device-memory reads of the input ≈ 3.4× (1.33 instead of 4.5 per output pixel and
+      input block).
+
+    Staging pays where workgroup memory is on-chip and device memory is the bottleneck: discrete GPUs,
+    where it is the engine's default (``default_conv_tiling``). On lavapipe (CPU) workgroup memory is
+    ordinary memory that a load reads lane by lane exactly like a storage buffer, so staging only adds
+    the copy and the barriers (coroutine switches): the U-Net takes ≈ 1.3× the CPU time with it there
+    (benchmarks/bench_nn.py, steps reg-tiled and staged), so CPU adapters keep the direct variant, and
+    so do integrated GPUs (their workgroup memory is on-chip too, but the trade is unmeasured there).
+    Both variants are tested for parity whatever the adapter (tests/test_nn_ops.py)."""
+
+    bindings = ("src", "dst", "weights", "header", "high_weights")
+    weight_windows = (("weight", 2), ("high_weight", 4))
     tile_c_default = 4
     tile_x = 4
 
-    def __init__(self, ctx, precision: Precision):
+    def __init__(self, ctx, precision: Precision, staged: bool = False):
         super().__init__(ctx, precision, self.tile_x)
+        self.shader = "conv3x3_staged.wgsl" if staged else "conv3x3.wgsl"
+
+    def prepare(self, layer: Layer) -> PackedWeights:
+        """Output blocks 0–1 of each group in window ``weights``, 2–3 in ``high_weights``."""
+        return PackedWeights(self.ctx, layer, self.tile_c_default, halves=2)
 
     @staticmethod
     def handles(layer: Layer) -> bool:
@@ -255,7 +318,7 @@ class Conv3x3Kernel(ConvFamilyKernel):
         pipeline = self.pipeline(
             layer.activation, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
             OUT_H=dst.height, OUT_W=dst.width, PAD_TOP=top, PAD_LEFT=left,
-            WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats)
+            WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats, WEIGHT_WINDOWS=self.weight_windows)
         workgroups = (groups_of(groups_of(dst.width, self.tile_x), 8), groups_of(dst.height, 8), 1)  # 8×8 tiles
         flops = layer.flops_per_pixel * dst.height * dst.width
         return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops)

@@ -33,8 +33,14 @@ from .kernels import (PRECISIONS, Conv3x3Kernel, ConvKernel, ConvTransposeKernel
                       TensorView, UnpackKernel, groups_of, record_dispatches)
 
 # conv_tiling -> pixels per invocation of the loop kernels (conv.wgsl, gemm.wgsl); "register" also runs
-# 3×3 stride-1 convs with 16k output channels on conv3x3.wgsl's written-out 4×4 tile.
-CONV_TILINGS = {"none": 1, "loop": 4, "register": 4}
+# 3×3 stride-1 convs with 16k output channels on conv3x3.wgsl's written-out 4×4 tile, "staged" on
+# conv3x3_staged.wgsl's (the same tile, input staged in workgroup memory; see Conv3x3Kernel).
+CONV_TILINGS = {"none": 1, "loop": 4, "register": 4, "staged": 4}
+
+
+def default_conv_tiling(ctx) -> str:
+    """"staged" on discrete GPUs (on-chip workgroup memory), else "register" (see Conv3x3Kernel)."""
+    return "staged" if ctx.adapter.info.get("adapter_type") == "DiscreteGPU" else "register"
 
 
 @dataclass(frozen=True)
@@ -98,26 +104,28 @@ class Plan:
 
 class WgslModel:
     """``WgslModel(path, precision="fp32"|"fp16")``: call on NCHW float32 numpy, or ``record`` on GPU
-    buffers. ``conv_tiling`` exists for the benchmark's steps: "none" (one output pixel per invocation),
-    "loop" (4-pixel tiles in loops), "register" (the default: plus the written-out 3×3 tile kernel)."""
+    buffers. ``conv_tiling`` exists for the benchmark's steps and the tests: "none" (one output pixel per
+    invocation), "loop" (4-pixel tiles in loops), "register" (plus the written-out 3×3 tile kernel),
+    "staged" (that tile with its input staged in workgroup memory); default: ``default_conv_tiling``."""
 
-    def __init__(self, path: str | Path, precision: str = "fp32", ctx=None, conv_tiling: str = "register"):
+    def __init__(self, path: str | Path, precision: str = "fp32", ctx=None, conv_tiling: str | None = None):
         from ..gpu import get_context
 
         if precision not in PRECISIONS:
             raise ModelError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
+        self.ctx = ctx or get_context()
+        conv_tiling = conv_tiling or default_conv_tiling(self.ctx)
         if conv_tiling not in CONV_TILINGS:
             raise ModelError(f"conv_tiling {conv_tiling!r}: choose one of {', '.join(CONV_TILINGS)}")
-        self.ctx = ctx or get_context()
         if precision == "fp16" and not self.ctx.has_f16:
             raise ModelError(f"precision fp16 needs the shader-f16 feature, which {self.ctx.label} lacks; "
                              "use fp32")
         self.path, self.precision = str(path), PRECISIONS[precision]
         self.graph: NetworkGraph = load_graph(path)
         kernel_args, tile_x = (self.ctx, self.precision), CONV_TILINGS[conv_tiling]
-        self.register_tiles = conv_tiling == "register"
+        self.register_tiles = conv_tiling in ("register", "staged")
         self.kernels = {"conv": ConvKernel(*kernel_args, tile_x), "gemm": GemmKernel(*kernel_args, tile_x),
-                        "conv3x3": Conv3x3Kernel(*kernel_args),
+                        "conv3x3": Conv3x3Kernel(*kernel_args, staged=conv_tiling == "staged"),
                         "conv_transpose": ConvTransposeKernel(*kernel_args, 1),
                         "maxpool": MaxPoolKernel(*kernel_args), "resize": ResizeKernel(*kernel_args),
                         "elementwise": ElementwiseKernel(*kernel_args),
