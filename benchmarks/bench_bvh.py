@@ -1,5 +1,8 @@
 """BVH build time and size for 10k / 100k / 1M triangles and the Stanford bunny, plus GPU traversal
-throughput (closest-hit rays per second through wgsl/ray_query.wgsl).
+throughput (closest-hit rays per second through wgsl/ray_query.wgsl) with each traversal module:
+`lanes` (every invocation walks alone) and `packet` (a subgroup walks together, on CPU adapters with
+subgroups). The rays start at random points all around the mesh, so neighbouring invocations share
+nothing: the worst case for packets, which the path tracer's neighbouring pixels are not.
 
 Peer: Mitsuba 3 (scalar_rgb) loading a scene that holds the same triangles, which includes building
 its own acceleration structure, timed in the same run; the last column is Mitsuba's time over ours
@@ -15,6 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from wgpu_rt.bvh import build_bvh
+from wgpu_rt.scene.geometry import LANES_TRAVERSAL, SUBGROUP_TRAVERSAL
+
+MODULES = (LANES_TRAVERSAL, SUBGROUP_TRAVERSAL)
 
 BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
 
@@ -52,11 +58,12 @@ def mitsuba_load_seconds(triangles: np.ndarray) -> float | None:
     return seconds
 
 
-def traversal_rate(triangles: np.ndarray, rays: int = 512 * 512) -> float | None:
-    """Closest-hit rays per second on the GPU for rays from random outside points toward the mesh."""
+def traversal_rate(triangles: np.ndarray, traversal: str, rays: int = 512 * 512) -> float | None:
+    """Closest-hit rays per second on the GPU for rays from random outside points toward the mesh,
+    walked with the traversal module ``traversal`` (None when the adapter cannot run it)."""
     from wgpu_rt.errors import NoAdapterError
     from wgpu_rt.gpu import get_context
-    from wgpu_rt.scene.geometry import GeometryBuffers
+    from wgpu_rt.scene.geometry import GeometryBuffers, traversal_module
     from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
     from wgpu_rt.scene.ray_query import HIT_DTYPE, SURFACE_DTYPE, RayQuery, query_rays
 
@@ -64,10 +71,12 @@ def traversal_rate(triangles: np.ndarray, rays: int = 512 * 512) -> float | None
         ctx = get_context()
     except NoAdapterError:
         return None
+    if traversal == SUBGROUP_TRAVERSAL and traversal_module(ctx) != SUBGROUP_TRAVERSAL:
+        return None
     faces = np.arange(3 * len(triangles), dtype=np.uint32).reshape(-1, 3)
     scene = Scene(Camera([0, 0, 3], [0, 0, 0]), [Mesh("m", triangles.reshape(-1, 3), faces, "grey")],
                   {"grey": Material()})
-    query = RayQuery(ctx, GeometryBuffers.build(scene))
+    query = RayQuery(ctx, GeometryBuffers.build(scene), traversal=traversal)
     points = triangles.reshape(-1, 3)
     center, radius = points.mean(axis=0), np.ptp(points, axis=0).max()
     rng = np.random.default_rng(1)
@@ -99,14 +108,16 @@ def main() -> None:
         bunny = trimesh.load(BUNNY, force="mesh", process=False)
         cases.append(("stanford bunny", np.asarray(bunny.vertices, np.float32)[bunny.faces]))
     header = (f"{'mesh':>18} {'triangles':>10} {'build s':>8} {'nodes':>9} {'depth':>5} {'mean leaf':>9} "
-              f"{'Mrays/s':>8} {'mitsuba s':>9} {'mitsuba/ours':>12}")
+              f"{'lanes Mrays/s':>13} {'packet Mrays/s':>14} {'mitsuba s':>9} {'mitsuba/ours':>12}")
     print(header)
     for name, triangles in cases:
         seconds, bvh = best_of(2, lambda: build_bvh(triangles))
-        rate = None if args.no_traversal or len(triangles) > 200_000 else traversal_rate(triangles)
+        traverse = not args.no_traversal and len(triangles) <= 200_000
+        lanes, packet = (traversal_rate(triangles, module) if traverse else None for module in MODULES)
         peer = mitsuba_load_seconds(triangles)
         print(f"{name:>18} {len(triangles):>10,} {seconds:>8.3f} {bvh.node_count:>9,} {bvh.depth():>5} "
-              f"{bvh.leaf_sizes.mean():>9.2f} {'-' if rate is None else f'{rate / 1e6:.2f}':>8} "
+              f"{bvh.leaf_sizes.mean():>9.2f} {'-' if lanes is None else f'{lanes / 1e6:.2f}':>13} "
+              f"{'-' if packet is None else f'{packet / 1e6:.2f}':>14} "
               f"{'-' if peer is None else f'{peer:.3f}':>9} {'-' if peer is None else f'{peer / seconds:.2f}×':>12}",
               flush=True)
 

@@ -1,6 +1,7 @@
 """Tracing throughput: samples/s on `cornell` (256², max depth 8) for wgpu-rt and for Mitsuba 3
 (llvm_ad_rgb when LLVM 19 is installed, else scalar_rgb) measured in the same run, and their ratio.
-Compile time is excluded on both sides (one warm-up render each).
+Compile time is excluded on both sides (one warm-up render each). ``--scene bunny`` is the `mesh`
+scene with ../shared/meshes' Stanford bunny.
 
     python3 benchmarks/bench_trace.py [--spp 64] [--size 256] [--scene cornell]
 """
@@ -10,10 +11,9 @@ import sys
 import time
 
 from _mitsuba_setup import mitsuba, render_mitsuba
-from common import print_header
+from common import load_scenes, print_header
 
 from wgpu_rt.render import render
-from wgpu_rt.scene import load_scene
 
 
 def main() -> int:
@@ -25,7 +25,10 @@ def main() -> int:
     args = parser.parse_args()
     print_header(args)
     size, samples = (args.size, args.size), args.spp * args.size * args.size
-    scene = load_scene(args.scene)
+    scenes = load_scenes([args.scene])
+    if not scenes:
+        return 1
+    scene = scenes[0]
 
     render(scene, spp=1, size=size, max_depth=args.max_depth, aovs=())
     ours = render(scene, spp=args.spp, size=size, max_depth=args.max_depth, aovs=())

@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from wgpu_rt import bvh as bvh_module
-from wgpu_rt.bvh import MAX_DEPTH, MAX_LEAF_SIZE, build_bvh
+from wgpu_rt.bvh import LEAF_COUNT_BITS, MAX_DEPTH, MAX_LEAF_SIZE, build_bvh, threaded_nodes
 from wgpu_rt.scene.geometry import GeometryBuffers
 from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
 from wgpu_rt.scene.ray_query import NO_HIT, RayQuery, query_rays
@@ -130,9 +130,48 @@ def test_structure_identical_and_degenerate_triangles():
     assert bvh.leaf_sizes.max() <= MAX_LEAF_SIZE
 
 
-def test_depth_limit_matches_traversal_stack():
-    stack = re.search(r"const BVH_STACK_SIZE: u32 = (\d+)u;", read_wgsl("bvh.wgsl"))
-    assert stack and int(stack.group(1)) == MAX_DEPTH
+def test_threaded_layout_matches_traversal():
+    """threaded_nodes is the depth-first order of the tree with correct skip indices; every triangle
+    is owned by exactly one node, inside that node's box: a leaf of the original tree, or one of its
+    ancestors (at most one lifted triangle per interior node). Packed as geometry_bindings.wgsl
+    unpacks it."""
+    bindings = read_wgsl("geometry_bindings.wgsl")
+    bits = re.search(r"const LEAF_COUNT_BITS: u32 = (\d+)u;", bindings)
+    mask = re.search(r"const LEAF_COUNT_MASK: u32 = (\d+)u;", bindings)
+    assert int(bits.group(1)) == LEAF_COUNT_BITS and int(mask.group(1)) == (1 << LEAF_COUNT_BITS) - 1
+    rng = np.random.default_rng(10)
+    triangles = rng.uniform(-1, 1, (700, 3, 3)).astype(np.float32)
+    bvh = build_bvh(triangles)
+    order, skips, leaf_of = [], {}, {}
+
+    def walk(node, ancestors):           # recursive reference: position, subtree end, leaf ranges
+        order.append(node)
+        if bvh.nodes["count"][node] == 0:
+            walk(int(bvh.nodes["first"][node]), ancestors + [node])
+            walk(int(bvh.nodes["first"][node]) + 1, ancestors + [node])
+        else:
+            first, count = int(bvh.nodes["first"][node]), int(bvh.nodes["count"][node])
+            leaf_of.update({slot: ancestors + [node] for slot in range(first, first + count)})
+        skips[node] = len(order)
+
+    walk(0, [])
+    threaded = threaded_nodes(bvh)
+    assert threaded.itemsize == 32 and len(threaded) == bvh.node_count
+    np.testing.assert_array_equal(threaded["lo"], bvh.nodes["lo"][order])
+    np.testing.assert_array_equal(threaded["hi"], bvh.nodes["hi"][order])
+    np.testing.assert_array_equal(threaded["skip"], [skips[n] for n in order])
+    owned_count = threaded["triangles"] & ((1 << LEAF_COUNT_BITS) - 1)
+    owned_first = threaded["triangles"] >> LEAF_COUNT_BITS
+    owner = np.full(len(triangles), -1)
+    for position, node in enumerate(order):
+        for slot in range(owned_first[position], owned_first[position] + owned_count[position]):
+            assert owner[slot] == -1, "a triangle owned twice"
+            owner[slot] = node
+            assert node in leaf_of[slot], "a triangle lifted to a node that is not above its leaf"
+    assert np.all(owner >= 0), "every triangle is owned"
+    interior = bvh.nodes["count"][order] == 0
+    assert np.all(owned_count[interior] <= 1) and np.any(owned_count[interior] == 1)
+    assert np.all(owned_count[~interior] >= 1), "lifting never empties a leaf"
 
 
 def test_depth_limit_is_enforced(monkeypatch):

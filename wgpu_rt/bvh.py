@@ -6,14 +6,18 @@ the surface area heuristic picks, per node, the cheapest axis and bin boundary (
 says a leaf is cheaper and it holds at most ``MAX_LEAF_SIZE`` triangles). Triangles are partitioned
 stably in place with cumulative sums, so the cost per level is O(triangles) with no Python loop over
 nodes or triangles. Nodes whose centroids all coincide (duplicates, degenerate input) are split at the
-middle of their range; nodes at depth ``MAX_DEPTH`` become leaves, which bounds the traversal stack in
-wgsl/bvh.wgsl (``BVH_STACK_SIZE``; a test checks they agree).
+middle of their range; nodes at depth ``MAX_DEPTH`` become leaves, which bounds the number of levels.
 
 Flattened layout, 32 bytes per node (``NODE_DTYPE``), root at 0, the two children of a node adjacent:
 ``lo`` (3 × f32), ``first`` (u32), ``hi`` (3 × f32), ``count`` (u32). ``count == 0`` marks an interior
 node whose children are ``first`` and ``first + 1``; otherwise the node is a leaf over triangles
 ``first .. first + count`` of the reordered triangle list (``Bvh.order`` maps them to input indices).
 Zero-area triangles keep their (flat) bounds and are simply never hit by the watertight test.
+
+The GPU walks the tree without a stack, so ``threaded_nodes`` re-lays it out in depth-first order
+(``THREADED_NODE_DTYPE``, also 32 bytes): a node's first child follows it, and ``skip`` is the index
+just past its subtree, where the walk goes when the node's box is missed; interior nodes also carry
+one triangle lifted from a leaf below (see its docstring).
 """
 
 from __future__ import annotations
@@ -27,6 +31,9 @@ MAX_LEAF_SIZE = 8
 MAX_DEPTH = 32
 TRAVERSAL_COST = 2.0      # one node visit (two box tests) relative to one ray/triangle test
 NODE_DTYPE = np.dtype([("lo", "<f4", 3), ("first", "<u4"), ("hi", "<f4", 3), ("count", "<u4")])
+LEAF_COUNT_BITS = 4       # a threaded node packs its triangles as (first << LEAF_COUNT_BITS) | count
+THREADED_NODE_DTYPE = np.dtype([("lo", "<f4", 3), ("skip", "<u4"), ("hi", "<f4", 3), ("triangles", "<u4")])
+assert MAX_LEAF_SIZE < 1 << LEAF_COUNT_BITS
 
 
 @dataclass
@@ -188,3 +195,56 @@ def build_bvh(triangles: np.ndarray) -> Bvh:
     packed["lo"], packed["hi"] = node_lo[:node_total], node_hi[:node_total]
     packed["first"], packed["count"] = node_first[:node_total], node_count[:node_total]
     return Bvh(packed, order)
+
+
+def threaded_nodes(bvh: Bvh) -> np.ndarray:
+    """The nodes in depth-first order (left child first) as THREADED_NODE_DTYPE, for a stackless walk:
+    entering a node moves to the next one (its first child, or past a leaf), missing it moves to
+    ``skip``, the index after its subtree (the node count for the last subtree).
+
+    Every node may own triangles, ``triangles = (first << LEAF_COUNT_BITS) | count``: a leaf its
+    range, and an interior node one triangle lifted off the end of a leaf below it that holds at least
+    two. A walk tests a node's triangles when it enters the node; a lifted triangle lies inside every
+    box above its leaf, so every ray that needs it still tests it. Why lift: on SIMD drivers the
+    per-node triangle loop runs at least once even where it has nothing to do, so an interior node
+    can test one triangle for free. Computed level by level: lifting and subtree sizes bottom-up
+    (each subtree offers its fullest leaf to its parent), then depth-first positions top-down."""
+    nodes = bvh.nodes
+    count = len(nodes)
+    if len(bvh.order) >= 1 << (32 - LEAF_COUNT_BITS):
+        raise ValueError(f"{len(bvh.order)} triangles do not fit the threaded node layout")
+    levels, level = [], np.array([0])
+    while len(level):
+        levels.append(level)
+        interior = level[nodes["count"][level] == 0]
+        left = nodes["first"][interior].astype(np.int64)
+        level = np.concatenate([left, left + 1])
+    is_leaf = nodes["count"] > 0
+    first = np.where(is_leaf, nodes["first"], 0).astype(np.int64)
+    owned = nodes["count"].astype(np.int64)       # triangles each node tests (interior: 0 or 1)
+    donor = np.where(is_leaf, np.arange(count), -1)   # per subtree: its leaf with the most triangles
+    size = np.ones(count, np.int64)
+    for level in reversed(levels):
+        interior = level[~is_leaf[level]]
+        left = nodes["first"][interior].astype(np.int64)
+        size[interior] = 1 + size[left] + size[left + 1]
+        candidates = np.stack([donor[left], donor[left + 1]])
+        offered = np.where(candidates >= 0, owned[np.maximum(candidates, 0)], 0)
+        best = candidates[np.argmax(offered, axis=0), np.arange(len(interior))]
+        lifts = np.max(offered, axis=0) >= 2
+        leaf, taker = best[lifts], interior[lifts]
+        owned[leaf] -= 1
+        first[taker], owned[taker] = first[leaf] + owned[leaf], 1
+        still = np.where(candidates >= 0, owned[np.maximum(candidates, 0)], 0)
+        donor[interior] = candidates[np.argmax(still, axis=0), np.arange(len(interior))]
+    position = np.zeros(count, np.int64)
+    for level in levels:
+        interior = level[~is_leaf[level]]
+        left = nodes["first"][interior].astype(np.int64)
+        position[left] = position[interior] + 1
+        position[left + 1] = position[interior] + 1 + size[left]
+    threaded = np.zeros(count, THREADED_NODE_DTYPE)
+    threaded["lo"][position], threaded["hi"][position] = nodes["lo"], nodes["hi"]
+    threaded["skip"][position] = position + size
+    threaded["triangles"][position] = (first << LEAF_COUNT_BITS) | owned
+    return threaded

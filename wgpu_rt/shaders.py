@@ -33,11 +33,16 @@ def list_wgsl(package: str = PATH_TRACING) -> list[str]:
     return sorted(p.name for p in resources.files(package).iterdir() if p.name.endswith(".wgsl"))
 
 
-def compose(name: str, package: str = PATH_TRACING, substitutions: dict | None = None) -> str:
-    """``name`` with its ``// #import`` lines resolved and ``{{KEY}}`` placeholders substituted."""
+def compose(name: str, package: str = PATH_TRACING, substitutions: dict | None = None,
+            replacements: dict | None = None) -> str:
+    """``name`` with its ``// #import`` lines resolved and ``{{KEY}}`` placeholders substituted.
+    ``replacements`` maps an imported module's name to another module spliced in its place (a kernel
+    variant picks one of two implementations of the same functions)."""
     seen: set[str] = set()
+    swaps = replacements or {}
 
     def expand(module: str) -> str:
+        module = swaps.get(module, module)
         if module in seen:
             return ""
         seen.add(module)

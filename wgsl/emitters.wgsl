@@ -63,10 +63,5 @@ fn sample_emitter(x: vec3f, u_pick: f32, u: vec2f) -> EmitterSample {
 // Solid-angle pdf with which sample_emitter would pick the point a ray from x hit on triangle `prim`
 // at distance t, whose front face it hit with cosine cos_light.
 fn triangle_emitter_pdf(prim: u32, t: f32, cos_light: f32) -> f32 {
-    let index = triangle_emitter[prim];
-    if index == NO_EMITTER {
-        return 0.0;
-    }
-    let e = emitters[index];
-    return e.pmf / e.area * t * t / cos_light;
+    return triangle_emitter_density[prim] * t * t / cos_light;
 }

@@ -2,6 +2,8 @@
 // dielectric), as packed by wgpu_rt.trace.scene_data. Roughness is the GGX alpha; below
 // DELTA_ROUGHNESS a lobe is treated as perfectly specular (a Dirac delta).
 
+// #import features.wgsl
+
 const MATERIAL_DIFFUSE: u32 = 0u;
 const MATERIAL_CONDUCTOR: u32 = 1u;
 const MATERIAL_DIELECTRIC: u32 = 2u;
@@ -35,7 +37,8 @@ struct BsdfEval {
 }
 
 fn material_is_delta(m: Material) -> bool {
-    return m.kind != MATERIAL_DIFFUSE && m.roughness < DELTA_ROUGHNESS;
+    // without glass or metal in the kernel, nothing is delta (and kind/roughness are never fetched)
+    return (HAS_CONDUCTOR || HAS_DIELECTRIC) && m.kind != MATERIAL_DIFFUSE && m.roughness < DELTA_ROUGHNESS;
 }
 
 fn no_sample() -> BsdfSample {

@@ -1,7 +1,8 @@
 // Batch ray queries for tests and benchmarks: one invocation per ray runs scene_intersect (entry
 // `intersect`, which also reports the surface attributes at the hit through the bvh.wgsl helpers) or
 // scene_occluded (entry `occluded`). A ray with `offset` set starts at offset_ray_origin(origin,
-// normal, dir), as a path tracer spawns rays from a surface.
+// normal, dir), as a path tracer spawns rays from a surface. Invocations past the last ray trace the
+// last ray again without writing it: a subgroup traverses together (traversal_subgroup.wgsl).
 // #import bvh.wgsl
 
 struct QueryRay { origin: vec3f, t_max: f32, dir: vec3f, offset: u32, normal: vec3f, _pad: u32 }
@@ -21,11 +22,12 @@ fn query_origin(ray: QueryRay) -> vec3f {
 }
 
 @compute @workgroup_size(64)
-fn intersect(@builtin(global_invocation_id) id: vec3u) {
-    if (id.x >= arrayLength(&rays)) { return; }
-    let ray = rays[id.x];
+fn intersect(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation_index) local_index: u32) {
+    begin_traversal(local_index);
+    let ray = rays[min(id.x, arrayLength(&rays) - 1u)];
     let origin = query_origin(ray);
     let hit = scene_intersect(origin, ray.dir, ray.t_max);
+    if (id.x >= arrayLength(&rays)) { return; }
     hits[id.x] = hit;
     var surface = HitSurface(vec3f(0.0), NO_HIT, vec3f(0.0), NO_HIT, vec3f(0.0), 0u);
     if (hit.prim != NO_HIT) {
@@ -40,8 +42,9 @@ fn intersect(@builtin(global_invocation_id) id: vec3u) {
 }
 
 @compute @workgroup_size(64)
-fn occluded(@builtin(global_invocation_id) id: vec3u) {
-    if (id.x >= arrayLength(&rays)) { return; }
-    let ray = rays[id.x];
-    occlusion[id.x] = u32(scene_occluded(query_origin(ray), ray.dir, ray.t_max));
+fn occluded(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation_index) local_index: u32) {
+    begin_traversal(local_index);
+    let ray = rays[min(id.x, arrayLength(&rays) - 1u)];
+    let occluded = scene_occluded(query_origin(ray), ray.dir, ray.t_max);
+    if (id.x < arrayLength(&rays)) { occlusion[id.x] = u32(occluded); }
 }

@@ -43,18 +43,18 @@ fn nested_uniform_scramble(value: u32, seed: u32) -> u32 {
     return reverseBits(laine_karras_permutation(reverseBits(value), seed));
 }
 
-// Sobol dimension 1 (primitive polynomial x + 1); dimension 0 is the bit reversal of the index.
+// Sobol dimension 1 (primitive polynomial x + 1); dimension 0 is the bit reversal of the index. Its
+// generator matrix is Pascal's triangle mod 2 (Lucas: output bit j takes index bit k iff k ⊇ j as bit
+// sets), so the product is an XOR over supersets, done for all 32 bits in five shift-XOR stages and
+// then bit-reversed: no loop (loops cost a pass each on SIMD drivers and count toward lavapipe's cap).
 fn sobol_dimension1(index: u32) -> u32 {
-    var result = 0u;
-    var direction = 0x80000000u;
-    var i = index;
-    loop {
-        if i == 0u { break; }
-        if (i & 1u) != 0u { result ^= direction; }
-        i >>= 1u;
-        direction ^= direction >> 1u;
-    }
-    return result;
+    var y = index;
+    y ^= (y >> 1u) & 0x55555555u;
+    y ^= (y >> 2u) & 0x33333333u;
+    y ^= (y >> 4u) & 0x0f0f0f0fu;
+    y ^= (y >> 8u) & 0x00ff00ffu;
+    y ^= (y >> 16u) & 0x0000ffffu;
+    return reverseBits(y);
 }
 
 fn u32_to_unit_float(bits: u32) -> f32 {

@@ -5,10 +5,17 @@
 // continuation probability min(max(throughput)·eta², 0.95). Diffuse and metal surfaces are two-sided
 // (the shading frame faces the incoming ray); glass keeps its outward normal to tell inside from out.
 //
-// One invocation is one pixel. It takes the samples [chunk_start, chunk_start + chunk_size) of this
-// pass's count (uniform, or per pixel from sample_counts for adaptive passes), numbered after the
-// samples the pixel already holds (the spp plane) so extra passes add new, distinct sample indices,
-// and folds their mean into the running means of the output planes.
+// One invocation is one pixel; a workgroup of 64 is an 8×8 tile. It takes the samples
+// [chunk_start, chunk_start + chunk_size) of this pass's count (uniform, or per pixel from
+// sample_counts for adaptive passes), numbered after the samples the pixel already holds (the spp
+// plane) so extra passes add new, distinct sample indices, and folds their mean into the running
+// means of the output planes.
+//
+// Each turn of the main loop traces two rays per invocation in one BVH walk (trace_ray_pair): the
+// path's next segment and the shadow ray of the next-event estimate made at its previous vertex (whose
+// contribution waits until it is known unoccluded). A finished path starts the pixel's next sample in
+// the same turn. Invocations outside the image or done with their samples stay in the loop, idle,
+// until their whole subgroup is done: the subgroup traversal needs every invocation in the walk.
 
 // #import features.wgsl
 // #import trace_bindings.wgsl
@@ -17,10 +24,14 @@
 // #import emitters.wgsl
 // #import camera.wgsl
 
-override WORKGROUP_X: u32 = 8u;
-override WORKGROUP_Y: u32 = 8u;
-
+const TILE: u32 = 8u;   // a workgroup is TILE × TILE pixels, == wgpu_rt.trace.trace_pass.TILE
 const RR_DEPTH: u32 = 5u;
+// Mesa's llvmpipe/lavapipe ends every loop of an invocation once its loops have gone round 65535 times
+// in total in one dispatch (an infinite-loop guard), which would cut paths and BVH walks short. So an
+// invocation starts no new sample once this loop and its traversal loops have gone round LOOP_BUDGET
+// times, leaving the rest for the paths in flight, and records only the samples it completed: the
+// pixel stays an unbiased mean, of fewer samples. trace_pass.py sizes chunks to stay well below.
+const LOOP_BUDGET: u32 = 49152u;
 
 // Everything one path carries from vertex to vertex, and what it has gathered for its sample.
 struct Path {
@@ -40,18 +51,30 @@ struct Path {
     motion: vec2f,
 }
 
+// A next-event estimate waiting for its shadow ray: `contribution` counts if nothing lies within
+// `length` along the ray.
+struct ShadowRay {
+    origin: vec3f,
+    length: f32,
+    dir: vec3f,
+    pending: bool,
+    contribution: vec3f,
+}
+
 fn start_path(sampler: ptr<function, Sampler>, pixel_corner: vec2f) -> Path {
     let film = pixel_corner + next_2d(sampler);
     return Path(params.camera_origin, 0u, camera_ray_direction(film), 1.0, vec3f(1.0), 0.0, vec3f(0.0), true,
                 vec3f(0.0), WRITE_AOVS, vec3f(0.0), 0.0, film, vec2f(0.0));
 }
 
-// Traces one segment of `path` and shades where it lands; returns false once the path has ended.
-fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>) -> bool {
+// Shades where the path's last segment landed (`traced`), leaving the next-event estimate made there in
+// `shadow` and the next segment in `path`; returns false once the path has ended.
+fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, traced: RayPairHit,
+               shadow: ptr<function, ShadowRay>) -> bool {
+    let hit = traced.hit;
     let origin = (*path).origin;
     let dir = (*path).dir;
     let depth = (*path).depth;
-    let hit = scene_intersect(origin, dir, FAR_AWAY);
     if hit.prim == NO_HIT {
         if HAS_ANALYTIC_LIGHTS && params.background_pmf > 0.0 {
             let light_pdf = params.background_pmf * INV_FOUR_PI;
@@ -63,7 +86,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>) -> bo
         }
         return false;
     }
-    let geometric_normal = tri_geometric_normal(hit.prim);
+    let geometric_normal = traced.geometric_normal;
     let position = origin + hit.t * dir;
     let material = materials[tri_material(hit.prim)];
     let cos_front = -dot(geometric_normal, dir);
@@ -76,7 +99,10 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>) -> bo
         (*path).radiance += (*path).throughput * material.emission * weight;
     }
 
-    var shading_normal = tri_shading_normal(hit.prim, hit.u, hit.v);
+    var shading_normal = geometric_normal;
+    if HAS_VERTEX_NORMALS {
+        shading_normal = tri_shading_normal_or(hit.prim, hit.u, hit.v, geometric_normal);
+    }
     let is_glass = HAS_DIELECTRIC && material.kind == MATERIAL_DIELECTRIC;
     if !is_glass && cos_front < 0.0 {
         shading_normal = -shading_normal;
@@ -110,12 +136,10 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>) -> bo
             let wo = to_local(frame, light.direction);
             let f = bsdf_eval(material, wi, wo);
             if any(f.value > vec3f(0.0)) {
-                let shadow_origin = offset_ray_origin(position, geometric_normal, light.direction);
-                let shadow_length = select(light.distance * (1.0 - 2e-4), FAR_AWAY, light.distance >= FAR_AWAY);
-                if !scene_occluded(shadow_origin, light.direction, shadow_length) {
-                    let weight = select(power_heuristic(light.pdf, f.pdf), 1.0, light.pdf == 0.0);
-                    (*path).radiance += (*path).throughput * f.value * light.value * weight;
-                }
+                let weight = select(power_heuristic(light.pdf, f.pdf), 1.0, light.pdf == 0.0);
+                *shadow = ShadowRay(offset_ray_origin(position, geometric_normal, light.direction),
+                                    select(light.distance * (1.0 - 2e-4), FAR_AWAY, light.distance >= FAR_AWAY),
+                                    light.direction, true, (*path).throughput * f.value * light.value * weight);
             }
         }
     }
@@ -150,18 +174,15 @@ fn fold_mean(mean: f32, batch_sum: f32, count_before: f32, batch_count: f32) -> 
     return mean + (batch_sum - batch_count * mean) / (count_before + batch_count);
 }
 
-@compute @workgroup_size(WORKGROUP_X, WORKGROUP_Y)
-fn main(@builtin(global_invocation_id) gid: vec3u) {
-    if gid.x >= params.width || gid.y >= params.height {
-        return;
-    }
-    let pixel = gid.y * params.width + gid.x;
+@compute @workgroup_size(TILE * TILE)
+fn main(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) local_index: u32) {
+    begin_traversal(local_index);
+    let xy = tile.xy * TILE + vec2u(local_index % TILE, local_index / TILE);
+    let inside = xy.x < params.width && xy.y < params.height;
+    let pixel = select(0u, xy.y * params.width + xy.x, inside);
     let plane = params.width * params.height;
     let pass_count = select(params.pass_samples, sample_counts[pixel], params.use_sample_counts != 0u);
-    let taken = min(params.chunk_size, max(pass_count, params.chunk_start) - params.chunk_start);
-    if taken == 0u {
-        return;
-    }
+    let taken = select(0u, min(params.chunk_size, max(pass_count, params.chunk_start) - params.chunk_start), inside);
     let held = out_spp[pixel];
     var radiance = vec3f(0.0);
     var albedo = vec3f(0.0);
@@ -171,36 +192,49 @@ fn main(@builtin(global_invocation_id) gid: vec3u) {
     // Path regeneration: when a path ends the invocation starts its next sample in the same loop, so
     // the SIMD lanes of a subgroup stay busy until all of them have traced all their samples, instead
     // of each sample waiting for the longest path of its subgroup.
-    let pixel_corner = vec2f(gid.xy);
+    let pixel_corner = vec2f(xy);
     var index = 0u;
+    var tracing = taken > 0u;
     var sampler = sampler_start(pixel, params.sample_offset + held, params.seed);
     var path = start_path(&sampler, pixel_corner);
+    var shadow = ShadowRay(vec3f(0.0), 0.0, vec3f(0.0, 0.0, 1.0), false, vec3f(0.0));
+    var loop_passes = 0u;
     loop {
-        if extend_path(&path, &sampler) {
-            continue;
-        }
-        // a non-finite sample (a degenerate configuration) is dropped rather than poisoning the pixel
-        radiance += select(vec3f(0.0), path.radiance, is_finite_vec3(path.radiance));
-        if WRITE_AOVS {
-            albedo += path.albedo;
-            normal += path.normal;
-            depth += path.linear_depth;
-            motion += path.motion;
-        }
-        index += 1u;
-        if index == taken {
+        if !packet_any(tracing || shadow.pending) {
             break;
         }
-        sampler = sampler_start(pixel, params.sample_offset + held + index, params.seed);
-        path = start_path(&sampler, pixel_corner);
+        let traced = trace_ray_pair(path.origin, path.dir, select(0.0, FAR_AWAY, tracing), shadow.origin,
+                                    shadow.dir, shadow.length, shadow.pending);
+        loop_passes += traced.loop_passes + 1u;
+        // a non-finite contribution (a degenerate configuration) is dropped rather than poisoning the pixel
+        if shadow.pending && !traced.occluded && is_finite_vec3(shadow.contribution) {
+            radiance += shadow.contribution;
+        }
+        shadow.pending = false;
+        if tracing && !extend_path(&path, &sampler, traced, &shadow) {
+            radiance += select(vec3f(0.0), path.radiance, is_finite_vec3(path.radiance));
+            if WRITE_AOVS {
+                albedo += path.albedo;
+                normal += path.normal;
+                depth += path.linear_depth;
+                motion += path.motion;
+            }
+            index += 1u;
+            tracing = index < taken && loop_passes < LOOP_BUDGET;
+            sampler = sampler_start(pixel, params.sample_offset + held + index, params.seed);
+            path = start_path(&sampler, pixel_corner);
+        }
+    }
+    if !inside || index == 0u {
+        return;
     }
     let before = f32(held);
-    let batch = f32(taken);
+    let batch = f32(index);   // the samples completed: `taken` unless LOOP_BUDGET ran out
     for (var c = 0u; c < 3u; c += 1u) {
         let at = c * plane + pixel;
         out_radiance[at] = fold_mean(out_radiance[at], radiance[c], before, batch);
     }
-    out_spp[pixel] = held + taken;
+    out_spp[pixel] = held + index;
     if WRITE_AOVS {
         let previous_normal = vec3f(out_normal[pixel], out_normal[plane + pixel], out_normal[2u * plane + pixel]);
         let summed_normal = previous_normal * before + normal;

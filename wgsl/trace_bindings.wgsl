@@ -8,7 +8,6 @@ const EMITTER_TRIANGLE: u32 = 0u;
 const EMITTER_POINT: u32 = 1u;
 const EMITTER_DIRECTIONAL: u32 = 2u;
 const EMITTER_BACKGROUND: u32 = 3u;
-const NO_EMITTER: u32 = 0xffffffffu;
 
 struct FrameParams {
     camera_origin: vec3f,
@@ -55,7 +54,7 @@ struct Emitter {
 @group(1) @binding(0) var<uniform> params: FrameParams;
 @group(1) @binding(1) var<storage, read> materials: array<Material>;
 @group(1) @binding(2) var<storage, read> emitters: array<Emitter>;
-@group(1) @binding(3) var<storage, read> triangle_emitter: array<u32>;   // per triangle: entry or NO_EMITTER
+@group(1) @binding(3) var<storage, read> triangle_emitter_density: array<f32>;  // per triangle: its entry's pmf / area, 0 if none
 @group(1) @binding(4) var<storage, read> sample_counts: array<u32>;      // per pixel (adaptive passes)
 
 @group(2) @binding(0) var<storage, read_write> out_radiance: array<f32>;

@@ -1,8 +1,8 @@
 """GeometryBuffers: a Scene at one frame as world-space triangles in BVH order (bind group 0).
 
-See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/bvh.wgsl:
+See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/geometry_bindings.wgsl:
 
-0. ``bvh_nodes``: the BVH's 32-byte nodes (wgpu_rt/bvh.py).
+0. ``bvh_nodes``: the BVH's 32-byte threaded nodes (``wgpu_rt.bvh.threaded_nodes``).
 1. ``tri_positions``: three vec4f per triangle (xyz = world vertex, w = 0).
 2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, pad}`` (48 bytes): the three
    world-space shading normals (the mesh's vertex normals, else its face normal) and the ids.
@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bvh import Bvh, build_bvh
+from .. import shaders
+from ..bvh import Bvh, build_bvh, threaded_nodes
 from ..errors import SceneError
 from .model import Scene
 from .transforms import transform_normals, transform_points
@@ -86,7 +87,7 @@ class GeometryBuffers:
         attributes_u32 = attributes.view(np.uint32)
         attributes_u32[:, 3], attributes_u32[:, 7] = self.material_ids, self.object_ids
         column_major = np.ascontiguousarray(np.transpose(self.object_motion, (0, 2, 1)))
-        return [self.bvh.nodes, positions, attributes, column_major]
+        return [threaded_nodes(self.bvh), positions, attributes, column_major]
 
     def upload(self, ctx) -> list:
         """GPU storage buffers in binding order 0..3 of group 0 (DeviceLimitError if one is too big)."""
@@ -95,3 +96,25 @@ class GeometryBuffers:
         for array, label in zip(arrays, labels):
             ctx.check_buffer_size(array.nbytes, f"{label} ({self.triangle_count} triangles)")
         return [ctx.upload(array, label=label) for array, label in zip(arrays, labels)]
+
+
+# The kernels import traversal_lanes.wgsl; traversal_module() may swap in this one.
+LANES_TRAVERSAL = "traversal_lanes.wgsl"
+SUBGROUP_TRAVERSAL = "traversal_subgroup.wgsl"
+MIN_PACKET_LANES = 8     # traversal_subgroup.wgsl fetches 8-word records, one word per lane
+
+def traversal_module(ctx) -> str:
+    """The traversal module for ``ctx``'s adapter: subgroup packets on a CPU adapter whose subgroups
+    have at least MIN_PACKET_LANES lanes numbered along local_invocation_index of a 1-D workgroup of 64
+    (GpuContext.subgroup_sizes), where shared fetches pay off (see wgsl/traversal_subgroup.wgsl); else
+    per-lane traversal. Kernels that traverse use 1-D workgroups of 64 invocations."""
+    sizes = ctx.subgroup_sizes
+    if (sizes is not None and ctx.adapter.info.get("adapter_type") == "CPU"
+            and np.all(sizes == sizes[0]) and sizes[0] >= MIN_PACKET_LANES):
+        return SUBGROUP_TRAVERSAL
+    return LANES_TRAVERSAL
+
+
+def compose_with_traversal(ctx, kernel: str, module: str | None = None) -> str:
+    """WGSL of ``kernel`` (which imports bvh.wgsl) with ``module`` (default: traversal_module(ctx))."""
+    return shaders.compose(kernel, replacements={LANES_TRAVERSAL: module or traversal_module(ctx)})

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..shaders import compose
+from .geometry import compose_with_traversal
 
 WORKGROUP_SIZE = 64
 QUERY_RAY_DTYPE = np.dtype([("origin", "<f4", 3), ("t_max", "<f4"), ("dir", "<f4", 3), ("offset", "<u4"),
@@ -35,10 +35,11 @@ def query_rays(origins, dirs, t_max=np.inf, offset_normals=None) -> np.ndarray:
 class RayQuery:
     """The two entry points of ray_query.wgsl, bound to one scene's uploaded geometry."""
 
-    def __init__(self, ctx, geometry):
+    def __init__(self, ctx, geometry, traversal: str | None = None):
+        """``traversal``: the traversal module (default: geometry.traversal_module(ctx))."""
         self.ctx = ctx
         self.geometry_buffers = geometry.upload(ctx)
-        code = compose("ray_query.wgsl")
+        code = compose_with_traversal(ctx, "ray_query.wgsl", traversal)
         self.pipelines = {entry: ctx.compute_pipeline(code, entry, label=f"ray_query.{entry}")
                           for entry in ("intersect", "occluded")}
 

@@ -22,6 +22,7 @@ class SceneFeatures:
     has_area_lights: bool = True
     has_analytic_lights: bool = True  # point or directional lights, or a non-black background
     has_motion: bool = True
+    has_vertex_normals: bool = True   # any mesh with its own vertex normals (smooth shading)
     write_aovs: bool = True
 
     @classmethod
@@ -34,6 +35,7 @@ class SceneFeatures:
             has_area_lights=any(scene.materials[name].is_emissive for name in used),
             has_analytic_lights=bool(scene.lights) or bool(np.any(np.asarray(scene.background) > 0)),
             has_motion=scene.has_motion,
+            has_vertex_normals=any(mesh.normals is not None for mesh in scene.meshes),
             write_aovs=write_aovs,
         )
 

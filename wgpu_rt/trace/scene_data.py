@@ -17,7 +17,6 @@ from ..scene.model import DirectionalLight, Material, PointLight, Scene
 
 MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2}
 EMITTER_TRIANGLE, EMITTER_POINT, EMITTER_DIRECTIONAL, EMITTER_BACKGROUND = range(4)
-NO_EMITTER = 0xFFFFFFFF
 LUMINANCE = np.array([0.212671, 0.715160, 0.072169])
 
 MATERIAL_DTYPE = np.dtype([
@@ -68,7 +67,7 @@ def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 @dataclass
 class EmitterTable:
     records: np.ndarray            # EMITTER_DTYPE, at least one record (a black one when there is none)
-    triangle_emitter: np.ndarray   # (T,) u32: record index per triangle, NO_EMITTER if not emissive
+    triangle_density: np.ndarray   # (T,) f32: pmf / area of each triangle's record, 0 if not emissive
     background_pmf: float
 
     @property
@@ -108,7 +107,7 @@ def build_emitter_table(scene: Scene, triangles: np.ndarray, triangle_materials:
 
     rows = [r for r in rows if r[6] > 0]
     records = np.zeros(max(1, len(rows)), EMITTER_DTYPE)
-    triangle_emitter = np.full(len(triangles), NO_EMITTER, np.uint32)
+    triangle_density = np.zeros(len(triangles), np.float32)
     background_pmf = 0.0
     if rows:
         power = np.array([r[6] for r in rows])
@@ -119,8 +118,8 @@ def build_emitter_table(scene: Scene, triangles: np.ndarray, triangle_materials:
                           np.broadcast_to(e2, 3), a, radiance, threshold[i], alias[i], 0)
             if kind == EMITTER_BACKGROUND:
                 background_pmf = float(pmf[i])
-        triangle_emitter[index] = np.arange(len(index), dtype=np.uint32)
-    return EmitterTable(records, triangle_emitter, background_pmf)
+        triangle_density[index] = records["pmf"][:len(index)] / records["area"][:len(index)]
+    return EmitterTable(records, triangle_density, background_pmf)
 
 
 def camera_vectors(camera, width: int, height: int) -> dict[str, np.ndarray]:

@@ -13,9 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import shaders
 from ..render_pass import ComputePass, FrameBuffers, PlaneSpec
-from ..scene.geometry import scene_material_names
+from ..scene.geometry import compose_with_traversal, scene_material_names
 from ..scene.model import Scene
 from .features import SceneFeatures
 from .scene_data import FRAME_PARAMS_DTYPE, build_emitter_table, camera_vectors, pack_materials
@@ -27,12 +26,14 @@ DEPTH = PlaneSpec("depth", 1)
 MOTION = PlaneSpec("motion", 2)
 SPP = PlaneSpec("spp", 1, "u32")
 
-WORKGROUP = (8, 8)
+TILE = 8   # a workgroup traces TILE × TILE pixels (wgsl/trace.wgsl)
 KERNEL = "trace.wgsl"
 
 
-def trace_kernel_source() -> str:
-    return shaders.compose(KERNEL)
+def trace_kernel_source(ctx, traversal: str | None = None) -> str:
+    """The kernel with the traversal module ``traversal`` (default: the one that suits ``ctx``'s
+    adapter, wgpu_rt.scene.geometry.traversal_module)."""
+    return compose_with_traversal(ctx, KERNEL, traversal)
 
 
 def trace_layout(ctx, geometry_bindings: int):
@@ -60,11 +61,10 @@ def trace_layout(ctx, geometry_bindings: int):
 _layouts: dict = {}
 
 
-def trace_pipeline(ctx, features: SceneFeatures, geometry_bindings: int):
+def trace_pipeline(ctx, features: SceneFeatures, geometry_bindings: int, traversal: str | None = None):
     """The kernel specialized to ``features`` (pipelines are cached by GpuContext)."""
-    constants = dict(features.constants(), WORKGROUP_X=WORKGROUP[0], WORKGROUP_Y=WORKGROUP[1])
-    return ctx.compute_pipeline(trace_kernel_source(), "main", constants=constants, label=f"trace {features}",
-                                layout=trace_layout(ctx, geometry_bindings))
+    return ctx.compute_pipeline(trace_kernel_source(ctx, traversal), "main", constants=features.constants(),
+                                label=f"trace {features}", layout=trace_layout(ctx, geometry_bindings))
 
 
 @dataclass
@@ -84,15 +84,20 @@ class TracePass(ComputePass):
 
     def __init__(self, ctx, scene: Scene, geometry, width: int, height: int, frame: int = 0,
                  max_depth: int = 8, seed: int = 0, features: SceneFeatures | None = None,
-                 chunk_size: int | None = None):
+                 chunk_size: int | None = None, traversal: str | None = None):
+        """``traversal``: the BVH traversal module (tests and benchmarks compare them; default: the
+        adapter's, wgpu_rt.scene.geometry.traversal_module)."""
         if max_depth < 1:
             raise ValueError(f"max_depth must be at least 1, got {max_depth}")
         self.ctx, self.width, self.height = ctx, width, height
         self.features = features or SceneFeatures.of(scene)
         geometry_buffers = geometry.upload(ctx)
-        self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers))
-        # enough samples per dispatch to keep the device busy, few enough to stay well under a second
-        self.chunk_size = chunk_size or max(1, min(16, (1 << 18) // (width * height)))
+        self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal)
+        # Enough samples per dispatch to keep the device busy and the tail short (a subgroup runs until
+        # its last invocation has traced its last path: ~11% idle turns at 16 samples, 15% at 8 on
+        # cornell); few enough to stay around a second on lavapipe and well within the kernel's
+        # LOOP_BUDGET (wgsl/trace.wgsl) on scenes with long paths.
+        self.chunk_size = chunk_size or max(1, min(16, (1 << 20) // (width * height)))
         self.schedule = SampleSchedule()
 
         materials = [scene.materials[n] for n in scene_material_names(scene)]
@@ -103,7 +108,7 @@ class TracePass(ComputePass):
         self._geometry_group = ctx.bind_group(self.pipeline, geometry_buffers, group=0)
         self._materials = ctx.upload(pack_materials(materials), label="materials")
         self._emitters = ctx.upload(emitters.records, label="emitters")
-        self._triangle_emitter = ctx.upload(emitters.triangle_emitter, label="triangle emitters")
+        self._triangle_density = ctx.upload(emitters.triangle_density, label="triangle emitter densities")
         self._no_counts = ctx.storage(16, label="no sample counts")
 
     def _frame_params(self, scene, frame, max_depth, seed, emitters) -> np.ndarray:
@@ -143,10 +148,10 @@ class TracePass(ComputePass):
         chunk_starts = ctx.upload(np.arange(self.dispatch_count, dtype=np.uint32) * self.chunk_size,
                                   label="chunk starts")
         shading = ctx.bind_group(self.pipeline, [
-            uniform, self._materials, self._emitters, self._triangle_emitter,
+            uniform, self._materials, self._emitters, self._triangle_density,
             schedule.sample_counts if schedule.sample_counts is not None else self._no_counts], group=1)
         planes = ctx.bind_group(self.pipeline, [buffers.get(spec) for spec in self.outputs], group=2)
-        groups = (-(-self.width // WORKGROUP[0]), -(-self.height // WORKGROUP[1]), 1)
+        groups = (-(-self.width // TILE), -(-self.height // TILE), 1)
         chunk_offset = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
         for chunk in range(self.dispatch_count):
             encoder.copy_buffer_to_buffer(chunk_starts, 4 * chunk, uniform, chunk_offset, 4)

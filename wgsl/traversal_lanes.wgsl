@@ -1,0 +1,22 @@
+// Traversal records fetched by each invocation for itself: every invocation walks the BVH on its own
+// (packet_any is the identity). The portable choice, and the right one where divergent memory reads
+// are cheap (GPUs); traversal_subgroup.wgsl replaces this module on CPU drivers.
+
+// #import geometry_bindings.wgsl
+
+fn begin_traversal(local_index: u32) {}
+
+fn packet_any(x: bool) -> bool {
+    return x;
+}
+
+fn bvh_node(index: u32) -> BvhNode {
+    let at = NODE_WORDS * index;
+    return BvhNode(bitcast<vec3f>(vec3u(bvh_nodes[at], bvh_nodes[at + 1u], bvh_nodes[at + 2u])), bvh_nodes[at + 3u],
+                   bitcast<vec3f>(vec3u(bvh_nodes[at + 4u], bvh_nodes[at + 5u], bvh_nodes[at + 6u])),
+                   bvh_nodes[at + 7u]);
+}
+
+fn bvh_triangle(prim: u32) -> TrianglePositions {
+    return TrianglePositions(triangle_vertex(prim, 0u), triangle_vertex(prim, 1u), triangle_vertex(prim, 2u));
+}

@@ -1,0 +1,42 @@
+// Traversal records fetched cooperatively: the invocations of a subgroup walk the BVH together as one
+// packet. Each node or triangle is read once for the whole subgroup: lane k reads word k of the record
+// and subgroupBroadcast hands every word to every lane. A subtree is entered when any lane's ray
+// enters its box (packet_any), so each ray still sees every leaf its own walk would visit.
+//
+// Why: a CPU Vulkan driver (Mesa's lavapipe) runs a subgroup as one SIMD vector. There a read at
+// divergent addresses costs a scalar loop over the lanes per 32-bit word, and both sides of every
+// branch execute under a mask, so a packet that fetches each record once beats per-lane walks.
+// Preconditions, checked by wgpu_rt.scene.geometry.traversal_module: subgroups of at least 8 lanes,
+// lane = local_invocation_index mod subgroup size, and every invocation of a subgroup calls the
+// traversal together (callers keep finished invocations in their loops instead of returning).
+
+// #import geometry_bindings.wgsl
+
+var<private> traversal_lane: u32;
+
+fn begin_traversal(local_index: u32) {
+    traversal_lane = local_index & 7u;
+}
+
+fn packet_any(x: bool) -> bool {
+    return subgroupAny(x);
+}
+
+fn bvh_node(index: u32) -> BvhNode {
+    let word = bvh_nodes[NODE_WORDS * index + traversal_lane];
+    return BvhNode(
+        bitcast<vec3f>(vec3u(subgroupBroadcast(word, 0u), subgroupBroadcast(word, 1u), subgroupBroadcast(word, 2u))),
+        subgroupBroadcast(word, 3u),
+        bitcast<vec3f>(vec3u(subgroupBroadcast(word, 4u), subgroupBroadcast(word, 5u), subgroupBroadcast(word, 6u))),
+        subgroupBroadcast(word, 7u));
+}
+
+fn bvh_triangle(prim: u32) -> TrianglePositions {
+    let at = TRIANGLE_WORDS * prim;
+    let head = tri_positions[at + traversal_lane];          // words 0..7: vertex a, vertex b
+    let tail = tri_positions[at + 8u + (traversal_lane & 3u)];   // words 8..11: vertex c
+    return TrianglePositions(
+        vec3f(subgroupBroadcast(head, 0u), subgroupBroadcast(head, 1u), subgroupBroadcast(head, 2u)),
+        vec3f(subgroupBroadcast(head, 4u), subgroupBroadcast(head, 5u), subgroupBroadcast(head, 6u)),
+        vec3f(subgroupBroadcast(tail, 0u), subgroupBroadcast(tail, 1u), subgroupBroadcast(tail, 2u)));
+}
