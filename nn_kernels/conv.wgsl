@@ -27,15 +27,7 @@ const TILE_X: i32 = {{TILE_X}};
 const TILE_C: i32 = {{TILE_C}};
 const ROW_LEN: i32 = (TILE_X - 1) * STRIDE + KW;
 
-struct GroupHeader {
-    bias: array<vec4f, TILE_C>,
-    out_block: i32,
-}
-
-@group(0) @binding(0) var<storage, read> src: array<vec4<T>>;
-@group(0) @binding(1) var<storage, read_write> dst: array<vec4<T>>;
-{{WEIGHT_FETCH}}
-@group(0) @binding(3) var<uniform> header: GroupHeader;
+// #import layer_bindings.wgsl
 
 // 64 invocations cover an 8×8 block of tiles; no early exit (weight_block may need every lane), out of
 // range invocations compute on clamped coordinates and store nothing.

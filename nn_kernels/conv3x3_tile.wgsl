@@ -21,15 +21,8 @@ const OUT_H: i32 = {{OUT_H}};
 const OUT_W: i32 = {{OUT_W}};
 const OUT_PLANE: i32 = OUT_H * OUT_W;
 
-struct GroupHeader {
-    bias: array<vec4f, 4>,
-    out_block: i32,
-}
-
-@group(0) @binding(0) var<storage, read> src: array<vec4<T>>;
-@group(0) @binding(1) var<storage, read_write> dst: array<vec4<T>>;
-{{WEIGHT_FETCH}}
-@group(0) @binding(3) var<uniform> header: GroupHeader;
+const TILE_C: i32 = 4;   // output channel blocks per invocation
+// #import layer_bindings.wgsl
 
 // block_t: columns are the 4 pixels of output block t of the group
 struct Tile {

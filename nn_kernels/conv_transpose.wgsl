@@ -14,15 +14,7 @@ const TILE_C: i32 = {{TILE_C}};
 const OUT_W: i32 = 2 * IN_W;
 const OUT_PLANE: i32 = 4 * IN_H * IN_W;
 
-struct GroupHeader {
-    bias: array<vec4f, TILE_C>,
-    out_block: i32,
-}
-
-@group(0) @binding(0) var<storage, read> src: array<vec4<T>>;
-@group(0) @binding(1) var<storage, read_write> dst: array<vec4<T>>;
-{{WEIGHT_FETCH}}
-@group(0) @binding(3) var<uniform> header: GroupHeader;
+// #import layer_bindings.wgsl
 
 // 64 invocations cover 8×8 input pixels; no early exit (weight_block may need every lane): out of range
 // invocations read a clamped pixel and store nothing.

@@ -13,15 +13,7 @@ const IN_BLOCKS: i32 = {{IN_BLOCKS}};
 const TILE_X: i32 = {{TILE_X}};
 const TILE_C: i32 = {{TILE_C}};
 
-struct GroupHeader {
-    bias: array<vec4f, TILE_C>,
-    out_block: i32,
-}
-
-@group(0) @binding(0) var<storage, read> src: array<vec4<T>>;
-@group(0) @binding(1) var<storage, read_write> dst: array<vec4<T>>;
-{{WEIGHT_FETCH}}
-@group(0) @binding(3) var<uniform> header: GroupHeader;
+// #import layer_bindings.wgsl
 
 // No early exit (weight_block may need every lane): out of range tiles read clamped pixels, store nothing.
 @compute @workgroup_size(64, 1, 1)

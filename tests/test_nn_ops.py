@@ -274,5 +274,6 @@ def test_subgroup_probe_sees_a_valid_width(gpu):
 
     if not gpu.has_subgroups:
         pytest.skip(f"{gpu.label} has no subgroups")
+    assert gpu.subgroup_sizes.shape == (64,) and gpu.subgroup_sizes.min() >= 1
     lanes = subgroup_lanes(gpu)
     assert 4 <= lanes <= 128 and lanes & (lanes - 1) == 0

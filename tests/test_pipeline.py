@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from wgpu_rt.frame import render_frames
+from wgpu_rt.frame.pipeline import make_pipeline
 from wgpu_rt.frame.adaptive import AdaptiveSettings
 from wgpu_rt.frame.planes import RADIANCE, SPP
 from wgpu_rt.frame.temporal import TemporalSettings
@@ -64,8 +65,11 @@ def scene():
 
 
 def frames_and_traffic(monkeypatch, gpu, scene, frames, **settings):
+    """Frames rendered by a pipeline built beforehand, and the traffic of the frames alone (setup,
+    such as uploading network weights once, is not per-frame traffic)."""
+    pipeline = make_pipeline(scene, width=W, height=H, max_depth=3, ctx=gpu, **settings)
     counter = TrafficCounter(monkeypatch, gpu)
-    out = render_frames(scene, frames=frames, width=W, height=H, max_depth=3, ctx=gpu, **settings)
+    out = [pipeline.render(scene, frame) for frame in frames]
     monkeypatch.undo()
     return out, counter
 

@@ -92,6 +92,26 @@ class GpuContext:
     def limits(self) -> dict:
         return dict(self.device.limits)
 
+    @cached_property
+    def subgroup_sizes(self) -> np.ndarray | None:
+        """Each invocation's subgroup size in a 1-D workgroup of 64 (wgsl/subgroup_probe.wgsl), or None
+        without the subgroup feature. get_context probes it when the context is made, so that no frame
+        ever pays the readback."""
+        if not self.has_subgroups:
+            return None
+        from . import shaders
+
+        pipeline = self.compute_pipeline(shaders.compose("subgroup_probe.wgsl"), label="subgroup probe")
+        sizes = self.storage(64 * 4, label="subgroup probe")
+        encoder = self.device.create_command_encoder()
+        compute = encoder.begin_compute_pass()
+        compute.set_pipeline(pipeline)
+        compute.set_bind_group(0, self.bind_group(pipeline, [sizes]))
+        compute.dispatch_workgroups(1)
+        compute.end()
+        self.device.queue.submit([encoder.finish()])
+        return self.read(sizes, np.uint32, shape=(64,))
+
     def check_buffer_size(self, nbytes: int, what: str) -> None:
         """Raise a DeviceLimitError naming ``what`` if one storage binding cannot hold ``nbytes``."""
         limit = min(self.limits["max-storage-buffer-binding-size"], self.limits["max-buffer-size"])
@@ -184,5 +204,7 @@ def get_context(adapter_name: str | None = None) -> GpuContext:
         limits = {n: adapter.limits[n] for n in limit_names if n in adapter.limits}
         device = adapter.request_device_sync(required_features=features, required_limits=limits,
                                              label="wgpu-rt")
-        _CONTEXTS[key] = GpuContext(adapter=adapter, device=device, features=frozenset(features))
+        context = GpuContext(adapter=adapter, device=device, features=frozenset(features))
+        context.subgroup_sizes  # noqa: B018 - probe now, outside any frame
+        _CONTEXTS[key] = context
     return _CONTEXTS[key]

@@ -99,30 +99,13 @@ def groups_of(count: int, size: int) -> int:
     return (count + size - 1) // size
 
 
-_SUBGROUP_LANES: dict[int, int] = {}  # id(device) -> probed subgroup width
-
-
 def subgroup_lanes(ctx) -> int:
-    """The subgroup width kernels may rely on: the smallest that subgroup_probe.wgsl sees (once per
-    device). WebGPU adapters do not report it (lavapipe: 8, one AVX2 register) and only promise 4. A
-    driver may pick the width per pipeline; the probe's answer only decides between the 4-lane and the
-    ≥ 8-lane weight fetch (weights_subgroup.wgsl), which assumes that an adapter running the probe on
-    ≥ 8 lanes never runs a kernel on 4 (true of the documented widths: Intel 8–32, AMD 32/64, NVIDIA
-    and Apple 32)."""
-    key = id(ctx.device)
-    if key not in _SUBGROUP_LANES:
-        pipeline = ctx.compute_pipeline(shaders.compose("subgroup_probe.wgsl", shaders.NN_KERNELS),
-                                        label="subgroup probe")
-        sizes = ctx.storage(64 * 4, label="subgroup probe")
-        encoder = ctx.device.create_command_encoder()
-        compute = encoder.begin_compute_pass()
-        compute.set_pipeline(pipeline)
-        compute.set_bind_group(0, ctx.bind_group(pipeline, [sizes]))
-        compute.dispatch_workgroups(1)
-        compute.end()
-        ctx.device.queue.submit([encoder.finish()])
-        _SUBGROUP_LANES[key] = max(4, int(ctx.read(sizes, np.uint32).min()))
-    return _SUBGROUP_LANES[key]
+    """The subgroup width kernels may rely on: the smallest the context's probe saw
+    (GpuContext.subgroup_sizes; lavapipe: 8, one AVX2 register). A driver may pick the width per
+    pipeline; the answer only decides between the 4-lane and the ≥ 8-lane weight fetch
+    (weights_subgroup.wgsl), which assumes that an adapter running the probe on ≥ 8 lanes never runs a
+    kernel on 4 (true of the documented widths: Intel 8–32, AMD 32/64, NVIDIA and Apple 32)."""
+    return max(4, int(ctx.subgroup_sizes.min()))
 
 
 class NnKernel:
@@ -133,6 +116,7 @@ class NnKernel:
 
     def __init__(self, ctx, precision: Precision):
         self.ctx, self.precision = ctx, precision
+        self.subgroup_lanes = subgroup_lanes(ctx) if ctx.has_subgroups else None
 
     def pipeline(self, activation: Activation = NO_ACTIVATION, **constants):
         substitutions = {"ENABLE_F16": self.precision.enable, "STORAGE": self.precision.storage,
@@ -153,7 +137,7 @@ class NnKernel:
         if self.ctx.has_subgroups:
             fetch = "weights_subgroup.wgsl"
             code = [shaders.compose("weight_lane_subgroup.wgsl", shaders.NN_KERNELS,
-                                    {"SUBGROUP_LANES": subgroup_lanes(self.ctx)})]
+                                    {"SUBGROUP_LANES": self.subgroup_lanes})]
         else:
             fetch = "weights_uniform.wgsl"
             code = [shaders.compose("weight_lane_invocation.wgsl", shaders.NN_KERNELS)]
