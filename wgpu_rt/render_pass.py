@@ -31,6 +31,15 @@ class PlaneSpec:
         return self.channels * width * height * DTYPE_BYTES[self.dtype]
 
 
+# The tracer's outputs, which the frame passes read (ARCHITECTURE.md, "Planar buffers").
+RADIANCE = PlaneSpec("radiance", 3)
+ALBEDO = PlaneSpec("albedo", 3)
+NORMAL = PlaneSpec("normal", 3)
+DEPTH = PlaneSpec("depth", 1)
+MOTION = PlaneSpec("motion", 2)
+SPP = PlaneSpec("spp", 1, "u32")
+
+
 class ComputePass:
     """Base class: subclasses set ``inputs``/``outputs`` and implement ``execute``."""
 

@@ -6,14 +6,8 @@ tensors as planar (C, H, W) arrays, the layouts their callers (training, tests, 
 
 import numpy as np
 
-from ..render_pass import NUMPY_DTYPE, PlaneSpec
+from ..render_pass import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, PlaneSpec  # noqa: F401 (G-buffer specs re-exported)
 
-RADIANCE = PlaneSpec("radiance", 3)
-ALBEDO = PlaneSpec("albedo", 3)
-NORMAL = PlaneSpec("normal", 3)
-DEPTH = PlaneSpec("depth", 1)
-MOTION = PlaneSpec("motion", 2)
-SPP = PlaneSpec("spp", 1, "u32")
 
 DENOISER_INPUT = PlaneSpec("denoiser_input", 10)
 ERROR_INPUT = PlaneSpec("error_input", 3)

@@ -13,18 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..render_pass import ComputePass, FrameBuffers, PlaneSpec
+from ..render_pass import ALBEDO, DEPTH, MOTION, NORMAL, RADIANCE, SPP, ComputePass, FrameBuffers, PlaneSpec  # noqa: F401 (G-buffer specs re-exported)
 from ..scene.geometry import compose_with_traversal, scene_material_names
 from ..scene.model import Scene
 from .features import SceneFeatures
 from .scene_data import FRAME_PARAMS_DTYPE, build_emitter_table, camera_vectors, pack_materials
 
-RADIANCE = PlaneSpec("radiance", 3)
-ALBEDO = PlaneSpec("albedo", 3)
-NORMAL = PlaneSpec("normal", 3)
-DEPTH = PlaneSpec("depth", 1)
-MOTION = PlaneSpec("motion", 2)
-SPP = PlaneSpec("spp", 1, "u32")
 
 TILE = 8   # a workgroup traces TILE × TILE pixels (wgsl/trace.wgsl)
 KERNEL = "trace.wgsl"
