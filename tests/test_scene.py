@@ -370,10 +370,20 @@ def test_unknown_material_in_programmatic_scene():
 def test_device_limit_names_the_buffer():
     fake = GpuContext(adapter=types.SimpleNamespace(summary="tiny test device"), device=None)
     geometry = GeometryBuffers.build(load_scene("cornell-glossy"))
-    nodes_bytes = geometry.packed_arrays()[0].nbytes       # the nodes fit, the 48-byte triangles do not
-    fake.__dict__["limits"] = {"max-storage-buffer-binding-size": nodes_bytes, "max-buffer-size": 1 << 30}
-    with pytest.raises(DeviceLimitError, match="triangle positions .*max-storage-buffer-binding-size.*tiny test"):
+    nodes_bytes = geometry.packed_arrays(orderings=1)[0].nbytes   # the largest array with one node copy
+    fake.__dict__["limits"] = {"max-storage-buffer-binding-size": nodes_bytes - 1, "max-buffer-size": 1 << 30}
+    with pytest.raises(DeviceLimitError, match="BVH nodes .*max-storage-buffer-binding-size.*tiny test"):
         geometry.upload(fake)
+
+
+def test_node_orderings_fall_back_to_one_copy_when_eight_do_not_fit():
+    fake = GpuContext(adapter=types.SimpleNamespace(summary="tiny test device"), device=None)
+    geometry = GeometryBuffers.build(load_scene("cornell-glossy"))
+    one_copy = geometry.packed_arrays(orderings=1)[0].nbytes
+    fake.__dict__["limits"] = {"max-storage-buffer-binding-size": 8 * one_copy, "max-buffer-size": 1 << 30}
+    assert geometry.orderings(fake) == 8
+    fake.__dict__["limits"]["max-storage-buffer-binding-size"] = 8 * one_copy - 1
+    assert geometry.orderings(fake) == 1
 
 
 def test_documented_examples_load(tmp_path):

@@ -89,3 +89,20 @@ def test_long_paths_in_big_chunks_stay_unbiased(gpu):
     radiance = planes["radiance"].reshape(3, -1)
     assert np.all(np.isfinite(radiance))
     assert 0.985 <= radiance.mean() <= 1.01, radiance.mean()
+
+
+def test_single_node_ordering_renders_the_same_image(gpu):
+    """A scene too big for 8 direction-ordered node copies walks one copy: the same closest hits."""
+    from wgpu_rt.frame import render_frames
+    from wgpu_rt.gpu import GpuContext
+
+    small = GpuContext(adapter=gpu.adapter, device=gpu.device, features=gpu.features)
+    small.__dict__["subgroup_sizes"] = gpu.subgroup_sizes
+    geometry = GeometryBuffers.build(load_scene("cornell-glossy"))
+    one_copy = geometry.packed_arrays(orderings=1)[0].nbytes
+    small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": 8 * one_copy - 1}
+    assert geometry.orderings(small) == 1 and geometry.orderings(gpu) == 8
+    options = dict(denoise=False, frames=[0], width=16, height=16, max_depth=3, output="f32")
+    reference = render_frames("cornell-glossy", ctx=gpu, **options)[0].image
+    fallback = render_frames("cornell-glossy", ctx=small, **options)[0].image
+    np.testing.assert_allclose(fallback, reference, rtol=1e-5, atol=1e-6)

@@ -3,11 +3,13 @@
 // Traversal: a threaded binary BVH (wgpu_rt/bvh.py: nodes in depth-first order, each with the index
 // just past its subtree), walked without a stack: enter a node whose box the ray meets (test the
 // triangles it owns: a leaf's, or the one an interior node lifted from a leaf below; go on to the next
-// node), else skip its subtree. The walk is unordered, so a closest hit is final only at the end; it
-// still culls with the closest hit so far. trace_ray_pair walks two rays at once, a closest-hit ray
-// and a shadow ray (any hit), so a path tracer fetches each node once for both; the fetches and the
-// "any ray enters" test come from traversal_lanes.wgsl (each invocation alone) or, swapped in on CPU
-// drivers, traversal_subgroup.wgsl (a subgroup as one packet). On lavapipe this replaced a per-lane
+// node), else skip its subtree. The nodes come in one copy per direction octant, each with the child
+// nearer along that octant first; a walk takes the copy of its ray's octant (packet_octant), so it
+// mostly finds the closest hit early and culls more with it (a hit is final only at the end).
+// trace_ray_pair walks two rays at once, a closest-hit ray and a shadow ray (any hit), so a path
+// tracer fetches each node once for both; the fetches, the octant and the "any ray enters" test come
+// from traversal_lanes.wgsl (each invocation alone) or, swapped in on CPU drivers,
+// traversal_subgroup.wgsl (a subgroup as one packet). On lavapipe this replaced a per-lane
 // walk with a 32-entry private stack, ordered by child distance: 3.5× the path-tracing throughput.
 // Boxes: slab test with precomputed 1/dir and origin/dir, and a far-plane slack that keeps grazing
 // hits conservative. Triangles use the watertight test of Woop, Benthin and Wald (JCGT 2013): the ray
@@ -111,13 +113,15 @@ fn trace_ray_pair(origin: vec3f, dir: vec3f, t_max: f32, shadow_origin: vec3f, s
     var hit = Hit(t_max, 0.0, 0.0, NO_HIT);
     var hit_triangle = TrianglePositions(vec3f(0.0), vec3f(1.0, 0.0, 0.0), vec3f(0.0, 1.0, 0.0));
     var occluded = !trace_shadow;
-    let node_count = arrayLength(&bvh_nodes) / NODE_WORDS;
+    let node_count = bvh_node_count();
+    // Start of the node copy of the walk's order (copy 0 when the buffer holds only one).
+    let ordering = node_count * (packet_octant(dir) % bvh_orderings());
     var index = 0u;
     var loop_passes = 0u;
     loop {
         loop_passes += 1u;
         if index >= node_count { break; }
-        let node = bvh_node(index);
+        let node = bvh_node(ordering + index);
         let enter = packet_any(box_hit(node.lo, node.hi, ray, hit.t)
                                || (!occluded && box_hit(node.lo, node.hi, shadow_ray, shadow_length)));
         let first = node.triangles >> LEAF_COUNT_BITS;

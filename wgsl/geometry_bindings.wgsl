@@ -1,6 +1,10 @@
 // Bind group 0: the scene's geometry as wgpu_rt/scene/geometry.py lays it out, and the records the
 // two traversal modules (traversal_lanes.wgsl, traversal_subgroup.wgsl) fetch from it for bvh.wgsl.
-// Buffers are read as flat 32-bit words so that a subgroup can fetch one record cooperatively.
+// Buffers are read as flat 32-bit words so that a subgroup can fetch one record cooperatively; the
+// nodes and triangle positions through bvh_word / position_word of geometry_words.wgsl (storage
+// buffers), which wgpu_rt.scene.geometry swaps for geometry_words_uniform.wgsl when they fit.
+
+// #import geometry_words.wgsl
 
 const NODE_WORDS: u32 = 8u;        // wgpu_rt.bvh.THREADED_NODE_DTYPE
 const TRIANGLE_WORDS: u32 = 12u;   // three (x, y, z, unused) vertices
@@ -14,13 +18,17 @@ struct BvhNode { lo: vec3f, skip: u32, hi: vec3f, triangles: u32 }
 struct TrianglePositions { a: vec3f, b: vec3f, c: vec3f }
 struct TriAttributes { n0: vec3f, material: u32, n1: vec3f, object: u32, n2: vec3f, _pad: u32 }
 
-@group(0) @binding(0) var<storage, read> bvh_nodes: array<u32>;             // NODE_WORDS per node
-@group(0) @binding(1) var<storage, read> tri_positions: array<f32>;         // TRIANGLE_WORDS per triangle
 @group(0) @binding(2) var<storage, read> tri_attributes: array<TriAttributes>;
 @group(0) @binding(3) var<storage, read> object_motion: array<mat4x4f>;     // world now → world previous frame
+
+// Bit k set where dir's component k is negative: the node copy (wgpu_rt.bvh.ordered_threaded_nodes)
+// whose order suits rays of that direction.
+fn direction_octant(dir: vec3f) -> u32 {
+    return select(0u, 1u, dir.x < 0.0) | select(0u, 2u, dir.y < 0.0) | select(0u, 4u, dir.z < 0.0);
+}
 
 // Vertex k of triangle `prim`, read by this invocation alone.
 fn triangle_vertex(prim: u32, k: u32) -> vec3f {
     let at = TRIANGLE_WORDS * prim + 4u * k;
-    return vec3f(tri_positions[at], tri_positions[at + 1u], tri_positions[at + 2u]);
+    return vec3f(position_word(at), position_word(at + 1u), position_word(at + 2u));
 }

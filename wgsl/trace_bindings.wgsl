@@ -2,12 +2,7 @@
 // kernel; layouts mirror wgpu_rt/trace/scene_data.py (FrameParams, Material, Emitter records).
 // Output planes are planar (channel-major): channel c of pixel i lives at c·pixel_count + i.
 
-// #import material.wgsl
-
-const EMITTER_TRIANGLE: u32 = 0u;
-const EMITTER_POINT: u32 = 1u;
-const EMITTER_DIRECTIONAL: u32 = 2u;
-const EMITTER_BACKGROUND: u32 = 3u;
+// #import shading_tables_storage.wgsl
 
 struct FrameParams {
     camera_origin: vec3f,
@@ -34,26 +29,7 @@ struct FrameParams {
     pad1: u32,
 }
 
-// One entry of the emitter table. Sampling picks an entry through its alias-table fields in O(1):
-// take i = floor(u·N); keep i if frac(u·N) < alias_threshold, else use alias_index.
-struct Emitter {
-    position: vec3f,      // triangle: vertex 0; point light: position
-    kind: u32,
-    edge1: vec3f,         // triangle: v1 - v0; directional light: direction of travel
-    pmf: f32,             // probability that sampling picks this entry
-    edge2: vec3f,         // triangle: v2 - v0
-    area: f32,
-    radiance: vec3f,      // radiance, intensity or irradiance by kind
-    alias_threshold: f32,
-    alias_index: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
-}
-
 @group(1) @binding(0) var<uniform> params: FrameParams;
-@group(1) @binding(1) var<storage, read> materials: array<Material>;
-@group(1) @binding(2) var<storage, read> emitters: array<Emitter>;
 @group(1) @binding(3) var<storage, read> triangle_emitter_density: array<f32>;  // per triangle: its entry's pmf / area, 0 if none
 @group(1) @binding(4) var<storage, read> sample_counts: array<u32>;      // per pixel (adaptive passes)
 

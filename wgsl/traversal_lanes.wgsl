@@ -10,11 +10,16 @@ fn packet_any(x: bool) -> bool {
     return x;
 }
 
+// The octant of the ray's direction (bit k: component k negative), which picks the walk's node order.
+fn packet_octant(dir: vec3f) -> u32 {
+    return direction_octant(dir);
+}
+
 fn bvh_node(index: u32) -> BvhNode {
     let at = NODE_WORDS * index;
-    return BvhNode(bitcast<vec3f>(vec3u(bvh_nodes[at], bvh_nodes[at + 1u], bvh_nodes[at + 2u])), bvh_nodes[at + 3u],
-                   bitcast<vec3f>(vec3u(bvh_nodes[at + 4u], bvh_nodes[at + 5u], bvh_nodes[at + 6u])),
-                   bvh_nodes[at + 7u]);
+    return BvhNode(bitcast<vec3f>(vec3u(bvh_word(at), bvh_word(at + 1u), bvh_word(at + 2u))), bvh_word(at + 3u),
+                   bitcast<vec3f>(vec3u(bvh_word(at + 4u), bvh_word(at + 5u), bvh_word(at + 6u))),
+                   bvh_word(at + 7u));
 }
 
 fn bvh_triangle(prim: u32) -> TrianglePositions {

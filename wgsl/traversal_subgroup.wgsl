@@ -22,8 +22,14 @@ fn packet_any(x: bool) -> bool {
     return subgroupAny(x);
 }
 
+// The octant of the packet's summed direction (bit k: component k negative): the whole subgroup walks
+// one node order, the one that suits its rays on average.
+fn packet_octant(dir: vec3f) -> u32 {
+    return direction_octant(subgroupAdd(dir));
+}
+
 fn bvh_node(index: u32) -> BvhNode {
-    let word = bvh_nodes[NODE_WORDS * index + traversal_lane];
+    let word = bvh_word(NODE_WORDS * index + traversal_lane);
     return BvhNode(
         bitcast<vec3f>(vec3u(subgroupBroadcast(word, 0u), subgroupBroadcast(word, 1u), subgroupBroadcast(word, 2u))),
         subgroupBroadcast(word, 3u),
@@ -33,8 +39,8 @@ fn bvh_node(index: u32) -> BvhNode {
 
 fn bvh_triangle(prim: u32) -> TrianglePositions {
     let at = TRIANGLE_WORDS * prim;
-    let head = tri_positions[at + traversal_lane];          // words 0..7: vertex a, vertex b
-    let tail = tri_positions[at + 8u + (traversal_lane & 3u)];   // words 8..11: vertex c
+    let head = position_word(at + traversal_lane);          // words 0..7: vertex a, vertex b
+    let tail = position_word(at + 8u + (traversal_lane & 3u));   // words 8..11: vertex c
     return TrianglePositions(
         vec3f(subgroupBroadcast(head, 0u), subgroupBroadcast(head, 1u), subgroupBroadcast(head, 2u)),
         vec3f(subgroupBroadcast(head, 4u), subgroupBroadcast(head, 5u), subgroupBroadcast(head, 6u)),

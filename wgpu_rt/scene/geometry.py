@@ -2,7 +2,8 @@
 
 See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/geometry_bindings.wgsl:
 
-0. ``bvh_nodes``: the BVH's 32-byte threaded nodes (``wgpu_rt.bvh.threaded_nodes``).
+0. ``bvh_nodes``: the BVH's 32-byte threaded nodes, one depth-first copy per direction octant
+   (``wgpu_rt.bvh.ordered_threaded_nodes``).
 1. ``tri_positions``: three vec4f per triangle (xyz = world vertex, w = 0).
 2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, pad}`` (48 bytes): the three
    world-space shading normals (the mesh's vertex normals, else its face normal) and the ids.
@@ -17,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import shaders
-from ..bvh import Bvh, build_bvh, threaded_nodes
+from ..bvh import ORDERINGS, THREADED_NODE_DTYPE, Bvh, build_bvh, ordered_threaded_nodes
 from ..errors import SceneError
 from .model import Scene
 from .transforms import transform_normals, transform_points
@@ -77,7 +78,14 @@ class GeometryBuffers:
     def triangle_count(self) -> int:
         return len(self.triangles)
 
-    def packed_arrays(self) -> list[np.ndarray]:
+    def orderings(self, ctx) -> int:
+        """Direction-ordered node copies to upload: ORDERINGS, or 1 (the walk then takes copy 0 for every
+        direction: correct, just less culling) when ORDERINGS copies exceed one storage binding."""
+        node_bytes = self.bvh.node_count * THREADED_NODE_DTYPE.itemsize
+        limit = min(ctx.limits["max-storage-buffer-binding-size"], ctx.limits["max-buffer-size"])
+        return ORDERINGS if ORDERINGS * node_bytes <= limit else 1
+
+    def packed_arrays(self, orderings: int = ORDERINGS) -> list[np.ndarray]:
         """The four arrays of bind group 0, laid out byte for byte as wgsl/bvh.wgsl reads them."""
         count = self.triangle_count
         positions = np.zeros((count, 3, 4), np.float32)
@@ -87,16 +95,37 @@ class GeometryBuffers:
         attributes_u32 = attributes.view(np.uint32)
         attributes_u32[:, 3], attributes_u32[:, 7] = self.material_ids, self.object_ids
         column_major = np.ascontiguousarray(np.transpose(self.object_motion, (0, 2, 1)))
-        return [threaded_nodes(self.bvh), positions, attributes, column_major]
+        return [ordered_threaded_nodes(self.bvh, orderings), positions, attributes, column_major]
 
-    def upload(self, ctx) -> list:
-        """GPU storage buffers in binding order 0..3 of group 0 (DeviceLimitError if one is too big)."""
+    @property
+    def fits_uniform(self) -> bool:
+        """Whether the nodes and positions fit UNIFORM_GEOMETRY_WORDS' buffers."""
+        node_bytes = ORDERINGS * self.bvh.node_count * THREADED_NODE_DTYPE.itemsize
+        return max(node_bytes, self.triangle_count * POSITION_BYTES) <= UNIFORM_GEOMETRY_BYTES
+
+    def upload(self, ctx, uniform_words: bool = False) -> list:
+        """GPU buffers in binding order 0..3 of group 0 (DeviceLimitError if one is too big): all storage,
+        or (``uniform_words``, for kernels composed with UNIFORM_GEOMETRY_WORDS) the nodes and positions
+        in zero-padded uniform buffers."""
         labels = ("BVH nodes", "triangle positions", "triangle attributes", "object motion")
-        arrays = self.packed_arrays()
+        arrays = self.packed_arrays(self.orderings(ctx))
         for array, label in zip(arrays, labels):
             ctx.check_buffer_size(array.nbytes, f"{label} ({self.triangle_count} triangles)")
-        return [ctx.upload(array, label=label) for array, label in zip(arrays, labels)]
+        buffers = [ctx.upload(array, label=label) for array, label in zip(arrays[2:], labels[2:])]
+        if not uniform_words:
+            return [ctx.upload(array, label=label) for array, label in zip(arrays[:2], labels[:2])] + buffers
+        if not self.fits_uniform:
+            raise ValueError(f"{self.triangle_count} triangles exceed the uniform geometry buffers")
+        words = [array.tobytes().ljust(UNIFORM_GEOMETRY_BYTES, b"\0") for array in arrays[:2]]
+        return [ctx.uniform(data, label=label) for data, label in zip(words, labels[:2])] + buffers
 
+
+# geometry_bindings.wgsl imports GEOMETRY_WORDS (storage); kernels whose geometry fits may swap in
+# UNIFORM_GEOMETRY_WORDS (uniform buffers of UNIFORM_GEOMETRY_BYTES each, its array sizes).
+GEOMETRY_WORDS = "geometry_words.wgsl"
+UNIFORM_GEOMETRY_WORDS = "geometry_words_uniform.wgsl"
+UNIFORM_GEOMETRY_BYTES = 65536
+POSITION_BYTES = 48      # three vec4f per triangle
 
 # The kernels import traversal_lanes.wgsl; traversal_module() may swap in this one.
 LANES_TRAVERSAL = "traversal_lanes.wgsl"
@@ -115,6 +144,8 @@ def traversal_module(ctx) -> str:
     return LANES_TRAVERSAL
 
 
-def compose_with_traversal(ctx, kernel: str, module: str | None = None) -> str:
-    """WGSL of ``kernel`` (which imports bvh.wgsl) with ``module`` (default: traversal_module(ctx))."""
-    return shaders.compose(kernel, replacements={LANES_TRAVERSAL: module or traversal_module(ctx)})
+def compose_with_traversal(ctx, kernel: str, module: str | None = None, replacements: dict | None = None) -> str:
+    """WGSL of ``kernel`` (which imports bvh.wgsl) with ``module`` (default: traversal_module(ctx)) and
+    any further module ``replacements`` (shaders.compose)."""
+    return shaders.compose(kernel, replacements={**(replacements or {}),
+                                                 LANES_TRAVERSAL: module or traversal_module(ctx)})

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..render_pass import ALBEDO, DEPTH, MOTION, NORMAL, RADIANCE, SPP, ComputePass, FrameBuffers, PlaneSpec  # noqa: F401 (G-buffer specs re-exported)
-from ..scene.geometry import compose_with_traversal, scene_material_names
+from ..scene.geometry import GEOMETRY_WORDS, UNIFORM_GEOMETRY_WORDS, compose_with_traversal, scene_material_names
 from ..scene.model import Scene
 from .features import SceneFeatures
 from .scene_data import FRAME_PARAMS_DTYPE, build_emitter_table, camera_vectors, pack_materials
@@ -24,20 +24,43 @@ TILE = 8   # a workgroup traces TILE × TILE pixels (wgsl/trace.wgsl)
 KERNEL = "trace.wgsl"
 
 
-def trace_kernel_source(ctx, traversal: str | None = None) -> str:
+STORAGE_TABLES = "shading_tables_storage.wgsl"   # what trace_bindings.wgsl imports
+UNIFORM_TABLES = "shading_tables_uniform.wgsl"
+# Records per table in UNIFORM_TABLES (its array sizes): 16 KiB of materials, 40 KiB of emitters.
+UNIFORM_TABLE_CAPACITY = {"materials": 256, "emitters": 512}
+
+
+@dataclass(frozen=True)
+class BufferPlacement:
+    """Which tables the kernel reads from uniform buffers rather than storage buffers (cheaper reads at
+    per-invocation indices on lavapipe, but of fixed capacity): the material and emitter tables
+    (``tables``, UNIFORM_TABLE_CAPACITY) and the BVH nodes and triangle positions (``geometry``,
+    wgpu_rt.scene.geometry.UNIFORM_GEOMETRY_BYTES)."""
+
+    tables: bool = False
+    geometry: bool = False
+
+
+def trace_kernel_source(ctx, traversal: str | None = None, placement: BufferPlacement = BufferPlacement()) -> str:
     """The kernel with the traversal module ``traversal`` (default: the one that suits ``ctx``'s
-    adapter, wgpu_rt.scene.geometry.traversal_module)."""
-    return compose_with_traversal(ctx, KERNEL, traversal)
+    adapter, wgpu_rt.scene.geometry.traversal_module) and the buffer ``placement``."""
+    replacements = {}
+    if placement.tables:
+        replacements[STORAGE_TABLES] = UNIFORM_TABLES
+    if placement.geometry:
+        replacements[GEOMETRY_WORDS] = UNIFORM_GEOMETRY_WORDS
+    return compose_with_traversal(ctx, KERNEL, traversal, replacements=replacements)
 
 
-def trace_layout(ctx, geometry_bindings: int):
+def trace_layout(ctx, geometry_bindings: int, placement: BufferPlacement = BufferPlacement()):
     """The kernel's pipeline layout, spelled out: "auto" would drop the bindings that a specialization
     no longer reads, and then one set of bind groups could not serve every specialization.
-    Group 0 is the geometry's read-only storage buffers, group 1 the frame uniform and four read-only
-    tables, group 2 the six output planes."""
+    Group 0 is the geometry's buffers (read-only storage; the first two uniform with
+    ``placement.geometry``), group 1 the frame uniform, the material and emitter tables (uniform or
+    read-only storage) and two read-only tables, group 2 the six output planes."""
     import wgpu
 
-    key = (id(ctx.device), geometry_bindings)
+    key = (id(ctx.device), geometry_bindings, placement)
     if key not in _layouts:
         def group(kinds):
             return ctx.device.create_bind_group_layout(entries=[
@@ -45,9 +68,11 @@ def trace_layout(ctx, geometry_bindings: int):
                 for i, kind in enumerate(kinds)])
 
         read_only, uniform = wgpu.BufferBindingType.read_only_storage, wgpu.BufferBindingType.uniform
+        tables = uniform if placement.tables else read_only
+        words = uniform if placement.geometry else read_only
         _layouts[key] = ctx.device.create_pipeline_layout(bind_group_layouts=[
-            group([read_only] * geometry_bindings),
-            group([uniform] + [read_only] * 4),
+            group([words] * 2 + [read_only] * (geometry_bindings - 2)),
+            group([uniform, tables, tables, read_only, read_only]),
             group([wgpu.BufferBindingType.storage] * len(TracePass.outputs))])
     return _layouts[key]
 
@@ -55,10 +80,24 @@ def trace_layout(ctx, geometry_bindings: int):
 _layouts: dict = {}
 
 
-def trace_pipeline(ctx, features: SceneFeatures, geometry_bindings: int, traversal: str | None = None):
+def trace_pipeline(ctx, features: SceneFeatures, geometry_bindings: int, traversal: str | None = None,
+                   placement: BufferPlacement = BufferPlacement()):
     """The kernel specialized to ``features`` (pipelines are cached by GpuContext)."""
-    return ctx.compute_pipeline(trace_kernel_source(ctx, traversal), "main", constants=features.constants(),
-                                label=f"trace {features}", layout=trace_layout(ctx, geometry_bindings))
+    return ctx.compute_pipeline(trace_kernel_source(ctx, traversal, placement), "main",
+                                constants=features.constants(), label=f"trace {features}",
+                                layout=trace_layout(ctx, geometry_bindings, placement))
+
+
+def tables_fit_uniform(material_count: int, emitter_count: int) -> bool:
+    """Whether a scene's shading tables fit UNIFORM_TABLES."""
+    return (material_count <= UNIFORM_TABLE_CAPACITY["materials"]
+            and emitter_count <= UNIFORM_TABLE_CAPACITY["emitters"])
+
+
+def _padded(records: np.ndarray, capacity: int) -> np.ndarray:
+    padded = np.zeros(capacity, records.dtype)
+    padded[:len(records)] = records
+    return padded
 
 
 @dataclass
@@ -78,15 +117,26 @@ class TracePass(ComputePass):
 
     def __init__(self, ctx, scene: Scene, geometry, width: int, height: int, frame: int = 0,
                  max_depth: int = 8, seed: int = 0, features: SceneFeatures | None = None,
-                 chunk_size: int | None = None, traversal: str | None = None):
+                 chunk_size: int | None = None, traversal: str | None = None,
+                 placement: BufferPlacement | None = None):
         """``traversal``: the BVH traversal module (tests and benchmarks compare them; default: the
-        adapter's, wgpu_rt.scene.geometry.traversal_module)."""
+        adapter's, wgpu_rt.scene.geometry.traversal_module). ``placement``: which tables live in
+        uniform buffers (default: each that fits)."""
         if max_depth < 1:
             raise ValueError(f"max_depth must be at least 1, got {max_depth}")
         self.ctx, self.width, self.height = ctx, width, height
         self.features = features or SceneFeatures.of(scene)
-        geometry_buffers = geometry.upload(ctx)
-        self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal)
+        materials = [scene.materials[n] for n in scene_material_names(scene)]
+        triangle_materials = [materials[i] for i in geometry.material_ids]
+        emitters = build_emitter_table(scene, geometry.triangles, triangle_materials,
+                                       _scene_radius(geometry.triangles))
+        fitting = BufferPlacement(tables=tables_fit_uniform(len(materials), emitters.count),
+                                  geometry=geometry.fits_uniform)
+        self.placement = placement or fitting
+        if (self.placement.tables and not fitting.tables) or (self.placement.geometry and not fitting.geometry):
+            raise ValueError(f"{self.placement} asks for uniform buffers beyond their capacity ({fitting} fit)")
+        geometry_buffers = geometry.upload(ctx, uniform_words=self.placement.geometry)
+        self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement)
         # Enough samples per dispatch to keep the device busy and the tail short (a subgroup runs until
         # its last invocation has traced its last path: ~11% idle turns at 16 samples, 15% at 8 on
         # cornell); few enough to stay around a second on lavapipe and well within the kernel's
@@ -94,14 +144,17 @@ class TracePass(ComputePass):
         self.chunk_size = chunk_size or max(1, min(16, (1 << 20) // (width * height)))
         self.schedule = SampleSchedule()
 
-        materials = [scene.materials[n] for n in scene_material_names(scene)]
-        triangle_materials = [materials[i] for i in geometry.material_ids]
-        radius = _scene_radius(geometry.triangles)
-        emitters = build_emitter_table(scene, geometry.triangles, triangle_materials, radius)
         self._params = self._frame_params(scene, frame, max_depth, seed, emitters)
         self._geometry_group = ctx.bind_group(self.pipeline, geometry_buffers, group=0)
-        self._materials = ctx.upload(pack_materials(materials), label="materials")
-        self._emitters = ctx.upload(emitters.records, label="emitters")
+        material_records = pack_materials(materials)
+        if self.placement.tables:
+            self._materials = ctx.uniform(_padded(material_records, UNIFORM_TABLE_CAPACITY["materials"]).tobytes(),
+                                          label="materials")
+            self._emitters = ctx.uniform(_padded(emitters.records, UNIFORM_TABLE_CAPACITY["emitters"]).tobytes(),
+                                         label="emitters")
+        else:
+            self._materials = ctx.upload(material_records, label="materials")
+            self._emitters = ctx.upload(emitters.records, label="emitters")
         self._triangle_density = ctx.upload(emitters.triangle_density, label="triangle emitter densities")
         self._no_counts = ctx.storage(16, label="no sample counts")
 
