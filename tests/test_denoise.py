@@ -77,7 +77,13 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
 
 
-@pytest.mark.parametrize("network", ["denoiser", "error-predictor", "confidence"])
+def _residual_unet_with_a_nonzero_correction():
+    net = UNet(widths=(8, 16), residual=True)
+    torch.nn.init.normal_(net.head.weight, std=0.1)   # a zero head would hide the correction's path
+    return net
+
+
+@pytest.mark.parametrize("network", ["denoiser", "residual-denoiser", "error-predictor", "confidence"])
 def test_exported_models_run_in_the_wgsl_engine_with_parity(network, gpu, tmp_path):
     pytest.importorskip("wgpu_rt.nn")
     import onnxruntime
@@ -87,6 +93,7 @@ def test_exported_models_run_in_the_wgsl_engine_with_parity(network, gpu, tmp_pa
 
     torch.manual_seed(1)
     net = {"denoiser": lambda: UNet(widths=(8, 16)), "error-predictor": ErrorPredictor,
+           "residual-denoiser": _residual_unet_with_a_nonzero_correction,
            "confidence": ConfidencePredictor}[network]()
     path = export_onnx(net, tmp_path / "m.onnx")
     session = onnxruntime.InferenceSession(str(path), providers=["CPUExecutionProvider"])

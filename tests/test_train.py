@@ -43,9 +43,61 @@ def test_denoiser_loss_is_zero_only_at_the_target_and_differentiable():
     assert float(loss.detach()) > 0 and torch.isfinite(guess.grad).all() and guess.grad.abs().sum() > 0
 
 
+def test_display_mapping_matches_the_metrics_one():
+    from wgpu_rt.metrics import to_display
+    from wgpu_rt.train.losses import log_to_display
+
+    log_color = np.array([0.0, 0.01, 0.3, 1.0, 3.0, 9.0])
+    np.testing.assert_allclose(log_to_display(torch.from_numpy(log_color)).numpy(), to_display(np.expm1(log_color)),
+                               atol=6e-3)
+    assert float(log_to_display(torch.tensor(-1.0))) == 0.0
+
+
+def test_display_space_loss_is_zero_only_at_the_target_and_has_gradients_at_black():
+    target = torch.rand(2, 3, 16, 16)
+    assert float(denoiser_loss(target, target, ssim_space="display")) == pytest.approx(0.0, abs=1e-6)
+    guess = torch.zeros_like(target).requires_grad_()
+    denoiser_loss(guess, target, ssim_space="display").backward()
+    assert torch.isfinite(guess.grad).all() and guess.grad.abs().sum() > 0
+
+
 def test_curriculum_goes_16_then_4_then_1():
     assert [curriculum_spp(p, [1, 4, 16]) for p in (0.0, 0.3, 0.4, 0.6, 0.7, 0.99)] == [16, 16, 4, 4, 1, 1]
     assert curriculum_spp(0.0, [1, 4]) == 4
+
+
+def test_curriculum_stages_can_be_weighted():
+    stages = (16, 4, 1, 1)
+    assert [curriculum_spp(p, [1, 4, 16], stages) for p in (0.0, 0.3, 0.49, 0.5, 0.99)] == [16, 4, 4, 1, 1]
+
+
+def test_residual_unet_adds_its_correction_to_the_input_colour():
+    from wgpu_rt.networks import UNet
+
+    torch.manual_seed(3)
+    net = UNet(widths=(4, 8), residual=True).eval()
+    x = torch.rand(1, 10, 16, 16)
+    with torch.no_grad():
+        np.testing.assert_array_equal(net(x).numpy(), x[:, :3].numpy())   # zero-initialised correction
+        torch.nn.init.normal_(net.head.weight)
+        correction = UNet(widths=(4, 8))
+        correction.load_state_dict({k: v for k, v in net.state_dict().items() if k != "input_selector"})
+        np.testing.assert_allclose(net(x).numpy(), (x[:, :3] + correction(x)).numpy(), atol=1e-6)
+
+
+def test_extra_data_joins_training_and_validation_but_never_its_test_split(tiny_dataset, tmp_path):
+    extra = tmp_path / "extra"
+    TruthEngine(DatasetConfig(scenes=("cornell",), views=10, size=24, spp=(1, 4, 16), gold=32, seed=1,
+                              sequence_fraction=0.0), extra, renderer=fake_render).run(progress=False)
+    base = dict(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), widths=(4, 8))
+    alone = Trainer(TrainConfig(**base), progress=False)
+    joined = Trainer(TrainConfig(extra_data=(str(extra),), **base), progress=False)
+    splits = lambda samples: [v.split for v in samples.views]  # noqa: E731
+    assert len(joined.train_set.views) == len(alone.train_set.views) + 8
+    assert len(joined.val_set.views) == len(alone.val_set.views) + 1
+    assert set(splits(joined.train_set)) == {"train"} and set(splits(joined.val_set)) == {"val"}
+    card = joined.model_card()   # names both folders
+    assert f"`{tiny_dataset}`" in card and f"`{extra}`" in card
 
 
 def test_roc_auc_against_brute_force_pair_counting():

@@ -6,6 +6,8 @@ HELP = "train the denoiser, error predictor or confidence model on a dataset and
 def add_arguments(parser) -> None:
     parser.add_argument("task", choices=["denoiser", "error-predictor", "confidence"])
     parser.add_argument("--data", required=True, help="dataset folder from `wgpu-rt dataset`")
+    parser.add_argument("--extra-data", nargs="+", default=(), metavar="DIR",
+                        help="more dataset folders whose train/val splits join training/validation")
     parser.add_argument("--out", default="models", help="where the .onnx and .md go (default: %(default)s)")
     parser.add_argument("--epochs", type=int, default=20, help="default: %(default)s")
     parser.add_argument("--batch", type=int, default=4, help="default: %(default)s")
@@ -14,7 +16,13 @@ def add_arguments(parser) -> None:
                         help="random crop size range in pixels (default: 128 256)")
     parser.add_argument("--widths", type=int, nargs="+", default=(32, 64, 128),
                         help="denoiser UNet level widths (default: 32 64 128)")
+    parser.add_argument("--residual", action="store_true",
+                        help="denoiser predicts a correction to its noisy input's log1p colour")
+    parser.add_argument("--curriculum", type=int, nargs="+", default=(16, 4, 1), metavar="SPP",
+                        help="denoiser input spp per equal share of the epochs (default: 16 4 1)")
     parser.add_argument("--pixel-loss", choices=["l1", "charbonnier"], default="l1")
+    parser.add_argument("--ssim-space", choices=["log", "display"], default="log",
+                        help="denoiser SSIM term on log1p colour or on the metrics' display values")
     parser.add_argument("--max-views", type=int, help="use at most this many views per split")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--checkpoints", help="checkpoint folder (default: OUT/checkpoints)")
@@ -27,8 +35,11 @@ def run(args) -> int:
 
     config = TrainConfig(task=args.task, data=args.data, out=args.out, epochs=args.epochs, batch=args.batch,
                          lr=args.lr, seed=args.seed, crop_min=args.crop[0], crop_max=args.crop[1],
-                         pixel_loss=args.pixel_loss, widths=tuple(args.widths), resume=args.resume,
-                         max_views=args.max_views, checkpoints=args.checkpoints)
+                         pixel_loss=args.pixel_loss, ssim_space=args.ssim_space,
+                         widths=tuple(args.widths), residual=args.residual,
+                         curriculum=tuple(args.curriculum), resume=args.resume,
+                         extra_data=tuple(args.extra_data), max_views=args.max_views,
+                         checkpoints=args.checkpoints)
     summary = train(config, progress=not args.quiet)
     metrics = ", ".join(f"{k} {v:.4g}" for k, v in summary["metrics"].items() if isinstance(v, float))
     print(f"wrote {summary['onnx']} and {summary['card']} ({summary['seconds'] / 60:.1f} min); {metrics}")

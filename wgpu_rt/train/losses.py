@@ -4,7 +4,9 @@ SSIM is the standard one of Wang et al. (2004): an 11×11 Gaussian window with �
 C1 = (0.01·L)², C2 = (0.03·L)² with L = 1, local statistics by a depthwise convolution, zero padding
 avoided by computing only the 'valid' region (as scikit-image with its defaults crops the border).
 The denoiser is trained on log1p colour, where values mostly stay in [0, 2], so L = 1 keeps the
-constants in the usual proportion.
+constants in the usual proportion. Its SSIM term can instead be taken on display values (``display``:
+the Reinhard + gamma 2.2 mapping of wgpu_rt.metrics, which weighs dark regions far more than log1p
+does), so training optimises what the benchmarks score.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ SSIM_WINDOW = 11
 SSIM_SIGMA = 1.5
 SSIM_WEIGHT = 0.8
 CHARBONNIER_EPSILON = 1e-3
+DISPLAY_GAMMA = 2.2
+DISPLAY_EPSILON = 1e-5      # keeps the gamma curve's slope finite at black
 
 
 def _gaussian_window(channels: int, dtype, device) -> torch.Tensor:
@@ -44,7 +48,18 @@ def charbonnier(x: torch.Tensor, y: torch.Tensor, epsilon: float = CHARBONNIER_E
     return torch.sqrt((x - y) ** 2 + epsilon ** 2).mean()
 
 
-def denoiser_loss(prediction: torch.Tensor, target: torch.Tensor, pixel_loss: str = "l1") -> torch.Tensor:
-    """0.8·(1 − SSIM) + 0.2·(L1 or Charbonnier), both on log1p colour."""
+def log_to_display(log_color: torch.Tensor) -> torch.Tensor:
+    """log1p radiance y → metrics.to_display(expm1(y)) = (1 − e^−y)^(1/2.2), with y clamped at 0 (a
+    negative prediction is black on screen; the pixel term still pulls it up)."""
+    reinhard = 1.0 - torch.exp(-log_color.clamp_min(0.0))
+    return (reinhard + DISPLAY_EPSILON) ** (1.0 / DISPLAY_GAMMA) - DISPLAY_EPSILON ** (1.0 / DISPLAY_GAMMA)
+
+
+def denoiser_loss(prediction: torch.Tensor, target: torch.Tensor, pixel_loss: str = "l1",
+                  ssim_space: str = "log") -> torch.Tensor:
+    """0.8·(1 − SSIM) + 0.2·(L1 or Charbonnier): the pixel term on log1p colour, SSIM on log1p colour or
+    (``ssim_space="display"``) on display values."""
     pixel = charbonnier(prediction, target) if pixel_loss == "charbonnier" else F.l1_loss(prediction, target)
+    if ssim_space == "display":
+        prediction, target = log_to_display(prediction), log_to_display(target)
     return SSIM_WEIGHT * (1.0 - ssim(prediction, target)) + (1.0 - SSIM_WEIGHT) * pixel

@@ -10,7 +10,7 @@ normalisation sees the frame's true max depth, as at runtime), then cropped and 
 - one of the 8 flips/90° rotations;
 - small Gaussian noise on the auxiliary channels (albedo, normal, depth), so the network does not
   trust G-buffers blindly;
-- for the denoiser, a curriculum over sample counts: 16 spp first, then 4, then 1.
+- for the denoiser, a curriculum over sample counts: 16 spp first, then 4, then 1 (configurable).
 """
 
 from __future__ import annotations
@@ -126,7 +126,7 @@ def samples_for(task: str, views: list[View]) -> TaskSamples:
 
 
 def curriculum_spp(progress: float, available: list[int], stages: tuple[int, ...] = (16, 4, 1)) -> int:
-    """The sample count for training ``progress`` ∈ [0, 1): equal thirds of 16, 4 and 1 spp (stages
-    the dataset lacks are skipped)."""
+    """The sample count for training ``progress`` ∈ [0, 1): equal shares of ``stages`` (by default
+    thirds of 16, 4 and 1 spp; repeat a stage to give it more); stages the dataset lacks are skipped."""
     usable = [s for s in stages if s in available] or [min(available)]
     return usable[min(int(progress * len(usable)), len(usable) - 1)]

@@ -38,10 +38,14 @@ class TrainConfig:
     batch: int = 4
     lr: float = 1e-3
     seed: int = 0
+    extra_data: tuple[str, ...] = ()     # more datasets: their train/val splits join ours (never test)
     crop_min: int = 128
     crop_max: int = 256
     pixel_loss: str = "l1"               # or "charbonnier"
+    ssim_space: str = "log"              # or "display" (the metrics' Reinhard + gamma mapping)
     widths: tuple[int, ...] = (32, 64, 128)
+    residual: bool = False               # denoiser predicts a correction to its noisy input
+    curriculum: tuple[int, ...] = (16, 4, 1)   # denoiser spp per equal share of the epochs
     grad_clip: float = 1.0
     resume: bool = False
     max_views: int | None = None
@@ -56,7 +60,7 @@ def build_model(config: TrainConfig):
     from ..networks import ConfidencePredictor, ErrorPredictor, UNet
 
     if config.task == "denoiser":
-        return UNet(widths=tuple(config.widths))
+        return UNet(widths=tuple(config.widths), residual=config.residual)
     return ErrorPredictor() if config.task == "error-predictor" else ConfidencePredictor()
 
 
@@ -94,12 +98,14 @@ class Trainer:
         self.config, self.progress = config, progress
         if config.task not in MODEL_FILES:
             raise TrainingError(f"unknown task {config.task!r}; expected one of {sorted(MODEL_FILES)}")
-        self.train_set = samples_for(config.task, load_views(config.data, "train", config.max_views))
-        self.val_set = samples_for(config.task, load_views(config.data, "val", config.max_views))
+        folders = (config.data, *config.extra_data)
+        self.train_set, self.val_set = (
+            samples_for(config.task, [v for folder in folders for v in load_views(folder, split, config.max_views)])
+            for split in ("train", "val"))
         for name, subset in (("train", self.train_set), ("val", self.val_set)):
             if not subset.items:
                 need = " (the confidence model needs temporal sequences)" if config.task == "confidence" else ""
-                raise TrainingError(f"{config.data}: no {name} samples for {config.task}{need}")
+                raise TrainingError(f"{', '.join(folders)}: no {name} samples for {config.task}{need}")
         torch.manual_seed(config.seed)
         self.model = build_model(config)
         self.multiple = getattr(self.model, "multiple", 1)
@@ -156,7 +162,7 @@ class Trainer:
         from .losses import denoiser_loss
 
         if self.config.task == "denoiser":
-            return denoiser_loss(prediction, target, self.config.pixel_loss)
+            return denoiser_loss(prediction, target, self.config.pixel_loss, self.config.ssim_space)
         if self.config.task == "confidence":
             # Disocclusions (target 0: history invalid) are rare: weight them by the batch's class ratio.
             invalid = (1 - target).mean().clamp(0.01, 0.99)
@@ -194,7 +200,8 @@ class Trainer:
             while self.epoch < self.config.epochs:
                 started = time.perf_counter()
                 order = self.rng.permutation(len(self.train_set.items))
-                spp = curriculum_spp(self.epoch / self.config.epochs, available) if self.config.task == "denoiser" else 1
+                spp = (curriculum_spp(self.epoch / self.config.epochs, available, tuple(self.config.curriculum))
+                       if self.config.task == "denoiser" else 1)
                 losses = []
                 for first in range(0, len(order), self.config.batch):
                     items = [self.train_set.items[i] for i in order[first:first + self.config.batch]]
@@ -254,28 +261,37 @@ class Trainer:
         os.replace(tmp, card)
         return onnx_path, card
 
+    @staticmethod
+    def _dataset_line(folder: str) -> str:
+        from ..dataset.store import read_manifest
+
+        manifest = read_manifest(folder)
+        dataset = manifest["config"]
+        render_minutes = sum(v.get("seconds", 0.0) for v in manifest["views"]) / 60
+        return (f"- dataset `{folder}` (seed {dataset.get('seed')}), rendered by `wgpu-rt dataset` on this machine's "
+                f"adapter: scenes {', '.join(dataset.get('scenes', []))}; {dataset.get('size')}² px; noisy at "
+                f"{dataset.get('spp')} spp; gold at {dataset.get('gold')} spp; max depth {dataset.get('max_depth')}; "
+                f"{len(manifest['views'])} views rendered in {render_minutes:.1f} min")
+
     def model_card(self) -> str:
         from ..dataset.store import read_manifest
 
         cfg = self.config
-        manifest = read_manifest(cfg.data)
-        dataset = manifest["config"]
-        render_minutes = sum(v.get("seconds", 0.0) for v in manifest["views"]) / 60
         last = self.history[-1] if self.history else {}
-        train_views = sorted({self.train_set.views[v].view_id for v, _ in self.train_set.items})
-        val_views = sorted({self.val_set.views[v].view_id for v, _ in self.val_set.items})
+        train_views = {v for v, _ in self.train_set.items}
+        val_views = {v for v, _ in self.val_set.items}
+        gold = min(int(read_manifest(folder)["config"].get("gold", 0)) for folder in (cfg.data, *cfg.extra_data))
         parameters = sum(p.numel() for p in self.model.parameters())
         lines = [
             f"# {cfg.model_name}.onnx — {cfg.task}",
             "",
             f"Trained by `wgpu-rt train {cfg.task}` (wgpu_rt/train). {parameters:,} parameters"
-            + (f", UNet widths {tuple(cfg.widths)}" if cfg.task == "denoiser" else "") + ".",
+            + (f", UNet widths {tuple(cfg.widths)}" + (", residual (output = input log1p RGB + correction)"
+                                                        if cfg.residual else "")
+               if cfg.task == "denoiser" else "") + ".",
             "",
             "## Data",
-            f"- dataset: `{cfg.data}`, rendered by `wgpu-rt dataset` on this machine's adapter",
-            f"- scenes: {', '.join(dataset.get('scenes', []))}; {dataset.get('size')}² px; noisy at "
-            f"{dataset.get('spp')} spp; gold at {dataset.get('gold')} spp; max depth {dataset.get('max_depth')}; "
-            f"{len(manifest['views'])} views rendered in {render_minutes:.1f} min",
+            *(self._dataset_line(folder) for folder in (cfg.data, *cfg.extra_data)),
             f"- training views: {len(train_views)} ({len(self.train_set.items)} samples); validation views "
             f"(never trained on): {len(val_views)} ({len(self.val_set.items)} samples)",
             "",
@@ -286,7 +302,9 @@ class Trainer:
             "exposure jitter ±1 stop, aux-channel noise σ 0.01",
         ]
         if cfg.task == "denoiser":
-            lines.append(f"- loss 0.8·(1 − SSIM) + 0.2·{cfg.pixel_loss} on log1p colour; curriculum 16 → 4 → 1 spp")
+            lines.append(f"- loss 0.8·(1 − SSIM on {cfg.ssim_space} colour) + 0.2·{cfg.pixel_loss} on log1p colour; "
+                         "curriculum "
+                         f"{' → '.join(map(str, cfg.curriculum))} spp (equal shares of the epochs)")
         elif cfg.task == "error-predictor":
             lines.append("- target |log1p(1 spp) − log1p(gold)| / its 99th percentile, clipped to [0, 1]; BCE loss")
         else:
@@ -294,8 +312,8 @@ class Trainer:
                          "warped by exact motion disagrees with gold t+1 (mean |Δlog1p| > 0.1) or comes from off "
                          "screen; class-balanced BCE; ROC AUC scores the mask against 1 − output")
         lines.append(f"- wall time: {self.seconds / 60:.1f} min on {os.cpu_count()} CPU cores (CPU torch)")
-        if int(dataset.get("gold", 0)) < 1024:
-            lines.append(f"- note: gold at {dataset.get('gold')} spp is itself noisy, so it is a soft target and "
+        if gold < 1024:
+            lines.append(f"- note: gold at {gold} spp is itself noisy, so it is a soft target and "
                          "the metrics below are against a noisy reference (a small recipe sized for a 2-core "
                          "machine; rerun examples/train_models.sh with larger VIEWS/SIZE/GOLD for better models)")
         lines += ["",
