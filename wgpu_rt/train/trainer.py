@@ -274,6 +274,8 @@ class Trainer:
                 f"{len(manifest['views'])} views rendered in {render_minutes:.1f} min")
 
     def model_card(self) -> str:
+        import torch
+
         from ..dataset.store import read_manifest
 
         cfg = self.config
@@ -311,7 +313,8 @@ class Trainer:
             lines.append("- target: confidence that history is valid = 1 − mask, the mask being where gold frame t "
                          "warped by exact motion disagrees with gold t+1 (mean |Δlog1p| > 0.1) or comes from off "
                          "screen; class-balanced BCE; ROC AUC scores the mask against 1 − output")
-        lines.append(f"- wall time: {self.seconds / 60:.1f} min on {os.cpu_count()} CPU cores (CPU torch)")
+        lines.append(f"- wall time: {self.seconds / 60:.1f} min, CPU torch with {torch.get_num_threads()} thread(s) "
+                     f"on a {os.cpu_count()}-core machine")
         if gold < 1024:
             lines.append(f"- note: gold at {gold} spp is itself noisy, so it is a soft target and "
                          "the metrics below are against a noisy reference (a small recipe sized for a 2-core "
