@@ -8,8 +8,9 @@ with reprojection, clamping and the Confidence Predictor when the models folder 
 - ghosting: relMSE over disoccluded pixels only (where the warped previous gold frame disagrees with
   the current one: wgpu_rt.train.targets.disocclusion_mask, the Confidence Predictor's target);
 - relMSE over all pixels, for context.
-On a static camera (``cornell``): PSNR of the temporal output after --static-frames frames minus the
-PSNR of one denoised frame. Gold: our own render of each frame at --gold-spp.
+On a static camera (``cornell``): PSNR of the temporal output after --static-frames frames (the tracer
+accumulates 1 spp per frame, the mean is denoised and blended with itself by spp) minus the PSNR of one
+denoised frame. Gold: our own render of each frame at --gold-spp.
 
     python3 benchmarks/bench_temporal.py [--quick] [--size 96x96] [--frames 16] [--gold-spp 4096]
         [--models DIR | --seed-models]

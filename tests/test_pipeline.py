@@ -9,7 +9,7 @@ from wgpu_rt.frame import render_frames
 from wgpu_rt.frame.pipeline import make_pipeline
 from wgpu_rt.frame.adaptive import AdaptiveSettings
 from wgpu_rt.frame.planes import RADIANCE, SPP
-from wgpu_rt.frame.temporal import TemporalSettings
+from wgpu_rt.frame.temporal import TemporalSettings, converge_frame
 from wgpu_rt.frame.tonemap import tonemap
 from wgpu_rt.scene.builtin import builtin_scene
 
@@ -169,6 +169,84 @@ def test_temporal_static_frames_converge(gpu, scene):
     assert np.all(np.isfinite(frames[-1].image))
     error_accumulated = np.abs(frames[-1].image - reference).mean()
     assert error_accumulated < np.abs(single - reference).mean()
+
+
+def traced_one_by_one(gpu, scene, geometry, frames):
+    """Mean radiance and spp of ``frames`` samples per pixel, each traced alone into cleared planes as
+    the pipeline numbers it: frame f's sample is sample f, seeded with f."""
+    from wgpu_rt.render_pass import FrameBuffers
+    from wgpu_rt.trace.trace_pass import SampleSchedule, TracePass
+
+    buffers = FrameBuffers(gpu, W, H)
+    radiance, spp = [], []
+    for frame in range(frames):
+        trace = TracePass(gpu, scene, geometry, W, H, frame=frame, max_depth=3, seed=frame)
+        trace.schedule = SampleSchedule(samples=1, sample_offset=frame)
+        encoder = gpu.device.create_command_encoder()
+        trace.clear(encoder, buffers)
+        trace.execute(encoder, buffers)
+        gpu.device.queue.submit([encoder.finish()])
+        radiance.append(buffers.read(RADIANCE.name).astype(np.float64))
+        spp.append(buffers.read(SPP.name)[0])
+    return np.mean(radiance, axis=0).transpose(1, 2, 0), np.sum(spp, axis=0)
+
+
+def test_temporal_static_camera_accumulates_samples_before_denoising(gpu, scene):
+    """Under a static camera the tracer keeps its planes: frame k denoises the mean of k + 1 samples
+    (not the mean of k + 1 denoised 1-spp frames), so with an identity denoiser its output is that mean;
+    a cut starts again from one sample."""
+    from wgpu_rt.frame.pipeline import FramePipeline
+    from wgpu_rt.scene.geometry import GeometryBuffers
+    from wgpu_rt.trace.trace_pass import TracePass
+
+    geometry = GeometryBuffers.build(scene, 0)
+    pipeline = FramePipeline(gpu, W, H,
+                             lambda f: TracePass(gpu, scene, geometry, W, H, frame=f, max_depth=3, seed=f),
+                             denoiser=IdentityDenoiser(gpu), temporal=TemporalSettings(), output="f32",
+                             operator="none", srgb=False)
+    frames = [pipeline.render(scene, frame) for frame in range(4)]
+    expected, expected_spp = traced_one_by_one(gpu, scene, geometry, 4)
+    assert (expected_spp == 4).all()
+    np.testing.assert_array_equal(pipeline.buffers.read(SPP.name)[0], expected_spp)
+    np.testing.assert_allclose(frames[-1].image[..., :3], expected, rtol=1e-4, atol=1e-5)
+    assert np.abs(frames[-1].image[..., :3] - frames[0].image[..., :3]).max() > 1e-2   # frames differ
+    pipeline.render(scene, 6)                                                          # a cut
+    assert (pipeline.buffers.read(SPP.name)[0] == 1).all()
+
+
+class ZeroDenoiser:
+    """Outputs log1p colour 0 everywhere: the denoised frame is black."""
+
+    def __init__(self, gpu):
+        self.output = gpu.storage(3 * W * H * 4, label="zero output")
+
+    def record(self, encoder, input_buffer, height, width):
+        return self.output
+
+
+def test_temporal_static_camera_fades_the_denoiser_as_samples_grow(gpu, scene):
+    """The converged frame is mix(denoised, sample mean, 1 − 1/√spp): a black denoiser's frame is black
+    at 1 spp and half the 4-spp mean at 4 spp."""
+    pipeline = make_pipeline(scene, denoiser=ZeroDenoiser(gpu), temporal=True, width=W, height=H, max_depth=3,
+                             ctx=gpu, output="f32", operator="none", srgb=False)
+    first = pipeline.render(scene, 0).image[..., :3]
+    assert first.max() == 0
+    for frame in range(1, 4):
+        image = pipeline.render(scene, frame).image[..., :3]
+    radiance = pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0)
+    assert (pipeline.buffers.read(SPP.name) == 4).all() and radiance.max() > 0
+    np.testing.assert_allclose(image, 0.5 * radiance, rtol=1e-5, atol=1e-7)
+    spp = pipeline.buffers.read(SPP.name)[0]
+    np.testing.assert_allclose(image, converge_frame(np.zeros_like(radiance), radiance, spp), rtol=1e-5, atol=1e-7)
+
+
+def test_moving_camera_traces_each_frame_afresh(gpu):
+    """On ``moving`` (camera and a box move every frame) no samples carry over between frames."""
+    moving = builtin_scene("moving")
+    pipeline = make_pipeline(moving, denoise=False, temporal=True, width=W, height=H, max_depth=3, ctx=gpu)
+    for frame in range(3):
+        pipeline.render(moving, frame)
+        assert (pipeline.buffers.read(SPP.name)[0] == 1).all()
 
 
 def test_missing_model_is_named(tmp_path, scene, gpu):

@@ -11,6 +11,11 @@
 //               history), else 1/(length+1); α ≥ 1/MAX_FRAMES, and α = 1 where disoccluded.
 //   accumulate: static camera and scene: no reprojection or clamping, α = max(1/(length+1), 1/MAX_FRAMES)
 //               per pixel (a cleared history, length 0, makes it a reset).
+//   converge:   static view whose tracer planes keep accumulating (the frame pipeline's temporal mode):
+//               the denoised frame of the n-sample mean is blended with that mean itself,
+//               out = mix(denoised, mean, 1 − 1/√n). The denoiser, trained on 1-spp input, keeps its bias
+//               as n grows while the mean's noise falls as 1/√n, so its share fades at the same rate
+//               (n = 1: the denoised frame alone). The result replaces the history (length 1).
 // Every path writes the output plane and the new history; NaN/Inf in the current frame count as 0.
 // #import frame_common.wgsl
 
@@ -29,6 +34,8 @@ override USE_CONFIDENCE: bool = false;
 @group(0) @binding(5) var<storage, read_write> reprojected: array<f32>;
 @group(0) @binding(6) var<storage, read> confidence: array<f32>;
 @group(0) @binding(7) var<storage, read_write> output: array<f32>;
+@group(0) @binding(8) var<storage, read> samples_mean: array<f32>;
+@group(0) @binding(9) var<storage, read> spp: array<u32>;
 
 fn current_color(i: u32) -> vec3f {
     let n = pixel_count();
@@ -149,4 +156,14 @@ fn accumulate(@builtin(global_invocation_id) id: vec3u) {
     let alpha = max(1.0 / (length + 1.0), 1.0 / MAX_FRAMES);
     let previous = vec3f(history_plane(0u, i), history_plane(1u, i), history_plane(2u, i));
     write_result(i, mix(previous, current_color(i), alpha), min(length + 1.0, MAX_FRAMES));
+}
+
+@compute @workgroup_size(8, 8)
+fn converge(@builtin(global_invocation_id) id: vec3u) {
+    if (!in_frame(id)) { return; }
+    let i = pixel_index(id);
+    let n = pixel_count();
+    let mean = vec3f(sanitize(samples_mean[i]), sanitize(samples_mean[n + i]), sanitize(samples_mean[2u * n + i]));
+    let mean_weight = 1.0 - inverseSqrt(max(f32(spp[i]), 1.0));
+    write_result(i, mix(current_color(i), mean, mean_weight), 1.0);
 }

@@ -115,11 +115,14 @@ class FramePipeline:
         if self.timer:
             self.timer.mark(encoder, name)
 
-    def _trace(self, encoder, trace) -> None:
+    def _trace(self, encoder, trace, keep_samples: bool) -> None:
+        """Record this frame's samples; with ``keep_samples`` they join the previous frames' in the planes
+        (the tracer numbers them after each pixel's spp, so the planes stay unbiased running means)."""
         from ..trace.trace_pass import SampleSchedule
 
         buffers, adaptive = self.buffers, self.adaptive
-        trace.clear(encoder, buffers)
+        if not keep_samples:
+            trace.clear(encoder, buffers)
         trace.schedule = SampleSchedule(samples=1)
         trace.execute(encoder, buffers)
         if adaptive is None:
@@ -153,7 +156,13 @@ class FramePipeline:
         if self.timer:
             self.timer.start()
         self._mark(encoder, "start")
-        self._trace(encoder, trace)
+        # Temporal mode under a static camera and scene converges in the tracer: the frame adds its
+        # samples to the running mean, which is denoised and then replaces the temporal history
+        # (averaging denoised 1-spp frames would keep the denoiser's bias). Any change or cut starts
+        # again from zero samples.
+        change = frame_change(scene, self.previous_frame, frame) if self.temporal is not None else "cut"
+        converging = change == "static"
+        self._trace(encoder, trace, keep_samples=converging)
         self.depth_max.execute(encoder, buffers)
         if self.denoiser is not None:
             self.pack.execute(encoder, buffers)
@@ -163,7 +172,7 @@ class FramePipeline:
             self._mark(encoder, "denoise")
             self.unpack.execute(encoder, buffers)
         if self.temporal is not None:
-            self.temporal.change = frame_change(scene, self.previous_frame, frame)
+            self.temporal.change = "converge" if converging else change
             self.temporal.execute(encoder, buffers)
             self._mark(encoder, "temporal")
         self.tonemap.execute(encoder, buffers)

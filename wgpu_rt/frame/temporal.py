@@ -3,7 +3,10 @@
 See ``wgsl/frame_temporal.wgsl`` for the algorithm. Which path a frame takes depends on how it relates
 to the previous one (``frame_change``): a cut (first frame, skipped frames, a camera jump) clears the
 history; a static camera over a static scene accumulates plainly (no reprojection or clamping, so noise
-averages out over up to ``max_frames`` frames); anything else reprojects and blends.
+averages out over up to ``max_frames`` frames); anything else reprojects and blends. ``converge`` (set
+by the frame pipeline, which keeps accumulating the tracer's samples under a static camera, so the
+source is the denoised mean of all of them) blends that frame with the raw sample mean by spp and takes
+the result whole as the new history.
 
 Confidence (the optional Confidence Predictor's output) is read as trust in the history: α =
 mix(1, 0.01, confidence), so 1 keeps 99 % history and 0 takes the current frame.
@@ -19,7 +22,7 @@ from ..errors import WgpuRtError
 from ..render_pass import ComputePass, PlaneSpec
 from .kernel import FrameKernel, finite, nonnegative_finite
 from .pack import PackConfidencePass
-from .planes import CONFIDENCE_INPUT, DEPTH, MOTION, NORMAL
+from .planes import CONFIDENCE_INPUT, DEPTH, MOTION, NORMAL, RADIANCE, SPP
 
 CLAMP_MODES = ("none", "box", "variance")
 HISTORY = PlaneSpec("history", 8)           # RGB, depth, normal xyz, history length
@@ -31,6 +34,7 @@ ENTRY_BINDINGS = {
     "reproject": (None, "depth", "normal", "motion", "history", "reprojected", None, None),
     "blend": ("color", "depth", "normal", None, "history", "reprojected", "confidence", "output"),
     "accumulate": ("color", "depth", "normal", None, "history", None, None, "output"),
+    "converge": ("color", "depth", "normal", None, "history", None, None, "output", "samples_mean", "spp"),
 }
 CUT_ANGLE_DEGREES = 30.0
 CUT_DISTANCE_FRACTION = 0.25
@@ -154,6 +158,13 @@ def blend_history(color, depth, normal, reprojected, confidence=None, settings=T
     return output.astype(np.float32), _new_history(output, depth, normal, length)
 
 
+def converge_frame(color, samples_mean, spp) -> np.ndarray:
+    """The output of the converge step: the denoised frame's share fades as 1/√spp."""
+    mean_weight = 1.0 - 1.0 / np.sqrt(np.maximum(np.asarray(spp, np.float64), 1.0))[..., None]
+    color = nonnegative_finite(color).astype(np.float64)
+    return (color + mean_weight * (nonnegative_finite(samples_mean) - color)).astype(np.float32)
+
+
 def accumulate_history(color, depth, normal, history, settings=TemporalSettings()):
     """(output, new history) of plain per-pixel accumulation (static camera and scene)."""
     count = history[..., 7].astype(np.float64)
@@ -167,8 +178,10 @@ def accumulate_history(color, depth, normal, history, settings=TemporalSettings(
 class TemporalPass(ComputePass):
     """``source`` (the denoised frame), depth, normal, motion, history → temporal (3 planes), history.
 
-    Set ``change`` (``frame_change``'s answer) before each execute. With a ``confidence_model`` (an
-    object with ``record(encoder, input_buffer, height, width) -> output_buffer``, such as
+    Set ``change`` (``frame_change``'s answer, or ``converge``: the source is the denoised mean of every
+    sample of a static view, in the radiance and spp planes) before each execute. With a
+    ``confidence_model`` (an object with ``record(encoder, input_buffer, height, width) ->
+    output_buffer``, such as
     ``wgpu_rt.nn.WgslModel``) and the frame's ``depth_max`` buffer, moving frames run the Confidence
     Predictor on the packed (current, reprojected) pair and blend by its output.
     """
@@ -181,7 +194,7 @@ class TemporalPass(ComputePass):
             raise ValueError("a confidence model needs the frame's depth_max buffer")
         self.ctx, self.width, self.height = ctx, width, height
         self.source, self.settings, self.confidence_model = source, settings, confidence_model
-        self.inputs = (source, DEPTH, NORMAL, MOTION)
+        self.inputs = (source, DEPTH, NORMAL, MOTION, RADIANCE, SPP)
         self.change = "cut"
         constants = {**settings.constants(), "USE_CONFIDENCE": confidence_model is not None}
         self.kernels = {entry: FrameKernel(ctx, "frame_temporal.wgsl", entry, bindings, width, height,
@@ -194,6 +207,10 @@ class TemporalPass(ComputePass):
         planes = {"color": buffers.get(self.source), "depth": buffers.get(DEPTH),
                   "normal": buffers.get(NORMAL), "history": buffers.get(HISTORY),
                   "output": buffers.get(TEMPORAL)}
+        if self.change == "converge":
+            self.kernels["converge"].dispatch(encoder, planes | {"samples_mean": buffers.get(RADIANCE),
+                                                                 "spp": buffers.get(SPP)})
+            return
         if self.change in ("cut", "static"):
             if self.change == "cut":
                 encoder.clear_buffer(planes["history"])
