@@ -11,6 +11,7 @@ which is NCHW with N=1: the tracer's outputs are already almost the networks' in
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,14 +41,15 @@ MOTION = PlaneSpec("motion", 2)
 SPP = PlaneSpec("spp", 1, "u32")
 
 
-class ComputePass:
+class ComputePass(ABC):
     """Base class: subclasses set ``inputs``/``outputs`` and implement ``execute``."""
 
     inputs: tuple[PlaneSpec, ...] = ()
     outputs: tuple[PlaneSpec, ...] = ()
 
-    def execute(self, encoder, buffers: "FrameBuffers") -> None:  # pragma: no cover - interface
-        raise NotImplementedError(f"{type(self).__name__} must implement execute()")
+    @abstractmethod
+    def execute(self, encoder, buffers: "FrameBuffers") -> None:
+        """Record this pass's dispatches into ``encoder``, reading and writing ``buffers``."""
 
 
 class FrameBuffers:

@@ -15,6 +15,7 @@ normalisation sees the frame's true max depth, as at runtime), then cropped and 
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,7 +36,7 @@ class Augmentation:
     aux_noise: float = 0.01
 
 
-class TaskSamples:
+class TaskSamples(ABC):
     """The (input, target) pairs of one task over a list of views; subclasses define ``full``."""
 
     aux_channels: slice = slice(0, 0)
@@ -47,9 +48,9 @@ class TaskSamples:
     def _items(self) -> list[tuple[int, int]]:
         return [(v, f) for v, view in enumerate(self.views) for f in range(len(view.frames))]
 
+    @abstractmethod
     def full(self, item: tuple[int, int], spp: int, exposure: float) -> tuple[np.ndarray, np.ndarray]:
         """The full-frame (C, H, W) input and target of ``item``."""
-        raise NotImplementedError
 
     def batch(self, items, rng: np.random.Generator, aug: Augmentation, spp: int = 1):
         """A (B, C, S, S) input batch and its targets, augmented as the module docstring says."""
