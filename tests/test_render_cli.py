@@ -23,6 +23,19 @@ def test_png_preview_and_frame_pattern(gpu, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f002.png", "f003.png"]
 
 
+def test_frames_into_a_new_folder(gpu, tmp_path):
+    """As the README shows: --out out/{frame:04d}.exr creates the folder."""
+    assert main(["render", "moving", "--spp", "1", "--size", "8x8", "--frames", "0:2",
+                 "--out", str(tmp_path / "out" / "{frame:04d}.exr")]) == 0
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["0000.exr", "0001.exr"]
+
+
+def test_output_under_a_file_is_refused(tmp_path, capsys):
+    (tmp_path / "taken").write_text("")
+    assert main(["render", "cornell", "--size", "8x8", "--spp", "1", "--out", str(tmp_path / "taken" / "x.exr")]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("args, message", [
     (["--size", "12"], "WIDTHxHEIGHT"),
     (["--size", "0x10"], "1..16384"),

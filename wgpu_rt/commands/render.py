@@ -50,9 +50,10 @@ def output_paths(pattern: str, frames: range, many: bool) -> list:
         paths = [Path(pattern.format(frame=f)) for f in frames]
     except (KeyError, IndexError, ValueError) as err:
         raise WgpuRtError(f"--out {pattern!r}: bad format field ({err}); only {{frame}} is known") from None
-    for path in paths:
-        if not path.parent.is_dir():
-            raise WgpuRtError(f"--out {path}: folder {path.parent} does not exist")
+    for path in paths:   # missing folders are created when the image is written
+        blocker = next((p for p in (path.parent, *path.parent.parents) if p.exists()), None)
+        if blocker is not None and not blocker.is_dir():
+            raise WgpuRtError(f"--out {path}: {blocker} is a file, not a folder")
     return paths
 
 
