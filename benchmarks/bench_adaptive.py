@@ -37,8 +37,6 @@ def parse_args():
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--gold-spp", type=int, default=16384)
     parser.add_argument("--max-depth", type=int, default=8)
-    parser.add_argument("--quick", action="store_true",
-                        help=f"small and fast defaults: {', '.join(f'{k}={v}' for k, v in QUICK.items())}")
     add_model_arguments(parser)
     return parse_with_quick_defaults(parser, QUICK)
 

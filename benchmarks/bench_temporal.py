@@ -41,8 +41,6 @@ def parse_args():
     parser.add_argument("--static-frames", type=int, default=16)
     parser.add_argument("--gold-spp", type=int, default=4096)
     parser.add_argument("--max-depth", type=int, default=8)
-    parser.add_argument("--quick", action="store_true",
-                        help=f"small and fast defaults: {', '.join(f'{k}={v}' for k, v in QUICK.items())}")
     add_model_arguments(parser)
     return parse_with_quick_defaults(parser, QUICK)
 

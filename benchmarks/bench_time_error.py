@@ -41,8 +41,6 @@ def parse_args():
                         help="mean spp budgets of adaptive + denoise")
     parser.add_argument("--max-depth", type=int, default=8)
     parser.add_argument("--no-mitsuba", action="store_true")
-    parser.add_argument("--quick", action="store_true",
-                        help=f"small and fast defaults: {', '.join(f'{k}={v}' for k, v in QUICK.items())}")
     add_model_arguments(parser)
     return parse_with_quick_defaults(parser, QUICK)
 

@@ -49,7 +49,10 @@ def add_model_arguments(parser) -> None:
 
 
 def parse_with_quick_defaults(parser, quick: dict):
-    """Parse; with --quick, the values in ``quick`` replace the defaults (flags given still win)."""
+    """Add --quick and parse; with --quick, the values in ``quick`` replace the defaults (flags given
+    still win)."""
+    parser.add_argument("--quick", action="store_true",
+                        help=f"small and fast defaults: {', '.join(f'{k}={v}' for k, v in quick.items())}")
     args = parser.parse_args()
     if args.quick:
         parser.set_defaults(**quick)
