@@ -23,3 +23,19 @@ def gpu():
         if _in_ci():
             pytest.fail(f"CI must run the GPU tests, but: {err}")
         pytest.skip(str(err))
+
+
+@pytest.fixture(scope="session")
+def seed_models(tmp_path_factory):
+    """The three seed networks (small U-Net widths), random weights, exported once to ONNX."""
+    from wgpu_rt.networks import export_seed_models
+
+    return export_seed_models(tmp_path_factory.mktemp("seed_models"), widths=(8, 16))
+
+
+@pytest.fixture(scope="session")
+def moving():
+    """The built-in animated scene."""
+    from wgpu_rt.scene.builtin import builtin_scene
+
+    return builtin_scene("moving")

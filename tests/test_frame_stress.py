@@ -14,22 +14,11 @@ from wgpu_rt.frame.adaptive import AdaptiveSettings
 from wgpu_rt.frame.pipeline import FramePipeline, load_model
 from wgpu_rt.frame.planes import ALBEDO, DEPTH, MOTION, NORMAL, RADIANCE, to_planar
 from wgpu_rt.frame.temporal import HISTORY, TemporalSettings
-from wgpu_rt.networks import export_seed_models
 from wgpu_rt.render_pass import NUMPY_DTYPE
 from wgpu_rt.scene.builtin import builtin_scene
 
 W, H = 32, 24
 FP16_MAX = 65504.0
-
-
-@pytest.fixture(scope="module")
-def seed_models(tmp_path_factory):
-    return export_seed_models(tmp_path_factory.mktemp("seed_models"), widths=(8, 16))
-
-
-@pytest.fixture(scope="module")
-def moving():
-    return builtin_scene("moving")
 
 
 @pytest.fixture(params=["fp16", "fp32"])

@@ -12,20 +12,8 @@ from wgpu_rt.frame.pipeline import FramePipeline
 from wgpu_rt.frame.planes import CONFIDENCE_INPUT, DEPTH, MOTION, NORMAL, RADIANCE
 from wgpu_rt.frame.temporal import (HISTORY, REPROJECTED, TEMPORAL, TemporalSettings, blend_history,
                                     frame_change, reproject_history)
-from wgpu_rt.networks import export_seed_models
-from wgpu_rt.scene.builtin import builtin_scene
 
 W, H = 32, 24
-
-
-@pytest.fixture(scope="module")
-def seed_models(tmp_path_factory):
-    return export_seed_models(tmp_path_factory.mktemp("seed_models"), widths=(8, 16))
-
-
-@pytest.fixture(scope="module")
-def moving():
-    return builtin_scene("moving")
 
 
 def hwc(buffers, spec):
