@@ -259,3 +259,15 @@ def test_missing_model_is_named(tmp_path, scene, gpu):
 def test_render_frames_takes_a_builtin_name_like_render(gpu):
     frames = render_frames("cornell", denoise=False, frames=[0], width=8, height=8, max_depth=2, ctx=gpu)
     assert len(frames) == 1 and frames[0].image.shape[:2] == (8, 8)
+
+
+def test_unchanged_geometry_is_not_uploaded_again(gpu, scene, monkeypatch):
+    """Frames that share geometry reuse the tracer's uploads: each frame after the first uploads only
+    its frame parameters and chunk starts, whatever the scene's size."""
+    pipeline = make_pipeline(scene, denoise=False, width=W, height=H, max_depth=3, ctx=gpu)
+    pipeline.render(scene, 0)
+    counter = TrafficCounter(monkeypatch, gpu)
+    for frame in (1, 2, 3):
+        pipeline.render(scene, frame)
+    monkeypatch.undo()
+    assert counter.uploads == 3 * 2 and counter.reads == 3

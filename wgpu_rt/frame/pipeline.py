@@ -232,15 +232,18 @@ def make_pipeline(scene, denoise: bool = True, adaptive: float | AdaptiveSetting
         error_model = load_model("error_predictor", precision, models_dir)
     if temporal is not None and confidence_model is None:
         confidence_model = load_model("confidence", precision, models_dir, required=False)
-    geometry_cache: dict[bytes, object] = {}
+    traced: dict[bytes, TracePass] = {}   # the pass of the current geometry (object transforms)
 
     def trace_factory(frame: int):
         key = b"".join(m.transform_at(frame).tobytes() for m in scene.meshes)
-        if key not in geometry_cache:
-            geometry_cache.clear()
-            geometry_cache[key] = GeometryBuffers.build(scene, frame)
-        return TracePass(ctx, scene, geometry_cache[key], width, height, frame=frame, max_depth=max_depth,
-                         seed=seed + frame)
+        trace = traced.get(key)
+        if trace is None:   # objects moved: new BVH, new uploads
+            traced.clear()
+            trace = traced[key] = TracePass(ctx, scene, GeometryBuffers.build(scene, frame), width, height,
+                                            frame=frame, max_depth=max_depth, seed=seed + frame)
+        else:               # same geometry: only the camera and seed change
+            trace.set_frame(scene, frame, seed + frame)
+        return trace
 
     return FramePipeline(ctx, width, height, trace_factory, denoiser=denoiser if denoise else None,
                          adaptive=adaptive, error_model=error_model, temporal=temporal,

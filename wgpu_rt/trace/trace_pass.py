@@ -144,7 +144,8 @@ class TracePass(ComputePass):
         self.chunk_size = chunk_size or max(1, min(16, (1 << 20) // (width * height)))
         self.schedule = SampleSchedule()
 
-        self._params = self._frame_params(scene, frame, max_depth, seed, emitters)
+        self._emitter_table, self._max_depth = emitters, max_depth
+        self.set_frame(scene, frame, seed)
         self._geometry_group = ctx.bind_group(self.pipeline, geometry_buffers, group=0)
         material_records = pack_materials(materials)
         if self.placement.tables:
@@ -157,6 +158,11 @@ class TracePass(ComputePass):
             self._emitters = ctx.upload(emitters.records, label="emitters")
         self._triangle_density = ctx.upload(emitters.triangle_density, label="triangle emitter densities")
         self._no_counts = ctx.storage(16, label="no sample counts")
+
+    def set_frame(self, scene: Scene, frame: int, seed: int) -> None:
+        """Point the pass at another frame of the same geometry (camera, previous camera, seed): the
+        uploaded geometry, materials and emitters are kept."""
+        self._params = self._frame_params(scene, frame, self._max_depth, seed, self._emitter_table)
 
     def _frame_params(self, scene, frame, max_depth, seed, emitters) -> np.ndarray:
         w, h = self.width, self.height
