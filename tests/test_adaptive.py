@@ -145,3 +145,27 @@ def test_settings_errors_name_the_field():
         AdaptiveSettings(sampler="random")
     with pytest.raises(WgpuRtError, match="needs a budget"):
         AdaptiveSettings(sampler="uniform")
+
+
+def spill_rounds_run(gpu, importance, settings) -> int:
+    """How many spill rounds a budget map switched on (their dispatch arguments are non-zero)."""
+    buffers = FrameBuffers(gpu, W, H)
+    write_plane(buffers, HEAT, importance)
+    extra_pass = ExtraSamplesPass(gpu, W, H, settings, HEAT)
+    encoder = gpu.device.create_command_encoder()
+    extra_pass.execute(encoder, buffers)
+    gpu.device.queue.submit([encoder.finish()])
+    slots = len(extra_pass.spill_rounds) + 1
+    grids = [gpu.read(b, np.uint32, shape=(slots, 6))[:, 0] for b in extra_pass.spill_args]
+    return sum(int(grids[slot % 2][slot] > 0) for slot in range(len(extra_pass.spill_rounds)))
+
+
+def test_spill_rounds_run_only_when_capped_pixels_leave_samples_over(gpu):
+    """The usual map (nothing capped) dispatches no spill round; a budget that caps the hot pixels
+    runs a few, not all cap + 1."""
+    settings = AdaptiveSettings(budget=4.0)
+    assert spill_rounds_run(gpu, heatmap(), settings) == 0
+    peaked = np.zeros((H, W), np.float32)
+    peaked[:3, :3] = 1.0                       # 9 pixels claim everything: most of the budget spills
+    spilled = spill_rounds_run(gpu, peaked, settings)
+    assert 0 < spilled < len(ExtraSamplesPass(gpu, W, H, settings).spill_rounds)

@@ -19,6 +19,10 @@
 //                         order (so over the image) rather than bunched at its top.
 //     Rounds with THRESHOLD 0.5 then 0 round claims up, larger first; later rounds (THRESHOLD −2) let
 //     any pixel below CAP take one more until the budget is met (what capped pixels could not take).
+//     Those spill rounds are dispatched indirectly: each scan writes the workgroup counts of the next
+//     spill round (slot NEXT_SLOT of spill_args), zero once the budget is met or a spill round found
+//     nothing to hand out (then every later one would find nothing too). So the usual frame, where no
+//     pixel is capped, pays for no spill round at all.
 //   half_buffer_error: Cycles' estimate from the mean of all samples I and of the first half A:
 //                     Σ|I − A| / (1e-4 + sqrt(ΣI)) (the variance-based baseline's importance).
 // #import frame_common.wgsl
@@ -28,6 +32,7 @@ override UNIFORM: bool = false;
 override TARGET: u32 = 0u;
 override CAP: u32 = 31u;
 override THRESHOLD: f32 = 0.5;
+override NEXT_SLOT: u32 = 0u;
 
 struct Budget {
     weight_sum: f32,
@@ -44,6 +49,8 @@ struct Budget {
 @group(0) @binding(5) var<storage, read> half_radiance: array<f32>;
 @group(0) @binding(6) var<storage, read_write> error: array<f32>;
 @group(0) @binding(7) var<storage, read_write> tile_offsets: array<u32>;
+// Per spill round: (x, y, z) workgroups of its count and take kernels, then (x, y, z) of its scan.
+@group(0) @binding(8) var<storage, read_write> spill_args: array<u32>;
 
 var<workgroup> partial: array<f32, 64>;
 var<workgroup> ranks: array<u32, 64>;
@@ -157,6 +164,14 @@ fn scan_candidates(@builtin(local_invocation_index) lane: u32) {
         budget.quota = quota;
         budget.candidates = running;
         atomicStore(&budget.assigned, assigned + quota);
+        let next_round = assigned + quota < TARGET && (quota > 0u || THRESHOLD >= 0.0);
+        let slot = 6u * NEXT_SLOT;
+        spill_args[slot] = select(0u, tiles_x(), next_round);
+        spill_args[slot + 1u] = select(0u, tile_count() / tiles_x(), next_round);
+        spill_args[slot + 2u] = 1u;
+        spill_args[slot + 3u] = select(0u, 1u, next_round);
+        spill_args[slot + 4u] = 1u;
+        spill_args[slot + 5u] = 1u;
     }
 }
 

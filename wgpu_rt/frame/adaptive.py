@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import wgpu
 
 from ..errors import WgpuRtError
 from ..render_pass import ComputePass, PlaneSpec
@@ -41,7 +42,7 @@ ENTRY_BINDINGS = {
     "sum_weights": (None, None, None, "tile_sums", "budget", None, None, None),
     "assign": (None, "extra", "claim", None, "budget", None, None, None),
     "count_candidates": (None, "extra", "claim", None, None, None, None, "tile_offsets"),
-    "scan_candidates": (None, None, None, None, "budget", None, None, "tile_offsets"),
+    "scan_candidates": (None, None, None, None, "budget", None, None, "tile_offsets", "spill_args"),
     "take": (None, "extra", "claim", None, "budget", None, None, "tile_offsets"),
     "half_buffer_error": ("source", None, None, None, None, "half_radiance", "error", None),
 }
@@ -51,6 +52,7 @@ SINGLE_WORKGROUP = ("sum_weights", "scan_candidates")
 # pixels could not take.
 ROUNDING_THRESHOLDS = (0.5, 0.0)
 SPILL_THRESHOLD = -2.0
+SPILL_SLOT_BYTES = 24   # per spill round: workgroups of its count/take (3 u32), then of its scan (3 u32)
 
 
 @dataclass(frozen=True)
@@ -128,7 +130,7 @@ class ExtraSamplesPass(ComputePass):
             return FrameKernel(ctx, SHADER, entry, ENTRY_BINDINGS[entry], width, height, constants)
 
         if settings.budget is None:
-            self.kernels = [kernel("extra_from_heat", K=k)]
+            self.kernels, self.spill_rounds = [kernel("extra_from_heat", K=k)], []
             return
         target, cap = settings.extra_total(width * height), settings.cap
         tiles = ceil_div(width, TILE) * ceil_div(height, TILE)
@@ -139,26 +141,40 @@ class ExtraSamplesPass(ComputePass):
                         kernel("sum_weights"),
                         kernel("assign", TARGET=target, CAP=cap)]
 
-        def remainder_round(threshold):
-            return [kernel(entry, TARGET=target, CAP=cap, THRESHOLD=threshold)
+        def remainder_round(threshold, next_slot):
+            return [kernel(entry, TARGET=target, CAP=cap, THRESHOLD=threshold, NEXT_SLOT=next_slot)
                     for entry in ("count_candidates", "scan_candidates", "take")]
 
         for threshold in ROUNDING_THRESHOLDS:
-            self.kernels += remainder_round(threshold)
+            self.kernels += remainder_round(threshold, next_slot=0)
         # Without capped pixels the two rounds above already hand out the whole remainder (it is the sum
         # of the claims, each < 1), so every count is its ideal share rounded down or up. What capped
         # pixels could not take is spread by rounds of at most one sample per pixel: cap + 1 rounds always
-        # meet the budget.
-        self.kernels += remainder_round(SPILL_THRESHOLD) * (cap + 1)
+        # meet the budget. They run indirectly, from spill_args slot r (see frame_adaptive.wgsl), and
+        # cost nothing once the budget is met.
+        self.spill_rounds = [remainder_round(SPILL_THRESHOLD, next_slot=r + 1) for r in range(cap + 1)]
+        # Two buffers, by round parity: a dispatch cannot read its arguments from a buffer it writes, so
+        # round r runs from buffer r % 2 and its scan writes round r + 1's slot into the other one.
+        self.spill_args = [ctx.storage(SPILL_SLOT_BYTES * (cap + 2), label=f"spill round dispatch args {i}",
+                                       usage=wgpu.BufferUsage.INDIRECT) for i in range(2)]
 
     def execute(self, encoder, buffers) -> None:
         planes = {"source": buffers.get(self.source), "extra": buffers.get(EXTRA_SAMPLES)}
         if self.settings.budget is not None:
             planes |= {"claim": buffers.get(CLAIM), "tile_sums": self.tile_sums, "budget": self.budget,
                        "tile_offsets": self.tile_offsets}
+            for arguments in self.spill_args:   # a spill round no scan switched on stays off
+                encoder.clear_buffer(arguments)
+            planes["spill_args"] = self.spill_args[0]   # the rounding rounds switch on spill round 0
         compute_pass = encoder.begin_compute_pass(label="extra samples")
         for kernel in self.kernels:
             kernel.record(compute_pass, planes, (1, 1) if kernel.entry in SINGLE_WORKGROUP else None)
+        for slot, (count, scan, take) in enumerate(self.spill_rounds):
+            arguments, grid = self.spill_args[slot % 2], slot * SPILL_SLOT_BYTES
+            count.record_indirect(compute_pass, planes, arguments, grid)
+            scan.record_indirect(compute_pass, planes | {"spill_args": self.spill_args[(slot + 1) % 2]},
+                                 arguments, grid + 12)
+            take.record_indirect(compute_pass, planes, arguments, grid)
         compute_pass.end()
 
 

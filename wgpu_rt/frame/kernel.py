@@ -68,6 +68,12 @@ class FrameKernel:
         compute_pass.set_bind_group(0, self.bind_group(buffers))
         compute_pass.dispatch_workgroups(*(groups or self.pixel_groups), 1)
 
+    def record_indirect(self, compute_pass, buffers: dict, arguments, offset: int) -> None:
+        """Record a dispatch whose workgroup counts a kernel wrote at ``offset`` of ``arguments``."""
+        compute_pass.set_pipeline(self.pipeline)
+        compute_pass.set_bind_group(0, self.bind_group(buffers))
+        compute_pass.dispatch_workgroups_indirect(arguments, offset)
+
     def dispatch(self, encoder, buffers: dict, groups: tuple[int, int] | None = None) -> None:
         """Record the dispatch in a compute pass of its own on ``encoder``."""
         compute_pass = encoder.begin_compute_pass(label=self.entry)
