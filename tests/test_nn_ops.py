@@ -156,6 +156,16 @@ def test_op_fp32(models, name, size):
     check_parity([(1, channels, height, width)], onnxruntime_fn(path), model, atol=FP32_ATOL, name=name)
 
 
+@pytest.mark.parametrize("width", [5, 6, 7, 32, 33])
+def test_conv_transpose_pixel_tiles_cover_every_width(models, width):
+    """conv_transpose.wgsl takes 4 input pixels per invocation and 32 per workgroup row: widths leaving
+    1, 2 and 3 pixels in the last tile, exactly one workgroup, and one pixel past it; 9 rows cut the
+    8-row workgroups."""
+    path, channels, model = models("conv_transpose", POOLING_GRAPHS["conv_transpose"], "fp32")
+    ours, _ = check_parity([(1, channels, 9, width)], onnxruntime_fn(path), model, atol=FP32_ATOL)
+    assert ours.shape == (1, 5, 18, 2 * width)
+
+
 def test_maxpool_fp32_floor_mode(models):
     """37×53 pools to 18×26 (ONNX floor mode: the odd row and column are dropped)."""
     path, channels, model = models("maxpool", POOLING_GRAPHS["maxpool"], "fp32")

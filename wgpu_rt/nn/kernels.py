@@ -277,7 +277,17 @@ class Conv3x3Kernel(ConvFamilyKernel):
     the copy and the barriers (coroutine switches): the U-Net takes ≈ 1.3× the CPU time with it there
     (benchmarks/bench_nn.py, steps reg-tiled and staged), so CPU adapters keep the direct variant, and
     so do integrated GPUs (their workgroup memory is on-chip too, but the trade is unmeasured there).
-    Both variants are tested for parity whatever the adapter (tests/test_nn_ops.py)."""
+    Both variants are tested for parity whatever the adapter (tests/test_nn_ops.py).
+
+    Tried on lavapipe and not kept (same-process A/B, CPU time): (1) the row steps written out in
+    straight-line code with literal (cb, ky), so every weight offset is a constant outside any loop and the
+    windows are read directly: 2.1× slower at 8 input blocks, no faster at 1, and pipeline compilation grows
+    from 0.07 s to 3.4 s at 24 input blocks; (2) a 4-pixel × 32-channel tile (8 accumulator matrices, four
+    2-block windows): 3–15% faster on single layers but no faster on the whole U-Net at 256² or 512²; (3)
+    other workgroup shapes: 2 × 32 tiles of 4 pixels no faster, 64 × 1 1.7× slower (idle lanes on the narrow
+    layers). With its input loads replaced by constants the 32-channel tile ran at the FMA ceiling on single
+    layers, but dropping 2 of this tile's 6 input loads per row step gained only 6–8%, so sharing the halo
+    pixels between lanes (subgroup shuffles) cannot pay much more than that."""
 
     bindings = ("src", "dst", "weights", "header", "high_weights")
     weight_windows = (("weight", 2), ("high_weight", 4))
@@ -323,15 +333,22 @@ class GemmKernel(ConvFamilyKernel):
 
 
 class ConvTransposeKernel(ConvFamilyKernel):
-    """conv_transpose.wgsl: 2×2 stride-2 transposed convolution, fused bias + activation."""
+    """conv_transpose.wgsl: 2×2 stride-2 transposed convolution, fused bias + activation; one output
+    block per dispatch, 4 input pixels per invocation so that each weight block serves 4 pixels (the
+    U-Net's upsampling convolutions took 2–3× less time than with one pixel per invocation on
+    lavapipe, and the whole 256² U-Net ≈ 9% less CPU time)."""
 
     shader = "conv_transpose.wgsl"
+    tile_x = 4  # input pixels per invocation, written out in the shader
+
+    def __init__(self, ctx, precision: Precision):
+        super().__init__(ctx, precision, self.tile_x)
 
     def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView):
         pipeline = self.pipeline(
             layer.activation, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
-            TILE_C=packed.tile_c, WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats)
-        workgroups = (groups_of(src.width, 8), groups_of(src.height, 8), 1)
+            WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats)
+        workgroups = (groups_of(groups_of(src.width, self.tile_x), 8), groups_of(src.height, 8), 1)
         flops = layer.flops_per_pixel * dst.height * dst.width
         return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops)
 

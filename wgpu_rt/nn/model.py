@@ -126,7 +126,7 @@ class WgslModel:
         self.register_tiles = conv_tiling in ("register", "staged")
         self.kernels = {"conv": ConvKernel(*kernel_args, tile_x), "gemm": GemmKernel(*kernel_args, tile_x),
                         "conv3x3": Conv3x3Kernel(*kernel_args, staged=conv_tiling == "staged"),
-                        "conv_transpose": ConvTransposeKernel(*kernel_args, 1),
+                        "conv_transpose": ConvTransposeKernel(*kernel_args),
                         "maxpool": MaxPoolKernel(*kernel_args), "resize": ResizeKernel(*kernel_args),
                         "elementwise": ElementwiseKernel(*kernel_args),
                         "concat": CopyChannelsKernel(*kernel_args), "pack": PackKernel(*kernel_args),
