@@ -3,7 +3,8 @@
 Methods: our brute-force path tracer at rising spp; Mitsuba 3's (llvm_ad_rgb when LLVM 19 is present,
 else scalar_rgb; printed) at the same spp; 1 spp + our denoiser (the fused on-device pipeline); learned
 adaptive sampling at rising mean-spp budgets + our denoiser; Intel OIDN (pyoidn, hdr=True, albedo and
-normal guides) on our 1-spp render. Gold: our own render at --gold-spp with a different seed.
+normal guides) on our 1-spp render. Gold: our own render at --gold-spp with a different seed (kept in
+--gold-cache when given, shared with bench_adaptive.py at the same size).
 
 Prints every point (seconds, relMSE, FLIP, PSNR), then a table of the time each method needs to reach
 the relMSE of 64-, 256- and 1024-spp brute force (log-log interpolation along a method's curve; a
@@ -11,7 +12,7 @@ single-point method reaches a target only if its one point is at or below it; '�
 the measured range), and writes benchmarks/plots/time_error_<scene>.png.
 
     python3 benchmarks/bench_time_error.py [--quick] [--size 96x96] [--spp 1 4 16 64 256 1024]
-        [--gold-spp 8192] [--budgets 2 4 8 16] [--scenes cornell cornell-glossy sun-room bunny]
+        [--gold-spp 8192] [--gold-cache DIR] [--budgets 2 4 8 16] [--scenes cornell cornell-glossy sun-room bunny]
         [--models DIR | --seed-models] [--no-mitsuba]
 """
 
@@ -20,9 +21,9 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (add_model_arguments, crossing, errors, hdr_pipeline, linear_frame, load_scenes, mitsuba,
-                    mitsuba_render, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models,
-                    save_figure, steady)
+from common import (add_gold_arguments, add_model_arguments, crossing, errors, gold_render, hdr_pipeline,
+                    linear_frame, load_scenes, mitsuba, mitsuba_render, oidn, parse_with_quick_defaults,
+                    print_header, print_table, resolve_models, save_figure, steady)
 
 from wgpu_rt.render import parse_size, render
 
@@ -36,18 +37,18 @@ def parse_args():
     parser.add_argument("--size", default="96x96")
     parser.add_argument("--spp", type=int, nargs="+", default=[1, 4, 16, 64, 256, 1024],
                         help="brute-force sample counts (ours and Mitsuba); include 64, 256 and 1024")
-    parser.add_argument("--gold-spp", type=int, default=16384)
     parser.add_argument("--budgets", type=float, nargs="+", default=[2, 4, 8, 16],
                         help="mean spp budgets of adaptive + denoise")
     parser.add_argument("--max-depth", type=int, default=8)
     parser.add_argument("--no-mitsuba", action="store_true")
+    add_gold_arguments(parser, default_spp=8192)
     add_model_arguments(parser)
     return parse_with_quick_defaults(parser, QUICK)
 
 
 def measure(scene, size, args, mi) -> dict[str, list[dict]]:
     """Every method's points: {method: [{"x": parameter, "seconds": …, "relMSE": …, …}, …]}."""
-    gold = render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=12345, aovs=()).color
+    gold = gold_render(scene, size, args)
     points: dict[str, list[dict]] = {}
 
     def add(method, x, seconds, image):

@@ -1,6 +1,7 @@
 """Shared helpers of the evidence benchmarks (bench_time_error, bench_adaptive, bench_temporal): the
-command header every output starts with, scene and model selection, steady-state timing, error
-metrics (wgpu_rt.metrics), log-log curve crossings, tables and plots.
+command header every output starts with, scene and model selection, gold renders (optionally cached),
+steady-state timing, error metrics (wgpu_rt.metrics, and a trimmed relMSE), log-log curve crossings,
+tables and plots.
 
 Every script prints the exact command that produced its numbers first, so a pasted table always
 says how to reproduce it. Times are wall-clock seconds on this machine's adapter (printed too);
@@ -24,6 +25,8 @@ REPO = Path(__file__).resolve().parents[1]
 BUNNY = REPO.parent / "shared" / "meshes" / "stanford-bunny.obj"
 PLOTS = Path(__file__).resolve().parent / "plots"
 MESH_SCENE = "bunny"
+GOLD_SEED = 12345
+TRIM_QUANTILE = 0.999
 
 
 def print_header(args) -> None:
@@ -87,6 +90,38 @@ def load_scenes(names: list[str]) -> list:
     return scenes
 
 
+def add_gold_arguments(parser, default_spp: int) -> None:
+    parser.add_argument("--gold-spp", type=int, default=default_spp)
+    parser.add_argument("--gold-cache", metavar="DIR",
+                        help="keep gold renders in DIR as .npy, keyed by scene name, size, spp and max depth, "
+                             "and reuse them (the gold is most of a full-size run; benchmarks at the same "
+                             "size share it). Stale if the scene or tracer changed: delete the folder then")
+
+
+def gold_render(scene, size, args) -> np.ndarray:
+    """(H, W, 3) radiance of our own render at ``args.gold_spp`` with seed 12345 (no other run uses that
+    seed, so the gold's noise is independent of every image measured against it), from
+    ``args.gold_cache`` when it holds one."""
+    from wgpu_rt.render import render
+
+    def compute():
+        return render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED,
+                      aovs=()).color
+
+    if not args.gold_cache:
+        return compute()
+    folder = Path(args.gold_cache)
+    path = folder / f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}.npy"
+    if path.exists():
+        return np.load(path)
+    image = compute()
+    folder.mkdir(parents=True, exist_ok=True)
+    temp = path.with_name(f".{path.name}.tmp.npy")
+    np.save(temp, image)
+    os.replace(temp, path)
+    return image
+
+
 def steady(function, repeats: int = 1):
     """(result of the last call, median seconds of ``repeats`` calls) after one untimed warm-up call."""
     function()
@@ -128,6 +163,16 @@ def errors(reference, image) -> dict[str, float]:
         result["FLIP"] = metrics.flip(reference, image)
     result["PSNR"] = metrics.psnr(reference, image)
     return result
+
+
+def trimmed_rel_mse(reference, image, quantile: float = TRIM_QUANTILE) -> float:
+    """relMSE with each pixel's error (relMSE averaged over its channels) clipped at the image's
+    ``quantile`` (default: the top 0.1% of pixels count as the 99.9th-percentile error): a robust twin of
+    relMSE, which a handful of fireflies otherwise dominate at low spp."""
+    reference = np.asarray(reference, np.float64)
+    image = np.nan_to_num(np.asarray(image, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    per_pixel = np.mean((image - reference) ** 2 / (reference ** 2 + metrics.REL_MSE_EPSILON), axis=-1)
+    return float(np.mean(np.minimum(per_pixel, np.quantile(per_pixel, quantile))))
 
 
 def crossing(xs, ys, target: float) -> float | None:

@@ -1,5 +1,5 @@
 """Adaptive sample counts against numpy references: the heat power map, exact budgets, the uniform and
-variance (half-buffer) baselines."""
+variance (half-buffer) baselines; and the adaptive frame's samples against brute-force renders."""
 
 import numpy as np
 import pytest
@@ -9,7 +9,7 @@ from wgpu_rt.errors import WgpuRtError
 from wgpu_rt.frame.adaptive import (EXTRA_SAMPLES, HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings,
                                     ExtraSamplesPass, HalfBufferErrorPass, extra_samples_from_heat,
                                     half_buffer_error, ideal_budget_samples)
-from wgpu_rt.frame.planes import RADIANCE, write_plane
+from wgpu_rt.frame.planes import RADIANCE, SPP, write_plane
 from wgpu_rt.render_pass import FrameBuffers
 
 H, W = 30, 44
@@ -43,17 +43,28 @@ def test_extra_from_heat_matches_reference(gpu, k):
 
 
 @pytest.mark.parametrize("budget", [1.0, 2.5, 4.0, 7.37])
-@pytest.mark.parametrize("sampler", ["heat", "uniform"])
-def test_budget_is_met_exactly(gpu, budget, sampler):
+@pytest.mark.parametrize("sampler, uniform_share", [("heat", 0.0), ("heat", 0.4), ("uniform", None)])
+def test_budget_is_met_exactly(gpu, budget, sampler, uniform_share):
     heat = heatmap(1)
-    settings = AdaptiveSettings(sampler=sampler, budget=budget, k=2.0)
+    settings = AdaptiveSettings(sampler=sampler, budget=budget, k=2.0, uniform_share=uniform_share)
     ours = extra_on_gpu(gpu, heat, settings)
     total = settings.extra_total(H * W)
     assert int(ours.sum(dtype=np.int64)) == total
     assert ours.max() <= settings.cap
-    ideal = ideal_budget_samples(heat, total, 2.0, uniform=sampler == "uniform")
+    ideal = ideal_budget_samples(heat, total, 2.0, settings.evenly_spread)
     if ideal.max() < settings.cap:
         assert np.abs(ours - ideal).max() < 1.0 + 1e-3
+
+
+def test_uniform_share_is_every_pixels_floor(gpu):
+    """With half the extra samples spread evenly, a pixel of zero heat still gets half the mean extra
+    (rounded down), and the hot pixels share the rest."""
+    heat = np.zeros((H, W), np.float32)
+    heat[:, : W // 4] = 1.0
+    settings = AdaptiveSettings(budget=5.0, uniform_share=0.5)
+    ours = extra_on_gpu(gpu, heat, settings)
+    assert int(ours.sum()) == settings.extra_total(H * W)
+    assert ours[:, W // 4:].min() == 2 and ours[:, : W // 4].min() >= 2 + 8
 
 
 def test_budget_with_capped_pixels_still_exact(gpu):
@@ -71,7 +82,7 @@ def test_budget_ignores_non_finite_heat(gpu):
     heat = heatmap(2)
     heat[::3, ::5] = np.nan
     heat[1, 1] = np.inf
-    settings = AdaptiveSettings(budget=3.0)
+    settings = AdaptiveSettings(budget=3.0, uniform_share=0.0)
     ours = extra_on_gpu(gpu, heat, settings)
     assert int(ours.sum()) == settings.extra_total(H * W)
     assert ours[::3, ::5].max() <= 1           # a NaN pixel weighs 0 (it may get a remainder sample)
@@ -132,7 +143,7 @@ def test_half_buffer_error_matches_reference(gpu):
 def test_variance_sampler_follows_the_error(gpu):
     error = np.full((H, W), 0.01, np.float32)
     error[:, : W // 4] = 1.0
-    settings = AdaptiveSettings(sampler="variance", budget=4.0)
+    settings = AdaptiveSettings(sampler="variance", budget=4.0, uniform_share=0.0)
     ours = extra_on_gpu(gpu, error, settings, SAMPLE_ERROR)
     assert int(ours.sum()) == settings.extra_total(H * W)
     assert ours[:, : W // 4].mean() > 20 * ours[:, W // 2:].mean()
@@ -145,6 +156,8 @@ def test_settings_errors_name_the_field():
         AdaptiveSettings(sampler="random")
     with pytest.raises(WgpuRtError, match="needs a budget"):
         AdaptiveSettings(sampler="uniform")
+    with pytest.raises(WgpuRtError, match="uniform_share 1.5"):
+        AdaptiveSettings(budget=4.0, uniform_share=1.5)
 
 
 def spill_rounds_run(gpu, importance, settings) -> int:
@@ -169,3 +182,66 @@ def test_spill_rounds_run_only_when_capped_pixels_leave_samples_over(gpu):
     peaked[:3, :3] = 1.0                       # 9 pixels claim everything: most of the budget spills
     spilled = spill_rounds_run(gpu, peaked, settings)
     assert 0 < spilled < len(ExtraSamplesPass(gpu, W, H, settings).spill_rounds)
+
+
+def test_exponent_defaults_per_mode():
+    """No budget: the issue's floor(heat^3 · 31); under a budget: heat^2 and the half-buffer error^1 (see
+    AdaptiveSettings.exponent); an explicit k wins in both."""
+    assert AdaptiveSettings().exponent == 3.0
+    assert AdaptiveSettings(budget=4.0).exponent == 2.0
+    assert AdaptiveSettings(sampler="variance", budget=4.0).exponent == 1.0
+    assert AdaptiveSettings(budget=4.0, k=2.5).exponent == 2.5
+    assert AdaptiveSettings(budget=4.0).evenly_spread == 0.5
+    assert AdaptiveSettings(sampler="uniform", budget=4.0, uniform_share=0.2).evenly_spread == 1.0
+
+
+def test_budget_shares_follow_the_default_power_of_heat(gpu):
+    """Under a budget with the default power (2) and no even share, a pixel with twice the heat gets four
+    times the samples."""
+    heat = np.full((H, W), 0.25, np.float32)
+    heat[:, : W // 2] = 0.5
+    settings = AdaptiveSettings(budget=6.0, uniform_share=0.0)    # 5 extra on average: 8 and 2
+    ours = extra_on_gpu(gpu, heat, settings)
+    assert ours[:, : W // 2].mean() == pytest.approx(4 * ours[:, W // 2:].mean(), rel=0.02)
+
+
+class FixedHeat:
+    """An error predictor stand-in: the same heatmap whatever the probe."""
+
+    def __init__(self, gpu, heat):
+        self.output = gpu.upload(heat.astype(np.float32))
+
+    def record(self, encoder, input_buffer, height, width):
+        return self.output
+
+
+@pytest.mark.parametrize("sampler", ["heat", "uniform", "variance"])
+def test_adaptive_samples_continue_the_probe_sequence(gpu, sampler):
+    """A pixel that took n samples in the adaptive frame (probe + targeted pass) holds exactly what a
+    brute-force n-spp render holds there: the targeted samples are numbered right after the probe's, so
+    the pixel's samples are the same stratified prefix of its sequence as brute force's (no index is
+    skipped, none repeated), and uniform at an integer budget is brute force."""
+    from wgpu_rt.frame.pipeline import FramePipeline
+    from wgpu_rt.render import render
+    from wgpu_rt.scene.builtin import builtin_scene
+    from wgpu_rt.scene.geometry import GeometryBuffers
+    from wgpu_rt.trace.trace_pass import TracePass
+
+    scene, size, seed = builtin_scene("cornell"), 16, 7
+    geometry = GeometryBuffers.build(scene, 0)
+    heat = np.zeros((size, size), np.float32)
+    heat[:, : size // 2] = 1.0
+    pipeline = FramePipeline(gpu, size, size,
+                             lambda f: TracePass(gpu, scene, geometry, size, size, max_depth=3, seed=seed),
+                             adaptive=AdaptiveSettings(sampler=sampler, budget=3.0),
+                             error_model=FixedHeat(gpu, heat) if sampler == "heat" else None, output="f32",
+                             operator="none", srgb=False)
+    pipeline.render(scene, 0)
+    spp = pipeline.buffers.read(SPP.name)[0]
+    radiance = pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0)
+    assert int(spp.sum()) == 3 * size * size
+    for count in np.unique(spp):
+        brute = render(scene, spp=int(count), size=(size, size), max_depth=3, seed=seed, aovs=()).color
+        where = spp == count
+        np.testing.assert_allclose(radiance[where], brute[where], rtol=1e-5, atol=1e-6,
+                                   err_msg=f"{sampler}: pixels with {count} samples")

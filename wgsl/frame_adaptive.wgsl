@@ -4,9 +4,11 @@
 //   extra_from_heat: extra = floor(heat^K · 31), heat clamped to [0, 1].
 //   budget (exact total TARGET extra samples, at most CAP per pixel), deterministic (same importance →
 //   same counts, bit for bit: only integer atomics and fixed-order reductions, no race decides anything):
-//     weigh:          w = max(importance, 0)^K (or 1 when UNIFORM); per-8×8-tile sums → tile_sums.
+//     weigh:          w = max(importance, 0)^K; per-8×8-tile sums → tile_sums.
 //     sum_weights:    one workgroup adds the tile sums → budget.weight_sum.
-//     assign:         ideal = w·TARGET/Σw (TARGET/N when Σw = 0); extra = min(floor(ideal), CAP);
+//     assign:         ideal = EVENLY_SPREAD·TARGET/N + (1 − EVENLY_SPREAD)·w·TARGET/Σw (a defensive
+//                     mixture; TARGET/N when Σw = 0, all of it when EVENLY_SPREAD = 1: the uniform
+//                     sampler); extra = min(floor(ideal), CAP);
 //                     the fractional part is kept as the pixel's claim on the remainder (−1 if capped).
 //     then rounds of three kernels hand out the remainder R = TARGET − Σextra, one sample per pixel per
 //     round. Candidates are pixels below CAP whose claim ≥ THRESHOLD, ranked in scan order (tile by
@@ -28,7 +30,7 @@
 // #import frame_common.wgsl
 
 override K: f32 = 3.0;
-override UNIFORM: bool = false;
+override EVENLY_SPREAD: f32 = 0.0;
 override TARGET: u32 = 0u;
 override CAP: u32 = 31u;
 override THRESHOLD: f32 = 0.5;
@@ -71,8 +73,7 @@ fn weigh(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation_ind
          @builtin(workgroup_id) tile: vec3u) {
     var w = 0.0;
     if (in_frame(id)) {
-        w = select(pow(sanitize(source[pixel_index(id)]), K), 1.0, UNIFORM);
-        w = min(w, 1.0e30);
+        w = min(pow(sanitize(source[pixel_index(id)]), K), 1.0e30);
         claim[pixel_index(id)] = w;
     }
     partial[lane] = w;
@@ -105,8 +106,11 @@ fn sum_weights(@builtin(local_invocation_index) lane: u32) {
 fn assign(@builtin(global_invocation_id) id: vec3u) {
     if (!in_frame(id)) { return; }
     let i = pixel_index(id);
-    var ideal = f32(TARGET) / f32(pixel_count());
-    if (budget.weight_sum > 0.0) { ideal = claim[i] * (f32(TARGET) / budget.weight_sum); }
+    let even = f32(TARGET) / f32(pixel_count());
+    var ideal = even;
+    if (budget.weight_sum > 0.0 && EVENLY_SPREAD < 1.0) {
+        ideal = mix(claim[i] * (f32(TARGET) / budget.weight_sum), even, EVENLY_SPREAD);
+    }
     let whole = floor(ideal);
     let count = u32(min(whole, f32(CAP)));
     extra[i] = count;

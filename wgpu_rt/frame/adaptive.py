@@ -8,7 +8,8 @@ its own.) See ``wgsl/frame_adaptive.wgsl`` for the kernels.
 
 Samplers:
 - ``heat``: the Error Predictor's heatmap, extra = floor(heat^k · 31), or with ``budget`` (mean spp
-  including the probe) weights heat^k scaled so the total is exactly (budget − 1)·pixels. The
+  including the probe) weights heat^k scaled so the total is exactly (budget − 1)·pixels, optionally
+  mixed with an even share (``AdaptiveSettings.uniform_share``). The
   remainder after rounding down is handed out deterministically (prefix ranks, not atomic races), so
   the same heatmap always gives the same sample map, bit for bit.
 - ``uniform``: the same budget spread evenly (equal total rays baseline).
@@ -34,6 +35,11 @@ HALF_RADIANCE = PlaneSpec("half_radiance", 3)
 CLAIM = PlaneSpec("sample_claim", 1)
 MAX_HEAT_SAMPLES = 31
 SAMPLERS = ("heat", "uniform", "variance")
+NO_BUDGET_EXPONENT = 3.0
+# The importance's power under a budget, per sampler (AdaptiveSettings.exponent says why).
+BUDGET_EXPONENT = {"heat": 2.0, "uniform": 1.0, "variance": 1.0}
+# The share of a budget's extra samples spread evenly, per sampler (AdaptiveSettings.evenly_spread).
+UNIFORM_SHARE = {"heat": 0.5, "variance": 0.5}
 SHADER = "frame_adaptive.wgsl"
 # frame_adaptive.wgsl's bindings, per entry point (None: not used by that entry).
 ENTRY_BINDINGS = {
@@ -57,20 +63,53 @@ SPILL_SLOT_BYTES = 24   # per spill round: workgroups of its count/take (3 u32),
 
 @dataclass(frozen=True)
 class AdaptiveSettings:
+    """``k`` is the power the importance is raised to; None picks ``exponent``'s default for the mode."""
+
     sampler: str = "heat"
     budget: float | None = None     # mean spp including the probe; None: floor(heat^k · 31) extra
-    k: float = 3.0
+    k: float | None = None
     cap: int = MAX_HEAT_SAMPLES     # most extra samples one pixel may take under a budget
+    # Under a budget, the share of the extra samples spread evenly before the rest follows the importance
+    # (a defensive mixture); None: UNIFORM_SHARE's default for the sampler.
+    uniform_share: float | None = None
 
     def __post_init__(self):
         if self.sampler not in SAMPLERS:
             raise WgpuRtError(f"adaptive sampler {self.sampler!r} is not one of {', '.join(SAMPLERS)}")
         if self.budget is None and self.sampler != "heat":
             raise WgpuRtError(f"the {self.sampler} sampler needs a budget (mean samples per pixel)")
+        if self.uniform_share is not None and not 0.0 <= self.uniform_share <= 1.0:
+            raise WgpuRtError(f"adaptive uniform_share {self.uniform_share} is outside [0, 1]")
         low = self.probe_samples
         if self.budget is not None and not (low <= self.budget <= low + self.cap):
             raise WgpuRtError(f"adaptive budget {self.budget} spp is outside [{low}, {low + self.cap}] "
                               f"(the {low}-spp probe plus at most {self.cap} extra per pixel)")
+
+    @property
+    def exponent(self) -> float:
+        """``k``, or the default of the mode: without a budget the issue's floor(heat^3 · 31), which maps
+        only the hottest pixels to many samples. Under a budget the total is fixed and only the shares
+        matter; relMSE, Σ σ_i² / (n_i (μ_i² + ε)), is least at a fixed Σ n_i when n_i ∝ σ_i / sqrt(μ_i² + ε),
+        the per-sample relative error. The half-buffer error estimates that directly (power 1). The
+        heatmap estimates it too, but through log1p and a per-image 99th-percentile scale clipped at 1,
+        which compress exactly the largest errors; benchmarks/bench_adaptive.py --k 1 2 (96², 3 seeds,
+        cornell, sun-room, cornell-glossy, budgets 2–16) measured power 2 better than 1 at every budget
+        on relMSE (geometric mean of the savings 1.31× against 1.22×), so the heat sampler uses 2."""
+        if self.k is not None:
+            return self.k
+        return NO_BUDGET_EXPONENT if self.budget is None else BUDGET_EXPONENT[self.sampler]
+
+    @property
+    def evenly_spread(self) -> float:
+        """``uniform_share``, or the sampler's default. The importance comes from one noisy probe, so
+        some pixels that need samples look quiet; following it alone starves them, and the loss grows
+        with the budget (benchmarks/bench_adaptive.py at 96², 3 seeds: heat alone saves 1.6× at budget
+        2 but loses, 0.7–0.9×, at budgets 8 and 16). Spreading half evenly bounds every pixel's count
+        from below, as defensive importance sampling does: ≈ 1.0× or better at every budget measured,
+        for less gain at budget 2 (1.3×)."""
+        if self.sampler == "uniform":
+            return 1.0
+        return UNIFORM_SHARE[self.sampler] if self.uniform_share is None else self.uniform_share
 
     @property
     def probe_samples(self) -> int:
@@ -90,22 +129,23 @@ class AdaptiveSettings:
 
 
 # -- numpy references ---------------------------------------------------------------------------------
-def extra_samples_from_heat(heat: np.ndarray, k: float = 3.0) -> np.ndarray:
+def extra_samples_from_heat(heat: np.ndarray, k: float = NO_BUDGET_EXPONENT) -> np.ndarray:
     """(H, W) heat → (H, W) uint32 extra samples floor(clip(heat, 0, 1)^k · 31)."""
     heat = np.clip(np.where(np.isfinite(heat), heat, 0.0), 0.0, 1.0).astype(np.float64)
     return np.floor(heat ** k * MAX_HEAT_SAMPLES).astype(np.uint32)
 
 
-def ideal_budget_samples(importance: np.ndarray, total: int, k: float = 3.0,
-                         uniform: bool = False) -> np.ndarray:
-    """The real-valued share of ``total`` extra samples per pixel, ∝ importance^k (before the per-pixel
-    cap and rounding; the device's integer counts sum to ``total`` exactly and stay within 1 of this
-    wherever no pixel hits the cap)."""
-    weights = np.ones(importance.shape) if uniform else nonnegative_finite(importance).astype(np.float64) ** k
+def ideal_budget_samples(importance: np.ndarray, total: int, k: float = 1.0,
+                         evenly_spread: float = 0.0) -> np.ndarray:
+    """The real-valued share of ``total`` extra samples per pixel: ``evenly_spread`` of them evenly, the
+    rest ∝ importance^k (before the per-pixel cap and rounding; the device's integer counts sum to
+    ``total`` exactly and stay within 1 of this wherever no pixel hits the cap)."""
+    weights = nonnegative_finite(importance).astype(np.float64) ** k
+    even = np.full(importance.shape, total / importance.size)
     weight_sum = weights.sum()
     if weight_sum <= 0:
-        return np.full(importance.shape, total / importance.size)
-    return weights * (total / weight_sum)
+        return even
+    return evenly_spread * even + (1.0 - evenly_spread) * weights * (total / weight_sum)
 
 
 def half_buffer_error(full: np.ndarray, half: np.ndarray) -> np.ndarray:
@@ -124,7 +164,7 @@ class ExtraSamplesPass(ComputePass):
     def __init__(self, ctx, width: int, height: int, settings: AdaptiveSettings, source: PlaneSpec = HEAT):
         self.settings, self.source = settings, source
         self.inputs = (source,)
-        k = 1.0 if settings.sampler == "variance" else settings.k
+        k = settings.exponent
 
         def kernel(entry, **constants):
             return FrameKernel(ctx, SHADER, entry, ENTRY_BINDINGS[entry], width, height, constants)
@@ -137,9 +177,8 @@ class ExtraSamplesPass(ComputePass):
         self.tile_sums = ctx.storage(4 * tiles, label="tile sums")
         self.tile_offsets = ctx.storage(4 * tiles, label="tile candidate offsets")
         self.budget = ctx.storage(16, label="sample budget")
-        self.kernels = [kernel("weigh", K=k, UNIFORM=settings.sampler == "uniform"),
-                        kernel("sum_weights"),
-                        kernel("assign", TARGET=target, CAP=cap)]
+        self.kernels = [kernel("weigh", K=k), kernel("sum_weights"),
+                        kernel("assign", TARGET=target, CAP=cap, EVENLY_SPREAD=settings.evenly_spread)]
 
         def remainder_round(threshold, next_slot):
             return [kernel(entry, TARGET=target, CAP=cap, THRESHOLD=threshold, NEXT_SLOT=next_slot)

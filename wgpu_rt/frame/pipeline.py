@@ -131,7 +131,7 @@ class FramePipeline:
         if adaptive.sampler == "variance":
             encoder.copy_buffer_to_buffer(buffers.get(RADIANCE), 0, buffers.get(HALF_RADIANCE), 0,
                                           RADIANCE.nbytes(self.width, self.height))
-            trace.schedule = SampleSchedule(samples=1, sample_offset=1)
+            trace.schedule = SampleSchedule(samples=1)   # numbered after the probe's first (spp = 1)
             trace.execute(encoder, buffers)
             self._mark(encoder, "probe")
             self.half_buffer_error.execute(encoder, buffers)
@@ -143,7 +143,9 @@ class FramePipeline:
                 encoder.copy_buffer_to_buffer(heat, 0, buffers.get(HEAT), 0, HEAT.nbytes(self.width, self.height))
         self.extra_samples.execute(encoder, buffers)
         self._mark(encoder, "sample map")
-        trace.schedule = SampleSchedule(samples=adaptive.max_extra, sample_offset=adaptive.probe_samples,
+        # No sample_offset: the tracer already numbers these after the probe's (each pixel's spp), so
+        # probe and targeted samples are one unbroken prefix of the pixel's sequence, as brute force is.
+        trace.schedule = SampleSchedule(samples=adaptive.max_extra,
                                         sample_counts=buffers.get(self.extra_samples.outputs[0]))
         trace.execute(encoder, buffers)
         self._mark(encoder, "targeted trace")
