@@ -7,10 +7,11 @@ column compares it), GFLOP/s of the whole network (per wall second) and of the c
 here with nn_kernels/fma_peak.wgsl), the planned peak activation memory, and the ratio to onnxruntime's
 time (intra-op threads = CPU cores). Steps: ``naive`` = one output pixel per invocation,
 ``loop-tiled`` = 4-pixel tiles in loops, ``reg-tiled`` = plus conv3x3.wgsl's written-out 4-pixel ×
-16-channel tile (the default on CPU and integrated adapters), ``staged`` = that tile with its input
-staged in workgroup memory (conv3x3_staged.wgsl, the default on discrete GPUs), ``fp16`` = the
-adapter's default tiling with f16 activations. Every step runs the same 2×2 transposed-convolution kernel
-(conv_transpose.wgsl, 4 input pixels per invocation) and its dispatches count as conv dispatches.
+32-channel tile (16 where the output is not 32k channels; the default on CPU and integrated adapters),
+``staged`` = the 16-channel tile with its input staged in workgroup memory (conv3x3_staged.wgsl, the
+default on discrete GPUs), ``fp16`` = the adapter's default tiling with f16 activations. Every step runs the same
+2×2 transposed-convolution kernel (conv_transpose.wgsl, 4 input pixels per invocation) and its
+dispatches count as conv dispatches.
 
     python3 benchmarks/bench_nn.py --sizes 256 512            # add 1080p for the full-HD run (slow)
 """

@@ -1,7 +1,7 @@
-// 3×3 stride-1 convolution, one 4-pixel × 16-channel register tile (conv3x3_tile.wgsl) per invocation,
-// input pixels read straight from device memory: each row step loads its 6 input pixels, zero outside
-// the input. The default on adapters whose workgroup memory is no faster than device memory (lavapipe:
-// both are per-lane loads) — see conv3x3_staged.wgsl for the staged variant.
+// 3×3 stride-1 convolution, one 4-pixel × 16/32-channel register tile (conv3x3_tile.wgsl) per
+// invocation, input pixels read straight from device memory: each row step loads its 6 input pixels,
+// zero outside the input. The default on adapters whose workgroup memory is no faster than device
+// memory (lavapipe: both are per-lane loads) — see conv3x3_staged.wgsl for the staged variant.
 {{ENABLE_F16}}
 // #import conv3x3_tile.wgsl
 

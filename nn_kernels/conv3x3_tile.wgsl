@@ -1,15 +1,20 @@
 // The register tile shared by the 3×3 stride-1 kernels (conv3x3.wgsl, conv3x3_staged.wgsl): the layer's
-// constants and bindings, and a tile of 4 adjacent output pixels × 4 output channel blocks (16
-// channels). One row step takes the 6 input pixels (vec4 = 4 input channels) of one kernel row and
-// views them as three 4-pixel matrices (one per kx), so one mat4x4 weight block × mat4x4 pixels
-// product is 64 multiply-adds; the 12 weight blocks of a row step are fetched once per invocation and
-// serve all 4 pixels. The tile is four named matrices, not an array indexed by loop counters: lavapipe
-// keeps such code in registers, while loop-indexed tile arrays it could not unroll go to scratch
-// memory. The group (4 output blocks) and header are as in conv.wgsl; its weights come in two windows
-// (kernels.PackedWeights with halves=2): blocks 0–1 from `weights` (weight_block), 2–3 from
-// `high_weights` (high_weight_block), so 128 input channels still fit two 64 KiB uniform bindings.
+// constants and bindings, and a tile of 4 adjacent output pixels × TILE_C output channel blocks per
+// invocation. Its width comes from the imported module: conv3x3_tile16.wgsl (4 blocks, 16 channels),
+// which kernels.Conv3x3Kernel swaps for conv3x3_tile32.wgsl (8 blocks, 32 channels) in conv3x3.wgsl on
+// layers whose output has a multiple of 32 channels. One row step takes the 6 input pixels (vec4 = 4
+// input channels) of one kernel row and views them as three 4-pixel matrices (one per kx), so one
+// mat4x4 weight block × mat4x4 pixels product is 64 multiply-adds, and every weight block of a row
+// step is fetched once per invocation and serves all 4 pixels. The tile is named matrices, not an
+// array indexed by loop counters: lavapipe keeps such code in registers, while loop-indexed tile
+// arrays it could not unroll go to scratch memory. The group (TILE_C output blocks) and header are as
+// in conv.wgsl; its weights come in one window per pair of output blocks (kernels.PackedWeights with
+// splits = TILE_C / 2): blocks 2p and 2p + 1 from window `pair{p}_weights` (pair{p}_weight_block),
+// so 128 input channels still fit 64 KiB uniform bindings.
 // #import nn_storage.wgsl
 // #import nn_activation.wgsl
+// #import layer_bindings.wgsl
+// #import conv3x3_tile16.wgsl
 
 const IN_H: i32 = {{IN_H}};
 const IN_W: i32 = {{IN_W}};
@@ -21,40 +26,26 @@ const OUT_H: i32 = {{OUT_H}};
 const OUT_W: i32 = {{OUT_W}};
 const OUT_PLANE: i32 = OUT_H * OUT_W;
 
-const TILE_C: i32 = 4;   // output channel blocks per invocation
-// #import layer_bindings.wgsl
-
-// block_t: columns are the 4 pixels of output block t of the group
-struct Tile {
-    block0: mat4x4f,
-    block1: mat4x4f,
-    block2: mat4x4f,
-    block3: mat4x4f,
+// The three 4-pixel input matrices of one kernel row (column p: input pixel p + kx of the row), from
+// its 6 input pixels r0..r5.
+struct KernelRow {
+    x0: mat4x4f,
+    x1: mat4x4f,
+    x2: mat4x4f,
 }
 
-fn bias_tile() -> Tile {
-    return Tile(mat4x4f(header.bias[0], header.bias[0], header.bias[0], header.bias[0]),
-                mat4x4f(header.bias[1], header.bias[1], header.bias[1], header.bias[1]),
-                mat4x4f(header.bias[2], header.bias[2], header.bias[2], header.bias[2]),
-                mat4x4f(header.bias[3], header.bias[3], header.bias[3], header.bias[3]));
+fn kernel_row(r0: vec4f, r1: vec4f, r2: vec4f, r3: vec4f, r4: vec4f, r5: vec4f) -> KernelRow {
+    return KernelRow(mat4x4f(r0, r1, r2, r3), mat4x4f(r1, r2, r3, r4), mat4x4f(r2, r3, r4, r5));
 }
 
-// Adds kernel row ky of input block cb: r0..r5 are the input pixels ox0 - PAD_LEFT + 0..5 of the row.
-// Call from uniform control flow (weight_block may use subgroup operations).
-fn accumulate_row(tile: ptr<function, Tile>, cb: i32, ky: i32, lane: WeightLane,
-                  r0: vec4f, r1: vec4f, r2: vec4f, r3: vec4f, r4: vec4f, r5: vec4f) {
-    let x0 = mat4x4f(r0, r1, r2, r3);
-    let x1 = mat4x4f(r1, r2, r3, r4);
-    let x2 = mat4x4f(r2, r3, r4, r5);
-    let tap = (cb * 3 + ky) * 3 * 2;  // each window's blocks of (kx, t) follow at tap + kx * 2 + t % 2
-    (*tile).block0 += weight_block(tap, lane) * x0 + weight_block(tap + 2, lane) * x1
-        + weight_block(tap + 4, lane) * x2;
-    (*tile).block1 += weight_block(tap + 1, lane) * x0 + weight_block(tap + 3, lane) * x1
-        + weight_block(tap + 5, lane) * x2;
-    (*tile).block2 += high_weight_block(tap, lane) * x0 + high_weight_block(tap + 2, lane) * x1
-        + high_weight_block(tap + 4, lane) * x2;
-    (*tile).block3 += high_weight_block(tap + 1, lane) * x0 + high_weight_block(tap + 3, lane) * x1
-        + high_weight_block(tap + 5, lane) * x2;
+// Index of the first weight block of row step (cb, ky) in every pair window: the window's blocks of
+// (kx, t) follow at row_tap + kx * 2 + t, t = 0 for the pair's even output block, 1 for its odd one.
+fn row_tap(cb: i32, ky: i32) -> i32 {
+    return (cb * 3 + ky) * 3 * 2;
+}
+
+fn bias_pixels(block: i32) -> mat4x4f {
+    return mat4x4f(header.bias[block], header.bias[block], header.bias[block], header.bias[block]);
 }
 
 fn store_pixels(block: i32, oy: i32, ox0: i32, pixels: mat4x4f) {
@@ -64,11 +55,4 @@ fn store_pixels(block: i32, oy: i32, ox0: i32, pixels: mat4x4f) {
             dst[base + p] = to_storage(activate(pixels[p]));
         }
     }
-}
-
-fn store_tile(tile: Tile, oy: i32, ox0: i32) {
-    store_pixels(0, oy, ox0, tile.block0);
-    store_pixels(1, oy, ox0, tile.block1);
-    store_pixels(2, oy, ox0, tile.block2);
-    store_pixels(3, oy, ox0, tile.block3);
 }

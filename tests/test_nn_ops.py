@@ -225,19 +225,24 @@ def test_benchmark_baseline_tilings_agree(tmp_path, gpu, tiling):
 @pytest.mark.parametrize("tiling", ["register", "staged"])
 @pytest.mark.parametrize("pads", [[1, 1, 1, 1], [0, 1, 2, 0]], ids=["same", "asymmetric"])
 @pytest.mark.parametrize("precision", ["fp32", "fp16"])
-def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision):
+@pytest.mark.parametrize("outputs", [48, 64])
+def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision, outputs):
     """Both 3×3 tile kernels, whichever the adapter's default: conv3x3.wgsl and conv3x3_staged.wgsl
-    (workgroup-memory halo tiles). 9 input channels = 3 blocks, one padded; 32 outputs = 2 groups; 37×71
-    cuts the 8-row × 32-pixel workgroup tiles on both edges; asymmetric pads shift the halo."""
+    (workgroup-memory halo tiles), and both tile widths: 48 outputs = 12 blocks, three 16-channel groups;
+    64 = two 32-channel groups in conv3x3.wgsl, four 16-channel groups in the staged kernel (which keeps
+    16). 9 input channels = 3 blocks, one padded; 37×71 cuts the 8-row × 32-pixel workgroup tiles on both
+    edges; asymmetric pads shift the halo."""
     from wgpu_rt.nn import WgslModel
 
     if precision == "fp16" and not gpu.has_f16:
         pytest.skip(f"{gpu.label} has no shader-f16")
-    nodes, inits = conv("conv", "x", "y", 9, 32, 3, pads=pads)
+    nodes, inits = conv("conv", "x", "y", 9, outputs, 3, pads=pads)
     path = make_model(tmp_path, "conv3x3_tiles", nodes, 9, inits)
     model = WgslModel(path, precision, ctx=gpu, conv_tiling=tiling)
-    expected = "conv3x3_staged.wgsl" if tiling == "staged" else "conv3x3.wgsl"
-    assert model.kernel_for(model.graph.layers[0]).shader == expected
+    kernel = model.kernel_for(model.graph.layers[0])
+    assert kernel.shader == ("conv3x3_staged.wgsl" if tiling == "staged" else "conv3x3.wgsl")
+    wide = outputs == 64 and tiling == "register"
+    assert kernel.tile_modules[model.prepared["conv"].tile_c] == f"conv3x3_tile{32 if wide else 16}.wgsl"
     check_parity([(1, 9, 37, 71)], onnxruntime_fn(path), model,
                  atol=FP32_ATOL if precision == "fp32" else FP16_ATOL)
 
@@ -254,10 +259,12 @@ def test_staged_tiles_are_the_default_on_discrete_gpus(gpu):
 
 
 @pytest.mark.parametrize("lanes", [8, 4, 0], ids=["subgroup8_fetch", "subgroup4_fetch", "direct_fetch"])
-@pytest.mark.parametrize("cin", [5, 128, 256], ids=["uniform_window", "uniform_halves", "storage_window"])
-def test_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, monkeypatch, cin, lanes):
+@pytest.mark.parametrize("cin", [5, 128, 256], ids=["uniform_window", "uniform_pairs", "storage_window"])
+@pytest.mark.parametrize("outputs", [16, 32], ids=["tile16", "tile32"])
+def test_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, monkeypatch, cin, lanes, outputs):
     """Weight blocks come from a uniform window when it fits 64 KiB, else from read-only storage (256
-    input channels × 3×3 × 8 outputs per half window: 73 KiB; 128 channels still fit), read cooperatively
+    input channels × 3×3 × 8 outputs per pair window: 73 KiB; 128 channels still fit; the 32-channel tile
+    binds four such windows, the 16-channel one two), read cooperatively
     (weights_subgroup.wgsl: two floats per lane on ≥ 8-lane subgroups, a column per lane on 4-lane ones;
     the 4-lane fetch is forced here, it is correct on wider subgroups) or, on adapters without subgroups,
     directly (weights_uniform.wgsl)."""
@@ -271,11 +278,12 @@ def test_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, monkeypatch
     monkeypatch.setattr(kernels, "subgroup_lanes", lambda ctx: lanes)
     features = gpu.features if lanes else gpu.features - {"subgroup"}
     ctx = GpuContext(gpu.adapter, gpu.device, frozenset(features))
-    nodes, inits = conv("conv", "x", "y", cin, 16, 3)
+    nodes, inits = conv("conv", "x", "y", cin, outputs, 3)
     path = make_model(tmp_path, f"conv{cin}", nodes, cin, inits)
-    model = WgslModel(path, ctx=ctx)
+    model = WgslModel(path, ctx=ctx, conv_tiling="register")  # the kernel with both tile widths
     packed = model.prepared["conv"]
     assert packed.weight_space == ("uniform" if cin <= 128 else "storage, read")
+    assert packed.splits == outputs // 8
     check_parity([(1, cin, 19, 23)], onnxruntime_fn(path), model, atol=FP32_ATOL)
 
 

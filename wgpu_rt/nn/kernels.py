@@ -118,7 +118,9 @@ class NnKernel:
         self.ctx, self.precision = ctx, precision
         self.subgroup_lanes = subgroup_lanes(ctx) if ctx.has_subgroups else None
 
-    def pipeline(self, activation: Activation = NO_ACTIVATION, **constants):
+    def pipeline(self, activation: Activation = NO_ACTIVATION, replacements: dict | None = None, **constants):
+        """The shader specialized by ``constants``; ``replacements`` swaps imported modules (see
+        shaders.compose)."""
         substitutions = {"ENABLE_F16": self.precision.enable, "STORAGE": self.precision.storage,
                          "STORAGE_MAX": wgsl_float(self.precision.storage_max),
                          "ACTIVATION": activation.kind, "ALPHA": wgsl_float(activation.alpha),
@@ -127,7 +129,7 @@ class NnKernel:
         if "WEIGHT_SPACE" in constants:
             substitutions.update(self.weight_fetch(constants["WEIGHT_SPACE"], constants["WEIGHT_MATS"],
                                                    constants.get("WEIGHT_WINDOWS", (("weight", 2),))))
-        code = shaders.compose(self.shader, shaders.NN_KERNELS, substitutions)
+        code = shaders.compose(self.shader, shaders.NN_KERNELS, substitutions, replacements)
         return self.ctx.compute_pipeline(code, label=self.shader)
 
     def weight_fetch(self, space: str, mats: int, windows: tuple = (("weight", 2),)) -> dict:
@@ -160,7 +162,8 @@ class NnKernel:
         return self.ctx.device.create_bind_group(layout=layout, entries=entries)
 
 
-WINDOW_BINDINGS = ("weights", "high_weights")  # binding names of a group's windows (see PackedWeights)
+# Binding names of a group's windows (see PackedWeights); conv3x3's pair windows use all four.
+WINDOW_BINDINGS = ("weights", "pair1_weights", "pair2_weights", "pair3_weights")
 
 
 class PackedWeights:
@@ -169,22 +172,23 @@ class PackedWeights:
     Window g holds, for each input block, tap and output block t of the group, a mat4x4 whose column j
     is the 4 output channels' weights for input channel j; the group's header holds its bias and its
     first output block (relative to the output tensor, the view's block is added per plan). With
-    ``halves=2`` a group's output blocks are split over two windows (bound as ``weights`` and
-    ``high_weights``), so a group of 4 blocks over 128 input channels (73 KiB) still fits two 64 KiB
-    uniform bindings (conv3x3: a uniform load is the fast one on lavapipe, see weights_subgroup.wgsl)."""
+    ``splits=k`` a group's output blocks are split evenly over k windows (bound as WINDOW_BINDINGS[:k]),
+    so conv3x3's groups of 4 or 8 blocks over 128 input channels (73 or 147 KiB) still fit 64 KiB uniform
+    bindings, one per pair of output blocks (a uniform load is the fast one on lavapipe, see
+    weights_subgroup.wgsl)."""
 
-    def __init__(self, ctx, layer: Layer, tile_c: int, halves: int = 1):
+    def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1):
         cout, cin, kh, kw = layer.weight.shape
         self.out_blocks, self.in_blocks = groups_of(cout, 4), groups_of(cin, 4)
         self.tile_c = max(t for t in range(1, tile_c + 1) if self.out_blocks % t == 0)
         self.groups = self.out_blocks // self.tile_c
-        self.halves = halves
+        self.splits = splits
         self.taps = kh * kw
         padded = np.zeros((self.out_blocks * 4, self.in_blocks * 4, kh, kw), np.float32)
         padded[:cout, :cin] = layer.weight
-        blocks = padded.reshape(self.groups, halves, self.tile_c // halves, 4, self.in_blocks, 4, kh, kw)
-        windows = blocks.transpose(0, 1, 4, 6, 7, 2, 5, 3).reshape(self.groups * halves, -1)
-        self.mats = self.in_blocks * self.taps * self.tile_c // halves
+        blocks = padded.reshape(self.groups, splits, self.tile_c // splits, 4, self.in_blocks, 4, kh, kw)
+        windows = blocks.transpose(0, 1, 4, 6, 7, 2, 5, 3).reshape(self.groups * splits, -1)
+        self.mats = self.in_blocks * self.taps * self.tile_c // splits
         window_bytes = self.mats * 64
         limits = ctx.limits
         fits_uniform = window_bytes <= min(UNIFORM_WINDOW_LIMIT, limits.get("max-uniform-buffer-binding-size",
@@ -193,7 +197,7 @@ class PackedWeights:
         alignment = limits.get("min-uniform-buffer-offset-alignment" if self.weight_space == "uniform"
                                else "min-storage-buffer-offset-alignment", 256)
         self.window_bytes, self.window_stride = window_bytes, -(-window_bytes // alignment) * alignment
-        data = np.zeros((self.groups * halves, self.window_stride // 4), np.float32)
+        data = np.zeros((self.groups * splits, self.window_stride // 4), np.float32)
         data[:, : windows.shape[1]] = windows
         self.buffer = ctx.upload(data, usage=wgpu.BufferUsage.UNIFORM, label=f"{layer.name} weights")
         bias = np.zeros(self.out_blocks * 4, np.float32)
@@ -216,8 +220,8 @@ class PackedWeights:
         return self._headers[out_block]
 
     def windows(self, group: int) -> dict:
-        return {name: (self.buffer, (group * self.halves + half) * self.window_stride, self.window_bytes)
-                for half, name in enumerate(WINDOW_BINDINGS[: self.halves])}
+        return {name: (self.buffer, (group * self.splits + split) * self.window_stride, self.window_bytes)
+                for split, name in enumerate(WINDOW_BINDINGS[: self.splits])}
 
     def header(self, out_block: int, group: int) -> tuple:
         return (self.headers(out_block), group * self.header_stride, self.header_bytes)
@@ -262,8 +266,8 @@ class ConvKernel(ConvFamilyKernel):
 
 class Conv3x3Kernel(ConvFamilyKernel):
     """The hot path — 3×3 stride-1 convolutions whose output has a multiple of 16 channels, with a
-    written-out 4-pixel × 16-channel register tile (conv3x3_tile.wgsl) per invocation, in one of two
-    variants that differ only in where the input pixels come from:
+    written-out register tile of 4 pixels × 16 or 32 channels per invocation (conv3x3_tile.wgsl), in
+    one of two variants that differ only in where the input pixels come from:
 
     * conv3x3.wgsl (``staged=False``) reads each invocation's 3 × 6 input pixels from device memory;
     * conv3x3_staged.wgsl (``staged=True``) first copies the workgroup's input tile and halo into
@@ -279,40 +283,67 @@ class Conv3x3Kernel(ConvFamilyKernel):
     so do integrated GPUs (their workgroup memory is on-chip too, but the trade is unmeasured there).
     Both variants are tested for parity whatever the adapter (tests/test_nn_ops.py).
 
+    Tile width (``tile_blocks``): 32 channels (conv3x3_tile32.wgsl) in the direct variant wherever the
+    output has a multiple of 32 channels, else 16 (conv3x3_tile16.wgsl). On lavapipe input loads are
+    costly (a storage load is a scalar loop over the lanes; with them replaced by constants the
+    16-channel tile runs 1.6× as fast), and the 32-channel tile does twice the multiply-adds per loaded
+    pixel: on every 3×3 shape of the U-Net (3–32 input blocks, 128²–512²) it took 3–12% less CPU time
+    in same-process A/Bs, the most at 16–32 input blocks, and no shape was slower; the whole U-Net ≈ 3%
+    less (256² and 512²).
+    Its price is compilation: ≈ 0.5 s instead of 0.25 s of CPU per pipeline on lavapipe. Where the input
+    lies does not matter there: a layer runs at the same rate per CPU second at 128², 256² and 512²
+    (inputs of 1–64 MiB), so ordering dispatches to keep input rows in cache has nothing to win. The
+    staged variant keeps 16 channels: it already makes its input loads cheap (its adapters' workgroup
+    memory is on-chip), and on a GPU 32 accumulator vec4s per invocation would cost occupancy (unmeasured:
+    lavapipe is the only adapter here). What is left on lavapipe is mostly the weight fetch: with it
+    replaced by 8 matrices fetched once before the loop, the 32-channel tile runs 2.2× as fast (2 gathers
+    and 16 broadcasts per block against its 64 multiply-adds per lane; the 4-lane fetch is 14% slower,
+    the direct one of weights_uniform.wgsl 1.9×).
+
     Tried on lavapipe and not kept (same-process A/B, CPU time): (1) the row steps written out in
     straight-line code with literal (cb, ky), so every weight offset is a constant outside any loop and the
     windows are read directly: 2.1× slower at 8 input blocks, no faster at 1, and pipeline compilation grows
-    from 0.07 s to 3.4 s at 24 input blocks; (2) a 4-pixel × 32-channel tile (8 accumulator matrices, four
-    2-block windows): 3–15% faster on single layers but no faster on the whole U-Net at 256² or 512²; (3)
-    other workgroup shapes: 2 × 32 tiles of 4 pixels no faster, 64 × 1 1.7× slower (idle lanes on the narrow
-    layers). With its input loads replaced by constants the 32-channel tile ran at the FMA ceiling on single
-    layers, but dropping 2 of this tile's 6 input loads per row step gained only 6–8%, so sharing the halo
-    pixels between lanes (subgroup shuffles) cannot pay much more than that."""
+    from 0.07 s to 3.4 s at 24 input blocks; (2) an 8-pixel × 16-channel tile (each weight block serves
+    8 pixels, 10 loads per 8 pixels): 3% slower than 4 × 16 at 8 input blocks; (3) sharing the halo
+    pixels between the 8 lanes of a row through subgroupShuffleUp/Down (5 loads per row step instead of
+    6): within 1% (on lavapipe a shuffle is a per-lane loop too); (4) other workgroup shapes: 2 × 32
+    tiles of 4 pixels no faster, 64 × 1 1.7× slower (idle lanes on the narrow layers); (5) f16 inputs
+    read as packed vec2<u32> (half the scalar loads per pixel): 4% faster on one fp16 layer, not worth a
+    second storage layout."""
 
-    bindings = ("src", "dst", "weights", "header", "high_weights")
-    weight_windows = (("weight", 2), ("high_weight", 4))
-    tile_c_default = 4
+    bindings = ("src", "dst", "weights", "header") + WINDOW_BINDINGS[1:]
     tile_x = 4
+    tile_modules = {4: "conv3x3_tile16.wgsl", 8: "conv3x3_tile32.wgsl"}  # output blocks -> tile module
 
     def __init__(self, ctx, precision: Precision, staged: bool = False):
         super().__init__(ctx, precision, self.tile_x)
+        self.staged = staged
         self.shader = "conv3x3_staged.wgsl" if staged else "conv3x3.wgsl"
 
+    def tile_blocks(self, layer: Layer) -> int:
+        """Output blocks per invocation: 8 (32 channels) in the direct variant where they divide the
+        output's blocks, else 4."""
+        return 8 if not self.staged and groups_of(layer.weight.shape[0], 4) % 8 == 0 else 4
+
     def prepare(self, layer: Layer) -> PackedWeights:
-        """Output blocks 0–1 of each group in window ``weights``, 2–3 in ``high_weights``."""
-        return PackedWeights(self.ctx, layer, self.tile_c_default, halves=2)
+        """One window per pair of output blocks of a group (``pair{p}_weights`` in the shader)."""
+        tile = self.tile_blocks(layer)
+        return PackedWeights(self.ctx, layer, tile, splits=tile // 2)
 
     @staticmethod
     def handles(layer: Layer) -> bool:
         return (layer.kind == "conv" and layer.weight.shape[2:] == (3, 3) and layer.stride == 1
-                and groups_of(layer.weight.shape[0], 4) % Conv3x3Kernel.tile_c_default == 0)
+                and groups_of(layer.weight.shape[0], 4) % 4 == 0)
 
     def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView):
         top, left, _, _ = layer.pads
+        windows = tuple((f"pair{p}_weight", self.bindings.index(binding))
+                        for p, binding in enumerate(WINDOW_BINDINGS[: packed.splits]))
         pipeline = self.pipeline(
-            layer.activation, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
+            layer.activation, replacements={self.tile_modules[4]: self.tile_modules[packed.tile_c]},
+            IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
             OUT_H=dst.height, OUT_W=dst.width, PAD_TOP=top, PAD_LEFT=left,
-            WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats, WEIGHT_WINDOWS=self.weight_windows)
+            WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats, WEIGHT_WINDOWS=windows)
         workgroups = (groups_of(groups_of(dst.width, self.tile_x), 8), groups_of(dst.height, 8), 1)  # 8×8 tiles
         flops = layer.flops_per_pixel * dst.height * dst.width
         return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops)
