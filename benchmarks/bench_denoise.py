@@ -7,12 +7,13 @@ which brute force reaches the denoiser's relMSE (log-log interpolation of the br
 Error predictor: Spearman correlation of its heatmap with the true |1 spp − gold| log error. Confidence:
 ROC AUC of 1 − its output (it predicts that history is valid) against the true disocclusion mask. All networks run in the WGSL engine.
 
-    python benchmarks/bench_denoise.py --data data/dataset [--models models] [--extra-spp 64 256]
+    python benchmarks/bench_denoise.py --data data/dataset [--models models] [--extra-spp 64 256] [--gold-spp 1024]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
@@ -41,8 +42,9 @@ def equivalent_spp(spp: list[int], error: list[float], target: float) -> str:
     return f"> {spp[-1]}"
 
 
-def extra_brute_force(data: Path, view_ids: set[str], extra: list[int]) -> dict[str, dict[int, np.ndarray]]:
-    """Renders of the test views' frame 0 at the ``extra`` sample counts (the same scenes as the dataset)."""
+def render_test_views(data: Path, view_ids: set[str], spp: list[int], seed: int) -> dict[str, dict[int, np.ndarray]]:
+    """Renders of the test views' frame 0 at each of ``spp`` (the dataset's scenes, seeds ``seed`` + spp,
+    independent of the dataset's own renders)."""
     from wgpu_rt.render import render
 
     config = read_manifest(data)["config"]
@@ -53,9 +55,24 @@ def extra_brute_force(data: Path, view_ids: set[str], extra: list[int]) -> dict[
         if plan.view_id in view_ids:
             scene = engine.scene_for(plan)
             result[plan.view_id] = {s: render(scene, spp=s, size=(config.size, config.size),
-                                              max_depth=config.max_depth, seed=10_000 + s, frame=0, aovs=()).color
-                                    for s in extra}
+                                              max_depth=config.max_depth, seed=seed + s, frame=0, aovs=()).color
+                                    for s in spp}
     return result
+
+
+def reference_gold(data: Path, view_ids: set[str], spp: int) -> dict[str, np.ndarray]:
+    """A higher-spp gold for the test views, rendered once and kept under DATA/reference/ (so that the
+    evaluation is not capped by the dataset gold's own noise)."""
+    folder = data / "reference"
+    paths = {v: folder / f"{v}_{spp}spp.npy" for v in view_ids}
+    missing = {v for v, path in paths.items() if not path.exists()}
+    if missing:
+        folder.mkdir(exist_ok=True)
+        for view_id, images in render_test_views(data, missing, [spp], seed=20_000).items():
+            tmp = paths[view_id].with_suffix(".tmp.npy")
+            np.save(tmp, np.asarray(images[spp], np.float32))
+            os.replace(tmp, paths[view_id])
+    return {v: np.load(path) for v, path in paths.items()}
 
 
 def main() -> None:
@@ -66,6 +83,9 @@ def main() -> None:
     parser.add_argument("--precision", default="fp32", choices=["fp32", "fp16"])
     parser.add_argument("--extra-spp", type=int, nargs="*", default=[64],
                         help="brute-force sample counts rendered now, beyond the dataset's")
+    parser.add_argument("--gold-spp", type=int, default=None,
+                        help="score against a gold rendered at this spp (cached in DATA/reference/) instead of "
+                             "the dataset's; the dataset's gold then joins the brute-force rows")
     args = parser.parse_args()
 
     import pyoidn
@@ -75,7 +95,10 @@ def main() -> None:
     denoiser = WgslModel(models / "denoiser.onnx", precision=args.precision)
     error_model = WgslModel(models / "error_predictor.onnx", precision=args.precision)
     confidence_model = WgslModel(models / "confidence.onnx", precision=args.precision)
-    extra = extra_brute_force(Path(args.data), {v.view_id for v in views}, args.extra_spp) if args.extra_spp else {}
+    view_ids = {v.view_id for v in views}
+    dataset_gold_spp = int(read_manifest(args.data)["config"]["gold"])
+    extra = render_test_views(Path(args.data), view_ids, args.extra_spp, seed=10_000) if args.extra_spp else {}
+    gold_override = reference_gold(Path(args.data), view_ids, args.gold_spp) if args.gold_spp else {}
 
     first = views[0].frames[0].noisy[1]   # warm-up: pipeline compilation is not denoising time
     denoise(denoiser, first["color"], first["albedo"], first["normal"], first["depth"])
@@ -86,7 +109,7 @@ def main() -> None:
     spearman, auc = [], []
     for view in views:
         frame = view.frames[0]
-        gold, noisy = frame.gold["color"], frame.noisy[1]
+        gold, noisy = gold_override.get(view.view_id, frame.gold["color"]), frame.noisy[1]
         started = time.perf_counter()
         ours = denoise(denoiser, noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"])
         seconds["ours"] += time.perf_counter() - started
@@ -98,6 +121,8 @@ def main() -> None:
         for spp, render in sorted({**{s: frame.noisy[s]["color"] for s in view.spp},
                                    **extra.get(view.view_id, {})}.items()):
             candidates[f"brute {spp} spp"] = render
+        if gold_override:
+            candidates[f"dataset gold {dataset_gold_spp}"] = frame.gold["color"]
         for name, image in candidates.items():
             rows.setdefault(name, []).append(metrics.all_metrics(gold, image))
 
@@ -111,8 +136,9 @@ def main() -> None:
             invalid = 1.0 - np.asarray(confidence_model(x[None]))[0, 0]    # the model says "history valid"
             auc.append(roc_auc(invalid, disocclusion_mask(previous.gold["color"], current.gold["color"], motion)))
 
+    gold_spp = args.gold_spp or dataset_gold_spp
     print(f"{len(views)} held-out views ({args.split} split of {args.data}), "
-          f"{views[0].frames[0].gold['color'].shape[1]}² px, precision {args.precision}")
+          f"{views[0].frames[0].gold['color'].shape[1]}² px, precision {args.precision}, gold {gold_spp} spp")
     keys = list(rows["ours (1 spp)"][0])
     print(f"{'method':18s}" + "".join(f"{k:>10s}" for k in keys))
     means = {name: {k: float(np.mean([r[k] for r in values])) for k in keys} for name, values in rows.items()}

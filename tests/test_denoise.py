@@ -60,6 +60,7 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
 
     from wgpu_rt.commands.denoise import PAD_MULTIPLE
     from wgpu_rt.frame.pack import pack_denoiser_input
+    from wgpu_rt.frame.unpack import unpack_denoiser_output
     from wgpu_rt.train.trainer import pad_to_multiple
 
     torch.manual_seed(0)
@@ -73,7 +74,7 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
     x = pad_to_multiple(pack_denoiser_input(color, layers["albedo"], layers["normal"], layers["depth"])[None],
                         PAD_MULTIPLE)
     session = onnxruntime.InferenceSession(str(model), providers=["CPUExecutionProvider"])
-    expected = np.maximum(np.expm1(session.run(None, {"input": x})[0][0, :, :20, :28].transpose(1, 2, 0)), 0)
+    expected = unpack_denoiser_output(session.run(None, {"input": x})[0][0, :, :20, :28], layers["albedo"])
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
 
 

@@ -1,11 +1,11 @@
-"""Unpack (expm1) and tonemap passes against their numpy references, with non-finite stress."""
+"""Unpack (expm1, remodulated by albedo) and tonemap passes against their numpy references, with non-finite stress."""
 
 import numpy as np
 import pytest
 from parity import check_parity
 
 from wgpu_rt.errors import WgpuRtError
-from wgpu_rt.frame.planes import DENOISED, write_plane
+from wgpu_rt.frame.planes import ALBEDO, DENOISED, write_plane
 from wgpu_rt.frame.tonemap import TonemapPass, aces_fitted, tonemap
 from wgpu_rt.frame.unpack import UnpackPass, unpack_denoiser_output
 from wgpu_rt.render_pass import FrameBuffers, PlaneSpec
@@ -21,41 +21,51 @@ def submit(gpu, passes, buffers):
     gpu.device.queue.submit([encoder.finish()])
 
 
-def unpack_on_gpu(gpu, tensor):
+def unpack_on_gpu(gpu, tensor, albedo):
     buffers = FrameBuffers(gpu, W, H)
     write_plane(buffers, NETWORK_OUTPUT, tensor.transpose(1, 2, 0))
+    write_plane(buffers, ALBEDO, albedo)
     submit(gpu, [UnpackPass(gpu, W, H, NETWORK_OUTPUT)], buffers)
     return buffers.read(DENOISED.name).transpose(1, 2, 0)
 
 
+def random_albedo(seed):
+    return np.random.default_rng(seed).uniform(-0.2, 1.2, (H, W, 3)).astype(np.float32)
+
+
 def test_unpack_matches_reference(gpu):
     tensor = np.random.default_rng(0).uniform(-1, 3, (3, H, W)).astype(np.float32)
-    check_parity(None, unpack_denoiser_output, lambda t: unpack_on_gpu(gpu, t), atol=1e-6, rtol=3e-5,
-                 inputs=[tensor], name="unpack")
+    check_parity(None, unpack_denoiser_output, lambda t, a: unpack_on_gpu(gpu, t, a), atol=1e-6, rtol=3e-5,
+                 inputs=[tensor, random_albedo(10)], name="unpack")
 
 
 def test_unpack_matches_reference_over_fp16_range(gpu):
     """Up to log1p(65504) ≈ 11.1: relative accuracy over the whole range the FP16 network emits."""
     tensor = np.random.default_rng(0).uniform(0, np.log1p(65504.0), (3, H, W)).astype(np.float32)
-    np.testing.assert_allclose(unpack_on_gpu(gpu, tensor), unpack_denoiser_output(tensor),
+    albedo = random_albedo(11)
+    np.testing.assert_allclose(unpack_on_gpu(gpu, tensor, albedo), unpack_denoiser_output(tensor, albedo),
                                rtol=3e-5, atol=1e-6)
 
 
 def test_unpack_reference_by_hand():
-    tensor = np.array([np.log1p(3.0), -2.0, np.nan, np.inf, 1e-9, 200.0], np.float32).reshape(6, 1, 1)
-    out = unpack_denoiser_output(tensor.reshape(3, 2, 1))
-    np.testing.assert_allclose(out.transpose(2, 0, 1).ravel(), [3.0, 0.0, 0.0, 0.0, 1e-9, np.expm1(88.0)],
-                               rtol=1e-6)
+    """expm1 of the clamped log value times the albedo factor (albedo clamped to [0, 1], + 0.01)."""
+    tensor = np.array([np.log1p(3.0), -2.0, np.nan, np.inf, 1e-9, 200.0], np.float32).reshape(3, 2, 1)
+    albedo = np.array([0.5, 2.0, np.nan, -1.0, 0.0, 1.0], np.float32).reshape(3, 2, 1).transpose(1, 2, 0)
+    out = unpack_denoiser_output(tensor, albedo)
+    np.testing.assert_allclose(out.transpose(2, 0, 1).ravel(),
+                               [3.0 * 0.51, 0.0, 0.0, 0.0, 1e-9 * 0.01, np.expm1(88.0) * 1.01], rtol=1e-6)
 
 
 @pytest.mark.parametrize("poison", [np.nan, np.inf, -np.inf, 1e30])
 def test_unpack_output_is_finite_and_non_negative(gpu, poison):
     rng = np.random.default_rng(1)
     tensor = rng.uniform(-3, 11, (3, H, W)).astype(np.float32)
+    albedo = random_albedo(12)
     tensor[rng.uniform(size=tensor.shape) < 0.2] = poison
-    out = unpack_on_gpu(gpu, tensor)
+    albedo[rng.uniform(size=albedo.shape) < 0.2] = poison
+    out = unpack_on_gpu(gpu, tensor, albedo)
     assert np.all(np.isfinite(out)) and out.min() >= 0
-    np.testing.assert_allclose(out, unpack_denoiser_output(tensor), rtol=3e-5, atol=1e-6)
+    np.testing.assert_allclose(out, unpack_denoiser_output(tensor, albedo), rtol=3e-5, atol=1e-6)
 
 
 def tonemap_on_gpu(gpu, image, **settings):

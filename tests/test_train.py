@@ -34,10 +34,16 @@ def test_torch_ssim_matches_scikit_image():
     assert float(ours) == pytest.approx(reference, abs=1e-6)
 
 
+def with_albedo_factor(log_irradiance: torch.Tensor) -> torch.Tensor:
+    """A denoiser target: log1p irradiance + a random albedo factor in [0.01, 1.01]."""
+    return torch.cat([log_irradiance, 0.01 + torch.rand_like(log_irradiance)], dim=1)
+
+
 def test_denoiser_loss_is_zero_only_at_the_target_and_differentiable():
-    target = torch.rand(2, 3, 16, 16)
-    assert float(denoiser_loss(target, target)) == pytest.approx(0.0, abs=1e-6)
-    guess = (target + 0.1 * torch.randn_like(target)).requires_grad_()
+    log_irradiance = torch.rand(2, 3, 16, 16)
+    target = with_albedo_factor(log_irradiance)
+    assert float(denoiser_loss(log_irradiance, target)) == pytest.approx(0.0, abs=1e-6)
+    guess = (log_irradiance + 0.1 * torch.randn_like(log_irradiance)).requires_grad_()
     loss = denoiser_loss(guess, target, "charbonnier")
     loss.backward()
     assert float(loss.detach()) > 0 and torch.isfinite(guess.grad).all() and guess.grad.abs().sum() > 0
@@ -54,11 +60,33 @@ def test_display_mapping_matches_the_metrics_one():
 
 
 def test_display_space_loss_is_zero_only_at_the_target_and_has_gradients_at_black():
-    target = torch.rand(2, 3, 16, 16)
-    assert float(denoiser_loss(target, target, ssim_space="display")) == pytest.approx(0.0, abs=1e-6)
-    guess = torch.zeros_like(target).requires_grad_()
+    log_irradiance = torch.rand(2, 3, 16, 16)
+    target = with_albedo_factor(log_irradiance)
+    assert float(denoiser_loss(log_irradiance, target, ssim_space="display")) == pytest.approx(0.0, abs=1e-6)
+    guess = torch.zeros_like(log_irradiance).requires_grad_()
     denoiser_loss(guess, target, ssim_space="display").backward()
     assert torch.isfinite(guess.grad).all() and guess.grad.abs().sum() > 0
+
+
+def test_denoiser_loss_scores_remodulated_colour_against_skimage():
+    """0.8·(1 − SSIM of the display colours, irradiance × albedo factor) + 0.2·L1 on log1p irradiance,
+    recomputed with numpy, the metrics' display mapping and scikit-image's SSIM."""
+    from skimage.metrics import structural_similarity
+
+    from wgpu_rt.metrics import to_display
+
+    rng = np.random.default_rng(3)
+    target = rng.uniform(0, 2, (3, 32, 32))
+    guess = np.clip(target + rng.normal(0, 0.3, target.shape), 0, None)
+    factor = rng.uniform(0.01, 1.01, target.shape)
+    shown = [to_display(np.expm1(v) * factor) for v in (guess, target)]
+    reference = 0.8 * (1 - structural_similarity(*shown, channel_axis=0, data_range=1.0, gaussian_weights=True,
+                                                 sigma=1.5, use_sample_covariance=False))
+    reference += 0.2 * np.abs(guess - target).mean()
+    ours = denoiser_loss(torch.tensor(guess[None], dtype=torch.float32),
+                         torch.tensor(np.concatenate([target, factor])[None], dtype=torch.float32),
+                         ssim_space="display")
+    assert float(ours) == pytest.approx(reference, abs=5e-3)
 
 
 def test_curriculum_goes_16_then_4_then_1():
@@ -69,6 +97,21 @@ def test_curriculum_goes_16_then_4_then_1():
 def test_curriculum_stages_can_be_weighted():
     stages = (16, 4, 1, 1)
     assert [curriculum_spp(p, [1, 4, 16], stages) for p in (0.0, 0.3, 0.49, 0.5, 0.99)] == [16, 4, 4, 1, 1]
+
+
+def test_validation_every_n_epochs_and_after_the_last(tiny_dataset, tmp_path):
+    trainer = Trainer(TrainConfig(task="error-predictor", data=str(tiny_dataset), out=str(tmp_path), epochs=5,
+                                  batch=2, crop_min=8, crop_max=16, validate_every=2), progress=False)
+    trainer.run()
+    assert [h["epoch"] for h in trainer.history if "val_spearman" in h] == [2, 4, 5]
+    assert "| 1 | " in trainer.model_card() and "—" in trainer.model_card()
+
+
+def test_resume_refuses_a_checkpoint_trained_with_other_settings(tiny_dataset, tmp_path):
+    base = dict(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), widths=(4, 8))
+    Trainer(TrainConfig(epochs=1, **base), progress=False).run()
+    with pytest.raises(TrainingError, match="ssim_space"):
+        Trainer(TrainConfig(epochs=2, resume=True, ssim_space="display", **base), progress=False)
 
 
 def test_residual_unet_adds_its_correction_to_the_input_colour():

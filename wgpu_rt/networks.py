@@ -1,10 +1,11 @@
 """The three networks, defined in torch (training only) and exported to ONNX for the WGSL engine.
 
-- ``UNet``: the denoiser. Input: 10 channels, NCHW — log1p(noisy HDR RGB), albedo RGB, normals mapped
-  to [0, 1], normalized depth. Output: log1p of the clean RGB (the pipeline applies expm1). Levels of
+- ``UNet``: the denoiser. Input: 10 channels, NCHW — log1p(noisy HDR RGB / (albedo + 0.01)), albedo RGB,
+  normals mapped to [0, 1], normalized depth. Output: log1p of the clean irradiance (the pipeline applies
+  expm1 and multiplies by albedo + 0.01: wgpu_rt.frame.pack/unpack). Levels of
   ``widths`` channels, each a double 3×3 conv + ReLU; 2×2 max-pool down; 2×2 stride-2 transposed conv
   up; skips concatenated on channels; a 1×1 conv to RGB. With ``residual`` that conv (zero-initialised)
-  predicts a correction added to the input's log1p RGB (a fixed 1×1 conv selects those channels, then
+  predicts a correction added to the input's log1p colour (a fixed 1×1 conv selects those channels, then
   an Add), so the untrained network is the identity. In a short run on 1-spp inputs it fit the training
   set worse than direct prediction (loss 0.41 vs 0.27 after 165 steps), so it is off by default.
   H and W must be multiples of 2**(levels-1) (the engine pads and crops).

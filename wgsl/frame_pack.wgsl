@@ -1,13 +1,15 @@
 // Packing the tracer's planes into the networks' planar NCHW f32 inputs, one invocation per pixel.
 // Colours go to log space (log1p of the sanitised radiance: NaN/Inf → 0, negatives → 0) so that HDR
-// values up to f16's 65504 land near 11 and the FP16 network path keeps precision; albedo is clamped
+// values up to f16's 65504 land near 11 and the FP16 network path keeps precision; the denoiser's colour
+// is first demodulated by albedo (frame_albedo.wgsl: it sees irradiance); albedo is clamped
 // to [0, 1], normals are mapped by n·0.5 + 0.5, and depth is divided by the frame's max depth (read as
 // the bit pattern written by frame_depth_max.wgsl; a frame with no hit packs depth 0).
-//   pack_denoiser:   10 ch = log1p RGB, albedo, normal·0.5+0.5, depth/max
+//   pack_denoiser:   10 ch = log1p RGB/albedo factor, albedo, normal·0.5+0.5, depth/max
 //   pack_error:       3 ch = log1p RGB                                     (error predictor)
 //   pack_confidence:  8 ch = log1p RGB, log1p reprojected history RGB, depth/max,
 //                            reprojected previous depth/max               (confidence predictor)
 // #import frame_common.wgsl
+// #import frame_albedo.wgsl
 
 @group(0) @binding(0) var<storage, read> color: array<f32>;
 @group(0) @binding(1) var<storage, read> albedo: array<f32>;
@@ -33,7 +35,7 @@ fn pack_denoiser(@builtin(global_invocation_id) id: vec3u) {
     let i = pixel_index(id);
     let n = pixel_count();
     for (var c = 0u; c < 3u; c++) {
-        packed[c * n + i] = log_color(c, i);
+        packed[c * n + i] = log1p_accurate(sanitize(color[c * n + i]) / albedo_factor(albedo[c * n + i]));
         packed[(3u + c) * n + i] = clamp(sanitize(albedo[c * n + i]), 0.0, 1.0);
         packed[(6u + c) * n + i] = clamp(finite_or_zero(normal[c * n + i]) * 0.5 + 0.5, 0.0, 1.0);
     }

@@ -1,12 +1,15 @@
-// The denoiser's output back to linear radiance: expm1 of its log1p RGB. NaN/±Inf in the network's
-// output become 0, and the log value is clamped to [0, 88] first, so the result is finite (expm1(88)
-// ≈ 1.65e38 < f32 max) and non-negative (a network may undershoot below log1p(0) = 0).
+// The denoiser's output back to linear radiance: expm1 of its log1p irradiance, remodulated by the
+// albedo factor pack_denoiser divided by (frame_albedo.wgsl). NaN/±Inf in the network's output become 0,
+// and the log value is clamped to [0, 88] first, so the result is finite (expm1(88) · 1.01 ≈ 1.67e38 <
+// f32 max) and non-negative (a network may undershoot below log1p(0) = 0).
 // #import frame_common.wgsl
+// #import frame_albedo.wgsl
 
 const MAX_LOG_RADIANCE: f32 = 88.0;
 
 @group(0) @binding(0) var<storage, read> network_output: array<f32>;
-@group(0) @binding(1) var<storage, read_write> radiance: array<f32>;
+@group(0) @binding(1) var<storage, read> albedo: array<f32>;
+@group(0) @binding(2) var<storage, read_write> radiance: array<f32>;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) id: vec3u) {
@@ -14,6 +17,7 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     let i = pixel_index(id);
     for (var c = 0u; c < 3u; c++) {
         let k = c * pixel_count() + i;
-        radiance[k] = expm1_accurate(clamp(finite_or_zero(network_output[k]), 0.0, MAX_LOG_RADIANCE));
+        let log_irradiance = clamp(finite_or_zero(network_output[k]), 0.0, MAX_LOG_RADIANCE);
+        radiance[k] = expm1_accurate(log_irradiance) * albedo_factor(albedo[k]);
     }
 }

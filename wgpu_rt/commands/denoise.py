@@ -43,12 +43,13 @@ def denoise(model, color, albedo, normal, depth):
     import numpy as np
 
     from ..frame.pack import pack_denoiser_input
+    from ..frame.unpack import unpack_denoiser_output
     from ..train.trainer import pad_to_multiple
 
     height, width = color.shape[:2]
     x = pad_to_multiple(pack_denoiser_input(color, albedo, normal, depth)[None], PAD_MULTIPLE)
     out = np.asarray(model(x), np.float32)[0, :, :height, :width]
-    return np.maximum(np.nan_to_num(np.expm1(out.transpose(1, 2, 0)), nan=0.0, posinf=0.0), 0.0)
+    return unpack_denoiser_output(out, albedo)
 
 
 def run(args) -> int:

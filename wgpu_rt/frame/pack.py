@@ -7,6 +7,10 @@ Depth is normalised by the frame's max depth (ARCHITECTURE.md's contract), found
 atomic max over the depth's bit pattern (``wgsl/frame_depth_max.wgsl``), so no value travels to the
 CPU. Sanitising: NaN/±Inf become 0 and negatives are clamped to 0 in colour, albedo and depth (a
 failed sample adds nothing); non-finite normal components become 0 (mapping to 0.5).
+
+The denoiser sees colour *demodulated* by albedo: log1p(colour / (albedo + ALBEDO_EPSILON)), the
+irradiance, which is smooth across texture and material edges (those come back, noise-free, when
+``unpack`` multiplies by the same factor). ALBEDO_EPSILON keeps black albedo (misses, emitters) finite.
 """
 
 from __future__ import annotations
@@ -24,6 +28,21 @@ CONFIDENCE_BINDINGS = ("color", None, None, "depth", "depth_max_bits", "reprojec
 
 
 # -- numpy references ---------------------------------------------------------------------------------
+ALBEDO_EPSILON = 0.01
+
+
+def albedo_factor(albedo: np.ndarray) -> np.ndarray:
+    """(H, W, 3) albedo → the (3, H, W) demodulation factor: albedo sanitised, clamped to [0, 1], + ε."""
+    clamped = np.clip(nonnegative_finite(albedo), 0.0, 1.0)
+    return (clamped + np.float32(ALBEDO_EPSILON)).transpose(2, 0, 1).astype(np.float32)
+
+
+def demodulated_log_color(color: np.ndarray, albedo: np.ndarray) -> np.ndarray:
+    """(H, W, 3) radiance and albedo → (3, H, W) log1p of the sanitised radiance / albedo_factor."""
+    irradiance = nonnegative_finite(color).transpose(2, 0, 1) / albedo_factor(albedo)
+    return np.log1p(irradiance).astype(np.float32)
+
+
 def log_color(color: np.ndarray) -> np.ndarray:
     """(H, W, 3) radiance → (3, H, W) log1p of the sanitised radiance."""
     return np.log1p(nonnegative_finite(color)).transpose(2, 0, 1).astype(np.float32)
@@ -41,11 +60,12 @@ def frame_max_depth(depth: np.ndarray) -> float:
 
 def pack_denoiser_input(color, albedo, normal, depth) -> np.ndarray:
     """(H, W, 3) radiance, albedo, normal and (H, W[, 1]) depth → the denoiser's (10, H, W) float32 input:
-    log1p RGB, albedo clamped to [0, 1], normal·0.5+0.5 clamped to [0, 1], depth / frame max depth."""
-    albedo = np.clip(nonnegative_finite(albedo), 0.0, 1.0).transpose(2, 0, 1)
+    log1p of the albedo-demodulated RGB, albedo clamped to [0, 1], normal·0.5+0.5 clamped to [0, 1],
+    depth / frame max depth."""
+    clamped_albedo = np.clip(nonnegative_finite(albedo), 0.0, 1.0).transpose(2, 0, 1)
     normal = np.clip(finite(normal) * 0.5 + 0.5, 0.0, 1.0).transpose(2, 0, 1)
     depth = normalize_depth(depth, frame_max_depth(depth))[None]
-    return np.concatenate([log_color(color), albedo, normal, depth]).astype(np.float32)
+    return np.concatenate([demodulated_log_color(color, albedo), clamped_albedo, normal, depth]).astype(np.float32)
 
 
 def pack_error_input(color) -> np.ndarray:

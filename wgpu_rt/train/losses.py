@@ -7,6 +7,10 @@ The denoiser is trained on log1p colour, where values mostly stay in [0, 2], so 
 constants in the usual proportion. Its SSIM term can instead be taken on display values (``display``:
 the Reinhard + gamma 2.2 mapping of wgpu_rt.metrics, which weighs dark regions far more than log1p
 does), so training optimises what the benchmarks score.
+
+The denoiser outputs log1p *irradiance* (colour demodulated by its albedo factor, see
+wgpu_rt.frame.pack); its target carries that factor, so the SSIM term is taken on the remodulated colour
+(what unpack produces) while the pixel term stays on log1p irradiance (smooth, with gradients below 0).
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ SSIM_WEIGHT = 0.8
 CHARBONNIER_EPSILON = 1e-3
 DISPLAY_GAMMA = 2.2
 DISPLAY_EPSILON = 1e-5      # keeps the gamma curve's slope finite at black
+MAX_LOG_IRRADIANCE = 30.0   # expm1(30) ≈ 1e13: far above any training radiance, finite in float32
 
 
 def _gaussian_window(channels: int, dtype, device) -> torch.Tensor:
@@ -55,11 +60,20 @@ def log_to_display(log_color: torch.Tensor) -> torch.Tensor:
     return (reinhard + DISPLAY_EPSILON) ** (1.0 / DISPLAY_GAMMA) - DISPLAY_EPSILON ** (1.0 / DISPLAY_GAMMA)
 
 
+def remodulate(log_irradiance: torch.Tensor, factor: torch.Tensor) -> torch.Tensor:
+    """log1p irradiance and the albedo factor → log1p colour, as unpack computes it (clamped at 0)."""
+    return torch.log1p(torch.expm1(log_irradiance.clamp(0.0, MAX_LOG_IRRADIANCE)) * factor)
+
+
 def denoiser_loss(prediction: torch.Tensor, target: torch.Tensor, pixel_loss: str = "l1",
                   ssim_space: str = "log") -> torch.Tensor:
-    """0.8·(1 − SSIM) + 0.2·(L1 or Charbonnier): the pixel term on log1p colour, SSIM on log1p colour or
-    (``ssim_space="display"``) on display values."""
+    """0.8·(1 − SSIM) + 0.2·(L1 or Charbonnier). ``prediction``: (N, 3, H, W) log1p irradiance;
+    ``target``: (N, 6, H, W), the gold log1p irradiance and the albedo factor. The pixel term compares
+    log1p irradiance; SSIM compares the remodulated colours, in log1p or (``ssim_space="display"``)
+    display values."""
+    target, factor = target[:, :3], target[:, 3:]
     pixel = charbonnier(prediction, target) if pixel_loss == "charbonnier" else F.l1_loss(prediction, target)
+    prediction, target = remodulate(prediction, factor), remodulate(target, factor)
     if ssim_space == "display":
         prediction, target = log_to_display(prediction), log_to_display(target)
     return SSIM_WEIGHT * (1.0 - ssim(prediction, target)) + (1.0 - SSIM_WEIGHT) * pixel

@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dataset.store import View
-from ..frame.pack import log_color, pack_confidence_input, pack_denoiser_input, pack_error_input
+from ..frame.pack import (albedo_factor, demodulated_log_color, pack_confidence_input,
+                          pack_denoiser_input, pack_error_input)
 from .targets import disocclusion_mask, error_heatmap, reproject
 
 TASKS = ("denoiser", "error-predictor", "confidence")
@@ -79,7 +80,9 @@ class TaskSamples(ABC):
 
 
 class DenoiserSamples(TaskSamples):
-    """Noisy render at ``spp`` + G-buffers → log1p gold."""
+    """Noisy render at ``spp`` + G-buffers → 6 target planes: log1p of gold demodulated by the noisy
+    render's albedo factor (what the network outputs), then that factor (for the loss on remodulated
+    colour, which is what unpack produces and the metrics score)."""
 
     aux_channels = slice(3, 10)
 
@@ -87,7 +90,8 @@ class DenoiserSamples(TaskSamples):
         frame = self.views[item[0]].frames[item[1]]
         noisy = frame.noisy[spp]
         x = pack_denoiser_input(noisy["color"] * exposure, noisy["albedo"], noisy["normal"], noisy["depth"])
-        return x, log_color(frame.gold["color"] * exposure)
+        gold = frame.gold["color"] * exposure
+        return x, np.concatenate([demodulated_log_color(gold, noisy["albedo"]), albedo_factor(noisy["albedo"])])
 
 
 class ErrorSamples(TaskSamples):

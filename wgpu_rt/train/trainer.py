@@ -1,6 +1,6 @@
 """The training loop shared by the three networks: Adam with warm-up + cosine decay, gradient-norm clipping,
-checkpoints every epoch (resumable), validation on held-out views every epoch, then ONNX export with a
-model card.
+checkpoints every epoch (resumable), validation on held-out views every epoch (or every N: on a CPU it can
+cost more than the epoch's training), then ONNX export with a model card.
 
 An epoch is one pass over the training items (view frames, or frame pairs for the confidence model) in
 a shuffled order, in batches. Validation uses the ``val`` split, which no training batch ever touches:
@@ -23,6 +23,8 @@ from ..errors import WgpuRtError
 from .samples import Augmentation, curriculum_spp, samples_for
 
 MODEL_FILES = {"denoiser": "denoiser", "error-predictor": "error_predictor", "confidence": "confidence"}
+# Settings a resumed run may change: more epochs stretch the schedule; the rest is bookkeeping.
+RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every"}
 
 
 class TrainingError(WgpuRtError):
@@ -50,6 +52,7 @@ class TrainConfig:
     resume: bool = False
     max_views: int | None = None
     checkpoints: str | None = None       # default OUT/checkpoints
+    validate_every: int = 1              # epochs between validations (the last epoch is always validated)
 
     @property
     def model_name(self) -> str:
@@ -98,6 +101,8 @@ class Trainer:
         self.config, self.progress = config, progress
         if config.task not in MODEL_FILES:
             raise TrainingError(f"unknown task {config.task!r}; expected one of {sorted(MODEL_FILES)}")
+        if config.validate_every < 1:
+            raise TrainingError(f"validate_every must be at least 1 epoch, got {config.validate_every}")
         folders = (config.data, *config.extra_data)
         self.train_set, self.val_set = (
             samples_for(config.task, [v for folder in folders for v in load_views(folder, split, config.max_views)])
@@ -148,12 +153,23 @@ class Trainer:
             self.model.load_state_dict(state["model"])
         except Exception as err:  # torch raises many types for corrupt or mismatched files
             raise TrainingError(f"{self.checkpoint_path}: cannot resume from this checkpoint ({err})") from None
+        changed = self._changed_settings(state.get("config", {}))
+        if changed:
+            raise TrainingError(f"{self.checkpoint_path}: trained with other settings ({', '.join(changed)}); "
+                                "delete it or pass another --checkpoints folder to start afresh")
         self.optimizer.load_state_dict(state["optimizer"])
         self.schedule.load_state_dict(state["schedule"])
         self.epoch, self.step, self.seconds = state["epoch"], state["step"], state["seconds"]
         self.history = state["history"]
         self.rng.bit_generator.state = state["rng"]
         torch.set_rng_state(state["torch_rng"])
+
+    def _changed_settings(self, saved: dict) -> list[str]:
+        """Names of the settings (beyond RESUMABLE_CHANGES) where ``saved`` differs from this run's; a
+        setting the checkpoint predates is not compared."""
+        same = lambda a, b: (tuple(a) == tuple(b)) if isinstance(a, (list, tuple)) else a == b  # noqa: E731
+        return sorted(key for key, value in asdict(self.config).items()
+                      if key in saved and key not in RESUMABLE_CHANGES and not same(saved[key], value))
 
     # -- training ----------------------------------------------------------------------------------
     def loss(self, prediction, target):
@@ -209,7 +225,8 @@ class Trainer:
                     bar.update(1)
                     bar.set_postfix(loss=f"{losses[-1]:.4f}", spp=spp)
                 self.epoch += 1
-                metrics = self.validate()
+                due = self.epoch % self.config.validate_every == 0 or self.epoch == self.config.epochs
+                metrics = self.validate() if due else {}
                 self.seconds += time.perf_counter() - started
                 self.history.append({"epoch": self.epoch, "step": self.step, "spp": spp,
                                      "train_loss": float(np.mean(losses)), **metrics})
@@ -231,15 +248,16 @@ class Trainer:
 
     def validate(self) -> dict[str, float]:
         from .. import metrics
+        from ..frame.unpack import unpack_denoiser_output
 
         scores: dict[str, list[float]] = {}
         for item in self.val_set.items:
             x, y = self.val_set.full(item, 1, 1.0)
             out = self.predict(x)
             if self.config.task == "denoiser":
-                gold = self.val_set.views[item[0]].frames[item[1]].gold["color"]
-                denoised = np.maximum(np.expm1(np.nan_to_num(out.transpose(1, 2, 0))), 0.0)
-                values = metrics.all_metrics(gold, denoised)
+                frame = self.val_set.views[item[0]].frames[item[1]]
+                denoised = unpack_denoiser_output(out, frame.noisy[1]["albedo"])
+                values = metrics.all_metrics(frame.gold["color"], denoised)
             elif self.config.task == "error-predictor":
                 values = {"spearman": rank_correlation(out, y)}
             else:
@@ -277,6 +295,7 @@ class Trainer:
         import torch
 
         from ..dataset.store import read_manifest
+        from ..frame.pack import ALBEDO_EPSILON
 
         cfg = self.config
         last = self.history[-1] if self.history else {}
@@ -304,9 +323,11 @@ class Trainer:
             "exposure jitter ±1 stop, aux-channel noise σ 0.01",
         ]
         if cfg.task == "denoiser":
-            lines.append(f"- loss 0.8·(1 − SSIM on {cfg.ssim_space} colour) + 0.2·{cfg.pixel_loss} on log1p colour; "
-                         "curriculum "
-                         f"{' → '.join(map(str, cfg.curriculum))} spp (equal shares of the epochs)")
+            lines.append("- input and output colour demodulated by albedo: log1p(colour / (albedo + "
+                         f"{ALBEDO_EPSILON})); unpack multiplies back")
+            lines.append(f"- loss 0.8·(1 − SSIM on {cfg.ssim_space} colour) + 0.2·{cfg.pixel_loss} on log1p "
+                         f"irradiance; curriculum {' → '.join(map(str, cfg.curriculum))} spp (equal shares of the "
+                         "epochs)")
         elif cfg.task == "error-predictor":
             lines.append("- target |log1p(1 spp) − log1p(gold)| / its 99th percentile, clipped to [0, 1]; BCE loss")
         else:
@@ -320,14 +341,14 @@ class Trainer:
                          "the metrics below are against a noisy reference (a small recipe sized for a 2-core "
                          "machine; rerun examples/train_models.sh with larger VIEWS/SIZE/GOLD for better models)")
         lines += ["",
-                  "## Validation (last epoch, held-out views)"]
+                  f"## Validation (last epoch, held-out views; every {cfg.validate_every} epoch(s) in the history)"]
         lines += [f"- {k[4:]}: {v:.4f}" for k, v in last.items() if k.startswith("val_")]
         lines += ["", "## History", "", "| epoch | step | spp | train loss | "
                   + " | ".join(k[4:] for k in last if k.startswith("val_")) + " |",
                   "|" + " --- |" * (4 + sum(k.startswith("val_") for k in last))]
         for h in self.history:
             lines.append(f"| {h['epoch']} | {h['step']} | {h['spp']} | {h['train_loss']:.4f} | "
-                         + " | ".join(f"{h[k]:.4f}" for k in last if k.startswith("val_")) + " |")
+                         + " | ".join(f"{h[k]:.4f}" if k in h else "—" for k in last if k.startswith("val_")) + " |")
         return "\n".join(lines) + "\n"
 
 
