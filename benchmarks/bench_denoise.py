@@ -5,7 +5,11 @@ Denoiser at 1 spp: PSNR / SSIM / FLIP / relMSE against gold, beside Intel OIDN (
 the same colour/albedo/normal) and brute force at rising spp; "equivalent spp" is the sample count at
 which brute force reaches the denoiser's relMSE (log-log interpolation of the brute-force curve).
 Error predictor: Spearman correlation of its heatmap with the true |1 spp − gold| log error. Confidence:
-ROC AUC of 1 − its output (it predicts that history is valid) against the true disocclusion mask. All networks run in the WGSL engine.
+ROC AUC of 1 − its output (it predicts that history is valid) against the true disocclusion mask, with
+the history reprojected as the runtime's temporal pass does: over all pixels ("model"), over the pixels
+whose history passes the pass's depth/normal tests ("model, tested pixels": the only ones where the
+model decides anything), and for the temporal stage as a whole ("temporal stage": failed tests count as
+certain disocclusion, the model scores the rest). All networks run in the WGSL engine.
 
     python benchmarks/bench_denoise.py --data data/dataset [--models models] [--extra-spp 64 256] [--gold-spp 1024]
 """
@@ -24,7 +28,7 @@ from wgpu_rt.commands.denoise import denoise
 from wgpu_rt.dataset import DatasetConfig, TruthEngine, load_views, plan_views, read_manifest
 from wgpu_rt.frame.pack import pack_confidence_input, pack_error_input
 from wgpu_rt.nn import WgslModel
-from wgpu_rt.train.targets import disocclusion_mask, error_heatmap, reproject
+from wgpu_rt.train.targets import confidence_pair, error_heatmap
 from wgpu_rt.train.trainer import rank_correlation, roc_auc
 
 
@@ -106,7 +110,7 @@ def main() -> None:
 
     rows: dict[str, list[dict]] = {}
     seconds = {"ours": 0.0, "oidn": 0.0}
-    spearman, auc = [], []
+    spearman, auc = [], {"model": [], "model, tested pixels": [], "temporal stage": []}
     for view in views:
         frame = view.frames[0]
         gold, noisy = gold_override.get(view.view_id, frame.gold["color"]), frame.noisy[1]
@@ -129,12 +133,12 @@ def main() -> None:
         heat = np.asarray(error_model(pack_error_input(noisy["color"])[None]))[0, 0]
         spearman.append(rank_correlation(heat, error_heatmap(noisy["color"], gold)))
         for previous, current in zip(view.frames, view.frames[1:]):
-            motion = current.gold["motion"]
-            history, _ = reproject(previous.gold["color"], motion)
-            previous_depth, _ = reproject(previous.gold["depth"], motion)
-            x = pack_confidence_input(current.noisy[1]["color"], history, current.noisy[1]["depth"], previous_depth)
+            history, history_depth, valid, mask = confidence_pair(previous, current)
+            x = pack_confidence_input(current.noisy[1]["color"], history, current.noisy[1]["depth"], history_depth)
             invalid = 1.0 - np.asarray(confidence_model(x[None]))[0, 0]    # the model says "history valid"
-            auc.append(roc_auc(invalid, disocclusion_mask(previous.gold["color"], current.gold["color"], motion)))
+            auc["model"].append(roc_auc(invalid, mask))
+            auc["model, tested pixels"].append(roc_auc(invalid[valid], mask[valid]))
+            auc["temporal stage"].append(roc_auc(np.where(valid, invalid, 1.0), mask))
 
     gold_spp = args.gold_spp or dataset_gold_spp
     print(f"{len(views)} held-out views ({args.split} split of {args.data}), "
@@ -154,8 +158,9 @@ def main() -> None:
           f"OIDN {seconds['oidn'] / len(views):.3f} s (CPU); ratio ours/OIDN "
           f"{seconds['ours'] / max(seconds['oidn'], 1e-9):.2f}")
     print(f"error predictor: Spearman vs true error {np.mean(spearman):.3f} (min {np.min(spearman):.3f})")
-    if auc:
-        print(f"confidence: ROC AUC vs true disocclusion mask {np.mean(auc):.3f} over {len(auc)} frame pairs")
+    if auc["model"]:
+        print(f"confidence: ROC AUC vs true disocclusion mask over {len(auc['model'])} frame pairs: "
+              + ", ".join(f"{name} {np.mean(values):.3f}" for name, values in auc.items()))
 
 
 if __name__ == "__main__":

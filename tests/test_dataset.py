@@ -11,7 +11,7 @@ from wgpu_rt.dataset import DatasetConfig, DatasetError, TruthEngine, load_views
 from wgpu_rt.dataset.truth import frame_file
 from wgpu_rt.dataset.variety import HELD_OUT_SHAPES, TRAINING_SHAPES, catmull_rom, vary_scene
 from wgpu_rt.io import read_exr, write_exr
-from wgpu_rt.train.targets import disocclusion_mask, error_heatmap, reproject
+from wgpu_rt.train.targets import disocclusion_mask, error_heatmap, reproject, runtime_history
 
 CONFIG = DatasetConfig(scenes=("cornell", "sun-room"), views=10, size=16, spp=(1, 4), gold=64,
                        sequence_fraction=0.4)
@@ -189,6 +189,28 @@ def test_disocclusion_mask_flags_only_changed_or_offscreen_pixels():
     expected[2:4, 2:4] = 1
     expected[:, 7] = 1
     np.testing.assert_array_equal(mask, expected)
+
+
+def test_runtime_history_zeroes_what_the_temporal_tests_reject():
+    """The confidence model's history input is the temporal pass's reprojection: a shift where the
+    surfaces match, zero (and not valid) off-screen and where the depth test fails."""
+    rng = np.random.default_rng(1)
+    colour = rng.uniform(0.1, 1.0, (6, 7, 3)).astype(np.float32)
+    normal = np.zeros((6, 7, 3), np.float32)
+    normal[..., 2] = 1.0
+    previous = {"depth": np.full((6, 7, 1), 2.0, np.float32), "normal": normal}
+    current = {"depth": np.full((6, 7, 1), 2.0, np.float32), "normal": normal}
+    current["depth"][4, 1] = 3.0                       # a surface that was not there: fails the depth test
+    motion = np.zeros((6, 7, 2), np.float32)
+    motion[..., 0] = 1.0                               # everything came from one pixel to the right
+    history, history_depth, valid = runtime_history(colour, previous, current, motion)
+    expected_valid = np.ones((6, 7), bool)
+    expected_valid[:, 6] = False
+    expected_valid[4, 1] = False
+    np.testing.assert_array_equal(valid, expected_valid)
+    np.testing.assert_allclose(history[:, :6][expected_valid[:, :6]], colour[:, 1:][expected_valid[:, :6]], rtol=1e-6)
+    assert not history[~valid].any() and not history_depth[~valid].any()
+    np.testing.assert_allclose(history_depth[valid], 2.0)
 
 
 def test_error_heatmap_is_a_normalized_rank_of_the_log_error():

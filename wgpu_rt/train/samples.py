@@ -23,7 +23,7 @@ import numpy as np
 from ..dataset.store import View
 from ..frame.pack import (albedo_factor, demodulated_log_color, pack_confidence_input,
                           pack_denoiser_input, pack_error_input)
-from .targets import disocclusion_mask, error_heatmap, reproject
+from .targets import confidence_pair, error_heatmap
 
 TASKS = ("denoiser", "error-predictor", "confidence")
 
@@ -104,24 +104,28 @@ class ErrorSamples(TaskSamples):
 
 
 class ConfidenceSamples(TaskSamples):
-    """Frame t+1 at 1 spp + gold frame t reprojected → confidence that history is valid: 1 minus the
-    disocclusion mask (needs sequences). The reprojected gold frame stands in for the runtime's history
-    (the previous denoised output)."""
+    """Frame t+1 at 1 spp + gold frame t reprojected as the runtime's temporal pass does (zero where its
+    depth/normal tests find no matching texel) → confidence that history is valid: 1 minus the
+    disocclusion mask (needs sequences). The reprojection is a per-pixel reference, so each pair's is
+    computed once; exposure scales colour and history alike (reprojection is linear in colour)."""
 
     aux_channels = slice(6, 8)
 
     def _items(self):
         return [(v, t) for v, view in enumerate(self.views) for t in range(len(view.frames) - 1)]
 
+    def __init__(self, views: list[View]):
+        super().__init__(views)
+        self._pairs = {}
+
     def full(self, item, spp, exposure):
         view = self.views[item[0]]
         previous, current = view.frames[item[1]], view.frames[item[1] + 1]
-        motion = current.gold["motion"]
-        history, _ = reproject(previous.gold["color"] * exposure, motion)
-        previous_depth, _ = reproject(previous.gold["depth"], motion)
-        x = pack_confidence_input(current.noisy[1]["color"] * exposure, history, current.noisy[1]["depth"],
-                                  previous_depth)
-        mask = disocclusion_mask(previous.gold["color"], current.gold["color"], motion)
+        if item not in self._pairs:
+            self._pairs[item] = confidence_pair(previous, current)
+        history, history_depth, _, mask = self._pairs[item]
+        x = pack_confidence_input(current.noisy[1]["color"] * exposure, history * exposure,
+                                  current.noisy[1]["depth"], history_depth)
         return x, 1.0 - mask[None]
 
 

@@ -6,6 +6,9 @@
 - ``disocclusion_mask``: where history cannot be trusted: gold frame t, warped into frame t+1 by the
   exact motion vectors of frame t+1, disagrees with gold frame t+1 (disocclusion, lighting change), or
   the pixel came from outside the previous frame.
+- ``runtime_history``: what the confidence model is shown at runtime: the temporal pass's reprojection
+  (frame/temporal.py's reference of frame_temporal.wgsl: bilinear, only texels passing the depth/normal
+  tests, zero where none does) of frame t, so training and evaluation see the runtime's input.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..frame.pack import log_color
+from ..frame.temporal import reproject_history
 
 HEATMAP_PERCENTILE = 99.0
 DISAGREEMENT_THRESHOLD = 0.1    # mean |Δ log1p RGB| above which history is wrong
@@ -57,3 +61,30 @@ def disocclusion_mask(gold_previous, gold_current, motion_current,
     warped, valid = reproject(gold_previous, motion_current)
     disagreement = np.mean(np.abs(log_color(warped) - log_color(gold_current)), axis=0)
     return ((disagreement > threshold) | ~valid).astype(np.float32)
+
+
+def runtime_history(previous_color, previous_gbuffers: dict, current_gbuffers: dict, motion_current):
+    """(history RGB (H, W, 3), history depth (H, W, 1), valid (H, W)) as the runtime's temporal pass
+    reprojects frame t into frame t+1: ``previous_color`` with frame t's depth and normal (the history's
+    planes), tested against frame t+1's depth and normal; zero and not valid where no texel passes
+    (disoccluded, or from outside frame t). The temporal pass takes the current frame there whatever the
+    confidence model says, so the model's own job is the valid pixels."""
+    height, width = previous_color.shape[:2]
+    history = np.concatenate([np.asarray(previous_color, np.float32),
+                              np.asarray(previous_gbuffers["depth"], np.float32).reshape(height, width, 1),
+                              np.asarray(previous_gbuffers["normal"], np.float32),
+                              np.ones((height, width, 1), np.float32)], axis=-1)
+    reprojected = reproject_history(history, current_gbuffers["depth"], current_gbuffers["normal"],
+                                    np.asarray(motion_current, np.float32))
+    return reprojected[..., :3], reprojected[..., 3:4], reprojected[..., 4] > 0
+
+
+def confidence_pair(previous, current) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One frame pair of a dataset sequence (``Frame``s t and t+1) as the confidence model meets it:
+    (history RGB, history depth, valid, disocclusion mask). History is gold frame t reprojected as the
+    runtime does (``runtime_history``, with the 1-spp G-buffers the tracer hands the temporal pass);
+    gold stands in for the previous denoised output."""
+    motion = current.gold["motion"]
+    history, history_depth, valid = runtime_history(previous.gold["color"], previous.noisy[1], current.noisy[1],
+                                                    motion)
+    return history, history_depth, valid, disocclusion_mask(previous.gold["color"], current.gold["color"], motion)

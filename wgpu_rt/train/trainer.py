@@ -331,6 +331,8 @@ class Trainer:
         elif cfg.task == "error-predictor":
             lines.append("- target |log1p(1 spp) − log1p(gold)| / its 99th percentile, clipped to [0, 1]; BCE loss")
         else:
+            lines.append("- input history: gold frame t reprojected as the runtime's temporal pass does (zero where "
+                         "its depth/normal tests find no matching texel)")
             lines.append("- target: confidence that history is valid = 1 − mask, the mask being where gold frame t "
                          "warped by exact motion disagrees with gold t+1 (mean |Δlog1p| > 0.1) or comes from off "
                          "screen; class-balanced BCE; ROC AUC scores the mask against 1 − output")
