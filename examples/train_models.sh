@@ -27,7 +27,7 @@ for seed_and_folder in "1 $EXTRA_DATA" "2 $EXTRA_DATA2"; do
 done
 
 TRAIN="$NICE wgpu-rt train --data $DATA --out $OUT --checkpoints $CHECKPOINTS --resume"
-time $TRAIN denoiser --extra-data "$EXTRA_DATA" "$EXTRA_DATA2" --epochs "${DENOISER_EPOCHS:-180}" --batch 4 \
+time $TRAIN denoiser --extra-data "$EXTRA_DATA" "$EXTRA_DATA2" --epochs "${DENOISER_EPOCHS:-300}" --batch 4 \
     --crop 64 128 --widths 16 32 64 --lr 2e-3 --curriculum 16 4 1 1 --ssim-space display --validate-every 10
 time $TRAIN error-predictor --epochs "${HEATMAP_EPOCHS:-60}" --batch 4 --crop 64 128 --lr 3e-3
 time $TRAIN confidence --epochs "${HEATMAP_EPOCHS:-60}" --batch 4 --crop 64 128 --lr 3e-3
