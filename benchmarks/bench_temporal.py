@@ -13,6 +13,7 @@ accumulates 1 spp per frame, the mean is denoised and blended with itself by spp
 denoised frame. Gold: our own render of each frame at --gold-spp.
 
     python3 benchmarks/bench_temporal.py [--quick] [--size 96x96] [--frames 16] [--gold-spp 4096]
+        [--clamp none|box|variance] [--gamma 1.0]
         [--models DIR | --seed-models]
 """
 
@@ -25,6 +26,7 @@ from common import (add_model_arguments, hdr_pipeline, linear_frame, oidn, parse
                     print_header, print_table, resolve_models)
 
 from wgpu_rt import metrics
+from wgpu_rt.frame.temporal import CLAMP_MODES, TemporalSettings
 from wgpu_rt.render import parse_size, render
 from wgpu_rt.scene import load_scene
 from wgpu_rt.train.targets import disocclusion_mask
@@ -41,6 +43,10 @@ def parse_args():
     parser.add_argument("--static-frames", type=int, default=16)
     parser.add_argument("--gold-spp", type=int, default=4096)
     parser.add_argument("--max-depth", type=int, default=8)
+    parser.add_argument("--clamp", choices=CLAMP_MODES, default=TemporalSettings.clamp,
+                        help="history clamp of the temporal runs (default: the pipeline's)")
+    parser.add_argument("--gamma", type=float, default=TemporalSettings.gamma,
+                        help="variance-box width in standard deviations (default: the pipeline's)")
     add_model_arguments(parser)
     return parse_with_quick_defaults(parser, QUICK)
 
@@ -82,7 +88,8 @@ def main() -> None:
         return oidn(one.color, one.aovs["albedo"], one.aovs["normal"])
 
     per_frame = hdr_pipeline(scene, size, args, denoise=True)
-    temporal = hdr_pipeline(scene, size, args, denoise=True, temporal=True)
+    settings = TemporalSettings(clamp=args.clamp, gamma=args.gamma)
+    temporal = hdr_pipeline(scene, size, args, denoise=True, temporal=settings)
     print("temporal confidence network: " + ("yes" if temporal.temporal.confidence_model else "no (none in models)"))
     sequences = {"per-frame ours": [linear_frame(per_frame, scene, f) for f in frames],
                  "per-frame OIDN": [noisy_oidn(f) for f in frames],
@@ -101,7 +108,7 @@ def main() -> None:
     static = load_scene(args.static_scene)
     static_gold = render(static, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=10000, aovs=()).color
     single = linear_frame(hdr_pipeline(static, size, args, denoise=True), static, 0)
-    accumulating = hdr_pipeline(static, size, args, denoise=True, temporal=True)
+    accumulating = hdr_pipeline(static, size, args, denoise=True, temporal=settings)
     accumulated = [linear_frame(accumulating, static, f) for f in range(args.static_frames)][-1]
     single_psnr, accumulated_psnr = metrics.psnr(static_gold, single), metrics.psnr(static_gold, accumulated)
     print_table(f"{static.name} (static camera): {args.static_frames} temporal frames vs one denoised frame",
