@@ -73,7 +73,7 @@ def run_frames(gpu, scene, models, precision, planes_per_frame):
     given planes; returns the f32 linear display images and the final history."""
     networks = {name: load_model(name, precision, models) for name in ("denoiser", "error_predictor", "confidence")}
     traces = [RecordedTrace(gpu, planes) for planes in planes_per_frame]
-    pipeline = FramePipeline(gpu, W, H, lambda frame: traces[frame], denoiser=networks["denoiser"],
+    pipeline = FramePipeline(gpu, W, H, lambda frame, _: traces[frame], denoiser=networks["denoiser"],
                              adaptive=AdaptiveSettings(budget=2.0), error_model=networks["error_predictor"],
                              temporal=TemporalSettings(), confidence_model=networks["confidence"],
                              output="f32", operator="none", srgb=False)

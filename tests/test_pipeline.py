@@ -128,7 +128,7 @@ def test_identity_denoiser_gives_tonemapped_radiance(gpu, scene):
     from wgpu_rt.trace.trace_pass import TracePass
 
     geometry = GeometryBuffers.build(scene, 0)
-    pipeline = FramePipeline(gpu, W, H, lambda f: TracePass(gpu, scene, geometry, W, H, frame=f, max_depth=3),
+    pipeline = FramePipeline(gpu, W, H, lambda f, _: TracePass(gpu, scene, geometry, W, H, frame=f, max_depth=3),
                              denoiser=IdentityDenoiser(gpu), operator="reinhard")
     frame = pipeline.render(scene, 0)
     radiance = pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0)
@@ -149,7 +149,7 @@ def test_adaptive_budget_reaches_the_spp_plane(gpu, scene):
     heat = np.zeros((H, W), np.float32)
     heat[:, : W // 2] = 1.0
     for sampler, error_model in (("heat", FixedHeat(gpu, heat)), ("uniform", None), ("variance", None)):
-        pipeline = FramePipeline(gpu, W, H, lambda f: TracePass(gpu, scene, geometry, W, H, max_depth=2),
+        pipeline = FramePipeline(gpu, W, H, lambda f, _: TracePass(gpu, scene, geometry, W, H, max_depth=2),
                                  adaptive=AdaptiveSettings(sampler=sampler, budget=3.5), error_model=error_model)
         pipeline.render(scene, 0)
         spp = pipeline.buffers.read(SPP.name)[0]
@@ -171,47 +171,47 @@ def test_temporal_static_frames_converge(gpu, scene):
     assert error_accumulated < np.abs(single - reference).mean()
 
 
-def traced_one_by_one(gpu, scene, geometry, frames):
-    """Mean radiance and spp of ``frames`` samples per pixel, each traced alone into cleared planes as
-    the pipeline numbers it: frame f's sample is sample f, seeded with f."""
+def brute_force_planes(gpu, scene, geometry, samples):
+    """Mean radiance and spp of one trace of ``samples`` samples per pixel, seeded as frame 0."""
     from wgpu_rt.render_pass import FrameBuffers
     from wgpu_rt.trace.trace_pass import SampleSchedule, TracePass
 
     buffers = FrameBuffers(gpu, W, H)
-    radiance, spp = [], []
-    for frame in range(frames):
-        trace = TracePass(gpu, scene, geometry, W, H, frame=frame, max_depth=3, seed=frame)
-        trace.schedule = SampleSchedule(samples=1, sample_offset=frame)
-        encoder = gpu.device.create_command_encoder()
-        trace.clear(encoder, buffers)
-        trace.execute(encoder, buffers)
-        gpu.device.queue.submit([encoder.finish()])
-        radiance.append(buffers.read(RADIANCE.name).astype(np.float64))
-        spp.append(buffers.read(SPP.name)[0])
-    return np.mean(radiance, axis=0).transpose(1, 2, 0), np.sum(spp, axis=0)
+    trace = TracePass(gpu, scene, geometry, W, H, frame=0, max_depth=3, seed=0)
+    trace.schedule = SampleSchedule(samples=samples)
+    encoder = gpu.device.create_command_encoder()
+    trace.clear(encoder, buffers)
+    trace.execute(encoder, buffers)
+    gpu.device.queue.submit([encoder.finish()])
+    return buffers.read(RADIANCE.name).transpose(1, 2, 0), buffers.read(SPP.name)[0]
 
 
 def test_temporal_static_camera_accumulates_samples_before_denoising(gpu, scene):
-    """Under a static camera the tracer keeps its planes: frame k denoises the mean of k + 1 samples
-    (not the mean of k + 1 denoised 1-spp frames), so with an identity denoiser its output is that mean;
-    a cut starts again from one sample."""
+    """Under a static camera the tracer keeps its planes and the first frame's seed: frame k denoises the
+    mean of k + 1 samples (not the mean of k + 1 denoised 1-spp frames), the same samples a brute-force
+    render of k + 1 spp takes (one stratified sequence), so with an identity denoiser its output is that
+    render; a cut starts again from one sample."""
     from wgpu_rt.frame.pipeline import FramePipeline
     from wgpu_rt.scene.geometry import GeometryBuffers
     from wgpu_rt.trace.trace_pass import TracePass
 
     geometry = GeometryBuffers.build(scene, 0)
-    pipeline = FramePipeline(gpu, W, H,
-                             lambda f: TracePass(gpu, scene, geometry, W, H, frame=f, max_depth=3, seed=f),
-                             denoiser=IdentityDenoiser(gpu), temporal=TemporalSettings(), output="f32",
-                             operator="none", srgb=False)
+    seeds = []
+
+    def trace_factory(frame, seed_frame):
+        seeds.append(seed_frame)
+        return TracePass(gpu, scene, geometry, W, H, frame=frame, max_depth=3, seed=seed_frame)
+
+    pipeline = FramePipeline(gpu, W, H, trace_factory, denoiser=IdentityDenoiser(gpu),
+                             temporal=TemporalSettings(), output="f32", operator="none", srgb=False)
     frames = [pipeline.render(scene, frame) for frame in range(4)]
-    expected, expected_spp = traced_one_by_one(gpu, scene, geometry, 4)
-    assert (expected_spp == 4).all()
+    expected, expected_spp = brute_force_planes(gpu, scene, geometry, 4)
+    assert (expected_spp == 4).all() and seeds == [0, 0, 0, 0]
     np.testing.assert_array_equal(pipeline.buffers.read(SPP.name)[0], expected_spp)
     np.testing.assert_allclose(frames[-1].image[..., :3], expected, rtol=1e-4, atol=1e-5)
     assert np.abs(frames[-1].image[..., :3] - frames[0].image[..., :3]).max() > 1e-2   # frames differ
     pipeline.render(scene, 6)                                                          # a cut
-    assert (pipeline.buffers.read(SPP.name)[0] == 1).all()
+    assert (pipeline.buffers.read(SPP.name)[0] == 1).all() and seeds[-1] == 6
 
 
 class ZeroDenoiser:
@@ -225,10 +225,12 @@ class ZeroDenoiser:
 
 
 def test_temporal_static_camera_fades_the_denoiser_as_samples_grow(gpu, scene):
-    """The converged frame is mix(denoised, sample mean, 1 − 1/√spp): a black denoiser's frame is black
-    at 1 spp and half the 4-spp mean at 4 spp."""
-    pipeline = make_pipeline(scene, denoiser=ZeroDenoiser(gpu), temporal=True, width=W, height=H, max_depth=3,
-                             ctx=gpu, output="f32", operator="none", srgb=False)
+    """The converged frame is mix(denoised, sample mean, spp / (spp + converge_spp)): a black denoiser's
+    frame is black on the first frame (a cut takes the denoised frame alone) and half the 4-spp mean at
+    4 spp with converge_spp 4."""
+    settings = TemporalSettings(converge_spp=4)
+    pipeline = make_pipeline(scene, denoiser=ZeroDenoiser(gpu), temporal=settings, width=W, height=H,
+                             max_depth=3, ctx=gpu, output="f32", operator="none", srgb=False)
     first = pipeline.render(scene, 0).image[..., :3]
     assert first.max() == 0
     for frame in range(1, 4):
@@ -237,7 +239,8 @@ def test_temporal_static_camera_fades_the_denoiser_as_samples_grow(gpu, scene):
     assert (pipeline.buffers.read(SPP.name) == 4).all() and radiance.max() > 0
     np.testing.assert_allclose(image, 0.5 * radiance, rtol=1e-5, atol=1e-7)
     spp = pipeline.buffers.read(SPP.name)[0]
-    np.testing.assert_allclose(image, converge_frame(np.zeros_like(radiance), radiance, spp), rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(image, converge_frame(np.zeros_like(radiance), radiance, spp, settings),
+                               rtol=1e-5, atol=1e-7)
 
 
 def test_moving_camera_traces_each_frame_afresh(gpu):

@@ -24,9 +24,9 @@ def traced_pipeline(gpu, scene, **settings):
     from wgpu_rt.scene.geometry import GeometryBuffers
     from wgpu_rt.trace.trace_pass import TracePass
 
-    def trace_factory(frame):
+    def trace_factory(frame, seed_frame):
         return TracePass(gpu, scene, GeometryBuffers.build(scene, frame), W, H, frame=frame, max_depth=3,
-                         seed=frame)
+                         seed=seed_frame)
 
     return FramePipeline(gpu, W, H, trace_factory, output="f32", operator="none", srgb=False, **settings)
 

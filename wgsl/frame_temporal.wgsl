@@ -13,9 +13,9 @@
 //               per pixel (a cleared history, length 0, makes it a reset).
 //   converge:   static view whose tracer planes keep accumulating (the frame pipeline's temporal mode):
 //               the denoised frame of the n-sample mean is blended with that mean itself,
-//               out = mix(denoised, mean, 1 − 1/√n). The denoiser, trained on 1-spp input, keeps its bias
-//               as n grows while the mean's noise falls as 1/√n, so its share fades at the same rate
-//               (n = 1: the denoised frame alone). The result replaces the history (length 1).
+//               out = mix(denoised, mean, n / (n + CONVERGE_SPP)): inverse-variance weights when the
+//               denoiser's error (a bias that stays as n grows) equals that of CONVERGE_SPP samples,
+//               while the mean's variance falls as 1/n. The result replaces the history (length 1).
 // Every path writes the output plane and the new history; NaN/Inf in the current frame count as 0.
 // #import frame_common.wgsl
 
@@ -24,6 +24,7 @@ override GAMMA: f32 = 1.0;
 override MAX_FRAMES: f32 = 32.0;
 override DEPTH_TOLERANCE: f32 = 0.05;
 override NORMAL_THRESHOLD: f32 = 0.9;
+override CONVERGE_SPP: f32 = 24.0;
 override USE_CONFIDENCE: bool = false;
 
 @group(0) @binding(0) var<storage, read> color: array<f32>;
@@ -164,6 +165,7 @@ fn converge(@builtin(global_invocation_id) id: vec3u) {
     let i = pixel_index(id);
     let n = pixel_count();
     let mean = vec3f(sanitize(samples_mean[i]), sanitize(samples_mean[n + i]), sanitize(samples_mean[2u * n + i]));
-    let mean_weight = 1.0 - inverseSqrt(max(f32(spp[i]), 1.0));
+    let samples = f32(spp[i]);
+    let mean_weight = samples / (samples + CONVERGE_SPP);
     write_result(i, mix(current_color(i), mean, mean_weight), 1.0);
 }

@@ -71,8 +71,12 @@ class StageTimer:
 class FramePipeline:
     """Everything between a scene and its display frames, for one size and one set of settings.
 
-    ``trace_factory(frame)`` returns the tracer pass for that frame (a ``wgpu_rt.trace.TracePass``:
-    ``clear``, ``execute`` and a ``schedule`` of samples / per-pixel ``sample_counts`` / offset).
+    ``trace_factory(frame, seed_frame)`` returns the tracer pass for that frame (a
+    ``wgpu_rt.trace.TracePass``: ``clear``, ``execute`` and a ``schedule`` of samples / per-pixel
+    ``sample_counts`` / offset), its samples seeded as ``seed_frame``'s: the frame itself, or under a
+    converging static view the first frame of the run, so the accumulated samples are one unbroken
+    stratified sequence (at 8 spp on cornell, 96², re-seeding every frame left the mean 1.7 dB PSNR
+    behind a brute-force 8-spp render: independent 1-spp sets lose the Sobol prefix's stratification).
     """
 
     def __init__(self, ctx, width: int, height: int, trace_factory, *, denoiser=None,
@@ -110,6 +114,7 @@ class FramePipeline:
             usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.COPY_SRC)
         self.display_bytes = display_bytes
         self.previous_frame: int | None = None
+        self.seed_frame = 0
 
     def _mark(self, encoder, name: str) -> None:
         if self.timer:
@@ -153,17 +158,19 @@ class FramePipeline:
     def render(self, scene, frame: int) -> RenderedFrame:
         """Record, submit and read back one frame."""
         ctx, buffers = self.ctx, self.buffers
-        trace = self.trace_factory(frame)
-        encoder = ctx.device.create_command_encoder(label=f"frame {frame}")
-        if self.timer:
-            self.timer.start()
-        self._mark(encoder, "start")
         # Temporal mode under a static camera and scene converges in the tracer: the frame adds its
         # samples to the running mean, which is denoised and then replaces the temporal history
         # (averaging denoised 1-spp frames would keep the denoiser's bias). Any change or cut starts
         # again from zero samples.
         change = frame_change(scene, self.previous_frame, frame) if self.temporal is not None else "cut"
         converging = change == "static"
+        if not converging:
+            self.seed_frame = frame
+        trace = self.trace_factory(frame, self.seed_frame)
+        encoder = ctx.device.create_command_encoder(label=f"frame {frame}")
+        if self.timer:
+            self.timer.start()
+        self._mark(encoder, "start")
         self._trace(encoder, trace, keep_samples=converging)
         self.depth_max.execute(encoder, buffers)
         if self.denoiser is not None:
@@ -236,15 +243,15 @@ def make_pipeline(scene, denoise: bool = True, adaptive: float | AdaptiveSetting
         confidence_model = load_model("confidence", precision, models_dir, required=False)
     traced: dict[bytes, TracePass] = {}   # the pass of the current geometry (object transforms)
 
-    def trace_factory(frame: int):
+    def trace_factory(frame: int, seed_frame: int):
         key = b"".join(m.transform_at(frame).tobytes() for m in scene.meshes)
         trace = traced.get(key)
         if trace is None:   # objects moved: new BVH, new uploads
             traced.clear()
             trace = traced[key] = TracePass(ctx, scene, GeometryBuffers.build(scene, frame), width, height,
-                                            frame=frame, max_depth=max_depth, seed=seed + frame)
+                                            frame=frame, max_depth=max_depth, seed=seed + seed_frame)
         else:               # same geometry: only the camera and seed change
-            trace.set_frame(scene, frame, seed + frame)
+            trace.set_frame(scene, frame, seed + seed_frame)
         return trace
 
     return FramePipeline(ctx, width, height, trace_factory, denoiser=denoiser if denoise else None,
@@ -261,10 +268,10 @@ def render_frames(scene, denoise: bool = True, adaptive: float | AdaptiveSetting
 
     ``adaptive`` is a mean-spp budget for the Error-Predictor-guided sampler (or full AdaptiveSettings);
     ``temporal`` True uses the default TemporalSettings (with the Confidence Predictor when models/
-    has one). ``options`` are ``make_pipeline``'s: width, height, max_depth, seed (frame f uses seed + f),
-    operator, exposure, srgb, output ("rgba8" or "f32"), precision ("fp32" or "fp16"), ctx, and the
-    networks (denoiser, error_model, confidence_model) — those not given are loaded from ``models_dir``
-    (default: the packaged models/).
+    has one). ``options`` are ``make_pipeline``'s: width, height, max_depth, seed (frame f uses seed + f;
+    the frames of a converging static view keep their first frame's), operator, exposure, srgb, output
+    ("rgba8" or "f32"), precision ("fp32" or "fp16"), ctx, and the networks (denoiser, error_model,
+    confidence_model) — those not given are loaded from ``models_dir`` (default: the packaged models/).
     """
     from ..scene import load_scene
 

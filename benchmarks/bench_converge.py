@@ -1,0 +1,66 @@
+"""Fitting the static-camera converge blend: how much weight the raw n-sample mean should get against
+the denoised frame of it (TemporalSettings.converge_spp).
+
+Under a static camera the temporal pipeline accumulates the tracer's samples (frame n holds n spp, one
+stratified sequence) and shows mix(denoised(mean), mean, n / (n + k)). For each scene and n this prints
+the PSNR (wgpu_rt.metrics: x/(1+x), gamma 2.2) against gold of the raw mean, the denoised mean, and the
+blend for each k, plus each k's mean loss to the best k over every row (the column to minimise).
+Denoiser: our WGSL engine on the model in --models; gold: our own render at --gold-spp (--gold-cache
+shares it with the other benchmarks).
+
+    python3 benchmarks/bench_converge.py [--scenes cornell cornell-glossy sun-room] [--size 96x96]
+        [--spp 1 2 4 8 16 32 64 128] [--k 4 8 16 24 32 64 128] [--gold-spp 8192] [--gold-cache DIR]
+        [--models DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+from common import (add_gold_arguments, add_model_arguments, gold_render, load_scenes, print_header,
+                    print_table, resolve_models)
+
+from wgpu_rt import metrics
+from wgpu_rt.commands.denoise import denoise
+from wgpu_rt.frame.pipeline import load_model
+from wgpu_rt.render import parse_size, render
+
+
+def parse_args():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=["cornell", "cornell-glossy", "sun-room"])
+    parser.add_argument("--size", default="96x96")
+    parser.add_argument("--spp", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32, 64, 128])
+    parser.add_argument("--k", type=float, nargs="+", default=[4, 8, 16, 24, 32, 64, 128])
+    parser.add_argument("--max-depth", type=int, default=8)
+    add_gold_arguments(parser, default_spp=8192)
+    add_model_arguments(parser)
+    return parser.parse_args()
+
+
+def main() -> None:
+    args = parse_args()
+    resolve_models(args)
+    print_header(args)
+    size = parse_size(args.size)
+    model = load_model("denoiser", args.precision, args.models)
+    losses = []   # per (scene, n): each k's PSNR below the best k of that row
+    for scene in load_scenes(args.scenes):
+        gold = gold_render(scene, size, args)
+        rows = []
+        for n in args.spp:
+            noisy = render(scene, spp=n, size=size, max_depth=args.max_depth, seed=77,
+                           aovs=("albedo", "normal", "depth"))
+            denoised = denoise(model, noisy.color, *(noisy.aovs[name] for name in ("albedo", "normal", "depth")))
+            blends = [metrics.psnr(gold, denoised + n / (n + k) * (noisy.color - denoised)) for k in args.k]
+            losses.append(max(blends) - np.array(blends))
+            rows.append([n, metrics.psnr(gold, noisy.color), metrics.psnr(gold, denoised), *blends])
+        print_table(f"{scene.name} at {size[0]}x{size[1]}: PSNR dB against {args.gold_spp}-spp gold",
+                    ["spp", "raw mean", "denoised", *(f"k={k:g}" for k in args.k)], rows)
+    print_table("mean PSNR loss to each row's best k (all scenes and spp)",
+                [f"k={k:g}" for k in args.k], [list(np.mean(losses, axis=0))])
+
+
+if __name__ == "__main__":
+    main()
