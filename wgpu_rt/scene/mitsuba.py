@@ -6,6 +6,9 @@ loaded files and animation all go through one path), with the BSDF its material 
 - diffuse → ``diffuse``; conductor → ``conductor`` (roughness 0) or ``roughconductor`` (GGX,
   alpha = roughness) with eta, k and specular_reflectance; dielectric → ``dielectric`` or
   ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1.
+- diffuse and conductor BSDFs are wrapped in ``twosided``: our tracer shades both faces of them alike
+  (wgsl/trace.wgsl), while Mitsuba's are black seen from behind. Back faces show wherever a one-sided
+  rectangle is seen from outside, e.g. the outer sides of sun-room's crate.
 - emissive materials add a one-sided ``area`` emitter; point/directional lights and a non-black
   background (``constant``) map to their Mitsuba plugins.
 
@@ -28,7 +31,7 @@ def _rgb(value) -> dict:
 
 
 def material_to_bsdf(material: Material) -> dict:
-    """The Mitsuba BSDF dict for ``material``."""
+    """The Mitsuba BSDF dict for ``material``, as seen from its front face."""
     if material.kind == "diffuse":
         return {"type": "diffuse", "reflectance": _rgb(material.reflectance)}
     if material.kind == "conductor":
@@ -41,6 +44,12 @@ def material_to_bsdf(material: Material) -> dict:
     if material.roughness > 0:
         bsdf.update(type="roughdielectric", distribution="ggx", alpha=float(material.roughness))
     return bsdf
+
+
+def surface_bsdf(material: Material) -> dict:
+    """``material_to_bsdf`` made two-sided where our tracer is (every kind but dielectric)."""
+    bsdf = material_to_bsdf(material)
+    return bsdf if material.kind == "dielectric" else {"type": "twosided", "bsdf": bsdf}
 
 
 def _mitsuba_mesh(mi, name: str, vertices, faces, normals, bsdf: dict, emission):
@@ -89,7 +98,7 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         normals = None if mesh.normals is None else transform_normals(transform, mesh.normals)
         key = f"mesh{index:04d}-" + re.sub(r"[^A-Za-z0-9_-]", "_", mesh.name)
         result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
-                                    material_to_bsdf(material),
+                                    surface_bsdf(material),
                                     material.emission if material.is_emissive else None)
     for index, light in enumerate(scene.lights):
         if isinstance(light, PointLight):
