@@ -4,10 +4,18 @@ reach the error adaptive sampling reaches at a budget B, divided by B (> 1: adap
 Samplers run through the fused pipeline's probe → sample map → targeted trace, each spending exactly
 B·pixels samples (the measured mean spp and the share of pixels at the per-pixel cap are printed):
 ``heat`` (the Error Predictor, learned) and ``variance`` (Cycles' half-buffer error of a 2-spp probe,
-the classic baseline). The reference curve is brute-force rendering at --uniform spp: the pipeline's
+the classic baseline). --oracle adds two allocations fed true errors in place of the heatmap (k 1, no
+pooling, nothing spread evenly): ``oracle σ``, the per-sample error sqrt(mean_c σ_c² / (μ_c² + ε)) (σ²
+from --oracle-renders independent 1-spp renders against the gold, μ the gold; the allocation relMSE
+asks for in expectation, n ∝ σ/sqrt(μ² + ε)), and ``oracle probe``, which also knows each run's own
+probe error δ: sqrt(mean_c δ_c² / (μ_c² + ε) + σ-term²) (relMSE after n samples is (δ² + (n − 1)σ²)/n²
+per pixel, so the probe's own error decides at low budgets). The first bounds a predictor of σ, the
+second a perfect predictor of what the heat is trained on (one probe's error).
+The reference curve is brute-force rendering at --uniform spp: the pipeline's
 ``uniform`` sampler at an integer budget B is exactly brute-force B spp (tests/test_adaptive.py), and
 the curve reaches past the samplers' 32-spp ceiling. --k, --variance-k and --uniform-share sweep the
-importance's power and the share of the budget spread evenly (AdaptiveSettings; default: its defaults).
+importance's power and the share of the budget spread evenly, --pool-sigma the heat's neighbourhood
+pooling (AdaptiveSettings; default: its defaults). The last table is the geometric mean over the scenes.
 
 Three errors, each the mean over --seeds of the raw (not denoised) radiance against our own
 --gold-spp render (seed 12345): relMSE; trimmed relMSE (each pixel's relMSE clipped at the image's
@@ -16,17 +24,26 @@ display-space MSE behind metrics.psnr (Reinhard + gamma, fireflies bounded). The
 an error comes from a least-squares power law, error = c·spp^−α, fitted to the whole uniform curve in
 log-log (α is printed; 1 is plain Monte Carlo): with a few seeds the curve itself is noisy, and on
 firefly-heavy scenes (cornell-glossy) not even monotone, so interpolating between neighbouring points
-would hand the noise of one point to the savings. --denoised adds the relMSE of the denoised output. Plots: benchmarks/plots/adaptive_savings_<scene>.png.
+would hand the noise of one point to the savings. --denoised also denoises every frame (our denoiser)
+and prints a second uniform curve, the pipeline's uniform sampler (brute force, tested) at the
+--uniform spp up to its 32-spp ceiling, denoised the same way, and per sampler the denoised error
+ratio: uniform's denoised relMSE at the budget ÷ the sampler's (> 1: adaptive helps after denoising).
+Not equal-error savings: the denoised error hardly falls with spp (on cornell it is flat from 1 to 32
+spp), so the spp uniform would need to match it is undefined.
+Plots: benchmarks/plots/adaptive_savings_<scene>.png.
 
     python3 benchmarks/bench_adaptive.py [--quick] [--size 96x96] [--budgets 2 4 8 16] [--seeds 3]
-        [--k 1 3] [--variance-k 1] [--uniform-share 0 0.5] [--gold-spp 8192] [--gold-cache DIR] [--denoised]
+        [--k 1 3] [--variance-k 1] [--uniform-share 0 0.5] [--pool-sigma 0 2] [--oracle [--oracle-renders 64]]
+        [--gold-spp 8192] [--gold-cache DIR] [--denoised]
         [--scenes cornell cornell-glossy sun-room bunny] [--models DIR | --seed-models]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
+from pathlib import Path
 
 import numpy as np
 from common import (add_gold_arguments, add_model_arguments, gold_render, hdr_pipeline, linear_frame,
@@ -34,12 +51,16 @@ from common import (add_gold_arguments, add_model_arguments, gold_render, hdr_pi
                     save_figure, trimmed_rel_mse)
 
 from wgpu_rt import metrics
-from wgpu_rt.frame.adaptive import EXTRA_SAMPLES, AdaptiveSettings
+from wgpu_rt.frame.adaptive import EXTRA_SAMPLES, MAX_HEAT_SAMPLES, AdaptiveSettings
 from wgpu_rt.render import parse_size, render
 
 UNIFORM_SPP = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64]
 QUICK = {"size": "32x32", "budgets": [2, 4, 8], "seeds": 1, "gold_spp": 2048, "uniform": [1, 2, 4, 8, 16, 32]}
 RAW_METRICS = ("relMSE", "trimmed relMSE", "display MSE")
+DENOISED = "denoised relMSE"
+DENOISED_RATIO = "denoised error ratio"
+ORACLES = ("oracle σ", "oracle probe")
+ORACLE_SEED = 1000   # the oracle's 1-spp renders use seeds ORACLE_SEED..; the runs measured use 0..seeds-1
 
 
 def parse_args():
@@ -56,6 +77,12 @@ def parse_args():
                         help="powers of the variance sampler's importance")
     parser.add_argument("--uniform-share", type=float, nargs="+", default=[None],
                         help="shares of the extra samples spread evenly (both samplers)")
+    parser.add_argument("--pool-sigma", type=float, nargs="+", default=[None],
+                        help="standard deviations (px) of the heat sampler's neighbourhood pooling (0: none)")
+    parser.add_argument("--oracle", action="store_true",
+                        help="also run the allocation on the true per-sample error (the importance's ceiling)")
+    parser.add_argument("--oracle-renders", type=int, default=64,
+                        help="independent 1-spp renders behind the oracle's per-pixel variance")
     parser.add_argument("--denoised", action="store_true", help="also measure the denoised output's relMSE")
     parser.add_argument("--max-depth", type=int, default=8)
     add_gold_arguments(parser, default_spp=8192)
@@ -78,16 +105,75 @@ def uniform_curve(scene, size, args, gold) -> dict[int, dict[str, float]]:
     return curve
 
 
-def sampler_errors(scene, size, args, gold, settings: AdaptiveSettings) -> dict[str, float]:
+class FixedImportance:
+    """An error-predictor stand-in that hands the sample allocation a fixed (H, W) importance map."""
+
+    def __init__(self, importance: np.ndarray):
+        from wgpu_rt.gpu import get_context
+
+        self.output = get_context().upload(np.ascontiguousarray(importance, np.float32))
+
+    def record(self, encoder, input_buffer, height, width):
+        return self.output
+
+
+def oracle_importance(scene, size, args, gold) -> np.ndarray:
+    """(H, W) sqrt(mean over channels of σ² / (μ² + ε)): σ² the mean squared error against the gold of
+    --oracle-renders 1-spp renders (seeds ORACLE_SEED…, independent of the measured runs), μ the gold.
+    Kept in --gold-cache beside the gold when given."""
+    def compute():
+        squared = np.zeros(gold.shape, np.float64)
+        for index in range(args.oracle_renders):
+            image = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=ORACLE_SEED + index,
+                           aovs=()).color
+            squared += (np.nan_to_num(image.astype(np.float64)) - gold) ** 2
+        variance = squared / args.oracle_renders
+        return np.sqrt(np.mean(variance / (gold.astype(np.float64) ** 2 + metrics.REL_MSE_EPSILON), axis=-1))
+
+    if not args.gold_cache:
+        return compute()
+    path = Path(args.gold_cache) / (f"{scene.name}_{size[0]}x{size[1]}_oracle{args.oracle_renders}"
+                                    f"_gold{args.gold_spp}_depth{args.max_depth}.npy")
+    if path.exists():
+        return np.load(path)
+    importance = compute()
+    temp = path.with_name(f".{path.name}.tmp.npy")
+    np.save(temp, importance)
+    os.replace(temp, path)
+    return importance
+
+
+def denoised_curve(scene, size, args, gold) -> dict[int, dict[str, float]]:
+    """{spp: mean errors over the seeds} of uniform sampling through the pipeline, denoised, at the
+    --uniform spp the uniform sampler reaches (1 + its 31-sample cap)."""
+    return {spp: sampler_errors(scene, size, args, gold, AdaptiveSettings(sampler="uniform", budget=spp))
+            for spp in sorted(args.uniform) if spp <= 1 + MAX_HEAT_SAMPLES}
+
+
+def probe_oracle(scene, size, args, gold, sigma_term: np.ndarray):
+    """seed → FixedImportance of sqrt(mean_c δ_c² / (μ_c² + ε) + sigma_term²), δ that seed's probe error
+    against the gold (the pipeline's probe is brute-force 1 spp with the run's seed, tested)."""
+    def model(seed):
+        probe = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=seed, aovs=()).color
+        delta = (np.nan_to_num(probe.astype(np.float64)) - gold) ** 2
+        relative = np.mean(delta / (gold.astype(np.float64) ** 2 + metrics.REL_MSE_EPSILON), axis=-1)
+        return FixedImportance(np.sqrt(relative + sigma_term.astype(np.float64) ** 2))
+
+    return model
+
+
+def sampler_errors(scene, size, args, gold, settings: AdaptiveSettings, error_model=None) -> dict[str, float]:
     """Mean errors over the seeds of one sampler and budget, with the measured mean spp and the share of
-    pixels at the per-pixel cap."""
+    pixels at the per-pixel cap. ``error_model``: a stand-in for the error predictor, or a function of
+    the seed giving one."""
     runs = []
     for seed in range(args.seeds):
-        pipeline = hdr_pipeline(scene, size, args, denoise=args.denoised, seed=seed, adaptive=settings)
+        pipeline = hdr_pipeline(scene, size, args, denoise=args.denoised, seed=seed, adaptive=settings,
+                                error_model=error_model(seed) if callable(error_model) else error_model)
         output = linear_frame(pipeline, scene)
         run = raw_errors(gold, pipeline.buffers.read("radiance").transpose(1, 2, 0))
         if args.denoised:
-            run["denoised relMSE"] = metrics.rel_mse(gold, output)
+            run[DENOISED] = metrics.rel_mse(gold, output)
         run["mean spp"] = float(pipeline.buffers.read("spp").mean())
         run["capped"] = float(np.mean(pipeline.buffers.read(EXTRA_SAMPLES.name) >= settings.cap))
         runs.append(run)
@@ -114,11 +200,13 @@ def plot(scene_name, size, rows) -> str:
     import matplotlib.pyplot as plt
 
     figure, axes = plt.subplots(1, len(RAW_METRICS), figsize=(5 * len(RAW_METRICS), 4), sharey=True)
-    settings = sorted({tuple(row[:3]) for row in rows}, key=str)
+    settings = sorted({tuple(row[:4]) for row in rows}, key=str)
     for column, (axis, name) in enumerate(zip(axes, RAW_METRICS)):
-        for index, (sampler, k, even) in enumerate(settings):
-            points = [(row[3], row[7 + column]) for row in rows if tuple(row[:3]) == (sampler, k, even)]
-            axis.plot(*zip(*points), "o-", color=f"C{index}", label=f"{sampler} k={k:g} even={even:g}")
+        for index, setting in enumerate(settings):
+            points = [(row[4], row[8 + column]) for row in rows if tuple(row[:4]) == setting]
+            sampler, k, even, pool = setting
+            axis.plot(*zip(*points), "o-", color=f"C{index}",
+                      label=f"{sampler} k={k:g} even={even:g} pool={pool:g}")
         axis.axhline(1.0, color="grey", lw=0.8)
         axis.axhline(1.5, color="grey", lw=0.8, ls="--")
         axis.set_xscale("log", base=2)
@@ -133,6 +221,34 @@ def plot(scene_name, size, rows) -> str:
     return str(path)
 
 
+def geometric_means(summary) -> list[list]:
+    """Per sampler setting and budget, the geometric mean of each ratio column over the scenes (None
+    where a scene has none)."""
+    groups: dict[tuple, list] = {}
+    for row in summary:
+        groups.setdefault(tuple(row[1:6]), []).append(row[6:])
+    means = []
+    for key, ratios in groups.items():
+        columns = np.asarray([[np.nan if r is None else r for r in row] for row in ratios], float)
+        mean = np.exp(np.mean(np.log(columns), axis=0))
+        means.append([*key, *(None if np.isnan(m) else float(m) for m in mean)])
+    return means
+
+
+def distinct_settings(samplers: list[tuple]) -> list[tuple]:
+    """``samplers`` without the ones that resolve to the same settings as an earlier one (a sweep
+    value equal to the default, or one that does not apply to that sampler)."""
+    seen, kept = set(), []
+    for sampler, k, share, pool in samplers:
+        settings = AdaptiveSettings(sampler="heat" if sampler in ORACLES else sampler, budget=2.0, k=k,
+                                    uniform_share=share, pool_sigma=pool)
+        key = (sampler, settings.exponent, settings.evenly_spread, settings.pooling)
+        if key not in seen:
+            seen.add(key)
+            kept.append((sampler, k, share, pool))
+    return kept
+
+
 def main() -> None:
     args = parse_args()
     resolve_models(args)
@@ -140,8 +256,11 @@ def main() -> None:
     size = parse_size(args.size)
     print(f"size {size[0]}x{size[1]}, budgets {args.budgets}, uniform curve {args.uniform}, {args.seeds} "
           f"seed(s), gold {args.gold_spp} spp, max depth {args.max_depth}")
-    samplers = [(sampler, k, share) for sampler, ks in (("heat", args.k), ("variance", args.variance_k))
-                for k in ks for share in args.uniform_share]
+    samplers = [("heat", k, share, pool) for k in args.k for share in args.uniform_share for pool in args.pool_sigma]
+    samplers += [("variance", k, share, None) for k in args.variance_k for share in args.uniform_share]
+    if args.oracle:
+        samplers += [(oracle, 1.0, 0.0, 0.0) for oracle in ORACLES]
+    samplers = distinct_settings(samplers)
     started = time.perf_counter()
     summary = []
     for scene in load_scenes(args.scenes):
@@ -151,23 +270,39 @@ def main() -> None:
         print_table(f"{scene.name}: brute-force uniform reference curve", ["spp", *RAW_METRICS],
                     [[spp, *errors.values()] for spp, errors in curve.items()]
                     + [["fitted α", *(fits[name][1] for name in RAW_METRICS)]])
+        if args.denoised:
+            denoised = denoised_curve(scene, size, args, gold)
+            print_table(f"{scene.name}: uniform reference curve, denoised", ["spp", DENOISED],
+                        [[spp, errors[DENOISED]] for spp, errors in denoised.items()])
+        oracles = {}
+        if args.oracle:
+            sigma_term = oracle_importance(scene, size, args, gold)
+            oracles = {ORACLES[0]: FixedImportance(sigma_term),
+                       ORACLES[1]: probe_oracle(scene, size, args, gold, sigma_term)}
         rows = []
-        for sampler, k, share in samplers:
+        for sampler, k, share, pool in samplers:
             for budget in sorted(args.budgets):
-                settings = AdaptiveSettings(sampler=sampler, budget=budget, k=k, uniform_share=share)
-                measured = sampler_errors(scene, size, args, gold, settings)
+                settings = AdaptiveSettings(sampler="heat" if sampler in ORACLES else sampler, budget=budget,
+                                            k=k, uniform_share=share, pool_sigma=pool)
+                measured = sampler_errors(scene, size, args, gold, settings,
+                                          oracles.get(sampler))
                 ratios = [savings(fits[name], measured[name], budget) for name in RAW_METRICS]
-                rows.append([sampler, settings.exponent, settings.evenly_spread, budget,
+                if args.denoised:
+                    uniform_denoised = denoised.get(int(budget)) if budget == int(budget) else None
+                    ratios.append(uniform_denoised[DENOISED] / measured[DENOISED] if uniform_denoised else None)
+                rows.append([sampler, settings.exponent, settings.evenly_spread, settings.pooling, budget,
                              measured["mean spp"], measured["capped"], measured["relMSE"], *ratios]
-                            + ([measured["denoised relMSE"]] if args.denoised else []))
-                summary.append([scene.name, *rows[-1][:4], *ratios])
+                            + ([measured[DENOISED]] if args.denoised else []))
+                summary.append([scene.name, *rows[-1][:5], *ratios])
         print_table(f"{scene.name}: equal-error savings (uniform spp needed ÷ budget; > 1 saves samples)",
-                    ["sampler", "k", "even", "budget", "mean spp", "capped", "relMSE",
-                     *(f"savings {n}" for n in RAW_METRICS)] + (["denoised relMSE"] if args.denoised else []),
+                    ["sampler", "k", "even", "pool", "budget", "mean spp", "capped", "relMSE",
+                     *(f"savings {n}" for n in RAW_METRICS)] + ([DENOISED_RATIO, DENOISED] if args.denoised else []),
                     rows)
         print(f"plot: {plot(scene.name, size, rows)}")
-    print_table("all scenes: equal-error savings", ["scene", "sampler", "k", "even", "budget",
-                                                     *(f"savings {n}" for n in RAW_METRICS)], summary)
+    headers = ["sampler", "k", "even", "pool", "budget", *(f"savings {n}" for n in RAW_METRICS)]
+    headers += [DENOISED_RATIO] if args.denoised else []
+    print_table("all scenes: equal-error savings", ["scene", *headers], summary)
+    print_table("geometric mean over the scenes", headers, geometric_means(summary))
     print(f"\nwall time {time.perf_counter() - started:.0f} s")
 
 

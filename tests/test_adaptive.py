@@ -7,8 +7,8 @@ from parity import check_parity
 
 from wgpu_rt.errors import WgpuRtError
 from wgpu_rt.frame.adaptive import (EXTRA_SAMPLES, HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings,
-                                    ExtraSamplesPass, HalfBufferErrorPass, extra_samples_from_heat,
-                                    half_buffer_error, ideal_budget_samples)
+                                    ExtraSamplesPass, HalfBufferErrorPass, budget_weights,
+                                    extra_samples_from_heat, half_buffer_error, ideal_budget_samples)
 from wgpu_rt.frame.planes import RADIANCE, SPP, write_plane
 from wgpu_rt.render_pass import FrameBuffers
 
@@ -51,7 +51,7 @@ def test_budget_is_met_exactly(gpu, budget, sampler, uniform_share):
     total = settings.extra_total(H * W)
     assert int(ours.sum(dtype=np.int64)) == total
     assert ours.max() <= settings.cap
-    ideal = ideal_budget_samples(heat, total, 2.0, settings.evenly_spread)
+    ideal = ideal_budget_samples(heat, total, 2.0, settings.evenly_spread, settings.pooling)
     if ideal.max() < settings.cap:
         assert np.abs(ours - ideal).max() < 1.0 + 1e-3
 
@@ -61,7 +61,7 @@ def test_uniform_share_is_every_pixels_floor(gpu):
     (rounded down), and the hot pixels share the rest."""
     heat = np.zeros((H, W), np.float32)
     heat[:, : W // 4] = 1.0
-    settings = AdaptiveSettings(budget=5.0, uniform_share=0.5)
+    settings = AdaptiveSettings(budget=5.0, uniform_share=0.5, pool_sigma=0.0)
     ours = extra_on_gpu(gpu, heat, settings)
     assert int(ours.sum()) == settings.extra_total(H * W)
     assert ours[:, W // 4:].min() == 2 and ours[:, : W // 4].min() >= 2 + 8
@@ -78,14 +78,50 @@ def test_budget_with_capped_pixels_still_exact(gpu):
     assert ours.max() == 8 and np.all(ours[:2, :2] == 8)
 
 
+def test_pooled_weights_match_a_normalised_convolution():
+    """budget_weights' pooling is the Gaussian-weighted mean over the taps inside the frame: scipy's
+    zero-padded convolution of p² divided by that of an all-ones frame, computed independently."""
+    from scipy.ndimage import convolve
+
+    heat = heatmap(5).astype(np.float64)
+    sigma, radius = 1.5, 3
+    offsets = np.arange(-radius, radius + 1)
+    kernel = np.exp(-(offsets[:, None] ** 2 + offsets[None, :] ** 2) / (2 * sigma ** 2))
+    squared = heat ** 4
+    pooled = convolve(squared, kernel, mode="constant") / convolve(np.ones_like(heat), kernel, mode="constant")
+    np.testing.assert_allclose(budget_weights(heat, 2.0, sigma), np.sqrt(squared + pooled), rtol=1e-9)
+    np.testing.assert_allclose(budget_weights(heat, 2.0, 0.0), heat ** 2, rtol=1e-12)
+
+
+@pytest.mark.parametrize("pool_sigma", [0.6, 2.0])
+def test_pooled_budget_map_matches_reference(gpu, pool_sigma):
+    """The device's pooled weights give the reference's ideal shares within rounding (1 sample), and a
+    lone hot pixel lends its neighbours samples that unpooled weights would not give them."""
+    heat = heatmap(6)
+    heat[20, 30] = 1.0
+    heat[17:24, 27:34] *= 0.1
+    heat[20, 30] = 1.0
+    settings = AdaptiveSettings(budget=4.0, uniform_share=0.0, pool_sigma=pool_sigma)
+    ours = extra_on_gpu(gpu, heat, settings)
+    total = settings.extra_total(H * W)
+    assert int(ours.sum()) == total
+    ideal = ideal_budget_samples(heat, total, 2.0, 0.0, pool_sigma)
+    assert np.abs(ours - ideal).max() < 1.0 + 1e-3
+    unpooled = ideal_budget_samples(heat, total, 2.0, 0.0, 0.0)
+    assert ideal[20, 31] > 2 * unpooled[20, 31]
+
+
 def test_budget_ignores_non_finite_heat(gpu):
     heat = heatmap(2)
     heat[::3, ::5] = np.nan
     heat[1, 1] = np.inf
-    settings = AdaptiveSettings(budget=3.0, uniform_share=0.0)
+    settings = AdaptiveSettings(budget=3.0, uniform_share=0.0, pool_sigma=0.0)
     ours = extra_on_gpu(gpu, heat, settings)
     assert int(ours.sum()) == settings.extra_total(H * W)
     assert ours[::3, ::5].max() <= 1           # a NaN pixel weighs 0 (it may get a remainder sample)
+    pooled = AdaptiveSettings(budget=3.0)      # pooled, a NaN pixel borrows only its neighbours' weight
+    ours = extra_on_gpu(gpu, heat, pooled)
+    assert int(ours.sum()) == pooled.extra_total(H * W) and ours.max() <= pooled.cap
 
 
 def test_budget_map_is_deterministic(gpu):
@@ -186,21 +222,26 @@ def test_spill_rounds_run_only_when_capped_pixels_leave_samples_over(gpu):
 
 def test_exponent_defaults_per_mode():
     """No budget: the issue's floor(heat^3 · 31); under a budget: heat^2 and the half-buffer error^1 (see
-    AdaptiveSettings.exponent); an explicit k wins in both."""
+    AdaptiveSettings.exponent); an explicit k wins in both. Pooling only under a budget, only for heat."""
     assert AdaptiveSettings().exponent == 3.0
     assert AdaptiveSettings(budget=4.0).exponent == 2.0
     assert AdaptiveSettings(sampler="variance", budget=4.0).exponent == 1.0
     assert AdaptiveSettings(budget=4.0, k=2.5).exponent == 2.5
     assert AdaptiveSettings(budget=4.0).evenly_spread == 0.5
+    assert AdaptiveSettings(budget=4.0, uniform_share=0.25).evenly_spread == 0.25
+    assert AdaptiveSettings(budget=4.0).pooling == 2.0
+    assert AdaptiveSettings(budget=4.0, pool_sigma=0.0).pooling == 0.0
+    assert AdaptiveSettings(sampler="variance", budget=4.0).pooling == 0.0
+    assert AdaptiveSettings(pool_sigma=3.0).pooling == 0.0
     assert AdaptiveSettings(sampler="uniform", budget=4.0, uniform_share=0.2).evenly_spread == 1.0
 
 
 def test_budget_shares_follow_the_default_power_of_heat(gpu):
-    """Under a budget with the default power (2) and no even share, a pixel with twice the heat gets four
-    times the samples."""
+    """Under a budget with the default power (2), no even share and no pooling, a pixel with twice the
+    heat gets four times the samples."""
     heat = np.full((H, W), 0.25, np.float32)
     heat[:, : W // 2] = 0.5
-    settings = AdaptiveSettings(budget=6.0, uniform_share=0.0)    # 5 extra on average: 8 and 2
+    settings = AdaptiveSettings(budget=6.0, uniform_share=0.0, pool_sigma=0.0)   # 5 extra on average: 8, 2
     ours = extra_on_gpu(gpu, heat, settings)
     assert ours[:, : W // 2].mean() == pytest.approx(4 * ours[:, W // 2:].mean(), rel=0.02)
 
@@ -232,7 +273,7 @@ def test_adaptive_samples_continue_the_probe_sequence(gpu, sampler):
     heat = np.zeros((size, size), np.float32)
     heat[:, : size // 2] = 1.0
     pipeline = FramePipeline(gpu, size, size,
-                             lambda f: TracePass(gpu, scene, geometry, size, size, max_depth=3, seed=seed),
+                             lambda f, _: TracePass(gpu, scene, geometry, size, size, max_depth=3, seed=seed),
                              adaptive=AdaptiveSettings(sampler=sampler, budget=3.0),
                              error_model=FixedHeat(gpu, heat) if sampler == "heat" else None, output="f32",
                              operator="none", srgb=False)

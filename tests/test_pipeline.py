@@ -150,7 +150,8 @@ def test_adaptive_budget_reaches_the_spp_plane(gpu, scene):
     heat[:, : W // 2] = 1.0
     for sampler, error_model in (("heat", FixedHeat(gpu, heat)), ("uniform", None), ("variance", None)):
         pipeline = FramePipeline(gpu, W, H, lambda f, _: TracePass(gpu, scene, geometry, W, H, max_depth=2),
-                                 adaptive=AdaptiveSettings(sampler=sampler, budget=3.5), error_model=error_model)
+                                 adaptive=AdaptiveSettings(sampler=sampler, budget=3.5, pool_sigma=0.0),
+                                 error_model=error_model)
         pipeline.render(scene, 0)
         spp = pipeline.buffers.read(SPP.name)[0]
         assert int(spp.sum()) == round(3.5 * W * H), sampler

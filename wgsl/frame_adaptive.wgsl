@@ -4,7 +4,13 @@
 //   extra_from_heat: extra = floor(heat^K · 31), heat clamped to [0, 1].
 //   budget (exact total TARGET extra samples, at most CAP per pixel), deterministic (same importance →
 //   same counts, bit for bit: only integer atomics and fixed-order reductions, no race decides anything):
-//     weigh:          w = max(importance, 0)^K; per-8×8-tile sums → tile_sums.
+//     square_importance: p = max(importance, 0)^K; squared = p².
+//     weigh:          w = sqrt(p² + P), P the Gaussian-weighted mean of p² over the pixel's
+//                     neighbourhood (standard deviation POOL_SIGMA px, taps within POOL_RADIUS, the
+//                     weights renormalised over the taps inside the frame); P = 0 when POOL_RADIUS = 0,
+//                     so w = p. p² is one probe's squared error, its local mean the per-sample error
+//                     variance one probe cannot tell (frame/adaptive.py, AdaptiveSettings.pool_sigma).
+//                     Per-8×8-tile sums of w → tile_sums.
 //     sum_weights:    one workgroup adds the tile sums → budget.weight_sum.
 //     assign:         ideal = EVENLY_SPREAD·TARGET/N + (1 − EVENLY_SPREAD)·w·TARGET/Σw (a defensive
 //                     mixture; TARGET/N when Σw = 0, all of it when EVENLY_SPREAD = 1: the uniform
@@ -35,6 +41,8 @@ override TARGET: u32 = 0u;
 override CAP: u32 = 31u;
 override THRESHOLD: f32 = 0.5;
 override NEXT_SLOT: u32 = 0u;
+override POOL_SIGMA: f32 = 1.0;   // read only when POOL_RADIUS > 0
+override POOL_RADIUS: i32 = 0;
 
 struct Budget {
     weight_sum: f32,
@@ -53,6 +61,7 @@ struct Budget {
 @group(0) @binding(7) var<storage, read_write> tile_offsets: array<u32>;
 // Per spill round: (x, y, z) workgroups of its count and take kernels, then (x, y, z) of its scan.
 @group(0) @binding(8) var<storage, read_write> spill_args: array<u32>;
+@group(0) @binding(9) var<storage, read_write> squared: array<f32>;   // p² of square_importance
 
 var<workgroup> partial: array<f32, 64>;
 var<workgroup> ranks: array<u32, 64>;
@@ -69,11 +78,40 @@ fn extra_from_heat(@builtin(global_invocation_id) id: vec3u) {
 }
 
 @compute @workgroup_size(8, 8)
+fn square_importance(@builtin(global_invocation_id) id: vec3u) {
+    if (!in_frame(id)) { return; }
+    let i = pixel_index(id);
+    let p = min(pow(sanitize(source[i]), K), 1.0e15);   // p² stays finite
+    squared[i] = p * p;
+}
+
+// The Gaussian-weighted mean of squared over the taps within POOL_RADIUS of id inside the frame.
+fn pooled_squared(id: vec3u) -> f32 {
+    var total = 0.0;
+    var norm = 0.0;
+    let falloff = -0.5 / (POOL_SIGMA * POOL_SIGMA);
+    for (var dy = -POOL_RADIUS; dy <= POOL_RADIUS; dy++) {
+        let y = i32(id.y) + dy;
+        if (y < 0 || y >= i32(HEIGHT)) { continue; }
+        for (var dx = -POOL_RADIUS; dx <= POOL_RADIUS; dx++) {
+            let x = i32(id.x) + dx;
+            if (x < 0 || x >= i32(WIDTH)) { continue; }
+            let g = exp(f32(dx * dx + dy * dy) * falloff);
+            total += g * squared[u32(y) * WIDTH + u32(x)];
+            norm += g;
+        }
+    }
+    return total / norm;
+}
+
+@compute @workgroup_size(8, 8)
 fn weigh(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation_index) lane: u32,
          @builtin(workgroup_id) tile: vec3u) {
     var w = 0.0;
     if (in_frame(id)) {
-        w = min(pow(sanitize(source[pixel_index(id)]), K), 1.0e30);
+        var pooled = 0.0;
+        if (POOL_RADIUS > 0) { pooled = pooled_squared(id); }
+        w = min(sqrt(squared[pixel_index(id)] + pooled), 1.0e30);
         claim[pixel_index(id)] = w;
     }
     partial[lane] = w;

@@ -8,8 +8,9 @@ its own.) See ``wgsl/frame_adaptive.wgsl`` for the kernels.
 
 Samplers:
 - ``heat``: the Error Predictor's heatmap, extra = floor(heat^k · 31), or with ``budget`` (mean spp
-  including the probe) weights heat^k scaled so the total is exactly (budget − 1)·pixels, optionally
-  mixed with an even share (``AdaptiveSettings.uniform_share``). The
+  including the probe) weights sqrt(p² + pooled p²), p = heat^k (``AdaptiveSettings.pool_sigma``),
+  scaled so the total is exactly (budget − 1)·pixels, mixed with an even share
+  (``AdaptiveSettings.uniform_share``). The
   remainder after rounding down is handed out deterministically (prefix ranks, not atomic races), so
   the same heatmap always gives the same sample map, bit for bit.
 - ``uniform``: the same budget spread evenly (equal total rays baseline).
@@ -33,6 +34,7 @@ EXTRA_SAMPLES = PlaneSpec("extra_samples", 1, "u32")
 SAMPLE_ERROR = PlaneSpec("sample_error", 1)
 HALF_RADIANCE = PlaneSpec("half_radiance", 3)
 CLAIM = PlaneSpec("sample_claim", 1)
+SQUARED_IMPORTANCE = PlaneSpec("squared_importance", 1)
 MAX_HEAT_SAMPLES = 31
 SAMPLERS = ("heat", "uniform", "variance")
 NO_BUDGET_EXPONENT = 3.0
@@ -40,11 +42,16 @@ NO_BUDGET_EXPONENT = 3.0
 BUDGET_EXPONENT = {"heat": 2.0, "uniform": 1.0, "variance": 1.0}
 # The share of a budget's extra samples spread evenly, per sampler (AdaptiveSettings.evenly_spread).
 UNIFORM_SHARE = {"heat": 0.5, "variance": 0.5}
+# The standard deviation (px) of the neighbourhood pooling of p² under a budget, per sampler
+# (AdaptiveSettings.pooling); 0: none. Taps reach POOL_REACH standard deviations.
+POOL_SIGMA = {"heat": 2.0, "variance": 0.0}
+POOL_REACH = 2.0
 SHADER = "frame_adaptive.wgsl"
 # frame_adaptive.wgsl's bindings, per entry point (None: not used by that entry).
 ENTRY_BINDINGS = {
     "extra_from_heat": ("source", "extra", None, None, None, None, None, None),
-    "weigh": ("source", None, "claim", "tile_sums", None, None, None, None),
+    "square_importance": ("source", None, None, None, None, None, None, None, None, "squared"),
+    "weigh": (None, None, "claim", "tile_sums", None, None, None, None, None, "squared"),
     "sum_weights": (None, None, None, "tile_sums", "budget", None, None, None),
     "assign": (None, "extra", "claim", None, "budget", None, None, None),
     "count_candidates": (None, "extra", "claim", None, None, None, None, "tile_offsets"),
@@ -72,6 +79,9 @@ class AdaptiveSettings:
     # Under a budget, the share of the extra samples spread evenly before the rest follows the importance
     # (a defensive mixture); None: UNIFORM_SHARE's default for the sampler.
     uniform_share: float | None = None
+    # Under a budget, the standard deviation (px) of the Gaussian that pools p² = importance^2k over a
+    # pixel's neighbourhood; None: POOL_SIGMA's default for the sampler, 0: no pooling.
+    pool_sigma: float | None = None
 
     def __post_init__(self):
         if self.sampler not in SAMPLERS:
@@ -80,6 +90,8 @@ class AdaptiveSettings:
             raise WgpuRtError(f"the {self.sampler} sampler needs a budget (mean samples per pixel)")
         if self.uniform_share is not None and not 0.0 <= self.uniform_share <= 1.0:
             raise WgpuRtError(f"adaptive uniform_share {self.uniform_share} is outside [0, 1]")
+        if self.pool_sigma is not None and not 0.0 <= self.pool_sigma <= 16.0:
+            raise WgpuRtError(f"adaptive pool_sigma {self.pool_sigma} is outside [0, 16] px")
         low = self.probe_samples
         if self.budget is not None and not (low <= self.budget <= low + self.cap):
             raise WgpuRtError(f"adaptive budget {self.budget} spp is outside [{low}, {low + self.cap}] "
@@ -94,7 +106,12 @@ class AdaptiveSettings:
         heatmap estimates it too, but through log1p and a per-image 99th-percentile scale clipped at 1,
         which compress exactly the largest errors; benchmarks/bench_adaptive.py --k 1 2 (96², 3 seeds,
         cornell, sun-room, cornell-glossy, budgets 2–16) measured power 2 better than 1 at every budget
-        on relMSE (geometric mean of the savings 1.31× against 1.22×), so the heat sampler uses 2."""
+        on relMSE (geometric mean of the savings 1.31× against 1.22×), so the heat sampler uses 2.
+        Undoing the log1p instead, heat·(1 + μ)/sqrt(μ² + ε) with μ the probe's 3×3 box luminance,
+        scores below heat^2 on the expected relMSE given the probe (computed from 64 independent 1-spp
+        renders and the gold, seeds 0–2, the four scenes; geometric mean 1.25/1.14/1.08/1.05 against
+        1.57/1.21/1.08/1.03 at budgets 2/4/8/16): it halves cornell-glossy's gain at budget 2, because
+        the heat's error is the probe's own error δ, not σ (see ``pooling``), and a 1-spp μ is noisy."""
         if self.k is not None:
             return self.k
         return NO_BUDGET_EXPONENT if self.budget is None else BUDGET_EXPONENT[self.sampler]
@@ -106,10 +123,34 @@ class AdaptiveSettings:
         with the budget (benchmarks/bench_adaptive.py at 96², 3 seeds: heat alone saves 1.6× at budget
         2 but loses, 0.7–0.9×, at budgets 8 and 16). Spreading half evenly bounds every pixel's count
         from below, as defensive importance sampling does: ≈ 1.0× or better at every budget measured,
-        for less gain at budget 2 (1.3×)."""
+        for less gain at budget 2 (1.3×). With ``pooling`` a quarter spread evenly gains at budget 2 and
+        loses a little at 4–16 and on display MSE (numbers there), so half stays."""
         if self.sampler == "uniform":
             return 1.0
         return UNIFORM_SHARE[self.sampler] if self.uniform_share is None else self.uniform_share
+
+    @property
+    def pooling(self) -> float:
+        """``pool_sigma``, or the sampler's default. relMSE after n samples of a pixel whose probe missed
+        by δ is (δ² + (n − 1)σ²)/(n²(μ² + ε)): at low budgets the probe's own error δ decides, at high
+        budgets the per-sample σ (the optimum tends to n ∝ σ/sqrt(μ² + ε)). The heat predicts δ (its
+        training target is one probe's error) and says little of σ: in expectation over fresh samples,
+        weights ∝ heat^2 allocate no better than uniform for the σ term (σ from 64 independent 1-spp
+        renders). σ is smooth where δ is not, so the local mean of p² estimates it, and
+        sqrt(p² + pooled p²) keeps both terms. benchmarks/bench_adaptive.py --seeds 6 --uniform-share
+        0.25 0.5 --pool-sigma 2 0 --oracle (96², 8192-spp gold), savings on relMSE at budgets 2/4/8/16,
+        geometric mean of cornell, cornell-glossy, sun-room, bunny: pooled σ 2 px, half spread evenly
+        1.55/1.25/1.08/1.08; unpooled (the previous default) 1.55/1.20/1.08/1.00; pooled, a quarter
+        even 1.63/1.23/1.04/1.09; unpooled, a quarter 1.70/1.17/1.03/1.02. Display-space MSE: pooled
+        half 1.06/1.05/1.00/0.96 against unpooled 1.03/0.99/0.92/0.90. (3 seeds: pooled 1.57/1.30/1.11/
+        1.08 against 1.63/1.25/1.11/0.97; single scene–budget cells move by ±0.1–0.3 between runs,
+        sun-room's uniform curve being flat from 8 to 16 spp.) The ceiling of this allocation is low at high budgets: fed the
+        true σ term it saves 1.15/1.13/1.10/1.09, fed each run's true probe error as well (a perfect
+        heat) 2.11/1.39/1.20/1.12. The variance sampler's half-buffer error already averages two
+        samples, and stays Cycles' classic estimate (no pooling)."""
+        if self.sampler == "uniform" or self.budget is None:
+            return 0.0
+        return POOL_SIGMA[self.sampler] if self.pool_sigma is None else self.pool_sigma
 
     @property
     def probe_samples(self) -> int:
@@ -135,12 +176,37 @@ def extra_samples_from_heat(heat: np.ndarray, k: float = NO_BUDGET_EXPONENT) -> 
     return np.floor(heat ** k * MAX_HEAT_SAMPLES).astype(np.uint32)
 
 
+def pool_radius(sigma: float) -> int:
+    """The pooling's reach in whole pixels (0 without pooling)."""
+    return int(np.ceil(POOL_REACH * sigma)) if sigma > 0 else 0
+
+
+def budget_weights(importance: np.ndarray, k: float = 1.0, pool_sigma: float = 0.0) -> np.ndarray:
+    """(H, W) weights sqrt(p² + P), p = importance^k, P the Gaussian-weighted (``pool_sigma`` px) mean of
+    p² over the taps within ``pool_radius`` that lie inside the frame (P = 0 without pooling)."""
+    squared = np.minimum(nonnegative_finite(importance).astype(np.float64) ** k, 1e15) ** 2
+    radius = pool_radius(pool_sigma)
+    if radius == 0:
+        return np.sqrt(squared)
+    height, width = squared.shape
+    total, norm = np.zeros_like(squared), np.zeros_like(squared)
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            inside = np.zeros_like(squared)
+            inside[max(0, -dy): height - max(0, dy), max(0, -dx): width - max(0, dx)] = 1.0
+            shifted = np.roll(squared, (-dy, -dx), axis=(0, 1)) * inside
+            tap = np.exp(-(dx * dx + dy * dy) / (2 * pool_sigma ** 2))
+            total += tap * shifted
+            norm += tap * inside
+    return np.sqrt(squared + total / norm)
+
+
 def ideal_budget_samples(importance: np.ndarray, total: int, k: float = 1.0,
-                         evenly_spread: float = 0.0) -> np.ndarray:
+                         evenly_spread: float = 0.0, pool_sigma: float = 0.0) -> np.ndarray:
     """The real-valued share of ``total`` extra samples per pixel: ``evenly_spread`` of them evenly, the
-    rest ∝ importance^k (before the per-pixel cap and rounding; the device's integer counts sum to
+    rest ∝ ``budget_weights`` (before the per-pixel cap and rounding; the device's integer counts sum to
     ``total`` exactly and stay within 1 of this wherever no pixel hits the cap)."""
-    weights = nonnegative_finite(importance).astype(np.float64) ** k
+    weights = budget_weights(importance, k, pool_sigma)
     even = np.full(importance.shape, total / importance.size)
     weight_sum = weights.sum()
     if weight_sum <= 0:
@@ -177,7 +243,10 @@ class ExtraSamplesPass(ComputePass):
         self.tile_sums = ctx.storage(4 * tiles, label="tile sums")
         self.tile_offsets = ctx.storage(4 * tiles, label="tile candidate offsets")
         self.budget = ctx.storage(16, label="sample budget")
-        self.kernels = [kernel("weigh", K=k), kernel("sum_weights"),
+        sigma = settings.pooling
+        pooling = {"POOL_SIGMA": sigma, "POOL_RADIUS": pool_radius(sigma)} if sigma > 0 else {}
+        self.kernels = [kernel("square_importance", K=k), kernel("weigh", **pooling),
+                        kernel("sum_weights"),
                         kernel("assign", TARGET=target, CAP=cap, EVENLY_SPREAD=settings.evenly_spread)]
 
         def remainder_round(threshold, next_slot):
@@ -201,7 +270,7 @@ class ExtraSamplesPass(ComputePass):
         planes = {"source": buffers.get(self.source), "extra": buffers.get(EXTRA_SAMPLES)}
         if self.settings.budget is not None:
             planes |= {"claim": buffers.get(CLAIM), "tile_sums": self.tile_sums, "budget": self.budget,
-                       "tile_offsets": self.tile_offsets}
+                       "tile_offsets": self.tile_offsets, "squared": buffers.get(SQUARED_IMPORTANCE)}
             for arguments in self.spill_args:   # a spill round no scan switched on stays off
                 encoder.clear_buffer(arguments)
             planes["spill_args"] = self.spill_args[0]   # the rounding rounds switch on spill round 0
