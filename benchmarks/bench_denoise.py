@@ -5,13 +5,17 @@ Denoiser at 1 spp: PSNR / SSIM / FLIP / relMSE against gold, beside Intel OIDN (
 the same colour/albedo/normal) and brute force at rising spp; "equivalent spp" is the sample count at
 which brute force reaches the denoiser's relMSE (log-log interpolation of the brute-force curve).
 Error predictor: Spearman correlation of its heatmap with the true |1 spp − gold| log error. Confidence:
-ROC AUC of 1 − its output (it predicts that history is valid) against the true disocclusion mask, with
-the history reprojected as the runtime's temporal pass does: over all pixels ("model"), over the pixels
-whose history passes the pass's depth/normal tests ("model, tested pixels": the only ones where the
-model decides anything), and for the temporal stage as a whole ("temporal stage": failed tests count as
-certain disocclusion, the model scores the rest). All networks run in the WGSL engine.
+ROC AUC of 1 − its output (it predicts that history is valid) against the true disocclusion mask, fed
+what the temporal pass packs (the current frame denoised by the denoiser under test, the history
+reprojected as the pass does): over all pixels ("model"), over the pixels whose history passes the
+pass's depth/normal tests ("model, tested pixels": the only ones where the model decides anything), and
+for the temporal stage as a whole ("temporal stage": failed tests count as certain disocclusion, the
+model scores the rest). The dataset's gold is noisy enough that its noise alone flags pixels, so
+``--mask-spp N`` also scores against masks from N-spp gold of every pair's frames, raw and compared
+after a σ 1.5 px blur (which ignores what noise is left). All networks run in the WGSL engine.
 
     python benchmarks/bench_denoise.py --data data/dataset [--models models] [--extra-spp 64 256] [--gold-spp 1024]
+        [--mask-spp 512] [--skip-denoiser]
 """
 
 from __future__ import annotations
@@ -28,8 +32,12 @@ from wgpu_rt.commands.denoise import denoise
 from wgpu_rt.dataset import DatasetConfig, TruthEngine, load_views, plan_views, read_manifest
 from wgpu_rt.frame.pack import pack_confidence_input, pack_error_input
 from wgpu_rt.nn import WgslModel
-from wgpu_rt.train.targets import confidence_pair, error_heatmap
-from wgpu_rt.train.trainer import rank_correlation, roc_auc
+from wgpu_rt.train.targets import confidence_pair, disocclusion_mask, error_heatmap
+from wgpu_rt.train.trainer import confidence_aucs, rank_correlation
+
+FRAME_SEED_STRIDE = 7919   # frame f > 0 of a reference render: seeds shifted by f times this
+AUC_WAYS = {"roc_auc": "model", "roc_auc_tested": "model, tested pixels", "roc_auc_stage": "temporal stage"}
+NOISE_ROBUST_BLUR = 1.5    # σ (pixels) of the --mask-spp mask that ignores gold noise: see disocclusion_mask
 
 
 def equivalent_spp(spp: list[int], error: list[float], target: float) -> str:
@@ -46,9 +54,10 @@ def equivalent_spp(spp: list[int], error: list[float], target: float) -> str:
     return f"> {spp[-1]}"
 
 
-def render_test_views(data: Path, view_ids: set[str], spp: list[int], seed: int) -> dict[str, dict[int, np.ndarray]]:
-    """Renders of the test views' frame 0 at each of ``spp`` (the dataset's scenes, seeds ``seed`` + spp,
-    independent of the dataset's own renders)."""
+def render_test_views(data: Path, view_ids: set[str], spp: list[int], seed: int,
+                      frame: int = 0) -> dict[str, dict[int, np.ndarray]]:
+    """Renders of the test views' ``frame`` at each of ``spp`` (the dataset's scenes, seeds ``seed`` + spp
+    (+ FRAME_SEED_STRIDE · frame), independent of the dataset's own renders)."""
     from wgpu_rt.render import render
 
     config = read_manifest(data)["config"]
@@ -59,24 +68,51 @@ def render_test_views(data: Path, view_ids: set[str], spp: list[int], seed: int)
         if plan.view_id in view_ids:
             scene = engine.scene_for(plan)
             result[plan.view_id] = {s: render(scene, spp=s, size=(config.size, config.size),
-                                              max_depth=config.max_depth, seed=seed + s, frame=0, aovs=()).color
+                                              max_depth=config.max_depth, seed=seed + s + FRAME_SEED_STRIDE * frame,
+                                              frame=frame, aovs=()).color
                                     for s in spp}
     return result
 
 
-def reference_gold(data: Path, view_ids: set[str], spp: int) -> dict[str, np.ndarray]:
-    """A higher-spp gold for the test views, rendered once and kept under DATA/reference/ (so that the
-    evaluation is not capped by the dataset gold's own noise)."""
+def reference_gold(data: Path, view_ids: set[str], spp: int, frame: int = 0) -> dict[str, np.ndarray]:
+    """A higher-spp gold of the test views' ``frame``, rendered once and kept under DATA/reference/ (so
+    that the evaluation is not capped by the dataset gold's own noise)."""
     folder = data / "reference"
-    paths = {v: folder / f"{v}_{spp}spp.npy" for v in view_ids}
+    name = lambda v: f"{v}_{spp}spp.npy" if frame == 0 else f"{v}_f{frame}_{spp}spp.npy"  # noqa: E731
+    paths = {v: folder / name(v) for v in view_ids}
     missing = {v for v, path in paths.items() if not path.exists()}
     if missing:
         folder.mkdir(exist_ok=True)
-        for view_id, images in render_test_views(data, missing, [spp], seed=20_000).items():
+        for view_id, images in render_test_views(data, missing, [spp], seed=20_000, frame=frame).items():
             tmp = paths[view_id].with_suffix(".tmp.npy")
             np.save(tmp, np.asarray(images[spp], np.float32))
             os.replace(tmp, paths[view_id])
     return {v: np.load(path) for v, path in paths.items()}
+
+
+def pair_masks(view, references: dict[int, np.ndarray], blur_sigma: float = 0.0) -> list[np.ndarray]:
+    """The disocclusion mask of each of ``view``'s frame pairs from ``references`` (frame → gold)."""
+    return [disocclusion_mask(references[t], references[t + 1], view.frames[t + 1].gold["motion"],
+                              blur_sigma=blur_sigma)
+            for t in range(len(view.frames) - 1)]
+
+
+def confidence_scores(view, denoiser, confidence_model, masks: dict[str, list[np.ndarray]]) -> dict:
+    """ROC AUC of the confidence model on each of ``view``'s frame pairs, per mask, in the three ways the
+    module docstring names. Its input is what the temporal pass packs: the current frame's *denoised*
+    1-spp render (the pass's source) and the reprojected history (gold frame t standing in for the
+    previous output)."""
+    scores: dict[str, dict[str, list[float]]] = {}
+    for t, (previous, current) in enumerate(zip(view.frames, view.frames[1:])):
+        history, history_depth, tested, _ = confidence_pair(previous, current)
+        noisy = current.noisy[1]
+        source = denoise(denoiser, noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"])
+        x = pack_confidence_input(source, history, noisy["depth"], history_depth)
+        confidence = np.asarray(confidence_model(x[None]))[0, 0]
+        for name, pairs in masks.items():
+            for key, value in confidence_aucs(confidence, pairs[t], tested).items():
+                scores.setdefault(name, {}).setdefault(AUC_WAYS[key], []).append(value)
+    return scores
 
 
 def main() -> None:
@@ -90,9 +126,13 @@ def main() -> None:
     parser.add_argument("--gold-spp", type=int, default=None,
                         help="score against a gold rendered at this spp (cached in DATA/reference/) instead of "
                              "the dataset's; the dataset's gold then joins the brute-force rows")
+    parser.add_argument("--mask-spp", type=int, default=None,
+                        help="also score the confidence model against the mask of every frame pair's gold "
+                             "rendered at this spp (cached in DATA/reference/), which flags less gold noise")
+    parser.add_argument("--skip-denoiser", action="store_true",
+                        help="only the error predictor and the confidence model (no denoiser/OIDN/brute-force "
+                             "table, no renders beyond --mask-spp's)")
     args = parser.parse_args()
-
-    import pyoidn
 
     views = load_views(args.data, args.split)
     models = Path(args.models)
@@ -101,16 +141,56 @@ def main() -> None:
     confidence_model = WgslModel(models / "confidence.onnx", precision=args.precision)
     view_ids = {v.view_id for v in views}
     dataset_gold_spp = int(read_manifest(args.data)["config"]["gold"])
-    extra = render_test_views(Path(args.data), view_ids, args.extra_spp, seed=10_000) if args.extra_spp else {}
     gold_override = reference_gold(Path(args.data), view_ids, args.gold_spp) if args.gold_spp else {}
+    gold_spp = args.gold_spp or dataset_gold_spp
+    print(f"{len(views)} held-out views ({args.split} split of {args.data}), "
+          f"{views[0].frames[0].gold['color'].shape[1]}² px, precision {args.precision}, gold {gold_spp} spp")
+    if not args.skip_denoiser:
+        denoiser_table(args, views, denoiser, gold_override, dataset_gold_spp)
 
+    spearman = []
+    auc: dict[str, dict[str, list[float]]] = {}
+    sequences = {v.view_id for v in views if len(v.frames) > 1}
+    mask_references = ({f: reference_gold(Path(args.data), sequences, args.mask_spp, f)
+                        for f in range(max(len(v.frames) for v in views))}
+                       if args.mask_spp and sequences else {})
+    for view in views:
+        noisy = view.frames[0].noisy[1]
+        heat = np.asarray(error_model(pack_error_input(noisy["color"])[None]))[0, 0]
+        gold = gold_override.get(view.view_id, view.frames[0].gold["color"])
+        spearman.append(rank_correlation(heat, error_heatmap(noisy["color"], gold)))
+        if view.view_id not in sequences:
+            continue
+        masks = {f"{dataset_gold_spp}-spp gold mask": pair_masks(view, {t: f.gold["color"]
+                                                                        for t, f in enumerate(view.frames)})}
+        if mask_references:
+            references = {t: mask_references[t][view.view_id] for t in range(len(view.frames))}
+            masks[f"{args.mask_spp}-spp gold mask"] = pair_masks(view, references)
+            masks[f"{args.mask_spp}-spp gold mask, blurred σ {NOISE_ROBUST_BLUR}"] = pair_masks(
+                view, references, NOISE_ROBUST_BLUR)
+        for name, by_way in confidence_scores(view, denoiser, confidence_model, masks).items():
+            for way, values in by_way.items():
+                auc.setdefault(name, {}).setdefault(way, []).extend(values)
+
+    print(f"error predictor: Spearman vs true error {np.mean(spearman):.3f} (min {np.min(spearman):.3f})")
+    for name, by_way in auc.items():
+        print(f"confidence: ROC AUC vs {name} over {len(by_way['model'])} frame pairs: "
+              + ", ".join(f"{way} {np.mean(values):.3f}" for way, values in by_way.items()))
+
+
+def denoiser_table(args, views, denoiser, gold_override: dict, dataset_gold_spp: int) -> None:
+    """The denoiser beside OIDN and brute force at rising spp on each view's frame 0, printed as a table
+    with equivalent spp and time per view."""
+    import pyoidn
+
+    extra = (render_test_views(Path(args.data), {v.view_id for v in views}, args.extra_spp, seed=10_000)
+             if args.extra_spp else {})
     first = views[0].frames[0].noisy[1]   # warm-up: pipeline compilation is not denoising time
     denoise(denoiser, first["color"], first["albedo"], first["normal"], first["depth"])
     pyoidn.denoise(np.ascontiguousarray(first["color"]), hdr=True)
 
     rows: dict[str, list[dict]] = {}
     seconds = {"ours": 0.0, "oidn": 0.0}
-    spearman, auc = [], {"model": [], "model, tested pixels": [], "temporal stage": []}
     for view in views:
         frame = view.frames[0]
         gold, noisy = gold_override.get(view.view_id, frame.gold["color"]), frame.noisy[1]
@@ -130,19 +210,6 @@ def main() -> None:
         for name, image in candidates.items():
             rows.setdefault(name, []).append(metrics.all_metrics(gold, image))
 
-        heat = np.asarray(error_model(pack_error_input(noisy["color"])[None]))[0, 0]
-        spearman.append(rank_correlation(heat, error_heatmap(noisy["color"], gold)))
-        for previous, current in zip(view.frames, view.frames[1:]):
-            history, history_depth, valid, mask = confidence_pair(previous, current)
-            x = pack_confidence_input(current.noisy[1]["color"], history, current.noisy[1]["depth"], history_depth)
-            invalid = 1.0 - np.asarray(confidence_model(x[None]))[0, 0]    # the model says "history valid"
-            auc["model"].append(roc_auc(invalid, mask))
-            auc["model, tested pixels"].append(roc_auc(invalid[valid], mask[valid]))
-            auc["temporal stage"].append(roc_auc(np.where(valid, invalid, 1.0), mask))
-
-    gold_spp = args.gold_spp or dataset_gold_spp
-    print(f"{len(views)} held-out views ({args.split} split of {args.data}), "
-          f"{views[0].frames[0].gold['color'].shape[1]}² px, precision {args.precision}, gold {gold_spp} spp")
     keys = list(rows["ours (1 spp)"][0])
     print(f"{'method':18s}" + "".join(f"{k:>10s}" for k in keys))
     means = {name: {k: float(np.mean([r[k] for r in values])) for k in keys} for name, values in rows.items()}
@@ -157,10 +224,6 @@ def main() -> None:
     print(f"time per view: ours {seconds['ours'] / len(views):.3f} s (WGSL on the adapter), "
           f"OIDN {seconds['oidn'] / len(views):.3f} s (CPU); ratio ours/OIDN "
           f"{seconds['ours'] / max(seconds['oidn'], 1e-9):.2f}")
-    print(f"error predictor: Spearman vs true error {np.mean(spearman):.3f} (min {np.min(spearman):.3f})")
-    if auc["model"]:
-        print(f"confidence: ROC AUC vs true disocclusion mask over {len(auc['model'])} frame pairs: "
-              + ", ".join(f"{name} {np.mean(values):.3f}" for name, values in auc.items()))
 
 
 if __name__ == "__main__":

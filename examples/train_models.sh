@@ -7,9 +7,12 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 DATA=${DATA:-data/dataset}      # /data/ and /out/ are git-ignored
-EXTRA_DATA=${EXTRA_DATA:-data/dataset-extra}   # more denoiser training views (stills, seeds 1 and 2)
+EXTRA_DATA=${EXTRA_DATA:-data/dataset-extra}   # more denoiser training views (stills, seeds 1 to 4)
 EXTRA_DATA2=${EXTRA_DATA2:-data/dataset-extra2}
+EXTRA_DATA3=${EXTRA_DATA3:-data/dataset-extra3}
+EXTRA_DATA4=${EXTRA_DATA4:-data/dataset-extra4}   # gold at 4 × GOLD spp: cleaner targets
 EXTRA_VIEWS=${EXTRA_VIEWS:-12}  # per scene: 10 train, 1 val, 1 test (the test views are never used)
+SEQ_DATA=${SEQ_DATA:-data/dataset-seq}   # + seed: confidence-model sequences (seeds 5 and 6)
 CHECKPOINTS=${CHECKPOINTS:-out/checkpoints}
 OUT=${OUT:-models}          # where the .onnx files and model cards go
 VIEWS=${VIEWS:-8}           # per scene: 6 train, 1 val, 1 test (held-out torus shape)
@@ -20,14 +23,23 @@ export OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}   # torch threads: 1, as the 2 core
 
 $NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views "$VIEWS" --size "$SIZE" \
     --spp 1,4,16 --gold "$GOLD" --sequence-fraction 0.3 --out "$DATA"
-for seed_and_folder in "1 $EXTRA_DATA" "2 $EXTRA_DATA2"; do
-    set -- $seed_and_folder
+for seed_gold_folder in "1 1 $EXTRA_DATA" "2 1 $EXTRA_DATA2" "3 1 $EXTRA_DATA3" "4 4 $EXTRA_DATA4"; do
+    set -- $seed_gold_folder
     $NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views "$EXTRA_VIEWS" --size "$SIZE" \
-        --spp 1,4,16 --gold "$GOLD" --sequence-fraction 0 --seed "$1" --out "$2"
+        --spp 1,4,16 --gold $(($2 * GOLD)) --sequence-fraction 0 --seed "$1" --out "$3"
 done
 
 TRAIN="$NICE wgpu-rt train --data $DATA --out $OUT --checkpoints $CHECKPOINTS --resume"
-time $TRAIN denoiser --extra-data "$EXTRA_DATA" "$EXTRA_DATA2" --epochs "${DENOISER_EPOCHS:-300}" --batch 4 \
-    --crop 64 128 --widths 16 32 64 --lr 2e-3 --curriculum 16 4 1 1 --ssim-space display --validate-every 10
+time $TRAIN denoiser --extra-data "$EXTRA_DATA" "$EXTRA_DATA2" "$EXTRA_DATA3" "$EXTRA_DATA4" \
+    --epochs "${DENOISER_EPOCHS:-300}" --batch 4 --crop 64 128 --widths 16 32 64 128 --lr 2e-3 \
+    --curriculum 16 4 1 1 --ssim-space display --validate-every 10
 time $TRAIN error-predictor --epochs "${HEATMAP_EPOCHS:-60}" --batch 4 --crop 64 128 --lr 3e-3
-time $TRAIN confidence --epochs "${HEATMAP_EPOCHS:-60}" --batch 4 --crop 64 128 --lr 3e-3
+# The confidence model learns on what the temporal pass feeds it, the *denoised* frame: $OUT/denoiser.onnx
+# (above) makes it, so this runs after the denoiser. Its frame pairs: DATA's, plus two datasets of nothing
+# but sequences (only 1 spp and gold are needed): 66 training pairs instead of 18.
+for seed in 5 6; do
+    $NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views 5 --size "$SIZE" --spp 1 \
+        --gold "$GOLD" --sequence-fraction 1 --seed "$seed" --out "$SEQ_DATA$seed"
+done
+time $TRAIN confidence --extra-data "${SEQ_DATA}5" "${SEQ_DATA}6" --epochs "${HEATMAP_EPOCHS:-60}" --batch 4 \
+    --crop 64 128 --lr 3e-3

@@ -191,6 +191,22 @@ def test_disocclusion_mask_flags_only_changed_or_offscreen_pixels():
     np.testing.assert_array_equal(mask, expected)
 
 
+def test_blurred_disocclusion_mask_ignores_gold_noise_but_keeps_a_real_change():
+    rng = np.random.default_rng(4)
+    clean = np.full((32, 32, 3), 0.5, np.float32)
+    previous, current = (clean * rng.lognormal(0.0, 0.3, clean.shape).astype(np.float32) for _ in range(2))
+    current[10:16, 12:18] = 5.0                       # something new in frame t+1
+    changed = np.zeros((32, 32), bool)
+    changed[10:16, 12:18] = True
+    near_change = np.zeros((32, 32), bool)
+    near_change[6:20, 8:22] = True                    # the change dilated by 4 px, where the blur spreads it
+    motion = np.zeros((32, 32, 2), np.float32)
+    raw = disocclusion_mask(previous, current, motion)
+    blurred = disocclusion_mask(previous, current, motion, blur_sigma=1.5)
+    assert raw[changed].all() and raw[~near_change].mean() > 0.1     # noise alone flags unchanged pixels
+    assert blurred[changed].all() and not blurred[~near_change].any()
+
+
 def test_runtime_history_zeroes_what_the_temporal_tests_reject():
     """The confidence model's history input is the temporal pass's reprojection: a shift where the
     surfaces match, zero (and not valid) off-screen and where the depth test fails."""

@@ -7,10 +7,11 @@ import torch
 from dataset_fakes import fake_render
 
 from wgpu_rt.dataset import DatasetConfig, TruthEngine
+from wgpu_rt.networks import UNet, export_onnx
 from wgpu_rt.train import TrainConfig, TrainingError, train
 from wgpu_rt.train.losses import denoiser_loss, ssim
 from wgpu_rt.train.samples import curriculum_spp
-from wgpu_rt.train.trainer import Trainer, roc_auc
+from wgpu_rt.train.trainer import Trainer, confidence_aucs, roc_auc
 
 
 @pytest.fixture(scope="module")
@@ -150,12 +151,32 @@ def test_roc_auc_against_brute_force_pair_counting():
     assert roc_auc(scores, labels) == pytest.approx(np.mean(pairs))
 
 
+def pair_counting_auc(scores, labels) -> float:
+    """ROC AUC by brute force: the share of (positive, negative) pairs ranked right, ties half."""
+    scores, labels = np.ravel(scores), np.ravel(labels) > 0.5
+    return float(np.mean([(p > n) + 0.5 * (p == n) for p in scores[labels] for n in scores[~labels]]))
+
+
+def test_confidence_aucs_over_all_tested_and_stage_pixels():
+    """The tested-pixel AUC ignores untested pixels; the stage's counts them as certain disocclusion."""
+    rng = np.random.default_rng(5)
+    confidence, mask = rng.uniform(size=(6, 7)), (rng.uniform(size=(6, 7)) > 0.6).astype(np.float32)
+    tested = rng.uniform(size=(6, 7)) > 0.3
+    aucs = confidence_aucs(confidence, mask, tested)
+    assert aucs["roc_auc"] == pytest.approx(pair_counting_auc(1 - confidence, mask))
+    assert aucs["roc_auc_tested"] == pytest.approx(pair_counting_auc(1 - confidence[tested], mask[tested]))
+    assert aucs["roc_auc_stage"] == pytest.approx(pair_counting_auc(np.where(tested, 1 - confidence, 1.0), mask))
+    assert len({round(v, 6) for v in aucs.values()}) == 3
+
+
 @pytest.mark.parametrize("task", ["denoiser", "error-predictor", "confidence"])
 def test_smoke_training_exports_a_model_equal_to_torch(task, tiny_dataset, tmp_path):
     import onnxruntime
 
     config = TrainConfig(task=task, data=str(tiny_dataset), out=str(tmp_path), epochs=1, batch=2,
                          crop_min=12, crop_max=16, widths=(4, 8))
+    if task == "confidence":   # it learns on the denoised frame: OUT/denoiser.onnx makes it
+        export_onnx(UNet(widths=(4, 8)), tmp_path / "denoiser.onnx")
     summary = train(config, progress=False)
     card = (tmp_path / f"{config.model_name}.md").read_text()
     assert "## Validation" in card and "training views" in card
@@ -196,15 +217,51 @@ def test_confidence_needs_sequences(tmp_path):
         Trainer(TrainConfig(task="confidence", data=str(tmp_path)), progress=False)
 
 
-def test_confidence_target_is_one_where_history_is_valid(tiny_dataset):
+def test_confidence_needs_the_denoiser_it_learns_on(tiny_dataset, tmp_path):
+    with pytest.raises(TrainingError, match=r"denoiser\.onnx: no denoiser"):
+        Trainer(TrainConfig(task="confidence", data=str(tiny_dataset), out=str(tmp_path)), progress=False)
+
+
+def test_confidence_sample_is_the_denoised_frame_against_history(tiny_dataset):
+    """Input: the current frame as the temporal pass's source (the denoiser's output, not the 1-spp
+    render), reprojected history; target: 1 where the history is valid."""
     from wgpu_rt.dataset import load_views
+    from wgpu_rt.frame.pack import log_color
     from wgpu_rt.train.samples import ConfidenceSamples
     from wgpu_rt.train.targets import disocclusion_mask
 
-    samples = ConfidenceSamples(load_views(tiny_dataset, "train"))
+    denoised = {}
+
+    def stand_in_denoiser(render):
+        denoised[id(render)] = np.full_like(render["color"], 0.25 + len(denoised))
+        return denoised[id(render)]
+
+    samples = ConfidenceSamples(load_views(tiny_dataset, "train"), stand_in_denoiser)
     view_index, t = samples.items[0]
     frames = samples.views[view_index].frames
-    _, target = samples.full((view_index, t), 1, 1.0)
+    x, target = samples.full((view_index, t), 1, 2.0)
     mask = disocclusion_mask(frames[t].gold["color"], frames[t + 1].gold["color"], frames[t + 1].gold["motion"])
     assert 0 < mask.mean() < 1
     np.testing.assert_array_equal(target[0], 1 - mask)
+    np.testing.assert_allclose(x[:3], log_color(2.0 * denoised[id(frames[t + 1].noisy[1])]), rtol=1e-6)
+    samples.full((view_index, t), 1, 1.0)
+    assert len(denoised) == 1   # each pair's frame is denoised once
+
+
+def test_onnx_denoiser_is_the_denoise_command_with_the_exported_network(tiny_dataset, tmp_path):
+    from wgpu_rt.commands.denoise import denoise
+    from wgpu_rt.dataset import load_views
+    from wgpu_rt.train.samples import OnnxDenoiser
+
+    torch.manual_seed(3)
+    network = UNet(widths=(4, 8)).eval()
+    render = load_views(tiny_dataset, "train")[0].frames[0].noisy[1]
+
+    def torch_network(x):
+        with torch.no_grad():
+            return network(torch.from_numpy(x)).numpy()
+
+    expected = denoise(torch_network, render["color"], render["albedo"], render["normal"], render["depth"])
+    denoiser = OnnxDenoiser(export_onnx(network, tmp_path / "denoiser.onnx"))
+    np.testing.assert_allclose(denoiser(render), expected, rtol=1e-4, atol=1e-5)
+    assert not np.allclose(expected, render["color"], atol=1e-3)   # the network changed the render

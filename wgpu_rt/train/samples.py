@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -103,35 +104,71 @@ class ErrorSamples(TaskSamples):
         return pack_error_input(noisy), error_heatmap(noisy, gold)[None]
 
 
+class OnnxDenoiser:
+    """A denoiser ONNX applied as ``wgpu-rt denoise`` applies it, run by onnxruntime (the WGSL engine's
+    twin, held equal by the parity tests) on a render dict; ``digest`` names the file's contents (the
+    confidence model's card records which denoiser's output it learned on)."""
+
+    def __init__(self, path: str | Path):
+        import hashlib
+
+        import onnxruntime
+
+        self.path = Path(path)
+        self.digest = hashlib.sha256(self.path.read_bytes()).hexdigest()[:12]
+        options = onnxruntime.SessionOptions()
+        options.intra_op_num_threads = 1   # training shares 2 cores with everything else
+        self.session = onnxruntime.InferenceSession(str(self.path), options, providers=["CPUExecutionProvider"])
+
+    def __call__(self, render: dict) -> np.ndarray:
+        from ..commands.denoise import denoise
+
+        run = lambda x: self.session.run(None, {"input": x})[0]  # noqa: E731
+        return denoise(run, render["color"], render["albedo"], render["normal"], render["depth"])
+
+
 class ConfidenceSamples(TaskSamples):
-    """Frame t+1 at 1 spp + gold frame t reprojected as the runtime's temporal pass does (zero where its
-    depth/normal tests find no matching texel) → confidence that history is valid: 1 minus the
-    disocclusion mask (needs sequences). The reprojection is a per-pixel reference, so each pair's is
-    computed once; exposure scales colour and history alike (reprojection is linear in colour)."""
+    """Frame t+1 as the temporal pass's source (1 spp, denoised by ``denoiser``, an OnnxDenoiser) + gold
+    frame t reprojected as the runtime's temporal pass does (zero where its depth/normal tests find no
+    matching texel) → confidence that history is valid: 1 minus the disocclusion mask (needs sequences).
+    The reprojection is a per-pixel reference and denoising a network run, so each pair's are computed
+    once; exposure scales source and history alike (reprojection is linear in colour; the denoiser
+    nearly so)."""
 
     aux_channels = slice(6, 8)
 
     def _items(self):
         return [(v, t) for v, view in enumerate(self.views) for t in range(len(view.frames) - 1)]
 
-    def __init__(self, views: list[View]):
+    def __init__(self, views: list[View], denoiser):
         super().__init__(views)
+        self.denoiser = denoiser
         self._pairs = {}
 
-    def full(self, item, spp, exposure):
-        view = self.views[item[0]]
-        previous, current = view.frames[item[1]], view.frames[item[1] + 1]
+    def _pair(self, item):
+        """(source, history RGB, history depth, tested, mask) of ``item``, computed once."""
         if item not in self._pairs:
-            self._pairs[item] = confidence_pair(previous, current)
-        history, history_depth, _, mask = self._pairs[item]
-        x = pack_confidence_input(current.noisy[1]["color"] * exposure, history * exposure,
-                                  current.noisy[1]["depth"], history_depth)
+            view = self.views[item[0]]
+            previous, current = view.frames[item[1]], view.frames[item[1] + 1]
+            self._pairs[item] = (self.denoiser(current.noisy[1]), *confidence_pair(previous, current))
+        return self._pairs[item]
+
+    def full(self, item, spp, exposure):
+        source, history, history_depth, _, mask = self._pair(item)
+        depth = self.views[item[0]].frames[item[1] + 1].noisy[1]["depth"]
+        x = pack_confidence_input(source * exposure, history * exposure, depth, history_depth)
         return x, 1.0 - mask[None]
 
+    def tested(self, item) -> np.ndarray:
+        """(H, W) bool: the pixels of ``item`` whose history passes the temporal pass's depth/normal tests."""
+        return self._pair(item)[3]
 
-def samples_for(task: str, views: list[View]) -> TaskSamples:
-    classes = {"denoiser": DenoiserSamples, "error-predictor": ErrorSamples, "confidence": ConfidenceSamples}
-    return classes[task](views)
+
+def samples_for(task: str, views: list[View], denoiser: OnnxDenoiser | None = None) -> TaskSamples:
+    """The task's samples; the confidence model's need the ``denoiser`` that makes its current frame."""
+    if task == "confidence":
+        return ConfidenceSamples(views, denoiser)
+    return {"denoiser": DenoiserSamples, "error-predictor": ErrorSamples}[task](views)
 
 
 def curriculum_spp(progress: float, available: list[int], stages: tuple[int, ...] = (16, 4, 1)) -> int:

@@ -55,11 +55,19 @@ def reproject(previous, motion) -> tuple[np.ndarray, np.ndarray]:
     return warped.astype(np.float32), valid
 
 
-def disocclusion_mask(gold_previous, gold_current, motion_current,
-                      threshold: float = DISAGREEMENT_THRESHOLD) -> np.ndarray:
-    """(H, W) float32, 1 where the reprojected previous gold frame disagrees with the current one."""
+def disocclusion_mask(gold_previous, gold_current, motion_current, threshold: float = DISAGREEMENT_THRESHOLD,
+                      blur_sigma: float = 0.0) -> np.ndarray:
+    """(H, W) float32, 1 where the reprojected previous gold frame disagrees with the current one.
+    ``blur_sigma`` > 0 compares both log1p images after a Gaussian blur of that many pixels: gold's own
+    noise averages out (so it stops flagging pixels), while a real change of the history, which covers
+    several pixels with a large difference, stays above the threshold (spread by about the blur)."""
+    from scipy.ndimage import gaussian_filter
+
     warped, valid = reproject(gold_previous, motion_current)
-    disagreement = np.mean(np.abs(log_color(warped) - log_color(gold_current)), axis=0)
+    previous, current = log_color(warped), log_color(gold_current)
+    if blur_sigma > 0:
+        previous, current = (gaussian_filter(image, (0, blur_sigma, blur_sigma)) for image in (previous, current))
+    disagreement = np.mean(np.abs(previous - current), axis=0)
     return ((disagreement > threshold) | ~valid).astype(np.float32)
 
 
