@@ -24,7 +24,7 @@ override GAMMA: f32 = 1.0;
 override MAX_FRAMES: f32 = 32.0;
 override DEPTH_TOLERANCE: f32 = 0.05;
 override NORMAL_THRESHOLD: f32 = 0.9;
-override CONVERGE_SPP: f32 = 24.0;
+override CONVERGE_SPP: f32 = 32.0;
 override USE_CONFIDENCE: bool = false;
 
 @group(0) @binding(0) var<storage, read> color: array<f32>;

@@ -51,11 +51,11 @@ class TemporalSettings:
     max_frames: int = 32           # α never drops below 1/max_frames
     # Static camera: the raw n-sample mean's share against the denoised frame of it is n / (n +
     # converge_spp), i.e. the denoiser counts as converge_spp samples. Fitted with
-    # benchmarks/bench_converge.py (96², 1–128 spp, 8192-spp gold): the best constant per scene is
-    # 16–32 (cornell, sun-room) and 64–128 (cornell-glossy); 24 lost ≤ 0.6 dB to each scene's best and
-    # beat the 1 − 1/√n fade it replaces at every n ≤ 32 (by 0.9 dB on cornell and 1.9 dB on
-    # cornell-glossy at 16 spp).
-    converge_spp: float = 24.0
+    # benchmarks/bench_converge.py (96², 1–128 spp, 8192-spp gold, the shipped denoiser): the best
+    # constant per scene is 16–32 (cornell, sun-room) and 64–128 (cornell-glossy); 32 loses least to
+    # each row's best (0.20 dB on average). The 1 − 1/√n fade it replaces (≈ k = √n + 1) lost to it at
+    # every n ≤ 32, at 16 spp by 0.8 dB on cornell and 2.2 dB on cornell-glossy (previous denoiser).
+    converge_spp: float = 32.0
     depth_tolerance: float = 0.05  # relative depth difference that still counts as the same surface
     normal_threshold: float = 0.9  # smallest normal dot product that counts as the same surface
 
