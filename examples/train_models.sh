@@ -2,7 +2,8 @@
 # The exact recipe behind models/{denoiser,error_predictor,confidence}.onnx: render a small dataset on
 # this machine's adapter (lavapipe, 2 CPU cores), train the three networks with CPU torch, export them
 # with model cards into models/. Resumable: rerun after an interruption and finished work is kept.
-# Sized to finish in ~90 minutes on 2 cores; scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
+# About 3 hours on 2 shared cores (renders ~100 min, denoiser 48 min, the two small networks minutes);
+# scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
