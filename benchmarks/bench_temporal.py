@@ -13,6 +13,7 @@ accumulates 1 spp per frame, the mean is denoised and blended with itself by spp
 denoised frame. Gold: our own render of each frame at --gold-spp.
 
     python3 benchmarks/bench_temporal.py [--quick] [--size 96x96] [--frames 16] [--gold-spp 4096]
+        [--gold-cache DIR]
         [--clamp none|box|variance] [--gamma 1.0]
         [--models DIR | --seed-models]
 """
@@ -22,8 +23,8 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (add_model_arguments, hdr_pipeline, linear_frame, oidn, parse_with_quick_defaults,
-                    print_header, print_table, resolve_models)
+from common import (add_gold_arguments, add_model_arguments, gold_frame, gold_render, hdr_pipeline,
+                    linear_frame, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models)
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.temporal import CLAMP_MODES, TemporalSettings
@@ -41,7 +42,7 @@ def parse_args():
     parser.add_argument("--size", default="96x96")
     parser.add_argument("--frames", type=int, default=16)
     parser.add_argument("--static-frames", type=int, default=16)
-    parser.add_argument("--gold-spp", type=int, default=4096)
+    add_gold_arguments(parser, default_spp=4096)
     parser.add_argument("--max-depth", type=int, default=8)
     parser.add_argument("--clamp", choices=CLAMP_MODES, default=TemporalSettings.clamp,
                         help="history clamp of the temporal runs (default: the pipeline's)")
@@ -73,14 +74,9 @@ def main() -> None:
     print(f"{scene.name}: {len(frames)} frames at {size[0]}x{size[1]}, gold {args.gold_spp} spp, "
           f"max depth {args.max_depth}")
 
-    def gold_render(frame, scene=scene, aovs=("motion",)):
-        return render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=10000 + frame,
-                      frame=frame, aovs=aovs)
-
-    golds = [gold_render(f) for f in frames]
-    gold = [g.color for g in golds]
+    gold, motion = zip(*(gold_frame(scene, size, args, f) for f in frames))
     masks = [np.zeros(size[::-1], np.float32)] + [
-        disocclusion_mask(gold[t - 1], gold[t], golds[t].aovs["motion"]) for t in range(1, len(gold))]
+        disocclusion_mask(gold[t - 1], gold[t], motion[t]) for t in range(1, len(gold))]
 
     def noisy_oidn(frame):
         one = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=frame, frame=frame,
@@ -106,7 +102,7 @@ def main() -> None:
                 ["method", "flicker", "ghosting relMSE", "relMSE"], rows)
 
     static = load_scene(args.static_scene)
-    static_gold = render(static, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=10000, aovs=()).color
+    static_gold = gold_render(static, size, args)
     single = linear_frame(hdr_pipeline(static, size, args, denoise=True), static, 0)
     accumulating = hdr_pipeline(static, size, args, denoise=True, temporal=settings)
     accumulated = [linear_frame(accumulating, static, f) for f in range(args.static_frames)][-1]

@@ -105,21 +105,44 @@ def gold_render(scene, size, args) -> np.ndarray:
     from wgpu_rt.render import render
 
     def compute():
-        return render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED,
-                      aovs=()).color
+        return {"color": render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED,
+                                aovs=()).color}
 
-    if not args.gold_cache:
+    key = f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}"
+    return _cached(args, key, compute, ["color"])["color"]
+
+
+def gold_frame(scene, size, args, frame: int) -> tuple[np.ndarray, np.ndarray]:
+    """(radiance (H, W, 3), motion (H, W, 2)) of frame ``frame`` of an animated scene at ``args.gold_spp``
+    (seed 12345 + frame), cached like ``gold_render``."""
+    from wgpu_rt.render import render
+
+    def compute():
+        result = render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED + frame,
+                        frame=frame, aovs=("motion",))
+        return {"color": result.color, "motion": result.aovs["motion"]}
+
+    key = f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}_frame{frame}"
+    images = _cached(args, key, compute, ["color", "motion"])
+    return images["color"], images["motion"]
+
+
+def _cached(args, key: str, compute, names: list[str]) -> dict[str, np.ndarray]:
+    """``compute()``'s images, kept in ``args.gold_cache`` (when set) as KEY.npy, or KEY_NAME.npy for
+    names other than color, written atomically."""
+    if not getattr(args, "gold_cache", None):
         return compute()
     folder = Path(args.gold_cache)
-    path = folder / f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}.npy"
-    if path.exists():
-        return np.load(path)
-    image = compute()
+    paths = {name: folder / (f"{key}.npy" if name == "color" else f"{key}_{name}.npy") for name in names}
+    if all(path.exists() for path in paths.values()):
+        return {name: np.load(path) for name, path in paths.items()}
+    images = compute()
     folder.mkdir(parents=True, exist_ok=True)
-    temp = path.with_name(f".{path.name}.tmp.npy")
-    np.save(temp, image)
-    os.replace(temp, path)
-    return image
+    for name, path in paths.items():
+        temp = path.with_name(f".{path.name}.tmp.npy")
+        np.save(temp, images[name])
+        os.replace(temp, path)
+    return images
 
 
 def steady(function, repeats: int = 1):
