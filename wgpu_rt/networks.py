@@ -87,6 +87,7 @@ class _HeatmapCNN(nn.Module):
 
     def __init__(self, in_channels: int, hidden: int = 16, layers: int = 2):
         super().__init__()
+        self.hidden, self.layers = hidden, layers
         body, cin = [], in_channels
         for _ in range(layers):
             body += [nn.Conv2d(cin, hidden, 3, padding=1), nn.ReLU(inplace=True)]
@@ -103,7 +104,12 @@ class ErrorPredictor(_HeatmapCNN):
 
 
 class ConfidencePredictor(_HeatmapCNN):
-    def __init__(self, hidden: int = 16, layers: int = 1):
+    """Two hidden layers of 32 (≈12k parameters, 7×7 receptive field): trained on data/dataset's 18
+    pairs and scored on the pixels it decides (history passing the temporal tests) of its 8 held-out
+    pairs against a 512-spp mask, one layer of 16 reached ROC AUC 0.78–0.79 and this 0.84–0.86 (two
+    seeds each); 3 layers of 16 or 32 were no better."""
+
+    def __init__(self, hidden: int = 32, layers: int = 2):
         super().__init__(CONFIDENCE_CHANNELS, hidden, layers)
 
 

@@ -23,12 +23,6 @@ from ..errors import WgpuRtError
 from .samples import Augmentation, curriculum_spp, samples_for
 
 MODEL_FILES = {"denoiser": "denoiser", "error-predictor": "error_predictor", "confidence": "confidence"}
-# The confidence model the trainer builds: two hidden 3×3 layers of 32 channels (≈12k parameters, 7×7
-# receptive field). Trained on data/dataset's 18 pairs and scored on the pixels it decides (history
-# passing the temporal tests) of its 8 held-out pairs against a 512-spp mask, networks.py's default
-# (one layer of 16) reached ROC AUC 0.78–0.79 and this 0.84–0.86 (two seeds each); 3 layers of 16 or
-# 32 were no better.
-CONFIDENCE_ARCHITECTURE = {"hidden": 32, "layers": 2}
 # Settings a resumed run may change: more epochs stretch the schedule; the rest is bookkeeping.
 RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every"}
 
@@ -72,7 +66,7 @@ def build_model(config: TrainConfig):
         return UNet(widths=tuple(config.widths), residual=config.residual)
     if config.task == "error-predictor":
         return ErrorPredictor()
-    return ConfidencePredictor(**CONFIDENCE_ARCHITECTURE)
+    return ConfidencePredictor()
 
 
 def rank_correlation(a, b) -> float:
@@ -363,8 +357,7 @@ class Trainer:
         elif cfg.task == "error-predictor":
             lines.append("- target |log1p(1 spp) − log1p(gold)| / its 99th percentile, clipped to [0, 1]; BCE loss")
         else:
-            lines.append(f"- {CONFIDENCE_ARCHITECTURE['layers']} hidden 3×3 conv layers of "
-                         f"{CONFIDENCE_ARCHITECTURE['hidden']} channels")
+            lines.append(f"- {self.model.layers} hidden 3×3 conv layers of {self.model.hidden} channels")
             denoiser = self.train_set.denoiser
             lines.append(f"- input current frame: the 1-spp render denoised by `{denoiser.path}` (sha256 "
                          f"{denoiser.digest}…; the temporal pass's source, what the runtime packs)")
