@@ -200,6 +200,26 @@ def test_resume_continues_from_the_checkpoint(tiny_dataset, tmp_path):
     assert [h["epoch"] for h in resumed.history] == [1, 2]
 
 
+def test_fine_tune_starts_from_another_runs_weights_and_credits_its_time(tiny_dataset, tmp_path):
+    base = dict(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), batch=2, crop_min=12, crop_max=16,
+                widths=(4, 8))
+    first = Trainer(TrainConfig(epochs=1, **base), progress=False)
+    first.run()
+    tuned = Trainer(TrainConfig(epochs=1, curriculum=(1,), lr=1e-4, init_from=str(first.checkpoint_path),
+                                checkpoints=str(tmp_path / "tuned"), **base), progress=False)
+    for name, weight in first.model.state_dict().items():
+        assert torch.equal(tuned.model.state_dict()[name], weight), name
+    assert tuned.epoch == 0 and tuned.history == []          # fresh schedule and history
+    tuned.run()
+    card = tuned.model_card()
+    assert f"fine-tuned from `{first.checkpoint_path}`: 1 epochs" in card and "for the run(s) it was" in card
+    with pytest.raises(TrainingError, match="own checkpoint"):
+        Trainer(TrainConfig(epochs=1, init_from=str(first.checkpoint_path), **base), progress=False)
+    with pytest.raises(TrainingError, match="cannot start from"):
+        Trainer(TrainConfig(epochs=1, init_from=str(first.checkpoint_path), checkpoints=str(tmp_path / "wide"),
+                            **{**base, "widths": (4, 16)}), progress=False)
+
+
 def test_a_nan_loss_stops_training_with_a_clear_message(tiny_dataset, tmp_path, monkeypatch):
     config = TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), epochs=1, batch=2,
                          crop_min=12, crop_max=16, widths=(4, 8))

@@ -27,6 +27,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--checkpoints", help="checkpoint folder (default: OUT/checkpoints)")
     parser.add_argument("--resume", action="store_true", help="continue from the last checkpoint")
+    parser.add_argument("--init-from", metavar="CHECKPOINT",
+                        help="fine-tune: start from another run's checkpoint weights (same task and widths) with "
+                             "a fresh optimizer and schedule; give this run its own --checkpoints folder")
     parser.add_argument("--validate-every", type=int, default=1, metavar="N",
                         help="validate every N epochs and after the last (validation is slow on a CPU)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -41,7 +44,8 @@ def run(args) -> int:
                          widths=tuple(args.widths), residual=args.residual,
                          curriculum=tuple(args.curriculum), resume=args.resume,
                          extra_data=tuple(args.extra_data), max_views=args.max_views,
-                         checkpoints=args.checkpoints, validate_every=args.validate_every)
+                         checkpoints=args.checkpoints, init_from=args.init_from,
+                         validate_every=args.validate_every)
     summary = train(config, progress=not args.quiet)
     metrics = ", ".join(f"{k} {v:.4g}" for k, v in summary["metrics"].items() if isinstance(v, float))
     print(f"wrote {summary['onnx']} and {summary['card']} ({summary['seconds'] / 60:.1f} min); {metrics}")

@@ -52,6 +52,7 @@ class TrainConfig:
     resume: bool = False
     max_views: int | None = None
     checkpoints: str | None = None       # default OUT/checkpoints
+    init_from: str | None = None         # fine-tune: start from this checkpoint's weights (fresh optimizer)
     validate_every: int = 1              # epochs between validations (the last epoch is always validated)
 
     @property
@@ -137,8 +138,11 @@ class Trainer:
         self.rng = np.random.default_rng(config.seed)
         self.epoch, self.step, self.seconds, self.history = 0, 0, 0.0, []
         self.checkpoint_path = Path(config.checkpoints or Path(config.out) / "checkpoints") / f"{config.model_name}.pt"
+        self.base: dict | None = None     # the run a fine-tune starts from: its path, epochs, time, metrics
         if config.resume and self.checkpoint_path.exists():
             self._load_checkpoint()
+        elif config.init_from:
+            self._load_initial_weights(Path(config.init_from))
 
     def _source_denoiser(self):
         """The confidence model judges history against the temporal pass's source, the *denoised* frame:
@@ -166,7 +170,7 @@ class Trainer:
         state = {"model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
                  "schedule": self.schedule.state_dict(), "epoch": self.epoch, "step": self.step,
                  "seconds": self.seconds, "history": self.history, "rng": self.rng.bit_generator.state,
-                 "torch_rng": torch.get_rng_state(), "config": asdict(self.config)}
+                 "torch_rng": torch.get_rng_state(), "config": asdict(self.config), "base": self.base}
         tmp = self.checkpoint_path.with_name(f".{self.checkpoint_path.name}.{os.getpid()}.tmp")
         torch.save(state, tmp)
         os.replace(tmp, self.checkpoint_path)
@@ -186,9 +190,27 @@ class Trainer:
         self.optimizer.load_state_dict(state["optimizer"])
         self.schedule.load_state_dict(state["schedule"])
         self.epoch, self.step, self.seconds = state["epoch"], state["step"], state["seconds"]
-        self.history = state["history"]
+        self.history, self.base = state["history"], state.get("base")
         self.rng.bit_generator.state = state["rng"]
         torch.set_rng_state(state["torch_rng"])
+
+    def _load_initial_weights(self, path: Path) -> None:
+        """Fine-tuning: the weights of another run's checkpoint (same task and architecture); the optimizer,
+        schedule and history start afresh, and the model card credits the base run's epochs and time."""
+        import torch
+
+        if path.resolve() == self.checkpoint_path.resolve():
+            raise TrainingError(f"{path}: --init-from is this run's own checkpoint; pass another --checkpoints "
+                                "folder for the fine-tune")
+        try:
+            state = torch.load(path, weights_only=False)
+            self.model.load_state_dict(state["model"])
+        except Exception as err:  # torch raises many types for missing, corrupt or mismatched files
+            raise TrainingError(f"{path}: cannot start from this checkpoint ({err})") from None
+        validated = [h for h in state.get("history", []) if any(k.startswith("val_") for k in h)]
+        self.base = {"path": str(path), "epochs": state.get("epoch", 0), "seconds": state.get("seconds", 0.0),
+                     "base": state.get("base"),
+                     "metrics": {k: v for k, v in (validated[-1] if validated else {}).items() if k.startswith("val_")}}
 
     def _changed_settings(self, saved: dict) -> list[str]:
         """Names of the settings (beyond RESUMABLE_CHANGES) where ``saved`` differs from this run's; a
@@ -317,6 +339,14 @@ class Trainer:
                 f"{dataset.get('spp')} spp; gold at {dataset.get('gold')} spp; max depth {dataset.get('max_depth')}; "
                 f"{len(manifest['views'])} views rendered in {render_minutes:.1f} min")
 
+    def _base_runs(self) -> list[dict]:
+        """The runs this one was fine-tuned from, nearest first."""
+        runs, base = [], self.base
+        while base:
+            runs.append(base)
+            base = base.get("base")
+        return runs
+
     def model_card(self) -> str:
         import torch
 
@@ -368,8 +398,15 @@ class Trainer:
                          "screen; class-balanced BCE; ROC AUC scores the mask against 1 − output over all pixels, "
                          "over those passing the temporal tests (tested) and for the temporal stage (failed tests "
                          "= disocclusion)")
-        lines.append(f"- wall time: {self.seconds / 60:.1f} min, CPU torch with {torch.get_num_threads()} thread(s) "
-                     f"on a {os.cpu_count()}-core machine")
+        base_runs = self._base_runs()
+        for base in base_runs:
+            metrics = ", ".join(f"{k[4:]} {v:.4g}" for k, v in base["metrics"].items())
+            lines.append(f"- fine-tuned from `{base['path']}`: {base['epochs']} epochs, {base['seconds'] / 60:.1f} min"
+                         + (f" (its last validation: {metrics})" if metrics else ""))
+        base_minutes = sum(base["seconds"] for base in base_runs) / 60
+        lines.append(f"- wall time: {self.seconds / 60:.1f} min"
+                     + (f" (+ {base_minutes:.1f} min for the run(s) it was fine-tuned from)" if base_runs else "")
+                     + f", CPU torch with {torch.get_num_threads()} thread(s) on a {os.cpu_count()}-core machine")
         if gold < 1024:
             lines.append(f"- note: gold at {gold} spp is itself noisy, so it is a soft target and "
                          "the metrics below are against a noisy reference (a small recipe sized for a 2-core "
