@@ -112,8 +112,9 @@ def test_blend_matches_reference(gpu, clamp):
     assert new_history[..., 7].max() == 4                      # length capped at max_frames
 
 
-def test_blend_by_confidence_model(gpu):
-    settings = TemporalSettings(clamp="box", max_frames=50)
+@pytest.mark.parametrize("floor", [0.0, 0.5])
+def test_blend_by_confidence_model(gpu, floor):
+    settings = TemporalSettings(clamp="box", max_frames=50, confidence_floor=floor)
     color, depth, normal, motion, history = moving_frame(2)
     confidence = np.random.default_rng(3).uniform(0, 1, (H, W)).astype(np.float32)
     confidence[0, 0] = np.nan
@@ -123,6 +124,9 @@ def test_blend_by_confidence_model(gpu):
     out, _ = blend_history(color, depth, normal, reprojected, confidence, settings)
     check_parity(None, lambda: out, lambda: read_image(buffers, TEMPORAL), atol=2e-5, rtol=2e-5,
                  inputs=[], name="blend by confidence")
+    untrusted = (confidence <= floor) & (reprojected[..., 4] > 0)   # at or below the floor: no history
+    assert untrusted.any() == (floor > 0)
+    np.testing.assert_allclose(out[untrusted], color[untrusted], atol=1e-6)
     assert model.seen_input is buffers[CONFIDENCE_INPUT.name]
     packed = buffers.read(CONFIDENCE_INPUT.name)
     expected = pack_confidence_input(color, reprojected[..., :3], depth, reprojected[..., 3])

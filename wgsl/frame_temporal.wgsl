@@ -8,6 +8,8 @@
 //   blend:      history is clamped to the current 3×3 neighbourhood (CLAMP_MODE 1: min/max box;
 //               2: variance rectification, mean ± GAMMA·σ), then out = mix(history, current, α) with
 //               α = mix(1, 0.01, confidence) when the confidence predictor ran (confidence = trust in the
+//               history, smoothstep(CONFIDENCE_FLOOR, 1, network output): the network is trained with
+//               class-balanced weights, so an output below one half means "disoccluded" and keeps no
 //               history), else 1/(length+1); α ≥ 1/MAX_FRAMES, and α = 1 where disoccluded.
 //   accumulate: static camera and scene: no reprojection or clamping, α = max(1/(length+1), 1/MAX_FRAMES)
 //               per pixel (a cleared history, length 0, makes it a reset).
@@ -26,6 +28,7 @@ override DEPTH_TOLERANCE: f32 = 0.05;
 override NORMAL_THRESHOLD: f32 = 0.9;
 override CONVERGE_SPP: f32 = 32.0;
 override USE_CONFIDENCE: bool = false;
+override CONFIDENCE_FLOOR: f32 = 0.5;
 
 @group(0) @binding(0) var<storage, read> color: array<f32>;
 @group(0) @binding(1) var<storage, read> depth: array<f32>;
@@ -143,7 +146,10 @@ fn blend(@builtin(global_invocation_id) id: vec3u) {
     var previous = vec3f(reprojected[i], reprojected[n + i], reprojected[2u * n + i]);
     if (CLAMP_MODE != 0u) { previous = clamp_to_neighbourhood(id, previous); }
     var alpha = 1.0 / (length + 1.0);
-    if (USE_CONFIDENCE) { alpha = mix(1.0, 0.01, clamp(finite_or_zero(confidence[i]), 0.0, 1.0)); }
+    if (USE_CONFIDENCE) {
+        let trust = smoothstep(CONFIDENCE_FLOOR, 1.0, clamp(finite_or_zero(confidence[i]), 0.0, 1.0));
+        alpha = mix(1.0, 0.01, trust);
+    }
     alpha = max(alpha, 1.0 / MAX_FRAMES);
     write_result(i, mix(previous, current, alpha), min(length + 1.0, MAX_FRAMES));
 }
