@@ -48,6 +48,8 @@ def parse_args():
                         help="history clamp of the temporal runs (default: the pipeline's)")
     parser.add_argument("--gamma", type=float, default=TemporalSettings.gamma,
                         help="variance-box width in standard deviations (default: the pipeline's)")
+    parser.add_argument("--confidence-floor", type=float, default=TemporalSettings.confidence_floor,
+                        help="confidence at or below which no history is kept (default: the pipeline's)")
     add_model_arguments(parser)
     return parse_with_quick_defaults(parser, QUICK)
 
@@ -84,22 +86,28 @@ def main() -> None:
         return oidn(one.color, one.aovs["albedo"], one.aovs["normal"])
 
     per_frame = hdr_pipeline(scene, size, args, denoise=True)
-    settings = TemporalSettings(clamp=args.clamp, gamma=args.gamma)
+    settings = TemporalSettings(clamp=args.clamp, gamma=args.gamma, confidence_floor=args.confidence_floor)
     temporal = hdr_pipeline(scene, size, args, denoise=True, temporal=settings)
     print("temporal confidence network: " + ("yes" if temporal.temporal.confidence_model else "no (none in models)"))
     sequences = {"per-frame ours": [linear_frame(per_frame, scene, f) for f in frames],
                  "per-frame OIDN": [noisy_oidn(f) for f in frames],
                  "temporal ours": [linear_frame(temporal, scene, f) for f in frames]}
     gold_flicker = flicker(gold)
-    rows = []
+    rows, ghosting_by_frame = [], {}
     for name, sequence in sequences.items():
         ghosting = [masked_rel_mse(g, o, m) for g, o, m in zip(gold[1:], sequence[1:], masks[1:])]
-        ghosting = [v for v in ghosting if v is not None]
+        ghosting = ghosting_by_frame[name] = [v for v in ghosting if v is not None]
         rows.append([name, flicker(sequence) - gold_flicker, float(np.mean(ghosting)) if ghosting else None,
                      float(np.mean([metrics.rel_mse(g, o) for g, o in zip(gold, sequence)]))])
     print_table(f"{scene.name}: flicker (gold's own {gold_flicker:.4g} subtracted), ghosting, error "
                 f"(disoccluded: {np.mean([m.mean() for m in masks[1:]]):.1%} of pixels)",
                 ["method", "flicker", "ghosting relMSE", "relMSE"], rows)
+
+    difference = np.subtract(ghosting_by_frame["temporal ours"], ghosting_by_frame["per-frame ours"])
+    if len(difference) > 1:   # paired by frame: is temporal's disocclusion error really above per-frame's?
+        print(f"ghosting, temporal − per-frame ours: {difference.mean():+.4f} ± "
+              f"{difference.std(ddof=1) / np.sqrt(len(difference)):.4f} (mean ± standard error over "
+              f"{len(difference)} frames)")
 
     static = load_scene(args.static_scene)
     static_gold = gold_render(static, size, args)

@@ -112,7 +112,7 @@ def test_blend_matches_reference(gpu, clamp):
     assert new_history[..., 7].max() == 4                      # length capped at max_frames
 
 
-@pytest.mark.parametrize("floor", [0.0, 0.5])
+@pytest.mark.parametrize("floor", [0.0, 0.3])
 def test_blend_by_confidence_model(gpu, floor):
     settings = TemporalSettings(clamp="box", max_frames=50, confidence_floor=floor)
     color, depth, normal, motion, history = moving_frame(2)

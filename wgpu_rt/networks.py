@@ -12,7 +12,8 @@
 - ``ErrorPredictor``: 1-spp log1p RGB → a [0, 1] heatmap of where error will be (3×3 convs, sigmoid).
 - ``ConfidencePredictor``: current RGB, reprojected history RGB, current depth, reprojected previous
   depth (8 channels) → confidence in [0, 1] that the reprojected history is still valid for the pixel
-  (1 = keep history: the temporal pass blends with alpha = mix(1, 0.01, smoothstep(0.5, 1, confidence))). Its training
+  (1 = keep history: the temporal pass blends with alpha = mix(1, 0.01, confidence), the
+  confidence ramped up from a floor: see TemporalSettings.confidence_floor). Its training
   target is 1 minus the mask where the warped gold frame t disagrees with gold frame t+1.
 
 Only the ops the engine lowers are used (Conv, Relu, Sigmoid, MaxPool, ConvTranspose, Concat, Add).

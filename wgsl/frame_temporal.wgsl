@@ -8,9 +8,10 @@
 //   blend:      history is clamped to the current 3×3 neighbourhood (CLAMP_MODE 1: min/max box;
 //               2: variance rectification, mean ± GAMMA·σ), then out = mix(history, current, α) with
 //               α = mix(1, 0.01, confidence) when the confidence predictor ran (confidence = trust in the
-//               history, smoothstep(CONFIDENCE_FLOOR, 1, network output): the network is trained with
-//               class-balanced weights, so an output below one half means "disoccluded" and keeps no
-//               history), else 1/(length+1); α ≥ 1/MAX_FRAMES, and α = 1 where disoccluded.
+//               history: the network output c ramped linearly from 0 at CONFIDENCE_FLOOR to 1 at 1; it
+//               is trained with class-balanced weights, so its low outputs are not probabilities but
+//               "disoccluded", and keep no history), else 1/(length+1); α ≥ 1/MAX_FRAMES, and α = 1 where
+//               disoccluded.
 //   accumulate: static camera and scene: no reprojection or clamping, α = max(1/(length+1), 1/MAX_FRAMES)
 //               per pixel (a cleared history, length 0, makes it a reset).
 //   converge:   static view whose tracer planes keep accumulating (the frame pipeline's temporal mode):
@@ -28,7 +29,7 @@ override DEPTH_TOLERANCE: f32 = 0.05;
 override NORMAL_THRESHOLD: f32 = 0.9;
 override CONVERGE_SPP: f32 = 32.0;
 override USE_CONFIDENCE: bool = false;
-override CONFIDENCE_FLOOR: f32 = 0.5;
+override CONFIDENCE_FLOOR: f32 = 0.3;
 
 @group(0) @binding(0) var<storage, read> color: array<f32>;
 @group(0) @binding(1) var<storage, read> depth: array<f32>;
@@ -147,7 +148,8 @@ fn blend(@builtin(global_invocation_id) id: vec3u) {
     if (CLAMP_MODE != 0u) { previous = clamp_to_neighbourhood(id, previous); }
     var alpha = 1.0 / (length + 1.0);
     if (USE_CONFIDENCE) {
-        let trust = smoothstep(CONFIDENCE_FLOOR, 1.0, clamp(finite_or_zero(confidence[i]), 0.0, 1.0));
+        let c = clamp(finite_or_zero(confidence[i]), 0.0, 1.0);
+        let trust = max(c - CONFIDENCE_FLOOR, 0.0) / (1.0 - CONFIDENCE_FLOOR);
         alpha = mix(1.0, 0.01, trust);
     }
     alpha = max(alpha, 1.0 / MAX_FRAMES);
