@@ -2,8 +2,8 @@
 # The exact recipe behind models/{denoiser,error_predictor,confidence}.onnx: render a small dataset on
 # this machine's adapter (lavapipe, 2 CPU cores), train the three networks with CPU torch, export them
 # with model cards into models/. Resumable: rerun after an interruption and finished work is kept.
-# About 3 hours on 2 shared cores (renders ~100 min, denoiser 48 min, the two small networks minutes);
-# scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
+# About 4 hours on 2 shared cores (renders ~100 min, denoiser 48 min + two 25-min fine-tunes, the two small
+# networks minutes); scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -34,6 +34,18 @@ TRAIN="$NICE wgpu-rt train --data $DATA --out $OUT --checkpoints $CHECKPOINTS --
 time $TRAIN denoiser --extra-data "$EXTRA_DATA" "$EXTRA_DATA2" "$EXTRA_DATA3" "$EXTRA_DATA4" \
     --epochs "${DENOISER_EPOCHS:-300}" --batch 4 --crop 64 128 --widths 16 32 64 128 --lr 2e-3 \
     --curriculum 16 4 1 1 --ssim-space display --validate-every 10
+# Fine-tune at 1 spp, twice, each round from the last one's weights with a fresh warm-up + cosine schedule
+# (a warm restart; peak LR 5e-4, then 3e-4), all epochs at the spp the runtime denoises. The last card
+# credits every run. Two torch threads: nothing else runs meanwhile (~25 min a round).
+previous="$CHECKPOINTS/denoiser.pt"
+for round_lr in "1 5e-4" "2 3e-4"; do
+    set -- $round_lr
+    time OMP_NUM_THREADS=2 $TRAIN denoiser --extra-data "$EXTRA_DATA" "$EXTRA_DATA2" "$EXTRA_DATA3" "$EXTRA_DATA4" \
+        --checkpoints "$CHECKPOINTS/denoiser-1spp-$1" --init-from "$previous" \
+        --epochs "${FINETUNE_EPOCHS:-300}" --batch 4 --crop 64 128 --widths 16 32 64 128 --lr "$2" \
+        --curriculum 1 --ssim-space display --validate-every 10
+    previous="$CHECKPOINTS/denoiser-1spp-$1/denoiser.pt"
+done
 time $TRAIN error-predictor --epochs "${HEATMAP_EPOCHS:-60}" --batch 4 --crop 64 128 --lr 3e-3
 # The confidence model learns on what the temporal pass feeds it, the *denoised* frame: $OUT/denoiser.onnx
 # (above) makes it, so this runs after the denoiser. Its frame pairs: DATA's, plus two datasets of nothing
