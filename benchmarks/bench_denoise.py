@@ -14,7 +14,7 @@ model scores the rest). The dataset's gold is noisy enough that its noise alone 
 ``--mask-spp N`` also scores against masks from N-spp gold of every pair's frames, raw and compared
 after a σ 1.5 px blur (which ignores what noise is left). All networks run in the WGSL engine.
 
-    python benchmarks/bench_denoise.py --data data/dataset [--models models] [--extra-spp 64 256] [--gold-spp 1024]
+    python benchmarks/bench_denoise.py --data data/dataset [DIR ...] [--models models] [--extra-spp 64 256] [--gold-spp 1024]
         [--mask-spp 512] [--skip-denoiser]
 """
 
@@ -117,7 +117,8 @@ def confidence_scores(view, denoiser, confidence_model, masks: dict[str, list[np
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", required=True)
+    parser.add_argument("--data", required=True, nargs="+", metavar="DIR",
+                        help="dataset folders; their test views are pooled (gold and references per folder)")
     parser.add_argument("--models", default="models")
     parser.add_argument("--split", default="test")
     parser.add_argument("--precision", default="fp32", choices=["fp32", "fp16"])
@@ -134,43 +135,47 @@ def main() -> None:
                              "table, no renders beyond --mask-spp's)")
     args = parser.parse_args()
 
-    views = load_views(args.data, args.split)
     models = Path(args.models)
     denoiser = WgslModel(models / "denoiser.onnx", precision=args.precision)
     error_model = WgslModel(models / "error_predictor.onnx", precision=args.precision)
     confidence_model = WgslModel(models / "confidence.onnx", precision=args.precision)
-    view_ids = {v.view_id for v in views}
-    dataset_gold_spp = int(read_manifest(args.data)["config"]["gold"])
-    gold_override = reference_gold(Path(args.data), view_ids, args.gold_spp) if args.gold_spp else {}
-    gold_spp = args.gold_spp or dataset_gold_spp
-    print(f"{len(views)} held-out views ({args.split} split of {args.data}), "
-          f"{views[0].frames[0].gold['color'].shape[1]}² px, precision {args.precision}, gold {gold_spp} spp")
-    if not args.skip_denoiser:
-        denoiser_table(args, views, denoiser, gold_override, dataset_gold_spp)
-
+    table = DenoiserTable()
     spearman = []
     auc: dict[str, dict[str, list[float]]] = {}
-    sequences = {v.view_id for v in views if len(v.frames) > 1}
-    mask_references = ({f: reference_gold(Path(args.data), sequences, args.mask_spp, f)
-                        for f in range(max(len(v.frames) for v in views))}
-                       if args.mask_spp and sequences else {})
-    for view in views:
-        noisy = view.frames[0].noisy[1]
-        heat = np.asarray(error_model(pack_error_input(noisy["color"])[None]))[0, 0]
-        gold = gold_override.get(view.view_id, view.frames[0].gold["color"])
-        spearman.append(rank_correlation(heat, error_heatmap(noisy["color"], gold)))
-        if view.view_id not in sequences:
-            continue
-        masks = {f"{dataset_gold_spp}-spp gold mask": pair_masks(view, {t: f.gold["color"]
-                                                                        for t, f in enumerate(view.frames)})}
-        if mask_references:
-            references = {t: mask_references[t][view.view_id] for t in range(len(view.frames))}
-            masks[f"{args.mask_spp}-spp gold mask"] = pair_masks(view, references)
-            masks[f"{args.mask_spp}-spp gold mask, blurred σ {NOISE_ROBUST_BLUR}"] = pair_masks(
-                view, references, NOISE_ROBUST_BLUR)
-        for name, by_way in confidence_scores(view, denoiser, confidence_model, masks).items():
-            for way, values in by_way.items():
-                auc.setdefault(name, {}).setdefault(way, []).extend(values)
+    for data in args.data:
+        views = load_views(data, args.split)
+        view_ids = {v.view_id for v in views}
+        dataset_gold_spp = int(read_manifest(data)["config"]["gold"])
+        gold_override = reference_gold(Path(data), view_ids, args.gold_spp) if args.gold_spp else {}
+        print(f"{len(views)} held-out views ({args.split} split of {data}), "
+              f"{views[0].frames[0].gold['color'].shape[1]}² px, precision {args.precision}, gold "
+              f"{args.gold_spp or dataset_gold_spp} spp")
+        if not args.skip_denoiser:
+            table.add_views(args, Path(data), views, denoiser, gold_override, dataset_gold_spp)
+
+        sequences = {v.view_id for v in views if len(v.frames) > 1}
+        mask_references = ({f: reference_gold(Path(data), sequences, args.mask_spp, f)
+                            for f in range(max(len(v.frames) for v in views))}
+                           if args.mask_spp and sequences else {})
+        for view in views:
+            noisy = view.frames[0].noisy[1]
+            heat = np.asarray(error_model(pack_error_input(noisy["color"])[None]))[0, 0]
+            gold = gold_override.get(view.view_id, view.frames[0].gold["color"])
+            spearman.append(rank_correlation(heat, error_heatmap(noisy["color"], gold)))
+            if view.view_id not in sequences:
+                continue
+            masks = {f"{dataset_gold_spp}-spp gold mask": pair_masks(view, {t: f.gold["color"]
+                                                                            for t, f in enumerate(view.frames)})}
+            if mask_references:
+                references = {t: mask_references[t][view.view_id] for t in range(len(view.frames))}
+                masks[f"{args.mask_spp}-spp gold mask"] = pair_masks(view, references)
+                masks[f"{args.mask_spp}-spp gold mask, blurred σ {NOISE_ROBUST_BLUR}"] = pair_masks(
+                    view, references, NOISE_ROBUST_BLUR)
+            for name, by_way in confidence_scores(view, denoiser, confidence_model, masks).items():
+                for way, values in by_way.items():
+                    auc.setdefault(name, {}).setdefault(way, []).extend(values)
+    if not args.skip_denoiser:
+        table.print()
 
     print(f"error predictor: Spearman vs true error {np.mean(spearman):.3f} (min {np.min(spearman):.3f})")
     for name, by_way in auc.items():
@@ -178,52 +183,60 @@ def main() -> None:
               + ", ".join(f"{way} {np.mean(values):.3f}" for way, values in by_way.items()))
 
 
-def denoiser_table(args, views, denoiser, gold_override: dict, dataset_gold_spp: int) -> None:
-    """The denoiser beside OIDN and brute force at rising spp on each view's frame 0, printed as a table
-    with equivalent spp and time per view."""
-    import pyoidn
+class DenoiserTable:
+    """The denoiser beside OIDN and brute force at rising spp on each view's frame 0, pooled over the
+    dataset folders given, printed as one table with equivalent spp and time per view."""
 
-    extra = (render_test_views(Path(args.data), {v.view_id for v in views}, args.extra_spp, seed=10_000)
-             if args.extra_spp else {})
-    first = views[0].frames[0].noisy[1]   # warm-up: pipeline compilation is not denoising time
-    denoise(denoiser, first["color"], first["albedo"], first["normal"], first["depth"])
-    pyoidn.denoise(np.ascontiguousarray(first["color"]), hdr=True)
+    def __init__(self):
+        self.rows: dict[str, list[dict]] = {}
+        self.seconds = {"ours": 0.0, "oidn": 0.0}
+        self.views = 0
 
-    rows: dict[str, list[dict]] = {}
-    seconds = {"ours": 0.0, "oidn": 0.0}
-    for view in views:
-        frame = view.frames[0]
-        gold, noisy = gold_override.get(view.view_id, frame.gold["color"]), frame.noisy[1]
-        started = time.perf_counter()
-        ours = denoise(denoiser, noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"])
-        seconds["ours"] += time.perf_counter() - started
-        started = time.perf_counter()
-        oidn = pyoidn.denoise(np.ascontiguousarray(noisy["color"]), np.ascontiguousarray(noisy["albedo"]),
-                              np.ascontiguousarray(noisy["normal"]), hdr=True)
-        seconds["oidn"] += time.perf_counter() - started
-        candidates = {"ours (1 spp)": ours, "OIDN (1 spp)": oidn}
-        for spp, render in sorted({**{s: frame.noisy[s]["color"] for s in view.spp},
-                                   **extra.get(view.view_id, {})}.items()):
-            candidates[f"brute {spp} spp"] = render
-        if gold_override:
-            candidates[f"dataset gold {dataset_gold_spp}"] = frame.gold["color"]
-        for name, image in candidates.items():
-            rows.setdefault(name, []).append(metrics.all_metrics(gold, image))
+    def add_views(self, args, data: Path, views, denoiser, gold_override: dict, dataset_gold_spp: int) -> None:
+        import pyoidn
 
-    keys = list(rows["ours (1 spp)"][0])
-    print(f"{'method':18s}" + "".join(f"{k:>10s}" for k in keys))
-    means = {name: {k: float(np.mean([r[k] for r in values])) for k in keys} for name, values in rows.items()}
-    for name, m in means.items():
-        print(f"{name:18s}" + "".join(f"{m[k]:10.4f}" for k in keys))
-    brute = sorted((int(n.split()[1]), m) for n, m in means.items() if n.startswith("brute"))
-    display_mse = lambda m: 10 ** (-m["psnr"] / 10)  # noqa: E731  (the MSE behind the PSNR)
-    for name in ("ours (1 spp)", "OIDN (1 spp)"):
-        by_rel_mse = equivalent_spp([b for b, _ in brute], [m["rel_mse"] for _, m in brute], means[name]["rel_mse"])
-        by_psnr = equivalent_spp([b for b, _ in brute], [display_mse(m) for _, m in brute], display_mse(means[name]))
-        print(f"equivalent spp of {name}: {by_rel_mse} by relMSE, {by_psnr} by PSNR")
-    print(f"time per view: ours {seconds['ours'] / len(views):.3f} s (WGSL on the adapter), "
-          f"OIDN {seconds['oidn'] / len(views):.3f} s (CPU); ratio ours/OIDN "
-          f"{seconds['ours'] / max(seconds['oidn'], 1e-9):.2f}")
+        extra = (render_test_views(data, {v.view_id for v in views}, args.extra_spp, seed=10_000)
+                 if args.extra_spp else {})
+        first = views[0].frames[0].noisy[1]   # warm-up: pipeline compilation is not denoising time
+        denoise(denoiser, first["color"], first["albedo"], first["normal"], first["depth"])
+        pyoidn.denoise(np.ascontiguousarray(first["color"]), hdr=True)
+        for view in views:
+            frame = view.frames[0]
+            gold, noisy = gold_override.get(view.view_id, frame.gold["color"]), frame.noisy[1]
+            started = time.perf_counter()
+            ours = denoise(denoiser, noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"])
+            self.seconds["ours"] += time.perf_counter() - started
+            started = time.perf_counter()
+            oidn = pyoidn.denoise(np.ascontiguousarray(noisy["color"]), np.ascontiguousarray(noisy["albedo"]),
+                                  np.ascontiguousarray(noisy["normal"]), hdr=True)
+            self.seconds["oidn"] += time.perf_counter() - started
+            candidates = {"ours (1 spp)": ours, "OIDN (1 spp)": oidn}
+            for spp, render in sorted({**{s: frame.noisy[s]["color"] for s in view.spp},
+                                       **extra.get(view.view_id, {})}.items()):
+                candidates[f"brute {spp} spp"] = render
+            if gold_override:
+                candidates[f"dataset gold {dataset_gold_spp}"] = frame.gold["color"]
+            for name, image in candidates.items():
+                self.rows.setdefault(name, []).append(metrics.all_metrics(gold, image))
+            self.views += 1
+
+    def print(self) -> None:
+        rows = self.rows
+        keys = list(rows["ours (1 spp)"][0])
+        print(f"{'method':18s}" + "".join(f"{k:>10s}" for k in keys) + "     views")
+        means = {name: {k: float(np.mean([r[k] for r in values])) for k in keys} for name, values in rows.items()}
+        for name, m in means.items():
+            print(f"{name:18s}" + "".join(f"{m[k]:10.4f}" for k in keys) + f"{len(rows[name]):10d}")
+        brute = sorted((int(n.split()[1]), m) for n, m in means.items()
+                       if n.startswith("brute") and len(rows[n]) == self.views)
+        display_mse = lambda m: 10 ** (-m["psnr"] / 10)  # noqa: E731  (the MSE behind the PSNR)
+        for name in ("ours (1 spp)", "OIDN (1 spp)"):
+            by_rel_mse = equivalent_spp([b for b, _ in brute], [m["rel_mse"] for _, m in brute], means[name]["rel_mse"])
+            by_psnr = equivalent_spp([b for b, _ in brute], [display_mse(m) for _, m in brute], display_mse(means[name]))
+            print(f"equivalent spp of {name}: {by_rel_mse} by relMSE, {by_psnr} by PSNR")
+        print(f"time per view: ours {self.seconds['ours'] / self.views:.3f} s (WGSL on the adapter), "
+              f"OIDN {self.seconds['oidn'] / self.views:.3f} s (CPU); ratio ours/OIDN "
+              f"{self.seconds['ours'] / max(self.seconds['oidn'], 1e-9):.2f}")
 
 
 if __name__ == "__main__":
