@@ -197,9 +197,10 @@ class DenoiserTable:
 
         extra = (render_test_views(data, {v.view_id for v in views}, args.extra_spp, seed=10_000)
                  if args.extra_spp else {})
-        first = views[0].frames[0].noisy[1]   # warm-up: pipeline compilation is not denoising time
-        denoise(denoiser, first["color"], first["albedo"], first["normal"], first["depth"])
-        pyoidn.denoise(np.ascontiguousarray(first["color"]), hdr=True)
+        if not self.views:   # warm-up: pipeline compilation is not denoising time
+            first = views[0].frames[0].noisy[1]
+            denoise(denoiser, first["color"], first["albedo"], first["normal"], first["depth"])
+            pyoidn.denoise(np.ascontiguousarray(first["color"]), hdr=True)
         for view in views:
             frame = view.frames[0]
             gold, noisy = gold_override.get(view.view_id, frame.gold["color"]), frame.noisy[1]

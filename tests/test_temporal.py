@@ -188,3 +188,10 @@ def test_frame_change_classifies_cameras():
 def test_bad_clamp_names_it():
     with pytest.raises(WgpuRtError, match="'median'"):
         TemporalSettings(clamp="median")
+
+
+@pytest.mark.parametrize("field, value", [("max_frames", 0), ("gamma", 0.0), ("converge_spp", -1.0),
+                                          ("confidence_floor", 1.0), ("confidence_floor", -0.1)])
+def test_bad_temporal_settings_are_refused(field, value):
+    with pytest.raises(WgpuRtError, match=field):
+        TemporalSettings(**{field: value})

@@ -61,7 +61,8 @@ class TemporalSettings:
     normal_threshold: float = 0.9  # smallest normal dot product that counts as the same surface
     # Confidence at or below this keeps no history; above it, trust rises linearly to 1. The network
     # learns with class-balanced weights, so its low outputs are not probabilities. bench_temporal.py
-    # --confidence-floor F on `moving` (96², 16 frames), disocclusion relMSE minus per-frame denoising's
+    # --confidence-floor F on `moving` (96², 16 frames, session 3's denoiser and confidence model),
+    # disocclusion relMSE minus per-frame denoising's
     # (mean ± s.e. over frames) / flicker: F 0 +0.0097 ± 0.0086 / 0.00234; 0.3 +0.0002 ± 0.0008 /
     # 0.00245; 0.4 +0.0006 ± 0.0004 / 0.00249; 0.5 +0.0004 ± 0.0003 / 0.00255.
     confidence_floor: float = 0.3

@@ -178,11 +178,7 @@ class Trainer:
     def _load_checkpoint(self) -> None:
         import torch
 
-        try:
-            state = torch.load(self.checkpoint_path, weights_only=False)
-            self.model.load_state_dict(state["model"])
-        except Exception as err:  # torch raises many types for corrupt or mismatched files
-            raise TrainingError(f"{self.checkpoint_path}: cannot resume from this checkpoint ({err})") from None
+        state = self._load_weights(self.checkpoint_path, "resume from")
         changed = self._changed_settings(state.get("config", {}))
         if changed:
             raise TrainingError(f"{self.checkpoint_path}: trained with other settings ({', '.join(changed)}); "
@@ -194,19 +190,24 @@ class Trainer:
         self.rng.bit_generator.state = state["rng"]
         torch.set_rng_state(state["torch_rng"])
 
-    def _load_initial_weights(self, path: Path) -> None:
-        """Fine-tuning: the weights of another run's checkpoint (same task and architecture); the optimizer,
-        schedule and history start afresh, and the model card credits the base run's epochs and time."""
+    def _load_weights(self, path: Path, purpose: str) -> dict:
+        """The checkpoint at ``path``, its weights loaded into the model; a clear error if it cannot be."""
         import torch
 
-        if path.resolve() == self.checkpoint_path.resolve():
-            raise TrainingError(f"{path}: --init-from is this run's own checkpoint; pass another --checkpoints "
-                                "folder for the fine-tune")
         try:
             state = torch.load(path, weights_only=False)
             self.model.load_state_dict(state["model"])
         except Exception as err:  # torch raises many types for missing, corrupt or mismatched files
-            raise TrainingError(f"{path}: cannot start from this checkpoint ({err})") from None
+            raise TrainingError(f"{path}: cannot {purpose} this checkpoint ({err})") from None
+        return state
+
+    def _load_initial_weights(self, path: Path) -> None:
+        """Fine-tuning: the weights of another run's checkpoint (same task and architecture); the optimizer,
+        schedule and history start afresh, and the model card credits the base run's epochs and time."""
+        if path.resolve() == self.checkpoint_path.resolve():
+            raise TrainingError(f"{path}: --init-from is this run's own checkpoint; pass another --checkpoints "
+                                "folder for the fine-tune")
+        state = self._load_weights(path, "start from")
         validated = [h for h in state.get("history", []) if any(k.startswith("val_") for k in h)]
         self.base = {"path": str(path), "epochs": state.get("epoch", 0), "seconds": state.get("seconds", 0.0),
                      "base": state.get("base"),
