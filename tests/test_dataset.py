@@ -85,6 +85,29 @@ def test_an_interrupted_run_resumes_without_losing_work(tmp_path):
     assert len(json.loads((tmp_path / "manifest.json").read_text())["views"]) == 4
 
 
+def test_noisy_copies_extend_a_finished_dataset_with_new_noise_only(tmp_path):
+    """Raising noisy_copies on a finished dataset renders just the copies (1-spp, fresh seeds), leaves
+    every earlier file as it was, and the reader hands them out beside the frame's first render."""
+    one = DatasetConfig(scenes=("cornell",), views=4, size=8, spp=(1, 4), gold=4, sequence_fraction=0.5)
+    TruthEngine(one, tmp_path, renderer=fake_render).run(progress=False)
+    before = {p.name + p.parent.name: read_exr(p)["color"] for p in tmp_path.glob("views/*/*.exr")}
+    calls = []
+    counting = lambda *a, **k: calls.append(k["spp"]) or fake_render(*a, **k)  # noqa: E731
+    three = DatasetConfig(**{**one.__dict__, "noisy_copies": 3})
+    TruthEngine(three, tmp_path, renderer=counting).run(progress=False)
+    frames = sum(v.frames for v in plan_views(three))
+    assert calls == [1] * 2 * frames
+    for key, color in before.items():
+        np.testing.assert_array_equal(read_exr(next(tmp_path.glob(f"views/{key[-6:]}/{key[:-6]}")))["color"], color)
+    for view in load_views(tmp_path):
+        for frame in view.frames:
+            renders = frame.renders_at(1)
+            assert len(renders) == 3 and frame.renders_at(4) == [frame.noisy[4]]
+            colors = [r["color"] for r in renders]
+            assert not np.array_equal(colors[0], colors[1]) and not np.array_equal(colors[1], colors[2])
+    assert TruthEngine(three, tmp_path, renderer=counting).run(progress=False) == []
+
+
 def test_resuming_with_other_settings_is_refused(dataset):
     other = DatasetConfig(**{**CONFIG.__dict__, "gold": 128})
     with pytest.raises(DatasetError, match=r"config\.json.*gold=64"):

@@ -237,6 +237,31 @@ def test_confidence_needs_sequences(tmp_path):
         Trainer(TrainConfig(task="confidence", data=str(tmp_path)), progress=False)
 
 
+def test_denoiser_batches_draw_every_noisy_copy_at_1_spp_only(tmp_path):
+    from wgpu_rt.dataset import load_views
+    from wgpu_rt.frame.pack import pack_denoiser_input
+    from wgpu_rt.train.samples import Augmentation, DenoiserSamples
+
+    config = DatasetConfig(scenes=("cornell",), views=3, size=16, spp=(1, 4), gold=8, sequence_fraction=0.0,
+                           noisy_copies=3)
+    TruthEngine(config, tmp_path, renderer=fake_render).run(progress=False)
+    samples = DenoiserSamples(load_views(tmp_path, "train"))
+    item = samples.items[0]
+    assert samples.copies(item, 1) == 3 and samples.copies(item, 4) == 1
+    second = samples.views[0].frames[0].copies[0]
+    x, _ = samples.full(item, 1, 1.0, copy=1)
+    np.testing.assert_allclose(x, pack_denoiser_input(second["color"], second["albedo"], second["normal"],
+                                                      second["depth"]), rtol=1e-6)
+    drawn = []
+    full = samples.full
+    samples.full = lambda item, spp, exposure, copy=0: drawn.append((spp, copy)) or full(item, spp, exposure, copy)
+    rng = np.random.default_rng(0)
+    for spp in (1, 4):
+        for _ in range(30):
+            samples.batch([item], rng, Augmentation(8, 16), spp)
+    assert {c for s, c in drawn if s == 1} == {0, 1, 2} and {c for s, c in drawn if s == 4} == {0}
+
+
 def test_confidence_needs_the_denoiser_it_learns_on(tiny_dataset, tmp_path):
     with pytest.raises(TrainingError, match=r"denoiser\.onnx: no denoiser"):
         Trainer(TrainConfig(task="confidence", data=str(tiny_dataset), out=str(tmp_path)), progress=False)

@@ -34,6 +34,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--size", type=int, default=256, help="square image size in pixels (default: %(default)s)")
     parser.add_argument("--spp", type=_int_list, default=(1, 4, 16),
                         help="noisy sample counts, comma-separated (default: 1,4,16)")
+    parser.add_argument("--noisy-copies", type=int, default=1, metavar="N",
+                        help="independent renders per frame at the lowest --spp: N noise realizations of each view "
+                             "for training, each costing 1/gold of the gold render; raise it on a finished "
+                             "dataset to add copies (default: %(default)s)")
     parser.add_argument("--gold", type=int, default=4096, help="spp of the gold images (default: %(default)s)")
     parser.add_argument("--max-depth", type=int, default=8, help="path depth (default: %(default)s)")
     parser.add_argument("--sequence-length", type=int, default=3,
@@ -52,11 +56,14 @@ def run(args) -> int:
 
     from ..dataset import DatasetConfig, DatasetError, TruthEngine
 
+    if args.noisy_copies < 1:
+        raise DatasetError(f"--noisy-copies must be at least 1, got {args.noisy_copies}")
     if args.meshes and not Path(args.meshes).is_dir():
         raise DatasetError(f"{args.meshes}: --meshes must be a folder of mesh files")
     config = DatasetConfig(scenes=tuple(args.scenes), views=args.views, size=args.size, spp=args.spp,
                            gold=args.gold, seed=args.seed, max_depth=args.max_depth,
                            sequence_length=args.sequence_length, sequence_fraction=args.sequence_fraction,
+                           noisy_copies=args.noisy_copies,
                            mesh_dir=str(Path(args.meshes).resolve()) if args.meshes else None)
     rendered = TruthEngine(config, args.out).run(args.shard, progress=not args.quiet)
     print(f"rendered {len(rendered)} views into {args.out} "

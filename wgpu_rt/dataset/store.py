@@ -8,7 +8,7 @@ or unreadable EXR, a missing layer, or an image whose size differs from the view
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -19,10 +19,16 @@ from .truth import GBUFFERS, DatasetError, frame_file
 
 @dataclass
 class Frame:
-    """One frame of a view: noisy renders by spp and the gold render, each {"color", *GBUFFERS}."""
+    """One frame of a view: noisy renders by spp and the gold render, each {"color", *GBUFFERS}; ``copies``
+    holds the extra independent renders at the lowest spp (the dataset's ``noisy_copies`` − 1)."""
 
     noisy: dict[int, dict[str, np.ndarray]]
     gold: dict[str, np.ndarray]
+    copies: list[dict[str, np.ndarray]] = field(default_factory=list)
+
+    def renders_at(self, spp: int) -> list[dict[str, np.ndarray]]:
+        """Every independent noisy render of this frame at ``spp``."""
+        return [self.noisy[spp], *(self.copies if spp == min(self.noisy) else [])]
 
 
 @dataclass
@@ -76,7 +82,10 @@ def load_view(root: Path, record: dict) -> View:
     frames = []
     for f in range(int(record["frames"])):
         noisy = {int(s): read_render(folder / frame_file(f, s), size) for s in record["spp"]}
-        frames.append(Frame(noisy, read_render(folder / frame_file(f, "gold"), size)))
+        lowest = min(int(s) for s in record["spp"])
+        copies = [read_render(folder / frame_file(f, lowest, c), size)
+                  for c in range(1, int(record.get("noisy_copies", 1)))]
+        frames.append(Frame(noisy, read_render(folder / frame_file(f, "gold"), size), copies))
     return View(record["view_id"], record["scene"], record["split"], frames, record.get("objects", []))
 
 

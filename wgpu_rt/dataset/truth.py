@@ -6,13 +6,19 @@ Layout of a dataset folder::
     DIR/manifest.json            every finished view (rebuilt from the per-view records at each run end)
     DIR/views/v00012/view.json   one view's record, written last: its presence means "finished"
     DIR/views/v00012/f0_spp1.exr noisy colour + albedo/normal/depth/motion layers, frame 0, 1 spp
+    DIR/views/v00012/f0_spp1_c1.exr  another, independent render at the lowest spp (``noisy_copies`` > 1)
     DIR/views/v00012/f0_gold.exr the converged image (+ layers) of frame 0
 
 A *view* is a still (one frame) or a temporal sequence (consecutive frames with camera and object
 motion, a gold image for each). View ``i`` of scene ``s`` is seeded from (seed, s, i) alone, so any
 subset of views can be rendered in any order, on any shard, and reruns reproduce it bit for bit.
 Every file is written atomically and a finished view is skipped, so an interrupted run loses at most
-the image being rendered. Splits: the last tenth of each scene's views are ``test`` (with shapes no
+the image being rendered.
+
+``noisy_copies`` N renders each frame N times at the lowest spp with independent seeds. At 1 spp a
+copy costs 1/gold of the gold render, yet it is a new noise realization of the same view: a denoiser
+that sees one realization per view hundreds of times learns that noise by heart. Copies are not a
+setting that must match on resume: raising N later renders just the missing copies. Splits: the last tenth of each scene's views are ``test`` (with shapes no
 training view has) and the tenth before them ``val``.
 """
 
@@ -51,6 +57,7 @@ class DatasetConfig:
     sequence_length: int = 3
     sequence_fraction: float = 0.25
     mesh_dir: str | None = None
+    noisy_copies: int = 1                # independent renders per frame at the lowest spp
 
 
 @dataclass(frozen=True)
@@ -63,12 +70,16 @@ class ViewPlan:
     frames: int
 
     def files(self, config: DatasetConfig) -> list[str]:
-        return [frame_file(f, s) for f in range(self.frames) for s in (*config.spp, "gold")]
+        copies = [frame_file(f, min(config.spp), c) for f in range(self.frames) for c in range(1, config.noisy_copies)]
+        return [frame_file(f, s) for f in range(self.frames) for s in (*config.spp, "gold")] + copies
 
 
-def frame_file(frame: int, spp: int | str) -> str:
-    """File name of one frame's render: ``spp`` is a sample count or ``"gold"``."""
-    return f"f{frame}_gold.exr" if spp == "gold" else f"f{frame}_spp{spp}.exr"
+def frame_file(frame: int, spp: int | str, copy: int = 0) -> str:
+    """File name of one frame's render: ``spp`` is a sample count or ``"gold"``; ``copy`` > 0 names an
+    extra independent render at that spp."""
+    if spp == "gold":
+        return f"f{frame}_gold.exr"
+    return f"f{frame}_spp{spp}.exr" if copy == 0 else f"f{frame}_spp{spp}_c{copy}.exr"
 
 
 def split_of(index: int, views: int) -> str:
@@ -121,6 +132,7 @@ class ViewRecord:
     gold: int
     objects: list[str] = field(default_factory=list)
     seconds: float = 0.0
+    noisy_copies: int = 1
 
 
 def write_json_atomic(path: Path, payload) -> None:
@@ -186,20 +198,24 @@ class TruthEngine:
         scene = self.scene_for(view)
         started = time.perf_counter()
         size = (cfg.size, cfg.size)
-        for frame in range(view.frames):
-            for spp in cfg.spp:
-                path = folder / frame_file(frame, spp)
-                if not path.exists():
-                    result = self.render(scene, spp=spp, size=size, max_depth=cfg.max_depth,
-                                    seed=_render_seed(cfg, view, frame, spp), frame=frame, aovs=GBUFFERS)
-                    write_exr(path, _finite(result.color), {k: _finite(result.aovs[k]) for k in GBUFFERS})
-            path = folder / frame_file(frame, "gold")
+        # (file, spp, seed salt): the seed of copy 0 and of gold predate copies, so old datasets extend.
+        renders = [(frame_file(frame, spp), spp, (frame, spp)) for frame in range(view.frames) for spp in cfg.spp]
+        renders += [(frame_file(frame, "gold"), cfg.gold, (frame, 0)) for frame in range(view.frames)]
+        renders += [(frame_file(frame, min(cfg.spp), copy), min(cfg.spp), (frame, min(cfg.spp), copy))
+                    for frame in range(view.frames) for copy in range(1, cfg.noisy_copies)]
+        for name, spp, salt in renders:
+            path = folder / name
             if not path.exists():
-                result = self.render(scene, spp=cfg.gold, size=size, max_depth=cfg.max_depth,
-                                     seed=_render_seed(cfg, view, frame, 0), frame=frame, aovs=GBUFFERS)
+                result = self.render(scene, spp=spp, size=size, max_depth=cfg.max_depth,
+                                     seed=_render_seed(cfg, view, *salt), frame=salt[0], aovs=GBUFFERS)
                 write_exr(path, _finite(result.color), {k: _finite(result.aovs[k]) for k in GBUFFERS})
+        previous = folder / "view.json"
+        seconds = time.perf_counter() - started
+        if previous.exists():   # a view extended with more copies: its time is the sum of both runs
+            seconds += json.loads(previous.read_text()).get("seconds", 0.0)
         record = ViewRecord(view.view_id, view.scene, view.split, view.frames, cfg.size, list(cfg.spp),
-                            cfg.gold, [m.name for m in scene.meshes], round(time.perf_counter() - started, 3))
+                            cfg.gold, [m.name for m in scene.meshes], round(seconds, 3),
+                            noisy_copies=cfg.noisy_copies)
         write_json_atomic(folder / "view.json", asdict(record))
         return record
 

@@ -10,6 +10,8 @@ normalisation sees the frame's true max depth, as at runtime), then cropped and 
 - one of the 8 flips/90° rotations;
 - small Gaussian noise on the auxiliary channels (albedo, normal, depth), so the network does not
   trust G-buffers blindly;
+- where the dataset has ``noisy_copies``, a random one of the frame's independent 1-spp renders (a
+  fresh noise realization, G-buffers included), so the network cannot learn a view's noise by heart;
 - for the denoiser, a curriculum over sample counts: 16 spp first, then 4, then 1 (configurable).
 """
 
@@ -51,8 +53,13 @@ class TaskSamples(ABC):
         return [(v, f) for v, view in enumerate(self.views) for f in range(len(view.frames))]
 
     @abstractmethod
-    def full(self, item: tuple[int, int], spp: int, exposure: float) -> tuple[np.ndarray, np.ndarray]:
-        """The full-frame (C, H, W) input and target of ``item``."""
+    def full(self, item: tuple[int, int], spp: int, exposure: float, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """The full-frame (C, H, W) input and target of ``item``, the input from its ``copy``-th noisy
+        render at ``spp``."""
+
+    def copies(self, item: tuple[int, int], spp: int) -> int:
+        """How many independent noisy renders of ``item`` at ``spp`` ``full`` can draw from."""
+        return len(self.views[item[0]].frames[item[1]].renders_at(spp))
 
     def batch(self, items, rng: np.random.Generator, aug: Augmentation, spp: int = 1):
         """A (B, C, S, S) input batch and its targets, augmented as the module docstring says."""
@@ -63,7 +70,7 @@ class TaskSamples(ABC):
         crop = int(rng.integers(smallest, largest // aug.multiple + 1)) * aug.multiple
         for item in items:
             exposure = float(2.0 ** rng.uniform(-aug.exposure_stops, aug.exposure_stops))
-            x, y = self.full(item, spp, exposure)
+            x, y = self.full(item, spp, exposure, int(rng.integers(self.copies(item, spp))))
             top = int(rng.integers(0, x.shape[1] - crop + 1))
             left = int(rng.integers(0, x.shape[2] - crop + 1))
             x, y = x[:, top:top + crop, left:left + crop], y[:, top:top + crop, left:left + crop]
@@ -87,9 +94,9 @@ class DenoiserSamples(TaskSamples):
 
     aux_channels = slice(3, 10)
 
-    def full(self, item, spp, exposure):
+    def full(self, item, spp, exposure, copy=0):
         frame = self.views[item[0]].frames[item[1]]
-        noisy = frame.noisy[spp]
+        noisy = frame.renders_at(spp)[copy]
         x = pack_denoiser_input(noisy["color"] * exposure, noisy["albedo"], noisy["normal"], noisy["depth"])
         gold = frame.gold["color"] * exposure
         return x, np.concatenate([demodulated_log_color(gold, noisy["albedo"]), albedo_factor(noisy["albedo"])])
@@ -98,9 +105,9 @@ class DenoiserSamples(TaskSamples):
 class ErrorSamples(TaskSamples):
     """1-spp colour → the normalized |1 spp − gold| log-space heatmap."""
 
-    def full(self, item, spp, exposure):
+    def full(self, item, spp, exposure, copy=0):
         frame = self.views[item[0]].frames[item[1]]
-        noisy, gold = frame.noisy[1]["color"] * exposure, frame.gold["color"] * exposure
+        noisy, gold = frame.renders_at(1)[copy]["color"] * exposure, frame.gold["color"] * exposure
         return pack_error_input(noisy), error_heatmap(noisy, gold)[None]
 
 
@@ -153,7 +160,10 @@ class ConfidenceSamples(TaskSamples):
             self._pairs[item] = (self.denoiser(current.noisy[1]), *confidence_pair(previous, current))
         return self._pairs[item]
 
-    def full(self, item, spp, exposure):
+    def copies(self, item, spp):
+        return 1   # each pair's denoised source is computed once, from the frame's first 1-spp render
+
+    def full(self, item, spp, exposure, copy=0):
         source, history, history_depth, _, mask = self._pair(item)
         depth = self.views[item[0]].frames[item[1] + 1].noisy[1]["depth"]
         x = pack_confidence_input(source * exposure, history * exposure, depth, history_depth)
