@@ -18,8 +18,10 @@ the image being rendered.
 ``noisy_copies`` N renders each frame N times at the lowest spp with independent seeds. At 1 spp a
 copy costs 1/gold of the gold render, yet it is a new noise realization of the same view: a denoiser
 that sees one realization per view hundreds of times learns that noise by heart. Copies are not a
-setting that must match on resume: raising N later renders just the missing copies. Splits: the last tenth of each scene's views are ``test`` (with shapes no
-training view has) and the tenth before them ``val``.
+setting that must match on resume: raising N later renders just the missing copies.
+
+Splits: the last tenth of each scene's views are ``test`` (with shapes no training view has) and the
+tenth before them ``val``.
 """
 
 from __future__ import annotations
@@ -69,9 +71,17 @@ class ViewPlan:
     split: str              # train | val | test
     frames: int
 
+    def renders(self, config: DatasetConfig) -> list[tuple[str, int, tuple[int, ...]]]:
+        """(file, spp, seed salt) of every render of the view. The salts of the spp ladder and of gold
+        predate copies, so a dataset rendered before them extends with the same images."""
+        frames, lowest = range(self.frames), min(config.spp)
+        return ([(frame_file(f, spp), spp, (f, spp)) for f in frames for spp in config.spp]
+                + [(frame_file(f, "gold"), config.gold, (f, 0)) for f in frames]
+                + [(frame_file(f, lowest, c), lowest, (f, lowest, c))
+                   for f in frames for c in range(1, config.noisy_copies)])
+
     def files(self, config: DatasetConfig) -> list[str]:
-        copies = [frame_file(f, min(config.spp), c) for f in range(self.frames) for c in range(1, config.noisy_copies)]
-        return [frame_file(f, s) for f in range(self.frames) for s in (*config.spp, "gold")] + copies
+        return [name for name, _, _ in self.renders(config)]
 
 
 def frame_file(frame: int, spp: int | str, copy: int = 0) -> str:
@@ -198,12 +208,7 @@ class TruthEngine:
         scene = self.scene_for(view)
         started = time.perf_counter()
         size = (cfg.size, cfg.size)
-        # (file, spp, seed salt): the seed of copy 0 and of gold predate copies, so old datasets extend.
-        renders = [(frame_file(frame, spp), spp, (frame, spp)) for frame in range(view.frames) for spp in cfg.spp]
-        renders += [(frame_file(frame, "gold"), cfg.gold, (frame, 0)) for frame in range(view.frames)]
-        renders += [(frame_file(frame, min(cfg.spp), copy), min(cfg.spp), (frame, min(cfg.spp), copy))
-                    for frame in range(view.frames) for copy in range(1, cfg.noisy_copies)]
-        for name, spp, salt in renders:
+        for name, spp, salt in view.renders(cfg):
             path = folder / name
             if not path.exists():
                 result = self.render(scene, spp=spp, size=size, max_depth=cfg.max_depth,
