@@ -15,7 +15,7 @@ model scores the rest). The dataset's gold is noisy enough that its noise alone 
 after a σ 1.5 px blur (which ignores what noise is left). All networks run in the WGSL engine.
 
     python benchmarks/bench_denoise.py --data data/dataset [DIR ...] [--models models] [--extra-spp 64 256] [--gold-spp 1024]
-        [--mask-spp 512] [--skip-denoiser]
+        [--per-view] [--mask-spp 512] [--skip-denoiser]
 """
 
 from __future__ import annotations
@@ -130,6 +130,8 @@ def main() -> None:
     parser.add_argument("--mask-spp", type=int, default=None,
                         help="also score the confidence model against the mask of every frame pair's gold "
                              "rendered at this spp (cached in DATA/reference/), which flags less gold noise")
+    parser.add_argument("--per-view", action="store_true",
+                        help="also print each view's PSNR, ours against OIDN")
     parser.add_argument("--skip-denoiser", action="store_true",
                         help="only the error predictor and the confidence model (no denoiser/OIDN/brute-force "
                              "table, no renders beyond --mask-spp's)")
@@ -220,6 +222,10 @@ class DenoiserTable:
             for name, image in candidates.items():
                 self.rows.setdefault(name, []).append(metrics.all_metrics(gold, image))
             self.views += 1
+            if args.per_view:
+                ours_psnr, oidn_psnr = (self.rows[name][-1]["psnr"] for name in ("ours (1 spp)", "OIDN (1 spp)"))
+                print(f"  {data}/{view.view_id} {view.scene:15s} PSNR ours {ours_psnr:6.2f} OIDN {oidn_psnr:6.2f} "
+                      f"(OIDN {oidn_psnr - ours_psnr:+.2f} dB)")
 
     def print(self) -> None:
         rows = self.rows

@@ -2,8 +2,8 @@
 # The exact recipe behind models/{denoiser,error_predictor,confidence}.onnx: render a small dataset on
 # this machine's adapter (lavapipe, 2 CPU cores), train the three networks with CPU torch, export them
 # with model cards into models/. Resumable: rerun after an interruption and finished work is kept.
-# About 4 hours on 2 shared cores (renders ~100 min, denoiser 48 min + two 25-min fine-tunes, the two small
-# networks minutes); scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
+# About 5 hours on 2 shared cores (renders ~2 h, denoiser 48 min + three fine-tunes of 25, 27 and 39 min,
+# the two small networks minutes); scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -12,6 +12,9 @@ EXTRA_DATA=${EXTRA_DATA:-data/dataset-extra}   # more denoiser training views (s
 EXTRA_DATA2=${EXTRA_DATA2:-data/dataset-extra2}
 EXTRA_DATA3=${EXTRA_DATA3:-data/dataset-extra3}
 EXTRA_DATA4=${EXTRA_DATA4:-data/dataset-extra4}   # gold at 4 × GOLD spp: cleaner targets
+EXTRA_DATA8=${EXTRA_DATA8:-data/dataset-extra8}   # for the last fine-tune: gold at 2 × GOLD spp
+EXTRA_DATA9=${EXTRA_DATA9:-data/dataset-extra9}
+COPIES=${COPIES:-16}            # independent 1-spp renders per frame for the last fine-tune
 EXTRA_VIEWS=${EXTRA_VIEWS:-12}  # per scene: 10 train, 1 val, 1 test (the test views are never used)
 SEQ_DATA=${SEQ_DATA:-data/dataset-seq}   # + seed: confidence-model sequences (seeds 5 and 6)
 CHECKPOINTS=${CHECKPOINTS:-out/checkpoints}
@@ -22,13 +25,16 @@ GOLD=${GOLD:-128}
 NICE="nice -n 10"
 export OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}   # torch threads: 1, as the 2 cores are shared
 
-$NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views "$VIEWS" --size "$SIZE" \
-    --spp 1,4,16 --gold "$GOLD" --sequence-fraction 0.3 --out "$DATA"
-for seed_gold_folder in "1 1 $EXTRA_DATA" "2 1 $EXTRA_DATA2" "3 1 $EXTRA_DATA3" "4 4 $EXTRA_DATA4"; do
-    set -- $seed_gold_folder
-    $NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views "$EXTRA_VIEWS" --size "$SIZE" \
-        --spp 1,4,16 --gold $(($2 * GOLD)) --sequence-fraction 0 --seed "$1" --out "$3"
-done
+render_shards() {   # the first five shards with $1 independent 1-spp renders per frame
+    $NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views "$VIEWS" --size "$SIZE" \
+        --spp 1,4,16 --gold "$GOLD" --sequence-fraction 0.3 --noisy-copies "$1" --out "$DATA"
+    for seed_gold_folder in "1 1 $EXTRA_DATA" "2 1 $EXTRA_DATA2" "3 1 $EXTRA_DATA3" "4 4 $EXTRA_DATA4"; do
+        set -- "$1" $seed_gold_folder
+        $NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views "$EXTRA_VIEWS" --size "$SIZE" \
+            --spp 1,4,16 --gold $(($3 * GOLD)) --sequence-fraction 0 --seed "$2" --noisy-copies "$1" --out "$4"
+    done
+}
+render_shards 1
 
 TRAIN="$NICE wgpu-rt train --data $DATA --out $OUT --checkpoints $CHECKPOINTS --resume"
 time $TRAIN denoiser --extra-data "$EXTRA_DATA" "$EXTRA_DATA2" "$EXTRA_DATA3" "$EXTRA_DATA4" \
@@ -46,6 +52,22 @@ for round_lr in "1 5e-4" "2 3e-4"; do
         --curriculum 1 --ssim-space display --validate-every 10
     previous="$CHECKPOINTS/denoiser-1spp-$1/denoiser.pt"
 done
+# Round 3: every frame gets COPIES independent 1-spp renders (a view's one noise realization was seen 600
+# times in the rounds above; now each draw takes one of 16) and two more shards join (264 training views).
+# The copies are added to the finished shards (only the copies render: ~1 min a shard), as they were for
+# the shipped model; a fresh run could pass --noisy-copies to the first renders instead. The error
+# predictor below draws the copies too.
+render_shards "$COPIES"
+for seed_folder in "8 $EXTRA_DATA8" "9 $EXTRA_DATA9"; do
+    set -- $seed_folder
+    $NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views "$EXTRA_VIEWS" --size "$SIZE" \
+        --spp 1,4,16 --gold $((2 * GOLD)) --sequence-fraction 0 --seed "$1" --noisy-copies "$COPIES" --out "$2"
+done
+time OMP_NUM_THREADS=2 $TRAIN denoiser \
+    --extra-data "$EXTRA_DATA" "$EXTRA_DATA2" "$EXTRA_DATA3" "$EXTRA_DATA4" "$EXTRA_DATA8" "$EXTRA_DATA9" \
+    --checkpoints "$CHECKPOINTS/denoiser-1spp-3" --init-from "$previous" \
+    --epochs "${FINETUNE_EPOCHS:-300}" --batch 4 --crop 64 128 --widths 16 32 64 128 --lr 5e-4 \
+    --curriculum 1 --ssim-space display --validate-every 10
 time $TRAIN error-predictor --epochs "${HEATMAP_EPOCHS:-60}" --batch 4 --crop 64 128 --lr 3e-3
 # The confidence model learns on what the temporal pass feeds it, the *denoised* frame: $OUT/denoiser.onnx
 # (above) makes it, so this runs after the denoiser. Its frame pairs: DATA's, plus two datasets of nothing

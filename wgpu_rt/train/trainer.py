@@ -335,9 +335,12 @@ class Trainer:
         manifest = read_manifest(folder)
         dataset = manifest["config"]
         render_minutes = sum(v.get("seconds", 0.0) for v in manifest["views"]) / 60
+        copies = int(dataset.get("noisy_copies", 1))
         return (f"- dataset `{folder}` (seed {dataset.get('seed')}), rendered by `wgpu-rt dataset` on this machine's "
                 f"adapter: scenes {', '.join(dataset.get('scenes', []))}; {dataset.get('size')}² px; noisy at "
-                f"{dataset.get('spp')} spp; gold at {dataset.get('gold')} spp; max depth {dataset.get('max_depth')}; "
+                f"{dataset.get('spp')} spp"
+                + (f" ({copies} independent renders of each frame at {min(dataset['spp'])} spp)" if copies > 1 else "")
+                + f"; gold at {dataset.get('gold')} spp; max depth {dataset.get('max_depth')}; "
                 f"{len(manifest['views'])} views rendered in {render_minutes:.1f} min")
 
     def _base_runs(self) -> list[dict]:
@@ -358,7 +361,9 @@ class Trainer:
         last = self.history[-1] if self.history else {}
         train_views = {v for v, _ in self.train_set.items}
         val_views = {v for v, _ in self.val_set.items}
-        gold = min(int(read_manifest(folder)["config"].get("gold", 0)) for folder in (cfg.data, *cfg.extra_data))
+        configs = [read_manifest(folder)["config"] for folder in (cfg.data, *cfg.extra_data)]
+        gold = min(int(config.get("gold", 0)) for config in configs)
+        copied = cfg.task != "confidence" and any(int(config.get("noisy_copies", 1)) > 1 for config in configs)
         parameters = sum(p.numel() for p in self.model.parameters())
         lines = [
             f"# {cfg.model_name}.onnx — {cfg.task}",
@@ -377,7 +382,8 @@ class Trainer:
             f"- epochs {cfg.epochs}, steps {self.step}, batch {cfg.batch}, Adam, LR {cfg.lr} with warm-up + cosine decay, "
             f"grad-norm clip {cfg.grad_clip}, seed {cfg.seed}",
             f"- crops {cfg.crop_min}–{cfg.crop_max} px (clamped to the frame), flips + 90° rotations, "
-            "exposure jitter ±1 stop, aux-channel noise σ 0.01",
+            "exposure jitter ±1 stop, aux-channel noise σ 0.01"
+            + ("; each draw takes a random one of a frame's independent 1-spp renders" if copied else ""),
         ]
         if cfg.task == "denoiser":
             lines.append("- input and output colour demodulated by albedo: log1p(colour / (albedo + "
