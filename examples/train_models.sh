@@ -52,8 +52,8 @@ for round_lr in "1 5e-4" "2 3e-4"; do
         --curriculum 1 --ssim-space display --validate-every 10
     previous="$CHECKPOINTS/denoiser-1spp-$1/denoiser.pt"
 done
-# Round 3: every frame gets COPIES independent 1-spp renders (a view's one noise realization was seen 600
-# times in the rounds above; now each draw takes one of 16) and two more shards join (264 training views).
+# Round 3: every frame gets COPIES independent 1-spp renders (a view's one 1-spp noise realization was seen
+# 750 times in the runs above; now each draw takes one of 16) and two more shards join (264 training views).
 # The copies are added to the finished shards (only the copies render: ~1 min a shard), as they were for
 # the shipped model; a fresh run could pass --noisy-copies to the first renders instead. The error
 # predictor below draws the copies too.

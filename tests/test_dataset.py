@@ -303,5 +303,8 @@ def test_cli_rejects_a_bad_shard_and_names_a_missing_manifest(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["dataset", "--out", str(tmp_path), "--shard", "3/2"])
     assert "0 ≤ i < n" in capsys.readouterr().err
+    assert main(["dataset", "--out", str(tmp_path / "d"), "--noisy-copies", "0"]) == 2
+    assert "--noisy-copies must be at least 1" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()
     assert main(["train", "denoiser", "--data", str(tmp_path), "--out", str(tmp_path / "m")]) == 2
     assert f"{tmp_path / 'manifest.json'}: no manifest" in capsys.readouterr().err
