@@ -261,6 +261,9 @@ def test_denoiser_batches_draw_every_noisy_copy_at_1_spp_only(tmp_path):
             samples.batch([item], rng, Augmentation(8, 16), spp)
     assert {c for s, c in drawn if s == 1} == {0, 1, 2} and {c for s, c in drawn if s == 4} == {0}
     assert "(3 independent renders of each frame at 1 spp)" in Trainer._dataset_line(str(tmp_path))
+    card = Trainer(TrainConfig(task="denoiser", data=str(tmp_path), out=str(tmp_path / "m"), widths=(4, 8)),
+                   progress=False).model_card()
+    assert "each draw takes a random one of a frame's independent 1-spp renders" in card
 
 
 def test_confidence_needs_the_denoiser_it_learns_on(tiny_dataset, tmp_path):

@@ -79,10 +79,10 @@ def read_render(path: Path, size: tuple[int, int] | None) -> dict[str, np.ndarra
 def load_view(root: Path, record: dict) -> View:
     folder = root / "views" / record["view_id"]
     size = (int(record["size"]), int(record["size"]))
+    lowest = min(int(s) for s in record["spp"])
     frames = []
     for f in range(int(record["frames"])):
         noisy = {int(s): read_render(folder / frame_file(f, s), size) for s in record["spp"]}
-        lowest = min(int(s) for s in record["spp"])
         copies = [read_render(folder / frame_file(f, lowest, c), size)
                   for c in range(1, int(record.get("noisy_copies", 1)))]
         frames.append(Frame(noisy, read_render(folder / frame_file(f, "gold"), size), copies))

@@ -361,9 +361,8 @@ class Trainer:
         last = self.history[-1] if self.history else {}
         train_views = {v for v, _ in self.train_set.items}
         val_views = {v for v, _ in self.val_set.items}
-        configs = [read_manifest(folder)["config"] for folder in (cfg.data, *cfg.extra_data)]
-        gold = min(int(config.get("gold", 0)) for config in configs)
-        copied = cfg.task != "confidence" and any(int(config.get("noisy_copies", 1)) > 1 for config in configs)
+        gold = min(int(read_manifest(folder)["config"].get("gold", 0)) for folder in (cfg.data, *cfg.extra_data))
+        copied = any(self.train_set.copies(item, 1) > 1 for item in self.train_set.items)
         parameters = sum(p.numel() for p in self.model.parameters())
         lines = [
             f"# {cfg.model_name}.onnx — {cfg.task}",
