@@ -1,5 +1,5 @@
 """BVH build time and size for 10k / 100k / 1M triangles and the Stanford bunny, plus GPU traversal
-throughput (closest-hit rays per second through wgsl/ray_query.wgsl) with each traversal module:
+throughput (closest-hit rays per second through wgsl/accel/ray_query.wgsl) with each traversal module:
 `lanes` (every invocation walks alone) and `packet` (a subgroup walks together, on CPU adapters with
 subgroups). The rays start at random points all around the mesh, so neighbouring invocations share
 nothing: the worst case for packets, which the path tracer's neighbouring pixels are not.
@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from wgpu_rt.bvh import build_bvh
-from wgpu_rt.scene.geometry import LANES_TRAVERSAL, SUBGROUP_TRAVERSAL
+from wgpu_rt.accel.bvh import build_bvh
+from wgpu_rt.accel.geometry import LANES_TRAVERSAL, SUBGROUP_TRAVERSAL
 
 MODULES = (LANES_TRAVERSAL, SUBGROUP_TRAVERSAL)
 
@@ -63,9 +63,9 @@ def traversal_rate(triangles: np.ndarray, traversal: str, rays: int = 512 * 512)
     walked with the traversal module ``traversal`` (None when the adapter cannot run it)."""
     from wgpu_rt.errors import NoAdapterError
     from wgpu_rt.gpu import get_context
-    from wgpu_rt.scene.geometry import GeometryBuffers, traversal_module
+    from wgpu_rt.accel.geometry import GeometryBuffers, traversal_module
     from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
-    from wgpu_rt.scene.ray_query import HIT_DTYPE, SURFACE_DTYPE, RayQuery, query_rays
+    from wgpu_rt.accel.ray_query import HIT_DTYPE, SURFACE_DTYPE, RayQuery, query_rays
 
     try:
         ctx = get_context()

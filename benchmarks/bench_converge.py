@@ -22,8 +22,7 @@ from common import (add_gold_arguments, add_model_arguments, gold_render, load_s
                     print_table, resolve_models)
 
 from wgpu_rt import metrics
-from wgpu_rt.commands.denoise import denoise
-from wgpu_rt.frame.pipeline import load_model
+from wgpu_rt.frame.denoise import denoise, load_model
 from wgpu_rt.render import parse_size, render
 
 

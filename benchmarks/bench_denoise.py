@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from wgpu_rt import metrics
-from wgpu_rt.commands.denoise import denoise
+from wgpu_rt.frame.denoise import denoise
 from wgpu_rt.dataset import DatasetConfig, TruthEngine, load_views, plan_views, read_manifest
 from wgpu_rt.frame.pack import pack_confidence_input, pack_error_input
 from wgpu_rt.nn import WgslModel

@@ -4,7 +4,7 @@ For each size it prints ms per frame (wall clock, best run) and CPU seconds per 
 threads, lavapipe's workers included: on a shared machine this is the stable number, and the ratio
 column compares it), GFLOP/s of the whole network (per wall second) and of the conv kernels alone
 (timestamp queries around every dispatch, best of the repeats), that rate as a percent of the adapter's
-FMA ceiling (measured here with nn_kernels/fma_peak.wgsl before the steps and after each, the highest
+FMA ceiling (measured here with benchmarks/fma_peak.wgsl before the steps and after each, the highest
 reading counting), the planned peak activation memory, and the ratio to onnxruntime's
 time (intra-op threads = CPU cores). Steps: ``naive`` = one output pixel per invocation,
 ``loop-tiled`` = 4-pixel tiles in loops, ``reg-tiled`` = plus conv3x3.wgsl's written-out 4-pixel ×
@@ -40,7 +40,7 @@ def fma_ceiling(ctx, iterations: int = 4096, invocations: int = 64 * 512) -> flo
     """GFLOP/s of the FMA loop kernel (best of 3)."""
     from wgpu_rt import shaders
 
-    pipeline = ctx.compute_pipeline(shaders.compose("fma_peak.wgsl", shaders.NN_KERNELS,
+    pipeline = ctx.compute_pipeline(shaders.compose("fma_peak.wgsl", Path(__file__).parent,
                                                     {"ITERATIONS": iterations}))
     sink = ctx.storage(invocations * 16)
     bind_group = ctx.bind_group(pipeline, [sink])
@@ -123,7 +123,7 @@ def main(argv=None) -> int:
 
     from wgpu_rt.errors import WgpuRtError
     from wgpu_rt.gpu import get_context
-    from wgpu_rt.networks import UNet, export_onnx
+    from wgpu_rt.train.networks import UNet, export_onnx
     from wgpu_rt.nn import WgslModel
 
     ctx = get_context()

@@ -12,9 +12,9 @@ import time
 from common import print_header
 
 from wgpu_rt.gpu import get_context
-from wgpu_rt.render_pass import FrameBuffers
+from wgpu_rt.passes import FrameBuffers
 from wgpu_rt.scene import load_scene
-from wgpu_rt.scene.geometry import GeometryBuffers
+from wgpu_rt.accel.geometry import GeometryBuffers
 from wgpu_rt.trace import SceneFeatures, TracePass
 
 

@@ -66,7 +66,7 @@ def parse_with_quick_defaults(parser, quick: dict):
 def resolve_models(args) -> None:
     """With --seed-models, export the seed networks and point ``args.models`` at them."""
     if args.seed_models:
-        from wgpu_rt.networks import export_seed_models
+        from wgpu_rt.train.networks import export_seed_models
 
         args.models = str(export_seed_models(tempfile.mkdtemp(prefix="wgpu-rt-seed-models-")))
 

@@ -28,7 +28,7 @@ def gpu():
 @pytest.fixture(scope="session")
 def seed_models(tmp_path_factory):
     """The three seed networks (small U-Net widths), random weights, exported once to ONNX."""
-    from wgpu_rt.networks import export_seed_models
+    from wgpu_rt.train.networks import export_seed_models
 
     return export_seed_models(tmp_path_factory.mktemp("seed_models"), widths=(8, 16))
 

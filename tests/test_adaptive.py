@@ -6,11 +6,21 @@ import pytest
 from parity import check_parity
 
 from wgpu_rt.errors import WgpuRtError
-from wgpu_rt.frame.adaptive import (EXTRA_SAMPLES, HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings,
-                                    ExtraSamplesPass, HalfBufferErrorPass, budget_weights,
-                                    extra_samples_from_heat, half_buffer_error, ideal_budget_samples)
-from wgpu_rt.frame.planes import RADIANCE, SPP, write_plane
-from wgpu_rt.render_pass import FrameBuffers
+from wgpu_rt.frame.adaptive import (
+    EXTRA_SAMPLES,
+    HALF_RADIANCE,
+    HEAT,
+    SAMPLE_ERROR,
+    AdaptiveSettings,
+    ExtraSamplesPass,
+    HalfBufferErrorPass,
+    budget_weights,
+    extra_samples_from_heat,
+    half_buffer_error,
+    ideal_budget_samples,
+)
+from wgpu_rt.frame.planes import write_plane
+from wgpu_rt.passes import RADIANCE, SPP, FrameBuffers
 
 H, W = 30, 44
 
@@ -262,10 +272,10 @@ def test_adaptive_samples_continue_the_probe_sequence(gpu, sampler):
     brute-force n-spp render holds there: the targeted samples are numbered right after the probe's, so
     the pixel's samples are the same stratified prefix of its sequence as brute force's (no index is
     skipped, none repeated), and uniform at an integer budget is brute force."""
+    from wgpu_rt.accel.geometry import GeometryBuffers
     from wgpu_rt.frame.pipeline import FramePipeline
     from wgpu_rt.render import render
     from wgpu_rt.scene.builtin import builtin_scene
-    from wgpu_rt.scene.geometry import GeometryBuffers
     from wgpu_rt.trace.trace_pass import TracePass
 
     scene, size, seed = builtin_scene("cornell"), 16, 7

@@ -1,5 +1,5 @@
 """Uniform-buffer placement of the tracer's tables (wgpu_rt.trace.trace_pass.BufferPlacement): the
-kernels composed with wgsl/shading_tables_uniform.wgsl and wgsl/geometry_words_uniform.wgsl read the
+kernels composed with wgsl/trace/shading_tables_uniform.wgsl and wgsl/accel/geometry_words_uniform.wgsl read the
 same records as the storage-buffer kernel (validated against Mitsuba 3 in test_mitsuba.py), so every
 placement must give the storage placement's image bit for bit; scenes beyond a uniform capacity keep
 storage buffers."""
@@ -8,10 +8,10 @@ import itertools
 
 import pytest
 
-from wgpu_rt.bvh import ORDERINGS
-from wgpu_rt.render_pass import FrameBuffers
+from wgpu_rt.accel.bvh import ORDERINGS
+from wgpu_rt.passes import FrameBuffers
 from wgpu_rt.scene import load_scene
-from wgpu_rt.scene.geometry import UNIFORM_GEOMETRY_BYTES, GeometryBuffers
+from wgpu_rt.accel.geometry import UNIFORM_GEOMETRY_BYTES, GeometryBuffers
 from wgpu_rt.trace.trace_pass import BufferPlacement, TracePass
 
 SIZE = (24, 24)

@@ -1,4 +1,4 @@
-"""BVH build and GPU traversal (wgsl/bvh.wgsl through wgsl/ray_query.wgsl) against brute force.
+"""BVH build and GPU traversal (wgsl/accel/bvh.wgsl through wgsl/accel/ray_query.wgsl) against brute force.
 
 The reference intersects every ray with every triangle in float64. Rays whose answer is numerically
 ambiguous (the nearest hit within 1e-4 of a triangle edge, or two hits within 1e-4 in t) may go
@@ -15,11 +15,11 @@ import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from wgpu_rt import bvh as bvh_module
-from wgpu_rt.bvh import LEAF_COUNT_BITS, MAX_DEPTH, MAX_LEAF_SIZE, build_bvh, threaded_nodes
-from wgpu_rt.scene.geometry import GeometryBuffers
+from wgpu_rt.accel import bvh as bvh_module
+from wgpu_rt.accel.bvh import LEAF_COUNT_BITS, MAX_DEPTH, MAX_LEAF_SIZE, build_bvh, threaded_nodes
+from wgpu_rt.accel.geometry import GeometryBuffers
 from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
-from wgpu_rt.scene.ray_query import NO_HIT, RayQuery, query_rays
+from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
 from wgpu_rt.shaders import read_wgsl
 
 BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
@@ -133,9 +133,9 @@ def test_structure_identical_and_degenerate_triangles():
 def test_threaded_layout_matches_traversal():
     """threaded_nodes is the depth-first order of the tree with correct skip indices; every triangle
     is owned by exactly one node, inside that node's box: a leaf of the original tree, or one of its
-    ancestors (at most one lifted triangle per interior node). Packed as geometry_bindings.wgsl
+    ancestors (at most one lifted triangle per interior node). Packed as accel/geometry_bindings.wgsl
     unpacks it."""
-    bindings = read_wgsl("geometry_bindings.wgsl")
+    bindings = read_wgsl("accel/geometry_bindings.wgsl")
     bits = re.search(r"const LEAF_COUNT_BITS: u32 = (\d+)u;", bindings)
     mask = re.search(r"const LEAF_COUNT_MASK: u32 = (\d+)u;", bindings)
     assert int(bits.group(1)) == LEAF_COUNT_BITS and int(mask.group(1)) == (1 << LEAF_COUNT_BITS) - 1
@@ -274,7 +274,7 @@ def test_degenerate_triangles_never_hit(gpu):
 
 
 def test_rays_leaving_surfaces(gpu):
-    """Rays spawned on surfaces through offset_ray_origin (bvh.wgsl) hit what brute force from the
+    """Rays spawned on surfaces through offset_ray_origin (accel/bvh.wgsl) hit what brute force from the
     offset origin hits, never their own triangle at t ≈ 0."""
     sphere = trimesh.creation.icosphere(subdivisions=2)
     triangles = np.concatenate([sphere.vertices[sphere.faces], sphere.vertices[sphere.faces] * 0.3 + [0.2, 0, 0]])
@@ -290,7 +290,7 @@ def test_rays_leaving_surfaces(gpu):
     geometry = GeometryBuffers.build(triangle_scene(triangles))
     hits, _ = RayQuery(gpu, geometry).intersect(query_rays(points, dirs, offset_normals=normals))
     side = np.where(np.sum(normals * dirs, axis=1, keepdims=True) >= 0, normals, -normals)
-    offset = side * 1e-5 * np.maximum(np.abs(points).max(axis=1, keepdims=True), 1.0)   # bvh.wgsl's rule
+    offset = side * 1e-5 * np.maximum(np.abs(points).max(axis=1, keepdims=True), 1.0)   # accel/bvh.wgsl's rule
     t_ref, prim_ref, ambiguous = brute_force(geometry.triangles, points + offset, dirs)
     clear = ~ambiguous
     assert clear.mean() > 0.9

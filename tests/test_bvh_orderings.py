@@ -1,11 +1,11 @@
-"""ordered_threaded_nodes (wgpu_rt/bvh.py): one depth-first copy of the threaded BVH per direction
+"""ordered_threaded_nodes (wgpu_rt/accel/bvh.py): one depth-first copy of the threaded BVH per direction
 octant, each a valid stackless layout of the same nodes with the child nearer along the octant first.
 (That walks of every copy find what brute force finds is checked through the GPU in test_bvh.py and
 test_traversal.py, whose random rays run in every octant.)"""
 
 import numpy as np
 
-from wgpu_rt.bvh import ORDERINGS, build_bvh, ordered_threaded_nodes, threaded_nodes
+from wgpu_rt.accel.bvh import ORDERINGS, build_bvh, ordered_threaded_nodes, threaded_nodes
 
 
 def _record_keys(nodes: np.ndarray) -> list[bytes]:

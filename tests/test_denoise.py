@@ -7,7 +7,7 @@ import torch
 
 from wgpu_rt.cli import main
 from wgpu_rt.io import read_exr, write_exr
-from wgpu_rt.networks import ConfidencePredictor, ErrorPredictor, UNet, export_onnx
+from wgpu_rt.train.networks import ConfidencePredictor, ErrorPredictor, UNet, export_onnx
 
 
 def _render_like(h=20, w=28, seed=0):
@@ -58,10 +58,8 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
         pytest.skip("no shader-f16 on this adapter")
     import onnxruntime
 
-    from wgpu_rt.commands.denoise import PAD_MULTIPLE
     from wgpu_rt.frame.pack import pack_denoiser_input
     from wgpu_rt.frame.unpack import unpack_denoiser_output
-    from wgpu_rt.train.trainer import pad_to_multiple
 
     torch.manual_seed(0)
     model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
@@ -71,8 +69,7 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
                  "--precision", precision]) == 0
     written = read_exr(tmp_path / "out.exr")
     np.testing.assert_allclose(written["depth"], layers["depth"], rtol=1e-6)
-    x = pad_to_multiple(pack_denoiser_input(color, layers["albedo"], layers["normal"], layers["depth"])[None],
-                        PAD_MULTIPLE)
+    x = pack_denoiser_input(color, layers["albedo"], layers["normal"], layers["depth"])[None]
     session = onnxruntime.InferenceSession(str(model), providers=["CPUExecutionProvider"])
     expected = unpack_denoiser_output(session.run(None, {"input": x})[0][0, :, :20, :28], layers["albedo"])
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)

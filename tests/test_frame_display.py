@@ -8,7 +8,7 @@ from wgpu_rt.errors import WgpuRtError
 from wgpu_rt.frame.planes import ALBEDO, DENOISED, write_plane
 from wgpu_rt.frame.tonemap import TonemapPass, aces_fitted, tonemap
 from wgpu_rt.frame.unpack import UnpackPass, unpack_denoiser_output
-from wgpu_rt.render_pass import FrameBuffers, PlaneSpec
+from wgpu_rt.passes import FrameBuffers, PlaneSpec
 
 H, W = 20, 36
 NETWORK_OUTPUT = PlaneSpec("network_output", 3)

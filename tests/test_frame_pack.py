@@ -4,11 +4,22 @@ import numpy as np
 import pytest
 from parity import check_parity
 
-from wgpu_rt.frame.pack import (DepthMaxPass, PackConfidencePass, PackDenoiserPass, PackErrorPass,
-                                pack_confidence_input, pack_denoiser_input, pack_error_input)
-from wgpu_rt.frame.planes import (ALBEDO, CONFIDENCE_INPUT, DENOISER_INPUT, DEPTH, ERROR_INPUT, NORMAL,
-                                  RADIANCE, write_plane)
-from wgpu_rt.render_pass import FrameBuffers, PlaneSpec
+from wgpu_rt.frame.pack import (
+    DepthMaxPass,
+    PackConfidencePass,
+    PackDenoiserPass,
+    PackErrorPass,
+    pack_confidence_input,
+    pack_denoiser_input,
+    pack_error_input,
+)
+from wgpu_rt.frame.planes import (
+    CONFIDENCE_INPUT,
+    DENOISER_INPUT,
+    ERROR_INPUT,
+    write_plane,
+)
+from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, RADIANCE, FrameBuffers, PlaneSpec
 
 H, W = 24, 40   # not multiples of the 8×8 tile, so edge guards are exercised
 
@@ -114,7 +125,7 @@ def test_pack_confidence_matches_reference(gpu):
     previous_depth = rng.uniform(0, 40, (H, W)).astype(np.float32)
     history[1, 1] = np.inf
     current = PlaneSpec("current", 3)
-    reprojected = PlaneSpec("reprojected", 5)   # frame_temporal.wgsl: RGB, previous depth, history length
+    reprojected = PlaneSpec("reprojected", 5)   # frame/temporal.wgsl: RGB, previous depth, history length
 
     def ours(c, h, d, pd):
         depth_max = DepthMaxPass(gpu, W, H)

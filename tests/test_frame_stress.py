@@ -11,10 +11,11 @@ import pytest
 
 from wgpu_rt.frame import render_frames
 from wgpu_rt.frame.adaptive import AdaptiveSettings
-from wgpu_rt.frame.pipeline import FramePipeline, load_model
-from wgpu_rt.frame.planes import ALBEDO, DEPTH, MOTION, NORMAL, RADIANCE, to_planar
+from wgpu_rt.frame.denoise import load_model
+from wgpu_rt.frame.pipeline import FramePipeline
+from wgpu_rt.frame.planes import to_planar
 from wgpu_rt.frame.temporal import HISTORY, TemporalSettings
-from wgpu_rt.render_pass import NUMPY_DTYPE
+from wgpu_rt.passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE
 from wgpu_rt.scene.builtin import builtin_scene
 
 W, H = 32, 24

@@ -1,7 +1,7 @@
 """The three seed networks (random weights) through the WGSL engine vs onnxruntime, fp32 and fp16.
 
-The U-Net needs H and W to be multiples of 4; at other sizes the engine pads the canvas with zeros and
-crops, so its reference is onnxruntime on the same zero-padded input, cropped. Big sizes of the U-Net
+The U-Net needs H and W to be multiples of 4; at other sizes the engine edge-pads the canvas and crops,
+so its reference is onnxruntime on the same edge-padded input (``pad_to_multiple``), cropped. Big sizes of the U-Net
 are marked slow (run with -m slow).
 """
 
@@ -13,7 +13,8 @@ import pytest
 import torch
 
 from parity import check_parity
-from wgpu_rt.networks import ConfidencePredictor, ErrorPredictor, UNet, export_onnx
+from wgpu_rt.frame.denoise import pad_to_multiple
+from wgpu_rt.train.networks import ConfidencePredictor, ErrorPredictor, UNet, export_onnx
 
 FP32_ATOL = 1e-4
 FP16_ATOL = 1e-2
@@ -48,12 +49,10 @@ def networks(tmp_path_factory, gpu):
 
 
 def padded_reference(session, multiple):
-    """onnxruntime on the input zero-padded to ``multiple``, cropped back (the engine's semantics)."""
+    """onnxruntime on the input edge-padded to ``multiple``, cropped back (the engine's semantics)."""
     def run(x):
         _, _, h, w = x.shape
-        canvas = np.zeros((*x.shape[:2], -(-h // multiple) * multiple, -(-w // multiple) * multiple), np.float32)
-        canvas[:, :, :h, :w] = x
-        return session.run(None, {"input": canvas})[0][:, :, :h, :w]
+        return session.run(None, {"input": pad_to_multiple(x, multiple)})[0][:, :, :h, :w]
     return run
 
 

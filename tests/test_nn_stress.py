@@ -8,7 +8,7 @@ import onnxruntime as ort
 import pytest
 from onnx import TensorProto, helper, numpy_helper
 
-from wgpu_rt.networks import ErrorPredictor, UNet, export_onnx
+from wgpu_rt.train.networks import ErrorPredictor, UNet, export_onnx
 
 pytestmark = pytest.mark.gpu
 PRECISIONS = ["fp32", "fp16"]

@@ -20,3 +20,13 @@ def test_every_package_is_listed():
 def test_resource_packages_resolve():
     for package in ("wgpu_rt.wgsl", "wgpu_rt.nn_kernels", "wgpu_rt.models"):
         assert resources.files(package).is_dir()
+
+
+def test_package_data_covers_every_resource_file():
+    """A shader in a new stage subfolder must be named in package-data, or the wheel ships without it."""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    for resource_package, patterns in config["package-data"].items():
+        folder = ROOT / config["package-dir"][resource_package]
+        covered = {p for pattern in patterns for p in folder.glob(pattern)}
+        shipped = {p for p in folder.rglob("*") if p.suffix in (".wgsl", ".onnx", ".md")}
+        assert shipped <= covered, f"{resource_package}: package-data misses {sorted(map(str, shipped - covered))}"

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from wgpu_rt.frame import render_frames
-from wgpu_rt.frame.pipeline import make_pipeline
 from wgpu_rt.frame.adaptive import AdaptiveSettings
-from wgpu_rt.frame.planes import RADIANCE, SPP
+from wgpu_rt.frame.pipeline import make_pipeline
 from wgpu_rt.frame.temporal import TemporalSettings, converge_frame
 from wgpu_rt.frame.tonemap import tonemap
+from wgpu_rt.passes import RADIANCE, SPP
 from wgpu_rt.scene.builtin import builtin_scene
 
 W, H = 24, 16
@@ -123,8 +123,8 @@ def test_traffic_counter_catches_a_stage_that_leaks(gpu, scene, monkeypatch, lea
 
 
 def test_identity_denoiser_gives_tonemapped_radiance(gpu, scene):
+    from wgpu_rt.accel.geometry import GeometryBuffers
     from wgpu_rt.frame.pipeline import FramePipeline
-    from wgpu_rt.scene.geometry import GeometryBuffers
     from wgpu_rt.trace.trace_pass import TracePass
 
     geometry = GeometryBuffers.build(scene, 0)
@@ -141,8 +141,8 @@ def test_identity_denoiser_gives_tonemapped_radiance(gpu, scene):
 
 
 def test_adaptive_budget_reaches_the_spp_plane(gpu, scene):
+    from wgpu_rt.accel.geometry import GeometryBuffers
     from wgpu_rt.frame.pipeline import FramePipeline
-    from wgpu_rt.scene.geometry import GeometryBuffers
     from wgpu_rt.trace.trace_pass import TracePass
 
     geometry = GeometryBuffers.build(scene, 0)
@@ -174,7 +174,7 @@ def test_temporal_static_frames_converge(gpu, scene):
 
 def brute_force_planes(gpu, scene, geometry, samples):
     """Mean radiance and spp of one trace of ``samples`` samples per pixel, seeded as frame 0."""
-    from wgpu_rt.render_pass import FrameBuffers
+    from wgpu_rt.passes import FrameBuffers
     from wgpu_rt.trace.trace_pass import SampleSchedule, TracePass
 
     buffers = FrameBuffers(gpu, W, H)
@@ -192,8 +192,8 @@ def test_temporal_static_camera_accumulates_samples_before_denoising(gpu, scene)
     mean of k + 1 samples (not the mean of k + 1 denoised 1-spp frames), the same samples a brute-force
     render of k + 1 spp takes (one stratified sequence), so with an identity denoiser its output is that
     render; a cut starts again from one sample."""
+    from wgpu_rt.accel.geometry import GeometryBuffers
     from wgpu_rt.frame.pipeline import FramePipeline
-    from wgpu_rt.scene.geometry import GeometryBuffers
     from wgpu_rt.trace.trace_pass import TracePass
 
     geometry = GeometryBuffers.build(scene, 0)

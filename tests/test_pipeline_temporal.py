@@ -9,9 +9,17 @@ import pytest
 from wgpu_rt.frame import render_frames
 from wgpu_rt.frame.pack import pack_confidence_input
 from wgpu_rt.frame.pipeline import FramePipeline
-from wgpu_rt.frame.planes import CONFIDENCE_INPUT, DEPTH, MOTION, NORMAL, RADIANCE
-from wgpu_rt.frame.temporal import (HISTORY, REPROJECTED, TEMPORAL, TemporalSettings, blend_history,
-                                    frame_change, reproject_history)
+from wgpu_rt.frame.planes import CONFIDENCE_INPUT
+from wgpu_rt.frame.temporal import (
+    HISTORY,
+    REPROJECTED,
+    TEMPORAL,
+    TemporalSettings,
+    blend_history,
+    frame_change,
+    reproject_history,
+)
+from wgpu_rt.passes import DEPTH, MOTION, NORMAL, RADIANCE
 
 W, H = 32, 24
 
@@ -21,7 +29,7 @@ def hwc(buffers, spec):
 
 
 def traced_pipeline(gpu, scene, **settings):
-    from wgpu_rt.scene.geometry import GeometryBuffers
+    from wgpu_rt.accel.geometry import GeometryBuffers
     from wgpu_rt.trace.trace_pass import TracePass
 
     def trace_factory(frame, seed_frame):

@@ -12,7 +12,7 @@ import trimesh
 from wgpu_rt.errors import DeviceLimitError, SceneError
 from wgpu_rt.gpu import GpuContext
 from wgpu_rt.scene import BUILTIN_SCENES, Scene, load_scene
-from wgpu_rt.scene.geometry import GeometryBuffers, scene_material_names
+from wgpu_rt.accel.geometry import GeometryBuffers, scene_material_names
 from wgpu_rt.scene.transforms import transform_points
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -7,10 +7,19 @@ from parity import check_parity
 
 from wgpu_rt.errors import WgpuRtError
 from wgpu_rt.frame.pack import DepthMaxPass, pack_confidence_input
-from wgpu_rt.frame.planes import CONFIDENCE_INPUT, DENOISED, DEPTH, MOTION, NORMAL, write_plane
-from wgpu_rt.frame.temporal import (HISTORY, REPROJECTED, TEMPORAL, TemporalPass, TemporalSettings,
-                                    accumulate_history, blend_history, frame_change, reproject_history)
-from wgpu_rt.render_pass import FrameBuffers
+from wgpu_rt.frame.planes import CONFIDENCE_INPUT, DENOISED, write_plane
+from wgpu_rt.frame.temporal import (
+    HISTORY,
+    REPROJECTED,
+    TEMPORAL,
+    TemporalPass,
+    TemporalSettings,
+    accumulate_history,
+    blend_history,
+    frame_change,
+    reproject_history,
+)
+from wgpu_rt.passes import DEPTH, MOTION, NORMAL, FrameBuffers
 from wgpu_rt.scene.model import Camera, Scene
 
 H, W = 20, 28

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from wgpu_rt.render import render
-from wgpu_rt.render_pass import FrameBuffers
+from wgpu_rt.passes import FrameBuffers
 from wgpu_rt.scene import load_scene
-from wgpu_rt.scene.geometry import GeometryBuffers
+from wgpu_rt.accel.geometry import GeometryBuffers
 from wgpu_rt.trace import TracePass
 from wgpu_rt.trace.scene_data import alias_table
 

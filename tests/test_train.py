@@ -7,7 +7,7 @@ import torch
 from dataset_fakes import fake_render
 
 from wgpu_rt.dataset import DatasetConfig, TruthEngine
-from wgpu_rt.networks import UNet, export_onnx
+from wgpu_rt.train.networks import UNet, export_onnx
 from wgpu_rt.train import TrainConfig, TrainingError, train
 from wgpu_rt.train.losses import denoiser_loss, ssim
 from wgpu_rt.train.samples import curriculum_spp
@@ -116,7 +116,7 @@ def test_resume_refuses_a_checkpoint_trained_with_other_settings(tiny_dataset, t
 
 
 def test_residual_unet_adds_its_correction_to_the_input_colour():
-    from wgpu_rt.networks import UNet
+    from wgpu_rt.train.networks import UNet
 
     torch.manual_seed(3)
     net = UNet(widths=(4, 8), residual=True).eval()
@@ -298,7 +298,7 @@ def test_confidence_sample_is_the_denoised_frame_against_history(tiny_dataset):
 
 
 def test_onnx_denoiser_is_the_denoise_command_with_the_exported_network(tiny_dataset, tmp_path):
-    from wgpu_rt.commands.denoise import denoise
+    from wgpu_rt.frame.denoise import denoise
     from wgpu_rt.dataset import load_views
     from wgpu_rt.train.samples import OnnxDenoiser
 

@@ -1,17 +1,17 @@
-"""The two BVH traversal modules (wgsl/traversal_lanes.wgsl: every invocation walks alone;
-wgsl/traversal_subgroup.wgsl: a subgroup walks as one packet with shared fetches) against brute force
-and against each other, and the tracer's loop budget (wgsl/trace.wgsl, LOOP_BUDGET) on paths long
+"""The two BVH traversal modules (wgsl/accel/traversal_lanes.wgsl: every invocation walks alone;
+wgsl/accel/traversal_subgroup.wgsl: a subgroup walks as one packet with shared fetches) against brute force
+and against each other, and the tracer's loop budget (wgsl/trace/trace.wgsl, LOOP_BUDGET) on paths long
 enough to hit lavapipe's limit on loop passes per dispatch."""
 
 import numpy as np
 import pytest
 from test_bvh import brute_force, triangle_scene
 
-from wgpu_rt.render_pass import FrameBuffers
+from wgpu_rt.passes import FrameBuffers
 from wgpu_rt.scene import Camera, Material, Mesh, Scene, load_scene
-from wgpu_rt.scene.geometry import (LANES_TRAVERSAL, SUBGROUP_TRAVERSAL, GeometryBuffers, traversal_module)
+from wgpu_rt.accel.geometry import (LANES_TRAVERSAL, SUBGROUP_TRAVERSAL, GeometryBuffers, traversal_module)
 from wgpu_rt.scene.primitives import primitive
-from wgpu_rt.scene.ray_query import NO_HIT, RayQuery, query_rays
+from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
 from wgpu_rt.trace import SceneFeatures, TracePass
 
 MODULES = [LANES_TRAVERSAL, SUBGROUP_TRAVERSAL]

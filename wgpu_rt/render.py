@@ -57,9 +57,9 @@ def render(scene, spp: int = 16, size=(256, 256), max_depth: int = 8, seed: int 
     """Path trace ``frame`` of ``scene`` (a Scene, a built-in name or a scene-file path) at ``spp``
     samples per pixel; ``size`` is (width, height) or "WxH"."""
     from .gpu import get_context
-    from .render_pass import FrameBuffers
+    from .passes import FrameBuffers
     from .scene import load_scene
-    from .scene.geometry import GeometryBuffers
+    from .accel.geometry import GeometryBuffers
     from .trace import SceneFeatures, TracePass
 
     width, height = parse_size(size)

@@ -4,7 +4,7 @@ The tracer keeps its planes as running means over every sample a pixel has taken
 them), so a targeted pass that adds ``extra`` samples on top of the 1-spp probe leaves radiance the
 plain average of 1 + extra samples, weighted by count, with no extra bookkeeping here. (The counts are
 chosen from the probe itself, as in every a-posteriori adaptive sampler; the averaging adds no bias of
-its own.) See ``wgsl/frame_adaptive.wgsl`` for the kernels.
+its own.) See ``wgsl/frame/adaptive.wgsl`` for the kernels.
 
 Samplers:
 - ``heat``: the Error Predictor's heatmap, extra = floor(heat^k · 31), or with ``budget`` (mean spp
@@ -25,9 +25,8 @@ import numpy as np
 import wgpu
 
 from ..errors import WgpuRtError
-from ..render_pass import ComputePass, PlaneSpec
+from ..passes import RADIANCE, ComputePass, PlaneSpec
 from .kernel import TILE, FrameKernel, ceil_div, nonnegative_finite
-from .planes import RADIANCE
 
 HEAT = PlaneSpec("heat", 1)
 EXTRA_SAMPLES = PlaneSpec("extra_samples", 1, "u32")
@@ -46,8 +45,8 @@ UNIFORM_SHARE = {"heat": 0.5, "variance": 0.5}
 # (AdaptiveSettings.pooling); 0: none. Taps reach POOL_REACH standard deviations.
 POOL_SIGMA = {"heat": 2.0, "variance": 0.0}
 POOL_REACH = 2.0
-SHADER = "frame_adaptive.wgsl"
-# frame_adaptive.wgsl's bindings, per entry point (None: not used by that entry).
+SHADER = "frame/adaptive.wgsl"
+# frame/adaptive.wgsl's bindings, per entry point (None: not used by that entry).
 ENTRY_BINDINGS = {
     "extra_from_heat": ("source", "extra", None, None, None, None, None, None),
     "square_importance": ("source", None, None, None, None, None, None, None, None, "squared"),
@@ -258,7 +257,7 @@ class ExtraSamplesPass(ComputePass):
         # Without capped pixels the two rounds above already hand out the whole remainder (it is the sum
         # of the claims, each < 1), so every count is its ideal share rounded down or up. What capped
         # pixels could not take is spread by rounds of at most one sample per pixel: cap + 1 rounds always
-        # meet the budget. They run indirectly, from spill_args slot r (see frame_adaptive.wgsl), and
+        # meet the budget. They run indirectly, from spill_args slot r (see frame/adaptive.wgsl), and
         # cost nothing once the budget is met.
         self.spill_rounds = [remainder_round(SPILL_THRESHOLD, next_slot=r + 1) for r in range(cap + 1)]
         # Two buffers, by round parity: a dispatch cannot read its arguments from a buffer it writes, so

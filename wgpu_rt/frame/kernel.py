@@ -3,7 +3,7 @@
 Frame kernels are specialised by WGSL ``override`` constants (frame size and each pass's settings)
 rather than uniform buffers, so that recording a frame uploads nothing: the only host↔device traffic
 of a frame is the tracer's own parameters and the final readback. Each kernel runs 8×8 workgroups
-over the image (``WORKGROUP`` in ``frame_common.wgsl``), so a 4K frame stays under the 65535
+over the image (``WORKGROUP`` in ``frame/common.wgsl``), so a 4K frame stays under the 65535
 workgroups-per-dimension limit.
 """
 

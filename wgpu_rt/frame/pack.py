@@ -4,7 +4,7 @@ Training builds its inputs with the numpy functions below, so the two sides cann
 change here changes both, and tests/test_frame_pack.py holds them equal.
 
 Depth is normalised by the frame's max depth (ARCHITECTURE.md's contract), found on the device by an
-atomic max over the depth's bit pattern (``wgsl/frame_depth_max.wgsl``), so no value travels to the
+atomic max over the depth's bit pattern (``wgsl/frame/depth_max.wgsl``), so no value travels to the
 CPU. Sanitising: NaN/±Inf become 0 and negatives are clamped to 0 in colour, albedo and depth (a
 failed sample adds nothing); non-finite normal components become 0 (mapping to 0.5).
 
@@ -17,11 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..render_pass import ComputePass
+from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, ComputePass
 from .kernel import FrameKernel, finite, nonnegative_finite
-from .planes import ALBEDO, CONFIDENCE_INPUT, DENOISER_INPUT, DEPTH, ERROR_INPUT, NORMAL, RADIANCE
+from .planes import CONFIDENCE_INPUT, DENOISER_INPUT, ERROR_INPUT
 
-# frame_pack.wgsl's bindings, per entry point (None: not used by that entry).
+# frame/pack.wgsl's bindings, per entry point (None: not used by that entry).
 DENOISER_BINDINGS = ("color", "albedo", "normal", "depth", "depth_max_bits", None, "packed")
 ERROR_BINDINGS = ("color", None, None, None, None, None, "packed")
 CONFIDENCE_BINDINGS = ("color", None, None, "depth", "depth_max_bits", "reprojected", "packed")
@@ -90,7 +90,7 @@ class DepthMaxPass(ComputePass):
     inputs = (DEPTH,)
 
     def __init__(self, ctx, width: int, height: int):
-        self.kernel = FrameKernel(ctx, "frame_depth_max.wgsl", "main", ("depth", "depth_max_bits"),
+        self.kernel = FrameKernel(ctx, "frame/depth_max.wgsl", "main", ("depth", "depth_max_bits"),
                                   width, height)
         self.result = ctx.storage(4, label="depth_max_bits")
 
@@ -108,7 +108,7 @@ class PackDenoiserPass(ComputePass):
 
     def __init__(self, ctx, width: int, height: int, depth_max):
         self.depth_max = depth_max
-        self.kernel = FrameKernel(ctx, "frame_pack.wgsl", "pack_denoiser", DENOISER_BINDINGS, width, height)
+        self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_denoiser", DENOISER_BINDINGS, width, height)
 
     def execute(self, encoder, buffers) -> None:
         self.kernel.dispatch(encoder, {
@@ -124,7 +124,7 @@ class PackErrorPass(ComputePass):
     outputs = (ERROR_INPUT,)
 
     def __init__(self, ctx, width: int, height: int):
-        self.kernel = FrameKernel(ctx, "frame_pack.wgsl", "pack_error", ERROR_BINDINGS, width, height)
+        self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_error", ERROR_BINDINGS, width, height)
 
     def execute(self, encoder, buffers) -> None:
         self.kernel.dispatch(encoder, {"color": buffers.get(RADIANCE),
@@ -132,14 +132,14 @@ class PackErrorPass(ComputePass):
 
 
 class PackConfidencePass(ComputePass):
-    """``color`` (the current denoised frame), ``reprojected`` history (frame_temporal.wgsl's planes),
+    """``color`` (the current denoised frame), ``reprojected`` history (frame/temporal.wgsl's planes),
     depth → confidence_input; ``depth_max`` as for PackDenoiserPass."""
 
     def __init__(self, ctx, width: int, height: int, color, reprojected, depth_max):
         self.color, self.reprojected, self.depth_max = color, reprojected, depth_max
         self.inputs = (color, reprojected, DEPTH)
         self.outputs = (CONFIDENCE_INPUT,)
-        self.kernel = FrameKernel(ctx, "frame_pack.wgsl", "pack_confidence", CONFIDENCE_BINDINGS, width, height)
+        self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_confidence", CONFIDENCE_BINDINGS, width, height)
 
     def execute(self, encoder, buffers) -> None:
         self.kernel.dispatch(encoder, {

@@ -17,10 +17,17 @@ import numpy as np
 import wgpu
 
 from ..errors import ModelError
-from ..render_pass import FrameBuffers
-from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
+from ..passes import RADIANCE, SPP, FrameBuffers
+from .adaptive import (
+    HALF_RADIANCE,
+    HEAT,
+    SAMPLE_ERROR,
+    AdaptiveSettings,
+    ExtraSamplesPass,
+    HalfBufferErrorPass,
+)
 from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
-from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT, RADIANCE, SPP
+from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT
 from .temporal import TEMPORAL, TemporalPass, TemporalSettings, frame_change
 from .tonemap import TonemapPass
 from .unpack import UnpackPass
@@ -225,8 +232,8 @@ def make_pipeline(scene, denoise: bool = True, adaptive: float | AdaptiveSetting
     """The FramePipeline ``render_frames`` runs (see there for the arguments), for callers that render
     frames one at a time: its setup (model loading, kernel compilation, first BVH build) is paid on the
     first ``render``, so timing the frames after it measures the steady state."""
+    from ..accel.geometry import GeometryBuffers
     from ..gpu import get_context
-    from ..scene.geometry import GeometryBuffers
     from ..trace.trace_pass import TracePass
 
     ctx = ctx or get_context()

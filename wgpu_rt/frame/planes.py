@@ -6,12 +6,13 @@ tensors as planar (C, H, W) arrays, the layouts their callers (training, tests, 
 
 import numpy as np
 
-from ..render_pass import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, PlaneSpec  # noqa: F401 (G-buffer specs re-exported)
+from ..models import CONFIDENCE, DENOISER, ERROR_PREDICTOR
+from ..passes import NUMPY_DTYPE, PlaneSpec
 
-
-DENOISER_INPUT = PlaneSpec("denoiser_input", 10)
-ERROR_INPUT = PlaneSpec("error_input", 3)
-CONFIDENCE_INPUT = PlaneSpec("confidence_input", 8)
+# The networks' inputs take their channel counts from the registry of networks (models/__init__.py).
+DENOISER_INPUT = PlaneSpec("denoiser_input", DENOISER.input_channels)
+ERROR_INPUT = PlaneSpec("error_input", ERROR_PREDICTOR.input_channels)
+CONFIDENCE_INPUT = PlaneSpec("confidence_input", CONFIDENCE.input_channels)
 DENOISED = PlaneSpec("denoised", 3)
 
 

@@ -1,6 +1,6 @@
 """Temporal stability: reprojected, disocclusion-tested, clamped history blended with the denoised frame.
 
-See ``wgsl/frame_temporal.wgsl`` for the algorithm. Which path a frame takes depends on how it relates
+See ``wgsl/frame/temporal.wgsl`` for the algorithm. Which path a frame takes depends on how it relates
 to the previous one (``frame_change``): a cut (first frame, skipped frames, a camera jump) clears the
 history; a static camera over a static scene accumulates plainly (no reprojection or clamping, so noise
 averages out over up to ``max_frames`` frames); anything else reprojects and blends. ``converge`` (set
@@ -20,17 +20,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import WgpuRtError
-from ..render_pass import ComputePass, PlaneSpec
+from ..passes import DEPTH, MOTION, NORMAL, RADIANCE, SPP, ComputePass, PlaneSpec
 from .kernel import FrameKernel, finite, nonnegative_finite
 from .pack import PackConfidencePass
-from .planes import CONFIDENCE_INPUT, DEPTH, MOTION, NORMAL, RADIANCE, SPP
+from .planes import CONFIDENCE_INPUT
 
 CLAMP_MODES = ("none", "box", "variance")
 HISTORY = PlaneSpec("history", 8)           # RGB, depth, normal xyz, history length
 REPROJECTED = PlaneSpec("reprojected", 5)   # RGB, previous depth, history length (0 = disoccluded)
 CONFIDENCE = PlaneSpec("confidence", 1)
 TEMPORAL = PlaneSpec("temporal", 3)
-# frame_temporal.wgsl's bindings, per entry point (None: not used by that entry).
+# frame/temporal.wgsl's bindings, per entry point (None: not used by that entry).
 ENTRY_BINDINGS = {
     "reproject": (None, "depth", "normal", "motion", "history", "reprojected", None, None),
     "blend": ("color", "depth", "normal", None, "history", "reprojected", "confidence", "output"),
@@ -222,7 +222,7 @@ class TemporalPass(ComputePass):
         self.inputs = (source, DEPTH, NORMAL, MOTION, RADIANCE, SPP)
         self.change = "cut"
         constants = {**settings.constants(), "USE_CONFIDENCE": confidence_model is not None}
-        self.kernels = {entry: FrameKernel(ctx, "frame_temporal.wgsl", entry, bindings, width, height,
+        self.kernels = {entry: FrameKernel(ctx, "frame/temporal.wgsl", entry, bindings, width, height,
                                            constants)
                         for entry, bindings in ENTRY_BINDINGS.items()}
         self.pack_confidence = (PackConfidencePass(ctx, width, height, source, REPROJECTED, depth_max)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import WgpuRtError
-from ..render_pass import ComputePass, PlaneSpec
+from ..passes import ComputePass, PlaneSpec
 from .kernel import FrameKernel, nonnegative_finite
 
 OPERATORS = ("none", "reinhard", "aces")
@@ -72,7 +72,7 @@ class TonemapPass(ComputePass):
         self.display = DISPLAY_RGBA8 if output == "rgba8" else DISPLAY_F32
         self.inputs, self.outputs = (source,), (self.display,)
         self.kernel = FrameKernel(
-            ctx, "frame_tonemap.wgsl", "to_rgba8" if output == "rgba8" else "to_rgba32f",
+            ctx, "frame/tonemap.wgsl", "to_rgba8" if output == "rgba8" else "to_rgba32f",
             ("color", "display"), width, height,
             constants={"OPERATOR": OPERATORS.index(operator), "EXPOSURE": exposure, "SRGB": srgb})
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..render_pass import ComputePass
+from ..passes import ALBEDO, ComputePass
 from .kernel import FrameKernel, finite
 from .pack import albedo_factor
-from .planes import ALBEDO, DENOISED
+from .planes import DENOISED
 
 MAX_LOG_RADIANCE = 88.0   # expm1(88) ≈ 1.65e38: times the factor (≤ 1.01) still a finite f32
 
@@ -28,7 +28,7 @@ class UnpackPass(ComputePass):
 
     def __init__(self, ctx, width: int, height: int, source=None):
         self.source = source
-        self.kernel = FrameKernel(ctx, "frame_unpack.wgsl", "main", ("network_output", "albedo", "radiance"),
+        self.kernel = FrameKernel(ctx, "frame/unpack.wgsl", "main", ("network_output", "albedo", "radiance"),
                                   width, height)
 
     def execute(self, encoder, buffers) -> None:

@@ -457,7 +457,7 @@ class CopyChannelsKernel(SpatialKernel):
 
 
 class PackKernel(SpatialKernel):
-    """pack.wgsl: rows of a planar NCHW f32 image → NC4HW4 canvas (zero padded, sanitized)."""
+    """pack.wgsl: rows of a planar NCHW f32 image → NC4HW4 canvas (edge padded, sanitized)."""
 
     shader = "pack.wgsl"
 

@@ -1,7 +1,7 @@
 """``WgslModel``: an ONNX network run as WGSL compute kernels.
 
 Weights are uploaded once, at load. Everything that depends on the resolution — shapes, the canvas
-(H and W padded up to the network's pooling multiple when the graph needs it, e.g. a U-Net at 37×53),
+(H and W edge-padded up to the network's pooling multiple when the graph needs it, e.g. a U-Net at 37×53),
 the activation buffers and the specialized pipelines — is planned once per resolution and cached.
 
 Buffer planning: every tensor lives in its root's buffer (a concat's inputs live inside the concat);

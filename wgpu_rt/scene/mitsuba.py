@@ -7,7 +7,7 @@ loaded files and animation all go through one path), with the BSDF its material 
   alpha = roughness) with eta, k and specular_reflectance; dielectric → ``dielectric`` or
   ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1.
 - diffuse and conductor BSDFs are wrapped in ``twosided``: our tracer shades both faces of them alike
-  (wgsl/trace.wgsl), while Mitsuba's are black seen from behind. Back faces show wherever a one-sided
+  (wgsl/trace/trace.wgsl), while Mitsuba's are black seen from behind. Back faces show wherever a one-sided
   rectangle is seen from outside, e.g. the outer sides of sun-room's crate.
 - emissive materials add a one-sided ``area`` emitter; point/directional lights and a non-black
   background (``constant``) map to their Mitsuba plugins.

@@ -1,6 +1,6 @@
 """Which parts of the path-tracing kernel a scene needs.
 
-The kernel (wgsl/trace.wgsl) has one override constant per optional feature (wgsl/features.wgsl).
+The kernel (wgsl/trace/trace.wgsl) has one override constant per optional feature (wgsl/trace/features.wgsl).
 ``SceneFeatures.of(scene)`` reads them off a scene; ``constants()`` turns them into pipeline override
 constants, so each distinct feature set compiles (once, cached by GpuContext) to a kernel without the
 code it cannot reach.
@@ -51,5 +51,5 @@ class SceneFeatures:
         return [cls(**{n: bool(bits >> i & 1) for i, n in enumerate(names)}) for bits in range(2 ** len(names))]
 
     def constants(self) -> dict[str, bool]:
-        """Pipeline override constants, named as in wgsl/features.wgsl."""
+        """Pipeline override constants, named as in wgsl/trace/features.wgsl."""
         return {name.upper(): value for name, value in asdict(self).items()}

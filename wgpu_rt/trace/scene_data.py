@@ -1,5 +1,5 @@
 """Packing the shading side of a scene for the kernel: materials, the emitter table and the frame
-parameters (bind group 1; record layouts as in wgsl/material.wgsl and wgsl/trace_bindings.wgsl).
+parameters (bind group 1; record layouts as in wgsl/trace/material.wgsl and wgsl/trace/trace_bindings.wgsl).
 
 Emitters are sampled in proportion to their power through an alias table (Vose's method), so next-event
 estimation picks a light in O(1): emissive triangles by luminance·area (uniform in area within one),

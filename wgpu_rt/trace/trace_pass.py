@@ -1,4 +1,4 @@
-"""The path-tracing pass: records dispatches of wgsl/trace.wgsl that add samples to the output planes.
+"""The path-tracing pass: records dispatches of wgsl/trace/trace.wgsl that add samples to the output planes.
 
 Every dispatch takes at most ``chunk_size`` samples per pixel, so no single dispatch runs long on a CPU
 driver; the per-dispatch chunk start is copied into the frame parameters between dispatches (copies
@@ -13,19 +13,37 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..render_pass import ALBEDO, DEPTH, MOTION, NORMAL, RADIANCE, SPP, ComputePass, FrameBuffers, PlaneSpec  # noqa: F401 (G-buffer specs re-exported)
-from ..scene.geometry import GEOMETRY_WORDS, UNIFORM_GEOMETRY_WORDS, compose_with_traversal, scene_material_names
+from ..accel.geometry import (
+    GEOMETRY_WORDS,
+    UNIFORM_GEOMETRY_WORDS,
+    compose_with_traversal,
+    scene_material_names,
+)
+from ..passes import (
+    ALBEDO,
+    DEPTH,
+    MOTION,
+    NORMAL,
+    RADIANCE,
+    SPP,
+    ComputePass,
+    FrameBuffers,
+)
 from ..scene.model import Scene
 from .features import SceneFeatures
-from .scene_data import FRAME_PARAMS_DTYPE, build_emitter_table, camera_vectors, pack_materials
+from .scene_data import (
+    FRAME_PARAMS_DTYPE,
+    build_emitter_table,
+    camera_vectors,
+    pack_materials,
+)
+
+TILE = 8   # a workgroup traces TILE × TILE pixels (wgsl/trace/trace.wgsl)
+KERNEL = "trace/trace.wgsl"
 
 
-TILE = 8   # a workgroup traces TILE × TILE pixels (wgsl/trace.wgsl)
-KERNEL = "trace.wgsl"
-
-
-STORAGE_TABLES = "shading_tables_storage.wgsl"   # what trace_bindings.wgsl imports
-UNIFORM_TABLES = "shading_tables_uniform.wgsl"
+STORAGE_TABLES = "trace/shading_tables_storage.wgsl"   # what trace/trace_bindings.wgsl imports
+UNIFORM_TABLES = "trace/shading_tables_uniform.wgsl"
 # Records per table in UNIFORM_TABLES (its array sizes): 16 KiB of materials, 40 KiB of emitters.
 UNIFORM_TABLE_CAPACITY = {"materials": 256, "emitters": 512}
 
@@ -35,7 +53,7 @@ class BufferPlacement:
     """Which tables the kernel reads from uniform buffers rather than storage buffers (cheaper reads at
     per-invocation indices on lavapipe, but of fixed capacity): the material and emitter tables
     (``tables``, UNIFORM_TABLE_CAPACITY) and the BVH nodes and triangle positions (``geometry``,
-    wgpu_rt.scene.geometry.UNIFORM_GEOMETRY_BYTES)."""
+    wgpu_rt.accel.geometry.UNIFORM_GEOMETRY_BYTES)."""
 
     tables: bool = False
     geometry: bool = False
@@ -43,7 +61,7 @@ class BufferPlacement:
 
 def trace_kernel_source(ctx, traversal: str | None = None, placement: BufferPlacement = BufferPlacement()) -> str:
     """The kernel with the traversal module ``traversal`` (default: the one that suits ``ctx``'s
-    adapter, wgpu_rt.scene.geometry.traversal_module) and the buffer ``placement``."""
+    adapter, wgpu_rt.accel.geometry.traversal_module) and the buffer ``placement``."""
     replacements = {}
     if placement.tables:
         replacements[STORAGE_TABLES] = UNIFORM_TABLES
@@ -120,7 +138,7 @@ class TracePass(ComputePass):
                  chunk_size: int | None = None, traversal: str | None = None,
                  placement: BufferPlacement | None = None):
         """``traversal``: the BVH traversal module (tests and benchmarks compare them; default: the
-        adapter's, wgpu_rt.scene.geometry.traversal_module). ``placement``: which tables live in
+        adapter's, wgpu_rt.accel.geometry.traversal_module). ``placement``: which tables live in
         uniform buffers (default: each that fits)."""
         if max_depth < 1:
             raise ValueError(f"max_depth must be at least 1, got {max_depth}")
@@ -140,7 +158,7 @@ class TracePass(ComputePass):
         # Enough samples per dispatch to keep the device busy and the tail short (a subgroup runs until
         # its last invocation has traced its last path: ~11% idle turns at 16 samples, 15% at 8 on
         # cornell); few enough to stay around a second on lavapipe and well within the kernel's
-        # LOOP_BUDGET (wgsl/trace.wgsl) on scenes with long paths.
+        # LOOP_BUDGET (wgsl/trace/trace.wgsl) on scenes with long paths.
         self.chunk_size = chunk_size or max(1, min(16, (1 << 20) // (width * height)))
         self.schedule = SampleSchedule()
 

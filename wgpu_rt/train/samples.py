@@ -128,7 +128,7 @@ class OnnxDenoiser:
         self.session = onnxruntime.InferenceSession(str(self.path), options, providers=["CPUExecutionProvider"])
 
     def __call__(self, render: dict) -> np.ndarray:
-        from ..commands.denoise import denoise
+        from ..frame.denoise import denoise
 
         run = lambda x: self.session.run(None, {"input": x})[0]  # noqa: E731
         return denoise(run, render["color"], render["albedo"], render["normal"], render["depth"])

@@ -7,7 +7,7 @@
   exact motion vectors of frame t+1, disagrees with gold frame t+1 (disocclusion, lighting change), or
   the pixel came from outside the previous frame.
 - ``runtime_history``: what the confidence model is shown at runtime: the temporal pass's reprojection
-  (frame/temporal.py's reference of frame_temporal.wgsl: bilinear, only texels passing the depth/normal
+  (frame/temporal.py's reference of frame/temporal.wgsl: bilinear, only texels passing the depth/normal
   tests, zero where none does) of frame t, so training and evaluation see the runtime's input.
 """
 

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import WgpuRtError
+from ..frame.denoise import pad_to_multiple
 from .samples import Augmentation, curriculum_spp, samples_for
 
 MODEL_FILES = {"denoiser": "denoiser", "error-predictor": "error_predictor", "confidence": "confidence"}
@@ -61,7 +62,7 @@ class TrainConfig:
 
 
 def build_model(config: TrainConfig):
-    from ..networks import ConfidencePredictor, ErrorPredictor, UNet
+    from .networks import ConfidencePredictor, ErrorPredictor, UNet
 
     if config.task == "denoiser":
         return UNet(widths=tuple(config.widths), residual=config.residual)
@@ -98,12 +99,6 @@ def confidence_aucs(confidence, mask, tested) -> dict[str, float]:
     invalid = 1.0 - np.asarray(confidence)
     return {"roc_auc": roc_auc(invalid, mask), "roc_auc_tested": roc_auc(invalid[tested], mask[tested]),
             "roc_auc_stage": roc_auc(np.where(tested, invalid, 1.0), mask)}
-
-
-def pad_to_multiple(x: np.ndarray, multiple: int) -> np.ndarray:
-    """Edge-pad a (N, C, H, W) array so H and W are multiples of ``multiple`` (crop the output back)."""
-    pad_h, pad_w = (-x.shape[2]) % multiple, (-x.shape[3]) % multiple
-    return np.pad(x, ((0, 0), (0, 0), (0, pad_h), (0, pad_w)), mode="edge") if pad_h or pad_w else x
 
 
 class Trainer:
@@ -318,7 +313,7 @@ class Trainer:
     # -- export ------------------------------------------------------------------------------------
     def export(self) -> tuple[Path, Path]:
         """``OUT/<name>.onnx`` and its model card ``OUT/<name>.md``."""
-        from ..networks import export_onnx
+        from .networks import export_onnx
 
         out = Path(self.config.out)
         onnx_path = export_onnx(self.model, out / f"{self.config.model_name}.onnx")

@@ -3,8 +3,8 @@
 // GGX microfacet BRDF sampled through its visible normals (weight F·G1(wo), as Mitsuba's
 // roughconductor).
 
-// #import material.wgsl
-// #import microfacet.wgsl
+// #import trace/material.wgsl
+// #import trace/microfacet.wgsl
 
 fn fresnel_conductor(cos_i: f32, eta: vec3f, k: vec3f) -> vec3f {
     let c2 = cos_i * cos_i;

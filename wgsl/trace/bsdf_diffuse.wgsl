@@ -1,7 +1,7 @@
 // Lambertian reflection, sampled by the cosine-weighted hemisphere (so the weight is the albedo).
 
-// #import material.wgsl
-// #import sampling.wgsl
+// #import trace/material.wgsl
+// #import trace/sampling.wgsl
 
 fn diffuse_eval(m: Material, wi: vec3f, wo: vec3f) -> BsdfEval {
     if wi.z <= 0.0 || wo.z <= 0.0 {

@@ -4,9 +4,9 @@
 // directional light, a uniform direction for the constant background. Also the solid-angle pdf of
 // having sampled a triangle that a BSDF-sampled ray hit, for multiple importance sampling.
 
-// #import features.wgsl
-// #import trace_bindings.wgsl
-// #import sampling.wgsl
+// #import trace/features.wgsl
+// #import trace/trace_bindings.wgsl
+// #import trace/sampling.wgsl
 
 struct EmitterSample {
     direction: vec3f,

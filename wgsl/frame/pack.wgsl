@@ -1,22 +1,22 @@
 // Packing the tracer's planes into the networks' planar NCHW f32 inputs, one invocation per pixel.
 // Colours go to log space (log1p of the sanitised radiance: NaN/Inf → 0, negatives → 0) so that HDR
 // values up to f16's 65504 land near 11 and the FP16 network path keeps precision; the denoiser's colour
-// is first demodulated by albedo (frame_albedo.wgsl: it sees irradiance); albedo is clamped
+// is first demodulated by albedo (frame/albedo.wgsl: it sees irradiance); albedo is clamped
 // to [0, 1], normals are mapped by n·0.5 + 0.5, and depth is divided by the frame's max depth (read as
-// the bit pattern written by frame_depth_max.wgsl; a frame with no hit packs depth 0).
+// the bit pattern written by frame/depth_max.wgsl; a frame with no hit packs depth 0).
 //   pack_denoiser:   10 ch = log1p RGB/albedo factor, albedo, normal·0.5+0.5, depth/max
 //   pack_error:       3 ch = log1p RGB                                     (error predictor)
 //   pack_confidence:  8 ch = log1p RGB, log1p reprojected history RGB, depth/max,
 //                            reprojected previous depth/max               (confidence predictor)
-// #import frame_common.wgsl
-// #import frame_albedo.wgsl
+// #import frame/common.wgsl
+// #import frame/albedo.wgsl
 
 @group(0) @binding(0) var<storage, read> color: array<f32>;
 @group(0) @binding(1) var<storage, read> albedo: array<f32>;
 @group(0) @binding(2) var<storage, read> normal: array<f32>;
 @group(0) @binding(3) var<storage, read> depth: array<f32>;
 @group(0) @binding(4) var<storage, read> depth_max_bits: u32;
-@group(0) @binding(5) var<storage, read> reprojected: array<f32>;   // frame_temporal.wgsl's 5 planes
+@group(0) @binding(5) var<storage, read> reprojected: array<f32>;   // frame/temporal.wgsl's 5 planes
 @group(0) @binding(6) var<storage, read_write> packed: array<f32>;
 
 fn log_color(channel: u32, i: u32) -> f32 {

@@ -1,7 +1,7 @@
 // The shading tables' record types (materials and emitters), as packed by wgpu_rt/trace/scene_data.py.
-// Where the tables live is up to shading_tables_storage.wgsl or shading_tables_uniform.wgsl.
+// Where the tables live is up to trace/shading_tables_storage.wgsl or trace/shading_tables_uniform.wgsl.
 
-// #import material.wgsl
+// #import trace/material.wgsl
 
 const EMITTER_TRIANGLE: u32 = 0u;
 const EMITTER_POINT: u32 = 1u;

@@ -2,10 +2,10 @@
 // behind the HAS_DIELECTRIC / HAS_CONDUCTOR switches, so a specialized kernel contains only the
 // models its scene uses.
 
-// #import features.wgsl
-// #import bsdf_diffuse.wgsl
-// #import bsdf_conductor.wgsl
-// #import bsdf_dielectric.wgsl
+// #import trace/features.wgsl
+// #import trace/bsdf_diffuse.wgsl
+// #import trace/bsdf_conductor.wgsl
+// #import trace/bsdf_dielectric.wgsl
 
 fn bsdf_eval(m: Material, wi: vec3f, wo: vec3f) -> BsdfEval {
     if HAS_CONDUCTOR && m.kind == MATERIAL_CONDUCTOR {

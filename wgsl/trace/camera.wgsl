@@ -2,7 +2,7 @@
 // (the sample is uniform over the pixel, as Mitsuba's box rfilter), and a world point (or, for
 // a ray that escaped, a direction) back to the previous frame's film for motion vectors.
 
-// #import trace_bindings.wgsl
+// #import trace/trace_bindings.wgsl
 
 fn camera_ray_direction(film: vec2f) -> vec3f {
     let ndc = vec2f(2.0 * film.x / f32(params.width) - 1.0, 1.0 - 2.0 * film.y / f32(params.height));

@@ -1,9 +1,9 @@
 """GeometryBuffers: a Scene at one frame as world-space triangles in BVH order (bind group 0).
 
-See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/geometry_bindings.wgsl:
+See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/accel/geometry_bindings.wgsl:
 
 0. ``bvh_nodes``: the BVH's 32-byte threaded nodes, one depth-first copy per direction octant
-   (``wgpu_rt.bvh.ordered_threaded_nodes``).
+   (``wgpu_rt.accel.bvh.ordered_threaded_nodes``).
 1. ``tri_positions``: three vec4f per triangle (xyz = world vertex, w = 0).
 2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, pad}`` (48 bytes): the three
    world-space shading normals (the mesh's vertex normals, else its face normal) and the ids.
@@ -18,10 +18,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import shaders
-from ..bvh import ORDERINGS, THREADED_NODE_DTYPE, Bvh, build_bvh, ordered_threaded_nodes
+from .bvh import ORDERINGS, THREADED_NODE_DTYPE, Bvh, build_bvh, ordered_threaded_nodes
 from ..errors import SceneError
-from .model import Scene
-from .transforms import transform_normals, transform_points
+from ..scene.model import Scene
+from ..scene.transforms import transform_normals, transform_points
 
 
 def scene_material_names(scene: Scene) -> list[str]:
@@ -86,7 +86,7 @@ class GeometryBuffers:
         return ORDERINGS if ORDERINGS * node_bytes <= limit else 1
 
     def packed_arrays(self, orderings: int = ORDERINGS) -> list[np.ndarray]:
-        """The four arrays of bind group 0, laid out byte for byte as wgsl/bvh.wgsl reads them."""
+        """The four arrays of bind group 0, laid out byte for byte as wgsl/accel/bvh.wgsl reads them."""
         count = self.triangle_count
         positions = np.zeros((count, 3, 4), np.float32)
         positions[..., :3] = self.triangles
@@ -120,22 +120,22 @@ class GeometryBuffers:
         return [ctx.uniform(data, label=label) for data, label in zip(words, labels[:2])] + buffers
 
 
-# geometry_bindings.wgsl imports GEOMETRY_WORDS (storage); kernels whose geometry fits may swap in
+# accel/geometry_bindings.wgsl imports GEOMETRY_WORDS (storage); kernels whose geometry fits may swap in
 # UNIFORM_GEOMETRY_WORDS (uniform buffers of UNIFORM_GEOMETRY_BYTES each, its array sizes).
-GEOMETRY_WORDS = "geometry_words.wgsl"
-UNIFORM_GEOMETRY_WORDS = "geometry_words_uniform.wgsl"
+GEOMETRY_WORDS = "accel/geometry_words.wgsl"
+UNIFORM_GEOMETRY_WORDS = "accel/geometry_words_uniform.wgsl"
 UNIFORM_GEOMETRY_BYTES = 65536
 POSITION_BYTES = 48      # three vec4f per triangle
 
-# The kernels import traversal_lanes.wgsl; traversal_module() may swap in this one.
-LANES_TRAVERSAL = "traversal_lanes.wgsl"
-SUBGROUP_TRAVERSAL = "traversal_subgroup.wgsl"
-MIN_PACKET_LANES = 8     # traversal_subgroup.wgsl fetches 8-word records, one word per lane
+# The kernels import accel/traversal_lanes.wgsl; traversal_module() may swap in this one.
+LANES_TRAVERSAL = "accel/traversal_lanes.wgsl"
+SUBGROUP_TRAVERSAL = "accel/traversal_subgroup.wgsl"
+MIN_PACKET_LANES = 8     # accel/traversal_subgroup.wgsl fetches 8-word records, one word per lane
 
 def traversal_module(ctx) -> str:
     """The traversal module for ``ctx``'s adapter: subgroup packets on a CPU adapter whose subgroups
     have at least MIN_PACKET_LANES lanes numbered along local_invocation_index of a 1-D workgroup of 64
-    (GpuContext.subgroup_sizes), where shared fetches pay off (see wgsl/traversal_subgroup.wgsl); else
+    (GpuContext.subgroup_sizes), where shared fetches pay off (see wgsl/accel/traversal_subgroup.wgsl); else
     per-lane traversal. Kernels that traverse use 1-D workgroups of 64 invocations."""
     sizes = ctx.subgroup_sizes
     if (sizes is not None and ctx.adapter.info.get("adapter_type") == "CPU"
@@ -145,7 +145,7 @@ def traversal_module(ctx) -> str:
 
 
 def compose_with_traversal(ctx, kernel: str, module: str | None = None, replacements: dict | None = None) -> str:
-    """WGSL of ``kernel`` (which imports bvh.wgsl) with ``module`` (default: traversal_module(ctx)) and
+    """WGSL of ``kernel`` (which imports accel/bvh.wgsl) with ``module`` (default: traversal_module(ctx)) and
     any further module ``replacements`` (shaders.compose)."""
     return shaders.compose(kernel, replacements={**(replacements or {}),
                                                  LANES_TRAVERSAL: module or traversal_module(ctx)})

@@ -1,4 +1,4 @@
-// The BVH nodes and triangle positions of bind group 0 (wgsl/geometry_bindings.wgsl) as uniform
+// The BVH nodes and triangle positions of bind group 0 (wgsl/accel/geometry_bindings.wgsl) as uniform
 // buffers of 64 KiB each (2048 nodes, 1365 triangles; wgpu_rt.scene.geometry.UNIFORM_GEOMETRY_BYTES),
 // zero-padded. Uniform arrays need 16-byte elements, so a word is a component of a vec4.
 // Why: on lavapipe a read at a per-invocation address costs a scalar loop over the SIMD lanes for

@@ -1,8 +1,8 @@
 // Traversal records fetched by each invocation for itself: every invocation walks the BVH on its own
 // (packet_any is the identity). The portable choice, and the right one where divergent memory reads
-// are cheap (GPUs); traversal_subgroup.wgsl replaces this module on CPU drivers.
+// are cheap (GPUs); accel/traversal_subgroup.wgsl replaces this module on CPU drivers.
 
-// #import geometry_bindings.wgsl
+// #import accel/geometry_bindings.wgsl
 
 fn begin_traversal(local_index: u32) {}
 

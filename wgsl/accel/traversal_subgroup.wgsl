@@ -10,7 +10,7 @@
 // lane = local_invocation_index mod subgroup size, and every invocation of a subgroup calls the
 // traversal together (callers keep finished invocations in their loops instead of returning).
 
-// #import geometry_bindings.wgsl
+// #import accel/geometry_bindings.wgsl
 
 var<private> traversal_lane: u32;
 

@@ -3,7 +3,7 @@
 // invocation folds the tile's maximum into a single u32 with atomicMax: for non-negative floats the
 // IEEE-754 bit pattern orders like the value, so the u32 maximum is the float maximum. The caller
 // clears `depth_max_bits` to 0 (= 0.0) before the dispatch.
-// #import frame_common.wgsl
+// #import frame/common.wgsl
 
 @group(0) @binding(0) var<storage, read> depth: array<f32>;
 @group(0) @binding(1) var<storage, read_write> depth_max_bits: atomic<u32>;

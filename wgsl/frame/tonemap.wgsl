@@ -4,7 +4,7 @@
 // saturate), encode with the sRGB OETF when SRGB, then write either one packed RGBA8 u32 per pixel
 // (to_rgba8: pack4x8unorm rounds to nearest, alpha 255) or four planar f32 planes RGBA (to_rgba32f; the
 // values are not clamped when OPERATOR is 0 and SRGB is off, so linear HDR survives for EXR output).
-// #import frame_common.wgsl
+// #import frame/common.wgsl
 
 override OPERATOR: u32 = 0u;
 override EXPOSURE: f32 = 0.0;

@@ -4,8 +4,8 @@
 // GGX microfacet BSDF with the visible normals of the incident side sampled, as Mitsuba's
 // roughdielectric (weight G1(wo), times 1/eta² for transmission).
 
-// #import material.wgsl
-// #import microfacet.wgsl
+// #import trace/material.wgsl
+// #import trace/microfacet.wgsl
 
 struct Fresnel {
     reflectance: f32,

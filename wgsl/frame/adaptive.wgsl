@@ -33,7 +33,7 @@
 //     pixel is capped, pays for no spill round at all.
 //   half_buffer_error: Cycles' estimate from the mean of all samples I and of the first half A:
 //                     Σ|I − A| / (1e-4 + sqrt(ΣI)) (the variance-based baseline's importance).
-// #import frame_common.wgsl
+// #import frame/common.wgsl
 
 override K: f32 = 3.0;
 override EVENLY_SPREAD: f32 = 0.0;

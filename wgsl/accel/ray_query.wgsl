@@ -1,9 +1,9 @@
 // Batch ray queries for tests and benchmarks: one invocation per ray runs scene_intersect (entry
-// `intersect`, which also reports the surface attributes at the hit through the bvh.wgsl helpers) or
+// `intersect`, which also reports the surface attributes at the hit through the accel/bvh.wgsl helpers) or
 // scene_occluded (entry `occluded`). A ray with `offset` set starts at offset_ray_origin(origin,
 // normal, dir), as a path tracer spawns rays from a surface. Invocations past the last ray trace the
-// last ray again without writing it: a subgroup traverses together (traversal_subgroup.wgsl).
-// #import bvh.wgsl
+// last ray again without writing it: a subgroup traverses together (accel/traversal_subgroup.wgsl).
+// #import accel/bvh.wgsl
 
 struct QueryRay { origin: vec3f, t_max: f32, dir: vec3f, offset: u32, normal: vec3f, _pad: u32 }
 struct HitSurface {

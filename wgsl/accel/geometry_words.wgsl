@@ -1,4 +1,4 @@
-// The BVH nodes and triangle positions of bind group 0 (wgsl/geometry_bindings.wgsl) as storage
+// The BVH nodes and triangle positions of bind group 0 (wgsl/accel/geometry_bindings.wgsl) as storage
 // buffers of 32-bit words: any size.
 
 @group(0) @binding(0) var<storage, read> bvh_nodes: array<u32>;       // NODE_WORDS per node

@@ -20,7 +20,7 @@
 //               denoiser's error (a bias that stays as n grows) equals that of CONVERGE_SPP samples,
 //               while the mean's variance falls as 1/n. The result replaces the history (length 1).
 // Every path writes the output plane and the new history; NaN/Inf in the current frame count as 0.
-// #import frame_common.wgsl
+// #import frame/common.wgsl
 
 override CLAMP_MODE: u32 = 2u;
 override GAMMA: f32 = 1.0;

@@ -1,10 +1,10 @@
 // Bind group 0: the scene's geometry as wgpu_rt/scene/geometry.py lays it out, and the records the
-// two traversal modules (traversal_lanes.wgsl, traversal_subgroup.wgsl) fetch from it for bvh.wgsl.
+// two traversal modules (accel/traversal_lanes.wgsl, accel/traversal_subgroup.wgsl) fetch from it for accel/bvh.wgsl.
 // Buffers are read as flat 32-bit words so that a subgroup can fetch one record cooperatively; the
-// nodes and triangle positions through bvh_word / position_word of geometry_words.wgsl (storage
-// buffers), which wgpu_rt.scene.geometry swaps for geometry_words_uniform.wgsl when they fit.
+// nodes and triangle positions through bvh_word / position_word of accel/geometry_words.wgsl (storage
+// buffers), which wgpu_rt.scene.geometry swaps for accel/geometry_words_uniform.wgsl when they fit.
 
-// #import geometry_words.wgsl
+// #import accel/geometry_words.wgsl
 
 const NODE_WORDS: u32 = 8u;        // wgpu_rt.bvh.THREADED_NODE_DTYPE
 const TRIANGLE_WORDS: u32 = 12u;   // three (x, y, z, unused) vertices

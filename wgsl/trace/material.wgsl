@@ -2,7 +2,7 @@
 // dielectric), as packed by wgpu_rt.trace.scene_data. Roughness is the GGX alpha; below
 // DELTA_ROUGHNESS a lobe is treated as perfectly specular (a Dirac delta).
 
-// #import features.wgsl
+// #import trace/features.wgsl
 
 const MATERIAL_DIFFUSE: u32 = 0u;
 const MATERIAL_CONDUCTOR: u32 = 1u;

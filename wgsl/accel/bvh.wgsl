@@ -1,4 +1,4 @@
-// Ray queries against the scene geometry (bind group 0, wgsl/geometry_bindings.wgsl).
+// Ray queries against the scene geometry (bind group 0, wgsl/accel/geometry_bindings.wgsl).
 //
 // Traversal: a threaded binary BVH (wgpu_rt/bvh.py: nodes in depth-first order, each with the index
 // just past its subtree), walked without a stack: enter a node whose box the ray meets (test the
@@ -8,8 +8,8 @@
 // mostly finds the closest hit early and culls more with it (a hit is final only at the end).
 // trace_ray_pair walks two rays at once, a closest-hit ray and a shadow ray (any hit), so a path
 // tracer fetches each node once for both; the fetches, the octant and the "any ray enters" test come
-// from traversal_lanes.wgsl (each invocation alone) or, swapped in on CPU drivers,
-// traversal_subgroup.wgsl (a subgroup as one packet). On lavapipe this replaced a per-lane
+// from accel/traversal_lanes.wgsl (each invocation alone) or, swapped in on CPU drivers,
+// accel/traversal_subgroup.wgsl (a subgroup as one packet). On lavapipe this replaced a per-lane
 // walk with a 32-entry private stack, ordered by child distance: 3.5× the path-tracing throughput.
 // Boxes: slab test with precomputed 1/dir and origin/dir, and a far-plane slack that keeps grazing
 // hits conservative. Triangles use the watertight test of Woop, Benthin and Wald (JCGT 2013): the ray
@@ -19,8 +19,8 @@
 // rather than by permuting vector components, which keeps the per-triangle code free of dynamic
 // indexing. Both tests are branch-free: on SIMD drivers every branch body runs anyway.
 
-// #import geometry_bindings.wgsl
-// #import traversal_lanes.wgsl
+// #import accel/geometry_bindings.wgsl
+// #import accel/traversal_lanes.wgsl
 
 const NO_HIT: u32 = 0xffffffffu;
 const BVH_TINY_DIR: f32 = 1e-20;     // direction components below this are treated as this (no 1/0)
@@ -101,7 +101,7 @@ fn triangle_normal(p: TrianglePositions) -> vec3f {
 }
 
 // geometric_normal: tri_geometric_normal(hit.prim), from the vertices the walk already fetched.
-// loop_passes: how many times the walk's loops went round (see LOOP_BUDGET in trace.wgsl).
+// loop_passes: how many times the walk's loops went round (see LOOP_BUDGET in trace/trace.wgsl).
 struct RayPairHit { hit: Hit, occluded: bool, geometric_normal: vec3f, loop_passes: u32 }
 
 // The closest hit of (origin, dir) in (0, t_max) (t_max = 0: no such ray) and whether anything lies

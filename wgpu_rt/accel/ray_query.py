@@ -1,4 +1,4 @@
-"""RayQuery: batches of rays against GeometryBuffers on the GPU (wgsl/ray_query.wgsl).
+"""RayQuery: batches of rays against GeometryBuffers on the GPU (wgsl/accel/ray_query.wgsl).
 
 Tests use it to check BVH traversal against brute force, benchmarks to time traversal. Bindings:
 group 0 is the geometry (GeometryBuffers.upload); group 1 is ``rays`` (48-byte QueryRay), ``hits``
@@ -33,13 +33,13 @@ def query_rays(origins, dirs, t_max=np.inf, offset_normals=None) -> np.ndarray:
 
 
 class RayQuery:
-    """The two entry points of ray_query.wgsl, bound to one scene's uploaded geometry."""
+    """The two entry points of accel/ray_query.wgsl, bound to one scene's uploaded geometry."""
 
     def __init__(self, ctx, geometry, traversal: str | None = None):
         """``traversal``: the traversal module (default: geometry.traversal_module(ctx))."""
         self.ctx = ctx
         self.geometry_buffers = geometry.upload(ctx)
-        code = compose_with_traversal(ctx, "ray_query.wgsl", traversal)
+        code = compose_with_traversal(ctx, "accel/ray_query.wgsl", traversal)
         self.pipelines = {entry: ctx.compute_pipeline(code, entry, label=f"ray_query.{entry}")
                           for entry in ("intersect", "occluded")}
 

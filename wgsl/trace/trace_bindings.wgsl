@@ -2,7 +2,7 @@
 // kernel; layouts mirror wgpu_rt/trace/scene_data.py (FrameParams, Material, Emitter records).
 // Output planes are planar (channel-major): channel c of pixel i lives at c·pixel_count + i.
 
-// #import shading_tables_storage.wgsl
+// #import trace/shading_tables_storage.wgsl
 
 struct FrameParams {
     camera_origin: vec3f,

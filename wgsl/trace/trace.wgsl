@@ -17,12 +17,12 @@
 // the same turn. Invocations outside the image or done with their samples stay in the loop, idle,
 // until their whole subgroup is done: the subgroup traversal needs every invocation in the walk.
 
-// #import features.wgsl
-// #import trace_bindings.wgsl
-// #import bvh.wgsl
-// #import bsdf.wgsl
-// #import emitters.wgsl
-// #import camera.wgsl
+// #import trace/features.wgsl
+// #import trace/trace_bindings.wgsl
+// #import accel/bvh.wgsl
+// #import trace/bsdf.wgsl
+// #import trace/emitters.wgsl
+// #import trace/camera.wgsl
 
 const TILE: u32 = 8u;   // a workgroup is TILE × TILE pixels, == wgpu_rt.trace.trace_pass.TILE
 const RR_DEPTH: u32 = 5u;

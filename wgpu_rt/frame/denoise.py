@@ -1,0 +1,46 @@
+"""Loading the networks, and ``denoise()``: one image through the denoiser off the frame loop
+(pack → run → unpack), for the ``denoise`` command, training's validation, benchmarks and tests.
+
+The padding rule is the engine's: a network whose pooling needs H and W to be multiples of some size
+runs on a canvas padded up to them by repeating the last row and column (``nn_kernels/pack.wgsl``),
+and its output is cropped back. ``pad_to_multiple`` is the same rule in numpy, for running the network
+elsewhere (torch, onnxruntime) on the same input.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ModelError
+from ..models import network_named
+from .pack import pack_denoiser_input
+from .unpack import unpack_denoiser_output
+
+
+def load_model(name: str, precision: str = "fp32", models_dir=None, path=None, ctx=None, required: bool = True):
+    """A ``WgslModel`` of network ``name`` from ``path``, else from ``models_dir`` (default: the shipped
+    models). A missing file is a ModelError naming it, or None when not ``required``."""
+    network = network_named(name)
+    chosen = Path(path) if path else network.path(models_dir)
+    if not chosen.is_file():
+        if required:
+            hint = "" if path else f" (train one with `wgpu-rt train {network.cli_name}`)"
+            raise ModelError(f"{chosen}: no such model file{hint}")
+        return None
+    from ..nn import WgslModel
+
+    return WgslModel(chosen, precision, ctx=ctx)
+
+
+def denoise(model, color, albedo, normal, depth) -> np.ndarray:
+    """(H, W, 3) linear HDR colour + G-buffers → the denoised (H, W, 3) colour (finite, ≥ 0)."""
+    out = np.asarray(model(pack_denoiser_input(color, albedo, normal, depth)[None]), np.float32)[0]
+    return unpack_denoiser_output(out, albedo)
+
+
+def pad_to_multiple(x: np.ndarray, multiple: int) -> np.ndarray:
+    """The engine's canvas in numpy: edge-pad (N, C, H, W) so H and W are multiples of ``multiple``."""
+    pad_h, pad_w = (-x.shape[2]) % multiple, (-x.shape[3]) % multiple
+    return np.pad(x, ((0, 0), (0, 0), (0, pad_h), (0, pad_w)), mode="edge") if pad_h or pad_w else x
