@@ -75,6 +75,36 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
 
 
+def test_nan_and_inf_in_the_layers_are_zeroed_with_one_warning_each(gpu, tmp_path, capfd):
+    pytest.importorskip("wgpu_rt.nn")
+    import OpenEXR
+
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    layers["albedo"][:2, :3] = np.nan                  # 18 values
+    layers["normal"][0, 0, 1] = np.inf                 # 1 value
+    layers["depth"][5, :4] = np.inf                    # 4 values: what a miss can leave
+    channels = {f"{name}.{c}": np.ascontiguousarray(layers[name][..., i], np.float32)
+                for name, letters in (("albedo", "RGB"), ("normal", "XYZ"), ("depth", "Z"))
+                for i, c in enumerate(letters)}
+    channels.update({c: np.ascontiguousarray(color[..., i]) for i, c in enumerate("RGB")})
+    with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, channels) as exr:
+        exr.write(str(tmp_path / "in.exr"))     # write_exr refuses NaN, as it should for our own output
+    capfd.readouterr()
+    assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.exr"),
+                 "--model", str(model)]) == 0
+    warnings = capfd.readouterr().err.splitlines()
+    assert sorted(line.split(": ", 3)[-1] for line in warnings) == [
+        "layer 'albedo' holds 18 NaN/Inf values; treated as 0",
+        "layer 'depth' holds 4 NaN/Inf values; treated as 0",
+        "layer 'normal' holds 1 NaN/Inf values; treated as 0"]
+    written = read_exr(tmp_path / "out.exr")
+    assert all(np.isfinite(plane).all() for plane in written.values())
+    assert written["depth"][5, :4].tolist() == [[0.0]] * 4
+    np.testing.assert_array_equal(written["depth"][6:], layers["depth"][6:].astype(np.float32))
+
+
 def _residual_unet_with_a_nonzero_correction():
     net = UNet(widths=(8, 16), residual=True)
     torch.nn.init.normal_(net.head.weight, std=0.1)   # a zero head would hide the correction's path

@@ -1,3 +1,4 @@
+import os
 import subprocess
 import sys
 
@@ -52,3 +53,29 @@ def test_bad_adapter_flag_exits_nonzero(gpu):
     out = subprocess.run([sys.executable, "-m", "wgpu_rt", "--adapter", "nope", "info"],
                          capture_output=True, text=True)
     assert out.returncode == 2 and "no adapter matches 'nope'" in out.stderr
+
+
+def test_no_xdg_runtime_dir_noise_and_no_folder_left(gpu, tmp_path):
+    # libwayland, probed while enumerating adapters, prints an "error:" line per probe without it.
+    env = {k: v for k, v in os.environ.items() if k != "XDG_RUNTIME_DIR"}
+    env["TMPDIR"] = str(tmp_path)
+    out = subprocess.run([sys.executable, "-m", "wgpu_rt", "info"], capture_output=True, text=True, env=env,
+                         check=False)
+    assert out.returncode == 0 and out.stderr == ""
+    assert list(tmp_path.iterdir()) == []     # the private runtime folder went with the process
+
+
+@pytest.mark.parametrize("value", [None, "", "relative/dir", "/no/such/folder"])
+def test_runtime_dir_is_made_private_only_when_invalid(value, monkeypatch, tmp_path):
+    from wgpu_rt.gpu import ensure_runtime_dir
+
+    if value is None:
+        monkeypatch.delenv("XDG_RUNTIME_DIR", raising=False)
+    else:
+        monkeypatch.setenv("XDG_RUNTIME_DIR", value)
+    ensure_runtime_dir()
+    made = os.environ["XDG_RUNTIME_DIR"]
+    assert os.path.isabs(made) and os.stat(made).st_mode & 0o777 == 0o700
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+    ensure_runtime_dir()
+    assert os.environ["XDG_RUNTIME_DIR"] == str(tmp_path)

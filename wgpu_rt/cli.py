@@ -2,7 +2,8 @@
 
 Each subcommand is a module of ``wgpu_rt.commands`` with ``HELP`` (one line), ``add_arguments(parser)``
 and ``run(args) -> int``; modules import their heavy dependencies inside ``run`` so that ``--help``
-stays fast. Errors a user can cause (``WgpuRtError``) print one line and exit 2.
+stays fast. Errors a user can cause (``WgpuRtError``, or an ``OSError`` about a named path) print one
+line and exit 2.
 """
 
 from __future__ import annotations
@@ -42,6 +43,13 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.run(args) or 0)
     except WgpuRtError as err:
         print(f"wgpu-rt {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except OSError as err:
+        # A path the user named that the system refused (permission, full disk, a folder in the way),
+        # found only while writing; an OSError without a file name is a bug and keeps its traceback.
+        if err.filename is None:
+            raise
+        print(f"wgpu-rt {args.command}: error: {err.filename}: {err.strerror}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"wgpu-rt {args.command}: interrupted", file=sys.stderr)

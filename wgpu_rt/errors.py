@@ -28,3 +28,7 @@ class DeviceLimitError(WgpuRtError):
 
 class ImageError(WgpuRtError):
     """An image file is missing, unreadable, or lacks a layer that is needed."""
+
+
+class OutputError(WgpuRtError):
+    """An output path cannot be written: a folder, inside a file, read-only, or the wrong kind of file."""

@@ -8,7 +8,10 @@ case-insensitive substring of its name or backend.
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
+import tempfile
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -37,8 +40,23 @@ def adapter_label(adapter) -> str:
     return adapter.summary
 
 
+def ensure_runtime_dir() -> None:
+    """Point $XDG_RUNTIME_DIR at a private empty folder when it is unset or not an absolute path to a
+    folder (containers, CI, ssh without a login session). Enumerating adapters probes for a Wayland
+    display through EGL, and libwayland prints "error: XDG_RUNTIME_DIR is invalid or not set in the
+    environment." on every probe otherwise: an "error" a user would read as ours. In an empty folder it
+    finds no display and stays quiet."""
+    runtime_dir = os.environ.get("XDG_RUNTIME_DIR", "")
+    if os.path.isabs(runtime_dir) and os.path.isdir(runtime_dir):
+        return
+    private = tempfile.mkdtemp(prefix="wgpu-rt-runtime-")   # mode 0700, as the XDG spec asks
+    atexit.register(shutil.rmtree, private, ignore_errors=True)
+    os.environ["XDG_RUNTIME_DIR"] = private
+
+
 def list_adapters() -> list:
     """All adapters wgpu can see, best first (see module docstring for the ranking)."""
+    ensure_runtime_dir()
     adapters = wgpu.gpu.enumerate_adapters_sync()
 
     def rank(adapter):

@@ -11,18 +11,29 @@ EXR channel names (what our renderer writes and our denoiser reads):
 | motion | ``motion.X/Y``                  | pixels to the previous frame's position          |
 | spp    | ``spp.Y``                       | samples taken in the pixel                       |
 
-Any other layer ``name`` with C channels is written as ``name.0`` … ``name.{C-1}``. Writes are atomic
-(a temporary file renamed into place), so an interrupted run never leaves a half-written image.
+Any other layer ``name`` with C channels is written as ``name.0`` … ``name.{C-1}``.
+
+Every file wgpu-rt writes goes through ``atomic_output`` (a temporary file renamed into place), so an
+interrupted run never leaves a half-written file, and every output path a user names is checked by
+``check_output_path`` before any work starts.
 """
 
 from __future__ import annotations
 
+import contextlib
+import functools
+import io
+import json
 import os
+import sys
+import tempfile
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 
-from .errors import ImageError
+from .errors import ImageError, OutputError
 
 LAYER_CHANNELS = {"color": "RGB", "albedo": "RGB", "normal": "XYZ", "depth": "Z", "motion": "XY",
                   "spp": "Y"}
@@ -47,9 +58,51 @@ def _as_hwc(name: str, array: np.ndarray, shape: tuple[int, int] | None) -> np.n
     return array
 
 
-def _atomic_target(path: Path) -> Path:
+@contextlib.contextmanager
+def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` (its folders created) to write to; on success it replaces
+    ``path``, on any failure (KeyboardInterrupt included) it is removed and ``path`` is left as it was.
+
+    The temporary name ends in ``.tmp`` so that no glob for the real suffix picks up one left by a
+    SIGKILL. An OSError about the temporary file, or about no file (a full disk), is re-raised naming
+    ``path``, the name the user knows, so that the CLI can report it in one line."""
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    return path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    except OSError as err:
+        if err.filename is None or os.fsdecode(err.filename) == str(tmp):
+            raise OSError(err.errno, err.strerror or str(err), str(path)) from err
+        raise
+    finally:
+        if tmp.exists():   # not unlink(missing_ok=True): a read-only file system refuses even that
+            tmp.unlink()
+
+
+def check_output_path(path: str | os.PathLike, flag: str, suffixes: tuple[str, ...] | None = None) -> Path:
+    """``path`` if a file can be written there, else an OutputError naming ``flag`` and ``path``: called
+    before any work, so that a bad output path costs a second, not a finished render. Refused: a
+    suffix not in ``suffixes`` (compared lower-case), an existing folder, a file where a folder must
+    be, and a folder nothing can be created in (tried for real: root ignores permission bits but not
+    a read-only mount, and ``os.access`` cannot see every such case)."""
+    path = Path(path)
+    if suffixes is not None and path.suffix.lower() not in suffixes:
+        raise OutputError(f"{flag} {path}: the output must end in {' or '.join(suffixes)}")
+    if path.is_dir():
+        raise OutputError(f"{flag} {path}: is a folder; name a file")
+    folder = path.parent
+    while not folder.exists():   # the folders atomic_output will create; the first existing one decides
+        folder = folder.parent
+    if not folder.is_dir():
+        raise OutputError(f"{flag} {path}: {folder} is a file, not a folder")
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as err:
+        raise OutputError(f"{flag} {path}: cannot write in {folder} ({err.strerror})") from None
+    return path
 
 
 def write_exr(path: str | os.PathLike, color: np.ndarray, layers: dict | None = None,
@@ -66,13 +119,11 @@ def write_exr(path: str | os.PathLike, color: np.ndarray, layers: dict | None = 
             plane = np.ascontiguousarray(array[..., i])
             channels[channel] = plane.astype(np.float16) if half and name != "spp" else plane
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    tmp = _atomic_target(path)
-    try:
-        with OpenEXR.File(header, channels) as exr:
+    with atomic_output(path) as tmp, OpenEXR.File(header, channels) as exr:
+        try:
             exr.write(str(tmp))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+        except RuntimeError as err:   # how OpenEXR reports a failed write (no permission, a full disk)
+            raise OutputError(f"{path}: cannot write ({str(err).replace(str(tmp), str(path))})") from None
 
 
 def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
@@ -85,11 +136,15 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise ImageError(f"{path}: no such file")
+    printed: list[str] = []
     try:
-        with OpenEXR.File(str(path), separate_channels=True) as exr:
+        with _library_output_captured(printed), OpenEXR.File(str(path), separate_channels=True) as exr:
             planes = {name: np.asarray(ch.pixels, dtype=np.float32) for name, ch in exr.channels().items()}
     except Exception as err:  # OpenEXR raises bare exceptions on corrupt files
-        raise ImageError(f"{path}: not a readable OpenEXR file ({err})") from None
+        # Its own first diagnostic names the damage ("Invalid chunk size …"); on a truncated file the
+        # exception only says "file has 0 parts".
+        reason = printed[0].removeprefix(f"{path}: ") if printed else str(err)
+        raise ImageError(f"{path}: not a readable OpenEXR file ({reason})") from None
     groups: dict[str, dict[str, np.ndarray]] = {}
     for name, plane in planes.items():
         layer, _, suffix = name.rpartition(".")
@@ -121,9 +176,51 @@ def write_png(path: str | os.PathLike, display: np.ndarray) -> None:
     path = Path(path)
     display = np.nan_to_num(np.asarray(display, dtype=np.float32), nan=0.0, posinf=1.0, neginf=0.0)
     pixels = (np.clip(display, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-    tmp = _atomic_target(path)
-    try:
+    with atomic_output(path) as tmp:
         Image.fromarray(pixels).save(tmp, format="PNG")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+
+
+def write_json(path: str | os.PathLike, payload) -> None:
+    """Write ``payload`` as indented JSON, atomically."""
+    with atomic_output(path) as tmp:
+        tmp.write_text(json.dumps(payload, indent=1))
+
+
+_CAPTURE_LOCK = threading.Lock()   # the descriptors are the process's: two threads must not swap them
+
+
+@functools.cache
+def _capture_file(pid: int):
+    """One temporary file per process (a forked child gets its own) to catch C output in: making one
+    per read would cost more than reading a small EXR."""
+    return tempfile.TemporaryFile()
+
+
+@contextlib.contextmanager
+def _library_output_captured(lines: list[str]) -> Iterator[None]:
+    """Catch what a library prints while it runs, and append those lines to ``lines`` on exit: OpenEXR
+    prints its own lines about a corrupt file ahead of our one-line error, from C (to file descriptors
+    1 and 2) and through Python's ``sys.stdout`` (which need not be descriptor 1, as under pytest)."""
+    import ctypes
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    python_output = io.StringIO()
+    with _CAPTURE_LOCK:
+        sink = _capture_file(os.getpid())
+        sink.seek(0)
+        sink.truncate()
+        saved = {fd: os.dup(fd) for fd in (1, 2)}
+        try:
+            for fd in saved:
+                os.dup2(sink.fileno(), fd)
+            with contextlib.redirect_stdout(python_output), contextlib.redirect_stderr(python_output):
+                yield
+        finally:
+            ctypes.CDLL(None).fflush(None)   # C++ iostreams sit in C stdio buffers: flush them into the sink
+            for fd, copy in saved.items():
+                os.dup2(copy, fd)
+                os.close(copy)
+            sink.seek(0)
+            printed = sink.read().decode(errors="replace") + python_output.getvalue()
+            lines.extend(line for line in printed.splitlines() if line.strip())

@@ -20,14 +20,33 @@ def run(args) -> int:
     import time
 
     from ..frame.denoise import denoise, load_model
-    from ..io import read_exr, require_layers, write_exr
+    from ..io import check_output_path, read_exr, require_layers, write_exr
 
+    check_output_path(args.out, "--out", (".exr",))
     images = read_exr(args.input)
     require_layers(images, args.input, *REQUIRED_LAYERS)
     model = load_model("denoiser", args.precision, path=args.model)
+    images = finite_layers(images, args.input)
     started = time.perf_counter()
     color = denoise(model, *(images[name] for name in REQUIRED_LAYERS))
     seconds = time.perf_counter() - started
     write_exr(args.out, color, {k: v for k, v in images.items() if k != "color"})
     print(f"wrote {args.out} ({color.shape[1]}×{color.shape[0]}, {args.precision}, {seconds:.2f} s)")
     return 0
+
+
+def finite_layers(images: dict, path) -> dict:
+    """``images`` with NaN/Inf set to 0, the networks' own sanitising rule, and one warning line per layer
+    that held any: a renderer's output can hold such pixels, and the written EXR must not."""
+    import sys
+
+    import numpy as np
+
+    from ..frame.kernel import finite
+
+    for name, layer in images.items():
+        count = np.count_nonzero(~np.isfinite(layer))
+        if count:
+            print(f"wgpu-rt denoise: warning: {path}: layer {name!r} holds {count} NaN/Inf values; "
+                  "treated as 0", file=sys.stderr)
+    return {name: finite(layer) for name, layer in images.items()}

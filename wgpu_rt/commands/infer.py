@@ -13,27 +13,25 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    import os
-    from pathlib import Path
-
     import numpy as np
 
     from ..errors import ModelError
+    from ..io import atomic_output, check_output_path
     from ..nn import WgslModel
 
+    output = check_output_path(args.output, "--output", (".npy",))
     try:
         x = np.load(args.input, allow_pickle=False)
     except (OSError, ValueError) as err:
         raise ModelError(f"{args.input}: cannot read the input array ({err})") from None
     if not np.issubdtype(x.dtype, np.number):
         raise ModelError(f"{args.input}: input array has dtype {x.dtype}, expected a numeric type")
+    if x.size == 0:
+        raise ModelError(f"{args.input}: input array of shape {x.shape} is empty")
     model = WgslModel(args.model, precision=args.precision)
     y = model(x.astype(np.float32))
-    output = Path(args.output)
-    output.parent.mkdir(parents=True, exist_ok=True)
-    tmp = output.with_name(output.name + ".tmp.npy")
-    np.save(tmp, y)
-    os.replace(tmp, output)
+    with atomic_output(output) as tmp, open(tmp, "wb") as file:
+        np.save(file, y)   # a file object, since np.save would add ".npy" to a path
     plan = model.plan(*x.shape[-2:])
     print(f"{args.model} ({args.precision}): {x.shape} -> {y.shape}, peak activation memory "
           f"{plan.peak_bytes / 2**20:.2f} MiB -> {output}")
