@@ -2,6 +2,8 @@
 GeometryBuffers, and the Mitsuba converter."""
 
 import json
+import re
+import sys
 import types
 from pathlib import Path
 
@@ -9,10 +11,10 @@ import numpy as np
 import pytest
 import trimesh
 
+from wgpu_rt.accel.geometry import GeometryBuffers, scene_material_names
 from wgpu_rt.errors import DeviceLimitError, SceneError
 from wgpu_rt.gpu import GpuContext
-from wgpu_rt.scene import BUILTIN_SCENES, Scene, load_scene
-from wgpu_rt.accel.geometry import GeometryBuffers, scene_material_names
+from wgpu_rt.scene import BUILTIN_SCENES, Camera, Scene, load_scene
 from wgpu_rt.scene.transforms import transform_points
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -68,6 +70,23 @@ def test_mesh_scene_needs_and_fits_a_mesh(tmp_path):
     world = world_triangles(scene)["big"].reshape(-1, 3)
     assert np.isclose(world[:, 1].min(), -1, atol=1e-5), "the mesh stands on the floor"
     assert np.ptp(world, axis=0).max() <= 1.2 + 1e-5
+
+
+def test_mesh_is_refused_for_scenes_that_take_none(tmp_path):
+    path = tmp_path / "box.obj"
+    trimesh.creation.box().export(path)
+    with pytest.raises(SceneError, match=f"^cornell: takes no mesh file .*--mesh {path}"):
+        load_scene("cornell", mesh=path)
+    with pytest.raises(SceneError, match="scene.json: takes no mesh file"):
+        load_scene(write_json(tmp_path, MINIMAL), mesh=path)
+    with pytest.raises(SceneError, match="a Scene object: takes no mesh file"):
+        load_scene(load_scene("cornell"), mesh=path)
+
+
+def test_far_camera_has_a_finite_basis():
+    """float32 squared norms overflow beyond 1e19 and vanish below 1e-19; the basis must not."""
+    for distance in (1e20, 1e-30):
+        assert np.all(np.isfinite(Camera([0, 0, distance], [0, 0, 0]).basis()))
 
 
 def test_load_scene_dispatch(tmp_path):
@@ -265,12 +284,53 @@ def test_transform_order_and_matrix(tmp_path):
      r"scene.json: lights\[0\].intensity: expected a number or a list of 3 numbers"),
     (lambda d: d.update(meshes="cube"), "scene.json: meshes: expected a list"),
     (lambda d: d.update(frame_count=0), "scene.json: frame_count: expected at least 1 frame"),
+    # Values of the wrong kind: null tables, integers too large for any float, nesting for a number.
+    (lambda d: d.update(camera=None), "scene.json: camera: expected a table/object, got None"),
+    (lambda d: d.update(materials=None), "scene.json: materials: expected a table/object, got None"),
+    (lambda d: d["meshes"][1].update(transform=None),
+     "scene.json: meshes[1].transform: expected a table/object, got None"),
+    (lambda d: d["camera"].update(fov=10 ** 400), "scene.json: camera.fov: expected finite numbers within float32"),
+    (lambda d: d["meshes"][1]["transform"].update(translate=[10 ** 400, 0, 0]),
+     "scene.json: meshes[1].transform.translate: expected finite numbers within float32"),
+    (lambda d: d["camera"].update(fov=[[[[[40]]]]]), "scene.json: camera.fov: expected a number, got [[[[[40]]]]]"),
+    # Finite in float64 but Inf once cast to float32, which is what the GPU gets.
+    (lambda d: d.update(lights=[{"type": "point", "position": [0, 1, 0], "intensity": 1e39}]),
+     "scene.json: lights[0].intensity: expected finite numbers within float32 range"),
+    (lambda d: d.update(background=1e39), "scene.json: background: expected finite numbers within float32 range"),
+    (lambda d: d["camera"].update(origin=[1e39, 0, 0]), "scene.json: camera.origin: expected finite numbers"),
+    (lambda d: d["camera"].update(fov=1e-50), "scene.json: camera: fov must be in [0.001, 180) degrees"),
+    # Composed transforms, each keyframe included, must stay invertible and within float32.
+    (lambda d: d["meshes"][0].update(transform={"scale": 1e-50}),
+     "scene.json: meshes[0].transform: the transform of mesh 'cube' is singular in float32"),
+    (lambda d: d["meshes"][0].update(keyframes=[{"frame": 0}, {"frame": 4, "scale": 3e38, "translate": [3e38, 0, 0]}]),
+     "scene.json: meshes[0].keyframes[1]: the transform of mesh 'cube' puts vertices beyond ±1e+09"),
+    (lambda d: d["meshes"][0].update(keyframes=[{"frame": 0, "scale": 1}, {"frame": 2, "scale": -1}]),
+     "scene.json: meshes[0].keyframes: the transform of mesh 'cube' blends to a singular one at frame 1"),
+    (lambda d: d["camera"].update(keyframes=[{"frame": 1, "target": [0, 0, -1e19]}]),
+     "scene.json: camera.keyframes[0].target: positions must lie within ±1e+09"),
+    (lambda d: d["meshes"][0].update(transform={"matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 1, 1]]}),
+     "scene.json: meshes[0].transform.matrix: the last row must be [0, 0, 0, 1]"),
+    # Physically impossible values: negative light, energy-creating or negative surfaces.
+    (lambda d: d.update(lights=[{"type": "point", "position": [0, 1, 0], "intensity": [1, -1, 1]}]),
+     "scene.json: lights[0].intensity: must not be negative"),
+    (lambda d: d.update(lights=[{"type": "directional", "direction": [0, -1, 0], "irradiance": -2}]),
+     "scene.json: lights[0].irradiance: must not be negative"),
+    (lambda d: d["materials"]["white"].update(reflectance=5),
+     "scene.json: materials.white: reflectance must be in [0, 1] per channel, got [5.0, 5.0, 5.0]"),
+    (lambda d: d["materials"]["white"].update(reflectance=[0.5, 0.5, -0.1]),
+     "scene.json: materials.white: reflectance must be in [0, 1] per channel"),
+    (lambda d: d["materials"]["lamp"].update(emission=-1),
+     "scene.json: materials.lamp: emission must be non-negative"),
+    (lambda d: d["materials"]["white"].update(kind="conductor", k=[-1, 2, 3]),
+     "scene.json: materials.white: k must be non-negative"),
+    (lambda d: d["materials"]["white"].update(kind="dielectric", ior=0),
+     "scene.json: materials.white: ior must be positive"),
 ])
+@pytest.mark.filterwarnings("error::RuntimeWarning")    # no numpy overflow warnings on the way to the error
 def test_scene_file_errors_name_file_and_field(tmp_path, edit, message):
     data = json.loads(json.dumps(MINIMAL))
     edit(data)
-    with pytest.raises(SceneError, match=message if "\\" in message else message.replace("(", r"\(")
-                       .replace(")", r"\)").replace("[", r"\[").replace("]", r"\]")):
+    with pytest.raises(SceneError, match=message if "\\" in message else re.escape(message)):
         load_scene(write_json(tmp_path, data))
 
 
@@ -287,6 +347,12 @@ def test_unparsable_files(tmp_path):
     (tmp_path / "bad.json").write_text("{ not json")
     with pytest.raises(SceneError, match="bad.json: cannot parse"):
         load_scene(tmp_path / "bad.json")
+    (tmp_path / "deep.json").write_text("[" * 100_000 + "]" * 100_000)      # RecursionError in json
+    with pytest.raises(SceneError, match="deep.json: cannot parse"):
+        load_scene(tmp_path / "deep.json")
+    (tmp_path / "long.json").write_text('{"frame_count": 1' + "0" * 5000 + "}")  # over Python's int limit
+    with pytest.raises(SceneError, match="long.json: cannot parse"):
+        load_scene(tmp_path / "long.json")
     (tmp_path / "bad.toml").write_text("[camera\norigin = ")
     with pytest.raises(SceneError, match="bad.toml: cannot parse"):
         load_scene(tmp_path / "bad.toml")
@@ -313,10 +379,46 @@ def test_bad_mesh_files(tmp_path, content, message):
         load_scene(scene_with_mesh(tmp_path, name))
 
 
+def test_latin1_comment_obj_loads(tmp_path):
+    (tmp_path / "mesh.obj").write_bytes(b"# caf\xe9 (Latin-1)\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    scene = load_scene(scene_with_mesh(tmp_path, "mesh.obj"))
+    assert len(next(m for m in scene.meshes if m.name == "mesh").faces) == 1
+
+
+def test_missing_text_decoder_is_named(tmp_path, monkeypatch):
+    """Without charset_normalizer (now a dependency) trimesh cannot read non-UTF-8 text: say so."""
+    monkeypatch.setitem(sys.modules, "charset_normalizer", None)
+    (tmp_path / "mesh.obj").write_bytes(b"# caf\xe9\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(SceneError, match="mesh.obj: cannot read mesh file: trimesh needs a Python package that "
+                                         "is not installed: charset_normalizer$"):
+        load_scene(scene_with_mesh(tmp_path, "mesh.obj"))
+
+
+@pytest.mark.parametrize("name", ["garbage.obj", "garbage.stl"])
+def test_garbage_text_mesh_files(tmp_path, name):
+    (tmp_path / name).write_bytes(np.random.default_rng(1).bytes(4096))
+    with pytest.raises(SceneError, match=f"meshes\\[0\\].file: .*{name}: ") as caught:
+        load_scene(scene_with_mesh(tmp_path, name))
+    assert "ModuleNotFoundError" not in str(caught.value)
+
+
 def test_malformed_binary_mesh(tmp_path):
     (tmp_path / "mesh.glb").write_bytes(b"glTF\x02\x00\x00\x00garbage")
     with pytest.raises(SceneError, match="mesh.glb: cannot read mesh file"):
         load_scene(scene_with_mesh(tmp_path, "mesh.glb"))
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_placement_overflowing_through_a_node_transform(tmp_path):
+    """The file's node transform (×1000) times the entry's (×1e36) leaves float32: named at load time."""
+    group = trimesh.Scene()
+    group.add_geometry(trimesh.creation.box(), node_name="box", transform=np.diag([1e3, 1e3, 1e3, 1]))
+    group.export(tmp_path / "big.glb")
+    data = json.loads(json.dumps(MINIMAL))
+    data["meshes"][0] = {"file": "big.glb", "material": "white", "transform": {"scale": 1e36}}
+    with pytest.raises(SceneError, match=r"scene.json: meshes\[0\].transform: the transform of mesh 'big' "
+                                         r"overflows float32"):
+        load_scene(write_json(tmp_path, data))
 
 
 def test_ply_and_multi_geometry_glb(tmp_path):
@@ -388,7 +490,6 @@ def test_node_orderings_fall_back_to_one_copy_when_eight_do_not_fit():
 
 def test_documented_examples_load(tmp_path):
     """The JSON and TOML examples in docs/scene-format.md stay valid."""
-    import re
     import shutil
 
     text = (ROOT / "docs" / "scene-format.md").read_text()

@@ -16,10 +16,14 @@ from .model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene
 
 def load_scene(spec, mesh=None) -> Scene:
     """The Scene that ``spec`` names; ``mesh`` is the mesh file of the built-in 'mesh' scene."""
+    if not isinstance(spec, (str, Path, Scene)):
+        raise SceneError(f"a scene is a built-in name, a scene file path or a Scene, not {type(spec).__name__}")
+    if mesh is not None and spec != "mesh":
+        # Silently rendering the scene without the mesh would look like the mesh was lost.
+        raise SceneError(f"{spec if isinstance(spec, (str, Path)) else 'a Scene object'}: takes no mesh file "
+                         f"(mesh=/--mesh {mesh} is only for the built-in 'mesh' scene)")
     if isinstance(spec, Scene):
         return spec
-    if not isinstance(spec, (str, Path)):
-        raise SceneError(f"a scene is a built-in name, a scene file path or a Scene, not {type(spec).__name__}")
     if isinstance(spec, str) and spec in BUILTIN_SCENES:
         return builtin_scene(spec, mesh=mesh)
     if Path(spec).suffix.lower() in SCENE_SUFFIXES or Path(spec).exists():

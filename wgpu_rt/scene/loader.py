@@ -7,7 +7,9 @@ and any problem raises a SceneError that names the file and the field path, e.g.
 
 from __future__ import annotations
 
+import itertools
 import json
+import reprlib
 import tomllib
 from pathlib import Path
 
@@ -21,7 +23,21 @@ from .transforms import compose, rotate, scale, translate
 
 SCENE_SUFFIXES = (".json", ".toml")
 TRANSFORM_KEYS = ("translate", "rotate", "scale", "matrix")
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+# Positions (camera, point lights, placed vertices) stay within ±1e9: the tracer squares squared edge
+# lengths (triangle normals) in float32, so surfaces lose their normals beyond about 4e9 (measured: a
+# cube of half-size 3e9 renders without its emission, one of 1e9 exactly as one of 1).
+WORLD_LIMIT = 1e9
 _MISSING = object()
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _show(value) -> str:
+    """``value`` for an error message, shortened (huge integers, deep nesting) to keep it one line."""
+    return reprlib.repr(value)
 
 
 class _Fields:
@@ -31,7 +47,7 @@ class _Fields:
     def __init__(self, data, path: str, source: str):
         self.source, self.path = source, path
         if not isinstance(data, dict):
-            self.fail(f"expected a table/object, got {type(data).__name__}")
+            self.fail(f"expected a table/object, got {_show(data)}")
         self.data, self.read = data, set()
 
     def where(self, key=None) -> str:
@@ -53,50 +69,65 @@ class _Fields:
             return default
         return self.data[key]
 
+    def finite32(self, value, key=None) -> np.ndarray:
+        """The numbers ``value`` (already checked to be numbers) as float64, after checking that their
+        cast to float32, which is what the GPU gets, is finite: NaN, infinities, magnitudes beyond
+        3.4e38 and integers too large for any float are refused, naming the field."""
+        try:
+            array = np.asarray(value, np.float64)
+        except OverflowError:       # an integer beyond float64
+            array = np.array(np.inf)
+        with np.errstate(over="ignore"):        # an overflow becomes inf, which is refused below
+            finite = bool(np.all(np.isfinite(array.astype(np.float32))))
+        if not finite:
+            self.fail(f"expected finite numbers within float32 range (±3.4e38), got {_show(value)}", key)
+        return array
+
     def number(self, key: str, default=_MISSING) -> float:
         value = self.raw(key, default)
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(f"expected a number, got {value!r}", key)
-        if not np.isfinite(value):
-            self.fail(f"expected a finite number, got {value!r}", key)
-        return float(value)
+        if not _is_number(value):
+            self.fail(f"expected a number, got {_show(value)}", key)
+        return float(self.finite32(value, key))
 
     def integer(self, key: str, default=_MISSING) -> int:
         value = self.raw(key, default)
         if isinstance(value, bool) or not isinstance(value, int):
-            self.fail(f"expected an integer, got {value!r}", key)
+            self.fail(f"expected an integer, got {_show(value)}", key)
         return value
 
     def string(self, key: str, default=_MISSING, choices=None) -> str:
         value = self.raw(key, default)
         if not isinstance(value, str):
-            self.fail(f"expected a string, got {value!r}", key)
+            self.fail(f"expected a string, got {_show(value)}", key)
         if choices is not None and value not in choices:
-            self.fail(f"expected one of {list(choices)}, got {value!r}", key)
+            self.fail(f"expected one of {list(choices)}, got {_show(value)}", key)
         return value
 
-    def vector(self, key: str, default=_MISSING, length: int = 3, broadcast: bool = False) -> np.ndarray:
-        """A list of ``length`` finite numbers (a single number too when ``broadcast``)."""
+    def vector(self, key: str, default=_MISSING, length: int = 3, broadcast: bool = False,
+               non_negative: bool = False, position: bool = False) -> np.ndarray:
+        """A list of ``length`` finite numbers (a single number too when ``broadcast``); a ``position``
+        within ±WORLD_LIMIT."""
         value = self.raw(key, default)
-        if broadcast and isinstance(value, (int, float)) and not isinstance(value, bool):
+        if broadcast and _is_number(value):
             value = [value] * length
-        if (not isinstance(value, (list, tuple)) or len(value) != length
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)):
+        if not isinstance(value, (list, tuple)) or len(value) != length or not all(map(_is_number, value)):
             kind = f"a number or a list of {length} numbers" if broadcast else f"a list of {length} numbers"
-            self.fail(f"expected {kind}, got {value!r}", key)
-        array = np.asarray(value, np.float64)
-        if not np.all(np.isfinite(array)):
-            self.fail(f"expected finite numbers, got {value!r}", key)
+            self.fail(f"expected {kind}, got {_show(value)}", key)
+        array = self.finite32(value, key)
+        if non_negative and np.any(array < 0):
+            self.fail(f"must not be negative, got {_show(value)}", key)
+        if position and np.any(np.abs(array) > WORLD_LIMIT):
+            self.fail(f"positions must lie within ±{WORLD_LIMIT:g} (the tracer's float32 range), "
+                      f"got {_show(value)}", key)
         return array
 
-    def table(self, key: str, default=_MISSING) -> "_Fields | None":
-        value = self.raw(key, default)
-        return None if value is None else _Fields(value, self.where(key), self.source)
+    def table(self, key: str, default=_MISSING) -> _Fields:
+        return _Fields(self.raw(key, default), self.where(key), self.source)
 
-    def tables(self, key: str) -> list["_Fields"]:
+    def tables(self, key: str) -> list[_Fields]:
         value = self.raw(key, [])
         if not isinstance(value, list):
-            self.fail(f"expected a list, got {type(value).__name__}", key)
+            self.fail(f"expected a list, got {_show(value)}", key)
         return [_Fields(item, f"{self.where(key)}[{i}]", self.source) for i, item in enumerate(value)]
 
     def done(self) -> None:
@@ -106,20 +137,21 @@ class _Fields:
 
 
 def _transform(fields: _Fields) -> np.ndarray:
-    """translate/rotate/scale (applied scale, then rotations in order, then translation) or a matrix."""
+    """translate/rotate/scale (applied scale, then rotations in order, then translation) or a matrix.
+    Whether the result is usable (invertible, within float32) is checked once placed: _check_placement."""
     if fields.has("matrix"):
         for key in ("translate", "rotate", "scale"):
             if fields.has(key):
                 fields.fail("give either 'matrix' or translate/rotate/scale, not both", key)
         value = fields.raw("matrix")
-        matrix = np.asarray(value, dtype=object)
-        if matrix.shape != (4, 4) or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                                             for x in matrix.ravel()):
-            fields.fail(f"expected a 4×4 list of numbers, got {value!r}", "matrix")
-        matrix = matrix.astype(np.float64)
-        if not np.all(np.isfinite(matrix)) or abs(np.linalg.det(matrix[:3, :3])) < 1e-12:
-            fields.fail("the matrix must be finite and invertible", "matrix")
-        return matrix.astype(np.float32)
+        if not (isinstance(value, (list, tuple)) and len(value) == 4 and all(
+                isinstance(row, (list, tuple)) and len(row) == 4 and all(map(_is_number, row)) for row in value)):
+            fields.fail(f"expected a 4×4 list of numbers, got {_show(value)}", "matrix")
+        matrix = fields.finite32(value, "matrix")
+        if not np.array_equal(matrix[3], [0, 0, 0, 1]):
+            fields.fail(f"the last row must be [0, 0, 0, 1] (an affine transform), got {_show(value[3])}",
+                        "matrix")
+        return matrix
     parts = []
     if fields.has("translate"):
         parts.append(translate(fields.vector("translate")))
@@ -142,7 +174,50 @@ def _transform(fields: _Fields) -> np.ndarray:
         if np.any(factors == 0):
             fields.fail("scale factors must be non-zero", "scale")
         parts.append(scale(factors))
-    return compose(*parts)
+    return compose(*parts, dtype=np.float64)
+
+
+def _invertible32(matrix: np.ndarray) -> bool:
+    """Whether float32 holds the inverse of ``matrix`` (shading normals and motion vectors use it)."""
+    try:
+        return bool(np.all(np.abs(np.linalg.inv(matrix.astype(np.float64))) <= FLOAT32_MAX))
+    except np.linalg.LinAlgError:
+        return False
+
+
+def _check_placement(fields: _Fields, key: str, matrix: np.ndarray, mesh: Mesh) -> np.ndarray:
+    """``matrix`` (float64, object → world) as the float32 transform of ``mesh``, refused naming the field
+    unless float32 holds it, its inverse and every placed vertex."""
+    what = f"the transform of mesh {mesh.name!r}"
+    with np.errstate(over="ignore"):        # an overflow becomes inf, which is refused below
+        placed = matrix.astype(np.float32)
+    if not np.all(np.isfinite(placed)):
+        fields.fail(f"{what} overflows float32 (±3.4e38)", key)
+    if not _invertible32(placed):
+        fields.fail(f"{what} is singular in float32 (a zero or vanishing scale)", key)
+    # |world| <= |linear| · max|vertex| + |translation| per axis, for every frame between keyframes too
+    # (an element-wise blend of matrices stays under the larger bound).
+    reach = np.abs(placed[:3, :3].astype(np.float64)) @ np.abs(mesh.vertices).max(axis=0) + np.abs(placed[:3, 3])
+    if not np.all(reach <= WORLD_LIMIT):
+        fields.fail(f"{what} puts vertices beyond ±{WORLD_LIMIT:g} (the tracer's float32 range)", key)
+    return placed
+
+
+def _check_blends(fields: _Fields, mesh: Mesh) -> None:
+    """Between two keyframes the matrices blend element-wise, which can pass through a singular one (a
+    scale from 1 to -1): the determinant of the blend is a cubic in the blend weight, so check the
+    frames on either side of each of its roots."""
+    keys = sorted(mesh.keyframes)
+    for lo, hi in itertools.pairwise(keys):
+        start, end = (mesh.keyframes[k][:3, :3].astype(np.float64) for k in (lo, hi))
+        weights = np.linspace(0, 1, 4)
+        cubic = np.polyfit(weights, [np.linalg.det(start + w * (end - start)) for w in weights], 3)
+        for root in np.roots(cubic):
+            if abs(root.imag) < 1e-6 and 0 < root.real < 1:     # a double root can come out complex
+                for frame in {lo + int(np.floor(root.real * (hi - lo))), lo + int(np.ceil(root.real * (hi - lo)))}:
+                    if not _invertible32(mesh.transform_at(frame)):
+                        fields.fail(f"the transform of mesh {mesh.name!r} blends to a singular one at frame "
+                                    f"{frame}, between keyframes {lo} and {hi}: add keyframes", "keyframes")
 
 
 def _material(fields: _Fields) -> Material:
@@ -162,16 +237,17 @@ def _material(fields: _Fields) -> Material:
 
 
 def _camera(fields: _Fields, base: Camera | None = None) -> Camera:
-    def pick(key, reader):
-        return reader(key) if fields.has(key) or base is None else getattr(base, key)
+    def position(key):      # the keyframe's own, else the base camera's
+        return fields.vector(key, position=True) if fields.has(key) or base is None else getattr(base, key)
 
-    origin = pick("origin", fields.vector)
-    target = pick("target", fields.vector)
+    origin, target = position("origin"), position("target")
     up = fields.vector("up") if fields.has("up") else (base.up if base else np.array([0.0, 1.0, 0.0]))
     fov = fields.number("fov") if fields.has("fov") else (base.fov if base else 39.3077)
     fov_axis = (fields.string("fov_axis", choices=FOV_AXES) if fields.has("fov_axis")
                 else (base.fov_axis if base else "smaller"))
+    # float64: squared norms of float32-range vectors overflow float32 (a keyframe inherits float32 up).
     forward = np.asarray(target, np.float64) - np.asarray(origin, np.float64)
+    up = np.asarray(up, np.float64)
     if not np.linalg.norm(forward) > 0:
         fields.fail("origin and target must differ")
     if not np.linalg.norm(np.cross(forward, up)) > 1e-9 * np.linalg.norm(forward) * max(np.linalg.norm(up), 1e-30):
@@ -200,10 +276,10 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
     placement = fields.table("transform", {})
     transform = _transform(placement)
     placement.done()
-    keyframes = {}
-    for key in fields.tables("keyframes"):
+    keyframes = {}          # frame → (field name, matrix)
+    for i, key in enumerate(fields.tables("keyframes")):
         frame = _frame_of(key)
-        keyframes[frame] = _transform(key)
+        keyframes[frame] = (f"keyframes[{i}]", _transform(key))
         key.done()
     if has_shape:
         kind = fields.string("shape", choices=PRIMITIVES)
@@ -219,22 +295,24 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
     fields.done()
     for part in parts:
         node = part.transform
-        part.transform = compose(transform, node)
-        part.keyframes = {frame: compose(matrix, node) for frame, matrix in keyframes.items()}
+        part.transform = _check_placement(fields, "transform", compose(transform, node, dtype=np.float64), part)
+        part.keyframes = {frame: _check_placement(fields, key, compose(matrix, node, dtype=np.float64), part)
+                          for frame, (key, matrix) in keyframes.items()}
+        _check_blends(fields, part)
     return parts
 
 
 def _light(fields: _Fields):
     kind = fields.string("type", choices=("point", "directional"))
     if kind == "point":
-        light = PointLight(fields.vector("position").astype(np.float32),
-                           fields.vector("intensity", broadcast=True).astype(np.float32))
+        light = PointLight(fields.vector("position", position=True).astype(np.float32),
+                           fields.vector("intensity", broadcast=True, non_negative=True).astype(np.float32))
     else:
         direction = fields.vector("direction")
         if not np.linalg.norm(direction) > 0:
             fields.fail("the direction must not be zero", "direction")
         light = DirectionalLight((direction / np.linalg.norm(direction)).astype(np.float32),
-                                 fields.vector("irradiance", broadcast=True).astype(np.float32))
+                                 fields.vector("irradiance", broadcast=True, non_negative=True).astype(np.float32))
     fields.done()
     return light
 
@@ -264,9 +342,7 @@ def parse_scene(data, source: str, folder: Path) -> Scene:
     if not meshes:
         top.fail("at least one mesh is required", "meshes")
     lights = [_light(entry) for entry in top.tables("lights")]
-    background = top.vector("background", [0.0, 0.0, 0.0], broadcast=True)
-    if np.any(background < 0):
-        top.fail("background radiance must be non-negative", "background")
+    background = top.vector("background", [0.0, 0.0, 0.0], broadcast=True, non_negative=True)
     last_key = max([*camera_keyframes, *(f for m in meshes for f in m.keyframes)], default=0)
     frame_count = top.integer("frame_count", last_key + 1)
     if frame_count < 1:
@@ -287,7 +363,10 @@ def load_scene_file(path) -> Scene:
         raise SceneError(f"{source}: scene file not found")
     try:
         text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise SceneError(f"{source}: cannot read the file: {err}") from err
+    try:
         data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
-    except (UnicodeDecodeError, json.JSONDecodeError, tomllib.TOMLDecodeError) as err:
+    except (ValueError, RecursionError) as err:     # syntax errors, integers over 4300 digits, deep nesting
         raise SceneError(f"{source}: cannot parse the file: {err}") from err
     return parse_scene(data, source, path.parent)

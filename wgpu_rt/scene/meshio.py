@@ -49,6 +49,9 @@ def load_mesh_file(path: Path, material: str, name: str | None = None) -> list:
         scene = trimesh.load(str(path), force="scene", process=False)
     except IndexError as err:
         raise SceneError(f"{path}: malformed mesh file: face index out of range ({err})") from err
+    except ImportError as err:  # trimesh imports optional helpers lazily (charset_normalizer: non-UTF-8 text)
+        raise SceneError(f"{path}: cannot read mesh file: trimesh needs a Python package that is not "
+                         f"installed: {err.name or err}") from err
     except Exception as err:  # trimesh raises many types for bad input; all mean "unreadable"
         raise SceneError(f"{path}: cannot read mesh file ({type(err).__name__}: {err})") from err
     base = name or path.stem

@@ -15,12 +15,20 @@ import numpy as np
 
 MATERIAL_KINDS = ("diffuse", "conductor", "dielectric")
 FOV_AXES = ("x", "y", "smaller", "larger")
+# Narrower than this, float32 ray directions no longer tell neighbouring pixels apart (tan(fov/2) / 128
+# is float32's epsilon at 256 pixels); towards 0 the 1/tan(fov/2) of the motion vectors overflows.
+MIN_FOV = 1e-3
 
 
-def _rgb(value, what: str) -> np.ndarray:
-    arr = np.broadcast_to(np.asarray(value, dtype=np.float32), (3,)).copy()
+def _rgb(value, what: str, highest: float = np.inf) -> np.ndarray:
+    """``value`` (a number or 3) as float32 RGB, each channel finite and in [0, ``highest``]."""
+    with np.errstate(over="ignore"):        # beyond float32 becomes inf, refused below
+        arr = np.broadcast_to(np.asarray(value, dtype=np.float32), (3,)).copy()
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{what} must be finite, got {value!r}")
+        raise ValueError(f"{what} must be finite, got {arr.tolist()}")
+    if np.any(arr < 0) or np.any(arr > highest):
+        bounds = "non-negative" if highest == np.inf else f"in [0, {highest:g}] per channel"
+        raise ValueError(f"{what} must be {bounds}, got {arr.tolist()}")
     return arr
 
 
@@ -47,7 +55,8 @@ class Material:
     def __post_init__(self):
         if self.kind not in MATERIAL_KINDS:
             raise ValueError(f"unknown material kind {self.kind!r}; expected one of {MATERIAL_KINDS}")
-        self.reflectance = _rgb(self.reflectance, "reflectance")
+        # A reflectance above 1 would create energy.
+        self.reflectance = _rgb(self.reflectance, "reflectance", highest=1.0)
         self.eta = _rgb(self.eta, "eta")
         self.k = _rgb(self.k, "k")
         self.emission = _rgb(self.emission, "emission")
@@ -77,13 +86,14 @@ class Camera:
         self.up = np.asarray(self.up, np.float32)
         if self.fov_axis not in FOV_AXES:
             raise ValueError(f"unknown fov_axis {self.fov_axis!r}; expected one of {FOV_AXES}")
-        if not (0.0 < float(self.fov) < 180.0):
-            raise ValueError(f"fov must be in (0, 180) degrees, got {self.fov}")
+        if not (MIN_FOV <= float(self.fov) < 180.0):
+            raise ValueError(f"fov must be in [{MIN_FOV:g}, 180) degrees, got {self.fov}")
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Unit (right, up, forward) vectors. Image +x goes along ``right`` and image +y (rows, top
         to bottom) along ``-up``, which is how Mitsuba's perspective sensor lays out its film."""
-        forward = self.target - self.origin
+        # float64: float32 squared norms overflow (or vanish) for distances beyond 1e19 (below 1e-19).
+        forward = self.target.astype(np.float64) - self.origin
         forward = forward / np.linalg.norm(forward)
         right = np.cross(forward, self.up)
         right = right / np.linalg.norm(right)

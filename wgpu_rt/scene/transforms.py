@@ -28,12 +28,13 @@ def rotate(axis, degrees: float) -> np.ndarray:
     return matrix
 
 
-def compose(*matrices) -> np.ndarray:
-    """The product left to right as float32 (the rightmost transform is applied first)."""
+def compose(*matrices, dtype=np.float32) -> np.ndarray:
+    """The product left to right (the rightmost transform is applied first), computed in float64 and
+    returned as ``dtype``."""
     result = np.eye(4)
     for matrix in matrices:
         result = result @ np.asarray(matrix, dtype=np.float64)
-    return result.astype(np.float32)
+    return result.astype(dtype)
 
 
 def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -1,0 +1,130 @@
+"""Fuzzing scene files: a valid scene with random JSON values put into random fields (at any depth)
+either loads or stops with our one-line error naming the file; never another exception, a numpy
+warning, or a loaded scene whose geometry holds NaN/Inf."""
+
+import copy
+import json
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from wgpu_rt.accel.geometry import GeometryBuffers
+from wgpu_rt.errors import WgpuRtError
+from wgpu_rt.scene import load_scene
+
+# Every kind of field: camera keyframes, all material kinds, each transform form, a mesh file, mesh
+# keyframes, both light types.
+VALID = {
+    "name": "fuzz",
+    "frame_count": 3,
+    "camera": {"origin": [0, 0.2, 3.9], "target": [0, 0, 0], "up": [0, 1, 0], "fov": 40, "fov_axis": "x",
+               "keyframes": [{"frame": 0, "origin": [-0.3, 0.2, 3.9]}, {"frame": 2, "fov": 35}]},
+    "materials": {
+        "white": {"kind": "diffuse", "reflectance": [0.8, 0.7, 0.6]},
+        "lamp": {"reflectance": 0.5, "emission": [12, 11, 9]},
+        "copper": {"kind": "conductor", "roughness": 0.15, "eta": [0.27, 0.68, 1.32], "k": [3.61, 2.63, 2.29]},
+        "glass": {"kind": "dielectric", "ior": 1.5, "roughness": 0.1},
+    },
+    "meshes": [
+        {"name": "floor", "shape": "rectangle", "material": "white",
+         "transform": {"translate": [0, -1, 0], "rotate": {"axis": [1, 0, 0], "angle": -90}, "scale": 2}},
+        {"name": "lamp", "shape": "rectangle", "material": "lamp",
+         "transform": {"matrix": [[0.3, 0, 0, 0], [0, 0, -0.3, 0.99], [0, 0.3, 0, 0], [0, 0, 0, 1]]}},
+        {"name": "tri", "file": "tri.obj", "material": "copper",
+         "transform": {"rotate": [{"axis": [0, 1, 0], "angle": 30}], "scale": [0.3, 0.4, 0.5]}},
+        {"name": "box", "shape": "cube", "material": "glass",
+         "keyframes": [{"frame": 0, "translate": [0.4, -0.7, 0.2], "scale": 0.3},
+                       {"frame": 2, "translate": [0.4, -0.4, 0.2], "scale": 0.3}]},
+    ],
+    "lights": [{"type": "point", "position": [0.5, 0.6, 1.0], "intensity": [2, 2, 2]},
+               {"type": "directional", "direction": [-0.3, -1, -0.2], "irradiance": 0.5}],
+    "background": [0.02, 0.03, 0.05],
+}
+
+
+def field_paths(value, path=()):
+    """Every key/index path into ``value`` (the top level excluded)."""
+    children = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, child in children:
+        yield path + (key,)
+        yield from field_paths(child, path + (key,))
+
+
+PATHS = list(field_paths(VALID))
+
+numbers = st.one_of(
+    st.integers(), st.integers(min_value=-10 ** 400, max_value=10 ** 400),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([1e39, -1e39, 3.4e38, 1e-50, -1e-45, 0.0, -0.0, 1, -1, 2 ** 63]))
+json_values = st.one_of(
+    st.recursive(
+        st.none() | st.booleans() | numbers | st.text(max_size=6),
+        lambda children: st.lists(children, max_size=5) | st.dictionaries(st.text(max_size=6), children, max_size=4),
+        max_leaves=12),
+    # Well-shaped numbers get past the type checks to the range and float32 checks.
+    numbers, st.lists(numbers, min_size=3, max_size=3), st.lists(st.lists(numbers, min_size=4, max_size=4),
+                                                                 min_size=4, max_size=4))
+# An edit: a path, and a new value there (or None in the second slot: delete the field).
+edits = st.lists(st.tuples(st.sampled_from(PATHS), st.one_of(st.tuples(json_values), st.none())),
+                 min_size=1, max_size=3)
+
+
+def holds(container, key) -> bool:
+    if isinstance(container, dict):
+        return key in container
+    return isinstance(container, list) and isinstance(key, int) and key < len(container)
+
+
+def apply(data, path, replacement):
+    """Put ``replacement`` (a 1-tuple; None deletes) at ``path``, unless an earlier edit removed it."""
+    parent = data
+    for key in path[:-1]:
+        if not holds(parent, key):
+            return
+        parent = parent[key]
+    if holds(parent, path[-1]):
+        if replacement is None:
+            del parent[path[-1]]
+        else:
+            parent[path[-1]] = replacement[0]
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fuzz")
+    (folder / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    return folder
+
+
+def test_the_unedited_scene_loads(folder):
+    path = folder / "valid.json"
+    path.write_text(json.dumps(VALID))
+    scene = load_scene(path)
+    assert len(scene.meshes) == 4 and len(scene.lights) == 2 and scene.frame_count == 3
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")     # a numpy overflow warning is a finding too
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(changes=edits)
+def test_random_values_load_or_fail_with_one_line(folder, changes):
+    data = copy.deepcopy(VALID)
+    for path, replacement in changes:
+        apply(data, path, replacement)
+    scene_path = folder / "scene.json"
+    scene_path.write_text(json.dumps(data))
+    try:
+        scene = load_scene(scene_path)
+    except WgpuRtError as err:
+        message = str(err)
+        assert message.startswith(f"{scene_path}: ") and "\n" not in message, message
+        return
+    for frame in range(min(scene.frame_count, 4)):
+        camera = scene.camera_at(frame)
+        assert all(np.all(np.isfinite(v)) for v in (camera.origin, *camera.basis()))
+        geometry = GeometryBuffers.build(scene, frame)     # what a render does first for every frame
+        assert np.all(np.isfinite(geometry.shading_normals)) and np.all(np.isfinite(geometry.object_motion))
+    assert np.all(np.isfinite(scene.background)) and np.all(scene.background >= 0)
+    for light in scene.lights:
+        assert all(np.all(np.isfinite(np.asarray(v, np.float32))) for v in vars(light).values())
