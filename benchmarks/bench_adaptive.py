@@ -52,7 +52,7 @@ from common import (add_gold_arguments, add_model_arguments, gold_render, hdr_pi
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.adaptive import EXTRA_SAMPLES, MAX_HEAT_SAMPLES, AdaptiveSettings
-from wgpu_rt.render import parse_size, render
+from wgpu_rt.renderer import parse_size, render
 
 UNIFORM_SPP = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64]
 QUICK = {"size": "32x32", "budgets": [2, 4, 8], "seeds": 1, "gold_spp": 2048, "uniform": [1, 2, 4, 8, 16, 32]}
@@ -170,7 +170,7 @@ def sampler_errors(scene, size, args, gold, settings: AdaptiveSettings, error_mo
     for seed in range(args.seeds):
         pipeline = hdr_pipeline(scene, size, args, denoise=args.denoised, seed=seed, adaptive=settings,
                                 error_model=error_model(seed) if callable(error_model) else error_model)
-        output = linear_frame(pipeline, scene)
+        output = linear_frame(pipeline)
         run = raw_errors(gold, pipeline.buffers.read("radiance").transpose(1, 2, 0))
         if args.denoised:
             run[DENOISED] = metrics.rel_mse(gold, output)

@@ -23,7 +23,7 @@ from common import (add_gold_arguments, add_model_arguments, gold_render, load_s
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.denoise import denoise, load_model
-from wgpu_rt.render import parse_size, render
+from wgpu_rt.renderer import parse_size, render
 
 
 def parse_args():

@@ -58,7 +58,7 @@ def render_test_views(data: Path, view_ids: set[str], spp: list[int], seed: int,
                       frame: int = 0) -> dict[str, dict[int, np.ndarray]]:
     """Renders of the test views' ``frame`` at each of ``spp`` (the dataset's scenes, seeds ``seed`` + spp
     (+ FRAME_SEED_STRIDE · frame), independent of the dataset's own renders)."""
-    from wgpu_rt.render import render
+    from wgpu_rt.renderer import render
 
     config = read_manifest(data)["config"]
     config = DatasetConfig(**{**config, "scenes": tuple(config["scenes"]), "spp": tuple(config["spp"])})
@@ -69,7 +69,7 @@ def render_test_views(data: Path, view_ids: set[str], spp: list[int], seed: int,
             scene = engine.scene_for(plan)
             result[plan.view_id] = {s: render(scene, spp=s, size=(config.size, config.size),
                                               max_depth=config.max_depth, seed=seed + s + FRAME_SEED_STRIDE * frame,
-                                              frame=frame, aovs=()).color
+                                              frames=frame, aovs=()).color
                                     for s in spp}
     return result
 

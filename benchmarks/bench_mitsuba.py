@@ -19,7 +19,7 @@ import numpy as np
 from _mitsuba_setup import mitsuba, render_mitsuba
 from common import print_header
 
-from wgpu_rt.render import render
+from wgpu_rt.renderer import render
 from wgpu_rt.scene import load_scene
 
 

@@ -10,16 +10,16 @@ import time
 
 import numpy as np
 
-from wgpu_rt.frame import render_frames
-from wgpu_rt.render import parse_size
+from wgpu_rt.renderer import Renderer, parse_size
 from wgpu_rt.scene import load_scene
 
 
-def timed(scene, **settings):
-    frames = settings.pop("frames")
-    render_frames(scene, frames=[0], **settings)                       # compile and warm up
+def timed(scene, frames, **settings):
+    """Wall time per frame after the set-up and one warm-up frame, and the median GPU time per stage."""
+    renderer = Renderer(scene, **settings)
+    list(renderer.frames(0))                                            # compile and warm up
     start = time.perf_counter()
-    out = render_frames(scene, frames=frames, **settings)
+    out = list(renderer.frames(frames))
     per_frame = (time.perf_counter() - start) / len(frames)
     stages = {name: np.median([f.stage_ms.get(name, 0.0) for f in out]) for name in out[-1].stage_ms}
     return per_frame, stages
@@ -35,7 +35,7 @@ def main():
     args = parser.parse_args()
     width, height = parse_size(args.size)
     scene = load_scene(args.scene)
-    common = dict(width=width, height=height, frames=range(args.frames), max_depth=8)
+    common = dict(size=(width, height), frames=range(args.frames), max_depth=8, aovs=(), tonemap="aces")
     plain, plain_stages = timed(scene, denoise=False, **common)
     fused, fused_stages = timed(scene, denoise=True, adaptive=args.adaptive, temporal=args.temporal, **common)
     print(f"{args.scene} {width}x{height}, {args.frames} frames")

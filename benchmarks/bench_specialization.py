@@ -15,7 +15,7 @@ from wgpu_rt.gpu import get_context
 from wgpu_rt.passes import FrameBuffers
 from wgpu_rt.scene import load_scene
 from wgpu_rt.accel.geometry import GeometryBuffers
-from wgpu_rt.trace import SceneFeatures, TracePass
+from wgpu_rt.trace import SampleSchedule, SceneFeatures, TracePass
 
 
 def best_times(ctx, passes: dict, size, spp, rounds=4) -> dict:
@@ -25,9 +25,8 @@ def best_times(ctx, passes: dict, size, spp, rounds=4) -> dict:
     for _ in range(rounds):
         for name, trace in passes.items():
             buffers = FrameBuffers(ctx, *size)
-            trace.schedule.samples = spp
             encoder = ctx.device.create_command_encoder()
-            trace.execute(encoder, buffers)
+            trace.execute(encoder, buffers, SampleSchedule(samples=spp))
             started = time.perf_counter()
             ctx.device.queue.submit([encoder.finish()])
             buffers.read("spp")

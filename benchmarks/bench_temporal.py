@@ -28,7 +28,7 @@ from common import (add_gold_arguments, add_model_arguments, gold_frame, gold_re
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.temporal import CLAMP_MODES, TemporalSettings
-from wgpu_rt.render import parse_size, render
+from wgpu_rt.renderer import parse_size, render
 from wgpu_rt.scene import load_scene
 from wgpu_rt.train.targets import disocclusion_mask
 
@@ -81,7 +81,7 @@ def main() -> None:
         disocclusion_mask(gold[t - 1], gold[t], motion[t]) for t in range(1, len(gold))]
 
     def noisy_oidn(frame):
-        one = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=frame, frame=frame,
+        one = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=0, frames=frame,
                      aovs=("albedo", "normal"))
         return oidn(one.color, one.aovs["albedo"], one.aovs["normal"])
 
@@ -89,9 +89,9 @@ def main() -> None:
     settings = TemporalSettings(clamp=args.clamp, gamma=args.gamma, confidence_floor=args.confidence_floor)
     temporal = hdr_pipeline(scene, size, args, denoise=True, temporal=settings)
     print("temporal confidence network: " + ("yes" if temporal.temporal.confidence_model else "no (none in models)"))
-    sequences = {"per-frame ours": [linear_frame(per_frame, scene, f) for f in frames],
+    sequences = {"per-frame ours": [linear_frame(per_frame, f) for f in frames],
                  "per-frame OIDN": [noisy_oidn(f) for f in frames],
-                 "temporal ours": [linear_frame(temporal, scene, f) for f in frames]}
+                 "temporal ours": [linear_frame(temporal, f) for f in frames]}
     gold_flicker = flicker(gold)
     rows, ghosting_by_frame = [], {}
     for name, sequence in sequences.items():
@@ -111,9 +111,9 @@ def main() -> None:
 
     static = load_scene(args.static_scene)
     static_gold = gold_render(static, size, args)
-    single = linear_frame(hdr_pipeline(static, size, args, denoise=True), static, 0)
+    single = linear_frame(hdr_pipeline(static, size, args, denoise=True), 0)
     accumulating = hdr_pipeline(static, size, args, denoise=True, temporal=settings)
-    accumulated = [linear_frame(accumulating, static, f) for f in range(args.static_frames)][-1]
+    accumulated = [linear_frame(accumulating, f) for f in range(args.static_frames)][-1]
     single_psnr, accumulated_psnr = metrics.psnr(static_gold, single), metrics.psnr(static_gold, accumulated)
     print_table(f"{static.name} (static camera): {args.static_frames} temporal frames vs one denoised frame",
                 ["output", "PSNR dB"], [["one denoised frame", single_psnr],

@@ -25,7 +25,7 @@ from common import (add_gold_arguments, add_model_arguments, crossing, errors, g
                     linear_frame, load_scenes, mitsuba, mitsuba_render, oidn, parse_with_quick_defaults,
                     print_header, print_table, resolve_models, save_figure, steady)
 
-from wgpu_rt.render import parse_size, render
+from wgpu_rt.renderer import parse_size, render
 
 TARGET_SPP = (64, 256, 1024)
 QUICK = {"size": "32x32", "spp": [1, 4, 16, 64, 256, 1024], "gold_spp": 2048, "budgets": [2, 4, 8]}
@@ -63,11 +63,11 @@ def measure(scene, size, args, mi) -> dict[str, list[dict]]:
             image, seconds = mitsuba_render(mi, scene, size, spp, args.max_depth)
             add(f"Mitsuba brute force ({mi.variant()})", spp, seconds, image)
     pipeline = hdr_pipeline(scene, size, args, denoise=True)
-    image, seconds = steady(lambda: linear_frame(pipeline, scene), repeats=3)
+    image, seconds = steady(lambda: linear_frame(pipeline), repeats=3)
     add("1 spp + denoise", 1, seconds, image)
     for budget in sorted(args.budgets):
         pipeline = hdr_pipeline(scene, size, args, denoise=True, adaptive=budget)
-        image, seconds = steady(lambda: linear_frame(pipeline, scene), repeats=3)
+        image, seconds = steady(lambda: linear_frame(pipeline), repeats=3)
         add("adaptive + denoise", budget, seconds, image)
     one = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=0, aovs=("albedo", "normal"))
     image, seconds = steady(lambda: oidn(one.color, one.aovs["albedo"], one.aovs["normal"]), repeats=3)

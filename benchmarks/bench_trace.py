@@ -13,7 +13,7 @@ import time
 from _mitsuba_setup import mitsuba, render_mitsuba
 from common import load_scenes, print_header
 
-from wgpu_rt.render import render
+from wgpu_rt.renderer import render
 
 
 def main() -> int:

@@ -102,7 +102,7 @@ def gold_render(scene, size, args) -> np.ndarray:
     """(H, W, 3) radiance of our own render at ``args.gold_spp`` with seed 12345 (no other run uses that
     seed, so the gold's noise is independent of every image measured against it), from
     ``args.gold_cache`` when it holds one."""
-    from wgpu_rt.render import render
+    from wgpu_rt.renderer import render
 
     def compute():
         return {"color": render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED,
@@ -115,7 +115,7 @@ def gold_render(scene, size, args) -> np.ndarray:
 def gold_frame(scene, size, args, frame: int) -> tuple[np.ndarray, np.ndarray]:
     """(radiance (H, W, 3), motion (H, W, 2)) of frame ``frame`` of an animated scene at ``args.gold_spp``
     (seed 12345 + frame), cached like ``gold_render``."""
-    from wgpu_rt.render import render
+    from wgpu_rt.renderer import render
 
     def compute():
         result = render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED + frame,
@@ -157,17 +157,16 @@ def steady(function, repeats: int = 1):
 
 
 def hdr_pipeline(scene, size, args, **settings):
-    """A fused frame pipeline whose display output is linear HDR radiance (no curve, no sRGB)."""
-    from wgpu_rt.frame import make_pipeline
+    """A renderer set up once (``wgpu_rt.renderer.Renderer``) that returns linear HDR colour, no AOVs."""
+    from wgpu_rt.renderer import Renderer
 
-    return make_pipeline(scene, width=size[0], height=size[1], max_depth=args.max_depth,
-                         precision=args.precision, models_dir=args.models, output="f32", operator="none",
-                         srgb=False, **settings)
+    return Renderer(scene, size=size, max_depth=args.max_depth, precision=args.precision,
+                    models_dir=args.models, aovs=(), **settings)
 
 
-def linear_frame(pipeline, scene, frame: int = 0) -> np.ndarray:
+def linear_frame(renderer, frame: int = 0) -> np.ndarray:
     """One rendered frame of an ``hdr_pipeline`` as (H, W, 3) radiance."""
-    return pipeline.render(scene, frame).image[..., :3]
+    return next(renderer.frames(frame)).color
 
 
 def oidn(color, albedo, normal) -> np.ndarray:

@@ -274,7 +274,7 @@ def test_adaptive_samples_continue_the_probe_sequence(gpu, sampler):
     skipped, none repeated), and uniform at an integer budget is brute force."""
     from wgpu_rt.accel.geometry import GeometryBuffers
     from wgpu_rt.frame.pipeline import FramePipeline
-    from wgpu_rt.render import render
+    from wgpu_rt.renderer import render
     from wgpu_rt.scene.builtin import builtin_scene
     from wgpu_rt.trace.trace_pass import TracePass
 
@@ -285,8 +285,8 @@ def test_adaptive_samples_continue_the_probe_sequence(gpu, sampler):
     pipeline = FramePipeline(gpu, size, size,
                              lambda f, _: TracePass(gpu, scene, geometry, size, size, max_depth=3, seed=seed),
                              adaptive=AdaptiveSettings(sampler=sampler, budget=3.0),
-                             error_model=FixedHeat(gpu, heat) if sampler == "heat" else None, output="f32",
-                             operator="none", srgb=False)
+                             error_predictor=FixedHeat(gpu, heat) if sampler == "heat" else None,
+                             operator=None)
     pipeline.render(scene, 0)
     spp = pipeline.buffers.read(SPP.name)[0]
     radiance = pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0)

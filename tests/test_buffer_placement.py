@@ -12,7 +12,7 @@ from wgpu_rt.accel.bvh import ORDERINGS
 from wgpu_rt.passes import FrameBuffers
 from wgpu_rt.scene import load_scene
 from wgpu_rt.accel.geometry import UNIFORM_GEOMETRY_BYTES, GeometryBuffers
-from wgpu_rt.trace.trace_pass import BufferPlacement, TracePass
+from wgpu_rt.trace.trace_pass import BufferPlacement, SampleSchedule, TracePass
 
 SIZE = (24, 24)
 PLANES = ("radiance", "albedo", "normal", "depth", "motion", "spp")
@@ -21,10 +21,9 @@ PLANES = ("radiance", "albedo", "normal", "depth", "motion", "spp")
 def _planes(gpu, scene, geometry, placement):
     trace = TracePass(gpu, scene, geometry, *SIZE, frame=1, placement=placement)
     buffers = FrameBuffers(gpu, *SIZE)
-    trace.schedule.samples = 3
     encoder = gpu.device.create_command_encoder()
     trace.clear(encoder, buffers)
-    trace.execute(encoder, buffers)
+    trace.execute(encoder, buffers, SampleSchedule(samples=3))
     gpu.device.queue.submit([encoder.finish()])
     return {name: buffers.read(name) for name in PLANES}
 

@@ -25,7 +25,9 @@ def unpack_on_gpu(gpu, tensor, albedo):
     buffers = FrameBuffers(gpu, W, H)
     write_plane(buffers, NETWORK_OUTPUT, tensor.transpose(1, 2, 0))
     write_plane(buffers, ALBEDO, albedo)
-    submit(gpu, [UnpackPass(gpu, W, H, NETWORK_OUTPUT)], buffers)
+    encoder = gpu.device.create_command_encoder()
+    UnpackPass(gpu, W, H).execute(encoder, buffers, NETWORK_OUTPUT)
+    gpu.device.queue.submit([encoder.finish()])
     return buffers.read(DENOISED.name).transpose(1, 2, 0)
 
 

@@ -136,3 +136,14 @@ def test_pack_confidence_matches_reference(gpu):
 
     check_parity(None, pack_confidence_input, ours, atol=1e-6, rtol=1e-6,
                  inputs=[color, history, depth, previous_depth], name="pack_confidence")
+
+
+def test_frame_kernels_take_binding_indices_from_the_wgsl(gpu):
+    """A pass names the bindings an entry point uses; their indices come from the shader's declarations
+    (declared once), and a name the shader does not declare is caught at construction."""
+    from wgpu_rt.frame.kernel import FrameKernel
+
+    kernel = FrameKernel(gpu, "frame/pack.wgsl", "pack_error", ("packed", "color"), W, H)
+    assert kernel.bindings == ["color", None, None, None, None, None, "packed"]
+    with pytest.raises(ValueError, match="colour"):
+        FrameKernel(gpu, "frame/pack.wgsl", "pack_error", ("colour", "packed"), W, H)

@@ -9,10 +9,10 @@ blend, tone-map — runs exactly as in a rendered frame."""
 import numpy as np
 import pytest
 
-from wgpu_rt.frame import render_frames
 from wgpu_rt.frame.adaptive import AdaptiveSettings
 from wgpu_rt.frame.denoise import load_model
 from wgpu_rt.frame.pipeline import FramePipeline
+from wgpu_rt.renderer import render
 from wgpu_rt.frame.planes import to_planar
 from wgpu_rt.frame.temporal import HISTORY, TemporalSettings
 from wgpu_rt.passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE
@@ -35,12 +35,11 @@ class RecordedTrace:
     def __init__(self, gpu, planes: dict):
         self.sources = {spec: gpu.upload(to_planar(image).astype(NUMPY_DTYPE[spec.dtype]))
                         for spec, image in planes.items()}
-        self.schedule = None
 
     def clear(self, encoder, buffers) -> None:
         pass
 
-    def execute(self, encoder, buffers) -> None:
+    def execute(self, encoder, buffers, schedule=None) -> None:
         for spec, source in self.sources.items():
             encoder.copy_buffer_to_buffer(source, 0, buffers.get(spec), 0, spec.nbytes(W, H))
 
@@ -75,10 +74,9 @@ def run_frames(gpu, scene, models, precision, planes_per_frame):
     networks = {name: load_model(name, precision, models) for name in ("denoiser", "error_predictor", "confidence")}
     traces = [RecordedTrace(gpu, planes) for planes in planes_per_frame]
     pipeline = FramePipeline(gpu, W, H, lambda frame, _: traces[frame], denoiser=networks["denoiser"],
-                             adaptive=AdaptiveSettings(budget=2.0), error_model=networks["error_predictor"],
-                             temporal=TemporalSettings(), confidence_model=networks["confidence"],
-                             output="f32", operator="none", srgb=False)
-    images = [pipeline.render(scene, frame).image for frame in range(len(traces))]
+                             adaptive=AdaptiveSettings(budget=2.0), error_predictor=networks["error_predictor"],
+                             temporal=TemporalSettings(), confidence=networks["confidence"], operator=None)
+    images = [pipeline.render(scene, frame).color for frame in range(len(traces))]
     return images, pipeline.buffers.read(HISTORY.name)
 
 
@@ -106,7 +104,6 @@ def test_non_finite_input_never_reaches_output(gpu, moving, seed_models, spec, p
 def test_sun_room_through_fp16_networks(gpu, seed_models, precision):
     """sun-room's sun (radiance 5·10⁴, near the fp16 maximum) seen directly and through a window, with
     every network in the chosen precision."""
-    frames = render_frames(builtin_scene("sun-room"), denoise=True, adaptive=3.0, temporal=True,
-                           frames=[0, 1], width=W, height=H, max_depth=4, precision=precision,
-                           models_dir=seed_models, ctx=gpu, output="f32", operator="none", srgb=False)
-    assert_finite([f.image for f in frames], np.zeros(1))
+    frames = render(builtin_scene("sun-room"), denoise=True, adaptive=3.0, temporal=True, frames=[0, 1],
+                    size=(W, H), max_depth=4, precision=precision, models_dir=seed_models, ctx=gpu)
+    assert_finite([f.color for f in frames], np.zeros(1))

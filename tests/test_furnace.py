@@ -13,7 +13,7 @@
 import numpy as np
 import pytest
 
-from wgpu_rt.render import render
+from wgpu_rt.renderer import render
 from wgpu_rt.scene import Camera, Material, Mesh, Scene
 from wgpu_rt.scene.primitives import primitive
 from wgpu_rt.scene.transforms import scale

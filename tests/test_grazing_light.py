@@ -11,7 +11,7 @@ the sun (it hangs in the open room, 0.15 from the wall), so visibility is 1 ther
 
 import numpy as np
 
-from wgpu_rt.render import render
+from wgpu_rt.renderer import render
 from wgpu_rt.scene import load_scene
 from wgpu_rt.scene.model import Camera
 from wgpu_rt.scene.transforms import transform_points

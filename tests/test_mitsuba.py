@@ -8,7 +8,7 @@ import pytest
 
 mi = pytest.importorskip("mitsuba")
 
-from wgpu_rt.render import render  # noqa: E402
+from wgpu_rt.renderer import render  # noqa: E402
 from wgpu_rt.scene import load_scene  # noqa: E402
 from wgpu_rt.scene.mitsuba import to_mitsuba  # noqa: E402
 

@@ -5,15 +5,22 @@ device (an identity denoiser, a fixed heatmap), so the test checks the wiring, n
 import numpy as np
 import pytest
 
-from wgpu_rt.frame import render_frames
 from wgpu_rt.frame.adaptive import AdaptiveSettings
-from wgpu_rt.frame.pipeline import make_pipeline
 from wgpu_rt.frame.temporal import TemporalSettings, converge_frame
 from wgpu_rt.frame.tonemap import tonemap
 from wgpu_rt.passes import RADIANCE, SPP
+from wgpu_rt.renderer import Renderer, render
 from wgpu_rt.scene.builtin import builtin_scene
 
 W, H = 24, 16
+
+
+def make_pipeline(scene, gpu, denoiser=None, error_predictor=None, **settings):
+    """The FramePipeline ``render`` sets up for ``scene`` at W×H, with stand-in networks."""
+    networks = {name: net for name, net in (("denoiser", denoiser), ("error_predictor", error_predictor)) if net}
+    settings = {"aovs": (), "max_depth": 3, **settings}
+    return Renderer(scene, size=(W, H), ctx=gpu, denoise=denoiser is not None, networks=networks,
+                    **settings).pipeline
 
 
 class IdentityDenoiser:
@@ -67,7 +74,7 @@ def scene():
 def frames_and_traffic(monkeypatch, gpu, scene, frames, **settings):
     """Frames rendered by a pipeline built beforehand, and the traffic of the frames alone (setup,
     such as uploading network weights once, is not per-frame traffic)."""
-    pipeline = make_pipeline(scene, width=W, height=H, max_depth=3, ctx=gpu, **settings)
+    pipeline = make_pipeline(scene, gpu, tonemap="aces", **settings)
     counter = TrafficCounter(monkeypatch, gpu)
     out = [pipeline.render(scene, frame) for frame in frames]
     monkeypatch.undo()
@@ -78,9 +85,9 @@ def test_one_readback_and_no_uploads_of_its_own(gpu, scene, monkeypatch):
     """The full pipeline (denoise, adaptive, temporal) moves exactly what a plain trace does, plus nothing:
     one readback per frame and the tracer's own parameter uploads."""
     heat = np.linspace(0, 1, W * H).astype(np.float32)
-    plain, plain_traffic = frames_and_traffic(monkeypatch, gpu, scene, [0, 1], denoise=False)
+    plain, plain_traffic = frames_and_traffic(monkeypatch, gpu, scene, [0, 1])
     full, full_traffic = frames_and_traffic(
-        monkeypatch, gpu, scene, [0, 1], denoiser=IdentityDenoiser(gpu), error_model=FixedHeat(gpu, heat),
+        monkeypatch, gpu, scene, [0, 1], denoiser=IdentityDenoiser(gpu), error_predictor=FixedHeat(gpu, heat),
         adaptive=AdaptiveSettings(budget=2.0), temporal=TemporalSettings())
     assert plain_traffic.reads == full_traffic.reads == 2
     tracer_uploads_per_schedule = plain_traffic.uploads / 2
@@ -148,10 +155,10 @@ def test_adaptive_budget_reaches_the_spp_plane(gpu, scene):
     geometry = GeometryBuffers.build(scene, 0)
     heat = np.zeros((H, W), np.float32)
     heat[:, : W // 2] = 1.0
-    for sampler, error_model in (("heat", FixedHeat(gpu, heat)), ("uniform", None), ("variance", None)):
+    for sampler, error_predictor in (("heat", FixedHeat(gpu, heat)), ("uniform", None), ("variance", None)):
         pipeline = FramePipeline(gpu, W, H, lambda f, _: TracePass(gpu, scene, geometry, W, H, max_depth=2),
                                  adaptive=AdaptiveSettings(sampler=sampler, budget=3.5, pool_sigma=0.0),
-                                 error_model=error_model)
+                                 error_predictor=error_predictor)
         pipeline.render(scene, 0)
         spp = pipeline.buffers.read(SPP.name)[0]
         assert int(spp.sum()) == round(3.5 * W * H), sampler
@@ -161,14 +168,12 @@ def test_adaptive_budget_reaches_the_spp_plane(gpu, scene):
 
 def test_temporal_static_frames_converge(gpu, scene):
     """A static scene accumulates: the temporal output of 4 frames is smoother than one frame."""
-    frames = render_frames(scene, denoise=False, temporal=TemporalSettings(), frames=range(4), width=W,
-                           height=H, max_depth=3, ctx=gpu, output="f32", operator="none")
-    single = render_frames(scene, denoise=False, frames=[3], width=W, height=H, max_depth=3, ctx=gpu,
-                           output="f32", operator="none", seed=0)[0].image
-    reference = render_frames(scene, denoise=False, frames=[0], width=W, height=H, max_depth=3, ctx=gpu,
-                              output="f32", operator="none", seed=100)[0].image
-    assert np.all(np.isfinite(frames[-1].image))
-    error_accumulated = np.abs(frames[-1].image - reference).mean()
+    options = dict(size=(W, H), max_depth=3, ctx=gpu, aovs=())
+    frames = render(scene, temporal=TemporalSettings(), frames=range(4), **options)
+    single = render(scene, frames=3, seed=0, **options).color
+    reference = render(scene, seed=100, **options).color
+    assert np.all(np.isfinite(frames[-1].color))
+    error_accumulated = np.abs(frames[-1].color - reference).mean()
     assert error_accumulated < np.abs(single - reference).mean()
 
 
@@ -179,10 +184,9 @@ def brute_force_planes(gpu, scene, geometry, samples):
 
     buffers = FrameBuffers(gpu, W, H)
     trace = TracePass(gpu, scene, geometry, W, H, frame=0, max_depth=3, seed=0)
-    trace.schedule = SampleSchedule(samples=samples)
     encoder = gpu.device.create_command_encoder()
     trace.clear(encoder, buffers)
-    trace.execute(encoder, buffers)
+    trace.execute(encoder, buffers, SampleSchedule(samples=samples))
     gpu.device.queue.submit([encoder.finish()])
     return buffers.read(RADIANCE.name).transpose(1, 2, 0), buffers.read(SPP.name)[0]
 
@@ -204,13 +208,13 @@ def test_temporal_static_camera_accumulates_samples_before_denoising(gpu, scene)
         return TracePass(gpu, scene, geometry, W, H, frame=frame, max_depth=3, seed=seed_frame)
 
     pipeline = FramePipeline(gpu, W, H, trace_factory, denoiser=IdentityDenoiser(gpu),
-                             temporal=TemporalSettings(), output="f32", operator="none", srgb=False)
+                             temporal=TemporalSettings(), operator=None)
     frames = [pipeline.render(scene, frame) for frame in range(4)]
     expected, expected_spp = brute_force_planes(gpu, scene, geometry, 4)
     assert (expected_spp == 4).all() and seeds == [0, 0, 0, 0]
     np.testing.assert_array_equal(pipeline.buffers.read(SPP.name)[0], expected_spp)
-    np.testing.assert_allclose(frames[-1].image[..., :3], expected, rtol=1e-4, atol=1e-5)
-    assert np.abs(frames[-1].image[..., :3] - frames[0].image[..., :3]).max() > 1e-2   # frames differ
+    np.testing.assert_allclose(frames[-1].color, expected, rtol=1e-4, atol=1e-5)
+    assert np.abs(frames[-1].color - frames[0].color).max() > 1e-2   # frames differ
     pipeline.render(scene, 6)                                                          # a cut
     assert (pipeline.buffers.read(SPP.name)[0] == 1).all() and seeds[-1] == 6
 
@@ -230,12 +234,11 @@ def test_temporal_static_camera_fades_the_denoiser_as_samples_grow(gpu, scene):
     frame is black on the first frame (a cut takes the denoised frame alone) and half the 4-spp mean at
     4 spp with converge_spp 4."""
     settings = TemporalSettings(converge_spp=4)
-    pipeline = make_pipeline(scene, denoiser=ZeroDenoiser(gpu), temporal=settings, width=W, height=H,
-                             max_depth=3, ctx=gpu, output="f32", operator="none", srgb=False)
-    first = pipeline.render(scene, 0).image[..., :3]
+    pipeline = make_pipeline(scene, gpu, denoiser=ZeroDenoiser(gpu), temporal=settings)
+    first = pipeline.render(scene, 0).color
     assert first.max() == 0
     for frame in range(1, 4):
-        image = pipeline.render(scene, frame).image[..., :3]
+        image = pipeline.render(scene, frame).color
     radiance = pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0)
     assert (pipeline.buffers.read(SPP.name) == 4).all() and radiance.max() > 0
     np.testing.assert_allclose(image, 0.5 * radiance, rtol=1e-5, atol=1e-7)
@@ -247,7 +250,7 @@ def test_temporal_static_camera_fades_the_denoiser_as_samples_grow(gpu, scene):
 def test_moving_camera_traces_each_frame_afresh(gpu):
     """On ``moving`` (camera and a box move every frame) no samples carry over between frames."""
     moving = builtin_scene("moving")
-    pipeline = make_pipeline(moving, denoise=False, temporal=True, width=W, height=H, max_depth=3, ctx=gpu)
+    pipeline = make_pipeline(moving, gpu, temporal=True)
     for frame in range(3):
         pipeline.render(moving, frame)
         assert (pipeline.buffers.read(SPP.name)[0] == 1).all()
@@ -257,21 +260,32 @@ def test_missing_model_is_named(tmp_path, scene, gpu):
     from wgpu_rt.errors import ModelError
 
     with pytest.raises(ModelError, match="denoiser.onnx"):
-        render_frames(scene, frames=[0], width=W, height=H, ctx=gpu, models_dir=tmp_path)
+        render(scene, size=(W, H), ctx=gpu, denoise=True, models_dir=tmp_path)
 
 
-def test_render_frames_takes_a_builtin_name_like_render(gpu):
-    frames = render_frames("cornell", denoise=False, frames=[0], width=8, height=8, max_depth=2, ctx=gpu)
-    assert len(frames) == 1 and frames[0].image.shape[:2] == (8, 8)
+def test_render_takes_a_builtin_name_and_a_frame_list(gpu):
+    frames = render("cornell", frames=[0], size=(8, 8), max_depth=2, ctx=gpu)
+    assert len(frames) == 1 and frames[0].color.shape == (8, 8, 3)
 
 
 def test_unchanged_geometry_is_not_uploaded_again(gpu, scene, monkeypatch):
     """Frames that share geometry reuse the tracer's uploads: each frame after the first uploads only
     its frame parameters and chunk starts, whatever the scene's size."""
-    pipeline = make_pipeline(scene, denoise=False, width=W, height=H, max_depth=3, ctx=gpu)
+    pipeline = make_pipeline(scene, gpu)
     pipeline.render(scene, 0)
     counter = TrafficCounter(monkeypatch, gpu)
     for frame in (1, 2, 3):
         pipeline.render(scene, frame)
     monkeypatch.undo()
     assert counter.uploads == 3 * 2 and counter.reads == 3
+
+
+def test_readme_python_example_runs(gpu):
+    """The README's Python example: one render() call that denoises and adapts (shipped models)."""
+    import wgpu_rt
+
+    result = wgpu_rt.render("cornell", spp=1, size=(32, 24), denoise=True, adaptive=4, tonemap="aces")
+    assert result.color.shape == (24, 32, 3) and np.all(np.isfinite(result.color))
+    assert result.image.shape == (24, 32, 4) and result.image.dtype == np.uint8
+    assert result.aovs["spp"].mean() == pytest.approx(4.0, abs=0.01)
+    assert set(result.aovs) == {"albedo", "normal", "depth", "motion", "spp"}

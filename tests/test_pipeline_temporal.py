@@ -6,7 +6,6 @@ real WgslModel of the seed Confidence Predictor whose output is recomputed by on
 import numpy as np
 import pytest
 
-from wgpu_rt.frame import render_frames
 from wgpu_rt.frame.pack import pack_confidence_input
 from wgpu_rt.frame.pipeline import FramePipeline
 from wgpu_rt.frame.planes import CONFIDENCE_INPUT
@@ -20,6 +19,7 @@ from wgpu_rt.frame.temporal import (
     reproject_history,
 )
 from wgpu_rt.passes import DEPTH, MOTION, NORMAL, RADIANCE
+from wgpu_rt.renderer import render
 
 W, H = 32, 24
 
@@ -36,7 +36,7 @@ def traced_pipeline(gpu, scene, **settings):
         return TracePass(gpu, scene, GeometryBuffers.build(scene, frame), W, H, frame=frame, max_depth=3,
                          seed=seed_frame)
 
-    return FramePipeline(gpu, W, H, trace_factory, output="f32", operator="none", srgb=False, **settings)
+    return FramePipeline(gpu, W, H, trace_factory, operator=None, **settings)
 
 
 def onnx_confidence(path, packed):
@@ -54,11 +54,11 @@ def test_moving_frame_matches_references(gpu, moving, seed_models, use_model):
 
     settings = TemporalSettings(clamp="box")
     model = WgslModel(seed_models / "confidence.onnx", "fp32", ctx=gpu) if use_model else None
-    pipeline = traced_pipeline(gpu, moving, temporal=settings, confidence_model=model)
+    pipeline = traced_pipeline(gpu, moving, temporal=settings, confidence=model)
     pipeline.render(moving, 0)
     history = hwc(pipeline.buffers, HISTORY)
     assert frame_change(moving, 0, 1) == "moving"
-    image = pipeline.render(moving, 1).image
+    image = pipeline.render(moving, 1).color
     color, depth, normal, motion = (hwc(pipeline.buffers, spec) for spec in (RADIANCE, DEPTH, NORMAL, MOTION))
     assert np.abs(motion).max() > 0.1                                 # the camera really moved
     reprojected = reproject_history(history, depth, normal, motion, settings)
@@ -72,20 +72,20 @@ def test_moving_frame_matches_references(gpu, moving, seed_models, use_model):
         confidence = onnx_confidence(seed_models / "confidence.onnx", packed)
     expected, _ = blend_history(color, depth, normal, reprojected, confidence, settings)
     np.testing.assert_allclose(hwc(pipeline.buffers, TEMPORAL), expected, rtol=1e-3, atol=1e-4)
-    np.testing.assert_allclose(image[..., :3], expected, rtol=1e-3, atol=1e-4)
+    np.testing.assert_allclose(image, expected, rtol=1e-3, atol=1e-4)
     without_history, _ = blend_history(color, depth, normal, np.zeros_like(reprojected), None, settings)
-    assert np.abs(image[..., :3] - without_history)[valid].max() > 1e-3   # history was really used
+    assert np.abs(image - without_history)[valid].max() > 1e-3   # history was really used
 
 
-def test_render_frames_moving_with_every_seed_model(gpu, moving, seed_models):
-    """render_frames loads all three networks from a folder and runs denoise + adaptive + temporal with
+def test_render_moving_with_every_seed_model(gpu, moving, seed_models):
+    """render loads all three networks from a folder and runs denoise + adaptive + temporal with
     the confidence network over animated frames: finite images of the right shape, and the adaptive
     budget and motion both in effect."""
-    frames = render_frames(moving, denoise=True, adaptive=2.0, temporal=True, frames=range(3), width=W,
-                           height=H, max_depth=3, models_dir=seed_models, ctx=gpu, output="f32",
-                           operator="none", srgb=False)
+    frames = render(moving, denoise=True, adaptive=2.0, temporal=True, frames=range(3), size=(W, H),
+                    max_depth=3, models_dir=seed_models, ctx=gpu, aovs=("spp",))
     assert [f.frame for f in frames] == [0, 1, 2]
     for frame in frames:
-        assert frame.image.shape == (H, W, 4) and np.all(np.isfinite(frame.image))
-        assert frame.image[..., :3].min() >= 0
-    assert np.abs(frames[2].image - frames[1].image).max() > 0
+        assert frame.color.shape == (H, W, 3) and np.all(np.isfinite(frame.color))
+        assert frame.color.min() >= 0
+        assert frame.aovs["spp"].mean() == pytest.approx(2.0, abs=0.01)
+    assert np.abs(frames[2].color - frames[1].color).max() > 0

@@ -69,3 +69,40 @@ def test_unknown_scene_name(tmp_path, capsys):
     assert main(["render", "no-such-scene", "--out", str(out)]) == 2
     assert "no-such-scene" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--denoise", "--max-depth", "0"], "--max-depth"),
+    (["--denoise", "--seed", "-1"], "--seed"),
+    (["--adaptive", "4", "--spp", "2"], "--spp"),
+    (["--frames", "0:2", "--out", "x_{frame.foo}.exr"], "--out"),
+    (["--frames", "0:2", "--out", "x_{frame[0]}.exr"], "--out"),
+    (["--frames", "0:2", "--out", "x_{frame:q}.exr"], "--out"),
+    (["--frames", "0:3000000", "--out", "f/{frame:07d}.exr"], "3,000,000"),
+])
+def test_every_path_checks_its_flags_before_work(tmp_path, capsys, monkeypatch, args, message):
+    """The same flags are checked the same way with or without --denoise, before anything is loaded or
+    written (relative --out patterns land in the empty tmp_path, which must stay empty)."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["render", "cornell", "--size", "8x8"] + args) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_frames_beyond_an_animated_scene_are_refused(tmp_path, capsys):
+    out = tmp_path / "{frame}.exr"
+    assert main(["render", "moving", "--size", "8x8", "--spp", "1", "--frames", "14:18", "--out", str(out)]) == 2
+    assert "beyond the scene's 16 frames" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_denoise_honours_spp_and_aovs(gpu, tmp_path):
+    """--spp and --aov mean the same with --denoise: the EXR carries the requested layers and the spp
+    layer reads the samples asked for (the denoised colour is of a 3-spp render)."""
+    out = tmp_path / "d.exr"
+    assert main(["render", "cornell", "--denoise", "--spp", "3", "--size", "16x8", "--aov", "albedo,spp",
+                 "--out", str(out)]) == 0
+    layers = read_exr(out)
+    assert set(layers) == {"color", "albedo", "spp"}
+    assert (layers["spp"] == 3).all() and np.all(np.isfinite(layers["color"]))

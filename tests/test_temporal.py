@@ -70,10 +70,9 @@ def run_temporal(gpu, color, depth, normal, motion, history, change, settings=Te
         write_plane(buffers, spec, image)
     depth_max = DepthMaxPass(gpu, W, H)
     temporal = TemporalPass(gpu, W, H, DENOISED, settings, model, depth_max.result if model else None)
-    temporal.change = change
     encoder = gpu.device.create_command_encoder()
     depth_max.execute(encoder, buffers)
-    temporal.execute(encoder, buffers)
+    temporal.execute(encoder, buffers, change)
     gpu.device.queue.submit([encoder.finish()])
     return buffers
 

@@ -5,11 +5,11 @@ G-buffers hold what ARCHITECTURE.md says they hold."""
 import numpy as np
 import pytest
 
-from wgpu_rt.render import render
+from wgpu_rt.renderer import render
 from wgpu_rt.passes import FrameBuffers
 from wgpu_rt.scene import load_scene
 from wgpu_rt.accel.geometry import GeometryBuffers
-from wgpu_rt.trace import TracePass
+from wgpu_rt.trace import SampleSchedule, TracePass
 from wgpu_rt.trace.scene_data import alias_table
 
 SIZE = (24, 24)
@@ -31,12 +31,9 @@ def _trace(gpu, scene_name, counts=None, passes=(4,)):
     encoder = gpu.device.create_command_encoder()
     trace.clear(encoder, buffers)
     for samples in passes:
-        trace.schedule.samples = samples
-        trace.execute(encoder, buffers)
+        trace.execute(encoder, buffers, SampleSchedule(samples))
     if counts is not None:
-        trace.schedule.samples = int(counts.max())
-        trace.schedule.sample_counts = gpu.upload(counts.astype(np.uint32))
-        trace.execute(encoder, buffers)
+        trace.execute(encoder, buffers, SampleSchedule(int(counts.max()), gpu.upload(counts.astype(np.uint32))))
     gpu.device.queue.submit([encoder.finish()])
     return buffers
 
@@ -104,7 +101,7 @@ def test_motion_vectors_follow_camera_and_objects(gpu):
     point from the depth plane, moving it back with its object's transforms and projecting it."""
     scene = load_scene("moving")
     frame = 6
-    result = render(scene, spp=4, size=SIZE, frame=frame, aovs=("depth", "motion"))
+    result = render(scene, spp=4, size=SIZE, frames=frame, aovs=("depth", "motion"))
     depth, motion = result.aovs["depth"][..., 0], result.aovs["motion"]
     now, before = scene.camera_at(frame), scene.camera_at(frame - 1)
     box = next(m for m in scene.meshes if m.name == "small-box")

@@ -12,7 +12,7 @@ from wgpu_rt.scene import Camera, Material, Mesh, Scene, load_scene
 from wgpu_rt.accel.geometry import (LANES_TRAVERSAL, SUBGROUP_TRAVERSAL, GeometryBuffers, traversal_module)
 from wgpu_rt.scene.primitives import primitive
 from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
-from wgpu_rt.trace import SceneFeatures, TracePass
+from wgpu_rt.trace import SampleSchedule, SceneFeatures, TracePass
 
 MODULES = [LANES_TRAVERSAL, SUBGROUP_TRAVERSAL]
 SIZE = (24, 16)
@@ -54,8 +54,7 @@ def _render(gpu, scene, module, spp, max_depth=8, chunk_size=None, size=SIZE):
     buffers = FrameBuffers(gpu, *size)
     encoder = gpu.device.create_command_encoder()
     trace.clear(encoder, buffers)
-    trace.schedule.samples = spp
-    trace.execute(encoder, buffers)
+    trace.execute(encoder, buffers, SampleSchedule(samples=spp))
     gpu.device.queue.submit([encoder.finish()])
     return {name: buffers.read(name) for name in ("radiance", "albedo", "normal", "depth", "spp")}
 
@@ -93,7 +92,7 @@ def test_long_paths_in_big_chunks_stay_unbiased(gpu):
 
 def test_single_node_ordering_renders_the_same_image(gpu):
     """A scene too big for 8 direction-ordered node copies walks one copy: the same closest hits."""
-    from wgpu_rt.frame import render_frames
+    from wgpu_rt.renderer import render
     from wgpu_rt.gpu import GpuContext
 
     small = GpuContext(adapter=gpu.adapter, device=gpu.device, features=gpu.features)
@@ -102,7 +101,7 @@ def test_single_node_ordering_renders_the_same_image(gpu):
     one_copy = geometry.packed_arrays(orderings=1)[0].nbytes
     small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": 8 * one_copy - 1}
     assert geometry.orderings(small) == 1 and geometry.orderings(gpu) == 8
-    options = dict(denoise=False, frames=[0], width=16, height=16, max_depth=3, output="f32")
-    reference = render_frames("cornell-glossy", ctx=gpu, **options)[0].image
-    fallback = render_frames("cornell-glossy", ctx=small, **options)[0].image
+    options = dict(size=(16, 16), max_depth=3, aovs=())
+    reference = render("cornell-glossy", ctx=gpu, **options).color
+    fallback = render("cornell-glossy", ctx=small, **options).color
     np.testing.assert_allclose(fallback, reference, rtol=1e-5, atol=1e-6)

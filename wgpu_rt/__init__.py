@@ -9,8 +9,8 @@ __all__ = ["render"]
 def __getattr__(name: str):
     # `render` pulls in wgpu and numpy; importing it lazily keeps `import wgpu_rt` (and `--help`) light.
     if name == "render":
-        from .render import render
+        from .renderer import render
 
-        globals()["render"] = render  # shadows the submodule attribute that the import just set
+        globals()["render"] = render
         return render
     raise AttributeError(f"module 'wgpu_rt' has no attribute {name!r}")

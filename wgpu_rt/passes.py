@@ -42,14 +42,17 @@ SPP = PlaneSpec("spp", 1, "u32")
 
 
 class ComputePass(ABC):
-    """Base class: subclasses set ``inputs``/``outputs`` and implement ``execute``."""
+    """Base class: subclasses set ``inputs``/``outputs`` (the planes they read and write, by which a
+    pipeline wires them) and implement ``execute``."""
 
     inputs: tuple[PlaneSpec, ...] = ()
     outputs: tuple[PlaneSpec, ...] = ()
 
     @abstractmethod
-    def execute(self, encoder, buffers: "FrameBuffers") -> None:
-        """Record this pass's dispatches into ``encoder``, reading and writing ``buffers``."""
+    def execute(self, encoder, buffers: "FrameBuffers", **per_frame) -> None:
+        """Record this pass's dispatches into ``encoder``, reading and writing ``buffers``; what changes
+        from frame to frame (a sample schedule, a network's output, how the frame moved) comes as
+        keyword arguments, never as attributes set on the pass beforehand."""
 
 
 class FrameBuffers:

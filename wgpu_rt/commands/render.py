@@ -1,16 +1,22 @@
-"""``wgpu-rt render``: path trace a scene to an EXR (color + AOV layers) or a tonemapped PNG preview."""
+"""``wgpu-rt render``: a shell over ``wgpu_rt.render``. Path trace a scene, optionally denoise, sample
+adaptively and accumulate over time on the device, and write an EXR (linear HDR colour + AOV layers) or
+a PNG (the tone-mapped display image) per frame. Every flag means the same with or without ``--denoise``."""
 
 HELP = "path trace a scene (built-in name or scene file) to .exr (color + AOVs) or .png"
+
+SUFFIXES = (".exr", ".png")
+FRAMES_WITHOUT_CONFIRMATION = 100_000   # more output files than this need --max-files
 
 
 def add_arguments(parser) -> None:
     parser.add_argument("scene", help="built-in scene (cornell, cornell-glossy, sun-room, mesh, moving) "
                         "or a .json/.toml scene file")
-    parser.add_argument("--spp", type=int, default=64, help="samples per pixel (default 64)")
+    parser.add_argument("--spp", type=int, default=None,
+                        help="samples per pixel per frame (default 64; 1 with --denoise; not with --adaptive)")
     parser.add_argument("--size", default="256x256", help="WIDTHxHEIGHT (default 256x256)")
     parser.add_argument("--max-depth", type=int, default=8,
                         help="path segments, as Mitsuba's max_depth: 1 = emitters only (default 8)")
-    parser.add_argument("--seed", type=int, default=0, help="sampling seed (same seed, same image)")
+    parser.add_argument("--seed", type=int, default=0, help="sampling seed (same seed, same image; frame f uses seed+f)")
     parser.add_argument("--aov", default="albedo,normal,depth,motion",
                         help="comma-separated AOV layers for .exr output: albedo, normal, depth, motion, spp "
                         "('' for none)")
@@ -18,8 +24,14 @@ def add_arguments(parser) -> None:
     parser.add_argument("--mesh", help="mesh file for the built-in 'mesh' scene")
     parser.add_argument("--out", default="render.exr",
                         help="output .exr or .png; may hold {frame}, e.g. out/{frame:04d}.exr")
-    from ..frame.command import add_arguments as add_frame_arguments
-    add_frame_arguments(parser)
+    parser.add_argument("--denoise", action="store_true",
+                        help="denoise on the device with models/denoiser.onnx")
+    parser.add_argument("--adaptive", type=float, metavar="BUDGET",
+                        help="adaptive sampling guided by models/error_predictor.onnx at BUDGET mean spp")
+    parser.add_argument("--temporal", action="store_true",
+                        help="temporal accumulation over --frames (reprojection, clamping, confidence)")
+    parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
+                        help="network arithmetic (fp16 needs the shader-f16 feature)")
 
 
 def parse_frames(text: str | None) -> range:
@@ -36,53 +48,67 @@ def parse_frames(text: str | None) -> range:
     return range(start, stop)
 
 
-def output_paths(pattern: str, frames: range, many: bool) -> list:
+def check_pattern(pattern: str, frames: range) -> None:
+    """The --out pattern formats every frame number (tried on the first and last only: the same fields
+    format every integer alike) and names a .exr or .png file in a writable place."""
+    from pathlib import Path
+
+    from ..errors import WgpuRtError
+    from ..io import check_output_path
+
+    if len(frames) > 1 and "{frame" not in pattern:
+        raise WgpuRtError(f"--out {pattern!r}: several frames need a {{frame}} field, e.g. out/{{frame:04d}}.exr")
+    for frame in (frames[0], frames[-1]):
+        check_output_path(output_path(pattern, frame), "--out", SUFFIXES)
+    if len(frames) > 1 and output_path(pattern, frames[0]) == output_path(pattern, frames[-1]):
+        raise WgpuRtError(f"--out {pattern!r}: every frame would write {Path(output_path(pattern, frames[0]))}")
+
+
+def output_path(pattern: str, frame: int):
     from pathlib import Path
 
     from ..errors import WgpuRtError
 
-    suffix = Path(pattern).suffix.lower()
-    if suffix not in (".exr", ".png"):
-        raise WgpuRtError(f"--out {pattern!r}: the output must end in .exr or .png")
-    if many and "{frame" not in pattern:
-        raise WgpuRtError(f"--out {pattern!r}: several frames need a {{frame}} field, e.g. out/{{frame:04d}}.exr")
     try:
-        paths = [Path(pattern.format(frame=f)) for f in frames]
-    except (KeyError, IndexError, ValueError) as err:
-        raise WgpuRtError(f"--out {pattern!r}: bad format field ({err}); only {{frame}} is known") from None
-    for path in paths:   # missing folders are created when the image is written
-        blocker = next((p for p in (path.parent, *path.parent.parents) if p.exists()), None)
-        if blocker is not None and not blocker.is_dir():
-            raise WgpuRtError(f"--out {path}: {blocker} is a file, not a folder")
-    return paths
+        return Path(pattern.format(frame=frame))
+    except (KeyError, IndexError, ValueError, AttributeError, TypeError) as err:
+        raise WgpuRtError(f"--out {pattern!r}: bad format field ({type(err).__name__}: {err}); "
+                          "only {frame} (an integer, e.g. {frame:04d}) is known") from None
 
 
 def run(args) -> int:
-    from ..frame.command import run_fused, wants_fused
-    if wants_fused(args):
-        return run_fused(args)
     from ..errors import WgpuRtError
-    from ..frame.tonemap import tonemap
     from ..io import write_exr, write_png
-    from ..render import check_aovs, parse_size, render
-    from ..scene import load_scene
+    from ..renderer import Renderer, check_aovs, check_int, parse_size
 
     size = parse_size(args.size)
-    if args.spp < 1:
-        raise WgpuRtError(f"--spp {args.spp}: must be at least 1")
-    if args.max_depth < 1:
-        raise WgpuRtError(f"--max-depth {args.max_depth}: must be at least 1")
-    aovs = check_aovs([a.strip() for a in args.aov.split(",") if a.strip()])
+    for flag, value, low, high in (("--spp", args.spp, 1, None), ("--max-depth", args.max_depth, 1, None),
+                                   ("--seed", args.seed, 0, 2 ** 32 - 1)):
+        if value is not None:
+            check_int(flag, value, low, high)
+    aovs = check_aovs(args.aov)
     frames = parse_frames(args.frames)
-    paths = output_paths(args.out, frames, args.frames is not None and len(frames) > 1)
-    scene = load_scene(args.scene, mesh=args.mesh)
-    for frame, path in zip(frames, paths):
-        result = render(scene, spp=args.spp, size=size, max_depth=args.max_depth, seed=args.seed,
-                        frame=frame, aovs=aovs, progress=True)
-        if path.suffix.lower() == ".exr":
-            write_exr(path, result.color, result.aovs)
+    if len(frames) > FRAMES_WITHOUT_CONFIRMATION:
+        raise WgpuRtError(f"--frames {args.frames}: {len(frames):,} output files; render at most "
+                          f"{FRAMES_WITHOUT_CONFIRMATION:,} frames per run")
+    check_pattern(args.out, frames)
+    png = output_path(args.out, frames[0]).suffix.lower() == ".png"
+    fused = args.denoise or args.adaptive is not None or args.temporal
+    if args.spp is not None and args.adaptive is not None:
+        raise WgpuRtError("--spp with --adaptive: the adaptive budget sets the samples (mean spp)")
+    spp = args.spp if args.spp is not None else (1 if fused else 64)
+    renderer = Renderer(args.scene, spp, size, denoise=args.denoise, adaptive=args.adaptive,
+                        temporal=args.temporal, max_depth=args.max_depth, seed=args.seed,
+                        aovs=() if png else aovs, tonemap="aces" if png else None, display="f32",
+                        precision=args.precision, mesh=args.mesh, progress=True)
+    mean_spp = args.adaptive if args.adaptive is not None else spp
+    for result in renderer.frames(frames):
+        path = output_path(args.out, result.frame)
+        if png:
+            write_png(path, result.image[..., :3])
         else:
-            write_png(path, tonemap(result.color, output="f32")[..., :3])
-        print(f"{path}: {size[0]}x{size[1]}, {args.spp} spp, {result.seconds:.2f} s "
-              f"({result.samples_per_second / 1e6:.2f} M samples/s)")
+            write_exr(path, result.color, result.aovs)
+        stages = ", ".join(f"{name} {ms:.1f} ms" for name, ms in result.stage_ms.items())
+        print(f"{path}: {size[0]}x{size[1]}, {mean_spp:g} spp, {result.seconds:.2f} s "
+              f"({result.samples_per_second / 1e6:.2f} M samples/s)" + (f"; GPU {stages}" if stages else ""))
     return 0

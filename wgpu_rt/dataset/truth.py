@@ -180,7 +180,7 @@ class TruthEngine:
     """Renders planned views into a dataset folder (see the module docstring)."""
 
     def __init__(self, config: DatasetConfig, out: str | Path, renderer=None):
-        """``renderer`` has ``wgpu_rt.render.render``'s signature (the default); tests pass a fake."""
+        """``renderer`` has ``wgpu_rt.renderer.render``'s signature (the default); tests pass a fake."""
         if renderer is None:
             from ..render import render as renderer
         self.render = renderer
@@ -212,7 +212,7 @@ class TruthEngine:
             path = folder / name
             if not path.exists():
                 result = self.render(scene, spp=spp, size=size, max_depth=cfg.max_depth,
-                                     seed=_render_seed(cfg, view, *salt), frame=salt[0], aovs=GBUFFERS)
+                                     seed=_render_seed(cfg, view, *salt), frames=salt[0], aovs=GBUFFERS)
                 write_exr(path, _finite(result.color), {k: _finite(result.aovs[k]) for k in GBUFFERS})
         previous = folder / "view.json"
         seconds = time.perf_counter() - started

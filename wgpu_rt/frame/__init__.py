@@ -1,6 +1,7 @@
-"""On-device frame passes after the tracer: pack → (network) → unpack → temporal → tonemap, the
-adaptive sampler, and the fused per-frame pipeline (``render_frames``)."""
+"""The frame after the tracer: pack → (network) → unpack → temporal → tonemap, the adaptive sampler,
+``denoise()`` for one image off the frame loop, and the ``FramePipeline`` that records a whole frame
+(``wgpu_rt.renderer`` sets one up)."""
 
-from .pipeline import FramePipeline, RenderedFrame, make_pipeline, render_frames
+from .pipeline import FramePipeline, RenderResult
 
-__all__ = ["FramePipeline", "RenderedFrame", "make_pipeline", "render_frames"]
+__all__ = ["FramePipeline", "RenderResult"]

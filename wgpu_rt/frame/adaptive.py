@@ -46,17 +46,17 @@ UNIFORM_SHARE = {"heat": 0.5, "variance": 0.5}
 POOL_SIGMA = {"heat": 2.0, "variance": 0.0}
 POOL_REACH = 2.0
 SHADER = "frame/adaptive.wgsl"
-# frame/adaptive.wgsl's bindings, per entry point (None: not used by that entry).
+# The bindings each entry point of frame/adaptive.wgsl uses (their indices are read from the WGSL).
 ENTRY_BINDINGS = {
-    "extra_from_heat": ("source", "extra", None, None, None, None, None, None),
-    "square_importance": ("source", None, None, None, None, None, None, None, None, "squared"),
-    "weigh": (None, None, "claim", "tile_sums", None, None, None, None, None, "squared"),
-    "sum_weights": (None, None, None, "tile_sums", "budget", None, None, None),
-    "assign": (None, "extra", "claim", None, "budget", None, None, None),
-    "count_candidates": (None, "extra", "claim", None, None, None, None, "tile_offsets"),
-    "scan_candidates": (None, None, None, None, "budget", None, None, "tile_offsets", "spill_args"),
-    "take": (None, "extra", "claim", None, "budget", None, None, "tile_offsets"),
-    "half_buffer_error": ("source", None, None, None, None, "half_radiance", "error", None),
+    "extra_from_heat": ("source", "extra"),
+    "square_importance": ("source", "squared"),
+    "weigh": ("claim", "tile_sums", "squared"),
+    "sum_weights": ("tile_sums", "budget"),
+    "assign": ("extra", "claim", "budget"),
+    "count_candidates": ("extra", "claim", "tile_offsets"),
+    "scan_candidates": ("budget", "tile_offsets", "spill_args"),
+    "take": ("extra", "claim", "budget", "tile_offsets"),
+    "half_buffer_error": ("source", "half_radiance", "error"),
 }
 # Entry points run by a single workgroup rather than one invocation per pixel.
 SINGLE_WORKGROUP = ("sum_weights", "scan_candidates")

@@ -9,11 +9,19 @@ workgroups-per-dimension limit.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from ..shaders import compose
 
 TILE = 8
+_BINDING = re.compile(r"@group\(0\)\s*@binding\((\d+)\)\s*var(?:<[^>]*>)?\s+(\w+)")
+
+
+def binding_names(code: str) -> dict[str, int]:
+    """Binding index of every ``@group(0)`` variable a WGSL module declares, by name."""
+    return {name: int(index) for index, name in _BINDING.findall(code)}
 
 
 def ceil_div(a: int, b: int) -> int:
@@ -34,20 +42,29 @@ def finite(values: np.ndarray) -> np.ndarray:
 
 
 class FrameKernel:
-    """One entry point of a ``wgsl/frame_*.wgsl`` shader, specialised for a width×height frame.
+    """One entry point of a ``wgsl/frame/*.wgsl`` shader, specialised for a width×height frame.
 
-    ``bindings`` names the shader's bindings 0, 1, … in order, with None for a binding this entry point
-    does not use (WebGPU's automatic layout leaves those out). ``dispatch`` takes a dict of buffers by
-    name (extra names are ignored, so one dict can serve every entry point of a shader), caches the bind
-    group and records one dispatch over the frame's pixels (or ``groups`` workgroups).
+    ``uses`` names the bindings this entry point reads or writes (WebGPU's automatic layout leaves the
+    others out); their indices are read from the shader's own ``@group(0) @binding(i) var… name``
+    declarations, so a binding's place is declared once, in the WGSL. ``dispatch`` takes a dict of
+    buffers by name (extra names are ignored, so one dict can serve every entry point of a shader),
+    caches the bind group and records one dispatch over the frame's pixels (or ``groups`` workgroups).
     """
 
-    def __init__(self, ctx, shader: str, entry: str, bindings: tuple[str, ...], width: int, height: int,
+    def __init__(self, ctx, shader: str, entry: str, uses: tuple[str, ...], width: int, height: int,
                  constants: dict | None = None):
-        self.ctx, self.entry, self.bindings = ctx, entry, bindings
+        code = compose(shader)
+        declared = binding_names(code)
+        unknown = [name for name in uses if name not in declared]
+        if unknown:
+            raise ValueError(f"{shader}: no @group(0) binding named {unknown} (declared: {sorted(declared)})")
+        self.ctx, self.entry = ctx, entry
+        self.bindings = [name if name in uses else None for name in
+                         (next((n for n, i in declared.items() if i == index), None)
+                          for index in range(max(declared[n] for n in uses) + 1))]
         self.width, self.height = width, height
         self.pipeline = ctx.compute_pipeline(
-            compose(shader), entry_point=entry, label=f"{shader}:{entry}",
+            code, entry_point=entry, label=f"{shader}:{entry}",
             constants={"WIDTH": width, "HEIGHT": height, **(constants or {})})
         self._bind_groups: dict[tuple, object] = {}
 

@@ -21,10 +21,10 @@ from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, ComputePass
 from .kernel import FrameKernel, finite, nonnegative_finite
 from .planes import CONFIDENCE_INPUT, DENOISER_INPUT, ERROR_INPUT
 
-# frame/pack.wgsl's bindings, per entry point (None: not used by that entry).
-DENOISER_BINDINGS = ("color", "albedo", "normal", "depth", "depth_max_bits", None, "packed")
-ERROR_BINDINGS = ("color", None, None, None, None, None, "packed")
-CONFIDENCE_BINDINGS = ("color", None, None, "depth", "depth_max_bits", "reprojected", "packed")
+# The bindings each entry point of frame/pack.wgsl uses (their indices are read from the WGSL).
+DENOISER_BINDINGS = ("color", "albedo", "normal", "depth", "depth_max_bits", "packed")
+ERROR_BINDINGS = ("color", "packed")
+CONFIDENCE_BINDINGS = ("color", "depth", "depth_max_bits", "reprojected", "packed")
 
 
 # -- numpy references ---------------------------------------------------------------------------------

@@ -1,46 +1,54 @@
-"""The fused frame: trace → pack → denoiser → unpack → temporal → tone-map in one command encoder per
-frame, with exactly one readback (the display image; per-stage timestamps ride in the same buffer).
+"""The frame: trace → pack → denoiser → unpack → temporal → tone-map, recorded into one command encoder
+per frame, with exactly one readback (the frame's colour, the AOVs asked for, the display image and
+the per-stage timestamps ride in one buffer).
+
+Frames in flight: ``frames()`` records and submits frame N+1 before it reads frame N back, into two
+readback buffers used in turn, so the device never waits for the host between frames.
 
 Networks are objects with ``record(encoder, input_buffer, height, width) -> output_buffer`` (the NN
-engine's ``wgpu_rt.nn.WgslModel``); ``render_frames`` loads them from ``models/`` by default.
-Stage timings come from timestamp queries when the adapter has them: an empty compute pass with a
-timestamp write marks each stage boundary, so stages recorded by other packages are timed too.
+engine's ``wgpu_rt.nn.WgslModel``). Stage timings come from timestamp queries when the adapter has
+them: an empty compute pass with a timestamp write marks each stage boundary, so stages recorded by
+other packages are timed too.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
-from importlib import resources
-from pathlib import Path
 
 import numpy as np
 import wgpu
 
 from ..errors import ModelError
-from ..passes import RADIANCE, SPP, FrameBuffers
-from .adaptive import (
-    HALF_RADIANCE,
-    HEAT,
-    SAMPLE_ERROR,
-    AdaptiveSettings,
-    ExtraSamplesPass,
-    HalfBufferErrorPass,
-)
+from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, FrameBuffers, PlaneSpec
+from ..trace.trace_pass import SampleSchedule
+from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
 from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
 from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT
 from .temporal import TEMPORAL, TemporalPass, TemporalSettings, frame_change
 from .tonemap import TonemapPass
 from .unpack import UnpackPass
 
-MODEL_FILES = {"denoiser": "denoiser.onnx", "error_predictor": "error_predictor.onnx",
-               "confidence": "confidence.onnx"}
+AOV_PLANES = {plane.name: plane for plane in (ALBEDO, NORMAL, DEPTH, MOTION, SPP)}
+SAMPLES_PER_SUBMIT = 1 << 21   # pixel samples per command buffer (a fraction of a second on lavapipe)
 
 
 @dataclass
-class RenderedFrame:
+class RenderResult:
+    """One rendered frame."""
+
     frame: int
-    image: np.ndarray                                   # (H, W, 4) uint8, or float32 for f32 output
-    stage_ms: dict[str, float] = field(default_factory=dict)   # empty without timestamp queries
+    color: np.ndarray                                   # (H, W, 3) float32 linear HDR: the frame's final colour
+    aovs: dict[str, np.ndarray] = field(default_factory=dict)   # name → (H, W, C) float32
+    image: np.ndarray | None = None                     # (H, W, 4) display image when tone-mapped
+    stage_ms: dict[str, float] = field(default_factory=dict)    # GPU time per stage (timestamp queries)
+    seconds: float = 0.0                                # this frame: first submit to readback
+    setup_seconds: float = 0.0                          # scene, BVH, kernels, networks (first frame only)
+    samples: int = 0                                    # pixel samples taken (planned, for adaptive)
+
+    @property
+    def samples_per_second(self) -> float:
+        return self.samples / self.seconds if self.seconds > 0 else 0.0
 
 
 class StageTimer:
@@ -70,32 +78,54 @@ class StageTimer:
         encoder.resolve_query_set(self.query_set, 0, len(self.names), self.resolved, 0)
         encoder.copy_buffer_to_buffer(self.resolved, 0, destination, offset, 8 * len(self.names))
 
-    def stage_ms(self, raw: bytes) -> dict[str, float]:
-        ticks = np.frombuffer(raw, np.uint64, count=len(self.names)).astype(np.float64)
-        return {name: (ticks[i] - ticks[i - 1]) / 1e6 for i, name in enumerate(self.names) if i}
+    def stage_ms(self, names: list[str], raw: bytes) -> dict[str, float]:
+        ticks = np.frombuffer(raw, np.uint64, count=len(names)).astype(np.float64)
+        return {name: (ticks[i] - ticks[i - 1]) / 1e6 for i, name in enumerate(names) if i}
+
+
+@dataclass
+class ReadbackLayout:
+    """Where each plane read back sits in the frame's one readback buffer (byte offsets)."""
+
+    planes: dict[str, tuple[PlaneSpec, int]]
+    display_offset: int
+    timestamps_offset: int
+    nbytes: int
+
+
+@dataclass
+class PendingFrame:
+    frame: int
+    readback: object
+    stage_names: list[str]
+    started: float
 
 
 class FramePipeline:
-    """Everything between a scene and its display frames, for one size and one set of settings.
+    """Everything between a scene and its rendered frames, for one size and one set of settings.
 
     ``trace_factory(frame, seed_frame)`` returns the tracer pass for that frame (a
-    ``wgpu_rt.trace.TracePass``: ``clear``, ``execute`` and a ``schedule`` of samples / per-pixel
-    ``sample_counts`` / offset), its samples seeded as ``seed_frame``'s: the frame itself, or under a
-    converging static view the first frame of the run, so the accumulated samples are one unbroken
-    stratified sequence (at 8 spp on cornell, 96², re-seeding every frame left the mean 1.7 dB PSNR
-    behind a brute-force 8-spp render: independent 1-spp sets lose the Sobol prefix's stratification).
+    ``wgpu_rt.trace.TracePass``: ``clear`` and ``execute(encoder, buffers, schedule)``), its samples seeded
+    as ``seed_frame``'s: the frame itself, or under a converging static view the first frame of the run,
+    so the accumulated samples are one unbroken stratified sequence (at 8 spp on cornell, 96², re-seeding
+    every frame left the mean 1.7 dB PSNR behind a brute-force 8-spp render: independent 1-spp sets lose
+    the Sobol prefix's stratification).
+
+    ``spp`` samples per pixel are traced per frame (in several submits when they are many; ``progress``
+    is told after each); ``adaptive`` replaces them by a 1-spp probe plus targeted samples. ``aovs`` names
+    the G-buffer planes to read back with the colour; ``operator`` None skips the display image.
     """
 
-    def __init__(self, ctx, width: int, height: int, trace_factory, *, denoiser=None,
-                 adaptive: AdaptiveSettings | None = None, error_model=None,
-                 temporal: TemporalSettings | None = None, confidence_model=None,
-                 operator: str = "aces", exposure: float = 0.0, srgb: bool = True,
-                 output: str = "rgba8", timings: bool | None = None):
-        if adaptive is not None and adaptive.sampler == "heat" and error_model is None:
+    def __init__(self, ctx, width: int, height: int, trace_factory, *, spp: int = 1, denoiser=None,
+                 adaptive: AdaptiveSettings | None = None, error_predictor=None,
+                 temporal: TemporalSettings | None = None, confidence=None, aovs=(),
+                 operator: str | None = "aces", exposure: float = 0.0, srgb: bool = True,
+                 output: str = "rgba8", timings: bool | None = None, progress=None):
+        if adaptive is not None and adaptive.sampler == "heat" and error_predictor is None:
             raise ModelError("the heat adaptive sampler needs an error predictor model")
         self.ctx, self.width, self.height = ctx, width, height
-        self.trace_factory, self.denoiser, self.error_model = trace_factory, denoiser, error_model
-        self.adaptive = adaptive
+        self.trace_factory, self.denoiser, self.error_predictor = trace_factory, denoiser, error_predictor
+        self.spp, self.adaptive, self.progress = spp, adaptive, progress
         self.buffers = FrameBuffers(ctx, width, height)
         self.depth_max = DepthMaxPass(ctx, width, height)
         color = RADIANCE
@@ -105,66 +135,94 @@ class FramePipeline:
             color = DENOISED
         self.temporal = None
         if temporal is not None:
-            self.temporal = TemporalPass(ctx, width, height, color, temporal, confidence_model,
-                                         self.depth_max.result)
+            self.temporal = TemporalPass(ctx, width, height, color, temporal, confidence, self.depth_max.result)
             color = TEMPORAL
         if adaptive is not None:
             source = SAMPLE_ERROR if adaptive.sampler == "variance" else HEAT
             self.extra_samples = ExtraSamplesPass(ctx, width, height, adaptive, source)
             self.pack_error = PackErrorPass(ctx, width, height)
             self.half_buffer_error = HalfBufferErrorPass(ctx, width, height)
-        self.tonemap = TonemapPass(ctx, width, height, color, operator, exposure, srgb, output)
-        display_bytes = self.tonemap.display.nbytes(width, height)
+        self.color = color
+        self.tonemap = (TonemapPass(ctx, width, height, color, operator, exposure, srgb, output)
+                        if operator is not None else None)
         self.timer = StageTimer(ctx) if (ctx.has_timestamps if timings is None else timings) else None
-        self.readback = ctx.device.create_buffer(
-            size=display_bytes + (8 * self.timer.capacity if self.timer else 0),
-            usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.COPY_SRC)
-        self.display_bytes = display_bytes
+        self.layout = self._layout([color, *(AOV_PLANES[name] for name in aovs)])
+        self._readbacks = [ctx.device.create_buffer(size=self.layout.nbytes, label=f"readback {i}",
+                                                    usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
+                           for i in range(2)]
+        self._submitted = 0
         self.previous_frame: int | None = None
         self.seed_frame = 0
+
+    def _layout(self, planes: list[PlaneSpec]) -> ReadbackLayout:
+        offsets, offset = {}, 0
+        for plane in planes:
+            offsets[plane.name] = (plane, offset)
+            offset += plane.nbytes(self.width, self.height)
+        display_offset = offset
+        if self.tonemap is not None:
+            offset += self.tonemap.display.nbytes(self.width, self.height)
+        timestamps_offset = offset
+        if self.timer is not None:
+            offset += 8 * self.timer.capacity
+        return ReadbackLayout(offsets, display_offset, timestamps_offset, offset)
 
     def _mark(self, encoder, name: str) -> None:
         if self.timer:
             self.timer.mark(encoder, name)
 
-    def _trace(self, encoder, trace, keep_samples: bool) -> None:
-        """Record this frame's samples; with ``keep_samples`` they join the previous frames' in the planes
-        (the tracer numbers them after each pixel's spp, so the planes stay unbiased running means)."""
-        from ..trace.trace_pass import SampleSchedule
+    def _uniform_batches(self, trace) -> list[int]:
+        """``spp`` split into the batches of one submit each (whole dispatches of the trace's chunks)."""
+        chunk = trace.chunk_size
+        per_submit = max(chunk, SAMPLES_PER_SUBMIT // (self.width * self.height) // chunk * chunk)
+        return [min(per_submit, self.spp - done) for done in range(0, self.spp, per_submit)]
 
+    def _trace(self, encoder, trace, keep_samples: bool):
+        """Record this frame's samples (submitting all but the last batch of a large ``spp`` on their
+        own); with ``keep_samples`` they join the previous frames' in the planes (the tracer numbers them
+        after each pixel's spp, so the planes stay unbiased running means). Returns the encoder to go on."""
         buffers, adaptive = self.buffers, self.adaptive
         if not keep_samples:
             trace.clear(encoder, buffers)
-        trace.schedule = SampleSchedule(samples=1)
-        trace.execute(encoder, buffers)
         if adaptive is None:
+            batches = self._uniform_batches(trace)
+            for batch in batches[:-1]:
+                trace.execute(encoder, buffers, SampleSchedule(samples=batch))
+                self.ctx.device.queue.submit([encoder.finish()])
+                if self.progress is not None:
+                    self.ctx.read(buffers.get(SPP), np.uint32, nbytes=4)   # waits, so the bar tells time
+                    self.progress(batch)
+                encoder = self.ctx.device.create_command_encoder(label="trace batch")
+            trace.execute(encoder, buffers, SampleSchedule(samples=batches[-1]))
             self._mark(encoder, "trace")
-            return
+            return encoder
         if adaptive.sampler == "variance":
+            trace.execute(encoder, buffers, SampleSchedule(samples=1))
             encoder.copy_buffer_to_buffer(buffers.get(RADIANCE), 0, buffers.get(HALF_RADIANCE), 0,
                                           RADIANCE.nbytes(self.width, self.height))
-            trace.schedule = SampleSchedule(samples=1)   # numbered after the probe's first (spp = 1)
-            trace.execute(encoder, buffers)
+            trace.execute(encoder, buffers, SampleSchedule(samples=1))   # numbered after the first (spp = 1)
             self._mark(encoder, "probe")
             self.half_buffer_error.execute(encoder, buffers)
         else:
+            trace.execute(encoder, buffers, SampleSchedule(samples=1))
             self._mark(encoder, "probe")
             if adaptive.sampler == "heat":
                 self.pack_error.execute(encoder, buffers)
-                heat = self.error_model.record(encoder, buffers.get(ERROR_INPUT), self.height, self.width)
+                heat = self.error_predictor.record(encoder, buffers.get(ERROR_INPUT), self.height, self.width)
                 encoder.copy_buffer_to_buffer(heat, 0, buffers.get(HEAT), 0, HEAT.nbytes(self.width, self.height))
         self.extra_samples.execute(encoder, buffers)
         self._mark(encoder, "sample map")
         # No sample_offset: the tracer already numbers these after the probe's (each pixel's spp), so
         # probe and targeted samples are one unbroken prefix of the pixel's sequence, as brute force is.
-        trace.schedule = SampleSchedule(samples=adaptive.max_extra,
-                                        sample_counts=buffers.get(self.extra_samples.outputs[0]))
-        trace.execute(encoder, buffers)
+        trace.execute(encoder, buffers, SampleSchedule(samples=adaptive.max_extra,
+                                                       sample_counts=buffers.get(self.extra_samples.outputs[0])))
         self._mark(encoder, "targeted trace")
+        return encoder
 
-    def render(self, scene, frame: int) -> RenderedFrame:
-        """Record, submit and read back one frame."""
+    def submit(self, scene, frame: int) -> PendingFrame:
+        """Record and submit one frame; ``finish`` reads it back. At most two frames may be pending."""
         ctx, buffers = self.ctx, self.buffers
+        started = time.perf_counter()
         # Temporal mode under a static camera and scene converges in the tracer: the frame adds its
         # samples to the running mean, which is denoised and then replaces the temporal history
         # (averaging denoised 1-spp frames would keep the denoiser's bias). Any change or cut starts
@@ -178,111 +236,68 @@ class FramePipeline:
         if self.timer:
             self.timer.start()
         self._mark(encoder, "start")
-        self._trace(encoder, trace, keep_samples=converging)
+        encoder = self._trace(encoder, trace, keep_samples=converging)
         self.depth_max.execute(encoder, buffers)
         if self.denoiser is not None:
             self.pack.execute(encoder, buffers)
             self._mark(encoder, "pack")
-            self.unpack.source = self.denoiser.record(encoder, buffers.get(DENOISER_INPUT), self.height,
-                                                      self.width)
+            network_output = self.denoiser.record(encoder, buffers.get(DENOISER_INPUT), self.height, self.width)
             self._mark(encoder, "denoise")
-            self.unpack.execute(encoder, buffers)
+            self.unpack.execute(encoder, buffers, network_output)
         if self.temporal is not None:
-            self.temporal.change = "converge" if converging else change
-            self.temporal.execute(encoder, buffers)
+            self.temporal.execute(encoder, buffers, "converge" if converging else change)
             self._mark(encoder, "temporal")
-        self.tonemap.execute(encoder, buffers)
-        self._mark(encoder, "tonemap")
-        encoder.copy_buffer_to_buffer(buffers.get(self.tonemap.display), 0, self.readback, 0, self.display_bytes)
+        if self.tonemap is not None:
+            self.tonemap.execute(encoder, buffers)
+            self._mark(encoder, "tonemap")
+        readback = self._readbacks[self._submitted % 2]
+        for plane, offset in self.layout.planes.values():
+            encoder.copy_buffer_to_buffer(buffers.get(plane), 0, readback, offset, plane.nbytes(self.width, self.height))
+        if self.tonemap is not None:
+            encoder.copy_buffer_to_buffer(buffers.get(self.tonemap.display), 0, readback, self.layout.display_offset,
+                                          self.tonemap.display.nbytes(self.width, self.height))
         if self.timer:
-            self.timer.resolve(encoder, self.readback, self.display_bytes)
+            self.timer.resolve(encoder, readback, self.layout.timestamps_offset)
         ctx.device.queue.submit([encoder.finish()])
-        raw = ctx.device.queue.read_buffer(self.readback)
+        self._submitted += 1
         self.previous_frame = frame
-        return RenderedFrame(frame, self.tonemap.image(raw[: self.display_bytes], self.width, self.height),
-                             self.timer.stage_ms(raw[self.display_bytes:]) if self.timer else {})
+        return PendingFrame(frame, readback, list(self.timer.names) if self.timer else [], started)
 
-    @property
-    def spp_plane(self):
-        return self.buffers.get(SPP)
+    def finish(self, pending: PendingFrame) -> RenderResult:
+        """Wait for a submitted frame and read it back (one mapping of its readback buffer)."""
+        pending.readback.map_sync(wgpu.MapMode.READ)
+        try:
+            raw = pending.readback.read_mapped()
+        finally:
+            pending.readback.unmap()
+        planes = {}
+        for name, (plane, offset) in self.layout.planes.items():
+            shape = (plane.channels, self.height, self.width)
+            values = np.frombuffer(raw, NUMPY_DTYPE[plane.dtype], count=int(np.prod(shape)), offset=offset)
+            planes[name] = np.ascontiguousarray(values.reshape(shape).transpose(1, 2, 0)).astype(np.float32)
+        image = None
+        if self.tonemap is not None:
+            image = self.tonemap.image(raw[self.layout.display_offset:self.layout.timestamps_offset],
+                                       self.width, self.height)
+        stage_ms = (self.timer.stage_ms(pending.stage_names, raw[self.layout.timestamps_offset:])
+                    if self.timer else {})
+        color = planes.pop(self.color.name)
+        mean_spp = self.spp if self.adaptive is None else (self.adaptive.budget or self.adaptive.probe_samples)
+        samples = mean_spp * self.width * self.height
+        return RenderResult(pending.frame, color, planes, image, stage_ms, time.perf_counter() - pending.started,
+                            samples=int(round(samples)))
 
+    def render(self, scene, frame: int) -> RenderResult:
+        """Record, submit and read back one frame."""
+        return self.finish(self.submit(scene, frame))
 
-def model_path(name: str, models_dir: str | Path | None = None) -> Path:
-    """The ONNX file of network ``name`` (denoiser, error_predictor, confidence)."""
-    folder = Path(models_dir) if models_dir else Path(str(resources.files("wgpu_rt.models")))
-    return folder / MODEL_FILES[name]
-
-
-def load_model(name: str, precision: str, models_dir=None, required: bool = True):
-    path = model_path(name, models_dir)
-    if not path.exists():
-        if required:
-            raise ModelError(f"{path}: no trained {name} model (train one into that folder)")
-        return None
-    from ..nn import WgslModel
-
-    return WgslModel(path, precision)
-
-
-def make_pipeline(scene, denoise: bool = True, adaptive: float | AdaptiveSettings | None = None,
-                  temporal: bool | TemporalSettings = False, width: int = 256, height: int = 256,
-                  max_depth: int = 8, seed: int = 0, operator: str = "aces", exposure: float = 0.0,
-                  srgb: bool = True, output: str = "rgba8", precision: str = "fp32", models_dir=None, ctx=None,
-                  denoiser=None, error_model=None, confidence_model=None) -> FramePipeline:
-    """The FramePipeline ``render_frames`` runs (see there for the arguments), for callers that render
-    frames one at a time: its setup (model loading, kernel compilation, first BVH build) is paid on the
-    first ``render``, so timing the frames after it measures the steady state."""
-    from ..accel.geometry import GeometryBuffers
-    from ..gpu import get_context
-    from ..trace.trace_pass import TracePass
-
-    ctx = ctx or get_context()
-    if isinstance(adaptive, (int, float)):
-        adaptive = AdaptiveSettings(budget=float(adaptive))
-    if temporal is True:
-        temporal = TemporalSettings()
-    temporal = temporal or None
-    if denoise and denoiser is None:
-        denoiser = load_model("denoiser", precision, models_dir)
-    if adaptive is not None and adaptive.sampler == "heat" and error_model is None:
-        error_model = load_model("error_predictor", precision, models_dir)
-    if temporal is not None and confidence_model is None:
-        confidence_model = load_model("confidence", precision, models_dir, required=False)
-    traced: dict[bytes, TracePass] = {}   # the pass of the current geometry (object transforms)
-
-    def trace_factory(frame: int, seed_frame: int):
-        key = b"".join(m.transform_at(frame).tobytes() for m in scene.meshes)
-        trace = traced.get(key)
-        if trace is None:   # objects moved: new BVH, new uploads
-            traced.clear()
-            trace = traced[key] = TracePass(ctx, scene, GeometryBuffers.build(scene, frame), width, height,
-                                            frame=frame, max_depth=max_depth, seed=seed + seed_frame)
-        else:               # same geometry: only the camera and seed change
-            trace.set_frame(scene, frame, seed + seed_frame)
-        return trace
-
-    return FramePipeline(ctx, width, height, trace_factory, denoiser=denoiser if denoise else None,
-                         adaptive=adaptive, error_model=error_model, temporal=temporal,
-                         confidence_model=confidence_model, operator=operator, exposure=exposure,
-                         srgb=srgb, output=output)
-
-
-def render_frames(scene, denoise: bool = True, adaptive: float | AdaptiveSettings | None = None,
-                  temporal: bool | TemporalSettings = False, frames=None, **options) -> list[RenderedFrame]:
-    """Render ``frames`` (default: every frame of the scene) to display images on the device.
-
-    ``scene`` is a Scene, a built-in name or a scene-file path (``mesh`` for the built-in 'mesh').
-
-    ``adaptive`` is a mean-spp budget for the Error-Predictor-guided sampler (or full AdaptiveSettings);
-    ``temporal`` True uses the default TemporalSettings (with the Confidence Predictor when models/
-    has one). ``options`` are ``make_pipeline``'s: width, height, max_depth, seed (frame f uses seed + f;
-    the frames of a converging static view keep their first frame's), operator, exposure, srgb, output
-    ("rgba8" or "f32"), precision ("fp32" or "fp16"), ctx, and the networks (denoiser, error_model,
-    confidence_model) — those not given are loaded from ``models_dir`` (default: the packaged models/).
-    """
-    from ..scene import load_scene
-
-    scene = load_scene(scene, mesh=options.pop("mesh", None))
-    pipeline = make_pipeline(scene, denoise, adaptive, temporal, **options)
-    frames = range(scene.frame_count) if frames is None else frames
-    return [pipeline.render(scene, frame) for frame in frames]
+    def frames(self, scene, frames):
+        """Render ``frames`` in order, one frame in flight while the previous one is read back."""
+        pending = None
+        for frame in frames:
+            submitted = self.submit(scene, frame)
+            if pending is not None:
+                yield self.finish(pending)
+            pending = submitted
+        if pending is not None:
+            yield self.finish(pending)

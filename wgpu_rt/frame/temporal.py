@@ -30,12 +30,12 @@ HISTORY = PlaneSpec("history", 8)           # RGB, depth, normal xyz, history le
 REPROJECTED = PlaneSpec("reprojected", 5)   # RGB, previous depth, history length (0 = disoccluded)
 CONFIDENCE = PlaneSpec("confidence", 1)
 TEMPORAL = PlaneSpec("temporal", 3)
-# frame/temporal.wgsl's bindings, per entry point (None: not used by that entry).
+# The bindings each entry point of frame/temporal.wgsl uses (their indices are read from the WGSL).
 ENTRY_BINDINGS = {
-    "reproject": (None, "depth", "normal", "motion", "history", "reprojected", None, None),
-    "blend": ("color", "depth", "normal", None, "history", "reprojected", "confidence", "output"),
-    "accumulate": ("color", "depth", "normal", None, "history", None, None, "output"),
-    "converge": ("color", "depth", "normal", None, "history", None, None, "output", "samples_mean", "spp"),
+    "reproject": ("depth", "normal", "motion", "history", "reprojected"),
+    "blend": ("color", "depth", "normal", "history", "reprojected", "confidence", "output"),
+    "accumulate": ("color", "depth", "normal", "history", "output"),
+    "converge": ("color", "depth", "normal", "history", "output", "samples_mean", "spp"),
 }
 CUT_ANGLE_DEGREES = 30.0
 CUT_DISTANCE_FRACTION = 0.25
@@ -203,8 +203,8 @@ def accumulate_history(color, depth, normal, history, settings=TemporalSettings(
 class TemporalPass(ComputePass):
     """``source`` (the denoised frame), depth, normal, motion, history → temporal (3 planes), history.
 
-    Set ``change`` (``frame_change``'s answer, or ``converge``: the source is the denoised mean of every
-    sample of a static view, in the radiance and spp planes) before each execute. With a
+    Each execute is told the frame's ``change`` (``frame_change``'s answer, or ``converge``: the source is
+    the denoised mean of every sample of a static view, in the radiance and spp planes). With a
     ``confidence_model`` (an object with ``record(encoder, input_buffer, height, width) ->
     output_buffer``, such as
     ``wgpu_rt.nn.WgslModel``) and the frame's ``depth_max`` buffer, moving frames run the Confidence
@@ -220,7 +220,6 @@ class TemporalPass(ComputePass):
         self.ctx, self.width, self.height = ctx, width, height
         self.source, self.settings, self.confidence_model = source, settings, confidence_model
         self.inputs = (source, DEPTH, NORMAL, MOTION, RADIANCE, SPP)
-        self.change = "cut"
         constants = {**settings.constants(), "USE_CONFIDENCE": confidence_model is not None}
         self.kernels = {entry: FrameKernel(ctx, "frame/temporal.wgsl", entry, bindings, width, height,
                                            constants)
@@ -228,21 +227,21 @@ class TemporalPass(ComputePass):
         self.pack_confidence = (PackConfidencePass(ctx, width, height, source, REPROJECTED, depth_max)
                                 if confidence_model is not None else None)
 
-    def execute(self, encoder, buffers) -> None:
+    def execute(self, encoder, buffers, change: str) -> None:
         planes = {"color": buffers.get(self.source), "depth": buffers.get(DEPTH),
                   "normal": buffers.get(NORMAL), "history": buffers.get(HISTORY),
                   "output": buffers.get(TEMPORAL)}
-        if self.change == "converge":
+        if change == "converge":
             self.kernels["converge"].dispatch(encoder, planes | {"samples_mean": buffers.get(RADIANCE),
                                                                  "spp": buffers.get(SPP)})
             return
-        if self.change in ("cut", "static"):
-            if self.change == "cut":
+        if change in ("cut", "static"):
+            if change == "cut":
                 encoder.clear_buffer(planes["history"])
             self.kernels["accumulate"].dispatch(encoder, planes)
             return
-        if self.change != "moving":
-            raise ValueError(f"unknown frame change {self.change!r}")
+        if change != "moving":
+            raise ValueError(f"unknown frame change {change!r}")
         planes |= {"motion": buffers.get(MOTION), "reprojected": buffers.get(REPROJECTED)}
         self.kernels["reproject"].dispatch(encoder, planes)
         if self.confidence_model is not None:

@@ -21,17 +21,16 @@ def unpack_denoiser_output(output: np.ndarray, albedo: np.ndarray) -> np.ndarray
 
 
 class UnpackPass(ComputePass):
-    """``source`` (the network's output buffer, or a plane) and albedo → denoised (3 planes)."""
+    """The network's output (a buffer, or a plane, given to each execute) and albedo → denoised (3 planes)."""
 
     inputs = (ALBEDO,)
     outputs = (DENOISED,)
 
-    def __init__(self, ctx, width: int, height: int, source=None):
-        self.source = source
+    def __init__(self, ctx, width: int, height: int):
         self.kernel = FrameKernel(ctx, "frame/unpack.wgsl", "main", ("network_output", "albedo", "radiance"),
                                   width, height)
 
-    def execute(self, encoder, buffers) -> None:
-        source = buffers.get(self.source) if hasattr(self.source, "channels") else self.source
+    def execute(self, encoder, buffers, source) -> None:
+        source = buffers.get(source) if hasattr(source, "channels") else source
         self.kernel.dispatch(encoder, {"network_output": source, "albedo": buffers.get(ALBEDO),
                                        "radiance": buffers.get(DENOISED)})

@@ -118,7 +118,7 @@ def _padded(records: np.ndarray, capacity: int) -> np.ndarray:
     return padded
 
 
-@dataclass
+@dataclass(frozen=True)
 class SampleSchedule:
     """What the next ``execute`` adds: ``samples`` per pixel, or per pixel from ``sample_counts``
     (a u32 plane; ``samples`` is then its maximum), with sample indices shifted by ``sample_offset``."""
@@ -160,7 +160,6 @@ class TracePass(ComputePass):
         # cornell); few enough to stay around a second on lavapipe and well within the kernel's
         # LOOP_BUDGET (wgsl/trace/trace.wgsl) on scenes with long paths.
         self.chunk_size = chunk_size or max(1, min(16, (1 << 20) // (width * height)))
-        self.schedule = SampleSchedule()
 
         self._emitter_table, self._max_depth = emitters, max_depth
         self.set_frame(scene, frame, seed)
@@ -198,25 +197,22 @@ class TracePass(ComputePass):
         params["background"] = scene.background
         return params
 
-    @property
-    def dispatch_count(self) -> int:
-        return -(-self.schedule.samples // self.chunk_size)
-
     def clear(self, encoder, buffers: FrameBuffers) -> None:
         """Reset the output planes (a new frame starts from zero samples)."""
         for spec in self.outputs:
             encoder.clear_buffer(buffers.get(spec))
 
-    def execute(self, encoder, buffers: FrameBuffers) -> None:
-        """Record the dispatches that add ``self.schedule``'s samples to ``buffers``."""
-        ctx, schedule = self.ctx, self.schedule
+    def execute(self, encoder, buffers: FrameBuffers, schedule: SampleSchedule = SampleSchedule()) -> None:
+        """Record the dispatches that add ``schedule``'s samples to ``buffers``."""
+        ctx = self.ctx
+        dispatch_count = -(-schedule.samples // self.chunk_size)
         params = self._params.copy()
         params["sample_offset"] = schedule.sample_offset
         params["use_sample_counts"] = int(schedule.sample_counts is not None)
         params["pass_samples"] = schedule.samples
         params["chunk_size"] = self.chunk_size
         uniform = ctx.uniform(params.tobytes(), label="frame params")
-        chunk_starts = ctx.upload(np.arange(self.dispatch_count, dtype=np.uint32) * self.chunk_size,
+        chunk_starts = ctx.upload(np.arange(dispatch_count, dtype=np.uint32) * self.chunk_size,
                                   label="chunk starts")
         shading = ctx.bind_group(self.pipeline, [
             uniform, self._materials, self._emitters, self._triangle_density,
@@ -224,7 +220,7 @@ class TracePass(ComputePass):
         planes = ctx.bind_group(self.pipeline, [buffers.get(spec) for spec in self.outputs], group=2)
         groups = (-(-self.width // TILE), -(-self.height // TILE), 1)
         chunk_offset = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
-        for chunk in range(self.dispatch_count):
+        for chunk in range(dispatch_count):
             encoder.copy_buffer_to_buffer(chunk_starts, 4 * chunk, uniform, chunk_offset, 4)
             compute = encoder.begin_compute_pass(label="trace")
             compute.set_pipeline(self.pipeline)

@@ -1,0 +1,223 @@
+"""``render()``: the front door. One call path traces a scene and, when asked, denoises, samples
+adaptively, accumulates over time and tone-maps, on the device, returning numpy arrays.
+
+    result = wgpu_rt.render("cornell", spp=1, size=(256, 256), denoise=True, adaptive=4)
+    result.color        # (H, W, 3) float32 linear HDR
+    result.aovs         # albedo, normal, depth, motion, spp: (H, W, C) float32
+    result.image        # display image when ``tonemap`` names an operator
+
+``frames`` renders several frames with the scene set up once (BVH, kernels, networks) and one frame in
+flight while the previous one is read back. Every argument is checked before any work starts; a bad one
+is a ``WgpuRtError`` naming it. The command line (``wgpu-rt render``) is a shell over this call.
+"""
+
+from __future__ import annotations
+
+import numbers
+import time
+from typing import Iterable, Iterator
+
+from .errors import WgpuRtError
+from .frame.pipeline import AOV_PLANES, FramePipeline, RenderResult
+
+DEFAULT_AOVS = ("albedo", "normal", "depth", "motion", "spp")
+PRECISIONS = ("fp32", "fp16")
+MAX_SIZE = 16384
+
+__all__ = ["DEFAULT_AOVS", "RenderResult", "Renderer", "render", "render_frames"]
+
+
+def parse_size(size) -> tuple[int, int]:
+    """(width, height) from a pair or "WxH"."""
+    if isinstance(size, str):
+        try:
+            width, height = (int(v) for v in size.lower().split("x"))
+        except ValueError:
+            raise WgpuRtError(f"size {size!r}: expected WIDTHxHEIGHT, e.g. 256x256") from None
+    else:
+        try:
+            width, height = size
+        except (TypeError, ValueError):
+            raise WgpuRtError(f"size {size!r}: expected (width, height)") from None
+    if not all(_is_int(v) for v in (width, height)) or not (1 <= width <= MAX_SIZE and 1 <= height <= MAX_SIZE):
+        raise WgpuRtError(f"size {width}x{height}: width and height must be integers in 1..{MAX_SIZE}")
+    return int(width), int(height)
+
+
+def check_aovs(aovs) -> tuple[str, ...]:
+    if isinstance(aovs, str):
+        aovs = [a.strip() for a in aovs.split(",") if a.strip()]
+    unknown = [a for a in aovs if a not in AOV_PLANES]
+    if unknown:
+        raise WgpuRtError(f"unknown AOV {unknown[0]!r}; choose from {', '.join(AOV_PLANES)}")
+    return tuple(dict.fromkeys(aovs))
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+
+def check_int(name: str, value, low: int, high: int | None = None) -> int:
+    if not _is_int(value) or value < low or (high is not None and value > high):
+        bound = f"in {low}..{high}" if high is not None else f"at least {low}"
+        raise WgpuRtError(f"{name} must be an integer {bound}, got {value!r}")
+    return int(value)
+
+
+def _frame_list(frames, frame_count: int, animated: bool) -> list[int]:
+    """The frames asked for; an animated scene has ``frame_count`` frames, a static one any number
+    (static frames are identical views, e.g. for temporal accumulation)."""
+    if frames is None:
+        listed = [0]
+    elif _is_int(frames):
+        listed = [frames]
+    else:
+        try:
+            listed = list(frames)
+        except TypeError:
+            raise WgpuRtError(f"frames must be a frame number or an iterable of them, got {frames!r}") from None
+    if not listed:
+        raise WgpuRtError("frames is empty")
+    for frame in listed:
+        check_int("a frame number", frame, 0, 2 ** 31 - 1)
+    beyond = [f for f in listed if f >= frame_count]
+    if animated and beyond:
+        raise WgpuRtError(f"frame {beyond[0]} is beyond the scene's {frame_count} frames (0..{frame_count - 1})")
+    return listed
+
+
+class Renderer:
+    """A scene set up once for one size and one set of settings (what ``render`` builds; keep one to
+    render frames one at a time, e.g. to time the steady state after the first)."""
+
+    def __init__(self, scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adaptive=None,
+                 temporal=False, max_depth: int = 8, seed: int = 0, aovs=DEFAULT_AOVS, tonemap: str | None = None,
+                 exposure: float = 0.0, srgb: bool = True, display: str = "rgba8", precision: str = "fp32",
+                 models_dir=None, networks: dict | None = None, mesh=None, ctx=None, progress: bool = False,
+                 timings: bool | None = None):
+        from .frame.adaptive import AdaptiveSettings
+        from .frame.temporal import TemporalSettings
+        from .frame.tonemap import check_settings
+
+        started = time.perf_counter()
+        self.width, self.height = parse_size(size)
+        self.spp = check_int("spp", spp, 1)
+        self.max_depth = check_int("max_depth", max_depth, 1)
+        self.seed = check_int("seed", seed, 0, 2 ** 32 - 1)
+        self.aovs = check_aovs(aovs)
+        if precision not in PRECISIONS:
+            raise WgpuRtError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
+        if tonemap is not None:
+            check_settings(tonemap, display)
+        if adaptive is not None and not isinstance(adaptive, AdaptiveSettings):
+            if not isinstance(adaptive, numbers.Real) or isinstance(adaptive, bool) or adaptive != adaptive:
+                raise WgpuRtError(f"adaptive must be a mean spp budget, got {adaptive!r}")
+            adaptive = AdaptiveSettings(budget=float(adaptive))
+        if adaptive is not None and self.spp != 1:
+            raise WgpuRtError(f"spp {self.spp} with adaptive sampling: the adaptive budget sets the samples "
+                              "(mean spp); leave spp at 1")
+        temporal = TemporalSettings() if temporal is True else (temporal or None)
+        self.progress = progress
+
+        from .frame.denoise import load_model
+        from .gpu import get_context
+        from .scene import load_scene
+
+        self.scene = load_scene(scene, mesh=mesh)
+        self.ctx = ctx or get_context()
+        networks = dict(networks or {})
+        if denoise and "denoiser" not in networks:
+            networks["denoiser"] = load_model("denoiser", precision, models_dir, ctx=self.ctx)
+        if adaptive is not None and adaptive.sampler == "heat" and "error_predictor" not in networks:
+            networks["error_predictor"] = load_model("error_predictor", precision, models_dir, ctx=self.ctx)
+        if temporal is not None and "confidence" not in networks:
+            networks["confidence"] = load_model("confidence", precision, models_dir, ctx=self.ctx, required=False)
+        self._bar = None
+        self.pipeline = FramePipeline(
+            self.ctx, self.width, self.height, self._trace_factory(), spp=self.spp,
+            denoiser=networks.get("denoiser") if denoise else None, adaptive=adaptive,
+            error_predictor=networks.get("error_predictor"), temporal=temporal,
+            confidence=networks.get("confidence"), aovs=self.aovs, operator=tonemap, exposure=exposure,
+            srgb=srgb, output=display, timings=timings, progress=self._advance)
+        self.setup_seconds = time.perf_counter() - started
+
+    def _trace_factory(self):
+        """Tracer passes by geometry: a frame whose objects did not move reuses the pass (and its BVH),
+        with only the camera and seed changed. Frame f is seeded seed + f (mod 2³²)."""
+        from .accel.geometry import GeometryBuffers
+        from .trace.trace_pass import TracePass
+
+        traced: dict[bytes, TracePass] = {}
+        scene = self.scene
+
+        def trace_for(frame: int, seed_frame: int):
+            seed = (self.seed + seed_frame) % 2 ** 32
+            key = b"".join(m.transform_at(frame).tobytes() for m in scene.meshes)
+            trace = traced.get(key)
+            if trace is None:   # objects moved: new BVH, new uploads
+                traced.clear()
+                trace = traced[key] = TracePass(self.ctx, scene, GeometryBuffers.build(scene, frame), self.width,
+                                                self.height, frame=frame, max_depth=self.max_depth, seed=seed)
+            else:
+                trace.set_frame(scene, frame, seed)
+            return trace
+
+        return trace_for
+
+    def _advance(self, samples: int) -> None:
+        if self._bar is not None and self._bar.unit == "spp":
+            self._bar.update(samples)
+
+    def _progress_bar(self, total: int, unit: str):
+        if not self.progress:
+            return None
+        from tqdm import tqdm
+
+        return tqdm(total=total, unit=unit, desc=f"render {self.scene.name}", leave=False)
+
+    def frames(self, frames=None) -> Iterator[RenderResult]:
+        """Render ``frames`` (a frame number or an iterable; default frame 0) in order, with one frame in
+        flight; the first result carries the setup time."""
+        listed = _frame_list(frames, self.scene.frame_count, self.scene.has_motion)
+        single = len(listed) == 1
+        self._bar = self._progress_bar(self.spp if single else len(listed), "spp" if single else "frame")
+        try:
+            for index, result in enumerate(self.pipeline.frames(self.scene, listed)):
+                if index == 0:
+                    result.setup_seconds = self.setup_seconds
+                if self._bar is not None and not single:
+                    self._bar.update(1)
+                yield result
+        finally:
+            if self._bar is not None:
+                self._bar.close()
+                self._bar = None
+
+
+def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adaptive=None, temporal=False,
+           frames=None, **options) -> RenderResult | list[RenderResult]:
+    """Render ``scene`` (a Scene, a built-in name or a scene-file path; ``mesh=`` for the built-in 'mesh').
+
+    - ``spp``: samples per pixel per frame; ``size``: (width, height) or "WxH".
+    - ``denoise``: run the denoiser (``models/denoiser.onnx``) on the device.
+    - ``adaptive``: a mean-spp budget for error-predictor-guided sampling (a 1-spp probe, then targeted
+      samples), or ``AdaptiveSettings``; replaces ``spp``.
+    - ``temporal``: accumulate over ``frames`` (reprojection, history clamping, confidence network), True
+      or ``TemporalSettings``. A static view keeps adding samples to one converging mean.
+    - ``frames``: None (frame 0) or a frame number → one ``RenderResult``; an iterable → a list.
+    - options: ``max_depth`` (8; Mitsuba's convention), ``seed`` (0; frame f is seeded seed + f),
+      ``aovs`` (names or "a,b"), ``tonemap`` (None, "aces", "reinhard" or "none": the display image),
+      ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks),
+      ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
+      ``progress`` (a progress bar), ``timings`` (per-stage GPU times; default: when the adapter has them).
+    """
+    renderer = Renderer(scene, spp, size, denoise=denoise, adaptive=adaptive, temporal=temporal, **options)
+    results = list(renderer.frames(frames))
+    return results if frames is not None and not _is_int(frames) else results[0]
+
+
+def render_frames(scene, frames: Iterable[int] | None = None, **options) -> Iterator[RenderResult]:
+    """``render`` as an iterator: each frame's result as soon as it is read back (default: every frame
+    of the scene). Same options as ``render``."""
+    renderer = Renderer(scene, **options)
+    yield from renderer.frames(range(renderer.scene.frame_count) if frames is None else frames)
