@@ -263,7 +263,7 @@ def test_error_heatmap_is_a_normalized_rank_of_the_log_error():
 
 
 def test_the_real_tracer_fills_a_tiny_dataset(gpu, tmp_path):
-    pytest.importorskip("wgpu_rt.render")
+    pytest.importorskip("wgpu_rt.renderer")
     from wgpu_rt import metrics
 
     config = DatasetConfig(scenes=("cornell",), views=3, size=16, spp=(1, 4), gold=64,
@@ -308,3 +308,105 @@ def test_cli_rejects_a_bad_shard_and_names_a_missing_manifest(tmp_path, capsys):
     assert not (tmp_path / "d").exists()
     assert main(["train", "denoiser", "--data", str(tmp_path), "--out", str(tmp_path / "m")]) == 2
     assert f"{tmp_path / 'manifest.json'}: no manifest" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--size", "0"], "--size must be at least 1, got 0"),
+    (["--gold", "0"], "--gold must be at least 1, got 0"),
+    (["--max-depth", "0"], "--max-depth must be at least 1, got 0"),
+    (["--views", "0"], "--views must be at least 1, got 0"),
+    (["--sequence-length", "0"], "--sequence-length must be at least 2, got 0"),
+    (["--sequence-fraction", "nan"], r"--sequence-fraction must be in \[0, 1\], got nan"),
+    (["--sequence-fraction", "-3"], r"--sequence-fraction must be in \[0, 1\], got -3"),
+    (["--seed", "-1"], "--seed must be at least 0, got -1"),
+    (["--worlds", "-2"], "--worlds must be at least 0, got -2"),
+    (["--scenes", "cornell", "no-such-scene"], "no-such-scene: neither a built-in scene"),
+    (["--scenes", "{broken}.json"], "broken"),
+])
+def test_cli_refuses_bad_settings_before_creating_anything(tmp_path, capsys, flags, message):
+    """Every setting, scene and mesh is checked before the folder or its config.json exists, so the
+    corrected rerun is not refused for settings under which nothing was rendered."""
+    import re
+
+    from wgpu_rt.cli import main
+
+    flags = [f.replace("{broken}", str(tmp_path / "broken")) for f in flags]
+    (tmp_path / "broken.json").write_text('{"camera": ')
+    out = tmp_path / "data"
+    assert main(["dataset", "--out", str(out), "--size", "8", "--spp", "1", "--gold", "2", "--quiet", *flags]) == 2
+    err = capsys.readouterr().err
+    assert re.search(message, err) and err.count("\n") == 1, err
+    assert not out.exists()
+
+
+def test_a_bad_mesh_in_the_folder_is_named_before_anything_is_rendered(tmp_path):
+    import trimesh
+
+    from wgpu_rt.errors import SceneError
+
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    trimesh.creation.box().export(meshes / "good.obj")
+    (meshes / "bad.ply").write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 9\n")
+    config = DatasetConfig(scenes=("cornell",), views=2, size=8, spp=(1,), gold=2, mesh_dir=str(meshes))
+    calls = []
+    with pytest.raises(SceneError, match="bad.ply"):
+        TruthEngine(config, tmp_path / "data", renderer=lambda *a, **k: calls.append(1)).run(progress=False)
+    assert not calls and not (tmp_path / "data").exists()
+    (meshes / "bad.ply").unlink()
+    (meshes / "good.obj").rename(meshes / "notes.txt")
+    with pytest.raises(DatasetError, match="--meshes holds no mesh files"):
+        TruthEngine(DatasetConfig(**{**config.__dict__, "mesh_dir": str(meshes)}), tmp_path / "data")
+    with pytest.raises(SceneError, match="not a folder of mesh files"):
+        TruthEngine(DatasetConfig(**{**config.__dict__, "mesh_dir": str(tmp_path / "none")}), tmp_path / "data")
+
+
+def test_an_out_that_cannot_be_a_dataset_folder_is_refused_before_rendering(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    from wgpu_rt.errors import OutputError
+
+    config = DatasetConfig(scenes=("cornell",), views=2, size=8, spp=(1,), gold=2)
+    calls = []
+    counting = lambda *a, **k: calls.append(1) or fake_render(*a, **k)  # noqa: E731
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    with pytest.raises(OutputError, match="is a file; name a folder"):
+        TruthEngine(config, a_file, renderer=counting).run(progress=False)
+    with pytest.raises(OutputError, match="cannot write the dataset there"):
+        TruthEngine(config, a_file / "data", renderer=counting).run(progress=False)
+
+    def read_only(self, *args, **kwargs):
+        raise PermissionError(13, "Read-only file system", str(self))
+
+    monkeypatch.setattr(Path, "mkdir", read_only)
+    with pytest.raises(OutputError, match=r"cannot write the dataset there \(Read-only file system\)"):
+        TruthEngine(config, tmp_path / "data", renderer=counting).run(progress=False)
+    assert not calls
+
+
+def test_a_config_under_which_nothing_was_rendered_does_not_bind_the_rerun(tmp_path):
+    """A run that died before its first image (no GPU, an interrupt) left config.json: a rerun with
+    other settings takes over the folder; once an image exists, other settings are refused."""
+    first = DatasetConfig(scenes=("cornell",), views=2, size=8, spp=(1,), gold=2)
+    second = DatasetConfig(**{**first.__dict__, "size": 16})
+
+    def no_gpu(*args, **kwargs):
+        raise DatasetError("no adapter")
+
+    with pytest.raises(DatasetError, match="no adapter"):
+        TruthEngine(first, tmp_path, renderer=no_gpu).run(progress=False)
+    assert (tmp_path / "config.json").exists()
+    assert len(TruthEngine(second, tmp_path, renderer=fake_render).run(progress=False)) == 2
+    with pytest.raises(DatasetError, match="size=16"):
+        TruthEngine(first, tmp_path, renderer=fake_render).run(progress=False)
+
+
+def test_a_dataset_from_before_the_worlds_resumes(dataset):
+    """config.json files written before ``worlds``/``family`` existed lack those keys."""
+    path = dataset / "config.json"
+    held = json.loads(path.read_text())
+    for key in ("worlds", "family"):
+        held.pop(key)
+    path.write_text(json.dumps(held))
+    assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []

@@ -1,6 +1,7 @@
 """``wgpu-rt dataset``: render training data (noisy renders, G-buffers, gold) with the truth engine."""
 
 HELP = "render a training dataset: noisy renders at several spp, G-buffers and gold images (resumable)"
+DEFAULT_SCENES = ("cornell", "cornell-glossy", "sun-room", "moving")
 
 
 def _int_list(text: str) -> tuple[int, ...]:
@@ -28,9 +29,18 @@ def _shard(text: str) -> tuple[int, int]:
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--scenes", nargs="+", default=["cornell", "cornell-glossy", "sun-room", "moving"],
-                        help="built-in scene names or scene files (default: %(default)s)")
+    parser.add_argument("--scenes", nargs="+",
+                        help="built-in scene names or scene files, each rendered as --views randomized views "
+                             f"(default: {' '.join(DEFAULT_SCENES)}; none when --worlds is given)")
     parser.add_argument("--views", type=int, default=16, help="views per scene (default: %(default)s)")
+    parser.add_argument("--worlds", type=int, default=0, metavar="N",
+                        help="also render N procedurally generated worlds (rooms, open ground, studio sets with "
+                             "varied objects, materials and lights), one view each; with --meshes they draw "
+                             "from that folder too (default: %(default)s)")
+    parser.add_argument("--family", choices=("training", "held_out"), default="training",
+                        help="the worlds' family: 'training' worlds become train/val views, 'held_out' worlds "
+                             "(other seeds, other shapes and meshes, never trained on) become test views; "
+                             "render the two into separate --out folders (default: %(default)s)")
     parser.add_argument("--size", type=int, default=256, help="square image size in pixels (default: %(default)s)")
     parser.add_argument("--spp", type=_int_list, default=(1, 4, 16),
                         help="noisy sample counts, comma-separated (default: 1,4,16)")
@@ -44,7 +54,9 @@ def add_arguments(parser) -> None:
                         help="frames in a temporal sequence (default: %(default)s)")
     parser.add_argument("--sequence-fraction", type=float, default=0.25,
                         help="fraction of views that are sequences (default: %(default)s)")
-    parser.add_argument("--meshes", help="a folder of meshes (.obj/.ply/.stl/.glb…) to place in views")
+    parser.add_argument("--meshes", help="a folder of meshes (.obj/.ply/.stl/.glb…) to place in views, every file "
+                        "read before anything is written; generated worlds split it by a hash of the file "
+                        "name: a fifth of the files appear only in held-out worlds")
     parser.add_argument("--seed", type=int, default=0, help="dataset seed (default: %(default)s)")
     parser.add_argument("--shard", type=_shard, default=(0, 1), help="render only shard i of n (i/n)")
     parser.add_argument("--out", required=True, help="dataset folder (rerun to resume)")
@@ -56,15 +68,15 @@ def run(args) -> int:
 
     from ..dataset import DatasetConfig, DatasetError, TruthEngine
 
-    if args.noisy_copies < 1:
-        raise DatasetError(f"--noisy-copies must be at least 1, got {args.noisy_copies}")
     if args.meshes and not Path(args.meshes).is_dir():
         raise DatasetError(f"{args.meshes}: --meshes must be a folder of mesh files")
-    config = DatasetConfig(scenes=tuple(args.scenes), views=args.views, size=args.size, spp=args.spp,
+    scenes = args.scenes if args.scenes is not None else (() if args.worlds else DEFAULT_SCENES)
+    config = DatasetConfig(scenes=tuple(scenes), views=args.views, size=args.size, spp=args.spp,
                            gold=args.gold, seed=args.seed, max_depth=args.max_depth,
                            sequence_length=args.sequence_length, sequence_fraction=args.sequence_fraction,
                            noisy_copies=args.noisy_copies,
-                           mesh_dir=str(Path(args.meshes).resolve()) if args.meshes else None)
+                           mesh_dir=str(Path(args.meshes).resolve()) if args.meshes else None,
+                           worlds=args.worlds, family=args.family)
     rendered = TruthEngine(config, args.out).run(args.shard, progress=not args.quiet)
     print(f"rendered {len(rendered)} views into {args.out} "
           f"({sum(r.seconds for r in rendered):.1f} s); manifest: {Path(args.out) / 'manifest.json'}")

@@ -21,26 +21,35 @@ that sees one realization per view hundreds of times learns that noise by heart.
 setting that must match on resume: raising N later renders just the missing copies.
 
 Splits: the last tenth of each scene's views are ``test`` (with shapes no training view has) and the
-tenth before them ``val``.
+tenth before them ``val``. ``worlds`` N adds N generated worlds (``worlds.generate_world``), one view
+each: of the ``training`` family, the last tenth are ``val`` and the rest ``train``; of the
+``held_out`` family, all are ``test``.
+
+Every setting is checked, every scene loaded and every mesh of ``mesh_dir`` read before the folder or
+its config.json is created, so a rejected run leaves nothing behind. A config.json whose dataset holds
+no rendered image yet does not bind a rerun.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import WgpuRtError
-from .variety import HELD_OUT_SHAPES, TRAINING_SHAPES, load_mesh_folder, vary_scene
+from ..errors import OutputError, WgpuRtError
+from .variety import HELD_OUT_SHAPES, MESH_SUFFIXES, TRAINING_SHAPES, load_mesh_file, load_mesh_folder, vary_scene
+from .worlds import FAMILIES, generate_world, world_seed
 
 GBUFFERS = ("albedo", "normal", "depth", "motion")
 # View numbers, seeds and images depend on all of these, so a resumed run must keep them.
 CONFIG_KEYS_THAT_MUST_MATCH = ("scenes", "views", "size", "spp", "gold", "seed", "max_depth",
-                               "sequence_length", "sequence_fraction", "mesh_dir")
+                               "sequence_length", "sequence_fraction", "mesh_dir", "worlds", "family")
+MAX_WORLDS = 2 ** 20     # world numbers of one dataset seed stay distinct (see plan_views)
 
 
 class DatasetError(WgpuRtError):
@@ -60,16 +69,39 @@ class DatasetConfig:
     sequence_fraction: float = 0.25
     mesh_dir: str | None = None
     noisy_copies: int = 1                # independent renders per frame at the lowest spp
+    worlds: int = 0                      # generated worlds, one view each
+    family: str = "training"             # the worlds' family: training (train/val) or held_out (test)
+
+    def __post_init__(self):
+        """Refuse settings that cannot make a dataset, naming the command-line flag."""
+        at_least = {"--views": (self.views, 1), "--size": (self.size, 1), "--gold": (self.gold, 1),
+                    "--max-depth": (self.max_depth, 1), "--noisy-copies": (self.noisy_copies, 1),
+                    "--seed": (self.seed, 0), "--worlds": (self.worlds, 0),
+                    "--spp": (min(self.spp, default=0), 1),
+                    # a sequence is consecutive frames; stills only need no length
+                    "--sequence-length": (self.sequence_length, 2 if self.sequence_fraction > 0 else 1)}
+        for flag, (value, least) in at_least.items():
+            if not value >= least:
+                raise DatasetError(f"{flag} must be at least {least}, got {value}")
+        if not self.scenes and not self.worlds:
+            raise DatasetError("nothing to render: give --scenes, --worlds N or both")
+        if self.worlds > MAX_WORLDS:
+            raise DatasetError(f"--worlds must be at most {MAX_WORLDS}, got {self.worlds}")
+        if self.family not in FAMILIES:
+            raise DatasetError(f"--family must be one of {', '.join(FAMILIES)}, got {self.family!r}")
+        if not (math.isfinite(self.sequence_fraction) and 0 <= self.sequence_fraction <= 1):
+            raise DatasetError(f"--sequence-fraction must be in [0, 1], got {self.sequence_fraction}")
 
 
 @dataclass(frozen=True)
 class ViewPlan:
     view_id: str
     scene: str
-    index: int              # within its scene
+    index: int              # within its scene (or among the worlds)
     scene_index: int
     split: str              # train | val | test
     frames: int
+    world_seed: int | None = None    # set for a generated world
 
     def renders(self, config: DatasetConfig) -> list[tuple[str, int, tuple[int, ...]]]:
         """(file, spp, seed salt) of every render of the view. The salts of the spp ladder and of gold
@@ -92,13 +124,24 @@ def frame_file(frame: int, spp: int | str, copy: int = 0) -> str:
     return f"f{frame}_spp{spp}.exr" if copy == 0 else f"f{frame}_spp{spp}_c{copy}.exr"
 
 
+def _held_back(views: int) -> int:
+    """How many views of ``views`` one held-out split gets."""
+    return max(1, round(0.1 * views)) if views >= 3 else 0
+
+
 def split_of(index: int, views: int) -> str:
-    held = max(1, round(0.1 * views)) if views >= 3 else 0
+    held = _held_back(views)
     if index >= views - held:
         return "test"
     if index >= views - 2 * held:
         return "val"
     return "train"
+
+
+def world_split_of(index: int, worlds: int, family: str) -> str:
+    if family == "held_out":
+        return "test"
+    return "val" if index >= worlds - _held_back(worlds) else "train"
 
 
 def _generator(config: DatasetConfig, scene_index: int, index: int, *salt: int) -> np.random.Generator:
@@ -111,21 +154,31 @@ def _render_seed(config: DatasetConfig, view: ViewPlan, *salt: int) -> int:
 
 
 def plan_views(config: DatasetConfig, shard: tuple[int, int] = (0, 1)) -> list[ViewPlan]:
-    """Every view of the dataset that belongs to ``shard`` (i, n): global view numbers ≡ i mod n."""
+    """Every view of the dataset that belongs to ``shard`` (i, n): global view numbers ≡ i mod n. The
+    worlds come after the scenes' views; world ``i`` of dataset seed ``s`` is world number
+    ``s·MAX_WORLDS + i`` of its family."""
+    groups = [(scene, config.views, split_of, None) for scene in config.scenes]
+    if config.worlds:
+        groups.append((None, config.worlds, lambda i, n: world_split_of(i, n, config.family),
+                       lambda i: world_seed(config.family, config.seed * MAX_WORLDS + i)))
     plans = []
-    for scene_index, scene in enumerate(config.scenes):
-        for index in range(config.views):
-            number = scene_index * config.views + index
+    first_number = 0
+    for scene_index, (scene, count, split_fn, seed_fn) in enumerate(groups):
+        for index in range(count):
+            number = first_number + index
             if number % shard[1] != shard[0]:
                 continue
             rng = _generator(config, scene_index, index, 1)
-            split = split_of(index, config.views)
+            split = split_fn(index, count)
             # The first held-out view of each split is always a sequence, so the confidence model
             # has validation and test pairs however few views there are.
-            first_of_split = split != "train" and split_of(index - 1, config.views) != split
+            first_of_split = split != "train" and (index == 0 or split_fn(index - 1, count) != split)
             sequence = config.sequence_fraction > 0 and (first_of_split or rng.uniform() < config.sequence_fraction)
             frames = config.sequence_length if sequence else 1
-            plans.append(ViewPlan(f"v{number:05d}", scene, index, scene_index, split, frames))
+            seed = seed_fn(index) if seed_fn else None
+            plans.append(ViewPlan(f"v{number:05d}", f"world-{seed}" if seed_fn else scene, index, scene_index,
+                                  split, frames, seed))
+        first_number += count
     return plans
 
 
@@ -155,20 +208,27 @@ def write_json_atomic(path: Path, payload) -> None:
 
 
 def check_config(out: Path, config: DatasetConfig) -> None:
-    """Record ``config`` in ``out``; on resume, refuse a config that would change existing views."""
+    """Record ``config`` in ``out``; on resume, refuse a config that would change existing views (a
+    folder with no rendered image yet takes the new config)."""
     path = out / "config.json"
     wanted = asdict(config)
-    if path.exists():
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out}: is a file; name a folder")
+    if path.exists() and any((out / "views").glob("*/*.exr")):
         try:
             held = json.loads(path.read_text())
         except json.JSONDecodeError as err:
             raise DatasetError(f"{path}: not valid JSON ({err})") from None
+        defaults = {f.name: f.default for f in fields(DatasetConfig)}   # for keys older datasets lack
         for key in CONFIG_KEYS_THAT_MUST_MATCH:
-            if held.get(key) != json.loads(json.dumps(wanted[key])):
+            if held.get(key, defaults[key]) != json.loads(json.dumps(wanted[key])):
                 raise DatasetError(f"{path}: this dataset was rendered with {key}={held.get(key)!r}, "
                                    f"not {wanted[key]!r}; use another --out or the same settings")
-    out.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(path, wanted)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(path, wanted)
+    except OSError as err:   # inside a file, read-only, no permission: found before any rendering
+        raise OutputError(f"--out {out}: cannot write the dataset there ({err.strerror or err})") from None
 
 
 def is_finished(out: Path, view: ViewPlan, config: DatasetConfig) -> bool:
@@ -182,19 +242,24 @@ class TruthEngine:
     def __init__(self, config: DatasetConfig, out: str | Path, renderer=None):
         """``renderer`` has ``wgpu_rt.renderer.render``'s signature (the default); tests pass a fake."""
         if renderer is None:
-            from ..render import render as renderer
+            from ..renderer import render as renderer
+        from ..scene import load_scene
+
         self.render = renderer
         self.config = config
         self.out = Path(out)
-        self._bases: dict[str, object] = {}
+        # Load everything a view may draw now: a bad scene or mesh fails before any file is written.
+        self._bases = {scene: load_scene(scene) for scene in config.scenes}
         self._mesh_files = load_mesh_folder(config.mesh_dir) if config.mesh_dir else []
+        if config.mesh_dir and not self._mesh_files:
+            raise DatasetError(f"{config.mesh_dir}: --meshes holds no mesh files ({', '.join(MESH_SUFFIXES)})")
+        for path in self._mesh_files:
+            load_mesh_file(path)
 
     def scene_for(self, view: ViewPlan):
-        """The randomized scene of ``view`` (deterministic in its seed)."""
-        from ..scene import load_scene
-
-        if view.scene not in self._bases:
-            self._bases[view.scene] = load_scene(view.scene)
+        """The randomized scene or the generated world of ``view`` (deterministic in its seed)."""
+        if view.world_seed is not None:
+            return generate_world(view.world_seed, self.config.mesh_dir, frames=view.frames)
         shapes = HELD_OUT_SHAPES if view.split == "test" else TRAINING_SHAPES
         return vary_scene(self._bases[view.scene], _generator(self.config, view.scene_index, view.index, 2),
                           frames=view.frames, shapes=shapes, mesh_files=self._mesh_files)

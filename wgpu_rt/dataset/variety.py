@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import SceneError
 from ..scene.model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene
 
 # Shapes the training views use; HELD_OUT_SHAPES appear only in test views, so the benchmark sees
@@ -43,19 +44,19 @@ def make_shape(kind: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if kind not in builders:
         raise ValueError(f"unknown procedural shape {kind!r}; expected one of {sorted(builders)}")
     mesh = builders[kind]()
-    return _normalized(mesh)
+    return normalized(mesh)
 
 
 def load_mesh_folder(folder: str | Path) -> list[Path]:
     """The mesh files of ``folder`` (sorted, so view seeds map to the same meshes on every machine)."""
     folder = Path(folder)
+    if not folder.is_dir():
+        raise SceneError(f"{folder}: not a folder of mesh files")
     return sorted(p for p in folder.iterdir() if p.suffix.lower() in MESH_SUFFIXES)
 
 
 def load_mesh_file(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     import trimesh
-
-    from ..errors import SceneError
 
     try:
         mesh = trimesh.load(path, force="mesh", process=True)
@@ -63,10 +64,10 @@ def load_mesh_file(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise SceneError(f"{path}: cannot load mesh ({err})") from None
     if len(mesh.faces) == 0:
         raise SceneError(f"{path}: mesh has no triangles")
-    return _normalized(mesh)
+    return normalized(mesh)
 
 
-def _normalized(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def normalized(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Centre on the origin and scale the largest extent to 1."""
     vertices = np.asarray(mesh.vertices, np.float64)
     lo, hi = vertices.min(0), vertices.max(0)

@@ -1,0 +1,187 @@
+"""Generated training worlds: deterministic per seed, varied across seeds, two families that never meet,
+and wired into the truth engine (fake renderer) and the real tracer (GPU test)."""
+
+import json
+
+import numpy as np
+import pytest
+from dataset_fakes import fake_render
+
+from wgpu_rt.dataset import DatasetConfig, TruthEngine, plan_views
+from wgpu_rt.dataset.worlds import (FAMILY_SHAPES, FAMILY_SIZE, LIGHTINGS, METALS, SETUPS, family_of,
+                                    generate_world, mesh_family, world_seed)
+from wgpu_rt.scene.model import DirectionalLight, PointLight
+from wgpu_rt.scene.transforms import transform_points
+
+SEEDS = range(200)
+
+
+@pytest.fixture(scope="module")
+def worlds():
+    return [generate_world(world_seed("training", n)) for n in SEEDS]
+
+
+def _arrays(scene):
+    """Every number in a scene, by where it sits, for exact comparison."""
+    out = {"camera": np.concatenate([scene.camera.origin, scene.camera.target, [scene.camera.fov]]),
+           "background": scene.background}
+    for f, camera in scene.camera_keyframes.items():
+        out[f"camera@{f}"] = np.concatenate([camera.origin, camera.target])
+    for mesh in scene.meshes:
+        out[f"{mesh.name}.vertices"], out[f"{mesh.name}.faces"] = mesh.vertices, mesh.faces
+        out[f"{mesh.name}.transform"] = mesh.transform
+        if mesh.normals is not None:
+            out[f"{mesh.name}.normals"] = mesh.normals
+        for f, matrix in mesh.keyframes.items():
+            out[f"{mesh.name}@{f}"] = matrix
+    for name, m in scene.materials.items():
+        out[f"material {name}"] = np.concatenate([m.reflectance, m.eta, m.k, m.emission, [m.roughness, m.ior]])
+    for i, light in enumerate(scene.lights):
+        out[f"light {i}"] = np.concatenate([np.ravel(v) for v in vars(light).values()])
+    return out
+
+
+def test_a_seed_fixes_its_world_exactly():
+    for seed in (3, world_seed("held_out", 3)):
+        a, b = generate_world(seed, frames=3), generate_world(seed, frames=3)
+        arrays_a, arrays_b = _arrays(a), _arrays(b)
+        assert a.name == b.name and arrays_a.keys() == arrays_b.keys()
+        for key in arrays_a:
+            np.testing.assert_array_equal(arrays_a[key], arrays_b[key], err_msg=key)
+        assert a.frame_count == 3 and a.has_motion
+
+
+def test_different_seeds_give_different_worlds(worlds):
+    fingerprints = {tuple(np.round(w.camera.origin, 5)) + (len(w.meshes),) for w in worlds}
+    assert len(fingerprints) == len(worlds)
+
+
+def _material_classes(scene):
+    classes = set()
+    metals = {tuple(np.float32(eta)) + tuple(np.float32(k)) for eta, k in METALS.values()}
+    for mesh in scene.meshes:
+        m = scene.materials[mesh.material]
+        if m.is_emissive:
+            classes.add("emissive")
+        elif m.kind == "diffuse":
+            top = float(m.reflectance.max())
+            if top < 0.1:
+                classes.add("dark diffuse")
+            if float(m.reflectance.min()) > 0.6:
+                classes.add("bright diffuse")
+            if top > 0 and (top - float(m.reflectance.min())) / top > 0.8:
+                classes.add("saturated diffuse")
+        elif m.kind == "conductor":
+            assert tuple(m.eta) + tuple(m.k) in metals, f"{scene.name}: {mesh.name} is no measured metal"
+            classes.add("rough conductor" if m.roughness > 0 else "smooth conductor")
+        else:
+            world = transform_points(mesh.transform, mesh.vertices).astype(np.float64)
+            axes = np.linalg.svd(world - world.mean(0), full_matrices=False)[2]
+            extent = np.ptp(world @ axes.T, axis=0)          # along the mesh's own principal axes
+            if extent.min() < 0.05 * extent.max():
+                classes.add("thin glass")
+            classes.add("rough glass" if m.roughness > 0 else "smooth glass")
+    return classes
+
+
+def _emitter_areas(scene):
+    """World-space area of each emissive mesh."""
+    areas = []
+    for mesh in scene.meshes:
+        if scene.materials[mesh.material].is_emissive:
+            t = transform_points(mesh.transform, mesh.vertices)[mesh.faces].astype(np.float64)
+            areas.append(0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum())
+    return areas
+
+
+def test_two_hundred_worlds_cover_every_material_light_and_setup(worlds):
+    materials, lights = set(), set()
+    for w in worlds:
+        assert 20 <= w.camera.fov <= 90, w.name
+        materials |= _material_classes(w)
+        lights |= {"point" for light in w.lights if isinstance(light, PointLight)}
+        lights |= {"sun" for light in w.lights if isinstance(light, DirectionalLight)}
+        if w.background.max() > 0 and np.ptp(w.background) > 0:
+            lights.add("coloured sky")
+        areas = _emitter_areas(w)
+        lights |= {"tiny area" for a in areas if a < 0.005} | {"large area" for a in areas if a > 0.5}
+        names = {m.name.rsplit("_", 1)[0] for m in w.meshes}
+        lights |= {"looks through glass" for _ in ["pane"] if "pane" in names}
+        lights |= {"looks at a mirror" for _ in ["mirror"] if "mirror" in names}
+    assert materials == {"dark diffuse", "bright diffuse", "saturated diffuse", "smooth conductor",
+                         "rough conductor", "smooth glass", "rough glass", "thin glass", "emissive"}
+    assert lights == {"point", "sun", "coloured sky", "tiny area", "large area", "looks through glass",
+                      "looks at a mirror"}
+    seen = {tuple(w.name.split("/")[1:]) for w in worlds}
+    assert seen == {(setup, lighting) for setup in SETUPS for lighting in LIGHTINGS[setup]}
+
+
+def test_indirect_worlds_show_no_emitting_side_to_the_camera(worlds):
+    indirect = [w for w in worlds if w.name.endswith("/indirect")]
+    assert indirect
+    for w in indirect:
+        for mesh in w.meshes:
+            if not w.materials[mesh.material].is_emissive:
+                continue
+            t = transform_points(mesh.transform, mesh.vertices)[mesh.faces].astype(np.float64)
+            front = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            toward_camera = w.camera.origin - t.mean(1)
+            assert np.all(np.sum(front * toward_camera, axis=1) < 0), f"{w.name}: {mesh.name} faces the camera"
+
+
+def test_the_families_share_no_seed_and_no_geometry(tmp_path):
+    import trimesh
+
+    assert world_seed("training", 2 ** 40 + 5) < FAMILY_SIZE <= world_seed("held_out", 0)
+    assert family_of(world_seed("training", 7)) == "training" and family_of(world_seed("held_out", 7)) == "held_out"
+    assert not set(FAMILY_SHAPES["training"]) & set(FAMILY_SHAPES["held_out"])
+    names = [f"scan{i:02d}.obj" for i in range(12)]
+    for name in names:
+        trimesh.creation.box(extents=(1, 2, 3)).export(tmp_path / name)
+    split = {name: mesh_family(tmp_path / name) for name in names}
+    assert set(split.values()) == {"training", "held_out"}
+    drawn = {"training": set(), "held_out": set()}
+    for family in drawn:
+        for n in range(20):
+            for mesh in generate_world(world_seed(family, n), tmp_path).meshes:
+                drawn[family].add(mesh.name.rsplit("_", 1)[0])
+    for family, labels in drawn.items():
+        meshes = {label for label in labels if f"{label}.obj" in split}
+        assert meshes and all(split[f"{label}.obj"] == family for label in meshes), family
+    shapes = {family: labels & set(FAMILY_SHAPES["training"] + FAMILY_SHAPES["held_out"])
+              for family, labels in drawn.items()}
+    assert shapes["training"] and shapes["held_out"] and not shapes["training"] & shapes["held_out"]
+
+
+def test_worlds_become_views_with_family_splits(tmp_path):
+    training = DatasetConfig(scenes=("cornell",), views=3, size=8, spp=(1,), gold=2, worlds=20,
+                             sequence_fraction=0.2)
+    plans = plan_views(training)
+    worlds = [p for p in plans if p.world_seed is not None]
+    assert len(worlds) == 20 and [p.view_id for p in plans] == [f"v{i:05d}" for i in range(23)]
+    assert {p.split for p in worlds} == {"train", "val"}
+    assert sum(p.split == "val" for p in worlds) == 2
+    assert all(family_of(p.world_seed) == "training" for p in worlds)
+    shards = [plan_views(training, (i, 4)) for i in range(4)]
+    assert sorted(p.view_id for shard in shards for p in shard) == [p.view_id for p in plans]
+    held_out = DatasetConfig(scenes=(), worlds=5, family="held_out", size=8, spp=(1,), gold=2)
+    held_plans = plan_views(held_out)
+    assert {p.split for p in held_plans} == {"test"} and held_plans[0].frames == held_out.sequence_length
+    assert all(family_of(p.world_seed) == "held_out" for p in held_plans)
+    reseeded = DatasetConfig(**{**held_out.__dict__, "seed": 1})
+    assert not {p.world_seed for p in plan_views(reseeded)} & {p.world_seed for p in held_plans}
+
+    TruthEngine(held_out, tmp_path, renderer=fake_render).run(progress=False)
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert [v["scene"] for v in manifest["views"]] == [p.scene for p in held_plans]
+    assert all(v["scene"].startswith("world-") and v["split"] == "test" for v in manifest["views"])
+    assert TruthEngine(held_out, tmp_path, renderer=fake_render).run(progress=False) == []
+
+
+def test_a_generated_world_renders_finite(gpu):
+    from wgpu_rt.renderer import render
+
+    scene = generate_world(world_seed("held_out", 11), frames=2)
+    result = render(scene, spp=2, size=(16, 16), max_depth=4, frames=1, aovs=("albedo", "normal", "depth", "motion"))
+    assert result.color.shape == (16, 16, 3) and np.all(np.isfinite(result.color)) and result.color.max() > 0
+    assert all(np.all(np.isfinite(plane)) for plane in result.aovs.values())
