@@ -106,3 +106,20 @@ def test_denoise_honours_spp_and_aovs(gpu, tmp_path):
     layers = read_exr(out)
     assert set(layers) == {"color", "albedo", "spp"}
     assert (layers["spp"] == 3).all() and np.all(np.isfinite(layers["color"]))
+
+
+def test_console_holds_only_the_summary(gpu, tmp_path):
+    """A plain render prints one summary line on stdout and, on stderr, nothing but the progress bar
+    (cleared when done): no driver chatter (XDG_RUNTIME_DIR), no warnings."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "XDG_RUNTIME_DIR"}
+    out = tmp_path / "c.exr"
+    done = subprocess.run([sys.executable, "-m", "wgpu_rt", "render", "cornell", "--size", "16x16", "--spp", "2",
+                           "--out", str(out)], capture_output=True, text=True, env=env, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.count("\n") == 1 and done.stdout.startswith(str(out))
+    lines = [line for line in done.stderr.replace("\r", "\n").splitlines() if line.strip()]
+    assert all(line.lstrip().startswith("render cornell") for line in lines), lines

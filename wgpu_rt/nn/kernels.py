@@ -62,12 +62,15 @@ class TensorView:
 
 @dataclass
 class Dispatch:
-    """One recorded compute dispatch (``flops`` counts multiply-adds ×2, for the benchmark)."""
+    """One recorded compute dispatch. ``kernel`` (the shader), ``output`` (C, H, W of what this dispatch
+    writes) and ``flops`` (multiply-adds ×2) describe it for the benchmark and the profiler."""
 
     label: str
     pipeline: object
     bind_group: object
     workgroups: tuple[int, int, int]
+    kernel: str
+    output: tuple[int, int, int]
     flops: int = 0
 
 
@@ -240,11 +243,20 @@ class ConvFamilyKernel(NnKernel):
     def prepare(self, layer: Layer) -> PackedWeights:
         return PackedWeights(self.ctx, layer, self.tile_c_default)
 
-    def grouped(self, layer, packed, pipeline, src, dst, workgroups, flops) -> list[Dispatch]:
-        return [Dispatch(f"{layer.name}[{g}]", pipeline,
-                         self.bind(pipeline, {"src": src.buffer, "dst": dst.buffer, **packed.windows(g),
-                                              "header": packed.header(dst.block, g)}),
-                         workgroups, flops // packed.groups) for g in range(packed.groups)]
+    def grouped(self, layer, packed, pipeline, src, dst, workgroups, flops, kernel=None) -> list[Dispatch]:
+        """One dispatch per output-block group; each gets the share of ``flops`` of the real (unpadded)
+        channels it writes, so the dispatches add up to the layer's FLOPs exactly."""
+        channels = dst.channels
+        dispatches = []
+        for g in range(packed.groups):
+            first = g * packed.tile_c * 4
+            written = min(channels, first + packed.tile_c * 4) - first
+            dispatches.append(Dispatch(
+                f"{layer.name}[{g}]", pipeline,
+                self.bind(pipeline, {"src": src.buffer, "dst": dst.buffer, **packed.windows(g),
+                                     "header": packed.header(dst.block, g)}),
+                workgroups, kernel or self.shader, (written, dst.height, dst.width), flops * written // channels))
+        return dispatches
 
 
 class ConvKernel(ConvFamilyKernel):
@@ -253,7 +265,7 @@ class ConvKernel(ConvFamilyKernel):
     shader = "conv.wgsl"
 
     def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView):
-        cout, _, kh, kw = layer.weight.shape
+        _, _, kh, kw = layer.weight.shape
         top, left, _, _ = layer.pads
         pipeline = self.pipeline(
             layer.activation, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
@@ -346,7 +358,8 @@ class Conv3x3Kernel(ConvFamilyKernel):
             WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats, WEIGHT_WINDOWS=windows)
         workgroups = (groups_of(groups_of(dst.width, self.tile_x), 8), groups_of(dst.height, 8), 1)  # 8×8 tiles
         flops = layer.flops_per_pixel * dst.height * dst.width
-        return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops)
+        return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops,
+                            f"{self.shader}+tile{4 * packed.tile_c}")
 
 
 class GemmKernel(ConvFamilyKernel):
@@ -389,9 +402,11 @@ class SpatialKernel(NnKernel):
 
     bindings = ("src", "dst")
 
-    def one(self, label: str, pipeline, resources: dict, width: int, height: int, blocks: int) -> Dispatch:
+    def one(self, label: str, pipeline, resources: dict, width: int, height: int, blocks: int,
+            channels: int) -> Dispatch:
+        """The dispatch over ``blocks`` blocks of a height×width output holding ``channels`` channels."""
         return Dispatch(label, pipeline, self.bind(pipeline, resources),
-                        (groups_of(width, 8), groups_of(height, 8), blocks))
+                        (groups_of(width, 8), groups_of(height, 8), blocks), self.shader, (channels, height, width))
 
 
 class MaxPoolKernel(SpatialKernel):
@@ -401,7 +416,7 @@ class MaxPoolKernel(SpatialKernel):
         pipeline = self.pipeline(IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, OUT_H=dst.height,
                                  OUT_W=dst.width, OUT_BLOCK=dst.block)
         return [self.one(layer.name, pipeline, {"src": src.buffer, "dst": dst.buffer}, dst.width, dst.height,
-                         dst.blocks)]
+                         dst.blocks, dst.channels)]
 
 
 class ResizeKernel(SpatialKernel):
@@ -410,7 +425,7 @@ class ResizeKernel(SpatialKernel):
     def dispatches(self, layer: Layer, src: TensorView, dst: TensorView) -> list[Dispatch]:
         pipeline = self.pipeline(IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, OUT_BLOCK=dst.block)
         return [self.one(layer.name, pipeline, {"src": src.buffer, "dst": dst.buffer}, dst.width, dst.height,
-                         dst.blocks)]
+                         dst.blocks, dst.channels)]
 
 
 class ElementwiseKernel(SpatialKernel):
@@ -441,7 +456,8 @@ class ElementwiseKernel(SpatialKernel):
         resources = {"src": sources[0].buffer, "dst": dst.buffer,
                      "b_tensor": sources[1].buffer if operand == 1 else self.unused_operand,
                      "b_constant": constant if operand == 2 else self.unused_operand}
-        return [self.one(layer.name, pipeline, resources, dst.width, dst.height, dst.blocks)]
+        return [self.one(layer.name, pipeline, resources, dst.width, dst.height, dst.blocks,
+                         dst.channels)]
 
 
 class CopyChannelsKernel(SpatialKernel):
@@ -453,7 +469,7 @@ class CopyChannelsKernel(SpatialKernel):
                                  IN_BLOCK=src.block, OUT_BLOCK=dst.block)
         blocks = (offset + src.channels - 1) // 4 - offset // 4 + 1
         return [self.one(label, pipeline, {"src": src.buffer, "dst": dst.buffer}, dst.width, dst.height,
-                         blocks)]
+                         blocks, src.channels)]
 
 
 class PackKernel(SpatialKernel):
@@ -467,7 +483,7 @@ class PackKernel(SpatialKernel):
                                  IMAGE_H=image_height, IN_ROW0=first_row, CANVAS_H=dst.height,
                                  CANVAS_W=dst.width, OUT_BLOCK=dst.block)
         return [self.one("pack", pipeline, {"src": planar, "dst": dst.buffer}, dst.width, dst.height,
-                         dst.blocks)]
+                         dst.blocks, dst.channels)]
 
 
 class UnpackKernel(SpatialKernel):
@@ -480,4 +496,5 @@ class UnpackKernel(SpatialKernel):
         pipeline = self.pipeline(CHANNELS=src.channels, H=rows, W=width, IMAGE_H=image_height,
                                  OUT_ROW0=first_row, ROW_FROM=from_row, CANVAS_H=src.height,
                                  CANVAS_W=src.width, IN_BLOCK=src.block)
-        return [self.one("unpack", pipeline, {"src": src.buffer, "dst": planar}, width, rows, src.blocks)]
+        return [self.one("unpack", pipeline, {"src": src.buffer, "dst": planar}, width, rows, src.blocks,
+                         src.channels)]

@@ -104,9 +104,10 @@ class Plan:
 
 class WgslModel:
     """``WgslModel(path, precision="fp32"|"fp16")``: call on NCHW float32 numpy, or ``record`` on GPU
-    buffers. ``conv_tiling`` exists for the benchmark's steps and the tests: "none" (one output pixel per
-    invocation), "loop" (4-pixel tiles in loops), "register" (plus the written-out 3×3 tile kernel),
-    "staged" (that tile with its input staged in workgroup memory); default: ``default_conv_tiling``."""
+    buffers. ``conv_tiling`` exists for the benchmark's steps, the profiler and the tests: "none" (one
+    output pixel per invocation), "loop" (4-pixel tiles in loops), "register" (plus the written-out 3×3
+    tile kernel), "staged" (that tile with its input staged in workgroup memory); default:
+    ``default_conv_tiling``."""
 
     def __init__(self, path: str | Path, precision: str = "fp32", ctx=None, conv_tiling: str | None = None):
         from ..gpu import get_context
@@ -122,6 +123,7 @@ class WgslModel:
                              "use fp32")
         self.path, self.precision = str(path), PRECISIONS[precision]
         self.graph: NetworkGraph = load_graph(path)
+        self.conv_tiling = conv_tiling
         kernel_args, tile_x = (self.ctx, self.precision), CONV_TILINGS[conv_tiling]
         self.register_tiles = conv_tiling in ("register", "staged")
         self.kernels = {"conv": ConvKernel(*kernel_args, tile_x), "gemm": GemmKernel(*kernel_args, tile_x),

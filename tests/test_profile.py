@@ -1,0 +1,137 @@
+"""``wgpu-rt profile`` and ``wgpu_rt.nn.profile``: every dispatch timed, FLOPs that add up, JSON rows, and
+one-line errors for bad input."""
+
+import json
+
+import pytest
+import torch
+
+from wgpu_rt.cli import main
+from wgpu_rt.commands.profile import model_path
+from wgpu_rt.gpu import GpuContext
+from wgpu_rt.models import network_named
+from wgpu_rt.train.networks import UNet, export_onnx
+
+SIZE = 32
+
+
+@pytest.fixture(scope="module")
+def tiny_unet(tmp_path_factory):
+    # 10 output channels: a head of 3 output blocks, the last one part-filled, so the per-dispatch
+    # FLOPs only add up to the layer's if each dispatch counts the channels it really writes
+    torch.manual_seed(0)
+    return export_onnx(UNet(out_channels=10, widths=(4, 8)), tmp_path_factory.mktemp("profile") / "unet.onnx",
+                       SIZE, SIZE)
+
+
+@pytest.mark.gpu
+def test_every_dispatch_timed_and_flops_add_up(gpu, tiny_unet):
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.profile import profile
+
+    model = WgslModel(tiny_unet, ctx=gpu)
+    result = profile(model, SIZE, SIZE, repeat=2)
+    plan = model.plan(SIZE, SIZE)
+    assert [row.label for row in result.rows] == ["pack", *(d.label for d in plan.dispatches), "unpack"]
+    assert [row.workgroups for row in result.rows[1:-1]] == [d.workgroups for d in plan.dispatches]
+    assert all(row.seconds >= 0 for row in result.rows) and result.end_to_end_seconds > 0
+    assert sum(row.flops for row in result.rows) == plan.flops == result.network_flops
+    head = [row for row in result.rows if row.label.startswith("/head/")]
+    assert [row.output for row in head] == [(4, SIZE, SIZE), (4, SIZE, SIZE), (2, SIZE, SIZE)]
+    assert result.rows[0].kernel == "pack.wgsl" and result.rows[-1].kernel == "unpack.wgsl"
+
+
+@pytest.mark.gpu
+def test_cli_table_and_json(gpu, tiny_unet, tmp_path, capsys):
+    out = tmp_path / "rows" / "profile.json"
+    assert main(["profile", str(tiny_unet), "--size", f"{SIZE}x{SIZE}", "--repeat", "1", "--sort", "time",
+                 "--json", str(out)]) == 0
+    printed = capsys.readouterr().out
+    data = json.loads(out.read_text())
+    assert data["dispatch_count"] == len(data["rows"]) > 0
+    assert data["dispatch_flops"] == data["network_flops"] == sum(row["flops"] for row in data["rows"])
+    assert data["size"] == [SIZE, SIZE] and data["bands"] == 1
+    for row in data["rows"]:
+        assert row["seconds"] >= 0 and row["workgroup_count"] >= 1
+        assert row["label"] in printed
+    assert f"dispatches: {len(data['rows'])}" in printed
+    times = [float(line.split()[-3]) for line in printed.splitlines()[1:len(data["rows"]) + 1]]
+    assert times == sorted(times, reverse=True)  # --sort time: slowest first
+    assert list(out.parent.iterdir()) == [out]  # no temporary file left beside it
+
+
+@pytest.mark.gpu
+def test_conv_tiling_picks_the_kernels_timed(gpu, tiny_unet, tmp_path, capsys):
+    workgroups = {}
+    for tiling in ("none", "loop"):
+        out = tmp_path / f"{tiling}.json"
+        assert main(["profile", str(tiny_unet), "--size", "32x32", "--repeat", "1", "--conv-tiling", tiling,
+                     "--json", str(out)]) == 0
+        data = json.loads(out.read_text())
+        assert data["conv_tiling"] == tiling and f"{tiling} conv tiling" in capsys.readouterr().out
+        workgroups[tiling] = [row["workgroup_count"] for row in data["rows"] if row["kernel"] == "conv.wgsl"]
+    # one output pixel per invocation needs more workgroups than 4-pixel tiles on every conv
+    assert workgroups["loop"] and all(none > loop for none, loop in zip(workgroups["none"], workgroups["loop"]))
+    assert main(["profile", str(tiny_unet), "--size", "32x32", "--conv-tiling", "bogus"]) == 2
+    assert "conv_tiling 'bogus': choose one of" in capsys.readouterr().err
+
+
+def test_shipped_network_names_resolve():
+    assert model_path("error-predictor") == network_named("error_predictor").path()
+    assert str(model_path("no/such/model.onnx")) == "no/such/model.onnx"
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--size", "32by32"], "expected WIDTHxHEIGHT"),
+    (["--size", "0x32"], "1..16384"),
+    (["--repeat", "0"], "--repeat 0: must be at least 1"),
+])
+def test_bad_arguments(tiny_unet, capsys, args, message):
+    assert main(["profile", str(tiny_unet), *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1
+
+
+@pytest.mark.gpu
+def test_bad_model_files(gpu, tmp_path, capsys):
+    assert main(["profile", str(tmp_path / "missing.onnx"), "--size", "8x8"]) == 2
+    assert "missing.onnx: ONNX model file not found" in capsys.readouterr().err
+    corrupt = tmp_path / "corrupt.onnx"
+    corrupt.write_bytes(b"\x08\x07 not a protobuf \xff\xfe" * 10)
+    assert main(["profile", str(corrupt), "--size", "8x8"]) == 2
+    assert "corrupt.onnx: not a valid ONNX model" in capsys.readouterr().err
+
+
+def test_json_under_a_file_is_refused_before_profiling(tiny_unet, tmp_path, capsys):
+    (tmp_path / "taken").write_text("")
+    assert main(["profile", str(tiny_unet), "--size", "8x8", "--json", str(tmp_path / "taken" / "p.json")]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]
+
+
+@pytest.mark.gpu
+def test_adapter_without_timestamps(gpu, tiny_unet, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(GpuContext, "has_timestamps", property(lambda self: False))
+    out = tmp_path / "p.json"
+    assert main(["profile", str(tiny_unet), "--size", "8x8", "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "needs the timestamp-query feature" in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+@pytest.mark.gpu
+def test_frames_in_bands_list_each_bands_dispatches(gpu, tiny_unet):
+    from wgpu_rt.commands.profile import summary
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.profile import profile
+
+    small = GpuContext(gpu.adapter, gpu.device, gpu.features)  # a binding limit that forces bands
+    small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": 800_000}
+    model = WgslModel(tiny_unet, ctx=small)
+    plan = model.plan(403, 45)
+    result = profile(model, 403, 45, repeat=1)
+    per_band = len(plan.dispatches) + 2
+    assert len(plan.bands) == result.bands > 1 and len(result.rows) == result.bands * per_band
+    assert [row.band for row in result.rows] == [i // per_band for i in range(len(result.rows))]
+    assert sum(row.flops for row in result.rows) > result.network_flops == plan.flops  # context rows
+    assert f"in {result.bands} bands of {plan.canvas[1]}x{plan.canvas[0]}" in summary(result)[0]
