@@ -72,9 +72,11 @@ def scene():
 
 
 def frames_and_traffic(monkeypatch, gpu, scene, frames, **settings):
-    """Frames rendered by a pipeline built beforehand, and the traffic of the frames alone (setup,
-    such as uploading network weights once, is not per-frame traffic)."""
+    """Frames rendered by a pipeline built beforehand, and the traffic of the frames alone, after a first
+    frame (setup, such as uploading network weights or the scene's geometry once, is not per-frame
+    traffic)."""
     pipeline = make_pipeline(scene, gpu, tonemap="aces", **settings)
+    pipeline.render(scene, frames[0] - 1)
     counter = TrafficCounter(monkeypatch, gpu)
     out = [pipeline.render(scene, frame) for frame in frames]
     monkeypatch.undo()
@@ -83,15 +85,16 @@ def frames_and_traffic(monkeypatch, gpu, scene, frames, **settings):
 
 def test_one_readback_and_no_uploads_of_its_own(gpu, scene, monkeypatch):
     """The full pipeline (denoise, adaptive, temporal) moves exactly what a plain trace does, plus nothing:
-    one readback per frame and the tracer's own parameter uploads."""
+    one readback per frame and the tracer's own parameters, written only when they change: the plain
+    frames each take a new seed (one write each); the full pipeline's temporal mode converges on this
+    static view under one seed, so its probe and targeted passes have nothing to write."""
     heat = np.linspace(0, 1, W * H).astype(np.float32)
-    plain, plain_traffic = frames_and_traffic(monkeypatch, gpu, scene, [0, 1])
+    plain, plain_traffic = frames_and_traffic(monkeypatch, gpu, scene, [1, 2])
     full, full_traffic = frames_and_traffic(
-        monkeypatch, gpu, scene, [0, 1], denoiser=IdentityDenoiser(gpu), error_predictor=FixedHeat(gpu, heat),
+        monkeypatch, gpu, scene, [1, 2], denoiser=IdentityDenoiser(gpu), error_predictor=FixedHeat(gpu, heat),
         adaptive=AdaptiveSettings(budget=2.0), temporal=TemporalSettings())
     assert plain_traffic.reads == full_traffic.reads == 2
-    tracer_uploads_per_schedule = plain_traffic.uploads / 2
-    assert full_traffic.uploads == 2 * (tracer_uploads_per_schedule + 2)   # + targeted pass's 2 uploads
+    assert plain_traffic.uploads == 2 and full_traffic.uploads == 0
     assert all(f.image.shape == (H, W, 4) and f.image.dtype == np.uint8 for f in full)
 
 
@@ -123,8 +126,8 @@ class LeakyDenoiser(IdentityDenoiser):
 @pytest.mark.parametrize("leak", ["GpuContext.read", "map_sync", "write_buffer", "GpuContext.upload"])
 def test_traffic_counter_catches_a_stage_that_leaks(gpu, scene, monkeypatch, leak):
     """The counting test above can fail: one stray transfer per frame inside a stage shows up."""
-    _, clean = frames_and_traffic(monkeypatch, gpu, scene, [0, 1], denoiser=IdentityDenoiser(gpu))
-    _, leaky = frames_and_traffic(monkeypatch, gpu, scene, [0, 1], denoiser=LeakyDenoiser(gpu, leak))
+    _, clean = frames_and_traffic(monkeypatch, gpu, scene, [1, 2], denoiser=IdentityDenoiser(gpu))
+    _, leaky = frames_and_traffic(monkeypatch, gpu, scene, [1, 2], denoiser=LeakyDenoiser(gpu, leak))
     reads, uploads = leaky.reads - clean.reads, leaky.uploads - clean.uploads
     assert (reads, uploads) == ((2, 0) if leak in ("GpuContext.read", "map_sync") else (0, 2))
 
@@ -269,15 +272,15 @@ def test_render_takes_a_builtin_name_and_a_frame_list(gpu):
 
 
 def test_unchanged_geometry_is_not_uploaded_again(gpu, scene, monkeypatch):
-    """Frames that share geometry reuse the tracer's uploads: each frame after the first uploads only
-    its frame parameters and chunk starts, whatever the scene's size."""
+    """Frames that share geometry reuse the tracer's uploads and allocate nothing: each frame after the
+    first writes only its frame parameters (a new seed), whatever the scene's size."""
     pipeline = make_pipeline(scene, gpu)
     pipeline.render(scene, 0)
     counter = TrafficCounter(monkeypatch, gpu)
     for frame in (1, 2, 3):
         pipeline.render(scene, frame)
     monkeypatch.undo()
-    assert counter.uploads == 3 * 2 and counter.reads == 3
+    assert counter.uploads == 3 and counter.reads == 3
 
 
 def test_readme_python_example_runs(gpu):

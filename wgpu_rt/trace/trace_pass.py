@@ -175,6 +175,9 @@ class TracePass(ComputePass):
             self._emitters = ctx.upload(emitters.records, label="emitters")
         self._triangle_density = ctx.upload(emitters.triangle_density, label="triangle emitter densities")
         self._no_counts = ctx.storage(16, label="no sample counts")
+        self._param_buffers: dict[tuple, list] = {}
+        self._chunk_starts = None
+        self._bind_groups: dict[tuple, object] = {}
 
     def set_frame(self, scene: Scene, frame: int, seed: int) -> None:
         """Point the pass at another frame of the same geometry (camera, previous camera, seed): the
@@ -197,6 +200,43 @@ class TracePass(ComputePass):
         params["background"] = scene.background
         return params
 
+    # A frame allocates nothing: one parameter buffer per kind of pass (its schedule's shape), rewritten
+    # only when its contents change (a new camera or seed), one buffer of chunk starts (fixed contents),
+    # and bind groups cached by the buffers they bind. Rewriting a buffer a submitted frame still reads
+    # is safe: queue writes are ordered after earlier submissions.
+    def _params_buffer(self, schedule: SampleSchedule):
+        params = self._params.copy()
+        params["sample_offset"] = schedule.sample_offset
+        params["use_sample_counts"] = int(schedule.sample_counts is not None)
+        params["pass_samples"] = schedule.samples
+        params["chunk_size"] = self.chunk_size
+        data = params.tobytes()
+        key = (schedule.sample_offset, schedule.sample_counts is not None, schedule.samples)
+        held = self._param_buffers.get(key)
+        if held is None:
+            held = self._param_buffers[key] = [self.ctx.uniform(data, label="frame params"), data]
+        elif held[1] != data:
+            self.ctx.device.queue.write_buffer(held[0], 0, data)
+            held[1] = data
+        return held[0]
+
+    def _chunk_starts_buffer(self, dispatch_count: int):
+        if self._chunk_starts is None or self._chunk_starts.size < 4 * dispatch_count:
+            self._chunk_starts = self.ctx.upload(np.arange(max(dispatch_count, 64), dtype=np.uint32)
+                                                 * self.chunk_size, label="chunk starts")
+        return self._chunk_starts
+
+    def _cached_bind_group(self, group: int, buffers: list):
+        """The bind group of ``buffers``, cached by their identities (the entry holds the buffers, so an
+        id cannot be reused by another buffer while it is cached; a few entries are kept)."""
+        key = (group, *map(id, buffers))
+        held = self._bind_groups.get(key)
+        if held is None:
+            if len(self._bind_groups) >= 16:
+                self._bind_groups.clear()
+            held = self._bind_groups[key] = (self.ctx.bind_group(self.pipeline, buffers, group=group), buffers)
+        return held[0]
+
     def clear(self, encoder, buffers: FrameBuffers) -> None:
         """Reset the output planes (a new frame starts from zero samples)."""
         for spec in self.outputs:
@@ -204,20 +244,13 @@ class TracePass(ComputePass):
 
     def execute(self, encoder, buffers: FrameBuffers, schedule: SampleSchedule = SampleSchedule()) -> None:
         """Record the dispatches that add ``schedule``'s samples to ``buffers``."""
-        ctx = self.ctx
         dispatch_count = -(-schedule.samples // self.chunk_size)
-        params = self._params.copy()
-        params["sample_offset"] = schedule.sample_offset
-        params["use_sample_counts"] = int(schedule.sample_counts is not None)
-        params["pass_samples"] = schedule.samples
-        params["chunk_size"] = self.chunk_size
-        uniform = ctx.uniform(params.tobytes(), label="frame params")
-        chunk_starts = ctx.upload(np.arange(dispatch_count, dtype=np.uint32) * self.chunk_size,
-                                  label="chunk starts")
-        shading = ctx.bind_group(self.pipeline, [
-            uniform, self._materials, self._emitters, self._triangle_density,
-            schedule.sample_counts if schedule.sample_counts is not None else self._no_counts], group=1)
-        planes = ctx.bind_group(self.pipeline, [buffers.get(spec) for spec in self.outputs], group=2)
+        uniform = self._params_buffer(schedule)
+        chunk_starts = self._chunk_starts_buffer(dispatch_count)
+        counts = schedule.sample_counts if schedule.sample_counts is not None else self._no_counts
+        shading = self._cached_bind_group(1, [uniform, self._materials, self._emitters, self._triangle_density,
+                                              counts])
+        planes = self._cached_bind_group(2, [buffers.get(spec) for spec in self.outputs])
         groups = (-(-self.width // TILE), -(-self.height // TILE), 1)
         chunk_offset = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
         for chunk in range(dispatch_count):
