@@ -118,8 +118,8 @@ def gold_frame(scene, size, args, frame: int) -> tuple[np.ndarray, np.ndarray]:
     from wgpu_rt.renderer import render
 
     def compute():
-        result = render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED + frame,
-                        frame=frame, aovs=("motion",))
+        result = render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED,
+                        frames=frame, aovs=("motion",))   # frame f is seeded GOLD_SEED + f
         return {"color": result.color, "motion": result.aovs["motion"]}
 
     key = f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}_frame{frame}"

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from wgpu_rt.frame.adaptive import AdaptiveSettings
-from wgpu_rt.frame.temporal import TemporalSettings, converge_frame
+from wgpu_rt.frame.temporal import TemporalSettings
+from wgpu_rt.frame.unpack import converge
 from wgpu_rt.frame.tonemap import tonemap
 from wgpu_rt.passes import RADIANCE, SPP
 from wgpu_rt.renderer import Renderer, render
@@ -246,7 +247,7 @@ def test_temporal_static_camera_fades_the_denoiser_as_samples_grow(gpu, scene):
     assert (pipeline.buffers.read(SPP.name) == 4).all() and radiance.max() > 0
     np.testing.assert_allclose(image, 0.5 * radiance, rtol=1e-5, atol=1e-7)
     spp = pipeline.buffers.read(SPP.name)[0]
-    np.testing.assert_allclose(image, converge_frame(np.zeros_like(radiance), radiance, spp, settings),
+    np.testing.assert_allclose(image, converge(np.zeros_like(radiance), radiance, spp, settings.converge_spp),
                                rtol=1e-5, atol=1e-7)
 
 
@@ -292,3 +293,16 @@ def test_readme_python_example_runs(gpu):
     assert result.image.shape == (24, 32, 4) and result.image.dtype == np.uint8
     assert result.aovs["spp"].mean() == pytest.approx(4.0, abs=0.01)
     assert set(result.aovs) == {"albedo", "normal", "depth", "motion", "spp"}
+
+
+def test_a_frame_of_several_samples_hands_over_from_the_denoiser_to_their_mean(gpu, scene):
+    """denoise at n > 1 spp: out = mix(denoised, mean, n / (n + 32)) (a black denoiser's frame is the
+    mean scaled by n / (n + 32)); at 1 spp the denoised frame alone."""
+    for spp in (1, 4):
+        pipeline = make_pipeline(scene, gpu, denoiser=ZeroDenoiser(gpu), spp=spp)
+        image = pipeline.render(scene, 0).color
+        radiance = pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0)
+        counts = pipeline.buffers.read(SPP.name)[0]
+        assert (counts == spp).all() and radiance.max() > 0
+        expected = converge(np.zeros_like(radiance), radiance, counts) if spp > 1 else np.zeros_like(radiance)
+        np.testing.assert_allclose(image, expected, rtol=1e-5, atol=1e-7)

@@ -27,7 +27,7 @@ from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
 from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT
 from .temporal import TEMPORAL, TemporalPass, TemporalSettings, frame_change
 from .tonemap import TonemapPass
-from .unpack import UnpackPass
+from .unpack import CONVERGE_SPP, UnpackPass
 
 AOV_PLANES = {plane.name: plane for plane in (ALBEDO, NORMAL, DEPTH, MOTION, SPP)}
 SAMPLES_PER_SUBMIT = 1 << 21   # pixel samples per command buffer (a fraction of a second on lavapipe)
@@ -131,7 +131,10 @@ class FramePipeline:
         color = RADIANCE
         if denoiser is not None:
             self.pack = PackDenoiserPass(ctx, width, height, self.depth_max.result)
-            self.unpack = UnpackPass(ctx, width, height)
+            # A frame of several samples per pixel hands over from the denoiser to their mean as they
+            # grow; temporal mode does that itself across frames (its converge step).
+            converge = spp > 1 and adaptive is None and temporal is None
+            self.unpack = UnpackPass(ctx, width, height, CONVERGE_SPP if converge else None)
             color = DENOISED
         self.temporal = None
         if temporal is not None:

@@ -24,6 +24,7 @@ from ..passes import DEPTH, MOTION, NORMAL, RADIANCE, SPP, ComputePass, PlaneSpe
 from .kernel import FrameKernel, finite, nonnegative_finite
 from .pack import PackConfidencePass
 from .planes import CONFIDENCE_INPUT
+from .unpack import CONVERGE_SPP
 
 CLAMP_MODES = ("none", "box", "variance")
 HISTORY = PlaneSpec("history", 8)           # RGB, depth, normal xyz, history length
@@ -51,12 +52,8 @@ class TemporalSettings:
     gamma: float = 2.0
     max_frames: int = 32           # α never drops below 1/max_frames
     # Static camera: the raw n-sample mean's share against the denoised frame of it is n / (n +
-    # converge_spp), i.e. the denoiser counts as converge_spp samples. Fitted with
-    # benchmarks/bench_converge.py (96², 1–128 spp, 8192-spp gold, the shipped denoiser): the best
-    # constant per scene is 16–32 (cornell, sun-room) and 64–128 (cornell-glossy); 32 loses least to
-    # each row's best (0.20 dB on average). The 1 − 1/√n fade it replaces (≈ k = √n + 1) lost to it at
-    # every n ≤ 32, at 16 spp by 0.8 dB on cornell and 2.2 dB on cornell-glossy (previous denoiser).
-    converge_spp: float = 32.0
+    # converge_spp) (unpack.converge, where the default is fitted).
+    converge_spp: float = CONVERGE_SPP
     depth_tolerance: float = 0.05  # relative depth difference that still counts as the same surface
     normal_threshold: float = 0.9  # smallest normal dot product that counts as the same surface
     # Confidence at or below this keeps no history; above it, trust rises linearly to 1. The network
@@ -180,14 +177,6 @@ def blend_history(color, depth, normal, reprojected, confidence=None, settings=T
         output[y, x] = previous + alpha * (color[y, x] - previous)
         length[y, x] = min(count + 1.0, settings.max_frames)
     return output.astype(np.float32), _new_history(output, depth, normal, length)
-
-
-def converge_frame(color, samples_mean, spp, settings=TemporalSettings()) -> np.ndarray:
-    """The output of the converge step: the sample mean's share is spp / (spp + converge_spp)."""
-    spp = np.asarray(spp, np.float64)[..., None]
-    mean_weight = spp / (spp + settings.converge_spp)
-    color = nonnegative_finite(color).astype(np.float64)
-    return (color + mean_weight * (nonnegative_finite(samples_mean) - color)).astype(np.float32)
 
 
 def accumulate_history(color, depth, normal, history, settings=TemporalSettings()):

@@ -15,19 +15,17 @@
 //   accumulate: static camera and scene: no reprojection or clamping, α = max(1/(length+1), 1/MAX_FRAMES)
 //               per pixel (a cleared history, length 0, makes it a reset).
 //   converge:   static view whose tracer planes keep accumulating (the frame pipeline's temporal mode):
-//               the denoised frame of the n-sample mean is blended with that mean itself,
-//               out = mix(denoised, mean, n / (n + CONVERGE_SPP)): inverse-variance weights when the
-//               denoiser's error (a bias that stays as n grows) equals that of CONVERGE_SPP samples,
-//               while the mean's variance falls as 1/n. The result replaces the history (length 1).
+//               the denoised frame of the n-sample mean is blended with that mean (frame/converge.wgsl).
+//               The result replaces the history (length 1).
 // Every path writes the output plane and the new history; NaN/Inf in the current frame count as 0.
 // #import frame/common.wgsl
+// #import frame/converge.wgsl
 
 override CLAMP_MODE: u32 = 2u;
 override GAMMA: f32 = 1.0;
 override MAX_FRAMES: f32 = 32.0;
 override DEPTH_TOLERANCE: f32 = 0.05;
 override NORMAL_THRESHOLD: f32 = 0.9;
-override CONVERGE_SPP: f32 = 32.0;
 override USE_CONFIDENCE: bool = false;
 override CONFIDENCE_FLOOR: f32 = 0.3;
 
@@ -39,8 +37,6 @@ override CONFIDENCE_FLOOR: f32 = 0.3;
 @group(0) @binding(5) var<storage, read_write> reprojected: array<f32>;
 @group(0) @binding(6) var<storage, read> confidence: array<f32>;
 @group(0) @binding(7) var<storage, read_write> output: array<f32>;
-@group(0) @binding(8) var<storage, read> samples_mean: array<f32>;
-@group(0) @binding(9) var<storage, read> spp: array<u32>;
 
 fn current_color(i: u32) -> vec3f {
     let n = pixel_count();
@@ -171,9 +167,5 @@ fn accumulate(@builtin(global_invocation_id) id: vec3u) {
 fn converge(@builtin(global_invocation_id) id: vec3u) {
     if (!in_frame(id)) { return; }
     let i = pixel_index(id);
-    let n = pixel_count();
-    let mean = vec3f(sanitize(samples_mean[i]), sanitize(samples_mean[n + i]), sanitize(samples_mean[2u * n + i]));
-    let samples = f32(spp[i]);
-    let mean_weight = samples / (samples + CONVERGE_SPP);
-    write_result(i, mix(current_color(i), mean, mean_weight), 1.0);
+    write_result(i, converged(i, current_color(i)), 1.0);
 }

@@ -1,0 +1,48 @@
+"""Denoised quality against the sample count: PSNR (x/(1+x), gamma 2.2) of brute force, ours and OIDN
+at each spp, on the same noisy renders, against a gold render. Issue 12's bar: ours rises with spp and
+never falls below brute force at the same spp.
+
+    python3 benchmarks/bench_spp.py --size 96 --spp 1 2 4 16 64 256 --gold-spp 4096 [--scenes ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from common import (add_gold_arguments, add_model_arguments, errors, gold_render, load_scenes, oidn,
+                    parse_with_quick_defaults, print_header, print_table, resolve_models)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=["cornell", "cornell-glossy", "sun-room"])
+    parser.add_argument("--size", type=int, default=96)
+    parser.add_argument("--spp", type=int, nargs="+", default=[1, 2, 4, 16, 64, 256])
+    parser.add_argument("--max-depth", type=int, default=8)
+    add_gold_arguments(parser, 4096)
+    add_model_arguments(parser)
+    args = parse_with_quick_defaults(parser, {"size": 48, "spp": [1, 4, 16], "gold_spp": 512})
+    resolve_models(args)
+    print_header(args)
+    from wgpu_rt.renderer import Renderer
+
+    size = (args.size, args.size)
+    rows = []
+    for scene in load_scenes(args.scenes):
+        gold = gold_render(scene, size, args)
+        for spp in args.spp:
+            options = dict(size=size, max_depth=args.max_depth, seed=7, models_dir=args.models,
+                           precision=args.precision)
+            noisy = next(Renderer(scene, spp, aovs=("albedo", "normal"), **options).frames())
+            ours = next(Renderer(scene, spp, denoise=True, aovs=(), **options).frames()).color
+            theirs = oidn(noisy.color, noisy.aovs["albedo"], noisy.aovs["normal"])
+            psnr = {name: errors(gold, image)["PSNR"] for name, image in
+                    (("brute", noisy.color), ("ours", ours), ("oidn", theirs))}
+            rows.append([scene.name, spp, psnr["brute"], psnr["ours"], psnr["oidn"],
+                         psnr["ours"] - psnr["brute"], psnr["ours"] - psnr["oidn"]])
+    print_table(f"PSNR (dB) against {args.gold_spp}-spp gold, {args.size}², same noisy input for all",
+                ["scene", "spp", "brute force", "ours", "OIDN", "ours − brute", "ours − OIDN"], rows)
+
+
+if __name__ == "__main__":
+    main()
