@@ -7,9 +7,9 @@ import torch
 from dataset_fakes import fake_render
 
 from wgpu_rt.dataset import DatasetConfig, TruthEngine
-from wgpu_rt.train.networks import UNet, export_onnx
 from wgpu_rt.train import TrainConfig, TrainingError, train
 from wgpu_rt.train.losses import denoiser_loss, ssim
+from wgpu_rt.train.networks import UNet, export_onnx
 from wgpu_rt.train.samples import curriculum_spp
 from wgpu_rt.train.trainer import Trainer, confidence_aucs, roc_auc
 
@@ -253,8 +253,8 @@ def test_denoiser_batches_draw_every_noisy_copy_at_1_spp_only(tmp_path):
     np.testing.assert_allclose(x, pack_denoiser_input(second["color"], second["albedo"], second["normal"],
                                                       second["depth"]), rtol=1e-6)
     drawn = []
-    full = samples.full
-    samples.full = lambda item, spp, exposure, copy=0: drawn.append((spp, copy)) or full(item, spp, exposure, copy)
+    planes = samples.planes
+    samples.planes = lambda item, spp, copy=0: drawn.append((spp, copy)) or planes(item, spp, copy)
     rng = np.random.default_rng(0)
     for spp in (1, 4):
         for _ in range(30):
@@ -298,8 +298,8 @@ def test_confidence_sample_is_the_denoised_frame_against_history(tiny_dataset):
 
 
 def test_onnx_denoiser_is_the_denoise_command_with_the_exported_network(tiny_dataset, tmp_path):
-    from wgpu_rt.frame.denoise import denoise
     from wgpu_rt.dataset import load_views
+    from wgpu_rt.frame.denoise import denoise
     from wgpu_rt.train.samples import OnnxDenoiser
 
     torch.manual_seed(3)
@@ -314,3 +314,119 @@ def test_onnx_denoiser_is_the_denoise_command_with_the_exported_network(tiny_dat
     denoiser = OnnxDenoiser(export_onnx(network, tmp_path / "denoiser.onnx"))
     np.testing.assert_allclose(denoiser(render), expected, rtol=1e-4, atol=1e-5)
     assert not np.allclose(expected, render["color"], atol=1e-3)   # the network changed the render
+
+
+def test_exposure_on_the_packed_planes_equals_packing_the_scaled_render(tiny_dataset):
+    """Samples expose the kept log1p planes (log1p(e · expm1(p))): the same as packing the render scaled
+    by e, as the numpy references do; the error predictor's target is ``targets.error_heatmap`` of the
+    scaled renders (its percentile depends on the exposure)."""
+    from wgpu_rt.dataset import load_views
+    from wgpu_rt.frame.pack import albedo_factor, demodulated_log_color, pack_denoiser_input, pack_error_input
+    from wgpu_rt.train.samples import DenoiserSamples, ErrorSamples
+    from wgpu_rt.train.targets import error_heatmap
+
+    views = load_views(tiny_dataset, "train")
+    frame = views[0].frames[0]
+    noisy, gold = frame.noisy[4], frame.gold["color"]
+    x, y = DenoiserSamples(views).full((0, 0), 4, 2.5)
+    np.testing.assert_allclose(x, pack_denoiser_input(2.5 * noisy["color"], noisy["albedo"], noisy["normal"],
+                                                      noisy["depth"]), rtol=2e-6, atol=1e-6)
+    np.testing.assert_allclose(y, np.concatenate([demodulated_log_color(2.5 * gold, noisy["albedo"]),
+                                                  albedo_factor(noisy["albedo"])]), rtol=2e-6, atol=1e-6)
+    x, y = ErrorSamples(views).full((0, 0), 1, 0.6)
+    np.testing.assert_allclose(x, pack_error_input(0.6 * frame.noisy[1]["color"]), rtol=2e-6, atol=1e-6)
+    np.testing.assert_allclose(y[0], error_heatmap(0.6 * frame.noisy[1]["color"], 0.6 * gold), atol=1e-5)
+    assert 0 < y.mean() < 1
+
+
+def test_kept_planes_give_the_same_batches_and_are_built_once(tiny_dataset):
+    """What the CUDA path does (planes kept on the device) draws exactly the CPU path's batches; the aux
+    noise lands on the G-buffer channels only."""
+    from wgpu_rt.dataset import load_views
+    from wgpu_rt.train.samples import Augmentation, DenoiserSamples
+
+    views = load_views(tiny_dataset, "train")
+    packed, kept = DenoiserSamples(views), DenoiserSamples(views)
+    kept.keep_on(torch.device("cpu"))
+    built = []
+    planes = kept.planes
+    kept.planes = lambda item, spp, copy=0: built.append((item, spp, copy)) or planes(item, spp, copy)
+    items = kept.items[:3]
+    for seed in range(3):
+        expected = packed.batch(items, np.random.default_rng(seed), Augmentation(8, 16, 2), 4)
+        drawn = kept.batch(items, np.random.default_rng(seed), Augmentation(8, 16, 2), 4)
+        for a, b in zip(expected, drawn):
+            assert torch.equal(a, b)
+    assert sorted(built) == sorted((item, 4, 0) for item in items)
+    noiseless = kept.batch(items, np.random.default_rng(0), Augmentation(8, 16, 2, aux_noise=0.0), 4)
+    noisy = kept.batch(items, np.random.default_rng(0), Augmentation(8, 16, 2), 4)
+    noise = (noisy[0] - noiseless[0]).abs().amax(dim=(0, 2, 3))   # per channel
+    assert (noise[3:] > 0).all() and (noise[:3] == 0).all() and torch.equal(noisy[1], noiseless[1])
+
+
+def test_ranks_train_on_disjoint_equal_shares_of_each_epoch():
+    from wgpu_rt.train.context import TrainContext
+
+    order = np.random.default_rng(0).permutation(10)
+    shares = [TrainContext(torch.device("cpu"), rank, 3).shard(order) for rank in range(3)]
+    assert [len(s) for s in shares] == [4, 4, 4]
+    assert sorted(np.concatenate(shares)) == sorted([*range(10), *order[:2]])   # two drawn twice, to even out
+    assert TrainContext(torch.device("cpu")).shard(order) is order
+
+
+def test_a_resumed_run_ends_where_the_uninterrupted_one_does(tiny_dataset, tmp_path):
+    base = dict(task="denoiser", data=str(tiny_dataset), batch=2, crop_min=12, crop_max=16, widths=(4, 8),
+                device="cpu")
+    whole = Trainer(TrainConfig(epochs=2, out=str(tmp_path / "whole"), **base), progress=False)
+    whole.run()
+    interrupted = Trainer(TrainConfig(epochs=2, out=str(tmp_path / "split"), **base), progress=False)
+    save = interrupted._save_checkpoint
+
+    def save_then_get_killed():
+        save()
+        raise KeyboardInterrupt
+
+    interrupted._save_checkpoint = save_then_get_killed   # stops after epoch 1's checkpoint
+    with pytest.raises(KeyboardInterrupt):
+        interrupted.run()
+    resumed = Trainer(TrainConfig(epochs=2, out=str(tmp_path / "split"), resume=True, **{**base, "device": "auto"}),
+                      progress=False)
+    assert resumed.epoch == 1
+    resumed.run()
+    for name, weight in whole.model.state_dict().items():
+        assert torch.equal(resumed.model.state_dict()[name], weight), name
+
+
+@pytest.mark.parametrize("amp_dtype", [torch.bfloat16, torch.float16])
+def test_the_gpu_recipe_trains_and_resumes_a_cpu_checkpoint(amp_dtype, tiny_dataset, tmp_path):
+    """The CUDA path's recipe (planes kept on the device, autocast, a GradScaler for float16) run on the
+    CPU, which torch allows: it resumes a plain CPU run's checkpoint and its own, with finite losses."""
+    from wgpu_rt.train.context import TrainContext
+
+    base = dict(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), batch=2, crop_min=12, crop_max=16,
+                widths=(4, 8))
+    Trainer(TrainConfig(epochs=1, device="cpu", **base), progress=False).run()
+    gpu_like = TrainContext(torch.device("cpu"), amp_dtype=amp_dtype, keep_data=True)
+    resumed = Trainer(TrainConfig(epochs=2, resume=True, **base), progress=False, context=gpu_like)
+    assert resumed.epoch == 1 and resumed.train_set._kept == {}
+    resumed.run()
+    assert resumed.epoch == 2 and np.isfinite(resumed.history[-1]["train_loss"]) and resumed.train_set._kept
+    saved = torch.load(resumed.checkpoint_path, weights_only=False)
+    assert bool(saved["scaler"]) == (amp_dtype == torch.float16)
+    again = TrainContext(torch.device("cpu"), amp_dtype=amp_dtype, keep_data=True)
+    assert Trainer(TrainConfig(epochs=3, resume=True, **base), progress=False, context=again).epoch == 2
+    if amp_dtype == torch.float16:
+        assert again.scaler.get_scale() == saved["scaler"]["scale"]
+
+
+def test_throughput_is_printed_and_on_the_card(tiny_dataset, tmp_path, capsys):
+    from wgpu_rt.cli import main
+
+    out = tmp_path / "models"
+    assert main(["train", "error-predictor", "--data", str(tiny_dataset), "--out", str(out), "--epochs", "2",
+                 "--batch", "2", "--crop", "8", "16", "--quiet"]) == 0
+    summary = capsys.readouterr().out
+    assert "steps_per_s " in summary and "views_per_hour " in summary
+    card = (out / "error_predictor.md").read_text()
+    speed = [line for line in card.splitlines() if line.startswith("- throughput: ")]
+    assert len(speed) == 1 and "steps/s" in speed[0] and "training views/hour (batch 2 × 1 process(es)" in speed[0]

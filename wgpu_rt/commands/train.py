@@ -32,6 +32,10 @@ def add_arguments(parser) -> None:
                              "a fresh optimizer and schedule; give this run its own --checkpoints folder")
     parser.add_argument("--validate-every", type=int, default=1, metavar="N",
                         help="validate every N epochs and after the last (validation is slow on a CPU)")
+    parser.add_argument("--device", choices=["auto", "cuda", "cpu"], default="auto",
+                        help="train with CUDA torch (data kept on the GPU, mixed precision) or on the CPU; auto: "
+                             "CUDA when torch sees it. Under `torchrun --nproc_per_node=N -m wgpu_rt train ...` "
+                             "N processes train one model data-parallel (default: %(default)s)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -45,8 +49,10 @@ def run(args) -> int:
                          curriculum=tuple(args.curriculum), resume=args.resume,
                          extra_data=tuple(args.extra_data), max_views=args.max_views,
                          checkpoints=args.checkpoints, init_from=args.init_from,
-                         validate_every=args.validate_every)
+                         validate_every=args.validate_every, device=args.device)
     summary = train(config, progress=not args.quiet)
+    if summary is None:   # a data-parallel rank other than 0: rank 0 reports
+        return 0
     metrics = ", ".join(f"{k} {v:.4g}" for k, v in summary["metrics"].items() if isinstance(v, float))
     print(f"wrote {summary['onnx']} and {summary['card']} ({summary['seconds'] / 60:.1f} min); {metrics}")
     return 0

@@ -1,5 +1,6 @@
-"""Training the networks on a rendered dataset (CPU torch is enough): samples and augmentation
-(``samples``), targets (``targets``), losses (``losses``) and the loop with export (``trainer``)."""
+"""Training the networks on a rendered dataset (CPU torch is enough; CUDA and several processes under
+torchrun when present): samples and augmentation (``samples``), targets (``targets``), losses
+(``losses``), device and data-parallel set-up (``context``) and the loop with export (``trainer``)."""
 
 from .trainer import TrainConfig, TrainingError, train
 

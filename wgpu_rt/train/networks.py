@@ -121,17 +121,17 @@ def input_channels(model: nn.Module) -> int:
 
 def export_onnx(model: nn.Module, path: str | Path, height: int = 64, width: int = 64) -> Path:
     """Write ``model`` to ONNX (opset 17) with dynamic batch, height and width."""
+    from ..io import atomic_output
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     model = model.eval()
     example = torch.zeros(1, input_channels(model), height, width)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    torch.onnx.export(
-        model, (example,), str(tmp), input_names=["input"], output_names=["output"],
-        opset_version=ONNX_OPSET, dynamo=False,
-        dynamic_axes={"input": {0: "batch", 2: "height", 3: "width"},
-                      "output": {0: "batch", 2: "height", 3: "width"}})
-    tmp.replace(path)
+    with atomic_output(path) as tmp:
+        torch.onnx.export(
+            model, (example,), str(tmp), input_names=["input"], output_names=["output"],
+            opset_version=ONNX_OPSET, dynamo=False,
+            dynamic_axes={"input": {0: "batch", 2: "height", 3: "width"},
+                          "output": {0: "batch", 2: "height", 3: "width"}})
     return path
 
 

@@ -1,10 +1,12 @@
 """Training samples for the three networks, built from a loaded dataset.
 
 Inputs are packed by ``wgpu_rt.frame.pack``'s numpy references on the *full* frame (so the depth
-normalisation sees the frame's true max depth, as at runtime), then cropped and augmented:
+normalisation sees the frame's true max depth, as at runtime), then, as torch tensors on the training
+device, exposed, cropped and augmented:
 
-- exposure jitter: colour and gold scaled by 2^U(−1, 1) before packing (the log1p compression makes
-  this a non-trivial change of the input, which is the point);
+- exposure jitter: colour and gold scaled by 2^U(−1, 1), applied to the packed log1p planes as
+  log1p(e · expm1(p)), the same as packing the scaled render (the log1p compression makes this a
+  non-trivial change of the input, which is the point);
 - a random square crop of ``crop`` ∈ [crop_min, crop_max] (a multiple of ``multiple``, at most the
   frame), the same for a whole batch;
 - one of the 8 flips/90° rotations;
@@ -22,11 +24,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from ..dataset.store import View
-from ..frame.pack import (albedo_factor, demodulated_log_color, pack_confidence_input,
+from ..frame.pack import (albedo_factor, demodulated_log_color, log_color, pack_confidence_input,
                           pack_denoiser_input, pack_error_input)
-from .targets import confidence_pair, error_heatmap
+from .targets import HEATMAP_PERCENTILE, confidence_pair
 
 TASKS = ("denoiser", "error-predictor", "confidence")
 
@@ -41,28 +44,66 @@ class Augmentation:
 
 
 class TaskSamples(ABC):
-    """The (input, target) pairs of one task over a list of views; subclasses define ``full``."""
+    """The (input, target) pairs of one task over a list of views; subclasses define ``planes`` and which
+    channels hold log1p radiance (``exposed_input``, ``exposed_target``: exposure scales those)."""
 
     aux_channels: slice = slice(0, 0)
+    exposed_input: slice = slice(0, 3)
+    exposed_target: slice = slice(0, 0)
 
     def __init__(self, views: list[View]):
         self.views = views
         self.items = self._items()
+        self.device = torch.device("cpu")
+        self._kept: dict | None = None
 
     def _items(self) -> list[tuple[int, int]]:
         return [(v, f) for v, view in enumerate(self.views) for f in range(len(view.frames))]
 
+    def keep_on(self, device: torch.device) -> None:
+        """Keep each frame's planes on ``device`` once packed (at their first draw), so a GPU does not wait
+        for the CPU to pack frames again; without this they are packed at every draw, which keeps a CPU
+        run's memory at the dataset's own size."""
+        self.device, self._kept = device, {}
+
     @abstractmethod
-    def full(self, item: tuple[int, int], spp: int, exposure: float, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """The full-frame (C, H, W) input and target of ``item``, the input from its ``copy``-th noisy
-        render at ``spp``."""
+    def planes(self, item: tuple[int, int], spp: int, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """The full-frame (C, H, W) input of ``item`` from its ``copy``-th noisy render at ``spp``, and
+        its target planes (what ``target`` turns into the training target), at unit exposure."""
+
+    def target(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        """The training target from the (exposed) input and target planes: the planes themselves, unless a
+        task derives its target from both."""
+        return y
+
+    def _tensors(self, item, spp: int, copy: int) -> tuple[torch.Tensor, torch.Tensor]:
+        key = (item, spp, copy)
+        if self._kept is not None and key in self._kept:
+            return self._kept[key]
+        tensors = tuple(torch.from_numpy(a).to(self.device) for a in self.planes(item, spp, copy))
+        if self._kept is not None:
+            self._kept[key] = tensors
+        return tensors
+
+    def exposed(self, item, spp: int, exposure: float, copy: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+        """The full-frame input and target of ``item`` (tensors on ``device``) with the radiance scaled by
+        ``exposure``: log1p(v) becomes log1p(exposure · v), the same as packing the scaled render."""
+        x, y = self._tensors(item, spp, copy)
+        if exposure != 1.0:
+            x, y = _expose(x, self.exposed_input, exposure), _expose(y, self.exposed_target, exposure)
+        return x, self.target(x, y)
+
+    def full(self, item, spp: int, exposure: float, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """``exposed`` as numpy arrays (validation, tests)."""
+        return tuple(t.cpu().numpy() for t in self.exposed(item, spp, exposure, copy))
 
     def copies(self, item: tuple[int, int], spp: int) -> int:
         """How many independent noisy renders of ``item`` at ``spp`` ``full`` can draw from."""
         return len(self.views[item[0]].frames[item[1]].renders_at(spp))
 
     def batch(self, items, rng: np.random.Generator, aug: Augmentation, spp: int = 1):
-        """A (B, C, S, S) input batch and its targets, augmented as the module docstring says."""
+        """A (B, C, S, S) input batch and its targets on ``device``, augmented as the module docstring
+        says: ``rng`` draws every choice, the crops, turns, flips and noise are tensor ops on the device."""
         inputs, targets = [], []
         frame = self.views[items[0][0]].frames[0].gold["color"].shape[:2]
         largest = min(aug.crop_max, *frame) // aug.multiple * aug.multiple
@@ -70,21 +111,31 @@ class TaskSamples(ABC):
         crop = int(rng.integers(smallest, largest // aug.multiple + 1)) * aug.multiple
         for item in items:
             exposure = float(2.0 ** rng.uniform(-aug.exposure_stops, aug.exposure_stops))
-            x, y = self.full(item, spp, exposure, int(rng.integers(self.copies(item, spp))))
+            x, y = self.exposed(item, spp, exposure, int(rng.integers(self.copies(item, spp))))
             top = int(rng.integers(0, x.shape[1] - crop + 1))
             left = int(rng.integers(0, x.shape[2] - crop + 1))
             x, y = x[:, top:top + crop, left:left + crop], y[:, top:top + crop, left:left + crop]
             turns, flip = int(rng.integers(4)), bool(rng.integers(2))
-            x, y = (np.rot90(a, turns, axes=(1, 2)) for a in (x, y))
+            x, y = (torch.rot90(a, turns, dims=(1, 2)) for a in (x, y))
             if flip:
-                x, y = x[:, :, ::-1], y[:, :, ::-1]
-            x = np.array(x, np.float32)
-            if aug.aux_noise > 0 and self.aux_channels.stop > self.aux_channels.start:
-                aux = x[self.aux_channels]
-                x[self.aux_channels] = aux + rng.normal(0.0, aug.aux_noise, aux.shape).astype(np.float32)
+                x, y = x.flip(2), y.flip(2)
             inputs.append(x)
-            targets.append(np.array(y, np.float32))
-        return np.stack(inputs), np.stack(targets)
+            targets.append(y)
+        x, y = torch.stack(inputs), torch.stack(targets)   # copies: the kept planes stay untouched
+        if aug.aux_noise > 0 and self.aux_channels.stop > self.aux_channels.start:
+            generator = torch.Generator(x.device).manual_seed(int(rng.integers(2 ** 63)))
+            aux = x[:, self.aux_channels]
+            aux += aug.aux_noise * torch.randn(aux.shape, generator=generator, device=x.device)
+        return x, y
+
+
+def _expose(planes: torch.Tensor, channels: slice, exposure: float) -> torch.Tensor:
+    """``planes`` with log1p radiance ``channels`` rescaled to ``exposure`` times the radiance."""
+    if channels.stop <= channels.start:
+        return planes
+    exposed = planes.clone()
+    exposed[channels] = torch.log1p(exposure * torch.expm1(planes[channels]))
+    return exposed
 
 
 class DenoiserSamples(TaskSamples):
@@ -93,22 +144,30 @@ class DenoiserSamples(TaskSamples):
     colour, which is what unpack produces and the metrics score)."""
 
     aux_channels = slice(3, 10)
+    exposed_target = slice(0, 3)
 
-    def full(self, item, spp, exposure, copy=0):
+    def planes(self, item, spp, copy=0):
         frame = self.views[item[0]].frames[item[1]]
         noisy = frame.renders_at(spp)[copy]
-        x = pack_denoiser_input(noisy["color"] * exposure, noisy["albedo"], noisy["normal"], noisy["depth"])
-        gold = frame.gold["color"] * exposure
+        x = pack_denoiser_input(noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"])
+        gold = frame.gold["color"]
         return x, np.concatenate([demodulated_log_color(gold, noisy["albedo"]), albedo_factor(noisy["albedo"])])
 
 
 class ErrorSamples(TaskSamples):
-    """1-spp colour → the normalized |1 spp − gold| log-space heatmap."""
+    """1-spp colour → the normalized |1 spp − gold| log-space heatmap (``targets.error_heatmap``, here in
+    torch on the full exposed frame: its percentile depends on the exposure)."""
 
-    def full(self, item, spp, exposure, copy=0):
+    exposed_target = slice(0, 3)
+
+    def planes(self, item, spp, copy=0):
         frame = self.views[item[0]].frames[item[1]]
-        noisy, gold = frame.renders_at(1)[copy]["color"] * exposure, frame.gold["color"] * exposure
-        return pack_error_input(noisy), error_heatmap(noisy, gold)[None]
+        return pack_error_input(frame.renders_at(1)[copy]["color"]), log_color(frame.gold["color"])
+
+    def target(self, x, y):
+        error = (x - y).abs().mean(dim=0, keepdim=True)
+        scale = torch.quantile(error.flatten(), HEATMAP_PERCENTILE / 100)
+        return (error / scale).clamp(0.0, 1.0) if scale > 0 else torch.zeros_like(error)
 
 
 class OnnxDenoiser:
@@ -143,6 +202,7 @@ class ConfidenceSamples(TaskSamples):
     nearly so)."""
 
     aux_channels = slice(6, 8)
+    exposed_input = slice(0, 6)
 
     def _items(self):
         return [(v, t) for v, view in enumerate(self.views) for t in range(len(view.frames) - 1)]
@@ -163,11 +223,10 @@ class ConfidenceSamples(TaskSamples):
     def copies(self, item, spp):
         return 1   # each pair's denoised source is computed once, from the frame's first 1-spp render
 
-    def full(self, item, spp, exposure, copy=0):
+    def planes(self, item, spp, copy=0):
         source, history, history_depth, _, mask = self._pair(item)
         depth = self.views[item[0]].frames[item[1] + 1].noisy[1]["depth"]
-        x = pack_confidence_input(source * exposure, history * exposure, depth, history_depth)
-        return x, 1.0 - mask[None]
+        return pack_confidence_input(source, history, depth, history_depth), 1.0 - mask[None]
 
     def tested(self, item) -> np.ndarray:
         """(H, W) bool: the pixels of ``item`` whose history passes the temporal pass's depth/normal tests."""

@@ -7,25 +7,34 @@ a shuffled order, in batches. Validation uses the ``val`` split, which no traini
 the denoiser is scored at 1 spp on full frames (PSNR, SSIM, relMSE, FLIP against gold), the error
 predictor by the Spearman correlation of its heatmap with the true error, the confidence model by the
 ROC AUC of its output against the true disocclusion mask (``confidence_aucs``' three ways).
+
+Where it runs (CPU or CUDA, mixed precision, several processes under torchrun) is ``context``'s; a
+checkpoint is read onto the CPU and moved to this run's device, so a run resumes on another device or
+machine. Every
+setting and output path is checked before any data is read or any file written.
 """
 
 from __future__ import annotations
 
+import copy
 import math
-import os
 import time
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..dataset.truth import DatasetError
 from ..errors import WgpuRtError
 from ..frame.denoise import pad_to_multiple
+from ..io import atomic_output, check_output_path
+from .context import TrainContext, training_context
 from .samples import Augmentation, curriculum_spp, samples_for
 
 MODEL_FILES = {"denoiser": "denoiser", "error-predictor": "error_predictor", "confidence": "confidence"}
 # Settings a resumed run may change: more epochs stretch the schedule; the rest is bookkeeping.
-RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every"}
+RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every", "device"}
 
 
 class TrainingError(WgpuRtError):
@@ -55,10 +64,42 @@ class TrainConfig:
     checkpoints: str | None = None       # default OUT/checkpoints
     init_from: str | None = None         # fine-tune: start from this checkpoint's weights (fresh optimizer)
     validate_every: int = 1              # epochs between validations (the last epoch is always validated)
+    device: str = "auto"                 # cuda, cpu, or auto: CUDA when torch sees it
 
     @property
     def model_name(self) -> str:
         return MODEL_FILES[self.task]
+
+    def check(self) -> None:
+        """A clear error naming the flag for any setting training cannot run with, before any work."""
+        if self.task not in MODEL_FILES:
+            raise TrainingError(f"unknown task {self.task!r}; expected one of {sorted(MODEL_FILES)}")
+        counts = {"--epochs": [self.epochs], "--batch": [self.batch], "--widths": self.widths,
+                  "--curriculum": self.curriculum, "--validate-every": [self.validate_every],
+                  "--crop": [self.crop_min, self.crop_max],
+                  "--max-views": [] if self.max_views is None else [self.max_views]}
+        for flag, values in counts.items():
+            if any(value < 1 for value in values):
+                raise TrainingError(f"{flag} must be at least 1, got {' '.join(map(str, values))}")
+        if self.crop_min > self.crop_max:
+            raise TrainingError(f"--crop MIN MAX: min {self.crop_min} is larger than max {self.crop_max}")
+        if not (math.isfinite(self.lr) and self.lr > 0):
+            raise TrainingError(f"--lr must be a positive number, got {self.lr}")
+        if self.init_from is not None and not Path(self.init_from).is_file():
+            raise TrainingError(f"--init-from {self.init_from}: no such checkpoint file")
+        checkpoint, *exported = self.outputs()
+        for path in exported:
+            check_output_path(path, "--out")
+        check_output_path(checkpoint, "--checkpoints" if self.checkpoints else "--out")
+
+    @property
+    def checkpoint_path(self) -> Path:
+        return Path(self.checkpoints or Path(self.out) / "checkpoints") / f"{self.model_name}.pt"
+
+    def outputs(self) -> tuple[Path, Path, Path]:
+        """The files a run writes: the checkpoint, the ONNX and its model card."""
+        out = Path(self.out)
+        return self.checkpoint_path, out / f"{self.model_name}.onnx", out / f"{self.model_name}.md"
 
 
 def build_model(config: TrainConfig):
@@ -69,6 +110,23 @@ def build_model(config: TrainConfig):
     if config.task == "error-predictor":
         return ErrorPredictor()
     return ConfidencePredictor()
+
+
+@contextmanager
+def malformed_manifest_errors(folder: str):
+    """A manifest whose records have missing fields or values of the wrong type is a DatasetError naming
+    it, not a KeyError/TypeError from deep inside the reader."""
+    try:
+        yield
+    except (KeyError, TypeError, ValueError, AttributeError) as err:
+        raise DatasetError(f"{Path(folder) / 'manifest.json'}: malformed ({type(err).__name__}: {err})") from None
+
+
+def load_split(folder: str, split: str, limit: int | None):
+    from ..dataset.store import load_views
+
+    with malformed_manifest_errors(folder):
+        return load_views(folder, split, limit)
 
 
 def rank_correlation(a, b) -> float:
@@ -102,42 +160,71 @@ def confidence_aucs(confidence, mask, tested) -> dict[str, float]:
 
 
 class Trainer:
-    def __init__(self, config: TrainConfig, progress: bool = True):
+    def __init__(self, config: TrainConfig, progress: bool = True, context: TrainContext | None = None):
+        """``context``: where to train (default: ``training_context(config.device)``)."""
         import torch
 
-        from ..dataset.store import load_views
-
-        self.config, self.progress = config, progress
-        if config.task not in MODEL_FILES:
-            raise TrainingError(f"unknown task {config.task!r}; expected one of {sorted(MODEL_FILES)}")
-        if config.validate_every < 1:
-            raise TrainingError(f"validate_every must be at least 1 epoch, got {config.validate_every}")
+        config.check()
+        self.config = config
+        self.context = context or training_context(config.device)
+        self.progress = progress and self.context.main
+        torch.manual_seed(config.seed)
+        self.model = build_model(config).to(self.context.device)
+        self.multiple = getattr(self.model, "multiple", 1)
+        self.smallest_crop = self._smallest_crop()
+        if config.crop_min < self.smallest_crop:
+            raise TrainingError(f"--crop MIN must be at least {self.smallest_crop} for the {config.task} "
+                                f"({self._crop_reason()}), got {config.crop_min}")
         folders = (config.data, *config.extra_data)
+        for folder in folders:
+            with malformed_manifest_errors(folder):
+                self._dataset_line(folder)   # the card reads each manifest at the end: check it first
         denoiser = self._source_denoiser() if config.task == "confidence" else None
         self.train_set, self.val_set = (
-            samples_for(config.task, [v for folder in folders for v in load_views(folder, split, config.max_views)],
+            samples_for(config.task, [v for folder in folders for v in load_split(folder, split, config.max_views)],
                         denoiser)
             for split in ("train", "val"))
         for name, subset in (("train", self.train_set), ("val", self.val_set)):
             if not subset.items:
                 need = " (the confidence model needs temporal sequences)" if config.task == "confidence" else ""
                 raise TrainingError(f"{', '.join(folders)}: no {name} samples for {config.task}{need}")
-        torch.manual_seed(config.seed)
-        self.model = build_model(config)
-        self.multiple = getattr(self.model, "multiple", 1)
-        self.steps_per_epoch = math.ceil(len(self.train_set.items) / config.batch)
+        frame = min(min(view.frames[0].gold["color"].shape[:2]) for view in self.train_set.views)
+        if frame // self.multiple * self.multiple < self.smallest_crop:
+            raise TrainingError(f"{', '.join(folders)}: {frame}-px frames are too small to train the {config.task} "
+                                f"on ({self._crop_reason()}: at least {self.smallest_crop} px)")
+        if self.context.keep_data:
+            self.train_set.keep_on(self.context.device)
+        self.network = self.context.wrap(self.model)
+        self.steps_per_epoch = math.ceil(len(self.context.shard(np.arange(len(self.train_set.items))))
+                                         / config.batch)
         self.total_steps = self.steps_per_epoch * config.epochs
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
         self.schedule = torch.optim.lr_scheduler.LambdaLR(self.optimizer, self.learning_rate_factor)
         self.augmentation = Augmentation(config.crop_min, config.crop_max, self.multiple)
-        self.rng = np.random.default_rng(config.seed)
+        # Rank 0 draws each epoch's order (shared with the others) and its own augmentations, as a single
+        # process does; the other ranks draw their augmentations from streams of their own.
+        rank = self.context.rank
+        self.rng = np.random.default_rng(config.seed if rank == 0 else (config.seed, rank))
         self.epoch, self.step, self.seconds, self.history = 0, 0, 0.0, []
-        self.checkpoint_path = Path(config.checkpoints or Path(config.out) / "checkpoints") / f"{config.model_name}.pt"
+        self.timed = {"steps": 0, "seconds": 0.0}   # this session's training steps and their time
+        self.checkpoint_path = config.checkpoint_path
         self.base: dict | None = None     # the run a fine-tune starts from: its path, epochs, time, metrics
         if config.resume and self.checkpoint_path.exists():
             self._load_checkpoint()
         elif config.init_from:
             self._load_initial_weights(Path(config.init_from))
+
+    def _smallest_crop(self) -> int:
+        """The smallest crop that trains: a multiple of the network's size multiple, and for the denoiser
+        at least its SSIM loss's window."""
+        from .losses import SSIM_WINDOW
+
+        least = SSIM_WINDOW if self.config.task == "denoiser" else 1
+        return -(-least // self.multiple) * self.multiple
+
+    def _crop_reason(self) -> str:
+        window = ", and the SSIM loss's 11-px window" if self.config.task == "denoiser" else ""
+        return f"crops are multiples of {self.multiple}{window}"
 
     def _source_denoiser(self):
         """The confidence model judges history against the temporal pass's source, the *denoised* frame:
@@ -159,16 +246,20 @@ class Trainer:
 
     # -- checkpoints -------------------------------------------------------------------------------
     def _save_checkpoint(self) -> None:
+        """Rank 0 writes the checkpoint (with every rank's random state, so a resumed data-parallel run
+        draws what the uninterrupted one would have)."""
         import torch
 
-        self.checkpoint_path.parent.mkdir(parents=True, exist_ok=True)
+        rngs = self.context.gather(self.rng.bit_generator.state)
+        if not self.context.main:
+            return
         state = {"model": self.model.state_dict(), "optimizer": self.optimizer.state_dict(),
-                 "schedule": self.schedule.state_dict(), "epoch": self.epoch, "step": self.step,
-                 "seconds": self.seconds, "history": self.history, "rng": self.rng.bit_generator.state,
+                 "schedule": self.schedule.state_dict(), "scaler": self.context.scaler.state_dict(),
+                 "epoch": self.epoch, "step": self.step, "seconds": self.seconds,
+                 "history": self.history, "rng": rngs[0], "rank_rngs": rngs,
                  "torch_rng": torch.get_rng_state(), "config": asdict(self.config), "base": self.base}
-        tmp = self.checkpoint_path.with_name(f".{self.checkpoint_path.name}.{os.getpid()}.tmp")
-        torch.save(state, tmp)
-        os.replace(tmp, self.checkpoint_path)
+        with atomic_output(self.checkpoint_path) as tmp:
+            torch.save(state, tmp)
 
     def _load_checkpoint(self) -> None:
         import torch
@@ -178,11 +269,15 @@ class Trainer:
         if changed:
             raise TrainingError(f"{self.checkpoint_path}: trained with other settings ({', '.join(changed)}); "
                                 "delete it or pass another --checkpoints folder to start afresh")
-        self.optimizer.load_state_dict(state["optimizer"])
+        self.optimizer.load_state_dict(state["optimizer"])   # moves its state onto the parameters' device
         self.schedule.load_state_dict(state["schedule"])
+        if state.get("scaler"):
+            self.context.scaler.load_state_dict(state["scaler"])
         self.epoch, self.step, self.seconds = state["epoch"], state["step"], state["seconds"]
         self.history, self.base = state["history"], state.get("base")
-        self.rng.bit_generator.state = state["rng"]
+        rngs = state.get("rank_rngs", [state["rng"]])
+        if self.context.rank < len(rngs):   # a rank the saved run lacked keeps its fresh stream
+            self.rng.bit_generator.state = rngs[self.context.rank]
         torch.set_rng_state(state["torch_rng"])
 
     def _load_weights(self, path: Path, purpose: str) -> dict:
@@ -190,7 +285,7 @@ class Trainer:
         import torch
 
         try:
-            state = torch.load(path, weights_only=False)
+            state = torch.load(path, map_location="cpu", weights_only=False)   # saved on any device
             self.model.load_state_dict(state["model"])
         except Exception as err:  # torch raises many types for missing, corrupt or mismatched files
             raise TrainingError(f"{path}: cannot {purpose} this checkpoint ({err})") from None
@@ -231,20 +326,25 @@ class Trainer:
         return F.binary_cross_entropy(prediction.clamp(1e-6, 1 - 1e-6), target)
 
     def train_step(self, items, spp: int) -> float:
+        """One optimizer step on ``items``; returns the loss (averaged over the data-parallel ranks)."""
         import torch
 
         x, y = self.train_set.batch(items, self.rng, self.augmentation, spp)
-        self.model.train()
-        prediction = self.model(torch.from_numpy(x))
-        loss = self.loss(prediction, torch.from_numpy(y))
-        value = float(loss.detach())
+        self.network.train()
+        with self.context.autocast():
+            prediction = self.network(x)
+        loss = self.loss(prediction.float(), y)   # the loss in float32 whatever the network ran in
+        value = self.context.mean(loss)
         if not math.isfinite(value):
             raise TrainingError(f"{self.config.task}: loss became {value} at step {self.step} (epoch "
                                 f"{self.epoch}); lower --lr, or check {self.config.data} for bad images")
+        scaler = self.context.scaler   # float16 only: scales the loss so small gradients survive
         self.optimizer.zero_grad(set_to_none=True)
-        loss.backward()
+        scaler.scale(loss).backward()
+        scaler.unscale_(self.optimizer)
         torch.nn.utils.clip_grad_norm_(self.model.parameters(), self.config.grad_clip)
-        self.optimizer.step()
+        scaler.step(self.optimizer)
+        scaler.update()
         self.schedule.step()
         self.step += 1
         return value
@@ -259,7 +359,9 @@ class Trainer:
                   disable=not self.progress) as bar:
             while self.epoch < self.config.epochs:
                 started = time.perf_counter()
-                order = self.rng.permutation(len(self.train_set.items))
+                order = self.context.broadcast(self.rng.permutation(len(self.train_set.items))
+                                               if self.context.main else None)
+                order = self.context.shard(order)
                 spp = (curriculum_spp(self.epoch / self.config.epochs, available, tuple(self.config.curriculum))
                        if self.config.task == "denoiser" else 1)
                 losses = []
@@ -268,16 +370,36 @@ class Trainer:
                     losses.append(self.train_step(items, spp))
                     bar.update(1)
                     bar.set_postfix(loss=f"{losses[-1]:.4f}", spp=spp)
+                self._synchronize()
+                self.timed["steps"] += len(losses)
+                self.timed["seconds"] += time.perf_counter() - started
                 self.epoch += 1
                 due = self.epoch % self.config.validate_every == 0 or self.epoch == self.config.epochs
-                metrics = self.validate() if due else {}
+                metrics = self.validate() if due and self.context.main else {}
                 self.seconds += time.perf_counter() - started
                 self.history.append({"epoch": self.epoch, "step": self.step, "spp": spp,
-                                     "train_loss": float(np.mean(losses)), **metrics})
-                bar.write(f"epoch {self.epoch}: " + ", ".join(f"{k} {v:.4g}" for k, v in self.history[-1].items()
-                                                              if isinstance(v, float)))
+                                     "train_loss": float(np.mean(losses)), **metrics, **self.throughput()})
+                if self.progress:
+                    bar.write(f"epoch {self.epoch}: " + ", ".join(
+                        f"{k} {v:.4g}" for k, v in self.history[-1].items() if isinstance(v, float)))
                 self._save_checkpoint()
         return self.history[-1] if self.history else {}
+
+    def _synchronize(self) -> None:
+        """Wait for the device's queued work, so the time measured is the work's."""
+        import torch
+
+        if self.context.device.type == "cuda":
+            torch.cuda.synchronize(self.context.device)
+
+    def throughput(self) -> dict[str, float]:
+        """This session's training speed on this hardware (validation and checkpoints excluded): optimizer
+        steps per second and training views per hour (crops of view frames, all processes together)."""
+        if not self.timed["seconds"]:
+            return {}
+        steps_per_s = self.timed["steps"] / self.timed["seconds"]
+        return {"steps_per_s": steps_per_s,
+                "views_per_hour": steps_per_s * 3600 * self.config.batch * self.context.world_size}
 
     # -- validation --------------------------------------------------------------------------------
     def predict(self, x: np.ndarray) -> np.ndarray:
@@ -287,7 +409,7 @@ class Trainer:
         self.model.eval()
         with torch.no_grad():
             padded = pad_to_multiple(x[None], self.multiple)
-            out = self.model(torch.from_numpy(padded)).numpy()[0]
+            out = self.model(torch.from_numpy(padded).to(self.context.device)).cpu().numpy()[0]
         return out[:, :x.shape[1], :x.shape[2]]
 
     def validate(self) -> dict[str, float]:
@@ -315,12 +437,10 @@ class Trainer:
         """``OUT/<name>.onnx`` and its model card ``OUT/<name>.md``."""
         from .networks import export_onnx
 
-        out = Path(self.config.out)
-        onnx_path = export_onnx(self.model, out / f"{self.config.model_name}.onnx")
-        card = out / f"{self.config.model_name}.md"
-        tmp = card.with_name(f".{card.name}.{os.getpid()}.tmp")
-        tmp.write_text(self.model_card())
-        os.replace(tmp, card)
+        _, onnx_path, card = self.config.outputs()
+        export_onnx(copy.deepcopy(self.model).cpu(), onnx_path)   # traced on the CPU, wherever it trained
+        with atomic_output(card) as tmp:
+            tmp.write_text(self.model_card())
         return onnx_path, card
 
     @staticmethod
@@ -347,8 +467,6 @@ class Trainer:
         return runs
 
     def model_card(self) -> str:
-        import torch
-
         from ..dataset.store import read_manifest
         from ..frame.pack import ALBEDO_EPSILON
 
@@ -407,7 +525,12 @@ class Trainer:
         base_minutes = sum(base["seconds"] for base in base_runs) / 60
         lines.append(f"- wall time: {self.seconds / 60:.1f} min"
                      + (f" (+ {base_minutes:.1f} min for the run(s) it was fine-tuned from)" if base_runs else "")
-                     + f", CPU torch with {torch.get_num_threads()} thread(s) on a {os.cpu_count()}-core machine")
+                     + f", {self.context.describe()}")
+        speed = self.throughput()
+        if speed:
+            lines.append(f"- throughput: {speed['steps_per_s']:.3g} steps/s, {speed['views_per_hour']:,.0f} training "
+                         f"views/hour (batch {cfg.batch} × {self.context.world_size} process(es), this session; "
+                         "validation and checkpoints not counted)")
         if gold < 1024:
             lines.append(f"- note: gold at {gold} spp is itself noisy, so it is a soft target and "
                          "the metrics below are against a noisy reference (a small recipe sized for a 2-core "
@@ -424,9 +547,15 @@ class Trainer:
         return "\n".join(lines) + "\n"
 
 
-def train(config: TrainConfig, progress: bool = True) -> dict:
-    """Train, export ``OUT/<name>.onnx`` + model card; returns {"onnx", "card", "metrics", "seconds"}."""
+def train(config: TrainConfig, progress: bool = True) -> dict | None:
+    """Train, export ``OUT/<name>.onnx`` + model card; returns {"onnx", "card", "metrics", "seconds"} (on
+    rank 0; None on the other data-parallel ranks, which write nothing)."""
     trainer = Trainer(config, progress)
-    metrics = trainer.run()
-    onnx_path, card = trainer.export()
+    try:
+        metrics = trainer.run()
+        if not trainer.context.main:
+            return None
+        onnx_path, card = trainer.export()
+    finally:
+        trainer.context.close()
     return {"onnx": str(onnx_path), "card": str(card), "metrics": metrics, "seconds": trainer.seconds}

@@ -1,0 +1,143 @@
+"""Where training runs: the torch device, mixed precision, and the data-parallel group, built in one place.
+
+``training_context(device)`` picks ``cuda`` or ``cpu`` (``auto``: CUDA when torch sees it). On CUDA the
+packed training frames are kept in GPU memory (built once; crops and augmentation are tensor ops there),
+the model runs under ``torch.autocast`` in bfloat16 (float16 with a GradScaler where the GPU lacks bf16)
+and cuDNN picks its fastest kernels; on the CPU everything stays float32 and frames are packed at each
+draw, so memory stays at the dataset's size.
+
+Launched by ``torchrun`` (WORLD_SIZE, RANK, LOCAL_RANK in the environment), every process joins one
+process group (NCCL on CUDA, gloo on the CPU) and the model is wrapped in DistributedDataParallel, so
+gradients are averaged across processes after each step and the replicas stay identical. Each process
+trains on its own share of every epoch's samples (``shard``); only rank 0 (``main``) writes checkpoints,
+the ONNX and its card, and shows progress.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from ..errors import WgpuRtError
+
+DEVICES = ("auto", "cuda", "cpu")
+
+
+@dataclass
+class TrainContext:
+    device: torch.device
+    rank: int = 0
+    world_size: int = 1
+    amp_dtype: torch.dtype | None = None     # autocast dtype; None: float32 throughout
+    keep_data: bool = False                  # keep the packed training frames on the device (a GPU's memory)
+
+    def __post_init__(self):
+        self.scaler = torch.amp.GradScaler(self.device.type, enabled=self.amp_dtype == torch.float16)
+
+    @property
+    def main(self) -> bool:
+        return self.rank == 0
+
+    @property
+    def distributed(self) -> bool:
+        return self.world_size > 1
+
+    def autocast(self):
+        if self.amp_dtype is None:
+            return contextlib.nullcontext()
+        return torch.autocast(self.device.type, dtype=self.amp_dtype)
+
+    def wrap(self, model: torch.nn.Module) -> torch.nn.Module:
+        """``model`` as trained: replicated across the group under DDP (which copies rank 0's initial
+        weights to every process), else itself."""
+        if not self.distributed:
+            return model
+        from torch.nn.parallel import DistributedDataParallel
+
+        device_ids = [self.device.index] if self.device.type == "cuda" else None
+        return DistributedDataParallel(model, device_ids=device_ids)
+
+    def shard(self, order: np.ndarray) -> np.ndarray:
+        """This process's part of an epoch's sample ``order`` (the same on every process): every
+        ``world_size``-th item from ``rank``, the order wrapped round to equal lengths (every process must
+        take the same number of steps, as with torch's DistributedSampler)."""
+        if not self.distributed:
+            return order
+        padded = np.resize(order, -(-len(order) // self.world_size) * self.world_size)
+        return padded[self.rank::self.world_size]
+
+    def broadcast(self, value):
+        """Rank 0's ``value`` on every process."""
+        if not self.distributed:
+            return value
+        box = [value]
+        torch.distributed.broadcast_object_list(box, src=0)
+        return box[0]
+
+    def gather(self, value) -> list:
+        """Every process's ``value``, by rank."""
+        if not self.distributed:
+            return [value]
+        values = [None] * self.world_size
+        torch.distributed.all_gather_object(values, value)
+        return values
+
+    def mean(self, value: torch.Tensor) -> float:
+        """The mean of a scalar over the processes (each process's loss differs; all must agree on it,
+        e.g. to stop together when it is NaN)."""
+        value = value.detach().float()
+        if self.distributed:
+            torch.distributed.all_reduce(value)
+            value = value / self.world_size
+        return float(value)
+
+    def describe(self) -> str:
+        """The hardware for the model card."""
+        if self.device.type == "cuda":
+            what = f"CUDA torch on {torch.cuda.get_device_name(self.device)}, {self.amp_dtype} autocast"
+        else:
+            what = f"CPU torch with {torch.get_num_threads()} thread(s) on a {os.cpu_count()}-core machine"
+        return what + (f", {self.world_size} data-parallel processes" if self.distributed else "")
+
+    def close(self) -> None:
+        if self.distributed and torch.distributed.is_initialized():
+            torch.distributed.destroy_process_group()
+
+
+def resolve_device(name: str) -> torch.device:
+    """``name`` (one of DEVICES) as a torch device; a clear error for ``cuda`` where torch sees none."""
+    if name not in DEVICES:
+        raise WgpuRtError(f"--device must be one of {', '.join(DEVICES)}, not {name!r}")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise WgpuRtError(f"--device cuda: torch {torch.__version__} sees no CUDA device here "
+                          "(use --device cpu or auto)")
+    return torch.device("cuda" if name != "cpu" and torch.cuda.is_available() else "cpu")
+
+
+def _launch_env() -> tuple[int, int, int]:
+    """(world size, rank, local rank) as torchrun sets them; (1, 0, 0) when not launched by it."""
+    try:
+        return tuple(int(os.environ.get(key, default)) for key, default in
+                     (("WORLD_SIZE", 1), ("RANK", 0), ("LOCAL_RANK", 0)))
+    except ValueError as err:
+        raise WgpuRtError(f"WORLD_SIZE/RANK/LOCAL_RANK must be integers ({err})") from None
+
+
+def training_context(device: str = "auto") -> TrainContext:
+    """The context for this process: device, precision and (under torchrun) the process group."""
+    device_type = resolve_device(device).type
+    world_size, rank, local_rank = _launch_env()
+    torch_device = torch.device("cuda", local_rank) if device_type == "cuda" else torch.device("cpu")
+    amp_dtype = None
+    if device_type == "cuda":
+        torch.cuda.set_device(torch_device)
+        torch.backends.cudnn.benchmark = True     # crops vary in size: cuDNN re-tunes once per size
+        amp_dtype = torch.bfloat16 if torch.cuda.is_bf16_supported() else torch.float16
+    if world_size > 1 and not torch.distributed.is_initialized():
+        torch.distributed.init_process_group("nccl" if device_type == "cuda" else "gloo",
+                                             rank=rank, world_size=world_size)
+    return TrainContext(torch_device, rank, world_size, amp_dtype, keep_data=device_type == "cuda")
