@@ -16,18 +16,19 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from wgpu_rt.accel import bvh as bvh_module
-from wgpu_rt.accel.bvh import LEAF_COUNT_BITS, MAX_DEPTH, MAX_LEAF_SIZE, build_bvh, threaded_nodes
-from wgpu_rt.accel.geometry import GeometryBuffers
+from wgpu_rt.accel.bvh import LEAF_COUNT_BITS, MAX_DEPTH, MAX_LEAF_SIZE, build_bvh, threaded_nodes, zero_area
+from wgpu_rt.accel.geometry import GeometryBuffers, compose_with_traversal
 from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
 from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
-from wgpu_rt.shaders import read_wgsl
+from wgpu_rt.shaders import compose, read_wgsl
 
 BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
 EDGE_MARGIN = 1e-4
 
 
 def brute_force(triangles, origins, dirs, t_max=np.inf):
-    """Per ray: (nearest t, its triangle or -1, ambiguous flag) over all triangles, in float64."""
+    """Per ray: (nearest t, its triangle or -1, ambiguous flag) over all triangles of non-zero area
+    (``triangles`` float32), in float64."""
     tri = np.asarray(triangles, np.float64)
     o = np.asarray(origins, np.float64)[:, None]
     d = np.asarray(dirs, np.float64)[:, None]
@@ -35,6 +36,7 @@ def brute_force(triangles, origins, dirs, t_max=np.inf):
     p = np.cross(d, e2)
     det = np.sum(e1 * p, axis=-1)
     ok = np.abs(det) > 1e-12 * np.linalg.norm(np.cross(e1, e2), axis=-1).clip(1e-300) * np.linalg.norm(d, axis=-1)
+    ok &= ~zero_area(triangles)[None]
     inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
     s = o - tri[None, :, 0]
     u = np.sum(s * p, axis=-1) * inv
@@ -67,9 +69,59 @@ def triangle_scene(triangles) -> Scene:
     return Scene(Camera([0, 0, 5], [0, 0, 0]), [mesh], {"grey": Material()})
 
 
-def check_against_brute_force(gpu, triangles, origins, dirs, t_max=np.inf, min_clear=0.9):
-    geometry = GeometryBuffers.build(triangle_scene(triangles))
+# -- multiply-add contraction --------------------------------------------------------------------------
+# WGSL lets a driver contract a*b + c into one rounding (NVIDIA does) and lets fma() round once or twice
+# (lavapipe rounds twice and contracts nothing). So that lavapipe shows what a contracting driver would
+# do, tests compile the ray queries twice: as they are (`driver`) and with every fma() in them fused
+# (`fused`: replaced by FUSED_MULTIPLY_ADD), and can swap in another edge function (the pre-fix one).
+CONTRACTIONS = ("driver", "fused")
+FUSED_MULTIPLY_ADD = """
+// a*b + c rounded once, for drivers whose fma() rounds twice: the product's rounding error (Dekker's,
+// with halves split off by bit masks) added to the rounded sum, which is exact where a*b and c nearly
+// cancel (the case that decides an edge function's sign). The xor with a zero that the compiler
+// cannot know stops lavapipe's optimiser from folding the correction away.
+fn split_halves(a: f32) -> vec2f {
+    let high = bitcast<f32>(bitcast<u32>(a) & 0xfffff000u);
+    return vec2f(high, a - high);
+}
+
+fn fused_multiply_add(a: f32, b: f32, c: f32) -> f32 {
+    let product = a * b;
+    let sa = split_halves(a);
+    let sb = split_halves(b);
+    let product_error = ((sa.x * sb.x - product) + sa.x * sb.y + sa.y * sb.x) + sa.y * sb.y;
+    let unknown_zero = u32(bvh_node_count() == 0u);
+    return bitcast<f32>(bitcast<u32>(product + c) ^ unknown_zero) + product_error;
+}
+"""
+# The edge function before the fix (w0 = cx * by - cy * bx) as a contracting driver may compute it: this
+# form gives the 2 leaks the H100 showed on the original grid rays (the first 193 of grid_edge_rays).
+PRE_FIX_EDGE_FUNCTION = "return fma(-p.y, q.x, p.x * q.y);"
+
+
+def compiled_as(code: str, contraction: str, edge_function: str | None = None) -> str:
+    """``code`` (composed, importing accel/bvh.wgsl) as a driver with ``contraction`` would run it."""
+    if edge_function is not None:
+        code, count = re.subn(r"(fn edge_function\(p: vec2f, q: vec2f\) -> f32 \{)[^}]*\}",
+                              lambda m: f"{m.group(1)}\n    {edge_function}\n}}", code)
+        assert count == 1
+    if contraction == "fused":
+        code = re.sub(r"\bfma\(", "fused_multiply_add(", code) + FUSED_MULTIPLY_ADD
+    return code
+
+
+def ray_query(gpu, geometry, contraction: str = "driver", edge_function: str | None = None) -> RayQuery:
     query = RayQuery(gpu, geometry)
+    if contraction != "driver" or edge_function is not None:
+        code = compiled_as(compose_with_traversal(gpu, "accel/ray_query.wgsl"), contraction, edge_function)
+        query.pipelines = {entry: gpu.compute_pipeline(code, entry, label=f"ray_query.{entry} ({contraction})")
+                           for entry in query.pipelines}
+    return query
+
+
+def check_against_brute_force(gpu, triangles, origins, dirs, t_max=np.inf, min_clear=0.9, contraction="driver"):
+    geometry = GeometryBuffers.build(triangle_scene(triangles))
+    query = ray_query(gpu, geometry, contraction)
     rays = query_rays(origins, dirs, t_max)
     hits, _ = query.intersect(rays)
     occluded = query.occluded(rays)
@@ -93,14 +145,17 @@ def check_against_brute_force(gpu, triangles, origins, dirs, t_max=np.inf, min_c
 def check_structure(triangles, bvh):
     nodes = bvh.nodes
     assert np.array_equal(np.sort(bvh.order), np.arange(len(triangles))), "every triangle exactly once"
+    flat = zero_area(triangles)
+    in_leaves = len(triangles) - np.count_nonzero(flat)
+    assert not np.any(flat[bvh.order[:in_leaves]]), "zero-area triangles come last"
     leaf = nodes["count"] > 0
-    covered = np.zeros(len(triangles), int)
+    covered = np.zeros(in_leaves, int)
     for index in np.nonzero(leaf)[0]:
         first, count = nodes["first"][index], nodes["count"][index]
         covered[first:first + count] += 1
         tri = triangles[bvh.order[first:first + count]]
         assert np.all(tri.min(axis=(0, 1)) >= nodes["lo"][index]) and np.all(tri.max(axis=(0, 1)) <= nodes["hi"][index])
-    assert np.all(covered == 1), "leaf ranges must tile the triangle list"
+    assert np.all(covered == 1), "leaf ranges must tile the triangles of non-zero area"
     interior = np.nonzero(~leaf)[0]
     children = nodes["first"][interior].astype(np.int64)
     assert np.all(children > interior) and np.all(children + 1 < len(nodes))
@@ -124,10 +179,38 @@ def test_structure_random_soup():
 def test_structure_identical_and_degenerate_triangles():
     same = np.tile(np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], np.float32), (500, 1, 1))
     points = np.zeros((300, 3, 3), np.float32)      # zero-area: all three vertices coincide
-    triangles = np.concatenate([same, points])
+    triangles = np.concatenate([points[:100], same, points[100:]])
     bvh = build_bvh(triangles)
     check_structure(triangles, bvh)
-    assert bvh.leaf_sizes.max() <= MAX_LEAF_SIZE
+    assert bvh.leaf_sizes.max() <= MAX_LEAF_SIZE and bvh.leaf_sizes.sum() == 500
+
+
+def collinear_triangles(rng, count):
+    """Triangles whose float32 vertices lie exactly on one line (dyadic points on a dyadic direction),
+    distinct, and a ray target on each line."""
+    start = rng.integers(-64, 64, (count, 1, 3)) / 64.0
+    step = rng.integers(-32, 32, (count, 1, 3)) / 256.0 + [[[1 / 512, 0, 0]]]   # never zero
+    steps = np.stack([rng.choice(np.arange(-3, 4), 3, replace=False) for _ in range(count)])[:, :, None]
+    target = start[:, 0] + rng.uniform(-3, 3, (count, 1)) * step[:, 0]
+    return (start + steps * step).astype(np.float32), target
+
+
+def test_zero_area_is_exact():
+    """Collinear and repeated vertices are flagged; moving one vertex of them by one float32 ulp, or
+    any ordinary triangle, is not."""
+    rng = np.random.default_rng(12)
+    collinear, _ = collinear_triangles(rng, 200)
+    assert np.all(zero_area(collinear))
+    nudged = collinear.copy()
+    nudged[:, 2, 1] = np.nextafter(nudged[:, 2, 1], np.float32(np.inf))
+    assert not np.any(zero_area(nudged))
+    repeated = rng.uniform(-1, 1, (200, 3, 3)).astype(np.float32)
+    repeated[:, 1] = repeated[:, rng.choice([0, 2])]
+    assert np.all(zero_area(repeated))
+    slivers = rng.uniform(-1, 1, (200, 1, 3)) + rng.uniform(0, 1, (200, 3, 1)) * rng.uniform(-1, 1, (200, 1, 3))
+    slivers[:, :, 0] += rng.uniform(-1e-5, 1e-5, (200, 3))
+    assert not np.any(zero_area(slivers.astype(np.float32)))
+    assert not np.any(zero_area(rng.uniform(-1e30, 1e30, (200, 3, 3)).astype(np.float32)))
 
 
 def test_threaded_layout_matches_traversal():
@@ -210,10 +293,10 @@ def _grid(n=8, z=0.0):
     return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.float32)
 
 
-def test_watertight_at_shared_edges_and_vertices(gpu):
-    """Rays aimed exactly at shared vertices and edges of a grid, from random directions, must not
-    slip through."""
-    triangles = _grid()
+def grid_edge_rays():
+    """Rays at the shared vertices and edges of _grid(): exactly at interior vertices and dyadic points
+    of the edges from above, and at random points of random edges from above and below, from near and
+    far."""
     ticks = np.arange(1, 7.01, 0.5)      # interior vertices and midpoints of the axis-aligned edges
     x, y = np.meshgrid(ticks, ticks, indexing="ij")
     on_grid_lines = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], 1)
@@ -222,10 +305,124 @@ def test_watertight_at_shared_edges_and_vertices(gpu):
     targets = np.concatenate([on_grid_lines, on_diagonals])
     rng = np.random.default_rng(3)
     origins = targets + np.column_stack([rng.uniform(-1, 1, (len(targets), 2)), np.full(len(targets), 2.0)])
-    geometry = GeometryBuffers.build(triangle_scene(triangles))
-    hits, _ = RayQuery(gpu, geometry).intersect(query_rays(origins, targets - origins))
+    count = 3000
+    corner = rng.integers(1, 7, (count, 2)).astype(np.float64)
+    along = rng.uniform(0, 1, count)
+    direction = np.array([[1.0, 1.0], [1.0, 0.0], [0.0, 1.0]])[rng.integers(0, 3, count)]   # diagonal, x, y
+    random_targets = np.column_stack([corner + along[:, None] * direction, np.zeros(count)])
+    spread = rng.choice([1.0, 10.0, 100.0], count)[:, None]
+    height = rng.choice([-1.0, 1.0], count) * rng.uniform(0.1, 2, count) * spread[:, 0]
+    random_origins = random_targets + np.column_stack([rng.uniform(-1, 1, (count, 2)) * spread, height])
+    return np.concatenate([origins, random_origins]), np.concatenate([targets, random_targets])
+
+
+@pytest.mark.parametrize("contraction", CONTRACTIONS)
+def test_watertight_at_shared_edges_and_vertices(gpu, contraction):
+    """Rays aimed exactly at shared vertices and edges of a grid, from random directions, must not
+    slip through, whether or not the driver fuses multiply-adds."""
+    origins, targets = grid_edge_rays()
+    geometry = GeometryBuffers.build(triangle_scene(_grid()))
+    hits, _ = ray_query(gpu, geometry, contraction).intersect(query_rays(origins, targets - origins))
     assert np.all(hits["prim"] != NO_HIT), f"{np.sum(hits['prim'] == NO_HIT)} rays leaked through the grid"
     np.testing.assert_allclose(hits["t"], 1.0, rtol=1e-5)
+
+
+def test_pre_fix_edge_function_leaks_when_fused(gpu):
+    """The control for the test above: the edge function as it was before, compiled with fused
+    multiply-adds, lets rays through (as it did on the H100), so the emulation and the rays can catch it."""
+    origins, targets = grid_edge_rays()
+    geometry = GeometryBuffers.build(triangle_scene(_grid()))
+    query = ray_query(gpu, geometry, "fused", PRE_FIX_EDGE_FUNCTION)
+    hits, _ = query.intersect(query_rays(origins, targets - origins))
+    assert np.sum(hits["prim"] == NO_HIT) >= 10
+
+
+def run_kernel(gpu, code: str, inputs: np.ndarray, out_dtype, out_shape, nodes: np.ndarray | None = None):
+    """Run ``main`` of ``code`` (accel/bvh.wgsl plus a kernel over group 1: ``inputs``, output) on one
+    invocation per output row; ``nodes``: the BVH node words of group 0 binding 0, where it reads them."""
+    pipeline = gpu.compute_pipeline(code, "main")
+    out = gpu.storage(int(np.prod(out_shape)) * np.dtype(out_dtype).itemsize)
+    encoder = gpu.device.create_command_encoder()
+    compute = encoder.begin_compute_pass()
+    compute.set_pipeline(pipeline)
+    if nodes is not None:
+        compute.set_bind_group(0, gpu.bind_group(pipeline, [gpu.upload(nodes)]))
+    compute.set_bind_group(1, gpu.bind_group(pipeline, [gpu.upload(inputs), out], group=1))
+    compute.dispatch_workgroups((out_shape[0] + 63) // 64)
+    compute.end()
+    gpu.device.queue.submit([encoder.finish()])
+    return gpu.read(out, out_dtype, shape=out_shape)
+
+
+BOX_KERNEL = """
+@group(1) @binding(0) var<storage, read> cases: array<vec4f>;   // origin, dir, lo, hi
+@group(1) @binding(1) var<storage, read_write> entered: array<u32>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3u) {
+    if (id.x >= arrayLength(&entered)) { return; }
+    let k = 4u * id.x;
+    let ray = traversal_ray(cases[k].xyz, cases[k + 1u].xyz);
+    entered[id.x] = u32(box_hit(cases[k + 2u].xyz, cases[k + 3u].xyz, ray, 3.0e38));
+}
+"""
+
+
+def test_box_test_enters_boxes_touched_at_an_edge(gpu):
+    """box_hit enters every box that the ray meets (in exact arithmetic), here rays aimed at points on
+    box edges from near and far. (With t = plane · (1/dir) − origin · (1/dir), 3 % of them missed.)"""
+    rng = np.random.default_rng(15)
+    count = 8192
+    lo = rng.uniform(-8, 8, (count, 3)).astype(np.float32)
+    hi = (lo + rng.uniform(0, 2, (count, 3)) * (rng.uniform(size=(count, 3)) > 0.3)).astype(np.float32)   # some flat
+    on_bound = np.where(rng.uniform(size=(count, 3)) < 0.5, lo, hi)
+    free_axis = np.arange(3) == rng.integers(0, 3, (count, 1))
+    targets = np.where(free_axis, lo + rng.uniform(size=(count, 3)) * (hi - lo), on_bound)
+    origins = (targets + rng.normal(0, 1, (count, 3)) * rng.choice([0.1, 1.0, 10.0], (count, 1))).astype(np.float32)
+    dirs = (targets - origins).astype(np.float32)
+    cases = np.stack([origins, dirs, lo, hi], axis=1)
+    entered = run_kernel(gpu, compose("accel/bvh.wgsl") + BOX_KERNEL,
+                         np.concatenate([cases, np.zeros((count, 4, 1), np.float32)], axis=2), np.uint32, (count,))
+    o, d = origins.astype(np.float64), dirs.astype(np.float64)
+    t0, t1 = (lo - o) / d, (hi - o) / d
+    meets = np.max(np.maximum(np.minimum(t0, t1), 0), axis=1) <= np.min(np.maximum(t0, t1), axis=1)
+    assert meets.mean() > 0.5
+    assert np.all(entered[meets] == 1), f"{np.sum(entered[meets] == 0)} boxes missed"
+
+
+EDGE_KERNEL = """
+@group(1) @binding(0) var<storage, read> edges: array<vec4f>;      // (p, q) in ray space
+@group(1) @binding(1) var<storage, read_write> out: array<vec4f>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3u) {
+    if (id.x >= arrayLength(&edges)) { return; }
+    let p = edges[id.x].xy;
+    let q = edges[id.x].zw;
+    out[id.x] = vec4f(edge_function(p, q), edge_function(q, p), fma(p.x, q.y, -(p.y * q.x)), fma(q.x, p.y, -(q.y * p.x)));
+}
+"""
+
+
+@pytest.mark.parametrize("contraction", CONTRACTIONS)
+def test_edge_function_is_antisymmetric(gpu, contraction):
+    """accel/bvh.wgsl's edge_function(q, p) is exactly -edge_function(p, q), and 0 when p == q, for
+    edges that pass within rounding of the ray (the origin), fused or not; the fused emulation is exact
+    there, and fusing the naive form a*b - c*d does break both properties."""
+    rng = np.random.default_rng(13)
+    p = rng.uniform(-2, 2, (4096, 2))
+    q = -p * rng.uniform(0.2, 5, (4096, 1)) + rng.normal(0, 1e-6, (4096, 2))
+    edges = np.concatenate([p, q], axis=1).astype(np.float32)
+    edges[:256, 2:] = edges[:256, :2]
+    code = compiled_as(compose("accel/bvh.wgsl") + EDGE_KERNEL, contraction)
+    nodes = np.arange(8, dtype=np.uint32) if contraction == "fused" else None   # the emulation reads word 3
+    forward, backward, naive_forward, naive_backward = run_kernel(gpu, code, edges, np.float32,
+                                                                  (len(edges), 4), nodes).T
+    np.testing.assert_array_equal(backward, -forward)
+    assert np.all(forward[:256] == 0)
+    if contraction == "fused":
+        px, py, qx, qy = edges.T.astype(np.float64)
+        fused = (px * qy - (edges[:, 1] * edges[:, 2]).astype(np.float64)).astype(np.float32)   # exact, then rounded
+        np.testing.assert_array_equal(naive_forward, fused)
+        assert np.sum(naive_backward != -naive_forward) > 100 and np.all(naive_forward[:256] != 0)
 
 
 def test_axis_aligned_rays(gpu):
@@ -258,19 +455,35 @@ def test_grazing_rays(gpu):
     check_against_brute_force(gpu, triangles, origins, dirs)
 
 
-def test_degenerate_triangles_never_hit(gpu):
+@pytest.mark.parametrize("contraction", CONTRACTIONS)
+def test_degenerate_triangles_never_hit(gpu, contraction):
+    """Near-degenerate slivers, repeated vertices and exactly collinear ones (each aimed at by a ray
+    through its line: before the fix, rounding into ray space gave 7 % of such rays a hit)."""
     rng = np.random.default_rng(6)
     good = rng.uniform(-1, 1, (100, 3, 3))
     line = rng.uniform(-1, 1, (100, 1, 3)) + rng.uniform(0, 1, (100, 3, 1)) * rng.uniform(-1, 1, (100, 1, 3))
     point = np.repeat(rng.uniform(-1, 1, (100, 1, 3)), 3, axis=1)
-    triangles = np.concatenate([good, line, point])
-    origins = rng.uniform(-2, 2, (512, 3))
-    dirs = rng.uniform(-1, 1, (512, 3)) - origins
-    hits, geometry = check_against_brute_force(gpu, triangles, origins, dirs)
+    collinear, on_lines = collinear_triangles(rng, 100)
+    triangles = np.concatenate([good, line, point, collinear])
+    origins = rng.uniform(-2, 2, (1024, 3))
+    targets = np.concatenate([rng.uniform(-1, 1, (512, 3)), on_lines[rng.integers(0, 100, 512)]])
+    hits, geometry = check_against_brute_force(gpu, triangles, origins, targets - origins, min_clear=0.85,
+                                               contraction=contraction)
     hit_prims = hits["prim"][hits["prim"] != NO_HIT]
     area = np.linalg.norm(np.cross(geometry.triangles[:, 1] - geometry.triangles[:, 0],
                                    geometry.triangles[:, 2] - geometry.triangles[:, 0]), axis=1)
     assert len(hit_prims) > 50 and np.all(area[hit_prims] > 1e-6)
+
+
+def test_scene_of_only_zero_area_triangles_hits_nothing(gpu):
+    rng = np.random.default_rng(14)
+    collinear, on_lines = collinear_triangles(rng, 50)
+    geometry = GeometryBuffers.build(triangle_scene(collinear))
+    origins = rng.uniform(-2, 2, (256, 3))
+    rays = query_rays(origins, on_lines[rng.integers(0, 50, 256)] - origins)
+    query = RayQuery(gpu, geometry)
+    hits, _ = query.intersect(rays)
+    assert np.all(hits["prim"] == NO_HIT) and not np.any(query.occluded(rays))
 
 
 def test_rays_leaving_surfaces(gpu):

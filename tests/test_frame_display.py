@@ -1,14 +1,17 @@
 """Unpack (expm1, remodulated by albedo) and tonemap passes against their numpy references, with non-finite stress."""
 
+import re
+
 import numpy as np
 import pytest
 from parity import check_parity
 
 from wgpu_rt.errors import WgpuRtError
-from wgpu_rt.frame.planes import ALBEDO, DENOISED, write_plane
-from wgpu_rt.frame.tonemap import TonemapPass, aces_fitted, tonemap
+from wgpu_rt.frame.planes import DENOISED, write_plane
+from wgpu_rt.frame.tonemap import CURVE_INPUT_MAX, MAX_EXPOSURE_STOPS, TonemapPass, aces_fitted, tonemap
 from wgpu_rt.frame.unpack import UnpackPass, unpack_denoiser_output
-from wgpu_rt.passes import FrameBuffers, PlaneSpec
+from wgpu_rt.passes import ALBEDO, FrameBuffers, PlaneSpec
+from wgpu_rt.shaders import read_wgsl
 
 H, W = 20, 36
 NETWORK_OUTPUT = PlaneSpec("network_output", 3)
@@ -130,6 +133,37 @@ def test_tonemap_never_emits_non_finite(gpu, operator, poison):
     out = tonemap_on_gpu(gpu, image, operator=operator, output="f32")
     assert np.all(np.isfinite(out))
     np.testing.assert_allclose(out, tonemap(image, operator, output="f32"), atol=2e-6, rtol=2e-6)
+
+
+@pytest.mark.parametrize("operator", ["none", "reinhard", "aces"])
+@pytest.mark.parametrize("exposure", [-MAX_EXPOSURE_STOPS, MAX_EXPOSURE_STOPS])
+def test_tonemap_matches_reference_from_subnormal_to_float_max(gpu, operator, exposure):
+    """Inputs from float32's smallest normals to its largest finite value, at the extreme exposures:
+    products that over- or underflow, and (with the H100's flush to zero) subnormal intermediates.
+    (rtol: WGSL's pow is exp2(y · log2 x), a few 1e-6 off for the sRGB curve of ~1e38.)"""
+    image = np.logspace(-37.9, 38.5, H * W * 3).astype(np.float32)
+    image[-1] = np.finfo(np.float32).max
+    image = image.reshape(H, W, 3)
+    out = tonemap_on_gpu(gpu, image, operator=operator, exposure=exposure, output="f32")
+    assert np.all(np.isfinite(out))
+    np.testing.assert_allclose(out, tonemap(image, operator, exposure, output="f32"), atol=2e-6, rtol=1e-5)
+
+
+def test_tonemap_divisors_stay_where_wgsl_divides_accurately():
+    """WGSL promises x / y only for |y| ≤ 2^126, and NVIDIA multiplies by a reciprocal that flushes to
+    zero beyond (Reinhard gave 0 for 3.4e38 there), which lavapipe does not show: the shader clamps
+    Reinhard's input to a bound it shares with the reference, where the curve is already 1 in float32."""
+    shader = read_wgsl("frame/tonemap.wgsl")
+    bound = np.float32(re.search(r"const CURVE_INPUT_MAX: f32 = ([0-9.e+]+);", shader).group(1))
+    assert bound == np.float32(CURVE_INPUT_MAX)
+    assert np.float32(1) + bound <= 2.0 ** 126 and bound / (np.float32(1) + bound) == 1
+
+
+@pytest.mark.parametrize("exposure", [MAX_EXPOSURE_STOPS + 0.5, -200, np.nan, np.inf, "2"])
+def test_exposure_out_of_range_is_named(exposure):
+    """Beyond ±126 stops 2^exposure is no normal float32 (0 or inf on the GPU, and 0·inf is NaN)."""
+    with pytest.raises(WgpuRtError, match="exposure"):
+        tonemap(hdr_image(), "aces", exposure)
 
 
 def test_bad_operator_names_it():

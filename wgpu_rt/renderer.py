@@ -108,7 +108,7 @@ class Renderer:
         if precision not in PRECISIONS:
             raise WgpuRtError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
         if tonemap is not None:
-            check_settings(tonemap, display)
+            check_settings(tonemap, display, exposure)
         if adaptive is not None and not isinstance(adaptive, AdaptiveSettings):
             if not isinstance(adaptive, numbers.Real) or isinstance(adaptive, bool) or adaptive != adaptive:
                 raise WgpuRtError(f"adaptive must be a mean spp budget, got {adaptive!r}")

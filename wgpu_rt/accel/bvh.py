@@ -12,7 +12,11 @@ Flattened layout, 32 bytes per node (``NODE_DTYPE``), root at 0, the two childre
 ``lo`` (3 × f32), ``first`` (u32), ``hi`` (3 × f32), ``count`` (u32). ``count == 0`` marks an interior
 node whose children are ``first`` and ``first + 1``; otherwise the node is a leaf over triangles
 ``first .. first + count`` of the reordered triangle list (``Bvh.order`` maps them to input indices).
-Zero-area triangles keep their (flat) bounds and are simply never hit by the watertight test.
+Triangles with zero area (collinear or repeated vertices, tested exactly: ``zero_area``) are in no leaf:
+they come last in ``order``, so they keep their attributes but the GPU never tests them. Its watertight
+test gives a repeated vertex an exactly zero edge function, but it rounds vertices into ray space, which
+can give three collinear ones a sliver of area that a ray through their line hits. With no triangle of
+non-zero area, the root is a leaf with a box at +inf that no ray enters.
 
 The GPU walks the tree without a stack, so ``threaded_nodes`` re-lays it out in depth-first order
 (``THREADED_NODE_DTYPE``, also 32 bytes): a node's first child follows it, and ``skip`` is the index
@@ -23,6 +27,7 @@ one triangle lifted from a leaf below (see its docstring).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 
 import numpy as np
 
@@ -117,13 +122,18 @@ def _sah_costs(bounds, segment, counts, c_lo, c_hi, bins):
 def build_bvh(triangles: np.ndarray) -> Bvh:
     """The BVH of ``triangles`` (T, 3, 3) float32 world-space vertices (T ≥ 1)."""
     triangles = np.asarray(triangles, np.float32)
-    count = len(triangles)
-    if count == 0:
+    if len(triangles) == 0:
         raise ValueError("cannot build a BVH over zero triangles")
+    flat = zero_area(triangles)
+    order = np.concatenate([np.flatnonzero(~flat), np.flatnonzero(flat)])   # leaves hold the first `count`
+    count = int(np.count_nonzero(~flat))
+    if count == 0:
+        root = np.zeros(1, NODE_DTYPE)
+        root["lo"], root["hi"], root["count"] = np.inf, np.inf, 1
+        return Bvh(root, order)
     tri_lo, tri_hi = triangles.min(axis=1), triangles.max(axis=1)
     # Per triangle lo, hi, centroid as rows: one gather per level fetches everything binning needs.
     tri_bounds = np.concatenate([tri_lo.T, tri_hi.T, ((tri_lo + tri_hi) * 0.5).T])
-    order = np.arange(count, dtype=np.int64)
     capacity = 2 * count
     node_lo = np.zeros((capacity, 3), np.float32)
     node_hi = np.zeros((capacity, 3), np.float32)
@@ -200,6 +210,24 @@ def build_bvh(triangles: np.ndarray) -> Bvh:
     packed["lo"], packed["hi"] = node_lo[:node_total], node_hi[:node_total]
     packed["first"], packed["count"] = node_first[:node_total], node_count[:node_total]
     return Bvh(packed, order)
+
+
+def zero_area(triangles: np.ndarray) -> np.ndarray:
+    """Per triangle of ``triangles`` (T, 3, 3) float32: are its vertices collinear, exactly? Two equal
+    vertices make it so. Otherwise each component of the cross product of two edges, a difference of
+    two products computed in float64, is within a few ulps of the products' magnitudes of the exact
+    one (edges of float32 vertices neither underflow nor overflow in float64), so one beyond 16 such
+    ulps is not zero; the few triangles left are decided in exact rational arithmetic."""
+    vertices = np.asarray(triangles, np.float64)
+    repeated = np.any(np.all(vertices[:, [0, 0, 1]] == vertices[:, [1, 2, 2]], axis=2), axis=1)
+    e1, e2 = vertices[:, 1] - vertices[:, 0], vertices[:, 2] - vertices[:, 0]
+    magnitude = np.abs(e1[:, [1, 2, 0]] * e2[:, [2, 0, 1]]) + np.abs(e1[:, [2, 0, 1]] * e2[:, [1, 2, 0]])
+    flat = np.all(np.abs(np.cross(e1, e2)) <= 16 * np.finfo(np.float64).eps * magnitude, axis=1)
+    for index in np.flatnonzero(flat & ~repeated):
+        a, b, c = ([Fraction(float(x)) for x in vertex] for vertex in vertices[index])
+        u, v = [q - p for p, q in zip(a, b)], [q - p for p, q in zip(a, c)]
+        flat[index] = u[1] * v[2] == u[2] * v[1] and u[2] * v[0] == u[0] * v[2] and u[0] * v[1] == u[1] * v[0]
+    return flat
 
 
 def threaded_nodes(bvh: Bvh, octant: int | None = None) -> np.ndarray:

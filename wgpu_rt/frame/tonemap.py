@@ -7,6 +7,9 @@ planar RGBA planes (linear HDR when the operator is ``none`` and sRGB is off, fo
 
 from __future__ import annotations
 
+import math
+import numbers
+
 import numpy as np
 
 from ..errors import WgpuRtError
@@ -17,6 +20,12 @@ OPERATORS = ("none", "reinhard", "aces")
 FORMATS = ("rgba8", "f32")
 DISPLAY_RGBA8 = PlaneSpec("display", 1, "u32")
 DISPLAY_F32 = PlaneSpec("display_f32", 4)
+# The shader clamps Reinhard's input to this (CURVE_INPUT_MAX in wgsl/frame/tonemap.wgsl) so that its
+# divisor stays within WGSL's accurate range (≤ 2^126); the curve is 1 in float32 long before.
+CURVE_INPUT_MAX = 1e30
+# Beyond ±126 stops 2^exposure is not a normal float32, which GPUs may flush to 0 (or overflow to
+# inf, and 0·inf is NaN); ±64 is far past any useful exposure.
+MAX_EXPOSURE_STOPS = 64
 
 ACES_INPUT = np.array([[0.59719, 0.35458, 0.04823],
                        [0.07600, 0.90834, 0.01566],
@@ -41,9 +50,10 @@ def srgb_oetf(v: np.ndarray) -> np.ndarray:
 def tonemap(image: np.ndarray, operator: str = "aces", exposure: float = 0.0, srgb: bool = True,
             output: str = "rgba8") -> np.ndarray:
     """(H, W, 3) linear radiance → (H, W, 4) uint8 (``rgba8``) or float32 (``f32``) display image."""
-    check_settings(operator, output)
+    check_settings(operator, output, exposure)
     v = np.minimum(nonnegative_finite(image).astype(np.float64) * 2.0 ** exposure, 3e38)
     if operator == "reinhard":
+        v = np.minimum(v, CURVE_INPUT_MAX)
         v = v / (1.0 + v)
     elif operator == "aces":
         v = aces_fitted(v)
@@ -55,7 +65,10 @@ def tonemap(image: np.ndarray, operator: str = "aces", exposure: float = 0.0, sr
     return np.floor(np.clip(rgba, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
 
 
-def check_settings(operator: str, output: str) -> None:
+def check_settings(operator: str, output: str, exposure: float = 0.0) -> None:
+    if (not isinstance(exposure, numbers.Real) or isinstance(exposure, bool) or not math.isfinite(exposure)
+            or abs(exposure) > MAX_EXPOSURE_STOPS):
+        raise WgpuRtError(f"exposure {exposure!r} must be a number of stops within ±{MAX_EXPOSURE_STOPS}")
     if operator not in OPERATORS:
         raise WgpuRtError(f"tone-mapping operator {operator!r} is not one of {', '.join(OPERATORS)}")
     if output not in FORMATS:
@@ -67,7 +80,7 @@ class TonemapPass(ComputePass):
 
     def __init__(self, ctx, width: int, height: int, source: PlaneSpec, operator: str = "aces",
                  exposure: float = 0.0, srgb: bool = True, output: str = "rgba8"):
-        check_settings(operator, output)
+        check_settings(operator, output, exposure)
         self.source, self.output = source, output
         self.display = DISPLAY_RGBA8 if output == "rgba8" else DISPLAY_F32
         self.inputs, self.outputs = (source,), (self.display,)

@@ -7,14 +7,20 @@
 // #import frame/common.wgsl
 
 override OPERATOR: u32 = 0u;
-override EXPOSURE: f32 = 0.0;
+override EXPOSURE: f32 = 0.0;   // stops, within ±wgpu_rt.frame.tonemap.MAX_EXPOSURE_STOPS: 2^EXPOSURE is normal
 override SRGB: bool = true;
+
+// Reinhard's input is clamped here, where the curve has long been 1 in f32: WGSL guarantees a quotient
+// only for divisors up to 2^126, and NVIDIA divides by multiplying with a reciprocal that flushes to
+// zero beyond it (x/(1+x) at 3e38 gave 0). == wgpu_rt.frame.tonemap.CURVE_INPUT_MAX.
+const CURVE_INPUT_MAX: f32 = 1.0e30;
 
 @group(0) @binding(0) var<storage, read> color: array<f32>;
 @group(0) @binding(1) var<storage, read_write> display: array<u32>;   // u32 RGBA8 or f32 bit patterns
 
 fn aces_fitted(linear: vec3f) -> vec3f {
-    // The curve is flat (→ 1/0.983729) long before 1e6; clamping there keeps v·v finite.
+    // The curve is flat (→ 1/0.983729) long before 1e6; clamping there keeps v·v finite and the
+    // divisor below 2^126 (see CURVE_INPUT_MAX).
     let v = min(vec3f(dot(vec3f(0.59719, 0.35458, 0.04823), linear),
                   dot(vec3f(0.07600, 0.90834, 0.01566), linear),
                   dot(vec3f(0.02840, 0.13383, 0.83777), linear)), vec3f(1.0e6));
@@ -33,7 +39,7 @@ fn display_color(i: u32) -> vec3f {
     let n = pixel_count();
     var v = vec3f(sanitize(color[i]), sanitize(color[n + i]), sanitize(color[2u * n + i]));
     v = min(v * exp2(EXPOSURE), vec3f(3.0e38));
-    if (OPERATOR == 1u) { v = v / (1.0 + v); }
+    if (OPERATOR == 1u) { v = min(v, vec3f(CURVE_INPUT_MAX)); v = v / (1.0 + v); }
     if (OPERATOR == 2u) { v = aces_fitted(v); }
     if (SRGB) { v = srgb_oetf(v); }
     return v;
