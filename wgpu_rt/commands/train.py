@@ -1,10 +1,12 @@
 """``wgpu-rt train``: train one network on a rendered dataset and export it to ONNX + model card."""
 
+from ..models import NETWORKS
+
 HELP = "train the denoiser, error predictor or confidence model on a dataset and export ONNX + model card"
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("task", choices=["denoiser", "error-predictor", "confidence"])
+    parser.add_argument("task", choices=[network.cli_name for network in NETWORKS.values()])
     parser.add_argument("--data", required=True, help="dataset folder from `wgpu-rt dataset`")
     parser.add_argument("--extra-data", nargs="+", default=(), metavar="DIR",
                         help="more dataset folders whose train/val splits join training/validation")

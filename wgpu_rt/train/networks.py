@@ -27,6 +27,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from ..models import CONFIDENCE, DENOISER, ERROR_PREDICTOR
+
 DENOISER_CHANNELS = 10
 ERROR_PREDICTOR_CHANNELS = 3
 CONFIDENCE_CHANNELS = 8
@@ -135,8 +137,7 @@ def export_onnx(model: nn.Module, path: str | Path, height: int = 64, width: int
     return path
 
 
-SEED_MODEL_FILES = {"denoiser.onnx": UNet, "error_predictor.onnx": ErrorPredictor,
-                    "confidence.onnx": ConfidencePredictor}
+SEED_NETWORKS = {DENOISER: UNet, ERROR_PREDICTOR: ErrorPredictor, CONFIDENCE: ConfidencePredictor}
 
 
 def export_seed_models(folder: str | Path, seed: int = 0, **denoiser_options) -> Path:
@@ -145,6 +146,6 @@ def export_seed_models(folder: str | Path, seed: int = 0, **denoiser_options) ->
     trained models exist. ``denoiser_options`` go to ``UNet`` (e.g. small ``widths`` for fast tests)."""
     folder = Path(folder)
     torch.manual_seed(seed)
-    for name, network in SEED_MODEL_FILES.items():
-        export_onnx(network(**denoiser_options) if network is UNet else network(), folder / name)
+    for network, module in SEED_NETWORKS.items():
+        export_onnx(module(**denoiser_options) if module is UNet else module(), network.path(folder))
     return folder

@@ -31,7 +31,6 @@ from ..frame.pack import (albedo_factor, demodulated_log_color, log_color, pack_
                           pack_denoiser_input, pack_error_input)
 from .targets import HEATMAP_PERCENTILE, confidence_pair
 
-TASKS = ("denoiser", "error-predictor", "confidence")
 
 
 @dataclass(frozen=True)
@@ -237,7 +236,7 @@ def samples_for(task: str, views: list[View], denoiser: OnnxDenoiser | None = No
     """The task's samples; the confidence model's need the ``denoiser`` that makes its current frame."""
     if task == "confidence":
         return ConfidenceSamples(views, denoiser)
-    return {"denoiser": DenoiserSamples, "error-predictor": ErrorSamples}[task](views)
+    return {"denoiser": DenoiserSamples, "error_predictor": ErrorSamples}[task](views)
 
 
 def curriculum_spp(progress: float, available: list[int], stages: tuple[int, ...] = (16, 4, 1)) -> int:

@@ -28,11 +28,11 @@ import numpy as np
 from ..dataset.truth import DatasetError
 from ..errors import WgpuRtError
 from ..frame.denoise import pad_to_multiple
+from ..models import Network, network_named
 from ..io import atomic_output, check_output_path
 from .context import TrainContext, training_context
 from .samples import Augmentation, curriculum_spp, samples_for
 
-MODEL_FILES = {"denoiser": "denoiser", "error-predictor": "error_predictor", "confidence": "confidence"}
 # Settings a resumed run may change: more epochs stretch the schedule; the rest is bookkeeping.
 RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every", "device"}
 
@@ -67,13 +67,20 @@ class TrainConfig:
     device: str = "auto"                 # cuda, cpu, or auto: CUDA when torch sees it
 
     @property
+    def network(self) -> Network:
+        """The network trained (``task`` in either spelling: error_predictor or error-predictor)."""
+        return network_named(self.task)
+
+    @property
     def model_name(self) -> str:
-        return MODEL_FILES[self.task]
+        return self.network.name
 
     def check(self) -> None:
         """A clear error naming the flag for any setting training cannot run with, before any work."""
-        if self.task not in MODEL_FILES:
-            raise TrainingError(f"unknown task {self.task!r}; expected one of {sorted(MODEL_FILES)}")
+        try:
+            self.network
+        except KeyError as err:
+            raise TrainingError(err.args[0]) from None
         counts = {"--epochs": [self.epochs], "--batch": [self.batch], "--widths": self.widths,
                   "--curriculum": self.curriculum, "--validate-every": [self.validate_every],
                   "--crop": [self.crop_min, self.crop_max],
@@ -107,7 +114,7 @@ def build_model(config: TrainConfig):
 
     if config.task == "denoiser":
         return UNet(widths=tuple(config.widths), residual=config.residual)
-    if config.task == "error-predictor":
+    if config.model_name == "error_predictor":
         return ErrorPredictor()
     return ConfidencePredictor()
 
@@ -181,7 +188,7 @@ class Trainer:
                 self._dataset_line(folder)   # the card reads each manifest at the end: check it first
         denoiser = self._source_denoiser() if config.task == "confidence" else None
         self.train_set, self.val_set = (
-            samples_for(config.task, [v for folder in folders for v in load_split(folder, split, config.max_views)],
+            samples_for(config.model_name, [v for folder in folders for v in load_split(folder, split, config.max_views)],
                         denoiser)
             for split in ("train", "val"))
         for name, subset in (("train", self.train_set), ("val", self.val_set)):
@@ -424,7 +431,7 @@ class Trainer:
                 frame = self.val_set.views[item[0]].frames[item[1]]
                 denoised = unpack_denoiser_output(out, frame.noisy[1]["albedo"])
                 values = metrics.all_metrics(frame.gold["color"], denoised)
-            elif self.config.task == "error-predictor":
+            elif self.config.model_name == "error_predictor":
                 values = {"spearman": rank_correlation(out, y)}
             else:
                 values = confidence_aucs(out[0], 1.0 - y[0], self.val_set.tested(item))
@@ -480,7 +487,7 @@ class Trainer:
         lines = [
             f"# {cfg.model_name}.onnx — {cfg.task}",
             "",
-            f"Trained by `wgpu-rt train {cfg.task}` (wgpu_rt/train). {parameters:,} parameters"
+            f"Trained by `wgpu-rt train {cfg.network.cli_name}` (wgpu_rt/train). {parameters:,} parameters"
             + (f", UNet widths {tuple(cfg.widths)}" + (", residual (output = input log1p RGB + correction)"
                                                         if cfg.residual else "")
                if cfg.task == "denoiser" else "") + ".",
@@ -503,7 +510,7 @@ class Trainer:
             lines.append(f"- loss 0.8·(1 − SSIM on {cfg.ssim_space} colour) + 0.2·{cfg.pixel_loss} on log1p "
                          f"irradiance; curriculum {' → '.join(map(str, cfg.curriculum))} spp (equal shares of the "
                          "epochs)")
-        elif cfg.task == "error-predictor":
+        elif cfg.model_name == "error_predictor":
             lines.append("- target |log1p(1 spp) − log1p(gold)| / its 99th percentile, clipped to [0, 1]; BCE loss")
         else:
             lines.append(f"- {self.model.layers} hidden 3×3 conv layers of {self.model.hidden} channels")
