@@ -41,14 +41,13 @@ Plots: benchmarks/plots/adaptive_savings_<scene>.png.
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
 import numpy as np
 from common import (add_gold_arguments, add_model_arguments, gold_render, hdr_pipeline, linear_frame,
                     load_scenes, parse_with_quick_defaults, print_header, print_table, resolve_models,
-                    save_figure, trimmed_rel_mse)
+                    save_array, save_figure, trimmed_rel_mse)
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.adaptive import EXTRA_SAMPLES, MAX_HEAT_SAMPLES, AdaptiveSettings
@@ -137,9 +136,7 @@ def oracle_importance(scene, size, args, gold) -> np.ndarray:
     if path.exists():
         return np.load(path)
     importance = compute()
-    temp = path.with_name(f".{path.name}.tmp.npy")
-    np.save(temp, importance)
-    os.replace(temp, path)
+    save_array(path, importance)
     return importance
 
 

@@ -21,12 +21,12 @@ after a σ 1.5 px blur (which ignores what noise is left). All networks run in t
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
 import numpy as np
 
+from common import save_array
 from wgpu_rt import metrics
 from wgpu_rt.frame.denoise import denoise
 from wgpu_rt.dataset import DatasetConfig, TruthEngine, load_views, plan_views, read_manifest
@@ -84,9 +84,7 @@ def reference_gold(data: Path, view_ids: set[str], spp: int, frame: int = 0) -> 
     if missing:
         folder.mkdir(exist_ok=True)
         for view_id, images in render_test_views(data, missing, [spp], seed=20_000, frame=frame).items():
-            tmp = paths[view_id].with_suffix(".tmp.npy")
-            np.save(tmp, np.asarray(images[spp], np.float32))
-            os.replace(tmp, paths[view_id])
+            save_array(paths[view_id], np.asarray(images[spp], np.float32))
     return {v: np.load(path) for v, path in paths.items()}
 
 

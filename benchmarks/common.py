@@ -139,10 +139,16 @@ def _cached(args, key: str, compute, names: list[str]) -> dict[str, np.ndarray]:
     images = compute()
     folder.mkdir(parents=True, exist_ok=True)
     for name, path in paths.items():
-        temp = path.with_name(f".{path.name}.tmp.npy")
-        np.save(temp, images[name])
-        os.replace(temp, path)
+        save_array(path, images[name])
     return images
+
+
+def save_array(path: Path, array: np.ndarray) -> None:
+    """``np.save`` through a temporary file (never a half-written .npy in a cache)."""
+    from wgpu_rt.io import atomic_output
+
+    with atomic_output(path) as temp, open(temp, "wb") as file:
+        np.save(file, array)
 
 
 def steady(function, repeats: int = 1):
@@ -233,10 +239,11 @@ def print_table(title: str, headers: list[str], rows: list[list]) -> None:
 def save_figure(figure, name: str) -> Path:
     """Write ``figure`` to benchmarks/plots/``name`` through a temp file (never a half-written PNG)."""
     PLOTS.mkdir(parents=True, exist_ok=True)
+    from wgpu_rt.io import atomic_output
+
     path = PLOTS / name
-    temp = path.with_name(f".{path.name}.tmp.png")
-    figure.savefig(temp, dpi=110, bbox_inches="tight")
-    os.replace(temp, path)
+    with atomic_output(path) as temp:
+        figure.savefig(temp, format="png", dpi=110, bbox_inches="tight")
     return path
 
 

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -42,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import OutputError, WgpuRtError
+from ..io import write_json
 from .variety import HELD_OUT_SHAPES, MESH_SUFFIXES, TRAINING_SHAPES, load_mesh_file, load_mesh_folder, vary_scene
 from .worlds import FAMILIES, generate_world, world_seed
 
@@ -198,15 +198,6 @@ class ViewRecord:
     noisy_copies: int = 1
 
 
-def write_json_atomic(path: Path, payload) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(json.dumps(payload, indent=1))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
 def check_config(out: Path, config: DatasetConfig) -> None:
     """Record ``config`` in ``out``; on resume, refuse a config that would change existing views (a
     folder with no rendered image yet takes the new config)."""
@@ -226,7 +217,7 @@ def check_config(out: Path, config: DatasetConfig) -> None:
                                    f"not {wanted[key]!r}; use another --out or the same settings")
     try:
         out.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(path, wanted)
+        write_json(path, wanted)
     except OSError as err:   # inside a file, read-only, no permission: found before any rendering
         raise OutputError(f"--out {out}: cannot write the dataset there ({err.strerror or err})") from None
 
@@ -286,7 +277,7 @@ class TruthEngine:
         record = ViewRecord(view.view_id, view.scene, view.split, view.frames, cfg.size, list(cfg.spp),
                             cfg.gold, [m.name for m in scene.meshes], round(seconds, 3),
                             noisy_copies=cfg.noisy_copies)
-        write_json_atomic(folder / "view.json", asdict(record))
+        write_json(folder / "view.json", asdict(record))
         return record
 
     def run(self, shard: tuple[int, int] = (0, 1), progress: bool = True) -> list[ViewRecord]:
@@ -320,5 +311,5 @@ def write_manifest(out: str | Path) -> dict:
             raise DatasetError(f"{record}: not valid JSON ({err}); delete it to re-render the view") from None
     config = json.loads((out / "config.json").read_text()) if (out / "config.json").exists() else {}
     manifest = {"config": config, "views": views}
-    write_json_atomic(out / "manifest.json", manifest)
+    write_json(out / "manifest.json", manifest)
     return manifest
