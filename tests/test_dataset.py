@@ -410,3 +410,21 @@ def test_a_dataset_from_before_the_worlds_resumes(dataset):
         held.pop(key)
     path.write_text(json.dumps(held))
     assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []
+
+
+@pytest.mark.parametrize("change, field", [
+    ({"view_id": None}, "view_id"), ({"size": "64"}, "size"), ({"frames": 0}, "≥ 1"), ({"spp": []}, "≥ 1"),
+    ({"split": "bogus"}, "split"), ({"seconds": "a while"}, "seconds"), ({"noisy_copies": -1}, "≥ 1"),
+])
+def test_a_malformed_manifest_record_is_named_by_the_reader(tmp_path, change, field):
+    """The reader checks every record before using it: one DatasetError naming the manifest, the view
+    and the field, not a KeyError or TypeError from deep inside."""
+    import json
+
+    from wgpu_rt.dataset.store import DatasetError, read_manifest
+
+    record = {"view_id": "v00000", "scene": "cornell", "split": "train", "size": 16, "frames": 1, "spp": [1],
+              "seconds": 1.0}
+    (tmp_path / "manifest.json").write_text(json.dumps({"config": {}, "views": [{**record, **change}]}))
+    with pytest.raises(DatasetError, match=f"manifest.json: views\\[0\\].*{field}"):
+        read_manifest(tmp_path)

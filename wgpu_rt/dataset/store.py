@@ -52,9 +52,35 @@ def read_manifest(root: str | Path) -> dict:
         manifest = json.loads(path.read_text())
     except json.JSONDecodeError as err:
         raise DatasetError(f"{path}: not valid JSON ({err})") from None
-    if not isinstance(manifest.get("views"), list):
+    if not isinstance(manifest, dict) or not isinstance(manifest.get("views"), list):
         raise DatasetError(f"{path}: has no 'views' list")
+    if not isinstance(manifest.get("config", {}), dict):
+        raise DatasetError(f"{path}: 'config' must be an object")
+    for index, record in enumerate(manifest["views"]):
+        _check_record(path, index, record)
     return manifest
+
+
+# The fields of a view record the reader uses, with their types (ints at least 1).
+RECORD_FIELDS = {"view_id": str, "scene": str, "split": str, "size": int, "frames": int, "spp": list}
+
+
+def _check_record(path: Path, index: int, record) -> None:
+    """A DatasetError naming the manifest, the view and the field for a record the reader cannot use."""
+    if not isinstance(record, dict):
+        raise DatasetError(f"{path}: views[{index}] is not an object")
+    where = f"{path}: views[{index}] ({record.get('view_id', '?')})"
+    for name, kind in RECORD_FIELDS.items():
+        value = record.get(name)
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise DatasetError(f"{where}: '{name}' must be a {kind.__name__}, got {value!r}")
+    counts = [record["size"], record["frames"], *record["spp"], record.get("noisy_copies", 1)]
+    if not record["spp"] or not all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in counts):
+        raise DatasetError(f"{where}: size, frames, spp and noisy_copies must be integers ≥ 1")
+    if not isinstance(record.get("seconds", 0.0), (int, float)):
+        raise DatasetError(f"{where}: 'seconds' must be a number, got {record['seconds']!r}")
+    if record["split"] not in ("train", "val", "test"):
+        raise DatasetError(f"{where}: split {record['split']!r} is not train, val or test")
 
 
 def read_render(path: Path, size: tuple[int, int] | None) -> dict[str, np.ndarray]:

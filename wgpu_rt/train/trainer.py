@@ -19,13 +19,12 @@ from __future__ import annotations
 import copy
 import math
 import time
-from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..dataset.truth import DatasetError
+from ..dataset.store import load_views
 from ..errors import WgpuRtError
 from ..frame.denoise import pad_to_multiple
 from ..models import Network, network_named
@@ -119,23 +118,6 @@ def build_model(config: TrainConfig):
     return ConfidencePredictor()
 
 
-@contextmanager
-def malformed_manifest_errors(folder: str):
-    """A manifest whose records have missing fields or values of the wrong type is a DatasetError naming
-    it, not a KeyError/TypeError from deep inside the reader."""
-    try:
-        yield
-    except (KeyError, TypeError, ValueError, AttributeError) as err:
-        raise DatasetError(f"{Path(folder) / 'manifest.json'}: malformed ({type(err).__name__}: {err})") from None
-
-
-def load_split(folder: str, split: str, limit: int | None):
-    from ..dataset.store import load_views
-
-    with malformed_manifest_errors(folder):
-        return load_views(folder, split, limit)
-
-
 def rank_correlation(a, b) -> float:
     from scipy.stats import spearmanr
 
@@ -184,11 +166,10 @@ class Trainer:
                                 f"({self._crop_reason()}), got {config.crop_min}")
         folders = (config.data, *config.extra_data)
         for folder in folders:
-            with malformed_manifest_errors(folder):
-                self._dataset_line(folder)   # the card reads each manifest at the end: check it first
+            self._dataset_line(folder)   # the card reads each manifest at the end: check it first
         denoiser = self._source_denoiser() if config.task == "confidence" else None
         self.train_set, self.val_set = (
-            samples_for(config.model_name, [v for folder in folders for v in load_split(folder, split, config.max_views)],
+            samples_for(config.model_name, [v for folder in folders for v in load_views(folder, split, config.max_views)],
                         denoiser)
             for split in ("train", "val"))
         for name, subset in (("train", self.train_set), ("val", self.val_set)):
@@ -455,7 +436,7 @@ class Trainer:
         from ..dataset.store import read_manifest
 
         manifest = read_manifest(folder)
-        dataset = manifest["config"]
+        dataset = manifest.get("config", {})
         render_minutes = sum(v.get("seconds", 0.0) for v in manifest["views"]) / 60
         copies = int(dataset.get("noisy_copies", 1))
         return (f"- dataset `{folder}` (seed {dataset.get('seed')}), rendered by `wgpu-rt dataset` on this machine's "
@@ -481,7 +462,7 @@ class Trainer:
         last = self.history[-1] if self.history else {}
         train_views = {v for v, _ in self.train_set.items}
         val_views = {v for v, _ in self.val_set.items}
-        gold = min(int(read_manifest(folder)["config"].get("gold", 0)) for folder in (cfg.data, *cfg.extra_data))
+        gold = min(int(read_manifest(folder).get("config", {}).get("gold", 0)) for folder in (cfg.data, *cfg.extra_data))
         copied = any(self.train_set.copies(item, 1) > 1 for item in self.train_set.items)
         parameters = sum(p.numel() for p in self.model.parameters())
         lines = [
