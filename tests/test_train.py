@@ -220,6 +220,21 @@ def test_fine_tune_starts_from_another_runs_weights_and_credits_its_time(tiny_da
                             **{**base, "widths": (4, 16)}), progress=False)
 
 
+def test_fine_tune_starts_from_an_exported_model(tiny_dataset, tmp_path):
+    """--init-from an .onnx (e.g. the shipped denoiser): its weights, by the parameter names torch's export
+    keeps; a model of other widths is refused by name."""
+    torch.manual_seed(3)
+    source = UNet(widths=(4, 8))
+    onnx_path = export_onnx(source, tmp_path / "exported.onnx")
+    base = dict(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out"), batch=2, crop_min=12,
+                crop_max=16, widths=(4, 8))
+    tuned = Trainer(TrainConfig(epochs=1, init_from=str(onnx_path), **base), progress=False)
+    for name, weight in source.state_dict().items():
+        assert torch.equal(tuned.model.state_dict()[name], weight), name
+    with pytest.raises(TrainingError, match="not a denoiser with these --widths"):
+        Trainer(TrainConfig(epochs=1, init_from=str(onnx_path), **{**base, "widths": (4, 16)}), progress=False)
+
+
 def test_a_nan_loss_stops_training_with_a_clear_message(tiny_dataset, tmp_path, monkeypatch):
     config = TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), epochs=1, batch=2,
                          crop_min=12, crop_max=16, widths=(4, 8))

@@ -30,8 +30,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--checkpoints", help="checkpoint folder (default: OUT/checkpoints)")
     parser.add_argument("--resume", action="store_true", help="continue from the last checkpoint")
     parser.add_argument("--init-from", metavar="CHECKPOINT",
-                        help="fine-tune: start from another run's checkpoint weights (same task and widths) with "
-                             "a fresh optimizer and schedule; give this run its own --checkpoints folder")
+                        help="fine-tune: start from another run's checkpoint (.pt) or an exported model (.onnx, "
+                             "e.g. the shipped one) of the same task and widths, with a fresh optimizer and "
+                             "schedule; give this run its own --checkpoints folder")
     parser.add_argument("--validate-every", type=int, default=1, metavar="N",
                         help="validate every N epochs and after the last (validation is slow on a CPU)")
     parser.add_argument("--device", choices=["auto", "cuda", "cpu"], default="auto",

@@ -92,7 +92,7 @@ class TrainConfig:
         if not (math.isfinite(self.lr) and self.lr > 0):
             raise TrainingError(f"--lr must be a positive number, got {self.lr}")
         if self.init_from is not None and not Path(self.init_from).is_file():
-            raise TrainingError(f"--init-from {self.init_from}: no such checkpoint file")
+            raise TrainingError(f"--init-from {self.init_from}: no such checkpoint or ONNX file")
         checkpoint, *exported = self.outputs()
         for path in exported:
             check_output_path(path, "--out")
@@ -279,13 +279,34 @@ class Trainer:
             raise TrainingError(f"{path}: cannot {purpose} this checkpoint ({err})") from None
         return state
 
+    def _load_onnx_weights(self, path: Path) -> dict:
+        """The weights of an exported model (e.g. the shipped ``models/denoiser.onnx``: torch's export keeps
+        the parameter names) loaded into the model; a checkpoint-like record without history."""
+        import onnx
+        import torch
+        from onnx import numpy_helper
+
+        try:
+            weights = {i.name: numpy_helper.to_array(i) for i in onnx.load(str(path)).graph.initializer}
+        except Exception as err:  # onnx raises several types for missing or corrupt files
+            raise TrainingError(f"{path}: cannot read this ONNX model ({err})") from None
+        expected = self.model.state_dict()
+        wrong = [name for name, tensor in expected.items()
+                 if name not in weights or tuple(weights[name].shape) != tuple(tensor.shape)]
+        if wrong:
+            raise TrainingError(f"{path}: not a {self.config.network.cli_name} with these --widths "
+                                f"(parameter {wrong[0]!r} missing or of another shape)")
+        self.model.load_state_dict({name: torch.from_numpy(weights[name].copy()) for name in expected})
+        return {"epoch": 0, "seconds": 0.0, "history": []}
+
     def _load_initial_weights(self, path: Path) -> None:
-        """Fine-tuning: the weights of another run's checkpoint (same task and architecture); the optimizer,
-        schedule and history start afresh, and the model card credits the base run's epochs and time."""
+        """Fine-tuning: the weights of another run's checkpoint, or of an exported ONNX model (same task and
+        architecture); the optimizer, schedule and history start afresh, and the model card credits the base
+        run's epochs and time."""
         if path.resolve() == self.checkpoint_path.resolve():
             raise TrainingError(f"{path}: --init-from is this run's own checkpoint; pass another --checkpoints "
                                 "folder for the fine-tune")
-        state = self._load_weights(path, "start from")
+        state = self._load_onnx_weights(path) if path.suffix.lower() == ".onnx" else self._load_weights(path, "start from")
         validated = [h for h in state.get("history", []) if any(k.startswith("val_") for k in h)]
         self.base = {"path": str(path), "epochs": state.get("epoch", 0), "seconds": state.get("seconds", 0.0),
                      "base": state.get("base"),
