@@ -10,8 +10,10 @@ time (intra-op threads = CPU cores). Steps: ``naive`` = one output pixel per inv
 ``loop-tiled`` = 4-pixel tiles in loops, ``reg-tiled`` = plus conv3x3.wgsl's written-out 4-pixel ×
 32-channel tile (16 where the output is not 32k channels; the default on CPU and integrated adapters),
 ``staged`` = the 16-channel tile with its input staged in workgroup memory (conv3x3_staged.wgsl, the
-default on discrete GPUs), ``fp16`` = the adapter's default tiling with f16 activations. Every step runs the same
-2×2 transposed-convolution kernel (conv_transpose.wgsl, 4 input pixels per invocation) and its
+default on discrete GPUs), ``fp16`` = the adapter's default tiling with f16 activations, ``autotuned`` = the
+tiling of every layer measured on this adapter (wgpu_rt.nn.autotune: the first run on an adapter times the
+candidates, before the timed frames, and caches the choice in the user's cache folder). Every step runs
+the same 2×2 transposed-convolution kernel (conv_transpose.wgsl, 4 input pixels per invocation) and its
 dispatches count as conv dispatches.
 
     python3 benchmarks/bench_nn.py --sizes 256 512            # add 1080p for the full-HD run (slow)
@@ -33,7 +35,8 @@ STEPS = {"naive": {"precision": "fp32", "conv_tiling": "none"},
          "loop-tiled": {"precision": "fp32", "conv_tiling": "loop"},
          "reg-tiled": {"precision": "fp32", "conv_tiling": "register"},
          "staged": {"precision": "fp32", "conv_tiling": "staged"},
-         "fp16": {"precision": "fp16", "conv_tiling": None}}
+         "fp16": {"precision": "fp16", "conv_tiling": None},
+         "autotuned": {"precision": "fp32", "conv_tiling": None, "autotune": True}}
 
 
 def fma_ceiling(ctx, iterations: int = 4096, invocations: int = 64 * 512) -> float:

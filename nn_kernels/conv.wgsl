@@ -1,11 +1,12 @@
 // Tiled direct convolution (k×k, stride 1 or 2, zero padding) on NC4HW4 tensors.
-// One dispatch computes TILE_C output channel blocks (4·TILE_C channels, one "group"); each
-// invocation owns TILE_X horizontally adjacent output pixels of those blocks, so every input row
-// segment it loads (a vec4 = 4 input channels) is reused across the KW taps and TILE_X pixels, and every
-// weight block (a mat4x4: 4 input × 4 output channels) across TILE_X pixels. Weights of the group are
-// one window of the weight buffer, read through weight_block() (weights_subgroup.wgsl: the lanes
+// A workgroup computes TILE_C output channel blocks (4·TILE_C channels, one "group": workgroup_id.z,
+// see layer_bindings.wgsl); each invocation owns TILE_X horizontally adjacent output pixels of those
+// blocks, so every input row segment it loads (a vec4 = 4 input channels) is reused across the KW
+// taps and TILE_X pixels, and every weight block (a mat4x4: 4 input × 4 output channels) across
+// TILE_X pixels. Weights of the group are
+// one window of the layer's weights, read through weight_block() (weights_subgroup.wgsl: the lanes
 // split a block's loads and broadcast them; else weights_uniform.wgsl). The group's bias and output
-// block come in a small uniform header; bias and activation run in the epilogue. Shapes are pipeline constants.
+// block come in its uniform header; bias and activation run in the epilogue. Shapes are pipeline constants.
 // The engine runs here the convolutions conv3x3.wgsl does not take (other sizes, stride 2, outputs that
 // are not a multiple of 16 channels); with TILE_X = 1 it is the benchmark's naive step.
 {{ENABLE_F16}}
@@ -34,6 +35,7 @@ const ROW_LEN: i32 = (TILE_X - 1) * STRIDE + KW;
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_id: vec3u,
         lane: WeightLane) {
+    enter_group(wid.z);
     let local = local_id.x;
     let ox0 = (i32(wid.x) * 8 + i32(local % 8u)) * TILE_X;
     let oy_unclamped = i32(wid.y) * 8 + i32(local / 8u);

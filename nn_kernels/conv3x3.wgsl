@@ -14,6 +14,7 @@ fn load_pixel(row_start: i32, row_inside: bool, ix: i32) -> vec4f {
 // invocations compute on clamped coordinates and store nothing.
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_id: vec3u, lane: WeightLane) {
+    enter_group(wid.z);
     let ox0 = (i32(wid.x) * 8 + i32(local_id.x % 8u)) * 4;
     let oy_unclamped = i32(wid.y) * 8 + i32(local_id.x / 8u);
     let oy = min(oy_unclamped, OUT_H - 1);

@@ -36,6 +36,7 @@ fn stage_block(cb: i32, x0: i32, y0: i32, invocation: i32) {
 // edge compute on the zero-padded halo and store nothing.
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_id: vec3u, lane: WeightLane) {
+    enter_group(wid.z);
     let invocation = i32(local_id.x);
     let tile_x = (invocation % 8) * 4;
     let tile_y = invocation / 8;

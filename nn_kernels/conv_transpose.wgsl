@@ -4,7 +4,8 @@
 // once (a mat4x4 whose columns are the pixels) and multiplies them by the 4 taps' weight blocks, so
 // each fetched weight block (4 input × 4 output channels) feeds 4 pixels, 64 multiply-adds. The four
 // tap accumulators are named matrices, not an indexed array, so they stay in registers (lavapipe).
-// Weights are windows of mat4x4 per (input block, tap) of the dispatch's output block (TILE_C = 1).
+// Weights are windows of mat4x4 per (input block, tap) of the workgroup's output block (TILE_C = 1, one
+// group per output block, workgroup_id.z: layer_bindings.wgsl).
 {{ENABLE_F16}}
 // #import nn_storage.wgsl
 // #import nn_activation.wgsl
@@ -38,6 +39,7 @@ fn store_tap(y: i32, x0: i32, dy: i32, dx: i32, pixels: mat4x4f) {
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_id: vec3u,
         lane: WeightLane) {
+    enter_group(wid.z);
     let x0 = (i32(wid.x) * 8 + i32(local_id.x % 8u)) * 4;
     let y_unclamped = i32(wid.y) * 8 + i32(local_id.x / 8u);
     let y = min(y_unclamped, IN_H - 1);

@@ -18,6 +18,7 @@ const TILE_C: i32 = {{TILE_C}};
 // No early exit (weight_block may need every lane): out of range tiles read clamped pixels, store nothing.
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(global_invocation_id) gid: vec3u, lane: WeightLane) {
+    enter_group(gid.z);  // workgroups are 64×1×1, so gid.z is workgroup_id.z
     let p0 = i32(gid.x) * TILE_X;
     var acc: array<vec4f, TILE_X * TILE_C>;
     for (var t = 0; t < TILE_C; t++) {

@@ -4,15 +4,15 @@
 // SUBGROUP_LANES is a constant of the pipeline, so only one branch is compiled. On lavapipe a load
 // from a uniform block is a vector gather and one from storage a loop over the lanes, so the window is
 // a uniform block when it fits, else read-only storage (conv3x3 on lavapipe: ≈ 1.28× the GFLOP/s of
-// one vec4 storage load per lane). Call from uniform control flow only.
-@group(0) @binding({{WEIGHT_BINDING}}) var<{{WEIGHT_SPACE}}> {{WEIGHT}}s: array<mat4x4f, {{WEIGHT_MATS}}>;
+// one vec4 storage load per lane). Call from uniform control flow only. {{WEIGHT}}_block reads block
+// `index` of its window, which starts at block {{WINDOW_BASE}} of the binding {{WEIGHTS}} (weight_binding.wgsl).
 
 fn {{WEIGHT}}_block(index: i32, lane: WeightLane) -> mat4x4f {
     if (SUBGROUP_LANES >= 8u) {
         let column = (lane.id % 8u) / 2u;
         let row = (lane.id % 2u) * 2u;
-        let a = {{WEIGHT}}s[index][column][row];
-        let b = {{WEIGHT}}s[index][column][row + 1u];
+        let a = {{WEIGHTS}}[{{WINDOW_BASE}} + index][column][row];
+        let b = {{WEIGHTS}}[{{WINDOW_BASE}} + index][column][row + 1u];
         return mat4x4f(subgroupBroadcast(a, 0u), subgroupBroadcast(b, 0u), subgroupBroadcast(a, 1u),
                        subgroupBroadcast(b, 1u), subgroupBroadcast(a, 2u), subgroupBroadcast(b, 2u),
                        subgroupBroadcast(a, 3u), subgroupBroadcast(b, 3u), subgroupBroadcast(a, 4u),
@@ -20,7 +20,7 @@ fn {{WEIGHT}}_block(index: i32, lane: WeightLane) -> mat4x4f {
                        subgroupBroadcast(a, 6u), subgroupBroadcast(b, 6u), subgroupBroadcast(a, 7u),
                        subgroupBroadcast(b, 7u));
     }
-    let column = {{WEIGHT}}s[index][lane.id % 4u];
+    let column = {{WEIGHTS}}[{{WINDOW_BASE}} + index][lane.id % 4u];
     return mat4x4f(subgroupBroadcast(column, 0u), subgroupBroadcast(column, 1u),
                    subgroupBroadcast(column, 2u), subgroupBroadcast(column, 3u));
 }

@@ -1,6 +1,6 @@
-// Weight blocks read directly (no subgroups): a uniform block when the window fits, else storage.
-@group(0) @binding({{WEIGHT_BINDING}}) var<{{WEIGHT_SPACE}}> {{WEIGHT}}s: array<mat4x4f, {{WEIGHT_MATS}}>;
+// Weight blocks read directly (no subgroups): block `index` of the window that starts at block
+// {{WINDOW_BASE}} of the binding {{WEIGHTS}} (weight_binding.wgsl).
 
 fn {{WEIGHT}}_block(index: i32, lane: WeightLane) -> mat4x4f {
-    return {{WEIGHT}}s[index];
+    return {{WEIGHTS}}[{{WINDOW_BASE}} + index];
 }

@@ -129,3 +129,31 @@ def test_frames_over_the_binding_limit_run_in_bands_with_identical_results(tmp_p
     banded = WgslModel(path, ctx=small)
     assert len(banded.plan(403, 45).bands) == 3
     np.testing.assert_array_equal(banded(x), WgslModel(path, ctx=gpu)(x))
+
+
+@pytest.mark.parametrize("tiling,precision", [("register", "fp32"), ("staged", "fp32"), ("loop", "fp32"),
+                                              ("register", "fp16")])
+def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precision):
+    """With one dispatch per layer preferred (discrete GPUs), every weighted layer of the U-Net is one
+    dispatch whose z dimension runs over its output-block groups, the big layers reading all their
+    windows from one storage binding: the same output as onnxruntime."""
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn import model as nn_model
+
+    if precision == "fp16" and not gpu.has_f16:
+        pytest.skip("adapter lacks shader-f16")
+    monkeypatch.setattr(nn_model, "default_uniform_windows", lambda ctx: False)
+    torch.manual_seed(0)
+    path = export_onnx(UNet(), tmp_path / "unet.onnx")
+    model = WgslModel(path, precision, ctx=gpu, conv_tiling=tiling)
+    weighted = [layer for layer in model.graph.layers if layer.weight is not None]
+    packed = [model.prepared[layer.name] for layer in weighted]
+    assert all(p.one_dispatch for p in packed) and any(p.weight_space == "storage, read" for p in packed)
+    assert any(p.groups > 1 for p in packed)
+    plan = model.plan(37, 53)
+    # one dispatch per layer, aligned concats none
+    assert len(plan.dispatches) == sum(layer.kind != "concat" for layer in model.graph.layers)
+    assert sorted(d.workgroups[2] for d in plan.dispatches if d.flops) == sorted(p.groups for p in packed)
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    check_parity([(1, model.input_channels, 37, 53)], padded_reference(session, model.graph.multiple), model,
+                 atol=FP32_ATOL if precision == "fp32" else FP16_ATOL, name=f"unet {tiling} {precision}")

@@ -260,30 +260,42 @@ def test_staged_tiles_are_the_default_on_discrete_gpus(gpu):
 
 @pytest.mark.parametrize("lanes", [8, 4, 0], ids=["subgroup8_fetch", "subgroup4_fetch", "direct_fetch"])
 @pytest.mark.parametrize("cin", [5, 128, 256], ids=["uniform_window", "uniform_pairs", "storage_window"])
-@pytest.mark.parametrize("outputs", [16, 32], ids=["tile16", "tile32"])
-def test_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, monkeypatch, cin, lanes, outputs):
+@pytest.mark.parametrize("outputs", [48, 64], ids=["tile16", "tile32"])
+@pytest.mark.parametrize("uniform_windows", [True, False], ids=["uniform_preferred", "one_dispatch_preferred"])
+def test_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, monkeypatch, cin, lanes, outputs,
+                                                      uniform_windows):
     """Weight blocks come from a uniform window when it fits 64 KiB, else from read-only storage (256
     input channels × 3×3 × 8 outputs per pair window: 73 KiB; 128 channels still fit; the 32-channel tile
     binds four such windows, the 16-channel one two), read cooperatively
     (weights_subgroup.wgsl: two floats per lane on ≥ 8-lane subgroups, a column per lane on 4-lane ones;
     the 4-lane fetch is forced here, it is correct on wider subgroups) or, on adapters without subgroups,
-    directly (weights_uniform.wgsl)."""
+    directly (weights_uniform.wgsl). The layer is one dispatch with its output-block groups (48 outputs:
+    three 16-channel groups, 64: two 32-channel ones) in workgroup_id.z, all windows in one binding,
+    except where its windows only fit uniform bindings one by one and uniform windows are preferred
+    (128 input channels on lavapipe's default): then one dispatch per group."""
     from wgpu_rt.gpu import GpuContext
     from wgpu_rt.nn import WgslModel, kernels
+    from wgpu_rt.nn import model as nn_model
 
     if lanes and not gpu.has_subgroups:
         pytest.skip(f"{gpu.label} has no subgroups")
     if lanes and kernels.subgroup_lanes(gpu) < lanes:
         pytest.skip(f"{gpu.label} has {kernels.subgroup_lanes(gpu)}-lane subgroups")
     monkeypatch.setattr(kernels, "subgroup_lanes", lambda ctx: lanes)
+    monkeypatch.setattr(nn_model, "default_uniform_windows", lambda ctx: uniform_windows)
     features = gpu.features if lanes else gpu.features - {"subgroup"}
     ctx = GpuContext(gpu.adapter, gpu.device, frozenset(features))
     nodes, inits = conv("conv", "x", "y", cin, outputs, 3)
     path = make_model(tmp_path, f"conv{cin}", nodes, cin, inits)
     model = WgslModel(path, ctx=ctx, conv_tiling="register")  # the kernel with both tile widths
     packed = model.prepared["conv"]
-    assert packed.weight_space == ("uniform" if cin <= 128 else "storage, read")
-    assert packed.splits == outputs // 8
+    assert (packed.tile_c, packed.groups, packed.splits) == ((4, 3, 2) if outputs == 48 else (8, 2, 4))
+    per_group = cin == 128 and uniform_windows
+    one_binding_space = "uniform" if cin == 5 else "storage, read"
+    assert packed.weight_space == ("uniform" if per_group else one_binding_space)
+    assert packed.one_dispatch == (not per_group)
+    workgroups = [d.workgroups[2] for d in model.plan(19, 23).dispatches]
+    assert workgroups == ([1] * packed.groups if per_group else [packed.groups])
     check_parity([(1, cin, 19, 23)], onnxruntime_fn(path), model, atol=FP32_ATOL)
 
 

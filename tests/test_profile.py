@@ -25,10 +25,18 @@ def tiny_unet(tmp_path_factory):
 
 
 @pytest.mark.gpu
-def test_every_dispatch_timed_and_flops_add_up(gpu, tiny_unet):
-    from wgpu_rt.nn import WgslModel
+@pytest.mark.parametrize("per_group", [False, True], ids=["dispatch_per_layer", "dispatch_per_group"])
+def test_every_dispatch_timed_and_flops_add_up(gpu, tiny_unet, monkeypatch, per_group):
+    """A weighted layer is one dispatch with its output-block groups in workgroup_id.z, or (uniform
+    windows preferred and the layer's weights beyond one uniform binding: forced here by a 128-byte
+    limit: the head's three 64-byte windows exceed it together, not one by one) one dispatch per group."""
+    from wgpu_rt.nn import WgslModel, kernels
+    from wgpu_rt.nn import model as nn_model
     from wgpu_rt.nn.profile import profile
 
+    if per_group:
+        monkeypatch.setattr(kernels, "UNIFORM_WINDOW_LIMIT", 128)
+    monkeypatch.setattr(nn_model, "default_uniform_windows", lambda ctx: per_group)
     model = WgslModel(tiny_unet, ctx=gpu)
     result = profile(model, SIZE, SIZE, repeat=2)
     plan = model.plan(SIZE, SIZE)
@@ -37,7 +45,11 @@ def test_every_dispatch_timed_and_flops_add_up(gpu, tiny_unet):
     assert all(row.seconds >= 0 for row in result.rows) and result.end_to_end_seconds > 0
     assert sum(row.flops for row in result.rows) == plan.flops == result.network_flops
     head = [row for row in result.rows if row.label.startswith("/head/")]
-    assert [row.output for row in head] == [(4, SIZE, SIZE), (4, SIZE, SIZE), (2, SIZE, SIZE)]
+    if per_group:
+        assert [row.output for row in head] == [(4, SIZE, SIZE), (4, SIZE, SIZE), (2, SIZE, SIZE)]
+        assert [row.workgroups[2] for row in head] == [1, 1, 1]
+    else:
+        assert [(row.output, row.workgroups[2]) for row in head] == [((10, SIZE, SIZE), 3)]
     assert result.rows[0].kernel == "pack.wgsl" and result.rows[-1].kernel == "unpack.wgsl"
 
 

@@ -129,16 +129,15 @@ class NnKernel:
                          "ACTIVATION": activation.kind, "ALPHA": wgsl_float(activation.alpha),
                          "CLIP_LO": wgsl_float(activation.lo), "CLIP_HI": wgsl_float(activation.hi),
                          **constants}
-        if "WEIGHT_SPACE" in constants:
-            substitutions.update(self.weight_fetch(constants["WEIGHT_SPACE"], constants["WEIGHT_MATS"],
-                                                   constants.get("WEIGHT_WINDOWS", (("weight", 2),))))
         code = shaders.compose(self.shader, shaders.NN_KERNELS, substitutions, replacements)
         return self.ctx.compute_pipeline(code, label=self.shader)
 
-    def weight_fetch(self, space: str, mats: int, windows: tuple = (("weight", 2),)) -> dict:
-        """Substitutions choosing how conv-family kernels read weight blocks (see weights_*.wgsl): per
-        (name, binding) of ``windows`` the window ``{name}s``, read by ``{name}_block(index, lane)``
-        (``lane: WeightLane`` is a parameter of the kernels' entry points)."""
+    def weight_constants(self, packed: PackedWeights, names: tuple[str, ...] = ("weight",)) -> dict:
+        """Substitutions of layer_bindings.wgsl choosing how conv-family kernels read ``packed``'s weight
+        blocks (see weights_*.wgsl): window p of a group is read by ``{names[p]}_block(index, lane)``
+        (``lane: WeightLane`` is a parameter of the kernels' entry points). One dispatch per layer binds
+        every window as ``weights`` and each group starts at its ``weight_window``; one dispatch per group
+        binds the group's windows, one binding each (WINDOW_BINDINGS)."""
         if self.ctx.has_subgroups:
             fetch = "weights_subgroup.wgsl"
             code = [shaders.compose("weight_lane_subgroup.wgsl", shaders.NN_KERNELS,
@@ -146,10 +145,24 @@ class NnKernel:
         else:
             fetch = "weights_uniform.wgsl"
             code = [shaders.compose("weight_lane_invocation.wgsl", shaders.NN_KERNELS)]
-        for name, binding in windows:
-            code.append(shaders.compose(fetch, shaders.NN_KERNELS, {
-                "WEIGHT_SPACE": space, "WEIGHT_MATS": mats, "WEIGHT": name, "WEIGHT_BINDING": binding}))
-        return {"WEIGHT_FETCH": "\n".join(code)}
+
+        def binding(weights: str, index: int, mats: int) -> str:
+            return shaders.compose("weight_binding.wgsl", shaders.NN_KERNELS, {
+                "WEIGHT_SPACE": packed.weight_space, "WEIGHT_MATS": mats, "WEIGHTS": weights,
+                "WEIGHT_BINDING": self.bindings.index(WINDOW_BINDINGS[index])})
+
+        if packed.one_dispatch:
+            code.append(binding("weights", 0, packed.buffer_mats))
+        for split, name in enumerate(names):
+            if packed.one_dispatch:
+                weights, base = "weights", f"weight_window + {split * packed.window_mats}"
+            else:
+                weights, base = f"{name}s", "0"
+                code.append(binding(weights, split, packed.mats))
+            code.append(shaders.compose(fetch, shaders.NN_KERNELS,
+                                        {"WEIGHT": name, "WEIGHTS": weights, "WINDOW_BASE": base}))
+        return {"WEIGHT_FETCH": "\n".join(code), "GROUPS": packed.groups if packed.one_dispatch else 1,
+                "GROUP_MATS": packed.splits * packed.window_mats if packed.one_dispatch else 0}
 
     def bind(self, pipeline, resources: dict) -> object:
         """A bind group from ``resources`` (binding name -> buffer or (buffer, offset, size)); names the
@@ -169,44 +182,67 @@ class NnKernel:
 WINDOW_BINDINGS = ("weights", "pair1_weights", "pair2_weights", "pair3_weights")
 
 
-class PackedWeights:
-    """A conv-family layer's weights, uploaded once, cut into windows per output-block group.
+class WindowLayout:
+    """How a conv-family layer's weights are cut into windows per output-block group and bound (sizes
+    only; PackedWeights uploads them).
 
     Window g holds, for each input block, tap and output block t of the group, a mat4x4 whose column j
     is the 4 output channels' weights for input channel j; the group's header holds its bias and its
     first output block (relative to the output tensor, the view's block is added per plan). With
-    ``splits=k`` a group's output blocks are split evenly over k windows (bound as WINDOW_BINDINGS[:k]),
-    so conv3x3's groups of 4 or 8 blocks over 128 input channels (73 or 147 KiB) still fit 64 KiB uniform
-    bindings, one per pair of output blocks (a uniform load is the fast one on lavapipe, see
-    weights_subgroup.wgsl)."""
+    ``splits=k`` a group's output blocks are split evenly over k windows, so conv3x3's groups of 4 or 8
+    blocks over 128 input channels (73 or 147 KiB) still fit 64 KiB uniform bindings, one per pair of
+    output blocks (a uniform load is the fast one on lavapipe, see weights_subgroup.wgsl).
 
-    def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1):
+    ``one_dispatch``: the layer runs as one dispatch with the group in workgroup_id.z, all windows in one
+    binding (layer_bindings.wgsl), so that a low-resolution layer fills a GPU with G× the workgroups of
+    one group. It is chosen where all windows fit one uniform binding, or one storage binding unless
+    ``uniform_windows`` prefers per-group dispatches of uniform windows to one dispatch of storage
+    (lavapipe: model.default_uniform_windows, or measured: wgpu_rt.nn.autotune); a layer too big for
+    one storage binding always falls back to one dispatch per group, its windows bound one by one
+    (uniform when each fits, else storage), and so does one with more groups' headers than one uniform
+    binding holds (over 2048 output blocks)."""
+
+    def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1, uniform_windows: bool = False):
         cout, cin, kh, kw = layer.weight.shape
         self.out_blocks, self.in_blocks = groups_of(cout, 4), groups_of(cin, 4)
         self.tile_c = max(t for t in range(1, tile_c + 1) if self.out_blocks % t == 0)
         self.groups = self.out_blocks // self.tile_c
         self.splits = splits
         self.taps = kh * kw
+        self.mats = self.in_blocks * self.taps * self.tile_c // splits
+        window_bytes, limits = self.mats * 64, ctx.limits
+        uniform_limit = min(UNIFORM_WINDOW_LIMIT, limits.get("max-uniform-buffer-binding-size", UNIFORM_WINDOW_LIMIT))
+        storage_limit = limits.get("max-storage-buffer-binding-size", 2**27)
+        layer_bytes = window_bytes * self.groups * splits  # windows back to back: one binding
+        headers_fit = self.groups * (16 * self.tile_c + 16) <= uniform_limit  # all GroupHeaders, one binding
+        self.one_dispatch = headers_fit and (layer_bytes <= uniform_limit or (
+            layer_bytes <= storage_limit and not (uniform_windows and window_bytes <= uniform_limit)))
+        fits_uniform = (layer_bytes if self.one_dispatch else window_bytes) <= uniform_limit
+        self.weight_space = "uniform" if fits_uniform else "storage, read"
+        alignment = 64 if self.one_dispatch else limits.get(
+            "min-uniform-buffer-offset-alignment" if fits_uniform else "min-storage-buffer-offset-alignment", 256)
+        self.window_bytes, self.window_stride = window_bytes, -(-window_bytes // alignment) * alignment
+        self.window_mats = self.window_stride // 64
+        self.buffer_mats = self.groups * splits * self.window_mats
+
+
+class PackedWeights(WindowLayout):
+    """A conv-family layer's weights, uploaded once, in the windows of its WindowLayout."""
+
+    def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1, uniform_windows: bool = False):
+        super().__init__(ctx, layer, tile_c, splits, uniform_windows)
+        cout, cin, kh, kw = layer.weight.shape
         padded = np.zeros((self.out_blocks * 4, self.in_blocks * 4, kh, kw), np.float32)
         padded[:cout, :cin] = layer.weight
         blocks = padded.reshape(self.groups, splits, self.tile_c // splits, 4, self.in_blocks, 4, kh, kw)
         windows = blocks.transpose(0, 1, 4, 6, 7, 2, 5, 3).reshape(self.groups * splits, -1)
-        self.mats = self.in_blocks * self.taps * self.tile_c // splits
-        window_bytes = self.mats * 64
-        limits = ctx.limits
-        fits_uniform = window_bytes <= min(UNIFORM_WINDOW_LIMIT, limits.get("max-uniform-buffer-binding-size",
-                                                                            UNIFORM_WINDOW_LIMIT))
-        self.weight_space = "uniform" if fits_uniform else "storage, read"
-        alignment = limits.get("min-uniform-buffer-offset-alignment" if self.weight_space == "uniform"
-                               else "min-storage-buffer-offset-alignment", 256)
-        self.window_bytes, self.window_stride = window_bytes, -(-window_bytes // alignment) * alignment
         data = np.zeros((self.groups * splits, self.window_stride // 4), np.float32)
         data[:, : windows.shape[1]] = windows
         self.buffer = ctx.upload(data, usage=wgpu.BufferUsage.UNIFORM, label=f"{layer.name} weights")
         bias = np.zeros(self.out_blocks * 4, np.float32)
         bias[:cout] = layer.bias
-        self.header_bytes = 16 * self.tile_c + 16
-        header_alignment = limits.get("min-uniform-buffer-offset-alignment", 256)
+        self.header_bytes = 16 * self.tile_c + 16  # GroupHeader's size, and its stride in an array
+        header_alignment = 16 if self.one_dispatch else ctx.limits.get("min-uniform-buffer-offset-alignment", 256)
         self.header_stride = -(-self.header_bytes // header_alignment) * header_alignment
         self.bias = bias.reshape(self.groups, self.tile_c * 4)
         self.ctx, self.label = ctx, layer.name
@@ -223,30 +259,50 @@ class PackedWeights:
         return self._headers[out_block]
 
     def windows(self, group: int) -> dict:
+        """Weight bindings of ``group``'s dispatch (of the layer's one dispatch: ``group`` is None)."""
+        if group is None:
+            return {WINDOW_BINDINGS[0]: self.buffer}
         return {name: (self.buffer, (group * self.splits + split) * self.window_stride, self.window_bytes)
                 for split, name in enumerate(WINDOW_BINDINGS[: self.splits])}
 
-    def header(self, out_block: int, group: int) -> tuple:
+    def header(self, out_block: int, group: int | None) -> tuple:
+        """Header binding of ``group``'s dispatch (of the layer's one dispatch: ``group`` is None)."""
+        if group is None:
+            return self.headers(out_block)
         return (self.headers(out_block), group * self.header_stride, self.header_bytes)
 
 
 class ConvFamilyKernel(NnKernel):
-    """Shared by conv, gemm and conv_transpose: per output-block group one dispatch with its windows."""
+    """Shared by conv, gemm and conv_transpose: one dispatch per layer with the output-block group in
+    workgroup_id.z, or one per group with its windows (see PackedWeights)."""
 
     bindings = ("src", "dst", "weights", "header")
     tile_c_default = 1
 
-    def __init__(self, ctx, precision: Precision, tile_x: int):
+    def __init__(self, ctx, precision: Precision, tile_x: int, uniform_windows: bool = False):
         super().__init__(ctx, precision)
-        self.tile_x = tile_x
+        self.tile_x, self.uniform_windows = tile_x, uniform_windows
+
+    def packing(self, layer: Layer) -> tuple[int, int]:
+        """(output blocks per group, windows per group) of ``layer``'s weights for this kernel."""
+        return self.tile_c_default, 1
+
+    def layout(self, layer: Layer) -> WindowLayout:
+        return WindowLayout(self.ctx, layer, *self.packing(layer), uniform_windows=self.uniform_windows)
 
     def prepare(self, layer: Layer) -> PackedWeights:
-        return PackedWeights(self.ctx, layer, self.tile_c_default)
+        return PackedWeights(self.ctx, layer, *self.packing(layer), uniform_windows=self.uniform_windows)
 
     def grouped(self, layer, packed, pipeline, src, dst, workgroups, flops, kernel=None) -> list[Dispatch]:
-        """One dispatch per output-block group; each gets the share of ``flops`` of the real (unpadded)
-        channels it writes, so the dispatches add up to the layer's FLOPs exactly."""
+        """The layer's dispatches over ``workgroups`` (x, y) per group: one with the groups in z, or one
+        per group, each with the share of ``flops`` of the real (unpadded) channels it writes, so the
+        dispatches add up to the layer's FLOPs exactly."""
         channels = dst.channels
+        if packed.one_dispatch:
+            resources = {"src": src.buffer, "dst": dst.buffer, **packed.windows(None),
+                         "header": packed.header(dst.block, None)}
+            return [Dispatch(layer.name, pipeline, self.bind(pipeline, resources), (*workgroups, packed.groups),
+                             kernel or self.shader, (channels, dst.height, dst.width), flops)]
         dispatches = []
         for g in range(packed.groups):
             first = g * packed.tile_c * 4
@@ -255,7 +311,8 @@ class ConvFamilyKernel(NnKernel):
                 f"{layer.name}[{g}]", pipeline,
                 self.bind(pipeline, {"src": src.buffer, "dst": dst.buffer, **packed.windows(g),
                                      "header": packed.header(dst.block, g)}),
-                workgroups, kernel or self.shader, (written, dst.height, dst.width), flops * written // channels))
+                (*workgroups, 1), kernel or self.shader, (written, dst.height, dst.width),
+                flops * written // channels))
         return dispatches
 
 
@@ -270,8 +327,8 @@ class ConvKernel(ConvFamilyKernel):
         pipeline = self.pipeline(
             layer.activation, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
             OUT_H=dst.height, OUT_W=dst.width, KH=kh, KW=kw, STRIDE=layer.stride, PAD_TOP=top, PAD_LEFT=left,
-            TILE_X=self.tile_x, TILE_C=packed.tile_c, WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats)
-        workgroups = (groups_of(groups_of(dst.width, self.tile_x), 8), groups_of(dst.height, 8), 1)  # 8×8 tiles
+            TILE_X=self.tile_x, TILE_C=packed.tile_c, **self.weight_constants(packed))
+        workgroups = (groups_of(groups_of(dst.width, self.tile_x), 8), groups_of(dst.height, 8))  # 8×8 tiles
         flops = layer.flops_per_pixel * dst.height * dst.width
         return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops)
 
@@ -327,8 +384,8 @@ class Conv3x3Kernel(ConvFamilyKernel):
     tile_x = 4
     tile_modules = {4: "conv3x3_tile16.wgsl", 8: "conv3x3_tile32.wgsl"}  # output blocks -> tile module
 
-    def __init__(self, ctx, precision: Precision, staged: bool = False):
-        super().__init__(ctx, precision, self.tile_x)
+    def __init__(self, ctx, precision: Precision, staged: bool = False, uniform_windows: bool = False):
+        super().__init__(ctx, precision, self.tile_x, uniform_windows)
         self.staged = staged
         self.shader = "conv3x3_staged.wgsl" if staged else "conv3x3.wgsl"
 
@@ -337,10 +394,10 @@ class Conv3x3Kernel(ConvFamilyKernel):
         output's blocks, else 4."""
         return 8 if not self.staged and groups_of(layer.weight.shape[0], 4) % 8 == 0 else 4
 
-    def prepare(self, layer: Layer) -> PackedWeights:
+    def packing(self, layer: Layer) -> tuple[int, int]:
         """One window per pair of output blocks of a group (``pair{p}_weights`` in the shader)."""
         tile = self.tile_blocks(layer)
-        return PackedWeights(self.ctx, layer, tile, splits=tile // 2)
+        return tile, tile // 2
 
     @staticmethod
     def handles(layer: Layer) -> bool:
@@ -349,14 +406,12 @@ class Conv3x3Kernel(ConvFamilyKernel):
 
     def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView):
         top, left, _, _ = layer.pads
-        windows = tuple((f"pair{p}_weight", self.bindings.index(binding))
-                        for p, binding in enumerate(WINDOW_BINDINGS[: packed.splits]))
         pipeline = self.pipeline(
             layer.activation, replacements={self.tile_modules[4]: self.tile_modules[packed.tile_c]},
             IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
             OUT_H=dst.height, OUT_W=dst.width, PAD_TOP=top, PAD_LEFT=left,
-            WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats, WEIGHT_WINDOWS=windows)
-        workgroups = (groups_of(groups_of(dst.width, self.tile_x), 8), groups_of(dst.height, 8), 1)  # 8×8 tiles
+            **self.weight_constants(packed, tuple(f"pair{p}_weight" for p in range(packed.splits))))
+        workgroups = (groups_of(groups_of(dst.width, self.tile_x), 8), groups_of(dst.height, 8))  # 8×8 tiles
         flops = layer.flops_per_pixel * dst.height * dst.width
         return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops,
                             f"{self.shader}+tile{4 * packed.tile_c}")
@@ -371,28 +426,28 @@ class GemmKernel(ConvFamilyKernel):
         pixels = dst.height * dst.width
         pipeline = self.pipeline(
             layer.activation, PIXELS=pixels, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
-            TILE_X=self.tile_x, TILE_C=packed.tile_c, WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats)
-        workgroups = (groups_of(groups_of(pixels, self.tile_x), 64), 1, 1)
+            TILE_X=self.tile_x, TILE_C=packed.tile_c, **self.weight_constants(packed))
+        workgroups = (groups_of(groups_of(pixels, self.tile_x), 64), 1)
         return self.grouped(layer, packed, pipeline, src, dst, workgroups, layer.flops_per_pixel * pixels)
 
 
 class ConvTransposeKernel(ConvFamilyKernel):
     """conv_transpose.wgsl: 2×2 stride-2 transposed convolution, fused bias + activation; one output
-    block per dispatch, 4 input pixels per invocation so that each weight block serves 4 pixels (the
-    U-Net's upsampling convolutions took 2–3× less time than with one pixel per invocation on
-    lavapipe, and the whole 256² U-Net ≈ 9% less CPU time)."""
+    block per group (workgroup_id.z, or one dispatch each), 4 input pixels per invocation so that each
+    weight block serves 4 pixels (the U-Net's upsampling convolutions took 2–3× less time than with one
+    pixel per invocation on lavapipe, and the whole 256² U-Net ≈ 9% less CPU time)."""
 
     shader = "conv_transpose.wgsl"
     tile_x = 4  # input pixels per invocation, written out in the shader
 
-    def __init__(self, ctx, precision: Precision):
-        super().__init__(ctx, precision, self.tile_x)
+    def __init__(self, ctx, precision: Precision, uniform_windows: bool = False):
+        super().__init__(ctx, precision, self.tile_x, uniform_windows)
 
     def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView):
         pipeline = self.pipeline(
             layer.activation, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
-            WEIGHT_SPACE=packed.weight_space, WEIGHT_MATS=packed.mats)
-        workgroups = (groups_of(groups_of(src.width, self.tile_x), 8), groups_of(src.height, 8), 1)
+            **self.weight_constants(packed))
+        workgroups = (groups_of(groups_of(src.width, self.tile_x), 8), groups_of(src.height, 8))
         flops = layer.flops_per_pixel * dst.height * dst.width
         return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops)
 

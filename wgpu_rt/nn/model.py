@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DeviceLimitError, ModelError
+from . import autotune as autotuning
 from .graph import NetworkGraph, Shape, ShapeMismatch, load_graph
 from .kernels import (PRECISIONS, Conv3x3Kernel, ConvKernel, ConvTransposeKernel, CopyChannelsKernel,
                       Dispatch, ElementwiseKernel, GemmKernel, MaxPoolKernel, PackKernel, ResizeKernel,
@@ -36,11 +37,22 @@ from .kernels import (PRECISIONS, Conv3x3Kernel, ConvKernel, ConvTransposeKernel
 # 3×3 stride-1 convs with 16k output channels on conv3x3.wgsl's written-out 4×4 tile, "staged" on
 # conv3x3_staged.wgsl's (the same tile, input staged in workgroup memory; see Conv3x3Kernel).
 CONV_TILINGS = {"none": 1, "loop": 4, "register": 4, "staged": 4}
+# suffix of an autotuned variant that prefers one dispatch per group of uniform windows (kernels.WindowLayout)
+UNIFORM_WINDOWS = "+uniform-windows"
 
 
 def default_conv_tiling(ctx) -> str:
     """"staged" on discrete GPUs (on-chip workgroup memory), else "register" (see Conv3x3Kernel)."""
     return "staged" if ctx.adapter.info.get("adapter_type") == "DiscreteGPU" else "register"
+
+
+def default_uniform_windows(ctx) -> bool:
+    """Whether conv-family layers whose weights exceed one uniform binding run as one dispatch per
+    output-block group with that group's uniform windows (True) rather than as one dispatch reading
+    storage (see kernels.PackedWeights). True on CPU adapters: on lavapipe a uniform load is a vector
+    gather and a storage load a loop over the lanes, and one dispatch per layer has nothing to fill
+    there (2 cores); GPUs take the single dispatch, which fills them at low resolution."""
+    return ctx.adapter.info.get("adapter_type") == "CPU"
 
 
 @dataclass(frozen=True)
@@ -107,14 +119,25 @@ class WgslModel:
     buffers. ``conv_tiling`` exists for the benchmark's steps, the profiler and the tests: "none" (one
     output pixel per invocation), "loop" (4-pixel tiles in loops), "register" (plus the written-out 3×3
     tile kernel), "staged" (that tile with its input staged in workgroup memory); default:
-    ``default_conv_tiling``."""
+    ``default_conv_tiling``.
 
-    def __init__(self, path: str | Path, precision: str = "fp32", ctx=None, conv_tiling: str | None = None):
+    ``autotune``: choose the tiling (and window preference) per layer shape by timing the candidates on
+    this adapter once and caching the choice (see ``wgpu_rt.nn.autotune``; True, or an ``Autotuner``).
+    Off by default (the first run of a new shape pays for compiling and timing every candidate) unless
+    $WGPU_RT_AUTOTUNE=1; $WGPU_RT_AUTOTUNE=0 turns it off everywhere. A ``conv_tiling`` given here wins
+    over autotuning."""
+
+    def __init__(self, path: str | Path, precision: str = "fp32", ctx=None, conv_tiling: str | None = None,
+                 autotune: bool | autotuning.Autotuner | None = None):
         from ..gpu import get_context
 
         if precision not in PRECISIONS:
             raise ModelError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
         self.ctx = ctx or get_context()
+        given = isinstance(autotune, autotuning.Autotuner)
+        self.autotuner = None
+        if conv_tiling is None and autotuning.enabled(True if given else autotune):
+            self.autotuner = autotune if given else autotuning.Autotuner(self.ctx)
         conv_tiling = conv_tiling or default_conv_tiling(self.ctx)
         if conv_tiling not in CONV_TILINGS:
             raise ModelError(f"conv_tiling {conv_tiling!r}: choose one of {', '.join(CONV_TILINGS)}")
@@ -124,17 +147,16 @@ class WgslModel:
         self.path, self.precision = str(path), PRECISIONS[precision]
         self.graph: NetworkGraph = load_graph(path)
         self.conv_tiling = conv_tiling
-        kernel_args, tile_x = (self.ctx, self.precision), CONV_TILINGS[conv_tiling]
-        self.register_tiles = conv_tiling in ("register", "staged")
-        self.kernels = {"conv": ConvKernel(*kernel_args, tile_x), "gemm": GemmKernel(*kernel_args, tile_x),
-                        "conv3x3": Conv3x3Kernel(*kernel_args, staged=conv_tiling == "staged"),
-                        "conv_transpose": ConvTransposeKernel(*kernel_args),
-                        "maxpool": MaxPoolKernel(*kernel_args), "resize": ResizeKernel(*kernel_args),
+        kernel_args = (self.ctx, self.precision)
+        self.uniform_windows = default_uniform_windows(self.ctx)
+        self._tiled_kernels: dict[tuple, object] = {}
+        self.kernels = {"maxpool": MaxPoolKernel(*kernel_args), "resize": ResizeKernel(*kernel_args),
                         "elementwise": ElementwiseKernel(*kernel_args),
                         "concat": CopyChannelsKernel(*kernel_args), "pack": PackKernel(*kernel_args),
                         "unpack": UnpackKernel(*kernel_args)}
         channels = self.graph.infer_channels()
-        self.prepared = {}
+        self.prepared = {}  # layer name -> its weights as kernel_for(layer) (the defaults) packs them
+        self._packed_for: dict[tuple[str, int], object] = {}  # (layer, id(kernel)) -> weights, tuned kernels
         for layer in self.graph.layers:
             if layer.weight is not None:
                 self.prepared[layer.name] = self.kernel_for(layer).prepare(layer)
@@ -146,10 +168,68 @@ class WgslModel:
         self._plans: dict[tuple[int, int], Plan] = {}
         self._networks: dict[tuple[int, int], NetworkPlan] = {}
 
-    def kernel_for(self, layer):
-        if self.register_tiles and Conv3x3Kernel.handles(layer):
-            return self.kernels["conv3x3"]
-        return self.kernels[layer.kind]
+    def kernel_for(self, layer, tiling: str | None = None, uniform_windows: bool | None = None):
+        """The kernel running ``layer`` under ``tiling`` and window preference (defaults: the model's
+        ``conv_tiling`` and ``uniform_windows``); tilings that run a layer the same way share one kernel
+        object."""
+        tiling = tiling or self.conv_tiling
+        windows = self.uniform_windows if uniform_windows is None else uniform_windows
+        args = (self.ctx, self.precision)
+        if tiling in ("register", "staged") and Conv3x3Kernel.handles(layer):
+            key, make = ("conv3x3", tiling, windows), lambda: Conv3x3Kernel(
+                *args, staged=tiling == "staged", uniform_windows=windows)
+        elif layer.kind in ("conv", "gemm"):
+            kernel_class = ConvKernel if layer.kind == "conv" else GemmKernel
+            key, make = (layer.kind, CONV_TILINGS[tiling], windows), lambda: kernel_class(
+                *args, CONV_TILINGS[tiling], windows)
+        elif layer.kind == "conv_transpose":
+            key, make = (layer.kind, windows), lambda: ConvTransposeKernel(*args, uniform_windows=windows)
+        else:
+            return self.kernels[layer.kind]
+        if key not in self._tiled_kernels:
+            self._tiled_kernels[key] = make()
+        return self._tiled_kernels[key]
+
+    def packed(self, layer, kernel):
+        """``layer``'s weights as ``kernel`` reads them (uploaded once per layer and kernel)."""
+        if kernel is self.kernel_for(layer):
+            return self.prepared[layer.name]
+        key = (layer.name, id(kernel))
+        if key not in self._packed_for:
+            self._packed_for[key] = kernel.prepare(layer)
+        return self._packed_for[key]
+
+    def tuned_kernel(self, layer, src: TensorView, dst: TensorView):
+        """The kernel for ``layer`` reading ``src``: the model's tiling and window preference, or with
+        autotuning the fastest pair measured on this adapter (cached per layer shape; see
+        wgpu_rt.nn.autotune). Variants are named by tiling, plus UNIFORM_WINDOWS where uniform windows
+        change how the layer is dispatched (kernels.WindowLayout)."""
+        if self.autotuner is None:
+            return self.kernel_for(layer)
+        candidates, seen = {}, set()  # one variant per distinct kernel and dispatch layout
+        for tiling in CONV_TILINGS:
+            for windows in (False, True):
+                kernel = self.kernel_for(layer, tiling, windows)
+                layout = kernel.layout(layer)
+                distinct = (id(self.kernel_for(layer, tiling, False)), layout.one_dispatch, layout.weight_space)
+                if distinct not in seen:
+                    seen.add(distinct)
+                    candidates[tiling + UNIFORM_WINDOWS * windows] = self._trial(layer, kernel, src, dst)
+        default = self.conv_tiling + UNIFORM_WINDOWS * self.uniform_windows
+        variant = self.autotuner.choose(self.autotuner.key(layer, src, self.precision.name), candidates, default)
+        tiling, windows = variant.removesuffix(UNIFORM_WINDOWS), variant.endswith(UNIFORM_WINDOWS)
+        return self.kernel_for(layer, tiling, windows)
+
+    def _trial(self, layer, kernel, src: TensorView, dst: TensorView):
+        """The dispatches of ``kernel`` on scratch tensors shaped like ``src`` and ``dst``, made when called."""
+
+        def dispatches():
+            def scratch(view: TensorView) -> TensorView:
+                size = view.blocks * view.height * view.width * self.precision.vec4_bytes
+                return TensorView(self.ctx.storage(size, label="autotune scratch"), 0, view.channels,
+                                  view.height, view.width)
+            return kernel.dispatches(layer, kernel.prepare(layer), scratch(src), scratch(dst))
+        return dispatches
 
     @property
     def input_channels(self) -> int:
@@ -277,7 +357,8 @@ class WgslModel:
             sources = [view(name) for name in layer.inputs]
             dst = view(layer.output)
             if layer.weight is not None:
-                dispatches += kernel.dispatches(layer, self.prepared[layer.name], sources[0], dst)
+                kernel = self.tuned_kernel(layer, sources[0], dst)
+                dispatches += kernel.dispatches(layer, self.packed(layer, kernel), sources[0], dst)
             elif layer.kind == "elementwise":
                 dispatches += kernel.dispatches(layer, self.prepared.get(layer.name), sources, dst)
             elif layer.kind == "concat":

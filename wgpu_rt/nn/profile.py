@@ -104,5 +104,6 @@ def profile(model, height: int, width: int, repeat: int = 5, seed: int = 0) -> P
     per_band = len(dispatches) // len(plan.bands)
     rows = [DispatchTime(index, index // per_band, d.label, d.kernel, d.output, d.workgroups, d.flops,
                          float(seconds[index])) for index, d in enumerate(dispatches)]
-    return Profile(model.path, ctx.label, model.precision.name, model.conv_tiling, (width, height), plan.canvas[::-1],
+    tiling = "autotuned" if model.autotuner else model.conv_tiling
+    return Profile(model.path, ctx.label, model.precision.name, tiling, (width, height), plan.canvas[::-1],
                    len(plan.bands), repeat, plan.flops, float(seconds[-1]), rows)

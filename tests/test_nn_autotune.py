@@ -1,0 +1,172 @@
+"""Autotuning (wgpu_rt.nn.autotune): the fastest tiling per layer shape wins and is cached per adapter,
+the cache is reused, a corrupt cache is rebuilt, and it stays off unless asked for."""
+
+import json
+
+import numpy as np
+import pytest
+from onnx import helper
+
+from parity import check_parity
+from test_nn_ops import FP32_ATOL, conv, make_model, onnxruntime_fn
+
+SIZE = (19, 23)
+
+
+@pytest.fixture
+def two_layers(tmp_path):
+    """A 3×3 conv (9 → 48 channels, ReLU; four distinct kernels: none, loop, register, staged) and a
+    1×1 conv (48 → 5; two: none, loop)."""
+    first, first_inits = conv("conv3x3", "x", "t", 9, 48, 3)
+    relu = helper.make_node("Relu", ["t"], ["r"], name="relu")
+    second, second_inits = conv("conv1x1", "r", "y", 48, 5, 1, pads=[0, 0, 0, 0], seed=2)
+    return make_model(tmp_path, "two_layers", [*first, relu, *second], 9, [*first_inits, *second_inits])
+
+
+def fake_timer(calls):
+    """Staged fastest among the 3×3 kernels, one pixel per invocation ("none", most workgroups) fastest
+    among the 1×1 ones: neither is lavapipe's default, so a choice that ignored the timer shows."""
+    seconds_of_3x3 = {"conv3x3_staged.wgsl+tile16": 1.0, "conv3x3.wgsl+tile16": 2.0, "conv.wgsl": 3.0}
+
+    def seconds(dispatches):
+        dispatch = dispatches[0]
+        calls.append(dispatch.kernel)
+        if dispatch.kernel == "gemm.wgsl":
+            return 1.0 / np.prod(dispatch.workgroups)
+        return seconds_of_3x3[dispatch.kernel]
+    return seconds
+
+
+def chosen(model):
+    """(kernel, workgroups along x) of each weighted layer's dispatch in the 19×23 plan."""
+    return [(d.kernel, d.workgroups[0]) for d in model.plan(*SIZE).dispatches if d.flops]
+
+
+# the staged 3×3 kernel; the 1×1 one with one pixel per invocation: 437 pixels in 7 workgroups of 64
+FAKE_CHOICE = [("conv3x3_staged.wgsl+tile16", 1), ("gemm.wgsl", 7)]
+
+
+@pytest.mark.gpu
+def test_fastest_kernel_is_chosen_cached_and_reused(gpu, two_layers, tmp_path):
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.autotune import Autotuner
+    from wgpu_rt.nn.profile import profile
+
+    cache = tmp_path / "cache" / "autotune.json"
+    calls = []
+    model = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, cache, timer=fake_timer(calls)))
+    assert chosen(model) == FAKE_CHOICE
+    assert sorted(calls) == sorted(["conv.wgsl", "conv.wgsl", "conv3x3.wgsl+tile16",
+                                    "conv3x3_staged.wgsl+tile16", "gemm.wgsl", "gemm.wgsl"])
+    check_parity([(1, 9, *SIZE)], onnxruntime_fn(two_layers), model, atol=FP32_ATOL)
+    assert profile(model, *SIZE, repeat=1).conv_tiling == "autotuned"
+    entries = json.loads(cache.read_text())["entries"]
+    assert sorted(entry["variant"] for entry in entries.values()) == ["none", "staged"]
+    assert all(gpu.adapter.info["device"] in key and " fp32 " in key for key in entries)
+    assert list(cache.parent.iterdir()) == [cache]  # written atomically: no temporary file left
+
+    def no_timer(dispatches):
+        raise AssertionError("a cached choice was measured again")
+    again = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, cache, timer=no_timer))
+    assert chosen(again) == FAKE_CHOICE
+    assert again.autotuner.measured == 0
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("content", [b"{not json", b"\x00\xff", b"[1, 2]", b'{"version": 1, "entries": []}',
+                                     b'{"version": 1, "entries": {"k": "staged"}}'],
+                         ids=["truncated", "binary", "list", "entries_list", "entry_not_a_dict"])
+def test_corrupt_cache_is_ignored_and_rebuilt(gpu, two_layers, tmp_path, content):
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.autotune import Autotuner
+
+    cache = tmp_path / "autotune.json"
+    cache.write_bytes(content)
+    calls = []
+    model = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, cache, timer=fake_timer(calls)))
+    assert chosen(model) == FAKE_CHOICE and len(calls) == 6
+    assert len(json.loads(cache.read_text())["entries"]) == 2
+
+
+@pytest.mark.gpu
+def test_without_timestamps_or_a_writable_cache_it_still_runs(gpu, two_layers, tmp_path):
+    from wgpu_rt.gpu import GpuContext
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.autotune import Autotuner
+
+    untimed = GpuContext(gpu.adapter, gpu.device, gpu.features - {"timestamp-query"})
+    cache = tmp_path / "autotune.json"
+    model = WgslModel(two_layers, ctx=untimed, autotune=Autotuner(untimed, cache))
+    assert chosen(model) == chosen(WgslModel(two_layers, ctx=gpu))  # the default tiling
+    assert not cache.exists()
+
+    blocked = tmp_path / "a file"
+    blocked.write_text("")
+    model = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, blocked / "autotune.json",
+                                                               timer=fake_timer([])))
+    with pytest.warns(UserWarning, match="autotune cache not saved"):
+        check_parity([(1, 9, *SIZE)], onnxruntime_fn(two_layers), model, atol=FP32_ATOL)
+
+
+@pytest.mark.gpu
+def test_timestamp_timer_measures_real_dispatches(gpu, two_layers, tmp_path):
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.autotune import Autotuner
+
+    if not gpu.has_timestamps:
+        pytest.skip(f"{gpu.label} has no timestamp queries")
+    model = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, tmp_path / "autotune.json"))
+    check_parity([(1, 9, *SIZE)], onnxruntime_fn(two_layers), model, atol=FP32_ATOL)
+    entries = json.loads((tmp_path / "autotune.json").read_text())["entries"].values()
+    assert all(min(entry["seconds"].values()) > 0 for entry in entries) and len(entries) == 2
+
+
+@pytest.mark.gpu
+def test_off_unless_asked(gpu, two_layers, tmp_path, monkeypatch):
+    from wgpu_rt.errors import ModelError
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.autotune import ENV, cache_path
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert cache_path() == tmp_path / "wgpu-rt" / "autotune.json"
+    monkeypatch.delenv(ENV, raising=False)
+    assert WgslModel(two_layers, ctx=gpu).autotuner is None
+    assert WgslModel(two_layers, ctx=gpu, autotune=True).autotuner.path == cache_path()
+    assert WgslModel(two_layers, ctx=gpu, autotune=True, conv_tiling="loop").autotuner is None
+    monkeypatch.setenv(ENV, "1")
+    assert WgslModel(two_layers, ctx=gpu).autotuner is not None
+    monkeypatch.setenv(ENV, "0")
+    assert WgslModel(two_layers, ctx=gpu, autotune=True).autotuner is None
+    monkeypatch.setenv(ENV, "yes")
+    with pytest.raises(ModelError, match=r"\$WGPU_RT_AUTOTUNE='yes'"):
+        WgslModel(two_layers, ctx=gpu)
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("per_group_faster", [True, False], ids=["group_dispatches", "one_dispatch"])
+def test_dispatch_per_layer_or_per_group_is_measured_too(gpu, tmp_path, per_group_faster):
+    """128 → 48 channels: 221 KiB of weights, more than one uniform binding, in 36 KiB pair windows that
+    each fit one: every kernel runs either as one dispatch reading storage or as one dispatch per group of
+    uniform windows, and the measurement picks, whatever the adapter's default."""
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.autotune import Autotuner
+
+    nodes, inits = conv("conv", "x", "y", 128, 48, 3)
+    path = make_model(tmp_path, "wide", nodes, 128, inits)
+    calls = []
+
+    def seconds(dispatches):
+        calls.append(dispatches[0].kernel)
+        per_group = len(dispatches) > 1
+        register = dispatches[0].kernel.startswith("conv3x3.")
+        return (1.0 if per_group == per_group_faster else 2.0) * (1.0 if register else 3.0)
+
+    cache = tmp_path / "autotune.json"
+    model = WgslModel(path, ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))
+    dispatches = model.plan(*SIZE).dispatches
+    assert len(calls) == 8  # none, loop, register, staged × both ways
+    expected = [1, 1, 1] if per_group_faster else [3]
+    assert [(d.kernel, d.workgroups[2]) for d in dispatches] == [("conv3x3.wgsl+tile16", z) for z in expected]
+    variant = "register+uniform-windows" if per_group_faster else "register"
+    assert [entry["variant"] for entry in json.loads(cache.read_text())["entries"].values()] == [variant]
+    check_parity([(1, 128, *SIZE)], onnxruntime_fn(path), model, atol=FP32_ATOL)
