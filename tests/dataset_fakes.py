@@ -9,7 +9,7 @@ import numpy as np
 SCROLL = 2.0
 
 
-def fake_render(scene, spp=16, size=(32, 32), max_depth=8, seed=0, frames=0, aovs=()):
+def fake_render(scene, spp=16, size=(32, 32), max_depth=8, seed=0, frames=0, aovs=(), aux_samples=0):
     width, height = size
     ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
     camera = scene.camera_at(frames)

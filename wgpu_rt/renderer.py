@@ -19,6 +19,7 @@ from typing import Iterable, Iterator
 
 from .errors import WgpuRtError
 from .frame.pipeline import AOV_PLANES, FramePipeline, RenderResult
+from .trace.trace_pass import AUX_SAMPLES
 
 DEFAULT_AOVS = ("albedo", "normal", "depth", "motion", "spp")
 PRECISIONS = ("fp32", "fp16")
@@ -94,7 +95,7 @@ class Renderer:
                  temporal=False, max_depth: int = 8, seed: int = 0, aovs=DEFAULT_AOVS, tonemap: str | None = None,
                  exposure: float = 0.0, srgb: bool = True, display: str = "rgba8", precision: str = "fp32",
                  models_dir=None, networks: dict | None = None, mesh=None, ctx=None, progress: bool = False,
-                 timings: bool | None = None):
+                 timings: bool | None = None, aux_samples: int | None = None):
         from .frame.adaptive import AdaptiveSettings
         from .frame.temporal import TemporalSettings
         from .frame.tonemap import check_settings
@@ -105,6 +106,8 @@ class Renderer:
         self.max_depth = check_int("max_depth", max_depth, 1)
         self.seed = check_int("seed", seed, 0, 2 ** 32 - 1)
         self.aovs = check_aovs(aovs)
+        # The denoiser gets a noise-free albedo by default (OIDN's advice for auxiliary features).
+        aux_samples = (AUX_SAMPLES if denoise else 0) if aux_samples is None else check_int("aux_samples", aux_samples, 0)
         if precision not in PRECISIONS:
             raise WgpuRtError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
         if tonemap is not None:
@@ -138,7 +141,7 @@ class Renderer:
             denoiser=networks.get("denoiser") if denoise else None, adaptive=adaptive,
             error_predictor=networks.get("error_predictor"), temporal=temporal,
             confidence=networks.get("confidence"), aovs=self.aovs, operator=tonemap, exposure=exposure,
-            srgb=srgb, output=display, timings=timings, progress=self._advance)
+            srgb=srgb, output=display, timings=timings, progress=self._advance, aux_samples=aux_samples)
         self.setup_seconds = time.perf_counter() - started
 
     def _trace_factory(self):

@@ -44,6 +44,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--size", type=int, default=256, help="square image size in pixels (default: %(default)s)")
     parser.add_argument("--spp", type=_int_list, default=(1, 4, 16),
                         help="noisy sample counts, comma-separated (default: 1,4,16)")
+    parser.add_argument("--aux-samples", type=int, metavar="N",
+                        help="re-estimate the noisy renders' albedo from N delta-chain paths per pixel (0: the "
+                             "tracer's own; default: as a denoising render does)")
     parser.add_argument("--noisy-copies", type=int, default=1, metavar="N",
                         help="independent renders per frame at the lowest --spp: N noise realizations of each view "
                              "for training, each costing 1/gold of the gold render; raise it on a finished "
@@ -67,6 +70,7 @@ def run(args) -> int:
     from pathlib import Path
 
     from ..dataset import DatasetConfig, DatasetError, TruthEngine
+    from ..trace.trace_pass import AUX_SAMPLES
 
     if args.meshes and not Path(args.meshes).is_dir():
         raise DatasetError(f"{args.meshes}: --meshes must be a folder of mesh files")
@@ -75,6 +79,7 @@ def run(args) -> int:
                            gold=args.gold, seed=args.seed, max_depth=args.max_depth,
                            sequence_length=args.sequence_length, sequence_fraction=args.sequence_fraction,
                            noisy_copies=args.noisy_copies,
+                           aux_samples=AUX_SAMPLES if args.aux_samples is None else args.aux_samples,
                            mesh_dir=str(Path(args.meshes).resolve()) if args.meshes else None,
                            worlds=args.worlds, family=args.family)
     rendered = TruthEngine(config, args.out).run(args.shard, progress=not args.quiet)

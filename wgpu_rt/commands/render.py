@@ -30,6 +30,9 @@ def add_arguments(parser) -> None:
                         help="adaptive sampling guided by models/error_predictor.onnx at BUDGET mean spp")
     parser.add_argument("--temporal", action="store_true",
                         help="temporal accumulation over --frames (reprojection, clamping, confidence)")
+    parser.add_argument("--aux-samples", type=int, metavar="N",
+                        help="re-estimate the albedo layer from N delta-chain paths per pixel, noise-free behind "
+                             "glass and mirrors (default: 4 with --denoise, else 0: the tracer's own)")
     parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
                         help="network arithmetic (fp16 needs the shader-f16 feature)")
 
@@ -83,7 +86,7 @@ def run(args) -> int:
 
     size = parse_size(args.size)
     for flag, value, low, high in (("--spp", args.spp, 1, None), ("--max-depth", args.max_depth, 1, None),
-                                   ("--seed", args.seed, 0, 2 ** 32 - 1)):
+                                   ("--seed", args.seed, 0, 2 ** 32 - 1), ("--aux-samples", args.aux_samples, 0, None)):
         if value is not None:
             check_int(flag, value, low, high)
     aovs = check_aovs(args.aov)
@@ -100,7 +103,7 @@ def run(args) -> int:
     renderer = Renderer(args.scene, spp, size, denoise=args.denoise, adaptive=args.adaptive,
                         temporal=args.temporal, max_depth=args.max_depth, seed=args.seed,
                         aovs=() if png else aovs, tonemap="aces" if png else None, display="f32",
-                        precision=args.precision, mesh=args.mesh, progress=True)
+                        precision=args.precision, mesh=args.mesh, progress=True, aux_samples=args.aux_samples)
     mean_spp = args.adaptive if args.adaptive is not None else spp
     for result in renderer.frames(frames):
         path = output_path(args.out, result.frame)

@@ -48,7 +48,8 @@ from .worlds import FAMILIES, generate_world, world_seed
 GBUFFERS = ("albedo", "normal", "depth", "motion")
 # View numbers, seeds and images depend on all of these, so a resumed run must keep them.
 CONFIG_KEYS_THAT_MUST_MATCH = ("scenes", "views", "size", "spp", "gold", "seed", "max_depth",
-                               "sequence_length", "sequence_fraction", "mesh_dir", "worlds", "family")
+                               "sequence_length", "sequence_fraction", "mesh_dir", "worlds", "family",
+                               "aux_samples")
 MAX_WORLDS = 2 ** 20     # world numbers of one dataset seed stay distinct (see plan_views)
 
 
@@ -71,12 +72,16 @@ class DatasetConfig:
     noisy_copies: int = 1                # independent renders per frame at the lowest spp
     worlds: int = 0                      # generated worlds, one view each
     family: str = "training"             # the worlds' family: training (train/val) or held_out (test)
+    # Noisy renders' albedo re-estimated from this many delta-chain paths per pixel, as a denoising render
+    # does (TracePass.execute_aux), so training sees what inference feeds; 0: the tracer's own (datasets
+    # rendered before the aux pass lack the key and mean 0).
+    aux_samples: int = 0
 
     def __post_init__(self):
         """Refuse settings that cannot make a dataset, naming the command-line flag."""
         at_least = {"--views": (self.views, 1), "--size": (self.size, 1), "--gold": (self.gold, 1),
                     "--max-depth": (self.max_depth, 1), "--noisy-copies": (self.noisy_copies, 1),
-                    "--seed": (self.seed, 0), "--worlds": (self.worlds, 0),
+                    "--seed": (self.seed, 0), "--worlds": (self.worlds, 0), "--aux-samples": (self.aux_samples, 0),
                     "--spp": (min(self.spp, default=0), 1),
                     # a sequence is consecutive frames; stills only need no length
                     "--sequence-length": (self.sequence_length, 2 if self.sequence_fraction > 0 else 1)}
@@ -268,7 +273,8 @@ class TruthEngine:
             path = folder / name
             if not path.exists():
                 result = self.render(scene, spp=spp, size=size, max_depth=cfg.max_depth,
-                                     seed=_render_seed(cfg, view, *salt), frames=salt[0], aovs=GBUFFERS)
+                                     seed=_render_seed(cfg, view, *salt), frames=salt[0], aovs=GBUFFERS,
+                                     aux_samples=cfg.aux_samples if spp < cfg.gold else 0)
                 write_exr(path, _finite(result.color), {k: _finite(result.aovs[k]) for k in GBUFFERS})
         previous = folder / "view.json"
         seconds = time.perf_counter() - started

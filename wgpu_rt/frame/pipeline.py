@@ -112,7 +112,9 @@ class FramePipeline:
     the Sobol prefix's stratification).
 
     ``spp`` samples per pixel are traced per frame (in several submits when they are many; ``progress``
-    is told after each); ``adaptive`` replaces them by a 1-spp probe plus targeted samples. ``aovs`` names
+    is told after each); ``adaptive`` replaces them by a 1-spp probe plus targeted samples. With
+    ``aux_samples``, the albedo plane is then re-estimated noise-free from that many delta-chain paths
+    per pixel (``TracePass.execute_aux``). ``aovs`` names
     the G-buffer planes to read back with the colour; ``operator`` None skips the display image.
     """
 
@@ -120,12 +122,12 @@ class FramePipeline:
                  adaptive: AdaptiveSettings | None = None, error_predictor=None,
                  temporal: TemporalSettings | None = None, confidence=None, aovs=(),
                  operator: str | None = "aces", exposure: float = 0.0, srgb: bool = True,
-                 output: str = "rgba8", timings: bool | None = None, progress=None):
+                 output: str = "rgba8", timings: bool | None = None, progress=None, aux_samples: int = 0):
         if adaptive is not None and adaptive.sampler == "heat" and error_predictor is None:
             raise ModelError("the heat adaptive sampler needs an error predictor model")
         self.ctx, self.width, self.height = ctx, width, height
         self.trace_factory, self.denoiser, self.error_predictor = trace_factory, denoiser, error_predictor
-        self.spp, self.adaptive, self.progress = spp, adaptive, progress
+        self.spp, self.adaptive, self.progress, self.aux_samples = spp, adaptive, progress, aux_samples
         self.buffers = FrameBuffers(ctx, width, height)
         self.depth_max = DepthMaxPass(ctx, width, height)
         color = RADIANCE
@@ -240,6 +242,9 @@ class FramePipeline:
             self.timer.start()
         self._mark(encoder, "start")
         encoder = self._trace(encoder, trace, keep_samples=converging)
+        if self.aux_samples:
+            trace.execute_aux(encoder, buffers, self.aux_samples)
+            self._mark(encoder, "aux")
         self.depth_max.execute(encoder, buffers)
         if self.denoiser is not None:
             self.pack.execute(encoder, buffers)

@@ -40,6 +40,11 @@ from .scene_data import (
 
 TILE = 8   # a workgroup traces TILE × TILE pixels (wgsl/trace/trace.wgsl)
 KERNEL = "trace/trace.wgsl"
+AUX_KERNEL = "trace/aux.wgsl"
+# Delta-chain samples per pixel of the noise-free albedo (execute_aux). 1 is worse than none (an albedo
+# sample independent of the colour sample it demodulates); 4 keeps almost all of 8's gain at half the cost
+# (BENCHMARKS.md §5, "Noise-free albedo").
+AUX_SAMPLES = 4
 
 
 STORAGE_TABLES = "trace/shading_tables_storage.wgsl"   # what trace/trace_bindings.wgsl imports
@@ -59,7 +64,8 @@ class BufferPlacement:
     geometry: bool = False
 
 
-def trace_kernel_source(ctx, traversal: str | None = None, placement: BufferPlacement = BufferPlacement()) -> str:
+def trace_kernel_source(ctx, traversal: str | None = None, placement: BufferPlacement = BufferPlacement(),
+                        kernel: str = KERNEL) -> str:
     """The kernel with the traversal module ``traversal`` (default: the one that suits ``ctx``'s
     adapter, wgpu_rt.accel.geometry.traversal_module) and the buffer ``placement``."""
     replacements = {}
@@ -67,7 +73,7 @@ def trace_kernel_source(ctx, traversal: str | None = None, placement: BufferPlac
         replacements[STORAGE_TABLES] = UNIFORM_TABLES
     if placement.geometry:
         replacements[GEOMETRY_WORDS] = UNIFORM_GEOMETRY_WORDS
-    return compose_with_traversal(ctx, KERNEL, traversal, replacements=replacements)
+    return compose_with_traversal(ctx, kernel, traversal, replacements=replacements)
 
 
 def trace_layout(ctx, geometry_bindings: int, placement: BufferPlacement = BufferPlacement()):
@@ -155,6 +161,8 @@ class TracePass(ComputePass):
             raise ValueError(f"{self.placement} asks for uniform buffers beyond their capacity ({fitting} fit)")
         geometry_buffers = geometry.upload(ctx, uniform_words=self.placement.geometry)
         self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement)
+        self._kernel_options = (traversal, self.placement, len(geometry_buffers))
+        self._aux_pipelines: dict[int, object] = {}
         # Enough samples per dispatch to keep the device busy and the tail short (a subgroup runs until
         # its last invocation has traced its last path: ~11% idle turns at 16 samples, 15% at 8 on
         # cornell); few enough to stay around a second on lavapipe and well within the kernel's
@@ -236,6 +244,27 @@ class TracePass(ComputePass):
                 self._bind_groups.clear()
             held = self._bind_groups[key] = (self.ctx.bind_group(self.pipeline, buffers, group=group), buffers)
         return held[0]
+
+    def execute_aux(self, encoder, buffers: FrameBuffers, samples: int = AUX_SAMPLES) -> None:
+        """Overwrite the albedo plane with a noise-free estimate of the same quantity from ``samples``
+        delta-chain paths per pixel (wgsl/trace/aux.wgsl), for the denoiser: behind glass a 1-spp path
+        shows the reflected or the refracted surface at random."""
+        pipeline = self._aux_pipelines.get(samples)
+        if pipeline is None:
+            traversal, placement, geometry_bindings = self._kernel_options
+            pipeline = self._aux_pipelines[samples] = self.ctx.compute_pipeline(
+                trace_kernel_source(self.ctx, traversal, placement, AUX_KERNEL), "aux",
+                constants={**self.features.constants(), "AUX_SAMPLES": samples}, label=f"aux {self.features}",
+                layout=trace_layout(self.ctx, geometry_bindings, placement))
+        shading = self._cached_bind_group(1, [self._params_buffer(SampleSchedule()), self._materials, self._emitters,
+                                              self._triangle_density, self._no_counts])
+        compute = encoder.begin_compute_pass(label="aux")
+        compute.set_pipeline(pipeline)
+        compute.set_bind_group(0, self._geometry_group)
+        compute.set_bind_group(1, shading)
+        compute.set_bind_group(2, self._cached_bind_group(2, [buffers.get(spec) for spec in self.outputs]))
+        compute.dispatch_workgroups(-(-self.width // TILE), -(-self.height // TILE), 1)
+        compute.end()
 
     def clear(self, encoder, buffers: FrameBuffers) -> None:
         """Reset the output planes (a new frame starts from zero samples)."""

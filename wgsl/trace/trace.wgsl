@@ -23,6 +23,7 @@
 // #import trace/bsdf.wgsl
 // #import trace/emitters.wgsl
 // #import trace/camera.wgsl
+// #import trace/surface.wgsl
 
 const TILE: u32 = 8u;   // a workgroup is TILE × TILE pixels, == wgpu_rt.trace.trace_pass.TILE
 const RR_DEPTH: u32 = 5u;
@@ -117,14 +118,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
         (*path).radiance += (*path).throughput * material.emission * weight;
     }
 
-    var shading_normal = geometric_normal;
-    if HAS_VERTEX_NORMALS {
-        shading_normal = tri_shading_normal_or(hit.prim, hit.u, hit.v, geometric_normal);
-    }
-    let is_glass = HAS_DIELECTRIC && material.kind == MATERIAL_DIELECTRIC;
-    if !is_glass && cos_front < 0.0 {
-        shading_normal = -shading_normal;
-    }
+    let shading_normal = shading_normal_at(hit, geometric_normal, material, cos_front);
     if WRITE_AOVS {
         if depth == 0u {
             (*path).normal = shading_normal;

@@ -1,0 +1,89 @@
+// Noise-free auxiliary features for the denoiser (Intel OIDN's documentation asks for them: the network
+// takes whatever the albedo plane holds for texture). The albedo AOV is the first non-delta surface seen
+// through mirrors and smooth glass; the path tracer estimates it with its own paths, one per sample, so at
+// 1 spp every pixel behind glass shows either the reflected or the refracted surface, picked by Fresnel at
+// random: speckle the network reproduces. This pass overwrites the albedo plane with the same quantity
+// estimated from AUX_SAMPLES paths per pixel that follow only the delta chain (pixel jitter, then delta
+// lobes sampled as the tracer samples them; no lights, no shading), which costs a few primary rays per
+// sample instead of full paths. Escaping, or running out of max_depth inside the chain, counts as
+// albedo 0, as in the tracer. Like the tracer (LOOP_BUDGET in trace/trace.wgsl), an invocation starts no
+// new sample once its loops have gone round AUX_LOOP_BUDGET times (lavapipe ends loops at 65535 turns per
+// dispatch) and averages the samples it completed.
+
+// #import trace/features.wgsl
+// #import trace/trace_bindings.wgsl
+// #import accel/bvh.wgsl
+// #import trace/bsdf.wgsl
+// #import trace/camera.wgsl
+// #import trace/surface.wgsl
+
+override AUX_SAMPLES: u32 = 4u;
+const AUX_TILE: u32 = 8u;                 // == the tracer's tile: a workgroup of 64 is an 8×8 tile
+const AUX_SEED_SALT: u32 = 0x5bd1e995u;   // aux samples draw numbers no trace sample draws
+const AUX_FAR: f32 = 3.0e38;
+const AUX_LOOP_BUDGET: u32 = 49152u;
+
+@compute @workgroup_size(AUX_TILE * AUX_TILE)
+fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) local_index: u32) {
+    begin_traversal(local_index);
+    let xy = tile.xy * AUX_TILE + vec2u(local_index % AUX_TILE, local_index / AUX_TILE);
+    let inside = xy.x < params.width && xy.y < params.height;
+    let pixel = select(0u, xy.y * params.width + xy.x, inside);
+    let seed = params.seed ^ AUX_SEED_SALT;
+    var sampler = sampler_start(pixel, 0u, seed);
+    var origin = params.camera_origin;
+    var dir = camera_ray_direction(vec2f(xy) + next_2d(&sampler));
+    var depth = 0u;
+    var index = 0u;
+    var sum = vec3f(0.0);
+    var sampling = inside;
+    var loop_passes = 0u;
+    // Every invocation stays in the loop until its whole subgroup is done (the subgroup traversal walks
+    // the BVH as one packet); finished ones query with t_max 0.
+    loop {
+        if !packet_any(sampling) {
+            break;
+        }
+        let traced = trace_ray_pair(origin, dir, select(0.0, AUX_FAR, sampling), origin, dir, 0.0, false);
+        let hit = traced.hit;
+        loop_passes += traced.loop_passes + 1u;
+        if sampling {
+            var sample_done = true;
+            if hit.prim != NO_HIT {
+                let material = materials[tri_material(hit.prim)];
+                if !material_is_delta(material) {
+                    sum += bsdf_albedo(material);
+                } else if depth + 1u < params.max_depth {
+                    let geometric_normal = traced.geometric_normal;
+                    let cos_front = -dot(geometric_normal, dir);
+                    let frame = frame_from_normal(shading_normal_at(hit, geometric_normal, material, cos_front));
+                    let u_lobe = next_1d(&sampler);
+                    let bs = bsdf_sample(material, to_local(frame, -dir), u_lobe, next_2d(&sampler));
+                    if any(bs.weight != vec3f(0.0)) {
+                        let position = origin + hit.t * dir;
+                        dir = normalize(to_world(frame, bs.wo));
+                        origin = offset_ray_origin(position, geometric_normal, dir);
+                        depth += 1u;
+                        sample_done = false;
+                    }
+                }
+            }
+            if sample_done {
+                index += 1u;
+                sampling = index < AUX_SAMPLES && loop_passes < AUX_LOOP_BUDGET;
+                sampler = sampler_start(pixel, index, seed);
+                origin = params.camera_origin;
+                dir = camera_ray_direction(vec2f(xy) + next_2d(&sampler));
+                depth = 0u;
+            }
+        }
+    }
+    if !inside || index == 0u {
+        return;
+    }
+    let plane = params.width * params.height;
+    let albedo = sum / f32(index);
+    for (var c = 0u; c < 3u; c += 1u) {
+        out_albedo[c * plane + pixel] = albedo[c];
+    }
+}
