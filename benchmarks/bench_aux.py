@@ -1,0 +1,78 @@
+"""Noise-free albedo (the aux pass) for the denoisers: PSNR of ours and OIDN at 1 spp with the tracer's
+own albedo (aux 0) and with the albedo re-estimated from N delta-chain paths per pixel, on the built-in
+scenes with glass or none and on held-out generated worlds that hold glass; and the aux pass's GPU time
+against the 1-spp trace's (timestamp queries).
+
+    python3 benchmarks/bench_aux.py --size 96 --gold-spp 1024 --aux 0 1 2 4 8 --worlds 4
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from common import (add_gold_arguments, add_model_arguments, errors, gold_render, load_scenes, oidn,
+                    parse_with_quick_defaults, print_header, print_table, resolve_models)
+
+
+def glass_worlds(count: int) -> list:
+    """The first ``count`` held-out worlds with a glass material (none trained on)."""
+    from wgpu_rt.dataset.worlds import generate_world
+
+    found, seed = [], 2 ** 31
+    while len(found) < count:
+        world = generate_world(seed)
+        if any(m.kind == "dielectric" for m in world.materials.values()):
+            found.append(world)
+        seed += 1
+    return found
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=["cornell", "cornell-glossy"])
+    parser.add_argument("--worlds", type=int, default=4, help="held-out worlds with glass")
+    parser.add_argument("--size", type=int, default=96)
+    parser.add_argument("--aux", type=int, nargs="+", default=[0, 1, 2, 4, 8])
+    parser.add_argument("--max-depth", type=int, default=8)
+    add_gold_arguments(parser, 1024)
+    add_model_arguments(parser)
+    args = parse_with_quick_defaults(parser, {"size": 48, "worlds": 1, "gold_spp": 256, "aux": [0, 4]})
+    resolve_models(args)
+    print_header(args)
+    from wgpu_rt.renderer import Renderer
+
+    size = (args.size, args.size)
+    rows, times = [], []
+    for scene in load_scenes(args.scenes) + glass_worlds(args.worlds):
+        gold = gold_render(scene, size, args)
+        row = [scene.name]
+        for aux in args.aux:
+            options = dict(size=size, max_depth=args.max_depth, seed=7, aux_samples=aux)
+            ours = Renderer(scene, denoise=True, aovs=("albedo", "normal"), models_dir=args.models,
+                            precision=args.precision, **options)
+            result = next(ours.frames())
+            row.append(errors(gold, result.color)["PSNR"])
+            if aux in (0, max(args.aux)):
+                noisy = next(Renderer(scene, aovs=(), **options).frames()).color   # the same 1-spp colour
+                row.append(errors(gold, oidn(noisy, result.aovs["albedo"], result.aovs["normal"]))["PSNR"])
+            if aux == max(args.aux) and "aux" in result.stage_ms:
+                steady = [next(ours.frames(f)).stage_ms for f in (1, 2, 3)]
+                times.append([scene.name, aux, float(np.median([s["trace"] for s in steady])),
+                              float(np.median([s["aux"] for s in steady]))])
+        rows.append(row)
+    headers = ["scene"]
+    for aux in args.aux:
+        headers.append(f"ours aux {aux}")
+        if aux in (0, max(args.aux)):
+            headers.append(f"OIDN aux {aux}")
+    print_table(f"PSNR (dB) at 1 spp against {args.gold_spp}-spp gold, {args.size}² (aux N: albedo from N "
+                "delta-chain paths; 0: the tracer's own)", headers, rows)
+    if times:
+        print_table("GPU time per frame (median of 3, ms)", ["scene", "aux samples", "1-spp trace", "aux pass",
+                                                             "aux / trace"], [[*t, t[3] / t[2]] for t in times])
+
+
+if __name__ == "__main__":
+    main()
