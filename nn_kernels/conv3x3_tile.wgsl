@@ -1,8 +1,7 @@
 // The register tile shared by the 3×3 stride-1 kernels (conv3x3.wgsl, conv3x3_staged.wgsl): the layer's
 // constants and bindings, and a tile of 4 adjacent output pixels × TILE_C output channel blocks per
-// invocation. Its width comes from the imported module: conv3x3_tile16.wgsl (4 blocks, 16 channels),
-// which kernels.Conv3x3Kernel swaps for conv3x3_tile32.wgsl (8 blocks, 32 channels) in conv3x3.wgsl on
-// layers whose output has a multiple of 32 channels. One row step takes the 6 input pixels (vec4 = 4
+// invocation. Its width, TILE_C (4 blocks, 16 channels; 8 blocks, 32 channels in conv3x3.wgsl on layers
+// whose output has a multiple of 32 channels), is unrolled in conv3x3_tile_blocks.wgsl. One row step takes the 6 input pixels (vec4 = 4
 // input channels) of one kernel row and views them as three 4-pixel matrices (one per kx), so one
 // mat4x4 weight block × mat4x4 pixels product is 64 multiply-adds, and every weight block of a row
 // step is fetched once per invocation and serves all 4 pixels. The tile is named matrices, not an
@@ -14,7 +13,7 @@
 // #import nn_storage.wgsl
 // #import nn_activation.wgsl
 // #import layer_bindings.wgsl
-// #import conv3x3_tile16.wgsl
+// #import conv3x3_tile_blocks.wgsl
 
 const IN_H: i32 = {{IN_H}};
 const IN_W: i32 = {{IN_W}};

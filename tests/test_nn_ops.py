@@ -242,7 +242,7 @@ def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision, outputs):
     kernel = model.kernel_for(model.graph.layers[0])
     assert kernel.shader == ("conv3x3_staged.wgsl" if tiling == "staged" else "conv3x3.wgsl")
     wide = outputs == 64 and tiling == "register"
-    assert kernel.tile_modules[model.prepared["conv"].tile_c] == f"conv3x3_tile{32 if wide else 16}.wgsl"
+    assert model.prepared["conv"].tile_c == (8 if wide else 4)   # output blocks per invocation
     check_parity([(1, 9, 37, 71)], onnxruntime_fn(path), model,
                  atol=FP32_ATOL if precision == "fp32" else FP16_ATOL)
 
@@ -307,3 +307,16 @@ def test_subgroup_probe_sees_a_valid_width(gpu):
     assert gpu.subgroup_sizes.shape == (64,) and gpu.subgroup_sizes.min() >= 1
     lanes = subgroup_lanes(gpu)
     assert 4 <= lanes <= 128 and lanes & (lanes - 1) == 0
+
+
+def test_tile_template_writes_out_each_block():
+    """conv3x3_tile_blocks.wgsl's unrolled parts name every block once (fields, bias, accumulation from
+    pair window t // 2 with taps t % 2 + 0/2/4, stores)."""
+    from wgpu_rt.nn.kernels import tile_blocks_code
+
+    code = tile_blocks_code(8)
+    assert code["TILE_C"] == 8 and code["TILE_FIELDS"].count("mat4x4f") == 8
+    assert code["TILE_BIAS"] == ", ".join(f"bias_pixels({t})" for t in range(8))
+    assert "(*tile).block7 += pair3_weight_block(tap + 1, lane) * x.x0 + pair3_weight_block(tap + 3, lane)" \
+        in code["TILE_ACCUMULATE"]
+    assert code["TILE_STORE"].count("store_pixels(") == 8

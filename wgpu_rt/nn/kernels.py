@@ -333,6 +333,22 @@ class ConvKernel(ConvFamilyKernel):
         return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops)
 
 
+def tile_blocks_code(blocks: int) -> dict[str, str]:
+    """conv3x3_tile_blocks.wgsl's placeholders for a tile of ``blocks`` output blocks, written out (one
+    template instead of a hand-unrolled file per width; the code is the same as written out by hand)."""
+    def accumulate(t: int) -> str:
+        pair, odd = divmod(t, 2)
+        taps = [f"pair{pair}_weight_block(tap{f' + {odd + 2 * kx}' if odd + 2 * kx else ''}, lane) * x.x{kx}"
+                for kx in range(3)]
+        return f"    (*tile).block{t} += {taps[0]} + {taps[1]}\n        + {taps[2]};"
+
+    return {"TILE_C": blocks,
+            "TILE_FIELDS": "\n".join(f"    block{t}: mat4x4f," for t in range(blocks)),
+            "TILE_BIAS": ", ".join(f"bias_pixels({t})" for t in range(blocks)),
+            "TILE_ACCUMULATE": "\n".join(accumulate(t) for t in range(blocks)),
+            "TILE_STORE": "\n".join(f"    store_pixels({t}, oy, ox0, tile.block{t});" for t in range(blocks))}
+
+
 class Conv3x3Kernel(ConvFamilyKernel):
     """The hot path — 3×3 stride-1 convolutions whose output has a multiple of 16 channels, with a
     written-out register tile of 4 pixels × 16 or 32 channels per invocation (conv3x3_tile.wgsl), in
@@ -352,9 +368,9 @@ class Conv3x3Kernel(ConvFamilyKernel):
     so do integrated GPUs (their workgroup memory is on-chip too, but the trade is unmeasured there).
     Both variants are tested for parity whatever the adapter (tests/test_nn_ops.py).
 
-    Tile width (``tile_blocks``): 32 channels (conv3x3_tile32.wgsl) in the direct variant wherever the
-    output has a multiple of 32 channels, else 16 (conv3x3_tile16.wgsl). On lavapipe input loads are
-    costly (a storage load is a scalar loop over the lanes; with them replaced by constants the
+    Tile width (``tile_blocks``, unrolled into conv3x3_tile_blocks.wgsl by ``tile_blocks_code``): 32
+    channels in the direct variant wherever the output has a multiple of 32 channels, else 16. On
+    lavapipe input loads are costly (a storage load is a scalar loop over the lanes; with them replaced by constants the
     16-channel tile runs 1.6× as fast), and the 32-channel tile does twice the multiply-adds per loaded
     pixel: on every 3×3 shape of the U-Net (3–32 input blocks, 128²–512²) it took 3–12% less CPU time
     in same-process A/Bs, the most at 16–32 input blocks, and no shape was slower; the whole U-Net ≈ 3%
@@ -382,7 +398,6 @@ class Conv3x3Kernel(ConvFamilyKernel):
 
     bindings = ("src", "dst", "weights", "header") + WINDOW_BINDINGS[1:]
     tile_x = 4
-    tile_modules = {4: "conv3x3_tile16.wgsl", 8: "conv3x3_tile32.wgsl"}  # output blocks -> tile module
 
     def __init__(self, ctx, precision: Precision, staged: bool = False, uniform_windows: bool = False):
         super().__init__(ctx, precision, self.tile_x, uniform_windows)
@@ -407,7 +422,7 @@ class Conv3x3Kernel(ConvFamilyKernel):
     def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView):
         top, left, _, _ = layer.pads
         pipeline = self.pipeline(
-            layer.activation, replacements={self.tile_modules[4]: self.tile_modules[packed.tile_c]},
+            layer.activation, **tile_blocks_code(packed.tile_c),
             IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
             OUT_H=dst.height, OUT_W=dst.width, PAD_TOP=top, PAD_LEFT=left,
             **self.weight_constants(packed, tuple(f"pair{p}_weight" for p in range(packed.splits))))
