@@ -16,7 +16,15 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from wgpu_rt.accel import bvh as bvh_module
-from wgpu_rt.accel.bvh import LEAF_COUNT_BITS, MAX_DEPTH, MAX_LEAF_SIZE, build_bvh, threaded_nodes, zero_area
+from wgpu_rt.accel.bvh import (
+    LEAF_COUNT_BITS,
+    MAX_DEPTH,
+    MAX_LEAF_SIZE,
+    build_box_bvh,
+    build_bvh,
+    threaded_nodes,
+    zero_area,
+)
 from wgpu_rt.accel.geometry import GeometryBuffers, compose_with_traversal
 from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
 from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
@@ -174,6 +182,28 @@ def test_structure_random_soup():
     check_structure(triangles, bvh)
     sizes = bvh.leaf_sizes
     assert sizes.max() <= MAX_LEAF_SIZE and 1.5 <= sizes.mean() <= MAX_LEAF_SIZE, sizes.mean()
+
+
+@pytest.mark.parametrize("count", [1, 2, 7, 40])
+def test_box_bvh_has_one_box_per_leaf(count):
+    """build_box_bvh (a two-level scene's top level): 2n - 1 nodes, each box alone in a leaf whose
+    bounds are its own, every parent around its children; repeated boxes too."""
+    rng = np.random.default_rng(count)
+    lo = rng.uniform(-3, 3, (count, 3)).astype(np.float32)
+    lo[count // 2:] = lo[:count - count // 2]                 # repeats
+    hi = lo + rng.uniform(0, 1, (count, 3)).astype(np.float32)
+    bvh = build_box_bvh(lo, hi)
+    nodes = bvh.nodes
+    assert len(nodes) == 2 * count - 1 and np.all(bvh.leaf_sizes == 1)
+    leaf = np.flatnonzero(nodes["count"] > 0)
+    boxes = bvh.order[nodes["first"][leaf]]
+    assert np.array_equal(np.sort(boxes), np.arange(count))
+    np.testing.assert_array_equal(nodes["lo"][leaf], lo[boxes])
+    np.testing.assert_array_equal(nodes["hi"][leaf], hi[boxes])
+    interior = np.flatnonzero(nodes["count"] == 0)
+    for child in (nodes["first"][interior], nodes["first"][interior] + 1):
+        assert np.all(nodes["lo"][child] >= nodes["lo"][interior])
+        assert np.all(nodes["hi"][child] <= nodes["hi"][interior])
 
 
 def test_structure_identical_and_degenerate_triangles():

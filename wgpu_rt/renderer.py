@@ -146,21 +146,31 @@ class Renderer:
 
     def _trace_factory(self):
         """Tracer passes by geometry: a frame whose objects did not move reuses the pass (and its BVH),
-        with only the camera and seed changed. Frame f is seeded seed + f (mod 2³²)."""
-        from .accel.geometry import GeometryBuffers
+        with only the camera and seed changed. When objects move, and the scene's emitters stand still,
+        the new pass holds a two-level geometry (InstancedGeometry: each mesh's BVH built once) that
+        later frames move in place; a pass's first frame keeps the single-level BVH, which traces
+        faster, so a single frame never pays for levels. Frame f is seeded seed + f (mod 2³²)."""
+        from .accel.geometry import GeometryBuffers, InstancedGeometry
         from .trace.trace_pass import TracePass
 
-        traced: dict[bytes, TracePass] = {}
+        traced: dict[bytes, TracePass] = {}   # by the frame's transforms, or follows_every_frame
+        follows_every_frame = b"instanced"
         scene = self.scene
+        can_instance = InstancedGeometry.suits(scene)
 
         def trace_for(frame: int, seed_frame: int):
             seed = (self.seed + seed_frame) % 2 ** 32
             key = b"".join(m.transform_at(frame).tobytes() for m in scene.meshes)
-            trace = traced.get(key)
-            if trace is None:   # objects moved: new BVH, new uploads
+            trace = traced.get(follows_every_frame) or traced.get(key)
+            if trace is None:   # objects moved: new BVH, new uploads (the last time, when instanced)
+                moved = bool(traced)
                 traced.clear()
-                trace = traced[key] = TracePass(self.ctx, scene, GeometryBuffers.build(scene, frame), self.width,
-                                                self.height, frame=frame, max_depth=self.max_depth, seed=seed)
+                if moved and can_instance:
+                    geometry, key = InstancedGeometry(scene, frame), follows_every_frame
+                else:
+                    geometry = GeometryBuffers.build(scene, frame)
+                trace = traced[key] = TracePass(self.ctx, scene, geometry, self.width, self.height, frame=frame,
+                                                max_depth=self.max_depth, seed=seed)
             else:
                 trace.set_frame(scene, frame, seed)
             return trace

@@ -131,8 +131,19 @@ def build_bvh(triangles: np.ndarray) -> Bvh:
         root = np.zeros(1, NODE_DTYPE)
         root["lo"], root["hi"], root["count"] = np.inf, np.inf, 1
         return Bvh(root, order)
-    tri_lo, tri_hi = triangles.min(axis=1), triangles.max(axis=1)
-    # Per triangle lo, hi, centroid as rows: one gather per level fetches everything binning needs.
+    return _build(triangles.min(axis=1), triangles.max(axis=1), order, count, MAX_LEAF_SIZE)
+
+
+def build_box_bvh(lo: np.ndarray, hi: np.ndarray) -> Bvh:
+    """A BVH over boxes (N ≥ 1, each (3,) ``lo`` ≤ ``hi``) with one box per leaf: the top level of a
+    two-level scene, whose boxes are its instances' world bounds."""
+    lo, hi = np.asarray(lo, np.float32), np.asarray(hi, np.float32)
+    return _build(lo, hi, np.arange(len(lo)), len(lo), 1)
+
+
+def _build(tri_lo: np.ndarray, tri_hi: np.ndarray, order: np.ndarray, count: int, max_leaf_size: int) -> Bvh:
+    """build_bvh over the bounds of items ``order[:count]``, leaves of at most ``max_leaf_size``."""
+    # Per item lo, hi, centroid as rows: one gather per level fetches everything binning needs.
     tri_bounds = np.concatenate([tri_lo.T, tri_hi.T, ((tri_lo + tri_hi) * 0.5).T])
     capacity = 2 * count
     node_lo = np.zeros((capacity, 3), np.float32)
@@ -174,7 +185,7 @@ def build_bvh(triangles: np.ndarray) -> Bvh:
         node_area = _surface_area(lo.astype(np.float64), hi.astype(np.float64))
         split_cost = TRAVERSAL_COST + best_cost / np.where(node_area > 0, node_area, 1.0)
         has_split = np.isfinite(best_cost)
-        must_split = counts > MAX_LEAF_SIZE
+        must_split = counts > max_leaf_size
         split = (must_split | (has_split & (split_cost < counts))) & (counts > 1) & (depth < MAX_DEPTH - 1)
         median = split & ~has_split
 
@@ -244,6 +255,12 @@ def threaded_nodes(bvh: Bvh, octant: int | None = None) -> np.ndarray:
     per-node triangle loop runs at least once even where it has nothing to do, so an interior node
     can test one triangle for free. Computed level by level: lifting and subtree sizes bottom-up
     (each subtree offers its fullest leaf to its parent), then depth-first positions top-down."""
+    return _lay_out(bvh, _thread(bvh), octant)
+
+
+def _thread(bvh: Bvh) -> tuple:
+    """What threaded_nodes computes whatever the child order: per level, its splits (interior nodes,
+    left children, child centre offsets), and per node its triangles word and its subtree's size."""
     nodes = bvh.nodes
     count = len(nodes)
     if len(bvh.order) >= 1 << (32 - LEAF_COUNT_BITS):
@@ -272,21 +289,30 @@ def threaded_nodes(bvh: Bvh, octant: int | None = None) -> np.ndarray:
         first[taker], owned[taker] = first[leaf] + owned[leaf], 1
         still = np.where(candidates >= 0, owned[np.maximum(candidates, 0)], 0)
         donor[interior] = candidates[np.argmax(still, axis=0), np.arange(len(interior))]
-    position = np.zeros(count, np.int64)
+    splits = []   # per level: its interior nodes, their left children, right centre − left centre
     for level in levels:
         interior = level[~is_leaf[level]]
-        near = nodes["first"][interior].astype(np.int64)
+        left = nodes["first"][interior].astype(np.int64)
+        splits.append((interior, left, _centers(nodes, left + 1) - _centers(nodes, left)))
+    return splits, (first << LEAF_COUNT_BITS) | owned, size
+
+
+def _lay_out(bvh: Bvh, threading: tuple, octant: int | None) -> np.ndarray:
+    """threaded_nodes' top-down part: depth-first positions in ``octant``'s child order."""
+    splits, triangles, size = threading
+    position = np.zeros(len(bvh.nodes), np.int64)
+    signs = np.where([octant >> axis & 1 for axis in range(3)], -1.0, 1.0) if octant is not None else None
+    for interior, near, offset in splits:
         far = near + 1
-        if octant is not None:
-            signs = np.where([octant >> axis & 1 for axis in range(3)], -1.0, 1.0)
-            right_first = (_centers(nodes, far) - _centers(nodes, near)) @ signs < 0
+        if signs is not None:
+            right_first = offset @ signs < 0
             near, far = np.where(right_first, far, near), np.where(right_first, near, far)
         position[near] = position[interior] + 1
         position[far] = position[interior] + 1 + size[near]
-    threaded = np.zeros(count, THREADED_NODE_DTYPE)
-    threaded["lo"][position], threaded["hi"][position] = nodes["lo"], nodes["hi"]
+    threaded = np.zeros(len(bvh.nodes), THREADED_NODE_DTYPE)
+    threaded["lo"][position], threaded["hi"][position] = bvh.nodes["lo"], bvh.nodes["hi"]
     threaded["skip"][position] = position + size
-    threaded["triangles"][position] = (first << LEAF_COUNT_BITS) | owned
+    threaded["triangles"][position] = triangles
     return threaded
 
 
@@ -301,4 +327,5 @@ def ordered_threaded_nodes(bvh: Bvh, orderings: int = ORDERINGS) -> np.ndarray:
     nearer along its direction first: its closest hit so far is short sooner and culls more boxes,
     which a single fixed order cannot do for every direction without a stack. ``orderings`` = 1 keeps
     only octant 0's copy (for scenes whose copies would not all fit a storage binding)."""
-    return np.concatenate([threaded_nodes(bvh, octant) for octant in range(orderings)])
+    threading = _thread(bvh)
+    return np.concatenate([_lay_out(bvh, threading, octant) for octant in range(orderings)])

@@ -1,14 +1,18 @@
-"""GeometryBuffers: a Scene at one frame as world-space triangles in BVH order (bind group 0).
+"""GeometryBuffers: a Scene at one frame as world-space triangles in BVH order (bind group 0), and
+InstancedGeometry: a Scene with moving meshes as two BVH levels that follow the frames.
 
 See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/accel/geometry_bindings.wgsl:
 
 0. ``bvh_nodes``: the BVH's 32-byte threaded nodes, one depth-first copy per direction octant
-   (``wgpu_rt.accel.bvh.ordered_threaded_nodes``).
-1. ``tri_positions``: three vec4f per triangle (xyz = world vertex, w = 0).
-2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, pad}`` (48 bytes): the three
-   world-space shading normals (the mesh's vertex normals, else its face normal) and the ids.
+   (``wgpu_rt.accel.bvh.ordered_threaded_nodes``); two-level: see InstancedGeometry.
+1. ``tri_positions``: three vec4f per triangle (xyz = world vertex, w = 0; two-level: in the space of
+   the triangle's bottom level).
+2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, instance}`` (48 bytes): the three
+   shading normals (the mesh's vertex normals, else its face normal; two-level: in the bottom level's
+   space, zero for meshes without vertex normals), the ids, and the triangle's instance (two-level).
 3. ``object_motion``: one column-major mat4x4f per object (mesh index): world at this frame → world
    at the previous frame.
+4. two-level only: ``instances``, INSTANCE_DTYPE per instance (wgsl/accel/instances.wgsl).
 """
 
 from __future__ import annotations
@@ -18,10 +22,23 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import shaders
-from .bvh import ORDERINGS, THREADED_NODE_DTYPE, Bvh, build_bvh, ordered_threaded_nodes
+from .bvh import (
+    LEAF_COUNT_BITS,
+    ORDERINGS,
+    THREADED_NODE_DTYPE,
+    Bvh,
+    build_box_bvh,
+    build_bvh,
+    ordered_threaded_nodes,
+)
 from ..errors import SceneError
 from ..scene.model import Scene
 from ..scene.transforms import transform_normals, transform_points
+
+
+# accel/bvh.wgsl imports NO_INSTANCES; a two-level scene's kernels swap in InstancedGeometry.instances_module.
+NO_INSTANCES = "accel/instances_none.wgsl"
+LEAF_MASK = (1 << LEAF_COUNT_BITS) - 1
 
 
 def scene_material_names(scene: Scene) -> list[str]:
@@ -36,6 +53,46 @@ def _face_normals(triangles: np.ndarray) -> np.ndarray:
     return np.where(length > 0, normals / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0]).astype(np.float32)
 
 
+def _mesh_triangles(mesh, transform: np.ndarray, face_normals: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``mesh``'s triangles (F, 3, 3) and per-vertex shading normals (F, 3, 3), both mapped by
+    ``transform`` (object → the space they are stored in). A mesh without vertex normals gets its face
+    normals, or with ``face_normals`` False zeros, which the kernels replace by the geometric normal
+    (an instance's world normal follows its world winding, which a mirroring transform reverses)."""
+    faces = np.asarray(mesh.faces, np.int64)
+    transform = np.asarray(transform, np.float64)
+    triangles = transform_points(transform, mesh.vertices)[faces]
+    if mesh.normals is None:
+        normals = np.repeat(_face_normals(triangles)[:, None] * face_normals, 3, axis=1)
+    else:
+        normals = transform_normals(transform, mesh.normals)[faces]
+    return triangles, normals
+
+
+def _material_ids(scene: Scene) -> list[int]:
+    """Per mesh, its material's index in scene_material_names(scene) (SceneError if unknown)."""
+    material_index = {name: i for i, name in enumerate(scene_material_names(scene))}
+    for mesh in scene.meshes:
+        if mesh.material not in material_index:
+            raise SceneError(f"scene {scene.name!r}: mesh {mesh.name!r}: unknown material {mesh.material!r}")
+    return [material_index[mesh.material] for mesh in scene.meshes]
+
+
+def object_motion(scene: Scene, frame: int) -> np.ndarray:
+    """(O, 4, 4) f32 per mesh: world at ``frame`` → world at the frame before."""
+    return np.asarray([mesh.transform_at(frame - 1).astype(np.float64)
+                       @ np.linalg.inv(mesh.transform_at(frame).astype(np.float64)) for mesh in scene.meshes],
+                      np.float32)
+
+
+def _check_triangles(scene: Scene, triangles: list[np.ndarray]) -> np.ndarray:
+    if not triangles or sum(len(t) for t in triangles) == 0:
+        raise SceneError(f"scene {scene.name!r}: no triangles to render")
+    joined = np.concatenate(triangles)
+    if not np.all(np.isfinite(joined)):
+        raise SceneError(f"scene {scene.name!r}: a transform produced NaN or infinite vertices")
+    return joined
+
+
 @dataclass
 class GeometryBuffers:
     triangles: np.ndarray          # (T, 3, 3) f32 world-space vertices, BVH order
@@ -45,34 +102,24 @@ class GeometryBuffers:
     object_motion: np.ndarray      # (O, 4, 4) f32 world at this frame → world at the previous frame
     bvh: Bvh
 
+    # The kernels' instance module: none (see InstancedGeometry).
+    instances_module = NO_INSTANCES
+
     @classmethod
     def build(cls, scene: Scene, frame: int = 0) -> "GeometryBuffers":
-        material_index = {name: i for i, name in enumerate(scene_material_names(scene))}
-        triangles, normals, materials, objects, motion = [], [], [], [], []
+        material_ids = _material_ids(scene)
+        triangles, normals, materials, objects = [], [], [], []
         for object_id, mesh in enumerate(scene.meshes):
-            if mesh.material not in material_index:
-                raise SceneError(f"scene {scene.name!r}: mesh {mesh.name!r}: unknown material {mesh.material!r}")
-            faces = np.asarray(mesh.faces, np.int64)
-            transform = mesh.transform_at(frame).astype(np.float64)
-            world = transform_points(transform, mesh.vertices)[faces]
-            if mesh.normals is None:
-                shading = np.repeat(_face_normals(world)[:, None], 3, axis=1)
-            else:
-                shading = transform_normals(transform, mesh.normals)[faces]
+            world, shading = _mesh_triangles(mesh, mesh.transform_at(frame))
             triangles.append(world)
             normals.append(shading)
-            materials.append(np.full(len(faces), material_index[mesh.material], np.uint32))
-            objects.append(np.full(len(faces), object_id, np.uint32))
-            motion.append(mesh.transform_at(frame - 1).astype(np.float64) @ np.linalg.inv(transform))
-        if not triangles or sum(len(t) for t in triangles) == 0:
-            raise SceneError(f"scene {scene.name!r}: no triangles to render")
-        all_triangles = np.concatenate(triangles)
-        if not np.all(np.isfinite(all_triangles)):
-            raise SceneError(f"scene {scene.name!r}: a transform produced NaN or infinite vertices")
+            materials.append(np.full(len(world), material_ids[object_id], np.uint32))
+            objects.append(np.full(len(world), object_id, np.uint32))
+        all_triangles = _check_triangles(scene, triangles)
         bvh = build_bvh(all_triangles)
         order = bvh.order
         return cls(all_triangles[order], np.concatenate(normals)[order], np.concatenate(materials)[order],
-                   np.concatenate(objects)[order], np.asarray(motion, np.float32), bvh)
+                   np.concatenate(objects)[order], object_motion(scene, frame), bvh)
 
     @property
     def triangle_count(self) -> int:
@@ -87,37 +134,246 @@ class GeometryBuffers:
 
     def packed_arrays(self, orderings: int = ORDERINGS) -> list[np.ndarray]:
         """The four arrays of bind group 0, laid out byte for byte as wgsl/accel/bvh.wgsl reads them."""
-        count = self.triangle_count
-        positions = np.zeros((count, 3, 4), np.float32)
-        positions[..., :3] = self.triangles
-        attributes = np.zeros((count, 12), np.float32)
-        attributes[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]] = self.shading_normals.reshape(count, 9)
-        attributes_u32 = attributes.view(np.uint32)
-        attributes_u32[:, 3], attributes_u32[:, 7] = self.material_ids, self.object_ids
-        column_major = np.ascontiguousarray(np.transpose(self.object_motion, (0, 2, 1)))
-        return [ordered_threaded_nodes(self.bvh, orderings), positions, attributes, column_major]
+        positions, attributes = _pack_triangles(self.triangles, self.shading_normals, self.material_ids,
+                                                self.object_ids)
+        return [ordered_threaded_nodes(self.bvh, orderings), positions, attributes, _column_major(self.object_motion)]
 
     @property
     def fits_uniform(self) -> bool:
         """Whether the nodes and positions fit UNIFORM_GEOMETRY_WORDS' buffers."""
-        node_bytes = ORDERINGS * self.bvh.node_count * THREADED_NODE_DTYPE.itemsize
-        return max(node_bytes, self.triangle_count * POSITION_BYTES) <= UNIFORM_GEOMETRY_BYTES
+        return _fits_uniform(ORDERINGS * self.bvh.node_count, self.triangle_count)
 
     def upload(self, ctx, uniform_words: bool = False) -> list:
         """GPU buffers in binding order 0..3 of group 0 (DeviceLimitError if one is too big): all storage,
         or (``uniform_words``, for kernels composed with UNIFORM_GEOMETRY_WORDS) the nodes and positions
         in zero-padded uniform buffers."""
-        labels = ("BVH nodes", "triangle positions", "triangle attributes", "object motion")
-        arrays = self.packed_arrays(self.orderings(ctx))
-        for array, label in zip(arrays, labels):
-            ctx.check_buffer_size(array.nbytes, f"{label} ({self.triangle_count} triangles)")
-        buffers = [ctx.upload(array, label=label) for array, label in zip(arrays[2:], labels[2:])]
-        if not uniform_words:
-            return [ctx.upload(array, label=label) for array, label in zip(arrays[:2], labels[:2])] + buffers
-        if not self.fits_uniform:
+        if uniform_words and not self.fits_uniform:
             raise ValueError(f"{self.triangle_count} triangles exceed the uniform geometry buffers")
-        words = [array.tobytes().ljust(UNIFORM_GEOMETRY_BYTES, b"\0") for array in arrays[:2]]
-        return [ctx.uniform(data, label=label) for data, label in zip(words, labels[:2])] + buffers
+        return _upload(ctx, self.packed_arrays(self.orderings(ctx)), self.triangle_count, uniform_words)
+
+
+GEOMETRY_LABELS = ("BVH nodes", "triangle positions", "triangle attributes", "object motion", "instances")
+
+
+def _upload(ctx, arrays: list[np.ndarray], triangle_count: int, uniform_words: bool) -> list:
+    """``arrays`` (bind group 0 in binding order) as GPU buffers, the first two in zero-padded uniform
+    buffers with ``uniform_words``."""
+    labels = GEOMETRY_LABELS[:len(arrays)]
+    for array, label in zip(arrays, labels):
+        ctx.check_buffer_size(array.nbytes, f"{label} ({triangle_count} triangles)")
+    buffers = [ctx.upload(array, label=label) for array, label in zip(arrays[2:], labels[2:])]
+    if not uniform_words:
+        return [ctx.upload(array, label=label) for array, label in zip(arrays[:2], labels[:2])] + buffers
+    words = [array.tobytes().ljust(UNIFORM_GEOMETRY_BYTES, b"\0") for array in arrays[:2]]
+    return [ctx.uniform(data, label=label) for data, label in zip(words, labels[:2])] + buffers
+
+
+def _fits_uniform(node_count: int, triangle_count: int) -> bool:
+    return max(node_count * THREADED_NODE_DTYPE.itemsize, triangle_count * POSITION_BYTES) <= UNIFORM_GEOMETRY_BYTES
+
+
+def _pack_triangles(triangles, shading_normals, material_ids, object_ids, instance_ids=None):
+    """Bindings 1 and 2: positions (T, 3, 4) f32 and attributes (T, 12) words."""
+    count = len(triangles)
+    positions = np.zeros((count, 3, 4), np.float32)
+    positions[..., :3] = triangles
+    attributes = np.zeros((count, 12), np.float32)
+    attributes[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]] = shading_normals.reshape(count, 9)
+    attributes_u32 = attributes.view(np.uint32)
+    attributes_u32[:, 3], attributes_u32[:, 7] = material_ids, object_ids
+    if instance_ids is not None:
+        attributes_u32[:, 11] = instance_ids
+    return positions, attributes
+
+
+def _column_major(matrices: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(np.transpose(matrices, (0, 2, 1)))
+
+
+# Instance records (wgsl/accel/geometry_bindings.wgsl, Instance): mat4x3f and mat3x3f columns are vec3f
+# padded to 16 bytes.
+INSTANCE_DTYPE = np.dtype([("to_world", "<f4", (4, 4)), ("normal_to_world", "<f4", (3, 4))])
+# A top-level box is widened by this much of its size so that rounding in the corners' transform (and
+# in the ray's on the GPU) never cuts off an instance's edge.
+INSTANCE_BOX_PADDING = 1e-5
+
+
+class InstancedGeometry:
+    """A scene with moving meshes as two levels (ARCHITECTURE.md, "Geometry"): a bottom-level BVH per
+    moving mesh over its object-space triangles and one over all the static meshes in world space, each
+    built once; a top-level BVH over the bottom levels' world boxes (their instances), rebuilt per frame.
+
+    Bind group 0 as GeometryBuffers', plus binding 4, the instance records (accel/instances.wgsl):
+    ``bvh_nodes`` holds the top level's ORDERINGS copies (always: it is small, and the kernels find its
+    copies as they find a single-level tree's) and the instances' entries (``top_level``), then each
+    bottom level's ``orderings(ctx)`` copies (its triangles' indices offset to its place in the
+    triangle buffers). A frame whose transforms changed rewrites only the top level and entries, the
+    instance records and the object motion (``frame_arrays``, ``write_frame``). Emissive meshes must
+    not move (the emitter table is built once from ``triangles``, world space at ``frame``; ``suits``).
+    """
+
+    instances_module = "accel/instances.wgsl"
+
+    def __init__(self, scene: Scene, frame: int = 0):
+        self.scene = scene
+        material_ids = _material_ids(scene)
+        with_faces = [i for i, mesh in enumerate(scene.meshes) if len(mesh.faces)]
+        if not with_faces:
+            raise SceneError(f"scene {scene.name!r}: no triangles to render")
+        static = [i for i in with_faces if not scene.meshes[i].is_animated]
+        moving = [i for i in with_faces if scene.meshes[i].is_animated]
+        # Per bottom level: its meshes and whether it is stored in world space (the static ones).
+        self.levels = ([(static, True)] if static else []) + [([i], False) for i in moving]
+        stored, normals, materials, objects, instances, self._bvhs, self._first_triangles = ([] for _ in range(7))
+        first_triangle = 0
+        for instance, (meshes, in_world) in enumerate(self.levels):
+            level = [_mesh_triangles(scene.meshes[i], scene.meshes[i].transform_at(frame) if in_world
+                                     else np.eye(4), face_normals=False) for i in meshes]
+            triangles = _check_triangles(scene, [t for t, _ in level])
+            bvh = build_bvh(triangles)
+            order = bvh.order
+            stored.append(triangles[order])
+            normals.append(np.concatenate([n for _, n in level])[order])
+            materials.append(np.repeat([material_ids[i] for i in meshes], [len(t) for t, _ in level])[order])
+            objects.append(np.repeat(meshes, [len(t) for t, _ in level])[order])
+            instances.append(np.full(len(triangles), instance))
+            self._bvhs.append(bvh)
+            self._first_triangles.append(first_triangle)
+            first_triangle += len(triangles)
+        if first_triangle >= 1 << (32 - LEAF_COUNT_BITS):
+            raise SceneError(f"scene {scene.name!r}: {first_triangle} triangles do not fit the node layout")
+        self.stored_triangles = np.concatenate(stored)       # (T, 3, 3) f32 in each level's space
+        self.shading_normals = np.concatenate(normals)       # (T, 3, 3) f32 in each level's space
+        self.material_ids = np.concatenate(materials).astype(np.uint32)
+        self.object_ids = np.concatenate(objects).astype(np.uint32)
+        self.instance_ids = np.concatenate(instances).astype(np.uint32)
+        self._root_boxes = np.array([[bvh.nodes["lo"][0], bvh.nodes["hi"][0]] for bvh in self._bvhs],
+                                    np.float64)                                            # (I, 2, 3)
+        self._hittable = np.flatnonzero(np.all(np.isfinite(self._root_boxes), axis=(1, 2)))
+        self.top_node_count = max(1, 2 * len(self._hittable) - 1)
+        self._node_counts = np.array([bvh.node_count for bvh in self._bvhs])
+        self.frame = frame
+        self.triangles = self.world_triangles(frame)
+
+    @staticmethod
+    def suits(scene: Scene) -> bool:
+        """Whether ``scene`` has a moving mesh and no moving emitter."""
+        return any(mesh.is_animated for mesh in scene.meshes) and not InstancedGeometry.moves_emitters(scene)
+
+    @staticmethod
+    def moves_emitters(scene: Scene) -> bool:
+        """Whether an emissive mesh of ``scene`` moves (then its emitter table changes every frame)."""
+        return any(mesh.is_animated and mesh.material in scene.materials
+                   and scene.materials[mesh.material].is_emissive for mesh in scene.meshes)
+
+    @property
+    def triangle_count(self) -> int:
+        return len(self.stored_triangles)
+
+    def instance_transforms(self, frame: int) -> np.ndarray:
+        """(I, 4, 4) f64 object → world per instance at ``frame`` (identity for the static level)."""
+        return np.array([np.eye(4) if in_world else self.scene.meshes[meshes[0]].transform_at(frame)
+                         for meshes, in_world in self.levels], np.float64)
+
+    def transform_key(self, frame: int) -> bytes:
+        """What ``frame_arrays(frame)`` depends on: the transforms at ``frame`` and the frame before."""
+        return b"".join(m.transform_at(f).tobytes() for f in (frame, frame - 1) for m in self.scene.meshes)
+
+    def world_triangles(self, frame: int) -> np.ndarray:
+        """(T, 3, 3) f32 world-space vertices at ``frame``, in buffer order."""
+        world = np.empty_like(self.stored_triangles)
+        for instance, transform in enumerate(self.instance_transforms(frame)):
+            mine = self.instance_ids == instance
+            world[mine] = transform_points(transform, self.stored_triangles[mine].reshape(-1, 3)).reshape(-1, 3, 3)
+        return world
+
+    def node_count(self, orderings: int = ORDERINGS) -> int:
+        """Node slots in binding 0 with ``orderings`` copies of each bottom level (see top_level)."""
+        return ORDERINGS * self.top_node_count + 2 * len(self.levels) + orderings * int(self._node_counts.sum())
+
+    def orderings(self, ctx) -> int:
+        """Direction-ordered copies of each bottom level to upload: ORDERINGS, or 1 where that many
+        exceed one storage binding (as GeometryBuffers.orderings)."""
+        limit = min(ctx.limits["max-storage-buffer-binding-size"], ctx.limits["max-buffer-size"])
+        return ORDERINGS if self.node_count() * THREADED_NODE_DTYPE.itemsize <= limit else 1
+
+    def bottom_nodes(self, orderings: int = ORDERINGS) -> np.ndarray:
+        """Every bottom level's ``orderings`` threaded node copies, one level after another."""
+        nodes = [ordered_threaded_nodes(bvh, orderings) for bvh in self._bvhs]
+        for threaded, first_triangle in zip(nodes, self._first_triangles):
+            threaded["triangles"] += np.uint32(first_triangle << LEAF_COUNT_BITS)
+        return np.concatenate(nodes)
+
+    def top_level(self, frame: int, orderings: int = ORDERINGS) -> tuple[np.ndarray, np.ndarray]:
+        """The start of binding 0 at ``frame`` and the instance records (binding 4), for bottom levels of
+        ``orderings`` copies. The nodes: the top level's ORDERINGS threaded copies (a leaf's triangles
+        word is ``(instance << LEAF_COUNT_BITS) | 1``), then two slots per instance, its entry: the
+        columns of world → object with, in their fourth words, its bottom level's first node, node count
+        and copies (the walk fetches them as it fetches nodes; wgsl/accel/bvh.wgsl, instance_entry)."""
+        transforms = self.instance_transforms(frame)
+        if not np.all(np.isfinite(transforms)):
+            raise SceneError(f"scene {self.scene.name!r}: a transform at frame {frame} is not finite")
+        inverse = np.linalg.inv(transforms)
+        records = np.zeros(len(self.levels), INSTANCE_DTYPE)
+        records["to_world"][:, :, :3] = np.transpose(transforms[:, :3, :4], (0, 2, 1))
+        records["normal_to_world"][:, :, :3] = inverse[:, :3, :3]   # columns of the inverse transpose
+        entries = np.zeros((len(self.levels), 4, 4), np.float32)
+        entries[:, :, :3] = np.transpose(inverse[:, :3, :4], (0, 2, 1))
+        level_nodes = orderings * self._node_counts
+        words = entries.view(np.uint32)
+        words[:, 0, 3] = self.node_count(orderings) - level_nodes.sum() + np.cumsum(level_nodes) - level_nodes
+        words[:, 1, 3], words[:, 2, 3] = self._node_counts, orderings
+        entry_nodes = entries.reshape(-1).view(THREADED_NODE_DTYPE)
+        if len(self._hittable) == 0:    # no triangle with area: a root no ray enters (as build_bvh's)
+            top = np.zeros(ORDERINGS, THREADED_NODE_DTYPE)
+            top["lo"], top["hi"], top["skip"] = np.inf, np.inf, 1
+            return np.concatenate([top, entry_nodes]), records
+        corners = np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, 8).T   # (8, 3)
+        boxes = self._root_boxes[self._hittable]                                            # (H, 2, 3)
+        points = boxes[:, corners, [0, 1, 2]]                                               # (H, 8, 3)
+        mapped = points @ np.transpose(transforms[self._hittable, :3, :3], (0, 2, 1)) \
+            + transforms[self._hittable, None, :3, 3]
+        lo, hi = mapped.min(axis=1), mapped.max(axis=1)
+        pad = INSTANCE_BOX_PADDING * np.maximum(np.max(hi - lo, axis=1, keepdims=True),
+                                                np.max(np.abs(mapped), axis=(1, 2))[:, None])
+        bvh = build_box_bvh(np.nextafter((lo - pad).astype(np.float32), -np.inf),
+                            np.nextafter((hi + pad).astype(np.float32), np.inf))
+        top = ordered_threaded_nodes(bvh)
+        owned = top["triangles"]
+        leaf = (owned & LEAF_MASK) != 0
+        top["triangles"][leaf] = (self._hittable[bvh.order[owned[leaf] >> LEAF_COUNT_BITS]].astype(np.uint32)
+                                  << LEAF_COUNT_BITS) | 1
+        return np.concatenate([top, entry_nodes]), records
+
+    def frame_arrays(self, frame: int, orderings: int = ORDERINGS) -> list[np.ndarray]:
+        """What a frame changes: the top-level nodes (the start of binding 0), the object motion
+        (binding 3) and the instance records (binding 4)."""
+        top, records = self.top_level(frame, orderings)
+        return [top, _column_major(object_motion(self.scene, frame)), records]
+
+    def packed_arrays(self, orderings: int = ORDERINGS) -> list[np.ndarray]:
+        """The five arrays of bind group 0 at ``self.frame``."""
+        top, motion, records = self.frame_arrays(self.frame, orderings)
+        positions, attributes = _pack_triangles(self.stored_triangles, self.shading_normals, self.material_ids,
+                                                self.object_ids, self.instance_ids)
+        return [np.concatenate([top, self.bottom_nodes(orderings)]), positions, attributes, motion, records]
+
+    @property
+    def fits_uniform(self) -> bool:
+        """Whether the nodes and positions fit UNIFORM_GEOMETRY_WORDS' buffers."""
+        return _fits_uniform(self.node_count(), self.triangle_count)
+
+    def upload(self, ctx, uniform_words: bool = False) -> list:
+        """GPU buffers in binding order 0..4 of group 0 (see GeometryBuffers.upload)."""
+        if uniform_words and not self.fits_uniform:
+            raise ValueError(f"{self.triangle_count} triangles exceed the uniform geometry buffers")
+        return _upload(ctx, self.packed_arrays(self.orderings(ctx)), self.triangle_count, uniform_words)
+
+    def write_frame(self, ctx, buffers: list, frame: int) -> None:
+        """Point ``buffers`` (from ``upload``) at ``frame``: queue writes of the per-frame arrays only."""
+        top, motion, records = self.frame_arrays(frame, self.orderings(ctx))
+        for buffer, array in ((buffers[0], top), (buffers[3], motion), (buffers[4], records)):
+            ctx.device.queue.write_buffer(buffer, 0, np.ascontiguousarray(array).tobytes())
 
 
 # accel/geometry_bindings.wgsl imports GEOMETRY_WORDS (storage); kernels whose geometry fits may swap in

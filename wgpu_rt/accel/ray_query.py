@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import compose_with_traversal
+from .geometry import NO_INSTANCES, compose_with_traversal
 
 WORKGROUP_SIZE = 64
 QUERY_RAY_DTYPE = np.dtype([("origin", "<f4", 3), ("t_max", "<f4"), ("dir", "<f4", 3), ("offset", "<u4"),
@@ -39,7 +39,8 @@ class RayQuery:
         """``traversal``: the traversal module (default: geometry.traversal_module(ctx))."""
         self.ctx = ctx
         self.geometry_buffers = geometry.upload(ctx)
-        code = compose_with_traversal(ctx, "accel/ray_query.wgsl", traversal)
+        code = compose_with_traversal(ctx, "accel/ray_query.wgsl", traversal,
+                                      replacements={NO_INSTANCES: geometry.instances_module})
         self.pipelines = {entry: ctx.compute_pipeline(code, entry, label=f"ray_query.{entry}")
                           for entry in ("intersect", "occluded")}
 
@@ -47,7 +48,9 @@ class RayQuery:
         """Record one dispatch of ``entry`` over ``ray_count`` rays into ``encoder``; ``outputs`` are
         group 1 bindings 1..3 (None where the entry point does not use one)."""
         pipeline = self.pipelines[entry]
-        geometry = self.geometry_buffers if entry == "intersect" else [*self.geometry_buffers[:2], None, None]
+        # `occluded` reads no triangle attributes or motion (the auto layout drops those bindings).
+        geometry = (self.geometry_buffers if entry == "intersect"
+                    else [None if i in (2, 3) else b for i, b in enumerate(self.geometry_buffers)])
         compute = encoder.begin_compute_pass()
         compute.set_pipeline(pipeline)
         compute.set_bind_group(0, self.ctx.bind_group(pipeline, geometry, group=0))

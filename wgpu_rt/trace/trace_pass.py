@@ -15,7 +15,9 @@ import numpy as np
 
 from ..accel.geometry import (
     GEOMETRY_WORDS,
+    NO_INSTANCES,
     UNIFORM_GEOMETRY_WORDS,
+    InstancedGeometry,
     compose_with_traversal,
     scene_material_names,
 )
@@ -65,10 +67,11 @@ class BufferPlacement:
 
 
 def trace_kernel_source(ctx, traversal: str | None = None, placement: BufferPlacement = BufferPlacement(),
-                        kernel: str = KERNEL) -> str:
+                        instances: str = NO_INSTANCES, kernel: str = KERNEL) -> str:
     """The kernel with the traversal module ``traversal`` (default: the one that suits ``ctx``'s
-    adapter, wgpu_rt.accel.geometry.traversal_module) and the buffer ``placement``."""
-    replacements = {}
+    adapter, wgpu_rt.accel.geometry.traversal_module), the buffer ``placement`` and the geometry's
+    ``instances`` module (its ``instances_module``)."""
+    replacements = {NO_INSTANCES: instances}
     if placement.tables:
         replacements[STORAGE_TABLES] = UNIFORM_TABLES
     if placement.geometry:
@@ -105,9 +108,9 @@ _layouts: dict = {}
 
 
 def trace_pipeline(ctx, features: SceneFeatures, geometry_bindings: int, traversal: str | None = None,
-                   placement: BufferPlacement = BufferPlacement()):
+                   placement: BufferPlacement = BufferPlacement(), instances: str = NO_INSTANCES):
     """The kernel specialized to ``features`` (pipelines are cached by GpuContext)."""
-    return ctx.compute_pipeline(trace_kernel_source(ctx, traversal, placement), "main",
+    return ctx.compute_pipeline(trace_kernel_source(ctx, traversal, placement, instances), "main",
                                 constants=features.constants(), label=f"trace {features}",
                                 layout=trace_layout(ctx, geometry_bindings, placement))
 
@@ -160,9 +163,16 @@ class TracePass(ComputePass):
         if (self.placement.tables and not fitting.tables) or (self.placement.geometry and not fitting.geometry):
             raise ValueError(f"{self.placement} asks for uniform buffers beyond their capacity ({fitting} fit)")
         geometry_buffers = geometry.upload(ctx, uniform_words=self.placement.geometry)
-        self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement)
-        self._kernel_options = (traversal, self.placement, len(geometry_buffers))
+        self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement,
+                                       geometry.instances_module)
+        self._kernel_options = (traversal, self.placement, geometry.instances_module, len(geometry_buffers))
         self._aux_pipelines: dict[int, object] = {}
+        # A two-level geometry (InstancedGeometry) follows the frame: set_frame rewrites its per-frame part.
+        self._geometry, self._geometry_buffers = geometry, geometry_buffers
+        instanced = isinstance(geometry, InstancedGeometry)
+        if instanced and InstancedGeometry.moves_emitters(scene):
+            raise ValueError(f"scene {scene.name!r}: an emissive mesh moves, which its emitter table cannot follow")
+        self._placed = geometry.transform_key(geometry.frame) if instanced else None
         # Enough samples per dispatch to keep the device busy and the tail short (a subgroup runs until
         # its last invocation has traced its last path: ~11% idle turns at 16 samples, 15% at 8 on
         # cornell); few enough to stay around a second on lavapipe and well within the kernel's
@@ -189,8 +199,13 @@ class TracePass(ComputePass):
 
     def set_frame(self, scene: Scene, frame: int, seed: int) -> None:
         """Point the pass at another frame of the same geometry (camera, previous camera, seed): the
-        uploaded geometry, materials and emitters are kept."""
+        uploaded geometry, materials and emitters are kept; a two-level geometry's instances move to
+        the frame (only its small per-frame buffers are rewritten, and only when they change)."""
         self._params = self._frame_params(scene, frame, self._max_depth, seed, self._emitter_table)
+        placed = self._geometry.transform_key(frame) if self._placed is not None else None
+        if placed != self._placed:
+            self._geometry.write_frame(self.ctx, self._geometry_buffers, frame)
+            self._placed = placed
 
     def _frame_params(self, scene, frame, max_depth, seed, emitters) -> np.ndarray:
         w, h = self.width, self.height
@@ -251,9 +266,9 @@ class TracePass(ComputePass):
         shows the reflected or the refracted surface at random."""
         pipeline = self._aux_pipelines.get(samples)
         if pipeline is None:
-            traversal, placement, geometry_bindings = self._kernel_options
+            traversal, placement, instances, geometry_bindings = self._kernel_options
             pipeline = self._aux_pipelines[samples] = self.ctx.compute_pipeline(
-                trace_kernel_source(self.ctx, traversal, placement, AUX_KERNEL), "aux",
+                trace_kernel_source(self.ctx, traversal, placement, instances, AUX_KERNEL), "aux",
                 constants={**self.features.constants(), "AUX_SAMPLES": samples}, label=f"aux {self.features}",
                 layout=trace_layout(self.ctx, geometry_bindings, placement))
         shading = self._cached_bind_group(1, [self._params_buffer(SampleSchedule()), self._materials, self._emitters,

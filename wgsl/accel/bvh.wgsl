@@ -27,6 +27,7 @@
 
 // #import accel/geometry_bindings.wgsl
 // #import accel/traversal_lanes.wgsl
+// #import accel/instances_none.wgsl
 
 const NO_HIT: u32 = 0xffffffffu;
 const BVH_TINY_DIR: f32 = 1e-20;     // direction components below this are treated as this (no 1/0)
@@ -129,41 +130,122 @@ fn triangle_normal(p: TrianglePositions) -> vec3f {
 // loop_passes: how many times the walk's loops went round (see LOOP_BUDGET in trace/trace.wgsl).
 struct RayPairHit { hit: Hit, occluded: bool, geometric_normal: vec3f, loop_passes: u32 }
 
+// What a walk has found so far: the closest hit (its triangle as stored and the instance it belongs
+// to), whether the shadow ray is blocked, and the loop passes spent.
+struct WalkState {
+    hit: Hit,
+    hit_triangle: TrianglePositions,
+    hit_instance: u32,
+    occluded: bool,
+    loop_passes: u32,
+}
+
+// Walks the tree whose (direction-ordered) copy holds nodes ordering .. ordering + node_count with
+// `ray` and `shadow_ray` (in the space of its triangles; `instance` names it in hits), updating `state`.
+fn walk_tree(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
+             ordering: u32, node_count: u32, instance: u32) {
+    var index = 0u;
+    loop {
+        (*state).loop_passes += 1u;
+        if index >= node_count { break; }
+        let node = bvh_node(ordering + index);
+        let enter = packet_any(box_hit(node.lo, node.hi, ray, (*state).hit.t)
+                               || (!(*state).occluded && box_hit(node.lo, node.hi, shadow_ray, shadow_length)));
+        let first = node.triangles >> LEAF_COUNT_BITS;
+        let end = first + select(0u, node.triangles & LEAF_COUNT_MASK, enter);
+        (*state).loop_passes += end - first + 1u;   // the triangle loop goes round once even when empty
+        for (var prim = first; prim < end; prim += 1u) {
+            let p = bvh_triangle(prim);
+            let h = triangle_hit(ray, p, (*state).hit.t);
+            if h.x < (*state).hit.t {
+                (*state).hit = Hit(h.x, h.y, h.z, prim);
+                (*state).hit_triangle = p;
+                (*state).hit_instance = instance;
+            }
+            (*state).occluded = (*state).occluded || triangle_hit(shadow_ray, p, shadow_length).x < shadow_length;
+        }
+        index = select(node.skip, index + 1u, enter);
+    }
+}
+
+// How the walk enters an instance: world → object, and where its bottom level's node copies are (copy
+// k at first_node + node_count · k, `orderings` copies). Stored as two node slots after the top level's
+// 8 copies (wgpu_rt.accel.geometry.InstancedGeometry.top_level) and fetched as nodes are, so a packet
+// reads them once (a per-lane read of a storage record costs a loop over the lanes on SIMD drivers).
+struct InstanceEntry { to_object: mat4x3f, first_node: u32, node_count: u32, orderings: u32 }
+
+fn instance_entry(top_count: u32, instance: u32) -> InstanceEntry {
+    let a = bvh_node(8u * top_count + 2u * instance);
+    let b = bvh_node(8u * top_count + 2u * instance + 1u);
+    return InstanceEntry(mat4x3f(a.lo, a.hi, b.lo, b.hi), a.skip, a.triangles, b.skip);
+}
+
 // The closest hit of (origin, dir) in (0, t_max) (t_max = 0: no such ray) and whether anything lies
 // in (0, shadow_length) along (shadow_origin, shadow_dir) (only when trace_shadow).
+//
+// Two-level scenes (HAS_INSTANCES, accel/instances.wgsl): the top level's leaves are instances. Entering
+// one walks its bottom level (the node copy of the object-space direction's octant) with both rays
+// moved into its object space, direction not normalized, so a ray's t means the same point in both
+// spaces and hit.t and shadow_length carry over. A packet enters an instance together (the leaf and
+// packet_any are the same for every lane); each lane moves its own rays. The instance step sits in a
+// loop of its own, outside the bottom-level walk, because SIMD drivers run a branch's body under a
+// mask on every pass of the loop that holds it.
 fn trace_ray_pair(origin: vec3f, dir: vec3f, t_max: f32, shadow_origin: vec3f, shadow_dir: vec3f,
                   shadow_length: f32, trace_shadow: bool) -> RayPairHit {
     let ray = traversal_ray(origin, dir);
     let shadow_ray = traversal_ray(shadow_origin, shadow_dir);
-    var hit = Hit(t_max, 0.0, 0.0, NO_HIT);
-    var hit_triangle = TrianglePositions(vec3f(0.0), vec3f(1.0, 0.0, 0.0), vec3f(0.0, 1.0, 0.0));
-    var occluded = !trace_shadow;
+    var state = WalkState(Hit(t_max, 0.0, 0.0, NO_HIT),
+                          TrianglePositions(vec3f(0.0), vec3f(1.0, 0.0, 0.0), vec3f(0.0, 1.0, 0.0)),
+                          NO_INSTANCE, !trace_shadow, 0u);
     let node_count = bvh_node_count();
     // Start of the node copy of the walk's order (copy 0 when the buffer holds only one).
     let ordering = node_count * (packet_octant(dir) % bvh_orderings());
-    var index = 0u;
-    var loop_passes = 0u;
-    loop {
-        loop_passes += 1u;
-        if index >= node_count { break; }
-        let node = bvh_node(ordering + index);
-        let enter = packet_any(box_hit(node.lo, node.hi, ray, hit.t)
-                               || (!occluded && box_hit(node.lo, node.hi, shadow_ray, shadow_length)));
-        let first = node.triangles >> LEAF_COUNT_BITS;
-        let end = first + select(0u, node.triangles & LEAF_COUNT_MASK, enter);
-        loop_passes += end - first + 1u;   // the triangle loop goes round once even when empty
-        for (var prim = first; prim < end; prim += 1u) {
-            let p = bvh_triangle(prim);
-            let h = triangle_hit(ray, p, hit.t);
-            if h.x < hit.t {
-                hit = Hit(h.x, h.y, h.z, prim);
-                hit_triangle = p;
+    if !HAS_INSTANCES {
+        walk_tree(&state, ray, shadow_ray, shadow_length, ordering, node_count, NO_INSTANCE);
+    } else {
+        var index = 0u;
+        loop {
+            state.loop_passes += 1u;
+            if index >= node_count { break; }
+            let node = bvh_node(ordering + index);
+            let enter = packet_any(box_hit(node.lo, node.hi, ray, state.hit.t)
+                                   || (!state.occluded && box_hit(node.lo, node.hi, shadow_ray, shadow_length)));
+            index = select(node.skip, index + 1u, enter);
+            if enter && (node.triangles & LEAF_COUNT_MASK) != 0u {   // a leaf: one instance
+                let instance = node.triangles >> LEAF_COUNT_BITS;
+                let entry = instance_entry(node_count, instance);
+                let object_dir = entry.to_object * vec4f(dir, 0.0);
+                walk_tree(&state, traversal_ray(entry.to_object * vec4f(origin, 1.0), object_dir),
+                          traversal_ray(entry.to_object * vec4f(shadow_origin, 1.0),
+                                        entry.to_object * vec4f(shadow_dir, 0.0)),
+                          shadow_length,
+                          entry.first_node + entry.node_count * (packet_octant(object_dir) % entry.orderings),
+                          entry.node_count, instance);
             }
-            occluded = occluded || triangle_hit(shadow_ray, p, shadow_length).x < shadow_length;
         }
-        index = select(node.skip, index + 1u, enter);
+        if state.hit_instance != NO_INSTANCE {
+            state.hit_triangle = instance_triangle_to_world(state.hit_instance, state.hit_triangle);
+        }
     }
-    return RayPairHit(hit, occluded, triangle_normal(hit_triangle), loop_passes);
+    return RayPairHit(state.hit, state.occluded, triangle_normal(state.hit_triangle), state.loop_passes);
+}
+
+// A triangle of `instance`'s bottom level in world space.
+fn instance_triangle_to_world(instance: u32, p: TrianglePositions) -> TrianglePositions {
+    let to_world = instance_record(instance).to_world;
+    return TrianglePositions(to_world * vec4f(p.a, 1.0), to_world * vec4f(p.b, 1.0), to_world * vec4f(p.c, 1.0));
+}
+
+// The triangle's vertices as stored (world space, or its instance's object space), by this invocation.
+fn stored_triangle(prim: u32) -> TrianglePositions {
+    return TrianglePositions(triangle_vertex(prim, 0u), triangle_vertex(prim, 1u), triangle_vertex(prim, 2u));
+}
+
+fn world_triangle(prim: u32) -> TrianglePositions {
+    if HAS_INSTANCES {
+        return instance_triangle_to_world(tri_attributes[prim].instance, stored_triangle(prim));
+    }
+    return stored_triangle(prim);
 }
 
 fn scene_intersect(origin: vec3f, dir: vec3f, tmax: f32) -> Hit {
@@ -175,13 +257,13 @@ fn scene_occluded(origin: vec3f, dir: vec3f, tmax: f32) -> bool {
 }
 
 fn tri_vertices(prim: u32) -> array<vec3f, 3> {
-    return array<vec3f, 3>(triangle_vertex(prim, 0u), triangle_vertex(prim, 1u), triangle_vertex(prim, 2u));
+    let p = world_triangle(prim);
+    return array<vec3f, 3>(p.a, p.b, p.c);
 }
 
-// Unit normal of the triangle's plane, oriented by its winding (counter-clockwise = front).
+// Unit normal of the triangle's plane in world space, oriented by its winding (counter-clockwise = front).
 fn tri_geometric_normal(prim: u32) -> vec3f {
-    return triangle_normal(TrianglePositions(triangle_vertex(prim, 0u), triangle_vertex(prim, 1u),
-                                             triangle_vertex(prim, 2u)));
+    return triangle_normal(world_triangle(prim));
 }
 
 // Interpolated vertex normal (the file's normals, else the face normal); falls back to the geometric
@@ -193,7 +275,10 @@ fn tri_shading_normal(prim: u32, u: f32, v: f32) -> vec3f {
 // tri_shading_normal for a caller that already holds the geometric normal (it is not fetched again).
 fn tri_shading_normal_or(prim: u32, u: f32, v: f32, geometric_normal: vec3f) -> vec3f {
     let a = tri_attributes[prim];
-    let n = (1.0 - u - v) * a.n0 + u * a.n1 + v * a.n2;
+    var n = (1.0 - u - v) * a.n0 + u * a.n1 + v * a.n2;
+    if HAS_INSTANCES {
+        n = instance_record(a.instance).normal_to_world * n;
+    }
     let len2 = dot(n, n);
     return select(geometric_normal, n * inverseSqrt(len2), len2 > 1e-12);
 }

@@ -16,7 +16,14 @@ const LEAF_COUNT_MASK: u32 = 15u;
 // (first << LEAF_COUNT_BITS) | count of the triangles tested on entering it (interior nodes: 0 or 1).
 struct BvhNode { lo: vec3f, skip: u32, hi: vec3f, triangles: u32 }
 struct TrianglePositions { a: vec3f, b: vec3f, c: vec3f }
-struct TriAttributes { n0: vec3f, material: u32, n1: vec3f, object: u32, n2: vec3f, _pad: u32 }
+// `instance`: the instance whose bottom level holds the triangle (accel/instances.wgsl; 0 in a
+// single-level scene, whose normals are in world space already).
+struct TriAttributes { n0: vec3f, material: u32, n1: vec3f, object: u32, n2: vec3f, instance: u32 }
+// What a hit on an instance needs (wgpu_rt.accel.geometry.INSTANCE_DTYPE): its object → world transform
+// and the inverse transpose of its linear part, for normals. (The walk's world → object transform and
+// where the bottom level's nodes are come with the nodes: accel/bvh.wgsl, instance_entry.)
+struct Instance { to_world: mat4x3f, normal_to_world: mat3x3f }
+const NO_INSTANCE: u32 = 0xffffffffu;
 
 @group(0) @binding(2) var<storage, read> tri_attributes: array<TriAttributes>;
 @group(0) @binding(3) var<storage, read> object_motion: array<mat4x4f>;     // world now → world previous frame
