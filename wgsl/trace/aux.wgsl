@@ -18,15 +18,14 @@
 // #import trace/surface.wgsl
 
 override AUX_SAMPLES: u32 = 4u;
-const AUX_TILE: u32 = 8u;                 // == the tracer's tile: a workgroup of 64 is an 8×8 tile
 const AUX_SEED_SALT: u32 = 0x5bd1e995u;   // aux samples draw numbers no trace sample draws
 const AUX_FAR: f32 = 3.0e38;
 const AUX_LOOP_BUDGET: u32 = 49152u;
 
-@compute @workgroup_size(AUX_TILE * AUX_TILE)
+@compute @workgroup_size(TILE * TILE)
 fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) local_index: u32) {
     begin_traversal(local_index);
-    let xy = tile.xy * AUX_TILE + vec2u(local_index % AUX_TILE, local_index / AUX_TILE);
+    let xy = tile_pixel(tile, local_index);
     let inside = xy.x < params.width && xy.y < params.height;
     let pixel = select(0u, xy.y * params.width + xy.x, inside);
     let seed = params.seed ^ AUX_SEED_SALT;

@@ -4,6 +4,13 @@
 
 // #import trace/trace_bindings.wgsl
 
+const TILE: u32 = 8u;   // a workgroup is TILE × TILE pixels, == wgpu_rt.trace.trace_pass.TILE
+
+// The pixel of invocation `local_index` of workgroup `tile` (it may lie past the image's edge).
+fn tile_pixel(tile: vec3u, local_index: u32) -> vec2u {
+    return tile.xy * TILE + vec2u(local_index % TILE, local_index / TILE);
+}
+
 fn camera_ray_direction(film: vec2f) -> vec3f {
     let ndc = vec2f(2.0 * film.x / f32(params.width) - 1.0, 1.0 - 2.0 * film.y / f32(params.height));
     return normalize(params.camera_forward + ndc.x * params.camera_right + ndc.y * params.camera_up);

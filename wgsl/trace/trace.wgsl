@@ -25,7 +25,6 @@
 // #import trace/camera.wgsl
 // #import trace/surface.wgsl
 
-const TILE: u32 = 8u;   // a workgroup is TILE × TILE pixels, == wgpu_rt.trace.trace_pass.TILE
 const RR_DEPTH: u32 = 5u;
 // Mesa's llvmpipe/lavapipe ends every loop of an invocation once its loops have gone round 65535 times
 // in total in one dispatch (an infinite-loop guard), which would cut paths and BVH walks short. So an
@@ -188,7 +187,7 @@ fn fold_mean(mean: f32, batch_sum: f32, count_before: f32, batch_count: f32) -> 
 @compute @workgroup_size(TILE * TILE)
 fn main(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) local_index: u32) {
     begin_traversal(local_index);
-    let xy = tile.xy * TILE + vec2u(local_index % TILE, local_index / TILE);
+    let xy = tile_pixel(tile, local_index);
     let inside = xy.x < params.width && xy.y < params.height;
     let pixel = select(0u, xy.y * params.width + xy.x, inside);
     let plane = params.width * params.height;
