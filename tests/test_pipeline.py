@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from wgpu_rt.frame.adaptive import AdaptiveSettings
+from wgpu_rt.frame.planes import DENOISER_INPUT
 from wgpu_rt.frame.temporal import TemporalSettings
 from wgpu_rt.frame.unpack import converge
 from wgpu_rt.frame.tonemap import tonemap
@@ -306,3 +307,20 @@ def test_a_frame_of_several_samples_hands_over_from_the_denoiser_to_their_mean(g
         assert (counts == spp).all() and radiance.max() > 0
         expected = converge(np.zeros_like(radiance), radiance, counts) if spp > 1 else np.zeros_like(radiance)
         np.testing.assert_allclose(image, expected, rtol=1e-5, atol=1e-7)
+
+
+def test_wiring_is_checked_from_the_declared_planes(gpu):
+    """A stage reading a plane no earlier stage writes (FrameBuffers would give it zeros) is refused
+    when the pipeline is built; the pipelines every mode builds pass the check (the tests above)."""
+    from wgpu_rt.frame.pipeline import Stage, check_wiring
+    from wgpu_rt.frame.planes import DENOISED
+    from wgpu_rt.frame.tonemap import TonemapPass
+    from wgpu_rt.frame.unpack import UnpackPass
+    from wgpu_rt.trace.trace_pass import TracePass
+
+    tonemap = TonemapPass(gpu, W, H, DENOISED)
+    with pytest.raises(ValueError, match="TonemapPass reads denoised"):
+        check_wiring([tonemap], written=TracePass.outputs)
+    check_wiring([UnpackPass(gpu, W, H), tonemap], written=TracePass.outputs)
+    with pytest.raises(ValueError, match="denoiser reads denoiser_input"):
+        check_wiring([Stage("denoiser", (DENOISER_INPUT,), ())], written=TracePass.outputs)

@@ -228,7 +228,8 @@ class ExtraSamplesPass(ComputePass):
 
     def __init__(self, ctx, width: int, height: int, settings: AdaptiveSettings, source: PlaneSpec = HEAT):
         self.settings, self.source = settings, source
-        self.inputs = (source,)
+        # The uniform sampler spreads every sample evenly: it binds the source but does not depend on it.
+        self.inputs = () if settings.sampler == "uniform" else (source,)
         k = settings.exponent
 
         def kernel(entry, **constants):

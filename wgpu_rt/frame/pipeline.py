@@ -21,7 +21,7 @@ import wgpu
 
 from ..errors import ModelError
 from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, FrameBuffers, PlaneSpec
-from ..trace.trace_pass import SampleSchedule
+from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
 from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
 from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT
@@ -81,6 +81,28 @@ class StageTimer:
     def stage_ms(self, names: list[str], raw: bytes) -> dict[str, float]:
         ticks = np.frombuffer(raw, np.uint64, count=len(names)).astype(np.float64)
         return {name: (ticks[i] - ticks[i - 1]) / 1e6 for i, name in enumerate(names) if i}
+
+
+@dataclass(frozen=True)
+class Stage:
+    """A step of the frame that is not a ComputePass (a network, a copy), as far as wiring goes."""
+
+    name: str
+    inputs: tuple[PlaneSpec, ...]
+    outputs: tuple[PlaneSpec, ...]
+
+
+def check_wiring(stages, written=()) -> None:
+    """Every plane a stage declares as an input must be written by an earlier one (or be in ``written``,
+    the tracer's planes): FrameBuffers would hand a plane nobody writes over as zeros, silently. Passes
+    connect by these declarations; this makes a wrong connection an error when the pipeline is built."""
+    available = {plane.name for plane in written}
+    for stage in stages:
+        missing = [plane.name for plane in stage.inputs if plane.name not in available]
+        if missing:
+            name = getattr(stage, "name", type(stage).__name__)
+            raise ValueError(f"frame pipeline: {name} reads {', '.join(missing)}, which no earlier stage writes")
+        available |= {plane.name for plane in stage.outputs}
 
 
 @dataclass
@@ -150,6 +172,7 @@ class FramePipeline:
         self.color = color
         self.tonemap = (TonemapPass(ctx, width, height, color, operator, exposure, srgb, output)
                         if operator is not None else None)
+        check_wiring(self._stages(), written=TracePass.outputs)
         self.timer = StageTimer(ctx) if (ctx.has_timestamps if timings is None else timings) else None
         self.layout = self._layout([color, *(AOV_PLANES[name] for name in aovs)])
         self._readbacks = [ctx.device.create_buffer(size=self.layout.nbytes, label=f"readback {i}",
@@ -158,6 +181,25 @@ class FramePipeline:
         self._submitted = 0
         self.previous_frame: int | None = None
         self.seed_frame = 0
+
+    def _stages(self) -> list:
+        """What a frame runs after the tracer, in order, each with the planes it declares it reads and
+        writes (networks and the pipeline's own copies included), for ``check_wiring``."""
+        stages = [self.depth_max]
+        if self.adaptive is not None:
+            if self.adaptive.sampler == "variance":
+                stages += [Stage("copy of the first probe sample", (RADIANCE,), (HALF_RADIANCE,)),
+                           self.half_buffer_error]
+            elif self.adaptive.sampler == "heat":
+                stages += [self.pack_error, Stage("error predictor", (ERROR_INPUT,), (HEAT,))]
+            stages.append(self.extra_samples)
+        if self.denoiser is not None:
+            stages += [self.pack, Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack]
+        if self.temporal is not None:
+            stages.append(self.temporal)
+        if self.tonemap is not None:
+            stages.append(self.tonemap)
+        return stages
 
     def _layout(self, planes: list[PlaneSpec]) -> ReadbackLayout:
         offsets, offset = {}, 0
