@@ -165,14 +165,16 @@ def sampler_errors(scene, size, args, gold, settings: AdaptiveSettings, error_mo
     the seed giving one."""
     runs = []
     for seed in range(args.seeds):
-        pipeline = hdr_pipeline(scene, size, args, denoise=args.denoised, seed=seed, adaptive=settings,
-                                error_model=error_model(seed) if callable(error_model) else error_model)
-        output = linear_frame(pipeline)
-        run = raw_errors(gold, pipeline.buffers.read("radiance").transpose(1, 2, 0))
+        predictor = error_model(seed) if callable(error_model) else error_model
+        renderer = hdr_pipeline(scene, size, args, denoise=args.denoised, seed=seed, adaptive=settings,
+                                networks={"error_predictor": predictor} if predictor is not None else None)
+        output = linear_frame(renderer)
+        buffers = renderer.pipeline.buffers   # the traced planes under the denoised output
+        run = raw_errors(gold, buffers.read("radiance").transpose(1, 2, 0))
         if args.denoised:
             run[DENOISED] = metrics.rel_mse(gold, output)
-        run["mean spp"] = float(pipeline.buffers.read("spp").mean())
-        run["capped"] = float(np.mean(pipeline.buffers.read(EXTRA_SAMPLES.name) >= settings.cap))
+        run["mean spp"] = float(buffers.read("spp").mean())
+        run["capped"] = float(np.mean(buffers.read(EXTRA_SAMPLES.name) >= settings.cap))
         runs.append(run)
     return {name: float(np.mean([r[name] for r in runs])) for name in runs[0]}
 

@@ -88,7 +88,7 @@ def main() -> None:
     per_frame = hdr_pipeline(scene, size, args, denoise=True)
     settings = TemporalSettings(clamp=args.clamp, gamma=args.gamma, confidence_floor=args.confidence_floor)
     temporal = hdr_pipeline(scene, size, args, denoise=True, temporal=settings)
-    print("temporal confidence network: " + ("yes" if temporal.temporal.confidence_model else "no (none in models)"))
+    print("temporal confidence network: " + ("yes" if temporal.pipeline.temporal.confidence else "no (none in models)"))
     sequences = {"per-frame ours": [linear_frame(per_frame, f) for f in frames],
                  "per-frame OIDN": [noisy_oidn(f) for f in frames],
                  "temporal ours": [linear_frame(temporal, f) for f in frames]}

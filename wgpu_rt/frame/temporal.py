@@ -194,27 +194,26 @@ class TemporalPass(ComputePass):
 
     Each execute is told the frame's ``change`` (``frame_change``'s answer, or ``converge``: the source is
     the denoised mean of every sample of a static view, in the radiance and spp planes). With a
-    ``confidence_model`` (an object with ``record(encoder, input_buffer, height, width) ->
-    output_buffer``, such as
-    ``wgpu_rt.nn.WgslModel``) and the frame's ``depth_max`` buffer, moving frames run the Confidence
+    ``confidence`` network (an object with ``record(encoder, input_buffer, height, width) ->
+    output_buffer``, such as ``wgpu_rt.nn.WgslModel``) and the frame's ``depth_max`` buffer, moving frames run the Confidence
     Predictor on the packed (current, reprojected) pair and blend by its output.
     """
 
     outputs = (TEMPORAL, HISTORY)
 
     def __init__(self, ctx, width: int, height: int, source: PlaneSpec,
-                 settings: TemporalSettings = TemporalSettings(), confidence_model=None, depth_max=None):
-        if confidence_model is not None and depth_max is None:
+                 settings: TemporalSettings = TemporalSettings(), confidence=None, depth_max=None):
+        if confidence is not None and depth_max is None:
             raise ValueError("a confidence model needs the frame's depth_max buffer")
         self.ctx, self.width, self.height = ctx, width, height
-        self.source, self.settings, self.confidence_model = source, settings, confidence_model
+        self.source, self.settings, self.confidence = source, settings, confidence
         self.inputs = (source, DEPTH, NORMAL, MOTION, RADIANCE, SPP)
-        constants = {**settings.constants(), "USE_CONFIDENCE": confidence_model is not None}
+        constants = {**settings.constants(), "USE_CONFIDENCE": confidence is not None}
         self.kernels = {entry: FrameKernel(ctx, "frame/temporal.wgsl", entry, bindings, width, height,
                                            constants)
                         for entry, bindings in ENTRY_BINDINGS.items()}
         self.pack_confidence = (PackConfidencePass(ctx, width, height, source, REPROJECTED, depth_max)
-                                if confidence_model is not None else None)
+                                if confidence is not None else None)
 
     def execute(self, encoder, buffers, change: str) -> None:
         planes = {"color": buffers.get(self.source), "depth": buffers.get(DEPTH),
@@ -233,10 +232,9 @@ class TemporalPass(ComputePass):
             raise ValueError(f"unknown frame change {change!r}")
         planes |= {"motion": buffers.get(MOTION), "reprojected": buffers.get(REPROJECTED)}
         self.kernels["reproject"].dispatch(encoder, planes)
-        if self.confidence_model is not None:
+        if self.confidence is not None:
             self.pack_confidence.execute(encoder, buffers)
-            confidence = self.confidence_model.record(encoder, buffers.get(CONFIDENCE_INPUT),
-                                                      self.height, self.width)
+            confidence = self.confidence.record(encoder, buffers.get(CONFIDENCE_INPUT), self.height, self.width)
         else:
             confidence = buffers.get(CONFIDENCE)   # bound but never read
         self.kernels["blend"].dispatch(encoder, planes | {"confidence": confidence})
