@@ -2,8 +2,10 @@
 added objects are shapes no training view has).
 
 Denoiser at 1 spp: PSNR / SSIM / FLIP / relMSE against gold, beside Intel OIDN (pyoidn, ``hdr=True``,
-the same colour/albedo/normal) and brute force at rising spp; "equivalent spp" is the sample count at
-which brute force reaches the denoiser's relMSE (log-log interpolation of the brute-force curve).
+the same colour/albedo/normal, at each ``--oidn-quality``: balanced and high by default; on CUDA when
+benchmarks/peers.py finds it, else on the CPU) and brute force at rising spp; "equivalent spp" is the
+sample count at which brute force reaches the denoiser's relMSE (log-log interpolation of the
+brute-force curve). Time per view is numpy in, numpy out on both sides (uploads and readbacks included).
 Error predictor: Spearman correlation of its heatmap with the true |1 spp − gold| log error. Confidence:
 ROC AUC of 1 − its output (it predicts that history is valid) against the true disocclusion mask, fed
 what the temporal pass packs (the current frame denoised by the denoiser under test, the history
@@ -15,7 +17,7 @@ model scores the rest). The dataset's gold is noisy enough that its noise alone 
 after a σ 1.5 px blur (which ignores what noise is left). All networks run in the WGSL engine.
 
     python benchmarks/bench_denoise.py --data data/dataset [DIR ...] [--models models] [--extra-spp 64 256] [--gold-spp 1024]
-        [--per-view] [--mask-spp 512] [--skip-denoiser]
+        [--per-view] [--mask-spp 512] [--skip-denoiser] [--oidn-quality fast balanced high]
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from common import save_array
+from peers import DEVICE_NAMES, QUALITIES, oidn_denoise, oidn_devices, preferred
 from wgpu_rt import metrics
 from wgpu_rt.frame.denoise import denoise
 from wgpu_rt.dataset import DatasetConfig, TruthEngine, load_views, plan_views, read_manifest
@@ -133,13 +136,18 @@ def main() -> None:
     parser.add_argument("--skip-denoiser", action="store_true",
                         help="only the error predictor and the confidence model (no denoiser/OIDN/brute-force "
                              "table, no renders beyond --mask-spp's)")
+    parser.add_argument("--oidn-quality", nargs="+", default=["balanced", "high"], choices=QUALITIES,
+                        help="OIDN rows, one per quality (on CUDA when benchmarks/peers.py finds it, else the CPU)")
     args = parser.parse_args()
 
     models = Path(args.models)
     denoiser = WgslModel(models / "denoiser.onnx", precision=args.precision)
     error_model = WgslModel(models / "error_predictor.onnx", precision=args.precision)
     confidence_model = WgslModel(models / "confidence.onnx", precision=args.precision)
-    table = DenoiserTable()
+    devices, skipped = oidn_devices()
+    for line in skipped:
+        print(line)
+    table = DenoiserTable(preferred(devices), args.oidn_quality)
     spearman = []
     auc: dict[str, dict[str, list[float]]] = {}
     for data in args.data:
@@ -184,34 +192,42 @@ def main() -> None:
 
 
 class DenoiserTable:
-    """The denoiser beside OIDN and brute force at rising spp on each view's frame 0, pooled over the
-    dataset folders given, printed as one table with equivalent spp and time per view."""
+    """The denoiser beside OIDN (each quality, on ``oidn_device``; no OIDN rows when it is None) and brute
+    force at rising spp on each view's frame 0, pooled over the dataset folders given, printed as one
+    table with equivalent spp and time per view."""
 
-    def __init__(self):
+    OURS = "ours (1 spp)"
+
+    def __init__(self, oidn_device: str | None, qualities: list[str]):
+        self.oidn_device = oidn_device
+        self.oidn = {f"OIDN {quality} (1 spp)": quality for quality in (qualities if oidn_device else [])}
         self.rows: dict[str, list[dict]] = {}
-        self.seconds = {"ours": 0.0, "oidn": 0.0}
+        self.seconds = dict.fromkeys([self.OURS, *self.oidn], 0.0)
         self.views = 0
 
-    def add_views(self, args, data: Path, views, denoiser, gold_override: dict, dataset_gold_spp: int) -> None:
-        import pyoidn
+    def denoisers(self, denoiser) -> dict:
+        """Method name → function of the 1-spp images returning the denoised colour."""
+        ours = {self.OURS: lambda noisy: denoise(denoiser, noisy["color"], noisy["albedo"], noisy["normal"],
+                                                 noisy["depth"])}
+        return ours | {name: lambda noisy, quality=quality: oidn_denoise(noisy["color"], noisy["albedo"],
+                                                                         noisy["normal"], quality, self.oidn_device)
+                       for name, quality in self.oidn.items()}
 
+    def add_views(self, args, data: Path, views, denoiser, gold_override: dict, dataset_gold_spp: int) -> None:
         extra = (render_test_views(data, {v.view_id for v in views}, args.extra_spp, seed=10_000)
                  if args.extra_spp else {})
-        if not self.views:   # warm-up: pipeline compilation is not denoising time
-            first = views[0].frames[0].noisy[1]
-            denoise(denoiser, first["color"], first["albedo"], first["normal"], first["depth"])
-            pyoidn.denoise(np.ascontiguousarray(first["color"]), hdr=True)
+        denoisers = self.denoisers(denoiser)
+        if not self.views:   # warm-up: pipeline compilation and OIDN's set-up are not denoising time
+            for run in denoisers.values():
+                run(views[0].frames[0].noisy[1])
         for view in views:
             frame = view.frames[0]
             gold, noisy = gold_override.get(view.view_id, frame.gold["color"]), frame.noisy[1]
-            started = time.perf_counter()
-            ours = denoise(denoiser, noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"])
-            self.seconds["ours"] += time.perf_counter() - started
-            started = time.perf_counter()
-            oidn = pyoidn.denoise(np.ascontiguousarray(noisy["color"]), np.ascontiguousarray(noisy["albedo"]),
-                                  np.ascontiguousarray(noisy["normal"]), hdr=True)
-            self.seconds["oidn"] += time.perf_counter() - started
-            candidates = {"ours (1 spp)": ours, "OIDN (1 spp)": oidn}
+            candidates = {}
+            for name, run in denoisers.items():
+                started = time.perf_counter()
+                candidates[name] = run(noisy)
+                self.seconds[name] += time.perf_counter() - started
             for spp, render in sorted({**{s: frame.noisy[s]["color"] for s in view.spp},
                                        **extra.get(view.view_id, {})}.items()):
                 candidates[f"brute {spp} spp"] = render
@@ -221,27 +237,30 @@ class DenoiserTable:
                 self.rows.setdefault(name, []).append(metrics.all_metrics(gold, image))
             self.views += 1
             if args.per_view:
-                ours_psnr, oidn_psnr = (self.rows[name][-1]["psnr"] for name in ("ours (1 spp)", "OIDN (1 spp)"))
-                print(f"  {data}/{view.view_id} {view.scene:15s} PSNR ours {ours_psnr:6.2f} OIDN {oidn_psnr:6.2f} "
-                      f"(OIDN {oidn_psnr - ours_psnr:+.2f} dB)")
+                psnr = {name: self.rows[name][-1]["psnr"] for name in denoisers}
+                print(f"  {data}/{view.view_id} {view.scene:15s} PSNR ours {psnr[self.OURS]:6.2f}"
+                      + "".join(f", {name.removesuffix(' (1 spp)')} {value:6.2f} ({value - psnr[self.OURS]:+.2f} dB)"
+                                for name, value in psnr.items() if name != self.OURS))
 
     def print(self) -> None:
         rows = self.rows
-        keys = list(rows["ours (1 spp)"][0])
-        print(f"{'method':18s}" + "".join(f"{k:>10s}" for k in keys) + "     views")
+        keys = list(rows[self.OURS][0])
+        print(f"{'method':22s}" + "".join(f"{k:>10s}" for k in keys) + "     views")
         means = {name: {k: float(np.mean([r[k] for r in values])) for k in keys} for name, values in rows.items()}
         for name, m in means.items():
-            print(f"{name:18s}" + "".join(f"{m[k]:10.4f}" for k in keys) + f"{len(rows[name]):10d}")
+            print(f"{name:22s}" + "".join(f"{m[k]:10.4f}" for k in keys) + f"{len(rows[name]):10d}")
         brute = sorted((int(n.split()[1]), m) for n, m in means.items()
                        if n.startswith("brute") and len(rows[n]) == self.views)
         display_mse = lambda m: 10 ** (-m["psnr"] / 10)  # noqa: E731  (the MSE behind the PSNR)
-        for name in ("ours (1 spp)", "OIDN (1 spp)"):
+        for name in self.seconds:
             by_rel_mse = equivalent_spp([b for b, _ in brute], [m["rel_mse"] for _, m in brute], means[name]["rel_mse"])
             by_psnr = equivalent_spp([b for b, _ in brute], [display_mse(m) for _, m in brute], display_mse(means[name]))
             print(f"equivalent spp of {name}: {by_rel_mse} by relMSE, {by_psnr} by PSNR")
-        print(f"time per view: ours {self.seconds['ours'] / self.views:.3f} s (WGSL on the adapter), "
-              f"OIDN {self.seconds['oidn'] / self.views:.3f} s (CPU); ratio ours/OIDN "
-              f"{self.seconds['ours'] / max(self.seconds['oidn'], 1e-9):.2f}")
+        ours = self.seconds[self.OURS] / self.views
+        print(f"time per view: ours {ours:.3f} s (WGSL on the adapter)"
+              + "".join(f"; {name.removesuffix(' (1 spp)')} {seconds / self.views:.3f} s "
+                        f"({DEVICE_NAMES[self.oidn_device]}), ours ÷ it {self.seconds[self.OURS] / max(seconds, 1e-9):.2f}"
+                        for name, seconds in self.seconds.items() if name != self.OURS))
 
 
 if __name__ == "__main__":

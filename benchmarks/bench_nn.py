@@ -1,4 +1,4 @@
-"""U-Net inference: the WGSL engine (naive → tiled → fp16 steps) against onnxruntime CPU, same run.
+"""U-Net inference: the WGSL engine (naive → tiled → fp16 steps) against onnxruntime, torch and OIDN, same run.
 
 For each size it prints ms per frame (wall clock, best run) and CPU seconds per frame (this process's
 threads, lavapipe's workers included: on a shared machine this is the stable number, and the ratio
@@ -16,7 +16,18 @@ candidates, before the timed frames, and caches the choice in the user's cache f
 the same 2×2 transposed-convolution kernel (conv_transpose.wgsl, 4 input pixels per invocation) and its
 dispatches count as conv dispatches.
 
+Peers at the same sizes, in the same run (benchmarks/peers.py finds them; an absent one prints one
+"skipped (why)" line): torch running the same ONNX file (the layers our engine lowers it to) on the CPU
+and, with a CUDA GPU, through cuDNN in fp32 and fp16; Intel OIDN (colour + albedo + normal, HDR) at
+each ``--oidn-quality`` on the CPU and on CUDA. OIDN is a different network (its size set by the
+quality, its own pre- and post-processing): its rows say what a production denoiser costs at that
+size, not the same FLOPs.
+Peer times are best of the repeats after warm-up, with inputs already on the peer's device (CUDA ones
+between CUDA events); "ours ÷ peer" divides the fastest engine step's wall time by the peer's, and
+"CPU s ÷ peer" its CPU seconds by a CPU peer's when our adapter is a CPU one (lavapipe).
+
     python3 benchmarks/bench_nn.py --sizes 256 512            # add 1080p for the full-HD run (slow)
+    python3 benchmarks/bench_nn.py --model models/denoiser.onnx   # the shipped denoiser instead
 """
 
 from __future__ import annotations
@@ -29,6 +40,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+import peers
 
 SIZES = {"256": (256, 256), "512": (512, 512), "1080p": (1080, 1920)}
 STEPS = {"naive": {"precision": "fp32", "conv_tiling": "none"},
@@ -62,17 +75,6 @@ def fma_ceiling(ctx, iterations: int = 4096, invocations: int = 64 * 512) -> flo
     return invocations * iterations * 4 * 4 * 2 / best / 1e9
 
 
-def timed(run, repeats: int) -> tuple[float, float]:
-    """(best wall seconds, best CPU seconds of this process) over ``repeats`` calls of ``run``."""
-    walls, cpus = [], []
-    for _ in range(repeats):
-        wall, cpu = time.perf_counter(), time.process_time()
-        run()
-        walls.append(time.perf_counter() - wall)
-        cpus.append(time.process_time() - cpu)
-    return min(walls), min(cpus)
-
-
 def time_onnxruntime(path: Path, x: np.ndarray, repeats: int) -> tuple[float, float]:
     import onnxruntime as ort
 
@@ -80,7 +82,7 @@ def time_onnxruntime(path: Path, x: np.ndarray, repeats: int) -> tuple[float, fl
     options.intra_op_num_threads = os.cpu_count()
     session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
     session.run(None, {"input": x})
-    return timed(lambda: session.run(None, {"input": x}), repeats)
+    return peers.best_seconds(lambda: session.run(None, {"input": x}), repeats)
 
 
 def time_engine(model, x: np.ndarray, repeats: int) -> tuple[float, float, float, int]:
@@ -98,7 +100,7 @@ def time_engine(model, x: np.ndarray, repeats: int) -> tuple[float, float, float
         ctx.device.queue.submit([encoder.finish()])
         ctx.read(output, nbytes=16)
 
-    wall, cpu = timed(frame, repeats)
+    wall, cpu = peers.best_seconds(frame, repeats)
     dispatches = model.dispatches(height, width, input_buffer)
     query_set = ctx.device.create_query_set(type=wgpu.QueryType.timestamp, count=2 * len(dispatches))
     resolved = ctx.storage(16 * len(dispatches), usage=wgpu.BufferUsage.QUERY_RESOLVE)
@@ -114,25 +116,70 @@ def time_engine(model, x: np.ndarray, repeats: int) -> tuple[float, float, float
     return wall, cpu, conv_seconds, sum(dispatches[i].flops for i in conv)
 
 
+def print_peer_rows(label: str, x: np.ndarray, networks: list, oidn_devices: list[str], qualities: list[str],
+                    repeats: int, flops: int, ours: tuple[str, float, float], cpu_adapter: bool) -> None:
+    """The peers' rows at one size: torch on each of ``networks`` and OIDN on each device at each quality,
+    each against ``ours`` (the fastest engine step: name, wall seconds, CPU seconds). A peer that fails
+    here (out of memory, a driver error) prints one "skipped (why)" row."""
+    _, _, height, width = x.shape
+    step, our_seconds, our_cpu = ours
+    timers = [(network.label, flops, lambda network=network: peers.time_torch(network, x, repeats))
+              for network in networks]
+    timers += [(f"OIDN {peers.DEVICE_NAMES[device]} {quality}", None,
+                lambda device=device, quality=quality: peers.time_oidn(device, quality, height, width, repeats))
+               for device in oidn_devices for quality in qualities]
+    print(f"{label:>10} {f'peer (ours = {step})':>31} {'ms/frame':>9} {'CPU s':>7} {'GFLOP/s':>8} "
+          f"{'ours ÷ peer':>11} {'CPU s ÷ peer':>12}")
+    for name, peer_flops, measure in timers:
+        try:
+            seconds, cpu = measure()
+        except RuntimeError as err:   # torch's out-of-memory errors and OIDN's failures are RuntimeErrors
+            print(f"{label:>10} {peers.skipped(name, str(err).splitlines()[0])}")
+            continue
+        rate = f"{peer_flops / seconds / 1e9:8.1f}" if peer_flops else f"{'':8}"
+        cpu_text = f"{cpu:7.2f}" if cpu is not None else f"{'':7}"
+        cpu_ratio = f"{our_cpu / cpu:11.2f}x" if cpu_adapter and cpu is not None else ""
+        print(f"{label:>10} {name:>31} {seconds * 1e3:9.1f} {cpu_text} {rate} {our_seconds / seconds:10.2f}x "
+              f"{cpu_ratio}".rstrip())
+        sys.stdout.flush()
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", nargs="+", default=["256", "512"], choices=list(SIZES))
     parser.add_argument("--steps", nargs="+", default=list(STEPS), choices=list(STEPS))
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--model", type=Path, metavar="ONNX",
+                        help="the network to run (default: an untrained UNet() with the training defaults' "
+                             "widths, the one BENCHMARKS.md reports)")
+    parser.add_argument("--oidn-quality", nargs="+", default=list(peers.QUALITIES), choices=peers.QUALITIES,
+                        help="OIDN peer rows, one per quality and device")
     args = parser.parse_args(argv)
 
     import torch
 
     from wgpu_rt.errors import WgpuRtError
     from wgpu_rt.gpu import get_context
-    from wgpu_rt.train.networks import UNet, export_onnx
     from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.graph import load_graph
+    from wgpu_rt.train.networks import UNet, export_onnx
 
     ctx = get_context()
     torch.manual_seed(args.seed)
-    path = export_onnx(UNet(), Path(tempfile.mkdtemp()) / "unet.onnx")
-    print(f"adapter: {ctx.label}   CPU cores: {os.cpu_count()}")
+    path = args.model or export_onnx(UNet(), Path(tempfile.mkdtemp()) / "unet.onnx")
+    try:
+        channels = load_graph(path).input_channels
+    except WgpuRtError as err:   # a missing or unsupported --model
+        parser.error(str(err))
+    print(f"adapter: {ctx.label}   CPU cores: {os.cpu_count()}   network: {args.model or 'UNet() (untrained)'}")
+    torch_devices, skipped = peers.torch_devices()
+    oidn_devices, oidn_skipped = peers.oidn_devices()
+    for line in skipped + oidn_skipped:
+        print(line)
+    networks = [peers.TorchNetwork(path, device, precision) for device in torch_devices
+                for precision in peers.torch_precisions(device)]
+    cpu_adapter = ctx.adapter.info.get("adapter_type") == "CPU"
     models = {step: WgslModel(path, ctx=ctx, **STEPS[step]) for step in args.steps
               if STEPS[step]["precision"] == "fp32" or ctx.has_f16}
     rng = np.random.default_rng(args.seed)
@@ -141,13 +188,13 @@ def main(argv=None) -> int:
     print(header)
     for size in args.sizes:
         height, width = SIZES[size]
-        x = rng.uniform(0, 1, (1, 10, height, width)).astype(np.float32)
+        x = rng.uniform(0, 1, (1, channels, height, width)).astype(np.float32)
         reference, reference_cpu = time_onnxruntime(path, x, args.repeats)
         # On a shared machine the ceiling moves too: it is measured before the steps and after each one,
         # and the highest reading is the one every step is held against.
         ceilings = [fma_ceiling(ctx)]
         label = f"{height}x{width}"
-        rows = []
+        rows, measured, flops = [], [], None
         for step, model in models.items():
             try:
                 seconds, cpu, conv_seconds, conv_flops = time_engine(model, x, args.repeats)
@@ -156,6 +203,8 @@ def main(argv=None) -> int:
                 continue
             ceilings.append(fma_ceiling(ctx))
             plan = model.plan(height, width)
+            flops = plan.flops
+            measured.append((step, seconds, cpu))
             conv_rate = conv_flops / conv_seconds / 1e9
             rows.append((f"{label:>10} {step:>12} {seconds * 1e3:9.1f} {cpu:7.2f} {plan.flops / seconds / 1e9:8.1f} "
                          f"{conv_rate:9.1f} {{percent:5.0f}}% {plan.peak_bytes / 2**20:9.1f} "
@@ -166,6 +215,13 @@ def main(argv=None) -> int:
         print(f"{label:>10} {'onnxruntime':>12} {reference * 1e3:9.1f} {reference_cpu:7.2f}")
         for row, conv_rate in rows:
             print(row if conv_rate is None else row.format(percent=100 * conv_rate / ceiling))
+        sys.stdout.flush()
+        if measured:
+            ours = min(measured, key=lambda step: step[1])
+            print_peer_rows(label, x, networks, oidn_devices, args.oidn_quality, args.repeats, flops, ours,
+                            cpu_adapter)
+        else:
+            print(f"{label:>10} peers: skipped (no engine step ran at this size to compare with)")
         sys.stdout.flush()
     return 0
 

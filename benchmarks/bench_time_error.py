@@ -113,7 +113,7 @@ def main() -> None:
     mi = None
     if not args.no_mitsuba:
         mi, variant = mitsuba()
-        print(f"mitsuba: {variant}" + ("" if variant.startswith("llvm") else " (no LLVM 19: scalar, slow)"))
+        print(f"mitsuba: {variant}" + (" (no LLVM 19: scalar, slow)" if variant == "scalar_rgb" else ""))
     print(f"size {size[0]}x{size[1]}, brute force spp {sorted(args.spp)}, gold {args.gold_spp} spp (ours, "
           f"seed 12345), adaptive budgets {sorted(args.budgets)}, max depth {args.max_depth}")
     for scene in load_scenes(args.scenes):

@@ -1,17 +1,17 @@
-"""Tracing throughput: samples/s on `cornell` (256², max depth 8) for wgpu-rt and for Mitsuba 3
-(llvm_ad_rgb when LLVM 19 is installed, else scalar_rgb) measured in the same run, and their ratio.
-Compile time is excluded on both sides (one warm-up render each). ``--scene bunny`` is the `mesh`
-scene with ../shared/meshes' Stanford bunny.
+"""Tracing throughput: samples/s on `cornell` (256², max depth 8) for wgpu-rt and for Mitsuba 3 in its
+fastest variant here (cuda_ad_rgb with a CUDA GPU, else llvm_ad_rgb when LLVM 19 is installed, else
+scalar_rgb: benchmarks/peers.py) measured in the same run, and their ratio; a faster variant that is
+absent prints one "skipped (why)" line. Compile time is excluded on both sides (one warm-up render
+each). ``--scene bunny`` is the `mesh` scene with ../shared/meshes' Stanford bunny.
 
     python3 benchmarks/bench_trace.py [--spp 64] [--size 256] [--scene cornell]
 """
 
 import argparse
 import sys
-import time
 
-from _mitsuba_setup import mitsuba, render_mitsuba
 from common import load_scenes, print_header
+from peers import mitsuba_peer, time_mitsuba
 
 from wgpu_rt.renderer import render
 
@@ -34,14 +34,17 @@ def main() -> int:
     ours = render(scene, spp=args.spp, size=size, max_depth=args.max_depth, aovs=())
     ours_rate = samples / ours.seconds
 
-    mi = mitsuba()
-    render_mitsuba(mi, scene, size, 1, args.max_depth)
-    started = time.perf_counter()
-    render_mitsuba(mi, scene, size, args.spp, args.max_depth)
-    mi_rate = samples / (time.perf_counter() - started)
-    print(f"{args.scene} {size[0]}x{size[1]} {args.spp} spp max depth {args.max_depth}: "
-          f"wgpu-rt {ours_rate / 1e6:.3f} M samples/s, Mitsuba {mi.variant()} {mi_rate / 1e6:.3f} M samples/s, "
-          f"ratio {ours_rate / mi_rate:.3f}")
+    mi, skipped = mitsuba_peer()
+    for line in skipped:
+        print(line)
+    line = (f"{args.scene} {size[0]}x{size[1]} {args.spp} spp max depth {args.max_depth}: "
+            f"wgpu-rt {ours_rate / 1e6:.3f} M samples/s")
+    if mi is not None:
+        _, seconds = time_mitsuba(mi, scene, size, args.spp, args.max_depth)
+        mi_rate = samples / seconds
+        line += (f", Mitsuba {mi.variant()} {mi_rate / 1e6:.3f} M samples/s, "
+                 f"ratio {ours_rate / mi_rate:.3f}")
+    print(line)
     return 0
 
 

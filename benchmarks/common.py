@@ -176,11 +176,11 @@ def linear_frame(renderer, frame: int = 0) -> np.ndarray:
 
 
 def oidn(color, albedo, normal) -> np.ndarray:
-    """Intel Open Image Denoise (pyoidn, HDR mode, with albedo and normal guides) on the CPU."""
-    import pyoidn
+    """Intel Open Image Denoise (pyoidn, HDR mode, quality high, with albedo and normal guides) on the
+    CPU."""
+    from peers import oidn_denoise
 
-    return np.asarray(pyoidn.denoise(*(np.ascontiguousarray(a, np.float32) for a in (color, albedo, normal)),
-                                     hdr=True), np.float32)
+    return oidn_denoise(color, albedo, normal, quality="high", device="cpu")
 
 
 def errors(reference, image) -> dict[str, float]:
@@ -248,8 +248,8 @@ def save_figure(figure, name: str) -> Path:
 
 
 def mitsuba():
-    """Mitsuba 3 in its fastest CPU variant here (llvm_ad_rgb with LLVM 19, else scalar_rgb; chosen by
-    benchmarks/_mitsuba_setup.py) and that variant's name."""
+    """Mitsuba 3 in its fastest variant here (cuda_ad_rgb with a CUDA GPU, else llvm_ad_rgb with LLVM 19,
+    else scalar_rgb; chosen by benchmarks/_mitsuba_setup.py) and that variant's name."""
     from _mitsuba_setup import mitsuba as set_up
 
     mi = set_up()
@@ -258,9 +258,6 @@ def mitsuba():
 
 def mitsuba_render(mi, scene, size, spp: int, max_depth: int, seed: int = 0):
     """(image (H, W, 3), seconds) of Mitsuba's path tracer on ``scene``; the scene load is not timed."""
-    from wgpu_rt.scene.mitsuba import to_mitsuba
+    from _mitsuba_setup import timed_render
 
-    loaded = mi.load_dict(to_mitsuba(scene, size[0], size[1], spp, max_depth, seed=seed))
-    started = time.perf_counter()
-    image = np.array(mi.render(loaded, spp=spp, seed=seed), np.float32)[..., :3]
-    return image, time.perf_counter() - started
+    return timed_render(mi, scene, size, spp, max_depth, seed)
