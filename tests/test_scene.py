@@ -343,6 +343,138 @@ def test_exact_error_message_for_unknown_material(tmp_path):
     assert str(caught.value) == f"{path}: meshes[2].material: unknown material 'gold'"
 
 
+# -- instances ----------------------------------------------------------------------------------------
+INSTANCED = {
+    "camera": {"origin": [0, 0, 3], "target": [0, 0, 0]},
+    "materials": {"white": {"reflectance": 0.8}, "red": {"reflectance": [0.8, 0.1, 0.1]}},
+    "meshes": [{"shape": "rectangle", "material": "white", "name": "floor"},
+               {"name": "box", "shape": "cube", "material": "white", "transform": {"scale": 0.2},
+                "instances": [{"transform": {"translate": [1, 0, 0]}},
+                              {"name": "red box", "material": "red",
+                               "transform": {"translate": [-1, 0, 0], "rotate": {"axis": [0, 0, 1], "angle": 90}}},
+                              {"keyframes": [{"frame": 0}, {"frame": 3, "translate": [0, 1, 0]}]}]}],
+}
+
+INSTANCED_TOML = """
+[camera]
+origin = [0, 0, 3]
+target = [0, 0, 0]
+[materials.white]
+reflectance = 0.8
+[materials.red]
+reflectance = [0.8, 0.1, 0.1]
+[[meshes]]
+shape = "rectangle"
+material = "white"
+name = "floor"
+[[meshes]]
+name = "box"
+shape = "cube"
+material = "white"
+transform = { scale = 0.2 }
+[[meshes.instances]]
+transform = { translate = [1, 0, 0] }
+[[meshes.instances]]
+name = "red box"
+material = "red"
+transform = { translate = [-1, 0, 0], rotate = { axis = [0, 0, 1], angle = 90 } }
+[[meshes.instances]]
+keyframes = [{ frame = 0 }, { frame = 3, translate = [0, 1, 0] }]
+"""
+
+
+def test_instances_place_one_shape_many_times(tmp_path):
+    """A mesh entry's instances are meshes sharing one set of arrays, named box[i] unless named, in the
+    entry's material unless given one, each placed by its own transform (or keyframes) after the
+    entry's: the same scene from JSON and TOML."""
+    (tmp_path / "scene.toml").write_text(INSTANCED_TOML)
+    for scene in (load_scene(write_json(tmp_path, INSTANCED)), load_scene(tmp_path / "scene.toml")):
+        boxes = scene.meshes[1:]
+        assert [m.name for m in boxes] == ["box[0]", "red box", "box[2]"]
+        assert [m.material for m in boxes] == ["white", "red", "white"]
+        assert scene.shapes() == [[0], [1, 2, 3]] and scene.has_instances and scene.frame_count == 4
+        assert all(m.vertices is boxes[0].vertices and m.faces is boxes[0].faces for m in boxes)
+        assert not boxes[0].vertices.flags.writeable, "an edit would move every instance"
+        corner = [[1, 1, 1]]
+        np.testing.assert_allclose(transform_points(boxes[0].transform, corner), [[1.2, 0.2, 0.2]], atol=1e-6)
+        np.testing.assert_allclose(transform_points(boxes[1].transform, corner), [[-1.2, 0.2, 0.2]], atol=1e-6)
+        np.testing.assert_allclose(transform_points(boxes[2].transform_at(3), corner), [[0.2, 1.2, 0.2]], atol=1e-6)
+        assert not boxes[0].keyframes and boxes[2].is_animated
+
+
+def test_mesh_keyframes_animate_every_instance(tmp_path):
+    """The entry's own keyframes pose the shape for all its (still) instances: at every frame each
+    instance is its placement after the entry's pose."""
+    data = json.loads(json.dumps(INSTANCED))
+    box = data["meshes"][1]
+    box["keyframes"] = [{"frame": 0, "scale": 0.2}, {"frame": 4, "scale": 0.2, "translate": [0, 0, -1]}]
+    box["instances"] = box["instances"][:2]
+    scene = load_scene(write_json(tmp_path, data))
+    for frame in (0, 2, 4):
+        pose = np.array(scene.meshes[1].transform_at(frame), np.float64)
+        red = np.array(scene.meshes[2].transform_at(frame), np.float64)
+        np.testing.assert_allclose(pose[:3, 3], [1, 0, -0.25 * frame], atol=1e-6)
+        np.testing.assert_allclose(red[:3, 3], [-1, 0, -0.25 * frame], atol=1e-6)
+    assert scene.frame_count == 5
+
+
+def test_instances_of_a_multi_geometry_file(tmp_path):
+    """Each placed geometry of a mesh file is placed once per instance: parts × instances meshes, two
+    shapes, named after the instance and the node."""
+    group = trimesh.Scene()
+    group.add_geometry(trimesh.creation.box(), node_name="low")
+    group.add_geometry(trimesh.creation.icosphere(subdivisions=1), node_name="high")
+    group.export(tmp_path / "group.glb")
+    data = json.loads(json.dumps(INSTANCED))
+    data["meshes"][1] = {"file": "group.glb", "material": "white",
+                         "instances": [{"transform": {"translate": [i, 0, 0]}} for i in range(3)]}
+    scene = load_scene(write_json(tmp_path, data))
+    assert sorted(m.name for m in scene.meshes[1:]) == sorted(f"group[{i}]/{node}" for i in range(3)
+                                                              for node in ("low", "high"))
+    assert sorted(map(len, scene.shapes())) == [1, 3, 3]
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda box: box.update(instances="many"), "meshes[1].instances: expected a list, got 'many'"),
+    (lambda box: box.update(instances=[]),
+     "meshes[1].instances: expected at least one instance (leave 'instances' out to place the mesh once)"),
+    (lambda box: box["instances"].append(3), "meshes[1].instances[3]: expected a table/object, got 3"),
+    (lambda box: box["instances"][1].update(material="gold"),
+     "meshes[1].instances[1].material: unknown material 'gold'"),
+    (lambda box: box["instances"][0].update(translate=[1, 2, 3]), "meshes[1].instances[0]: unknown key 'translate'"),
+    (lambda box: box["instances"][0].update(name=5), "meshes[1].instances[0].name: expected a string, got 5"),
+    (lambda box: box["instances"][2]["keyframes"][1].update(frame=-1),
+     "meshes[1].instances[2].keyframes[1].frame: frames are numbered from 0, got -1"),
+    (lambda box: box["instances"][1]["transform"].update(scale=1e-50),
+     ("meshes[1].instances[1].transform: the transform of mesh 'red box' is singular in float32 (a zero or "
+      "vanishing scale)")),
+    (lambda box: box["instances"][0]["transform"].update(translate=[2e9, 0, 0]),
+     ("meshes[1].instances[0].transform: the transform of mesh 'box[0]' puts vertices beyond ±1e+09 (the "
+      "tracer's float32 range)")),
+    (lambda box: box["instances"][2]["keyframes"][1].update(scale=[1e20, 1e20, 1e20]),
+     ("meshes[1].instances[2].keyframes[1]: the transform of mesh 'box[2]' puts vertices beyond ±1e+09 (the "
+      "tracer's float32 range)")),
+    (lambda box: box["transform"].update(scale=0),
+     "meshes[1].transform.scale: scale factors must be non-zero"),
+    (lambda box: box["transform"].update(scale=1e-40),
+     "meshes[1].transform: the transform of mesh 'box' is singular in float32 (a zero or vanishing scale)"),
+    (lambda box: box.update(keyframes=[{"frame": 0}, {"frame": 1, "translate": [0, 1, 0]}]),
+     "meshes[1].instances[2].keyframes: the mesh has keyframes too: animate either the mesh or its instances"),
+    (lambda box: box.update(keyframes=[{"frame": 0, "scale": 1}, {"frame": 2, "scale": -1}],
+                            instances=box["instances"][:1]),
+     ("meshes[1].keyframes: the transform of mesh 'box[0]' blends to a singular one at frame 1, between "
+      "keyframes 0 and 2: add keyframes")),
+])
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_instance_errors_are_one_exact_line(tmp_path, edit, message):
+    data = json.loads(json.dumps(INSTANCED))
+    edit(data["meshes"][1])
+    path = write_json(tmp_path, data)
+    with pytest.raises(SceneError) as caught:
+        load_scene(path)
+    assert str(caught.value) == f"{path}: {message}"
+
+
 def test_unparsable_files(tmp_path):
     (tmp_path / "bad.json").write_text("{ not json")
     with pytest.raises(SceneError, match="bad.json: cannot parse"):
@@ -494,7 +626,14 @@ def test_documented_examples_load(tmp_path):
 
     text = (ROOT / "docs" / "scene-format.md").read_text()
     shutil.copytree(ROOT / "examples" / "meshes", tmp_path / "meshes")
-    for suffix in ("json", "toml"):
-        block = re.search(rf"```{suffix}\n(.*?)```", text, re.S).group(1)
+    blocks = {suffix: re.findall(rf"```{suffix}\n(.*?)```", text, re.S) for suffix in ("json", "toml")}
+    for suffix, found in blocks.items():
+        block = next(b for b in found if "showroom" in b)
         (tmp_path / f"doc.{suffix}").write_text(block)
         assert load_scene(tmp_path / f"doc.{suffix}").name == "showroom"
+    # The instances example, a mesh entry, in a scene with the materials it names.
+    instances = next(b for b in blocks["toml"] if "instances" in b)
+    (tmp_path / "instances.toml").write_text('camera = { origin = [0, 1, 5], target = [0, 0, 0] }\n'
+                                             '[materials.pine]\n[materials.larch]\n' + instances)
+    scene = load_scene(tmp_path / "instances.toml")
+    assert [m.name for m in scene.meshes] == ["tree[0]", "tree[1]", "swaying"] and scene.has_instances

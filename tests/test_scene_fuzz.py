@@ -10,12 +10,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from wgpu_rt.accel.geometry import GeometryBuffers
+from wgpu_rt.accel.geometry import GeometryBuffers, InstancedGeometry
 from wgpu_rt.errors import WgpuRtError
 from wgpu_rt.scene import load_scene
 
 # Every kind of field: camera keyframes, all material kinds, each transform form, a mesh file, mesh
-# keyframes, both light types.
+# keyframes, instances (still, in their own material, animated), both light types.
 VALID = {
     "name": "fuzz",
     "frame_count": 3,
@@ -37,6 +37,10 @@ VALID = {
         {"name": "box", "shape": "cube", "material": "glass",
          "keyframes": [{"frame": 0, "translate": [0.4, -0.7, 0.2], "scale": 0.3},
                        {"frame": 2, "translate": [0.4, -0.4, 0.2], "scale": 0.3}]},
+        {"name": "pebble", "file": "tri.obj", "material": "white", "transform": {"scale": 0.1},
+         "instances": [{"transform": {"translate": [-0.5, -0.9, 0.3]}},
+                       {"name": "red", "material": "copper", "transform": {"rotate": {"axis": [0, 0, 1], "angle": 45}}},
+                       {"keyframes": [{"frame": 0, "scale": 2}, {"frame": 2, "translate": [0.1, 0, 0]}]}]},
     ],
     "lights": [{"type": "point", "position": [0.5, 0.6, 1.0], "intensity": [2, 2, 2]},
                {"type": "directional", "direction": [-0.3, -1, -0.2], "irradiance": 0.5}],
@@ -102,7 +106,8 @@ def test_the_unedited_scene_loads(folder):
     path = folder / "valid.json"
     path.write_text(json.dumps(VALID))
     scene = load_scene(path)
-    assert len(scene.meshes) == 4 and len(scene.lights) == 2 and scene.frame_count == 3
+    assert len(scene.meshes) == 7 and len(scene.lights) == 2 and scene.frame_count == 3
+    assert scene.shapes()[-1] == [4, 5, 6]
 
 
 @pytest.mark.filterwarnings("error::RuntimeWarning")     # a numpy overflow warning is a finding too
@@ -125,6 +130,11 @@ def test_random_values_load_or_fail_with_one_line(folder, changes):
         assert all(np.all(np.isfinite(v)) for v in (camera.origin, *camera.basis()))
         geometry = GeometryBuffers.build(scene, frame)     # what a render does first for every frame
         assert np.all(np.isfinite(geometry.shading_normals)) and np.all(np.isfinite(geometry.object_motion))
+        if InstancedGeometry.suits(scene):                # what a render with instances or motion does
+            levels = InstancedGeometry(scene, frame)
+            top, motion, records = levels.frame_arrays(frame)
+            assert all(np.all(np.isfinite(a)) for a in (levels.triangles, top["lo"], top["hi"], motion,
+                                                         records["to_world"], records["normal_to_world"]))
     assert np.all(np.isfinite(scene.background)) and np.all(scene.background >= 0)
     for light in scene.lights:
         assert all(np.all(np.isfinite(np.asarray(v, np.float32))) for v in vars(light).values())

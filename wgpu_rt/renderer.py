@@ -149,7 +149,10 @@ class Renderer:
         with only the camera and seed changed. When objects move, and the scene's emitters stand still,
         the new pass holds a two-level geometry (InstancedGeometry: each mesh's BVH built once) that
         later frames move in place; a pass's first frame keeps the single-level BVH, which traces
-        faster, so a single frame never pays for levels. Frame f is seeded seed + f (mod 2³²)."""
+        faster, so a single frame never pays for levels. A scene that places a shape several times
+        (instances) gets the two-level geometry from its first frame on, which stores each shape's
+        triangles once (unless an emitter moves: then every frame is flattened). Frame f is seeded
+        seed + f (mod 2³²)."""
         from .accel.geometry import GeometryBuffers, InstancedGeometry
         from .trace.trace_pass import TracePass
 
@@ -157,6 +160,7 @@ class Renderer:
         follows_every_frame = b"instanced"
         scene = self.scene
         can_instance = InstancedGeometry.suits(scene)
+        instanced_from_start = can_instance and scene.has_instances
 
         def trace_for(frame: int, seed_frame: int):
             seed = (self.seed + seed_frame) % 2 ** 32
@@ -165,7 +169,7 @@ class Renderer:
             if trace is None:   # objects moved: new BVH, new uploads (the last time, when instanced)
                 moved = bool(traced)
                 traced.clear()
-                if moved and can_instance:
+                if instanced_from_start or (moved and can_instance):
                     geometry, key = InstancedGeometry(scene, frame), follows_every_frame
                 else:
                     geometry = GeometryBuffers.build(scene, frame)

@@ -1,5 +1,5 @@
 """GeometryBuffers: a Scene at one frame as world-space triangles in BVH order (bind group 0), and
-InstancedGeometry: a Scene with moving meshes as two BVH levels that follow the frames.
+InstancedGeometry: a Scene with moving meshes or instanced shapes as two BVH levels that follow the frames.
 
 See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/accel/geometry_bindings.wgsl:
 
@@ -7,9 +7,10 @@ See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/
    (``wgpu_rt.accel.bvh.ordered_threaded_nodes``); two-level: see InstancedGeometry.
 1. ``tri_positions``: three vec4f per triangle (xyz = world vertex, w = 0; two-level: in the space of
    the triangle's bottom level).
-2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, instance}`` (48 bytes): the three
+2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, unused}`` (48 bytes): the three
    shading normals (the mesh's vertex normals, else its face normal; two-level: in the bottom level's
-   space, zero for meshes without vertex normals), the ids, and the triangle's instance (two-level).
+   space, zero for meshes without vertex normals) and the ids (two-level: an instance's own override
+   them, except the world-space level's).
 3. ``object_motion``: one column-major mat4x4f per object (mesh index): world at this frame → world
    at the previous frame.
 4. two-level only: ``instances``, INSTANCE_DTYPE per instance (wgsl/accel/instances.wgsl).
@@ -17,6 +18,7 @@ See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -172,8 +174,8 @@ def _fits_uniform(node_count: int, triangle_count: int) -> bool:
     return max(node_count * THREADED_NODE_DTYPE.itemsize, triangle_count * POSITION_BYTES) <= UNIFORM_GEOMETRY_BYTES
 
 
-def _pack_triangles(triangles, shading_normals, material_ids, object_ids, instance_ids=None):
-    """Bindings 1 and 2: positions (T, 3, 4) f32 and attributes (T, 12) words."""
+def _pack_triangles(triangles, shading_normals, material_ids, object_ids):
+    """Bindings 1 and 2: positions (T, 3, 4) f32 and attributes (T, 12) words (the last one unused)."""
     count = len(triangles)
     positions = np.zeros((count, 3, 4), np.float32)
     positions[..., :3] = triangles
@@ -181,8 +183,6 @@ def _pack_triangles(triangles, shading_normals, material_ids, object_ids, instan
     attributes[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]] = shading_normals.reshape(count, 9)
     attributes_u32 = attributes.view(np.uint32)
     attributes_u32[:, 3], attributes_u32[:, 7] = material_ids, object_ids
-    if instance_ids is not None:
-        attributes_u32[:, 11] = instance_ids
     return positions, attributes
 
 
@@ -191,17 +191,33 @@ def _column_major(matrices: np.ndarray) -> np.ndarray:
 
 
 # Instance records (wgsl/accel/geometry_bindings.wgsl, Instance): mat4x3f and mat3x3f columns are vec3f
-# padded to 16 bytes.
-INSTANCE_DTYPE = np.dtype([("to_world", "<f4", (4, 4)), ("normal_to_world", "<f4", (3, 4))])
+# padded to 16 bytes; then the number of its first placed triangle, where its bottom level's triangles
+# start, and its material and object (FROM_TRIANGLE: each triangle's own, as the world-space level's).
+INSTANCE_DTYPE = np.dtype([("to_world", "<f4", (4, 4)), ("normal_to_world", "<f4", (3, 4)), ("first_prim", "<u4"),
+                           ("first_triangle", "<u4"), ("material", "<u4"), ("object", "<u4")])
+FROM_TRIANGLE = 0xFFFFFFFF
+PLACED_TRIANGLE_LIMIT = 0xFFFFFFFF      # placed triangles are numbered below Hit's NO_HIT (a miss)
 # A top-level box is widened by this much of its size so that rounding in the corners' transform (and
 # in the ray's on the GPU) never cuts off an instance's edge.
 INSTANCE_BOX_PADDING = 1e-5
 
 
 class InstancedGeometry:
-    """A scene with moving meshes as two levels (ARCHITECTURE.md, "Geometry"): a bottom-level BVH per
-    moving mesh over its object-space triangles and one over all the static meshes in world space, each
-    built once; a top-level BVH over the bottom levels' world boxes (their instances), rebuilt per frame.
+    """A scene as two levels (ARCHITECTURE.md, "Geometry"): bottom-level BVHs over triangles, each built
+    once, and a top-level BVH over their placements (the instances), rebuilt when they move.
+
+    Bottom levels: one per shape placed several times (``Scene.shapes``: meshes sharing their arrays)
+    and one per other moving mesh, over its object-space triangles; one over all other meshes (static,
+    placed once) in world space. Instances: every placement of a shape and every other moving mesh
+    (its mesh's transform), and the world-space level (identity), in that level order. A shape placed
+    1000 times is stored once: its triangles and one BVH, plus two entry node slots and one record per
+    instance.
+
+    Hits number the placed triangles (``Hit.prim``; ``triangles``, ``material_ids``, ``object_ids`` and
+    ``instance_ids`` are in that order): instance after instance, each instance's in its bottom level's
+    order, so every placed triangle has a number of its own (the tracer's per-triangle emitter densities
+    are indexed by it). Instance i's are ``first_prims[i]`` onward; the GPU finds the instance of a
+    number from the records (accel/instances.wgsl, placed_instance).
 
     Bind group 0 as GeometryBuffers', plus binding 4, the instance records (accel/instances.wgsl):
     ``bvh_nodes`` holds the top level's ORDERINGS copies (always: it is small, and the kernels find its
@@ -217,17 +233,20 @@ class InstancedGeometry:
     def __init__(self, scene: Scene, frame: int = 0):
         self.scene = scene
         material_ids = _material_ids(scene)
-        with_faces = [i for i, mesh in enumerate(scene.meshes) if len(mesh.faces)]
-        if not with_faces:
+        shapes = [group for group in scene.shapes() if len(scene.meshes[group[0]].faces)]
+        if not shapes:
             raise SceneError(f"scene {scene.name!r}: no triangles to render")
-        static = [i for i in with_faces if not scene.meshes[i].is_animated]
-        moving = [i for i in with_faces if scene.meshes[i].is_animated]
-        # Per bottom level: its meshes and whether it is stored in world space (the static ones).
-        self.levels = ([(static, True)] if static else []) + [([i], False) for i in moving]
-        stored, normals, materials, objects, instances, self._bvhs, self._first_triangles = ([] for _ in range(7))
-        first_triangle = 0
-        for instance, (meshes, in_world) in enumerate(self.levels):
-            level = [_mesh_triangles(scene.meshes[i], scene.meshes[i].transform_at(frame) if in_world
+        in_world = [group[0] for group in shapes if len(group) == 1 and not scene.meshes[group[0]].is_animated]
+        placed = [group for group in shapes if len(group) > 1 or scene.meshes[group[0]].is_animated]
+        # Per bottom level: the meshes whose triangles it stores and whether it is in world space; per
+        # instance: its bottom level and the mesh that places it (None: the world-space level).
+        self.levels = ([(in_world, True)] if in_world else []) + [([group[0]], False) for group in placed]
+        self.instance_meshes = ([None] if in_world else []) + [mesh for group in placed for mesh in group]
+        self.instance_levels = np.repeat(np.arange(len(self.levels)),
+                                         ([1] if in_world else []) + [len(group) for group in placed])
+        stored, normals, materials, objects, self._bvhs = ([] for _ in range(5))
+        for meshes, world_space in self.levels:
+            level = [_mesh_triangles(scene.meshes[i], scene.meshes[i].transform_at(frame) if world_space
                                      else np.eye(4), face_normals=False) for i in meshes]
             triangles = _check_triangles(scene, [t for t, _ in level])
             bvh = build_bvh(triangles)
@@ -236,29 +255,53 @@ class InstancedGeometry:
             normals.append(np.concatenate([n for _, n in level])[order])
             materials.append(np.repeat([material_ids[i] for i in meshes], [len(t) for t, _ in level])[order])
             objects.append(np.repeat(meshes, [len(t) for t, _ in level])[order])
-            instances.append(np.full(len(triangles), instance))
             self._bvhs.append(bvh)
-            self._first_triangles.append(first_triangle)
-            first_triangle += len(triangles)
-        if first_triangle >= 1 << (32 - LEAF_COUNT_BITS):
-            raise SceneError(f"scene {scene.name!r}: {first_triangle} triangles do not fit the node layout")
+        self._level_sizes = np.array([len(t) for t in stored], np.int64)
+        self._first_triangles = np.cumsum(self._level_sizes) - self._level_sizes
+        if self._level_sizes.sum() >= 1 << (32 - LEAF_COUNT_BITS):
+            raise SceneError(f"scene {scene.name!r}: {self._level_sizes.sum()} triangles do not fit the node "
+                             f"layout")
+        if len(self.instance_meshes) >= 1 << (32 - LEAF_COUNT_BITS):
+            raise SceneError(f"scene {scene.name!r}: {len(self.instance_meshes)} instances do not fit the node "
+                             f"layout")
         self.stored_triangles = np.concatenate(stored)       # (T, 3, 3) f32 in each level's space
         self.shading_normals = np.concatenate(normals)       # (T, 3, 3) f32 in each level's space
-        self.material_ids = np.concatenate(materials).astype(np.uint32)
-        self.object_ids = np.concatenate(objects).astype(np.uint32)
-        self.instance_ids = np.concatenate(instances).astype(np.uint32)
+        self.stored_material_ids = np.concatenate(materials).astype(np.uint32)
+        self.stored_object_ids = np.concatenate(objects).astype(np.uint32)
+
+        counts = self._level_sizes[self.instance_levels]     # placed triangles per instance
+        self.first_prims = np.cumsum(counts) - counts
+        self.placed_triangle_count = int(counts.sum())
+        if self.placed_triangle_count >= PLACED_TRIANGLE_LIMIT:
+            raise SceneError(f"scene {scene.name!r}: {self.placed_triangle_count} placed triangles exceed "
+                             f"the 32-bit triangle numbers")
+        self._instance_materials = np.array([FROM_TRIANGLE if mesh is None else material_ids[mesh]
+                                             for mesh in self.instance_meshes], np.uint32)
+        self._instance_objects = np.array([FROM_TRIANGLE if mesh is None else mesh
+                                           for mesh in self.instance_meshes], np.uint32)
+        self.instance_ids = np.repeat(np.arange(len(counts), dtype=np.uint32), counts)   # per placed triangle
+        stored_index = np.arange(self.placed_triangle_count) + np.repeat(
+            self._first_triangles[self.instance_levels] - self.first_prims, counts)
+
+        def per_placed(instance_ids: np.ndarray, triangle_ids: np.ndarray) -> np.ndarray:
+            """Per placed triangle: its instance's id, or its stored triangle's where that is FROM_TRIANGLE."""
+            own = instance_ids[self.instance_ids]
+            return np.where(own == FROM_TRIANGLE, triangle_ids[stored_index], own)
+
+        self.material_ids = per_placed(self._instance_materials, self.stored_material_ids)
+        self.object_ids = per_placed(self._instance_objects, self.stored_object_ids)
         self._root_boxes = np.array([[bvh.nodes["lo"][0], bvh.nodes["hi"][0]] for bvh in self._bvhs],
-                                    np.float64)                                            # (I, 2, 3)
-        self._hittable = np.flatnonzero(np.all(np.isfinite(self._root_boxes), axis=(1, 2)))
+                                    np.float64)                                            # (L, 2, 3)
+        self._hittable = np.flatnonzero(np.all(np.isfinite(self._root_boxes[self.instance_levels]), axis=(1, 2)))
         self.top_node_count = max(1, 2 * len(self._hittable) - 1)
         self._node_counts = np.array([bvh.node_count for bvh in self._bvhs])
         self.frame = frame
-        self.triangles = self.world_triangles(frame)
 
     @staticmethod
     def suits(scene: Scene) -> bool:
-        """Whether ``scene`` has a moving mesh and no moving emitter."""
-        return any(mesh.is_animated for mesh in scene.meshes) and not InstancedGeometry.moves_emitters(scene)
+        """Whether ``scene`` has a moving mesh or a shape placed several times, and no moving emitter."""
+        return ((scene.has_instances or any(mesh.is_animated for mesh in scene.meshes))
+                and not InstancedGeometry.moves_emitters(scene))
 
     @staticmethod
     def moves_emitters(scene: Scene) -> bool:
@@ -268,28 +311,40 @@ class InstancedGeometry:
 
     @property
     def triangle_count(self) -> int:
+        """Triangles stored (each shape's once), which the GPU buffers hold."""
         return len(self.stored_triangles)
 
+    @functools.cached_property
+    def triangles(self) -> np.ndarray:
+        """(P, 3, 3) f32 world-space placed triangles at ``frame``, by number (the tracer builds its emitter
+        table from them)."""
+        return self.world_triangles(self.frame)
+
     def instance_transforms(self, frame: int) -> np.ndarray:
-        """(I, 4, 4) f64 object → world per instance at ``frame`` (identity for the static level)."""
-        return np.array([np.eye(4) if in_world else self.scene.meshes[meshes[0]].transform_at(frame)
-                         for meshes, in_world in self.levels], np.float64)
+        """(I, 4, 4) f64 object → world per instance at ``frame`` (identity for the world-space level)."""
+        return np.array([np.eye(4) if mesh is None else self.scene.meshes[mesh].transform_at(frame)
+                         for mesh in self.instance_meshes], np.float64)
 
     def transform_key(self, frame: int) -> bytes:
         """What ``frame_arrays(frame)`` depends on: the transforms at ``frame`` and the frame before."""
         return b"".join(m.transform_at(f).tobytes() for f in (frame, frame - 1) for m in self.scene.meshes)
 
     def world_triangles(self, frame: int) -> np.ndarray:
-        """(T, 3, 3) f32 world-space vertices at ``frame``, in buffer order."""
-        world = np.empty_like(self.stored_triangles)
-        for instance, transform in enumerate(self.instance_transforms(frame)):
-            mine = self.instance_ids == instance
-            world[mine] = transform_points(transform, self.stored_triangles[mine].reshape(-1, 3)).reshape(-1, 3, 3)
+        """(P, 3, 3) f32 world-space vertices of the placed triangles at ``frame``, by number."""
+        world = np.empty((self.placed_triangle_count, 3, 3), np.float32)
+        transforms = self.instance_transforms(frame)
+        for level, (first, size) in enumerate(zip(self._first_triangles, self._level_sizes)):
+            mine = np.flatnonzero(self.instance_levels == level)      # consecutive, numbered in order
+            points = self.stored_triangles[first:first + size].reshape(-1, 3).astype(np.float64)
+            mapped = points @ np.transpose(transforms[mine, :3, :3], (0, 2, 1)) + transforms[mine, None, :3, 3]
+            start = self.first_prims[mine[0]]
+            world[start:start + len(mine) * size] = mapped.reshape(-1, 3, 3)
         return world
 
     def node_count(self, orderings: int = ORDERINGS) -> int:
         """Node slots in binding 0 with ``orderings`` copies of each bottom level (see top_level)."""
-        return ORDERINGS * self.top_node_count + 2 * len(self.levels) + orderings * int(self._node_counts.sum())
+        return (ORDERINGS * self.top_node_count + 2 * len(self.instance_meshes)
+                + orderings * int(self._node_counts.sum()))
 
     def orderings(self, ctx) -> int:
         """Direction-ordered copies of each bottom level to upload: ORDERINGS, or 1 where that many
@@ -314,22 +369,26 @@ class InstancedGeometry:
         if not np.all(np.isfinite(transforms)):
             raise SceneError(f"scene {self.scene.name!r}: a transform at frame {frame} is not finite")
         inverse = np.linalg.inv(transforms)
-        records = np.zeros(len(self.levels), INSTANCE_DTYPE)
+        records = np.zeros(len(self.instance_meshes), INSTANCE_DTYPE)
         records["to_world"][:, :, :3] = np.transpose(transforms[:, :3, :4], (0, 2, 1))
         records["normal_to_world"][:, :, :3] = inverse[:, :3, :3]   # columns of the inverse transpose
-        entries = np.zeros((len(self.levels), 4, 4), np.float32)
+        records["first_prim"] = self.first_prims
+        records["first_triangle"] = self._first_triangles[self.instance_levels]
+        records["material"], records["object"] = self._instance_materials, self._instance_objects
+        entries = np.zeros((len(self.instance_meshes), 4, 4), np.float32)
         entries[:, :, :3] = np.transpose(inverse[:, :3, :4], (0, 2, 1))
         level_nodes = orderings * self._node_counts
+        level_first_node = self.node_count(orderings) - level_nodes.sum() + np.cumsum(level_nodes) - level_nodes
         words = entries.view(np.uint32)
-        words[:, 0, 3] = self.node_count(orderings) - level_nodes.sum() + np.cumsum(level_nodes) - level_nodes
-        words[:, 1, 3], words[:, 2, 3] = self._node_counts, orderings
+        words[:, 0, 3] = level_first_node[self.instance_levels]
+        words[:, 1, 3], words[:, 2, 3] = self._node_counts[self.instance_levels], orderings
         entry_nodes = entries.reshape(-1).view(THREADED_NODE_DTYPE)
         if len(self._hittable) == 0:    # no triangle with area: a root no ray enters (as build_bvh's)
             top = np.zeros(ORDERINGS, THREADED_NODE_DTYPE)
             top["lo"], top["hi"], top["skip"] = np.inf, np.inf, 1
             return np.concatenate([top, entry_nodes]), records
         corners = np.array(np.meshgrid([0, 1], [0, 1], [0, 1], indexing="ij")).reshape(3, 8).T   # (8, 3)
-        boxes = self._root_boxes[self._hittable]                                            # (H, 2, 3)
+        boxes = self._root_boxes[self.instance_levels[self._hittable]]                      # (H, 2, 3)
         points = boxes[:, corners, [0, 1, 2]]                                               # (H, 8, 3)
         mapped = points @ np.transpose(transforms[self._hittable, :3, :3], (0, 2, 1)) \
             + transforms[self._hittable, None, :3, 3]
@@ -354,8 +413,8 @@ class InstancedGeometry:
     def packed_arrays(self, orderings: int = ORDERINGS) -> list[np.ndarray]:
         """The five arrays of bind group 0 at ``self.frame``."""
         top, motion, records = self.frame_arrays(self.frame, orderings)
-        positions, attributes = _pack_triangles(self.stored_triangles, self.shading_normals, self.material_ids,
-                                                self.object_ids, self.instance_ids)
+        positions, attributes = _pack_triangles(self.stored_triangles, self.shading_normals,
+                                                self.stored_material_ids, self.stored_object_ids)
         return [np.concatenate([top, self.bottom_nodes(orderings)]), positions, attributes, motion, records]
 
     @property

@@ -185,16 +185,22 @@ def _invertible32(matrix: np.ndarray) -> bool:
         return False
 
 
-def _check_placement(fields: _Fields, key: str, matrix: np.ndarray, mesh: Mesh) -> np.ndarray:
-    """``matrix`` (float64, object → world) as the float32 transform of ``mesh``, refused naming the field
-    unless float32 holds it, its inverse and every placed vertex."""
-    what = f"the transform of mesh {mesh.name!r}"
+def _check_matrix(fields: _Fields, key: str, matrix: np.ndarray, what: str) -> np.ndarray:
+    """``matrix`` (float64) as float32, refused naming the field unless float32 holds it and its inverse."""
     with np.errstate(over="ignore"):        # an overflow becomes inf, which is refused below
         placed = matrix.astype(np.float32)
     if not np.all(np.isfinite(placed)):
         fields.fail(f"{what} overflows float32 (±3.4e38)", key)
     if not _invertible32(placed):
         fields.fail(f"{what} is singular in float32 (a zero or vanishing scale)", key)
+    return placed
+
+
+def _check_placement(fields: _Fields, key: str, matrix: np.ndarray, mesh: Mesh) -> np.ndarray:
+    """``matrix`` (float64, object → world) as the float32 transform of ``mesh``, refused naming the field
+    unless float32 holds it, its inverse and every placed vertex."""
+    what = f"the transform of mesh {mesh.name!r}"
+    placed = _check_matrix(fields, key, matrix, what)
     # |world| <= |linear| · max|vertex| + |translation| per axis, for every frame between keyframes too
     # (an element-wise blend of matrices stays under the larger bound).
     reach = np.abs(placed[:3, :3].astype(np.float64)) @ np.abs(mesh.vertices).max(axis=0) + np.abs(placed[:3, 3])
@@ -218,6 +224,13 @@ def _check_blends(fields: _Fields, mesh: Mesh) -> None:
                     if not _invertible32(mesh.transform_at(frame)):
                         fields.fail(f"the transform of mesh {mesh.name!r} blends to a singular one at frame "
                                     f"{frame}, between keyframes {lo} and {hi}: add keyframes", "keyframes")
+
+
+def _material_name(fields: _Fields, materials: dict, default=_MISSING) -> str:
+    material = fields.string("material", default)
+    if material not in materials:
+        fields.fail(f"unknown material {material!r}", "material")
+    return material
 
 
 def _material(fields: _Fields) -> Material:
@@ -265,41 +278,94 @@ def _frame_of(fields: _Fields) -> int:
     return frame
 
 
-def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
-    material = fields.string("material")
-    if material not in materials:
-        fields.fail(f"unknown material {material!r}", "material")
-    has_file, has_shape = fields.has("file"), fields.has("shape")
-    if has_file == has_shape:
-        fields.fail("give exactly one of 'file' (a mesh file) or 'shape' (" + ", ".join(PRIMITIVES) + ")")
-    name = fields.string("name", "")
-    placement = fields.table("transform", {})
-    transform = _transform(placement)
-    placement.done()
-    keyframes = {}          # frame → (field name, matrix)
+def _placement(fields: _Fields) -> tuple[np.ndarray, dict[int, tuple[str, np.ndarray]]]:
+    """An entry's ``transform`` (float64; identity if absent) and ``keyframes`` (frame → (the keyframe's
+    field name, its float64 matrix))."""
+    table = fields.table("transform", {})
+    transform = _transform(table)
+    table.done()
+    keyframes = {}
     for i, key in enumerate(fields.tables("keyframes")):
         frame = _frame_of(key)
         keyframes[frame] = (f"keyframes[{i}]", _transform(key))
         key.done()
+    return transform, keyframes
+
+
+def _place(mesh: Mesh, fields: _Fields, transform: np.ndarray, keyframes: dict,
+           keyframe_fields: _Fields | None = None) -> None:
+    """Place ``mesh`` by ``transform`` and ``keyframes`` (as from _placement) applied after its own node
+    transform, each placement checked (errors name the fields of ``fields``; blends between keyframes
+    name those of ``keyframe_fields``, default ``fields``)."""
+    node = mesh.transform
+    mesh.transform = _check_placement(fields, "transform", compose(transform, node, dtype=np.float64), mesh)
+    mesh.keyframes = {frame: _check_placement(fields, key, compose(matrix, node, dtype=np.float64), mesh)
+                      for frame, (key, matrix) in keyframes.items()}
+    _check_blends(keyframe_fields or fields, mesh)
+
+
+def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
+    material = _material_name(fields, materials)
+    has_file, has_shape = fields.has("file"), fields.has("shape")
+    if has_file == has_shape:
+        fields.fail("give exactly one of 'file' (a mesh file) or 'shape' (" + ", ".join(PRIMITIVES) + ")")
+    name = fields.string("name", "")
+    transform, keyframes = _placement(fields)
+    instances = fields.tables("instances") if fields.has("instances") else None
     if has_shape:
         kind = fields.string("shape", choices=PRIMITIVES)
         vertices, faces, normals = primitive(kind)
-        parts = [Mesh(name or kind, vertices, faces, material, normals=normals)]
+        base = name or kind
+        parts = [Mesh(base, vertices, faces, material, normals=normals)]
     else:
         file = fields.string("file")
         path = Path(file) if Path(file).is_absolute() else folder / file
+        base = name or path.stem
         try:
-            parts = load_mesh_file(path, material, name or None)
+            parts = load_mesh_file(path, material, base)
         except SceneError as err:
             fields.fail(str(err), "file")
     fields.done()
-    for part in parts:
-        node = part.transform
-        part.transform = _check_placement(fields, "transform", compose(transform, node, dtype=np.float64), part)
-        part.keyframes = {frame: _check_placement(fields, key, compose(matrix, node, dtype=np.float64), part)
-                          for frame, (key, matrix) in keyframes.items()}
-        _check_blends(fields, part)
-    return parts
+    if instances is None:
+        for part in parts:
+            _place(part, fields, transform, keyframes)
+        return parts
+    return _instances(fields, instances, parts, base, (transform, keyframes), materials)
+
+
+def _instances(fields: _Fields, entries: list[_Fields], parts: list[Mesh], base: str, placement: tuple,
+               materials: dict) -> list[Mesh]:
+    """The ``parts`` of a mesh entry placed once per entry of its ``instances`` list, sharing their
+    arrays. An instance is placed by its own transform (or keyframes) applied after the entry's own
+    ``placement`` (transform, keyframes), which poses the shape for all of them; only one of the two
+    may be animated. Instances are named ``base[i]`` unless named."""
+    transform, keyframes = placement
+    if not entries:
+        fields.fail("expected at least one instance (leave 'instances' out to place the mesh once)", "instances")
+    what = f"the transform of mesh {base!r}"
+    _check_matrix(fields, "transform", transform, what)
+    for key, matrix in keyframes.values():
+        _check_matrix(fields, key, matrix, what)
+    placed = []
+    for i, entry in enumerate(entries):
+        material = _material_name(entry, materials, parts[0].material)
+        label = entry.string("name", f"{base}[{i}]")
+        where, moves = _placement(entry)
+        if moves and keyframes:
+            entry.fail("the mesh has keyframes too: animate either the mesh or its instances", "keyframes")
+        entry.done()
+        if moves:       # the instance's keyframes, each after the entry's pose
+            frames = {frame: (key, compose(matrix, transform, dtype=np.float64))
+                      for frame, (key, matrix) in moves.items()}
+        else:           # the entry's keyframes, each followed by the instance's placement
+            frames = {frame: ("transform", compose(where, matrix, dtype=np.float64))
+                      for frame, (_, matrix) in keyframes.items()}
+        for part in parts:
+            mesh = part.instance(label + part.name[len(base):], material, part.transform)
+            _place(mesh, entry, compose(where, transform, dtype=np.float64), frames,
+                   keyframe_fields=entry if moves else fields)
+            placed.append(mesh)
+    return placed
 
 
 def _light(fields: _Fields):

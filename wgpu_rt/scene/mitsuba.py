@@ -1,7 +1,8 @@
 """Convert any ``Scene`` to a Mitsuba 3 scene dict, to cross-validate the tracer against Mitsuba.
 
 Every mesh becomes an ``mi.Mesh`` built from its world-space arrays at ``frame`` (so primitives,
-loaded files and animation all go through one path), with the BSDF its material maps to:
+loaded files, animation and instances, each placement one mesh, all go through one path), with the
+BSDF its material maps to:
 
 - diffuse → ``diffuse``; conductor → ``conductor`` (roughness 0) or ``roughconductor`` (GGX,
   alpha = roughness) with eta, k and specular_reflectance; dielectric → ``dielectric`` or

@@ -118,6 +118,12 @@ class Mesh:
 
     ``keyframes`` maps frame → 4×4 transform for animated objects; between keyframes the matrix is
     interpolated element-wise, outside them the nearest keyframe holds.
+
+    Instances: meshes that hold the very same vertex, face and normal arrays (one set of numpy objects,
+    not equal copies: ``shape_key``) are placements of one shape. ``instance`` makes one; the scene
+    loader gives each entry of a mesh's ``instances`` list one. Every placement is a Mesh of its own
+    (name, material, transform, keyframes), so whatever walks ``Scene.meshes`` sees them all, while
+    the triangles exist once and the two-level geometry builds one BVH for them (``Scene.shapes``).
     """
 
     name: str
@@ -134,6 +140,22 @@ class Mesh:
     @property
     def is_animated(self) -> bool:
         return len({m.tobytes() for m in self.keyframes.values()}) > 1
+
+    @property
+    def shape_key(self) -> tuple[int, int, int]:
+        """Equal for meshes that share their arrays (instances of one shape), else different."""
+        return id(self.vertices), id(self.faces), id(self.normals)
+
+    def instance(self, name: str, material: str | None = None, transform=None, keyframes=None) -> Mesh:
+        """Another placement of this mesh's shape (its arrays shared, not copied, and made read-only so
+        that an edit cannot move every instance at once), with its own name, material (default: this
+        mesh's), transform (default: identity) and keyframes (default: none)."""
+        for array in (self.vertices, self.faces, self.normals):
+            if array is not None:
+                array.flags.writeable = False
+        placement = np.eye(4) if transform is None else transform
+        return Mesh(name, self.vertices, self.faces, self.material if material is None else material,
+                    self.normals, np.asarray(placement, np.float32), dict(keyframes or {}))
 
 
 @dataclass
@@ -178,6 +200,19 @@ class Scene:
         mix = lambda x, y: ((1 - w) * x + w * y).astype(np.float32)  # noqa: E731
         return Camera(mix(a.origin, b.origin), mix(a.target, b.target), mix(a.up, b.up),
                       (1 - w) * a.fov + w * b.fov, a.fov_axis)
+
+    def shapes(self) -> list[list[int]]:
+        """Indices into ``meshes`` grouped by shape (``Mesh.shape_key``), in order of first appearance:
+        a group of several is one shape placed several times."""
+        groups: dict[tuple, list[int]] = {}
+        for index, mesh in enumerate(self.meshes):
+            groups.setdefault(mesh.shape_key, []).append(index)
+        return list(groups.values())
+
+    @property
+    def has_instances(self) -> bool:
+        """Whether some shape is placed more than once."""
+        return any(len(group) > 1 for group in self.shapes())
 
     @property
     def has_motion(self) -> bool:

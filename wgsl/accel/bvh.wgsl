@@ -35,7 +35,9 @@ const BVH_TINY_DIR: f32 = 1e-20;     // direction components below this are trea
 // (½ ulp each) and 1/dir (WGSL allows 2.5 ulps), 2 × 3.5 ulps = 4.2e-7 (Ize's 1 + 2γ₃ for exact 1/dir).
 const BVH_BOX_SLACK: f32 = 1.0000005;
 
-struct Hit { t: f32, u: f32, v: f32, prim: u32 }   // u, v: barycentric weights of vertices 1 and 2
+// u, v: barycentric weights of vertices 1 and 2; prim: the triangle's number (a two-level scene numbers
+// its placed triangles, instance after instance: accel/instances.wgsl), NO_HIT on a miss.
+struct Hit { t: f32, u: f32, v: f32, prim: u32 }
 
 // Everything about one ray that every box and triangle test reuses.
 struct TraversalRay {
@@ -223,29 +225,42 @@ fn trace_ray_pair(origin: vec3f, dir: vec3f, t_max: f32, shadow_origin: vec3f, s
                           entry.node_count, instance);
             }
         }
-        if state.hit_instance != NO_INSTANCE {
-            state.hit_triangle = instance_triangle_to_world(state.hit_instance, state.hit_triangle);
+        if state.hit_instance != NO_INSTANCE {   // the stored triangle hit → its placed number
+            let record = instance_record(state.hit_instance);
+            state.hit_triangle = instance_triangle_to_world(record, state.hit_triangle);
+            state.hit.prim = state.hit.prim - record.first_triangle + record.first_prim;
+            remember_hit(state.hit.prim, state.hit_instance);
         }
     }
     return RayPairHit(state.hit, state.occluded, triangle_normal(state.hit_triangle), state.loop_passes);
 }
 
-// A triangle of `instance`'s bottom level in world space.
-fn instance_triangle_to_world(instance: u32, p: TrianglePositions) -> TrianglePositions {
-    let to_world = instance_record(instance).to_world;
+// A triangle of an instance's bottom level (`record`) in world space.
+fn instance_triangle_to_world(record: Instance, p: TrianglePositions) -> TrianglePositions {
+    let to_world = record.to_world;
     return TrianglePositions(to_world * vec4f(p.a, 1.0), to_world * vec4f(p.b, 1.0), to_world * vec4f(p.c, 1.0));
 }
 
 // The triangle's vertices as stored (world space, or its instance's object space), by this invocation.
-fn stored_triangle(prim: u32) -> TrianglePositions {
-    return TrianglePositions(triangle_vertex(prim, 0u), triangle_vertex(prim, 1u), triangle_vertex(prim, 2u));
+fn stored_triangle(stored: u32) -> TrianglePositions {
+    return TrianglePositions(triangle_vertex(stored, 0u), triangle_vertex(stored, 1u), triangle_vertex(stored, 2u));
+}
+
+// A hit's triangle (its `prim`) as the tri_* queries find it: the stored triangle and the record of the
+// instance that places it. A single-level scene numbers its triangles as stored (a zero record).
+struct PlacedTriangle { stored: u32, record: Instance }
+
+fn placed_triangle(prim: u32) -> PlacedTriangle {
+    let record = instance_record(placed_instance(prim));
+    return PlacedTriangle(prim - record.first_prim + record.first_triangle, record);
 }
 
 fn world_triangle(prim: u32) -> TrianglePositions {
+    let placed = placed_triangle(prim);
     if HAS_INSTANCES {
-        return instance_triangle_to_world(tri_attributes[prim].instance, stored_triangle(prim));
+        return instance_triangle_to_world(placed.record, stored_triangle(placed.stored));
     }
-    return stored_triangle(prim);
+    return stored_triangle(placed.stored);
 }
 
 fn scene_intersect(origin: vec3f, dir: vec3f, tmax: f32) -> Hit {
@@ -274,21 +289,27 @@ fn tri_shading_normal(prim: u32, u: f32, v: f32) -> vec3f {
 
 // tri_shading_normal for a caller that already holds the geometric normal (it is not fetched again).
 fn tri_shading_normal_or(prim: u32, u: f32, v: f32, geometric_normal: vec3f) -> vec3f {
-    let a = tri_attributes[prim];
+    let placed = placed_triangle(prim);
+    let a = tri_attributes[placed.stored];
     var n = (1.0 - u - v) * a.n0 + u * a.n1 + v * a.n2;
     if HAS_INSTANCES {
-        n = instance_record(a.instance).normal_to_world * n;
+        n = placed.record.normal_to_world * n;
     }
     let len2 = dot(n, n);
     return select(geometric_normal, n * inverseSqrt(len2), len2 > 1e-12);
 }
 
+// The material and object of a triangle: its instance's, else (single level, world-space level) its own.
 fn tri_material(prim: u32) -> u32 {
-    return tri_attributes[prim].material;
+    let placed = placed_triangle(prim);
+    let own = placed.record.material;
+    return select(tri_attributes[placed.stored].material, own, HAS_INSTANCES && own != FROM_TRIANGLE);
 }
 
 fn tri_object(prim: u32) -> u32 {
-    return tri_attributes[prim].object;
+    let placed = placed_triangle(prim);
+    let own = placed.record.object;
+    return select(tri_attributes[placed.stored].object, own, HAS_INSTANCES && own != FROM_TRIANGLE);
 }
 
 fn object_to_previous(object: u32) -> mat4x4f {

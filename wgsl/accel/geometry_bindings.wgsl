@@ -16,14 +16,19 @@ const LEAF_COUNT_MASK: u32 = 15u;
 // (first << LEAF_COUNT_BITS) | count of the triangles tested on entering it (interior nodes: 0 or 1).
 struct BvhNode { lo: vec3f, skip: u32, hi: vec3f, triangles: u32 }
 struct TrianglePositions { a: vec3f, b: vec3f, c: vec3f }
-// `instance`: the instance whose bottom level holds the triangle (accel/instances.wgsl; 0 in a
-// single-level scene, whose normals are in world space already).
-struct TriAttributes { n0: vec3f, material: u32, n1: vec3f, object: u32, n2: vec3f, instance: u32 }
+// Per stored triangle: shading normals (in its bottom level's space) and ids. In a two-level scene a
+// stored triangle may be placed many times, and its instance's material and object override these.
+struct TriAttributes { n0: vec3f, material: u32, n1: vec3f, object: u32, n2: vec3f, _unused: u32 }
 // What a hit on an instance needs (wgpu_rt.accel.geometry.INSTANCE_DTYPE): its object → world transform
-// and the inverse transpose of its linear part, for normals. (The walk's world → object transform and
-// where the bottom level's nodes are come with the nodes: accel/bvh.wgsl, instance_entry.)
-struct Instance { to_world: mat4x3f, normal_to_world: mat3x3f }
+// and the inverse transpose of its linear part, for normals; the number of its first placed triangle
+// (a Hit's prim) and where its bottom level's stored triangles start (placed triangle first_prim + k is
+// stored triangle first_triangle + k); its material and object, or FROM_TRIANGLE where each triangle's
+// own apply (the world-space level). (The walk's world → object transform and where the bottom level's
+// nodes are come with the nodes: accel/bvh.wgsl, instance_entry.)
+struct Instance { to_world: mat4x3f, normal_to_world: mat3x3f, first_prim: u32, first_triangle: u32,
+                  material: u32, object: u32 }
 const NO_INSTANCE: u32 = 0xffffffffu;
+const FROM_TRIANGLE: u32 = 0xffffffffu;
 
 @group(0) @binding(2) var<storage, read> tri_attributes: array<TriAttributes>;
 @group(0) @binding(3) var<storage, read> object_motion: array<mat4x4f>;     // world now → world previous frame

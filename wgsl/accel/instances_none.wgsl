@@ -8,5 +8,11 @@
 const HAS_INSTANCES: bool = false;
 
 fn instance_record(instance: u32) -> Instance {
-    return Instance(mat4x3f(), mat3x3f());
+    return Instance(mat4x3f(), mat3x3f(), 0u, 0u, FROM_TRIANGLE, FROM_TRIANGLE);
+}
+
+fn remember_hit(prim: u32, instance: u32) {}
+
+fn placed_instance(prim: u32) -> u32 {
+    return 0u;
 }
