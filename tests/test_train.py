@@ -1,6 +1,8 @@
 """Training: the torch SSIM against scikit-image, a few-step smoke run of each network on a tiny fake
 dataset (export, ONNX equality, model card, resume), and the NaN guard."""
 
+import hashlib
+
 import numpy as np
 import pytest
 import torch
@@ -233,6 +235,23 @@ def test_fine_tune_starts_from_an_exported_model(tiny_dataset, tmp_path):
         assert torch.equal(tuned.model.state_dict()[name], weight), name
     with pytest.raises(TrainingError, match="not a denoiser with these --widths"):
         Trainer(TrainConfig(epochs=1, init_from=str(onnx_path), **{**base, "widths": (4, 16)}), progress=False)
+
+
+def test_a_fine_tune_of_an_exported_model_carries_its_card(tiny_dataset, tmp_path):
+    """The card of a model fine-tuned from an .onnx names the file by digest and appends the base's own card
+    (an exported model keeps no history, so its card is the only record of how it was made)."""
+    onnx_path = export_onnx(UNet(widths=(4, 8)), tmp_path / "exported.onnx")
+    onnx_path.with_suffix(".md").write_text("# exported.onnx — denoiser\n\n## Recipe\n- epochs 7 on seven views\n")
+    tuned = Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out"), epochs=1,
+                                batch=2, crop_min=12, crop_max=16, widths=(4, 8), init_from=str(onnx_path)),
+                    progress=False)
+    tuned.run()
+    card = tuned.model_card()
+    digest = hashlib.sha256(onnx_path.read_bytes()).hexdigest()[:12]
+    assert f"- fine-tuned from the weights of `{onnx_path}` (sha256 {digest}…; its card follows" in card
+    base = card[card.index("## Base model"):]
+    assert "### Recipe" in base and "- epochs 7 on seven views" in base
+    assert "0 epochs, 0.0 min" not in card and "min for the run(s) it was fine-tuned from" not in card
 
 
 def test_a_nan_loss_stops_training_with_a_clear_message(tiny_dataset, tmp_path, monkeypatch):

@@ -17,6 +17,7 @@ setting and output path is checked before any data is read or any file written.
 from __future__ import annotations
 
 import copy
+import hashlib
 import math
 import time
 from dataclasses import asdict, dataclass
@@ -297,7 +298,9 @@ class Trainer:
             raise TrainingError(f"{path}: not a {self.config.network.cli_name} with these --widths "
                                 f"(parameter {wrong[0]!r} missing or of another shape)")
         self.model.load_state_dict({name: torch.from_numpy(weights[name].copy()) for name in expected})
-        return {"epoch": 0, "seconds": 0.0, "history": []}
+        card = path.with_suffix(".md")
+        return {"onnx": hashlib.sha256(path.read_bytes()).hexdigest()[:12],
+                "card": card.read_text(encoding="utf-8") if card.is_file() else None}
 
     def _load_initial_weights(self, path: Path) -> None:
         """Fine-tuning: the weights of another run's checkpoint, or of an exported ONNX model (same task and
@@ -309,7 +312,7 @@ class Trainer:
         state = self._load_onnx_weights(path) if path.suffix.lower() == ".onnx" else self._load_weights(path, "start from")
         validated = [h for h in state.get("history", []) if any(k.startswith("val_") for k in h)]
         self.base = {"path": str(path), "epochs": state.get("epoch", 0), "seconds": state.get("seconds", 0.0),
-                     "base": state.get("base"),
+                     "base": state.get("base"), "onnx": state.get("onnx"), "card": state.get("card"),
                      "metrics": {k: v for k, v in (validated[-1] if validated else {}).items() if k.startswith("val_")}}
 
     def _changed_settings(self, saved: dict) -> list[str]:
@@ -528,12 +531,16 @@ class Trainer:
                          "= disocclusion)")
         base_runs = self._base_runs()
         for base in base_runs:
+            if base.get("onnx"):   # an exported model: its own card (when beside it) tells how it was made
+                lines.append(f"- fine-tuned from the weights of `{base['path']}` (sha256 {base['onnx']}…"
+                             + ("; its card follows under 'Base model')" if base.get("card") else "; no card beside it)"))
+                continue
             metrics = ", ".join(f"{k[4:]} {v:.4g}" for k, v in base["metrics"].items())
             lines.append(f"- fine-tuned from `{base['path']}`: {base['epochs']} epochs, {base['seconds'] / 60:.1f} min"
                          + (f" (its last validation: {metrics})" if metrics else ""))
         base_minutes = sum(base["seconds"] for base in base_runs) / 60
         lines.append(f"- wall time: {self.seconds / 60:.1f} min"
-                     + (f" (+ {base_minutes:.1f} min for the run(s) it was fine-tuned from)" if base_runs else "")
+                     + (f" (+ {base_minutes:.1f} min for the run(s) it was fine-tuned from)" if base_minutes else "")
                      + f", {self.context.describe()}")
         speed = self.throughput()
         if speed:
@@ -553,6 +560,11 @@ class Trainer:
         for h in self.history:
             lines.append(f"| {h['epoch']} | {h['step']} | {h['spp']} | {h['train_loss']:.4f} | "
                          + " | ".join(f"{h[k]:.4f}" if k in h else "—" for k in last if k.startswith("val_")) + " |")
+        for base in base_runs:
+            if base.get("card"):
+                lines += ["", f"## Base model (`{Path(base['path']).with_suffix('.md').name}` as it was, headings "
+                          "one level down)", ""]
+                lines += ["#" + line if line.startswith("#") else line for line in base["card"].splitlines()]
         return "\n".join(lines) + "\n"
 
 
