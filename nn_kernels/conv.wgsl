@@ -8,10 +8,12 @@
 // split a block's loads and broadcast them; else weights_uniform.wgsl). The group's bias and output
 // block come in its uniform header; bias and activation run in the epilogue. Shapes are pipeline constants.
 // The engine runs here the convolutions conv3x3.wgsl does not take (other sizes, stride 2, outputs that
-// are not a multiple of 16 channels); with TILE_X = 1 it is the benchmark's naive step.
+// are not a multiple of 16 channels); with TILE_X = 1 it is the benchmark's naive step. Inputs, outputs
+// and the pooling epilogue as in conv3x3_tile.wgsl.
 {{ENABLE_F16}}
 // #import nn_storage.wgsl
 // #import nn_activation.wgsl
+// #import pool_epilogue.wgsl
 
 const IN_H: i32 = {{IN_H}};
 const IN_W: i32 = {{IN_W}};
@@ -27,11 +29,15 @@ const PAD_LEFT: i32 = {{PAD_LEFT}};
 const TILE_X: i32 = {{TILE_X}};
 const TILE_C: i32 = {{TILE_C}};
 const ROW_LEN: i32 = (TILE_X - 1) * STRIDE + KW;
+const OUT_PLANE: i32 = OUT_H * OUT_W;
+const TILE_W: i32 = 8 * TILE_X;  // output pixels of a workgroup's tile
+const TILE_H: i32 = 8;
 
+// #import load_blocks.wgsl
 // #import layer_bindings.wgsl
 
 // 64 invocations cover an 8×8 block of tiles; no early exit (weight_block may need every lane), out of
-// range invocations compute on clamped coordinates and store nothing.
+// range invocations compute on clamped coordinates and store nothing (but join the pooling epilogue).
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_id: vec3u,
         lane: WeightLane) {
@@ -48,16 +54,14 @@ fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_i
     }
     let ix0 = ox0 * STRIDE - PAD_LEFT;
     for (var cb = 0; cb < IN_BLOCKS; cb++) {
-        let plane = (IN_BLOCK + cb) * IN_H * IN_W;
         for (var ky = 0; ky < KH; ky++) {
             let iy = oy * STRIDE + ky - PAD_TOP;
             let row_inside = iy >= 0 && iy < IN_H;
-            let row_start = plane + clamp(iy, 0, IN_H - 1) * IN_W;
+            let input = input_row(cb, iy);
             var row: array<vec4f, ROW_LEN>;
             for (var i = 0; i < ROW_LEN; i++) {
                 let ix = ix0 + i;
-                let value = vec4f(src[row_start + clamp(ix, 0, IN_W - 1)]);
-                row[i] = select(vec4f(0.0), value, row_inside && ix >= 0 && ix < IN_W);
+                row[i] = select(vec4f(0.0), load_input(input, ix), row_inside && ix >= 0 && ix < IN_W);
             }
             for (var kx = 0; kx < KW; kx++) {
                 for (var t = 0; t < TILE_C; t++) {
@@ -70,11 +74,11 @@ fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_i
         }
     }
     for (var t = 0; t < TILE_C; t++) {
-        let out_plane = (header.out_block + t) * OUT_H * OUT_W + oy * OUT_W;
         for (var p = 0; p < TILE_X; p++) {
             if (ox0 + p < OUT_W && oy_unclamped < OUT_H) {
-                dst[out_plane + ox0 + p] = to_storage(activate(acc[t * TILE_X + p]));
+                store_output(header.out_block + t, oy * OUT_W + ox0 + p, activate(acc[t * TILE_X + p]));
             }
         }
     }
+    pool_tile(i32(wid.x) * TILE_W, i32(wid.y) * TILE_H, i32(local));
 }

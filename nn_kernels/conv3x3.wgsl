@@ -5,9 +5,9 @@
 {{ENABLE_F16}}
 // #import conv3x3_tile.wgsl
 
-fn load_pixel(row_start: i32, row_inside: bool, ix: i32) -> vec4f {
-    let value = vec4f(src[row_start + clamp(ix, 0, IN_W - 1)]);
-    return select(vec4f(0.0), value, row_inside && ix >= 0 && ix < IN_W);
+// Pixel ix of an input row, zero outside the input (the convolution's zero padding).
+fn load_pixel(row: InputRow, row_inside: bool, ix: i32) -> vec4f {
+    return select(vec4f(0.0), load_input(row, ix), row_inside && ix >= 0 && ix < IN_W);
 }
 
 // 64 invocations cover 8×8 tiles; no early exit (weight_block may need every lane): out of range
@@ -15,27 +15,27 @@ fn load_pixel(row_start: i32, row_inside: bool, ix: i32) -> vec4f {
 @compute @workgroup_size(64, 1, 1)
 fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_id: vec3u, lane: WeightLane) {
     enter_group(wid.z);
-    let ox0 = (i32(wid.x) * 8 + i32(local_id.x % 8u)) * 4;
-    let oy_unclamped = i32(wid.y) * 8 + i32(local_id.x / 8u);
+    let ox0 = i32(wid.x) * TILE_W + i32(local_id.x % 8u) * 4;
+    let oy_unclamped = i32(wid.y) * TILE_H + i32(local_id.x / 8u);
     let oy = min(oy_unclamped, OUT_H - 1);
     var tile = bias_tile();
     let ix0 = ox0 - PAD_LEFT;
     for (var cb = 0; cb < IN_BLOCKS; cb++) {
-        let plane = (IN_BLOCK + cb) * IN_H * IN_W;
         for (var ky = 0; ky < 3; ky++) {
             let iy = oy + ky - PAD_TOP;
             let row_inside = iy >= 0 && iy < IN_H;
-            let row_start = plane + clamp(iy, 0, IN_H - 1) * IN_W;
-            let r0 = load_pixel(row_start, row_inside, ix0);
-            let r1 = load_pixel(row_start, row_inside, ix0 + 1);
-            let r2 = load_pixel(row_start, row_inside, ix0 + 2);
-            let r3 = load_pixel(row_start, row_inside, ix0 + 3);
-            let r4 = load_pixel(row_start, row_inside, ix0 + 4);
-            let r5 = load_pixel(row_start, row_inside, ix0 + 5);
+            let row = input_row(cb, iy);
+            let r0 = load_pixel(row, row_inside, ix0);
+            let r1 = load_pixel(row, row_inside, ix0 + 1);
+            let r2 = load_pixel(row, row_inside, ix0 + 2);
+            let r3 = load_pixel(row, row_inside, ix0 + 3);
+            let r4 = load_pixel(row, row_inside, ix0 + 4);
+            let r5 = load_pixel(row, row_inside, ix0 + 5);
             accumulate_row(&tile, cb, ky, lane, r0, r1, r2, r3, r4, r5);
         }
     }
     if (oy_unclamped < OUT_H) {
         store_tile(tile, oy, ox0);
     }
+    pool_tile(i32(wid.x) * TILE_W, i32(wid.y) * TILE_H, i32(local_id.x));
 }

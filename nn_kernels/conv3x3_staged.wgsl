@@ -10,8 +10,6 @@
 {{ENABLE_F16}}
 // #import conv3x3_tile.wgsl
 
-const TILE_W: i32 = 32;  // 8 invocations × 4 pixels
-const TILE_H: i32 = 8;
 const HALO_W: i32 = TILE_W + 2;
 const HALO_PIXELS: i32 = HALO_W * (TILE_H + 2);
 const STAGING_STEPS: i32 = (HALO_PIXELS + 63) / 64;
@@ -20,13 +18,12 @@ var<workgroup> staged: array<vec4f, HALO_PIXELS>;
 
 // Loads input block cb of the halo tile whose top-left input pixel is (x0, y0) into `staged`.
 fn stage_block(cb: i32, x0: i32, y0: i32, invocation: i32) {
-    let plane = (IN_BLOCK + cb) * IN_H * IN_W;
     for (var step = 0; step < STAGING_STEPS; step++) {
         let index = step * 64 + invocation;
         if (index < HALO_PIXELS) {
             let iy = y0 + index / HALO_W;
             let ix = x0 + index % HALO_W;
-            let value = vec4f(src[plane + clamp(iy, 0, IN_H - 1) * IN_W + clamp(ix, 0, IN_W - 1)]);
+            let value = load_input(input_row(cb, iy), ix);
             staged[index] = select(vec4f(0.0), value, iy >= 0 && iy < IN_H && ix >= 0 && ix < IN_W);
         }
     }
@@ -57,4 +54,5 @@ fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_i
     if (oy < OUT_H) {
         store_tile(tile, oy, i32(wid.x) * TILE_W + tile_x);
     }
+    pool_tile(i32(wid.x) * TILE_W, i32(wid.y) * TILE_H, invocation);
 }

@@ -9,9 +9,15 @@
 // arrays it could not unroll go to scratch memory. The group (TILE_C output blocks) and header are as
 // in conv.wgsl; its weights come in one window per pair of output blocks (kernels.PackedWeights with
 // splits = TILE_C / 2): blocks 2p and 2p + 1 from window `pair{p}_weights` (pair{p}_weight_block),
-// so 128 input channels still fit 64 KiB uniform bindings.
+// so 128 input channels still fit 64 KiB uniform bindings. Input pixels come through load_input
+// (load_blocks.wgsl, or the planar input image: load_planar.wgsl), outputs go through store_output
+// (store_blocks.wgsl, or the planar output image: store_planar.wgsl), and the epilogue may also max-pool
+// the workgroup's tile (pool_epilogue.wgsl) or run the network's 1×1 head (head_epilogue.wgsl).
 // #import nn_storage.wgsl
 // #import nn_activation.wgsl
+// #import pool_epilogue.wgsl
+// #import head_epilogue_none.wgsl
+// #import load_blocks.wgsl
 // #import layer_bindings.wgsl
 // #import conv3x3_tile_blocks.wgsl
 
@@ -24,6 +30,8 @@ const PAD_LEFT: i32 = {{PAD_LEFT}};
 const OUT_H: i32 = {{OUT_H}};
 const OUT_W: i32 = {{OUT_W}};
 const OUT_PLANE: i32 = OUT_H * OUT_W;
+const TILE_W: i32 = 32;  // a workgroup's output tile: 8 × 8 invocations of 4 pixels each
+const TILE_H: i32 = 8;
 
 // The three 4-pixel input matrices of one kernel row (column p: input pixel p + kx of the row), from
 // its 6 input pixels r0..r5.
@@ -48,10 +56,9 @@ fn bias_pixels(block: i32) -> mat4x4f {
 }
 
 fn store_pixels(block: i32, oy: i32, ox0: i32, pixels: mat4x4f) {
-    let base = (header.out_block + block) * OUT_PLANE + oy * OUT_W + ox0;
     for (var p = 0; p < 4; p++) {
         if (ox0 + p < OUT_W) {
-            dst[base + p] = to_storage(activate(pixels[p]));
+            store_output(header.out_block + block, oy * OUT_W + ox0 + p, activate(pixels[p]));
         }
     }
 }

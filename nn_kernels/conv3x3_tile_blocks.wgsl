@@ -25,6 +25,7 @@ fn accumulate_row(tile: ptr<function, Tile>, cb: i32, ky: i32, lane: WeightLane,
 {{TILE_ACCUMULATE}}
 }
 
+// Stores the tile's pixels of output row oy (or, with a head folded in, the head's output of them).
 fn store_tile(tile: Tile, oy: i32, ox0: i32) {
 {{TILE_STORE}}
 }

@@ -18,6 +18,7 @@ const TILE_C: i32 = 1;
 const OUT_W: i32 = 2 * IN_W;
 const OUT_PLANE: i32 = 4 * IN_H * IN_W;
 
+// #import input_binding.wgsl
 // #import layer_bindings.wgsl
 
 fn load_pixel(row_start: i32, x: i32) -> vec4f {
@@ -26,10 +27,10 @@ fn load_pixel(row_start: i32, x: i32) -> vec4f {
 
 // Output pixels (2y + dy, 2x + dx) of input pixels x0..x0+3 for tap (dy, dx): column p is pixel x0 + p.
 fn store_tap(y: i32, x0: i32, dy: i32, dx: i32, pixels: mat4x4f) {
-    let row_start = header.out_block * OUT_PLANE + (2 * y + dy) * OUT_W + dx;
+    let row_start = (2 * y + dy) * OUT_W + dx;
     for (var p = 0; p < 4; p++) {
         if (x0 + p < IN_W) {
-            dst[row_start + 2 * (x0 + p)] = to_storage(activate(pixels[p]));
+            store_output(header.out_block, row_start + 2 * (x0 + p), activate(pixels[p]));
         }
     }
 }

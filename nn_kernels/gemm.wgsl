@@ -12,7 +12,10 @@ const IN_BLOCK: i32 = {{IN_BLOCK}};
 const IN_BLOCKS: i32 = {{IN_BLOCKS}};
 const TILE_X: i32 = {{TILE_X}};
 const TILE_C: i32 = {{TILE_C}};
+const OUT_W: i32 = {{OUT_W}};  // pixels per row (store_planar.wgsl)
+const OUT_PLANE: i32 = PIXELS;
 
+// #import input_binding.wgsl
 // #import layer_bindings.wgsl
 
 // No early exit (weight_block may need every lane): out of range tiles read clamped pixels, store nothing.
@@ -40,10 +43,9 @@ fn main(@builtin(global_invocation_id) gid: vec3u, lane: WeightLane) {
         }
     }
     for (var t = 0; t < TILE_C; t++) {
-        let out_plane = (header.out_block + t) * PIXELS;
         for (var p = 0; p < TILE_X; p++) {
             if (p0 + p < PIXELS) {
-                dst[out_plane + p0 + p] = to_storage(activate(acc[t * TILE_X + p]));
+                store_output(header.out_block + t, p0 + p, activate(acc[t * TILE_X + p]));
             }
         }
     }

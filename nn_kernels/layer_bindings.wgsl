@@ -1,5 +1,7 @@
-// Bindings of every weighted layer kernel (conv, conv3x3, conv_transpose, gemm): input and output
-// activations as vec4 channel blocks of T, the weight fetch that kernels.py splices in for the
+// Bindings of every weighted layer kernel (conv, conv3x3, conv_transpose, gemm) but the input (binding
+// 0: input_binding.wgsl, or in the convolutions load_blocks.wgsl / load_planar.wgsl): the output
+// (store_blocks.wgsl, or store_planar.wgsl in the network's last layer; the importing kernel stores
+// through store_output), the weight fetch that kernels.py splices in for the
 // adapter (uniform windows, subgroup broadcast or storage), and a header per output-block group
 // holding the bias of the group's TILE_C output blocks and the index of its first block. The
 // importing kernel defines TILE_C and calls enter_group(workgroup_id.z) first.
@@ -18,8 +20,8 @@ struct GroupHeader {
 const GROUPS: u32 = {{GROUPS}}u;
 const GROUP_MATS: i32 = {{GROUP_MATS}};
 
-@group(0) @binding(0) var<storage, read> src: array<vec4<T>>;
-@group(0) @binding(1) var<storage, read_write> dst: array<vec4<T>>;
+// #import store_blocks.wgsl
+
 {{WEIGHT_FETCH}}
 @group(0) @binding(3) var<uniform> headers: array<GroupHeader, GROUPS>;
 

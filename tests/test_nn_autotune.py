@@ -8,7 +8,7 @@ import pytest
 from onnx import helper
 
 from parity import check_parity
-from test_nn_ops import FP32_ATOL, conv, make_model, onnxruntime_fn
+from test_nn_ops import FP32_ATOL, conv, every_dispatch, make_model, onnxruntime_fn
 
 SIZE = (19, 23)
 
@@ -38,12 +38,13 @@ def fake_timer(calls):
 
 
 def chosen(model):
-    """(kernel, workgroups along x) of each weighted layer's dispatch in the 19×23 plan."""
-    return [(d.kernel, d.workgroups[0]) for d in model.plan(*SIZE).dispatches if d.flops]
+    """(kernel, workgroups along x) of each weighted layer's dispatch at 19×23."""
+    return [(d.kernel, d.workgroups[0]) for d in every_dispatch(model, *SIZE) if d.flops]
 
 
-# the staged 3×3 kernel; the 1×1 one with one pixel per invocation: 437 pixels in 7 workgroups of 64
-FAKE_CHOICE = [("conv3x3_staged.wgsl+tile16", 1), ("gemm.wgsl", 7)]
+# the staged 3×3 kernel, reading the input image itself; the 1×1 one with one pixel per invocation
+# (437 pixels in 7 workgroups of 64), writing the output image
+FAKE_CHOICE = [("pack+conv3x3_staged.wgsl+tile16", 1), ("gemm.wgsl+unpack", 7)]
 
 
 @pytest.mark.gpu
@@ -163,10 +164,40 @@ def test_dispatch_per_layer_or_per_group_is_measured_too(gpu, tmp_path, per_grou
 
     cache = tmp_path / "autotune.json"
     model = WgslModel(path, ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))
-    dispatches = model.plan(*SIZE).dispatches
+    dispatches = [d for d in every_dispatch(model, *SIZE) if d.flops]
     assert len(calls) == 8  # none, loop, register, staged × both ways
     expected = [1, 1, 1] if per_group_faster else [3]
-    assert [(d.kernel, d.workgroups[2]) for d in dispatches] == [("conv3x3.wgsl+tile16", z) for z in expected]
+    assert [(d.kernel, d.workgroups[2]) for d in dispatches] == [("conv3x3.wgsl+tile16+unpack", z)
+                                                                 for z in expected]
     variant = "register+uniform-windows" if per_group_faster else "register"
     assert [entry["variant"] for entry in json.loads(cache.read_text())["entries"].values()] == [variant]
     check_parity([(1, 128, *SIZE)], onnxruntime_fn(path), model, atol=FP32_ATOL)
+
+
+@pytest.mark.gpu
+def test_a_conv_pooling_in_its_epilogue_is_timed_with_the_pool(gpu, tmp_path):
+    """A conv whose epilogue max-pools its output is measured doing so (each candidate writes a scratch
+    pooled tensor too) and cached under a key of its own."""
+    from test_nn_ops import FOLDS, canvas_onnxruntime_fn
+
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.autotune import Autotuner
+
+    channels, build = FOLDS["pool_skip16"]
+    nodes, inits = build()
+    path = make_model(tmp_path, "pool_skip", nodes, channels, inits)
+    calls = []
+
+    def seconds(dispatches):
+        calls.append(dispatches[0].kernel)
+        return 1.0 if dispatches[0].kernel.startswith("conv3x3_staged") else 2.0
+
+    cache = tmp_path / "autotune.json"
+    model = WgslModel(path, ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))
+    check_parity([(1, channels, 37, 53)], canvas_onnxruntime_fn(path, model), model, atol=FP32_ATOL)
+    pooled = sorted(kernel for kernel in calls if kernel.endswith("+maxpool"))  # the pooled conv's candidates
+    assert pooled == ["conv.wgsl+maxpool", "conv.wgsl+maxpool", "conv3x3.wgsl+tile16+maxpool",
+                      "conv3x3_staged.wgsl+tile16+maxpool"]
+    keys = json.loads(cache.read_text())["entries"]
+    assert sum(" conv+maxpool 16x5x3x3 " in key for key in keys) == 1
+    assert every_dispatch(model, 37, 53)[0].kernel == "pack+conv3x3_staged.wgsl+tile16+maxpool"

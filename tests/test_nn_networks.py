@@ -13,6 +13,7 @@ import pytest
 import torch
 
 from parity import check_parity
+from test_nn_ops import every_dispatch
 from wgpu_rt.frame.denoise import pad_to_multiple
 from wgpu_rt.train.networks import ConfidencePredictor, ErrorPredictor, UNet, export_onnx
 
@@ -94,7 +95,9 @@ def test_unet_plan_reuses_memory_and_concat_is_free(networks):
     plan = model.plan(64, 64)
     assert all(copies == [] for copies in model.graph.concat_copies.values())
     assert not any(d.label.startswith("/Concat") for d in plan.dispatches)
-    assert plan.peak_bytes < 0.5 * plan.unplanned_bytes, (plan.peak_bytes, plan.unplanned_bytes)
+    # 0.525: the pools computed in the convs' epilogues keep a conv's input, output and pooled output
+    # live at once (this U-Net's plan takes 3% more than with pool dispatches: 1.94 → 2.03 MiB at 64²)
+    assert plan.peak_bytes < 0.55 * plan.unplanned_bytes, (plan.peak_bytes, plan.unplanned_bytes)
     assert model.plan(64, 64) is plan  # planned once per resolution
     assert plan.canvas == (64, 64) and model.plan(37, 53).canvas == (40, 56)
 
@@ -115,20 +118,27 @@ def test_batch_of_two(networks):
     np.testing.assert_allclose(model(x), session.run(None, {"input": x})[0], atol=FP32_ATOL)
 
 
-def test_frames_over_the_binding_limit_run_in_bands_with_identical_results(tmp_path, gpu):
+@pytest.mark.parametrize("widths,limit,bands", [((8, 16, 32), 760_000, 3), ((16, 32), 1_000_000, 3)],
+                         ids=["conv", "conv3x3_head"])
+def test_frames_over_the_binding_limit_run_in_bands_with_identical_results(tmp_path, gpu, widths, limit, bands):
     """A frame whose activations exceed max-storage-buffer-binding-size (1080p U-Net on lavapipe) runs
-    as bands of rows with receptive-field context; shrink the limit to force that at a small size."""
+    as bands of rows with receptive-field context; shrink the limit to force that at a small size. Each
+    band's first conv reads its rows of the input image and its last layer writes its kept rows of the
+    output image: conv.wgsl and the 1×1 head (8 channels), conv3x3 with the head in its epilogue (16)."""
     from wgpu_rt.gpu import GpuContext
     from wgpu_rt.nn import WgslModel
 
     torch.manual_seed(4)
-    path = export_onnx(UNet(widths=(8, 16, 32)), tmp_path / "unet.onnx")
+    path = export_onnx(UNet(widths=widths), tmp_path / "unet.onnx")
     small = GpuContext(gpu.adapter, gpu.device, gpu.features)
-    small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": 760_000}
+    small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": limit}
     x = np.random.default_rng(7).uniform(0, 1, (1, 10, 403, 45)).astype(np.float32)
-    banded = WgslModel(path, ctx=small)
-    assert len(banded.plan(403, 45).bands) == 3
-    np.testing.assert_array_equal(banded(x), WgslModel(path, ctx=gpu)(x))
+    banded = WgslModel(path, ctx=small, conv_tiling="register")
+    assert len(banded.plan(403, 45).bands) == bands
+    kernels = [d.kernel for d in every_dispatch(banded, 403, 45)]
+    assert kernels.count("pack+conv.wgsl" if widths[0] == 8 else "pack+conv3x3.wgsl+tile16") == bands
+    assert kernels.count("gemm.wgsl+unpack" if widths[0] == 8 else "conv3x3.wgsl+tile16+head+unpack") == bands
+    np.testing.assert_array_equal(banded(x), WgslModel(path, ctx=gpu, conv_tiling="register")(x))
 
 
 @pytest.mark.parametrize("tiling,precision", [("register", "fp32"), ("staged", "fp32"), ("loop", "fp32"),
@@ -136,7 +146,10 @@ def test_frames_over_the_binding_limit_run_in_bands_with_identical_results(tmp_p
 def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precision):
     """With one dispatch per layer preferred (discrete GPUs), every weighted layer of the U-Net is one
     dispatch whose z dimension runs over its output-block groups, the big layers reading all their
-    windows from one storage binding: the same output as onnxruntime."""
+    windows from one storage binding, and nothing else is dispatched: the first conv reads the input
+    image, the pools run in the convs' epilogues, the concats are free and the head writes the output
+    image (in the register tiling from the last 3×3 conv's epilogue, whose 32 outputs fit one tile):
+    the same output as onnxruntime."""
     from wgpu_rt.nn import WgslModel
     from wgpu_rt.nn import model as nn_model
 
@@ -150,10 +163,12 @@ def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precisi
     packed = [model.prepared[layer.name] for layer in weighted]
     assert all(p.one_dispatch for p in packed) and any(p.weight_space == "storage, read" for p in packed)
     assert any(p.groups > 1 for p in packed)
-    plan = model.plan(37, 53)
-    # one dispatch per layer, aligned concats none
-    assert len(plan.dispatches) == sum(layer.kind != "concat" for layer in model.graph.layers)
-    assert sorted(d.workgroups[2] for d in plan.dispatches if d.flops) == sorted(p.groups for p in packed)
+    dispatches = every_dispatch(model, 37, 53)
+    head_folded = tiling == "register"
+    assert all(d.flops for d in dispatches) and len(dispatches) == len(weighted) - head_folded
+    dispatched = packed[:-1] if head_folded else packed  # the head is the last weighted layer
+    assert sorted(d.workgroups[2] for d in dispatches) == sorted(p.groups for p in dispatched)
+    assert dispatches[-1].kernel.endswith("+head+unpack" if head_folded else "gemm.wgsl+unpack")
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     check_parity([(1, model.input_channels, 37, 53)], padded_reference(session, model.graph.multiple), model,
                  atol=FP32_ATOL if precision == "fp32" else FP16_ATOL, name=f"unet {tiling} {precision}")

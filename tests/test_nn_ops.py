@@ -1,4 +1,5 @@
-"""Every op the ONNX → WGSL engine lowers, alone (and fused), against onnxruntime via check_parity.
+"""Every op the ONNX → WGSL engine lowers, alone (and fused), and every fold of a conversion, pool or
+head into a neighbouring kernel in every plan variant, against onnxruntime via check_parity.
 
 Graphs are built with onnx.helper (dynamic H and W), so each test names exactly the node it checks.
 Channel counts are deliberately not multiples of 4 (the engine packs channels in blocks of 4) and sizes
@@ -34,6 +35,11 @@ def make_model(tmp_path, name, nodes, in_channels, initializers=(), opset=17):
     path = tmp_path / f"{name}.onnx"
     onnx.save(model, path)
     return path
+
+
+def every_dispatch(model, height, width):
+    """Every dispatch of one inference at height×width: entry, network and exit."""
+    return model.dispatches(height, width, model.ctx.storage(4 * model.input_channels * height * width))
 
 
 def onnxruntime_fn(path):
@@ -182,19 +188,20 @@ def test_op_fp16(models, gpu, name):
 
 
 def test_activation_is_fused_into_conv(models):
-    """Conv+ReLU and Conv+Sigmoid are one layer, so one dispatch per output-block group."""
+    """Conv+ReLU and Conv+Sigmoid are one layer, so one dispatch (which also writes the planar output:
+    the network's last layer needs no unpack; its input is packed, as it is the exit layer)."""
     for name in ("conv_relu", "conv_sigmoid"):
         _, _, model = models(name, FUSED[name], "fp32")
         assert [layer.kind for layer in model.graph.layers] == ["conv"]
         assert model.graph.layers[0].activation.kind in (1, 3)
-        labels = [d.label for d in model.plan(8, 8).dispatches]
-        assert not any("relu" in label or "sigmoid" in label for label in labels), labels
+        dispatches = every_dispatch(model, 8, 8)
+        assert [(d.label, d.kernel) for d in dispatches] == [("pack", "pack.wgsl"), ("conv", "conv.wgsl+unpack")]
 
 
 def test_aligned_concat_is_free(models):
     _, _, model = models("concat_aligned", CONCATS["concat_aligned"], "fp32")
     assert model.graph.concat_copies["concat"] == []
-    assert not any(d.label.startswith("concat") for d in model.plan(8, 8).dispatches)
+    assert not any(d.label.startswith("concat") for d in every_dispatch(model, 8, 8))
 
 
 def test_misaligned_concat_copies(models):
@@ -294,7 +301,7 @@ def test_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, monkeypatch
     one_binding_space = "uniform" if cin == 5 else "storage, read"
     assert packed.weight_space == ("uniform" if per_group else one_binding_space)
     assert packed.one_dispatch == (not per_group)
-    workgroups = [d.workgroups[2] for d in model.plan(19, 23).dispatches]
+    workgroups = [d.workgroups[2] for d in every_dispatch(model, 19, 23) if d.flops]
     assert workgroups == ([1] * packed.groups if per_group else [packed.groups])
     check_parity([(1, cin, 19, 23)], onnxruntime_fn(path), model, atol=FP32_ATOL)
 
@@ -320,3 +327,155 @@ def test_tile_template_writes_out_each_block():
     assert "(*tile).block7 += pair3_weight_block(tap + 1, lane) * x.x0 + pair3_weight_block(tap + 3, lane)" \
         in code["TILE_ACCUMULATE"]
     assert code["TILE_STORE"].count("store_pixels(") == 8
+
+
+# -- folds: pooling, the entry and exit conversions and a 1×1 head run inside neighbouring kernels ----
+
+def relu(name, x, y):
+    return [helper.make_node("Relu", [x], [y], name=name)]
+
+
+def maxpool(name, x, y):
+    return [helper.make_node("MaxPool", [x], [y], name=name, kernel_shape=[2, 2], strides=[2, 2])]
+
+
+def pool_skip_graph(width):
+    """A U-Net level: conv (the pooled layer, and the input's only reader) → max pool → conv → ×2
+    resize, concatenated with the pre-pool output (a skip: the pooled tensor is not its only
+    consumer) → conv to 6 channels. ``width`` picks the pooling kernel: 16 conv3x3's 16-channel tile,
+    32 its 32-channel one (register tiling), 6 conv.wgsl."""
+    def build():
+        first, w1 = conv("c1", "x", "t1", 5, width, 3)
+        second, w2 = conv("c2", "p", "t2", width, width, 3, seed=2)
+        last, w3 = conv("mix", "cat", "y", 2 * width, 6, 3, seed=3)
+        nodes = [*first, *relu("r1", "t1", "a1"), *maxpool("pool", "a1", "p"), *second, *relu("r2", "t2", "a2"),
+                 helper.make_node("Resize", ["a2", "", "scales"], ["u"], name="up", mode="nearest"),
+                 helper.make_node("Concat", ["u", "a1"], ["cat"], name="concat", axis=1), *last]
+        return nodes, [*w1, *w2, *w3, ("scales", np.array([1, 1, 2, 2], np.float32))]
+    return 5, build
+
+
+def pool_into_concat_graph():
+    """The pooled tensor lies inside a concat, 16 channels in (its block is not the conv output's):
+    conv → pool → conv (which reads the concat's buffer, so it is copied in) → concat(conv, pool)."""
+    def build():
+        first, w1 = conv("c1", "x", "a1", 5, 16, 3)
+        second, w2 = conv("c2", "p", "a2", 16, 16, 3, seed=2)
+        last, w3 = conv("mix", "cat", "y", 32, 6, 3, seed=3)
+        nodes = [*first, *maxpool("pool", "a1", "p"), *second,
+                 helper.make_node("Concat", ["a2", "p"], ["cat"], name="concat", axis=1), *last]
+        return nodes, [*w1, *w2, *w3]
+    return 5, build
+
+
+def two_pools_graph():
+    """Two max pools of one conv output: the first runs in the conv's epilogue, the second is dispatched."""
+    def build():
+        first, w1 = conv("c1", "x", "a1", 5, 16, 3)
+        nodes = [*first, *maxpool("pool1", "a1", "p1"), *maxpool("pool2", "a1", "p2"),
+                 helper.make_node("Add", ["p1", "p2"], ["y"], name="add")]
+        return nodes, w1
+    return 5, build
+
+
+def head_graph(width, head_activation=False):
+    """conv 5 → 16 (the input's reader) → conv 16 → ``width`` + ReLU → 1×1 head to 10 channels (three
+    output blocks, the last part-filled), optionally + sigmoid: the head folds into the second conv's
+    epilogue where that conv's one tile holds all its outputs and the head has no activation."""
+    def build():
+        first, w1 = conv("c1", "x", "a1", 5, 16, 3)
+        second, w2 = conv("c2", "a1", "t2", 16, width, 3, seed=2)
+        head, w3 = conv("head", "a2", "h" if head_activation else "y", width, 10, 1, pads=[0, 0, 0, 0], seed=3)
+        tail = [helper.make_node("Sigmoid", ["h"], ["y"], name="sigmoid")] if head_activation else []
+        return [*first, *second, *relu("r2", "t2", "a2"), *head, *tail], [*w1, *w2, *w3]
+    return 5, build
+
+
+FOLDS = {"pool_skip16": pool_skip_graph(16), "pool_skip32": pool_skip_graph(32), "pool_skip6": pool_skip_graph(6),
+         "pool_into_concat": pool_into_concat_graph(), "two_pools": two_pools_graph(),
+         "head16": head_graph(16), "head32": head_graph(32), "head_with_sigmoid": head_graph(16, True)}
+# plan variant -> (conv tiling, uniform windows preferred): lavapipe's plan, the staged kernels, the GPU
+# plan (staged, one dispatch per layer) and the loop kernels (conv.wgsl everywhere)
+PLANS = {"register": ("register", True), "staged": ("staged", True), "gpu": ("staged", False),
+         "loop": ("loop", True)}
+
+
+def fold_model(tmp_path, gpu, monkeypatch, name, plan, precision):
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn import model as nn_model
+
+    if precision == "fp16" and not gpu.has_f16:
+        pytest.skip(f"{gpu.label} has no shader-f16")
+    tiling, uniform_windows = PLANS[plan]
+    monkeypatch.setattr(nn_model, "default_uniform_windows", lambda ctx: uniform_windows)
+    channels, build = FOLDS[name]
+    nodes, inits = build()
+    path = make_model(tmp_path, name, nodes, channels, inits)
+    return path, WgslModel(path, precision, ctx=gpu, conv_tiling=tiling)
+
+
+def canvas_onnxruntime_fn(path, model):
+    """onnxruntime on the input edge-padded to ``model``'s canvas, cropped back to its output: the
+    engine's semantics where a graph does not fit together at the input's size (a pool, then a ×2
+    resize, of an odd size)."""
+    from wgpu_rt.frame.denoise import pad_to_multiple
+
+    run = onnxruntime_fn(path)
+
+    def reference(x):
+        plan = model.plan(*x.shape[2:])
+        padded = x if plan.canvas == x.shape[2:] else pad_to_multiple(x, model.graph.multiple)
+        return run(padded)[..., : plan.output_shape[1], : plan.output_shape[2]]
+    return reference
+
+
+@pytest.mark.parametrize("precision", ["fp32", "fp16"])
+@pytest.mark.parametrize("plan", list(PLANS))
+@pytest.mark.parametrize("name", list(FOLDS))
+def test_folds_match_onnxruntime(tmp_path, gpu, monkeypatch, name, plan, precision):
+    """Every fold in every plan variant and precision at 37×53 (odd: the pooled convs' tiles and the
+    pools' floor mode are cut at both edges, the canvas is edge-padded to 38×54 where the graph needs
+    it), against onnxruntime."""
+    path, model = fold_model(tmp_path, gpu, monkeypatch, name, plan, precision)
+    reference = canvas_onnxruntime_fn(path, model)
+    check_parity([(1, 5, 37, 53)], reference, model, atol=FP32_ATOL if precision == "fp32" else FP16_ATOL,
+                 name=f"{name} {plan} {precision}")
+
+
+def kernels_of(model, height=37, width=53):
+    return [d.kernel for d in every_dispatch(model, height, width)]
+
+
+@pytest.mark.parametrize("plan", list(PLANS))
+def test_pool_runs_in_the_conv_epilogue(tmp_path, gpu, monkeypatch, plan):
+    """No max pool dispatch and no pack: the first conv reads the input image and pools its output."""
+    _, model = fold_model(tmp_path, gpu, monkeypatch, "pool_skip16", plan, "fp32")
+    assert [pool.name for pool in model.graph.epilogue_pools.values()] == ["pool"]
+    kernels = kernels_of(model)
+    assert not any(k.startswith(("maxpool", "pack.wgsl", "unpack.wgsl")) for k in kernels), kernels
+    assert kernels[0].startswith("pack+conv") and kernels[0].endswith("+maxpool")
+    assert kernels[-1] == "conv.wgsl+unpack"
+
+
+def test_second_pool_of_one_output_is_dispatched(tmp_path, gpu, monkeypatch):
+    _, model = fold_model(tmp_path, gpu, monkeypatch, "two_pools", "register", "fp32")
+    assert [pool.name for pool in model.graph.epilogue_pools.values()] == ["pool1"]
+    assert kernels_of(model) == ["pack+conv3x3.wgsl+tile16+maxpool", "maxpool.wgsl", "elementwise.wgsl",
+                                 "unpack.wgsl"]
+
+
+@pytest.mark.parametrize("name,plan,folded", [
+    ("head16", "register", True), ("head16", "gpu", True), ("head32", "register", True),
+    ("head32", "staged", False),  # the staged kernel's 16-channel tile holds half of the 32 outputs
+    ("head16", "loop", False),  # conv.wgsl takes no head
+    ("head_with_sigmoid", "register", False)])
+def test_head_runs_in_the_last_conv_epilogue(tmp_path, gpu, monkeypatch, name, plan, folded):
+    """A 1×1 head folds into the preceding 3×3 conv where one tile holds all that conv's outputs and the
+    head has no activation; else the head alone writes the image."""
+    _, model = fold_model(tmp_path, gpu, monkeypatch, name, plan, "fp32")
+    kernels = kernels_of(model)
+    assert kernels[0].startswith("pack+conv") and not any(k.startswith("unpack") for k in kernels)
+    if folded:
+        assert len(kernels) == 2 and kernels[1].endswith("+head+unpack"), kernels
+    else:
+        assert kernels[-1] in ("gemm.wgsl+unpack", "unpack.wgsl") and len(kernels) >= 3, kernels

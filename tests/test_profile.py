@@ -40,8 +40,12 @@ def test_every_dispatch_timed_and_flops_add_up(gpu, tiny_unet, monkeypatch, per_
     model = WgslModel(tiny_unet, ctx=gpu)
     result = profile(model, SIZE, SIZE, repeat=2)
     plan = model.plan(SIZE, SIZE)
-    assert [row.label for row in result.rows] == ["pack", *(d.label for d in plan.dispatches), "unpack"]
-    assert [row.workgroups for row in result.rows[1:-1]] == [d.workgroups for d in plan.dispatches]
+    # the first conv reads the input image itself and the head writes the output image: no pack, no unpack
+    entry, exit = result.rows[:1], result.rows[-len(plan.exits[0]):]
+    assert [row.label for row in entry] == ["/down.0/down.0.0/Conv"] and entry[0].kernel == "pack+conv.wgsl"
+    assert [row.label for row in result.rows[1:-len(exit)]] == [d.label for d in plan.dispatches]
+    assert [row.workgroups for row in result.rows[1:-len(exit)]] == [d.workgroups for d in plan.dispatches]
+    assert all(row.kernel == "gemm.wgsl+unpack" for row in exit)
     assert all(row.seconds >= 0 for row in result.rows) and result.end_to_end_seconds > 0
     assert sum(row.flops for row in result.rows) == plan.flops == result.network_flops
     head = [row for row in result.rows if row.label.startswith("/head/")]
@@ -50,7 +54,7 @@ def test_every_dispatch_timed_and_flops_add_up(gpu, tiny_unet, monkeypatch, per_
         assert [row.workgroups[2] for row in head] == [1, 1, 1]
     else:
         assert [(row.output, row.workgroups[2]) for row in head] == [((10, SIZE, SIZE), 3)]
-    assert result.rows[0].kernel == "pack.wgsl" and result.rows[-1].kernel == "unpack.wgsl"
+    assert head == exit
 
 
 @pytest.mark.gpu
@@ -142,7 +146,7 @@ def test_frames_in_bands_list_each_bands_dispatches(gpu, tiny_unet):
     model = WgslModel(tiny_unet, ctx=small)
     plan = model.plan(403, 45)
     result = profile(model, 403, 45, repeat=1)
-    per_band = len(plan.dispatches) + 2
+    per_band = 1 + len(plan.dispatches) + len(plan.exits[0])  # the first conv, the rest, the head
     assert len(plan.bands) == result.bands > 1 and len(result.rows) == result.bands * per_band
     assert [row.band for row in result.rows] == [i // per_band for i in range(len(result.rows))]
     assert sum(row.flops for row in result.rows) > result.network_flops == plan.flops  # context rows

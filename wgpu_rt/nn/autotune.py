@@ -99,10 +99,11 @@ class Autotuner:
         except (OSError, ValueError, AttributeError, KeyError, TypeError):
             return {}
 
-    def key(self, layer: Layer, src: TensorView, precision: str) -> str:
+    def key(self, layer: Layer, src: TensorView, precision: str, pooled: bool = False) -> str:
+        """The cache key of ``layer`` reading ``src`` (``pooled``: with a max pool in its epilogue)."""
         cout, cin, kh, kw = layer.weight.shape
-        return (f"{self.adapter} | {precision} | {layer.kind} {cout}x{cin}x{kh}x{kw} stride {layer.stride} "
-                f"pads {','.join(map(str, layer.pads))} in {src.height}x{src.width}")
+        return (f"{self.adapter} | {precision} | {layer.kind}{'+maxpool' * pooled} {cout}x{cin}x{kh}x{kw} "
+                f"stride {layer.stride} pads {','.join(map(str, layer.pads))} in {src.height}x{src.width}")
 
     def choose(self, key: str, candidates: dict[str, Callable[[], list[Dispatch]]], default: str) -> str:
         """The fastest of ``candidates`` (variant -> its dispatches on scratch tensors) for ``key``, from

@@ -7,6 +7,11 @@ conv, max-pool, resize, elementwise, concat); an activation that directly follow
 conv or elementwise node whose output nobody else reads is folded into that layer's epilogue, so
 Conv+ReLU and Conv+Sigmoid are one dispatch.
 
+A 2×2 max pool whose input a conv produces (and no other pool of that output is folded already) is
+computed in that conv's epilogue: the conv writes both its output and the pooled tensor, and the
+MaxPool layer, kept in ``layers`` for shapes, is not dispatched (``NetworkGraph.epilogue_pools``). This
+needs no single consumer: the full-resolution output (a U-Net's skip) is stored as before.
+
 Concat is free: each input that starts on a 4-channel boundary (and, unless it is the last input, spans
 whole 4-channel blocks) is written by its producer straight into its channel slice of the concatenated
 tensor ("aliased"); only misaligned inputs, graph inputs already placed elsewhere and inputs whose
@@ -88,6 +93,26 @@ class NetworkGraph:
     aliases: dict[str, tuple[str, int]] = field(default_factory=dict)
     # concat layer name -> inputs copied at the concat (not aliased)
     concat_copies: dict[str, list[str]] = field(default_factory=dict)
+    # conv layer name -> the MaxPool layer its epilogue computes (that layer is not dispatched)
+    epilogue_pools: dict[str, Layer] = field(default_factory=dict)
+
+    def pooled_in_epilogue(self, layer: Layer) -> bool:
+        """Whether ``layer`` is a MaxPool that its producer's epilogue computes."""
+        return any(pool is layer for pool in self.epilogue_pools.values())
+
+    def head_body(self, head: Layer) -> Layer | None:
+        """The conv that could run ``head`` in its epilogue, or None: ``head`` must be a 1×1 conv without
+        activation, and its input a conv's output that nothing else reads, that is not inside a concat
+        and whose conv pools nothing in its epilogue (whether the conv's kernel can take it is the
+        kernel's question: kernels.Conv3x3Kernel.takes_head)."""
+        source = head.inputs[0]
+        body = next((layer for layer in self.layers if layer.output == source), None)
+        if (head.kind != "gemm" or head.activation != NO_ACTIVATION or body is None or body.kind != "conv"
+                or body.name in self.epilogue_pools or source == self.output_name
+                or self.placement(source)[0] != source
+                or any(source in layer.inputs for layer in self.layers if layer is not head)):
+            return None
+        return body
 
     @property
     def multiple(self) -> int:
@@ -213,6 +238,7 @@ def load_graph(path: str | Path) -> NetworkGraph:
     for node in graph.node:
         lowering.lower(node, numpy_helper)
     network = NetworkGraph(path, inputs[0].name, dims[1].dim_value, graph.output[0].name, lowering.layers)
+    _fold_pools(network)
     _plan_concats(network)
     return network
 
@@ -390,10 +416,22 @@ def _attribute(attribute, numpy_helper):
     return None
 
 
+def _fold_pools(network: NetworkGraph) -> None:
+    """Give each MaxPool whose input a conv produces to that conv's epilogue (one pool per conv)."""
+    producers = {layer.output: layer for layer in network.layers}
+    for layer in network.layers:
+        producer = producers.get(layer.inputs[0])
+        if (layer.kind == "maxpool" and producer is not None and producer.kind == "conv"
+                and producer.name not in network.epilogue_pools):
+            network.epilogue_pools[producer.name] = layer
+
+
 def _plan_concats(network: NetworkGraph) -> None:
     """Decide which concat inputs are written in place (see module docstring) and which are copied."""
     channels = _channel_counts(network)
     producers = {layer.output: layer for layer in network.layers}
+    by_name = {layer.name: layer for layer in network.layers}
+    producers.update({pool.output: by_name[conv] for conv, pool in network.epilogue_pools.items()})
     for layer in network.layers:
         if layer.kind != "concat":
             continue

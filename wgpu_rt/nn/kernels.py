@@ -9,7 +9,11 @@ multiply-adds, and a row of a block is contiguous, so a tile of adjacent pixels 
 Planar NCHW would need four loads for the same four channels, and NHWC makes a channel slice (a concat
 input) strided instead of a contiguous range of planes. Blocks also make concat free: an input that
 starts on a 4-channel boundary is just a range of planes of the concatenated tensor. The pipeline's
-planar NCHW f32 is converted on entry (pack.wgsl) and exit (unpack.wgsl).
+planar NCHW f32 is converted on entry (load_planar.wgsl: in the first conv, or pack.wgsl) and exit
+(store_planar.wgsl: in the last layer, or unpack.wgsl); the convolutions' input and output go through
+swappable modules (load_blocks.wgsl / load_planar.wgsl, store_blocks.wgsl / store_planar.wgsl) and
+their epilogues can max-pool the output (pool_epilogue.wgsl) or run a 1×1 head (head_epilogue.wgsl):
+see ConvFamilyKernel.modules and model.WgslModel for when.
 """
 
 from __future__ import annotations
@@ -58,6 +62,30 @@ class TensorView:
     @property
     def blocks(self) -> int:
         return math.ceil(self.channels / 4)
+
+
+@dataclass(frozen=True)
+class ImageRows:
+    """Where a canvas of one pass of the network lies in a planar NCHW f32 image ``height`` × ``width``:
+    canvas rows ``from_row`` .. ``from_row + rows - 1`` (their first ``width`` columns) are image rows
+    ``first_row`` onwards (the whole image, or a band's kept rows; see model.Band)."""
+
+    height: int
+    width: int
+    first_row: int
+    from_row: int
+    rows: int
+
+    def store_constants(self, channels: int) -> dict:
+        """store_planar.wgsl's substitutions for an image of ``channels`` channels."""
+        return {"CHANNELS": channels, "IMAGE_H": self.height, "IMAGE_W": self.width,
+                "OUT_ROW0": self.first_row, "ROW_FROM": self.from_row, "ROWS": self.rows}
+
+    def load_constants(self, channels: int) -> dict:
+        """load_planar.wgsl's substitutions for an image of ``channels`` channels (the canvas starts at
+        image row ``first_row``: ``from_row`` is 0)."""
+        return {"CHANNELS": channels, "IMAGE_H": self.height, "IMAGE_W": self.width,
+                "IN_ROW0": self.first_row, "ROWS": self.rows}
 
 
 @dataclass
@@ -274,9 +302,12 @@ class PackedWeights(WindowLayout):
 
 class ConvFamilyKernel(NnKernel):
     """Shared by conv, gemm and conv_transpose: one dispatch per layer with the output-block group in
-    workgroup_id.z, or one per group with its windows (see PackedWeights)."""
+    workgroup_id.z, or one per group with its windows (see PackedWeights). Each can write the planar
+    output image instead of an activation tensor (the network's last layer); the convolutions can also
+    read the planar input image (the first layer) and max-pool their output in the epilogue (see
+    ``modules``)."""
 
-    bindings = ("src", "dst", "weights", "header")
+    bindings = ("src", "dst", "weights", "header", "pooled")
     tile_c_default = 1
 
     def __init__(self, ctx, precision: Precision, tile_x: int, uniform_windows: bool = False):
@@ -293,26 +324,58 @@ class ConvFamilyKernel(NnKernel):
     def prepare(self, layer: Layer) -> PackedWeights:
         return PackedWeights(self.ctx, layer, *self.packing(layer), uniform_windows=self.uniform_windows)
 
-    def grouped(self, layer, packed, pipeline, src, dst, workgroups, flops, kernel=None) -> list[Dispatch]:
+    def modules(self, src: TensorView, dst: TensorView, pooled: TensorView | None = None,
+                input_image: ImageRows | None = None, output_image: ImageRows | None = None) -> tuple[dict, dict]:
+        """(substitutions, module replacements) choosing where the input comes from and where the
+        output goes: NC4HW4 tensors (load_blocks.wgsl, store_blocks.wgsl) or, with ``input_image``, the
+        planar input image (load_planar.wgsl: ``src`` is then the image buffer) and, with
+        ``output_image``, the planar output image (store_planar.wgsl: ``dst`` likewise); with
+        ``pooled`` the epilogue writes the output's 2×2 max pool too (pool_epilogue.wgsl, else
+        pool_epilogue_none.wgsl)."""
+        substitutions, replacements = {}, {}
+        if input_image is not None:
+            substitutions.update(input_image.load_constants(src.channels))
+            replacements["load_blocks.wgsl"] = "load_planar.wgsl"
+        if output_image is not None:
+            substitutions.update(output_image.store_constants(dst.channels))
+            replacements["store_blocks.wgsl"] = "store_planar.wgsl"
+        if pooled is None:
+            replacements["pool_epilogue.wgsl"] = "pool_epilogue_none.wgsl"
+        else:
+            substitutions.update(POOL_BINDING=self.bindings.index("pooled"),
+                                 POOL_BLOCK_SHIFT=pooled.block - dst.block)
+        return substitutions, replacements
+
+    @staticmethod
+    def kernel_label(kernel: str, pooled: TensorView | None = None, input_image: ImageRows | None = None,
+              output_image: ImageRows | None = None, head: bool = False) -> str:
+        """A dispatch's kernel label: the shader plus what it does besides reading and storing tensors."""
+        return (("pack+" if input_image is not None else "") + kernel + ("+maxpool" if pooled is not None else "")
+                + ("+head" if head else "") + ("+unpack" if output_image is not None else ""))
+
+    def grouped(self, layer, packed, pipeline, src, dst, workgroups, flops, kernel=None,
+                pooled: TensorView | None = None, head=None) -> list[Dispatch]:
         """The layer's dispatches over ``workgroups`` (x, y) per group: one with the groups in z, or one
         per group, each with the share of ``flops`` of the real (unpadded) channels it writes, so the
-        dispatches add up to the layer's FLOPs exactly."""
+        dispatches add up to the layer's FLOPs exactly. ``kernel``: the label (default: the shader);
+        ``pooled`` and ``head`` (kernels.Head): bound where the epilogue writes or reads them."""
         channels = dst.channels
+        kernel = kernel or self.shader
+        tensors = {"src": src.buffer, "dst": dst.buffer, **({"pooled": pooled.buffer} if pooled else {}),
+                   **({"head": head.buffer} if head else {})}
+        label = layer.name + (f" + {head.layer.name}" if head else "")
         if packed.one_dispatch:
-            resources = {"src": src.buffer, "dst": dst.buffer, **packed.windows(None),
-                         "header": packed.header(dst.block, None)}
-            return [Dispatch(layer.name, pipeline, self.bind(pipeline, resources), (*workgroups, packed.groups),
-                             kernel or self.shader, (channels, dst.height, dst.width), flops)]
+            resources = {**tensors, **packed.windows(None), "header": packed.header(dst.block, None)}
+            return [Dispatch(label, pipeline, self.bind(pipeline, resources), (*workgroups, packed.groups),
+                             kernel, (channels, dst.height, dst.width), flops)]
         dispatches = []
         for g in range(packed.groups):
             first = g * packed.tile_c * 4
             written = min(channels, first + packed.tile_c * 4) - first
             dispatches.append(Dispatch(
-                f"{layer.name}[{g}]", pipeline,
-                self.bind(pipeline, {"src": src.buffer, "dst": dst.buffer, **packed.windows(g),
-                                     "header": packed.header(dst.block, g)}),
-                (*workgroups, 1), kernel or self.shader, (written, dst.height, dst.width),
-                flops * written // channels))
+                f"{label}[{g}]", pipeline,
+                self.bind(pipeline, {**tensors, **packed.windows(g), "header": packed.header(dst.block, g)}),
+                (*workgroups, 1), kernel, (written, dst.height, dst.width), flops * written // channels))
         return dispatches
 
 
@@ -321,21 +384,28 @@ class ConvKernel(ConvFamilyKernel):
 
     shader = "conv.wgsl"
 
-    def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView):
+    def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView, *,
+                   pooled: TensorView | None = None, input_image: ImageRows | None = None,
+                   output_image: ImageRows | None = None):
+        """``pooled``, ``input_image``, ``output_image``: see ConvFamilyKernel.modules."""
         _, _, kh, kw = layer.weight.shape
         top, left, _, _ = layer.pads
+        modules, replacements = self.modules(src, dst, pooled, input_image, output_image)
         pipeline = self.pipeline(
-            layer.activation, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
-            OUT_H=dst.height, OUT_W=dst.width, KH=kh, KW=kw, STRIDE=layer.stride, PAD_TOP=top, PAD_LEFT=left,
-            TILE_X=self.tile_x, TILE_C=packed.tile_c, **self.weight_constants(packed))
+            layer.activation, replacements, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block,
+            IN_BLOCKS=packed.in_blocks, OUT_H=dst.height, OUT_W=dst.width, KH=kh, KW=kw, STRIDE=layer.stride,
+            PAD_TOP=top, PAD_LEFT=left, TILE_X=self.tile_x, TILE_C=packed.tile_c, **modules,
+            **self.weight_constants(packed))
         workgroups = (groups_of(groups_of(dst.width, self.tile_x), 8), groups_of(dst.height, 8))  # 8×8 tiles
         flops = layer.flops_per_pixel * dst.height * dst.width
-        return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops)
+        return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops,
+                            self.kernel_label(self.shader, pooled, input_image, output_image), pooled)
 
 
-def tile_blocks_code(blocks: int) -> dict[str, str]:
+def tile_blocks_code(blocks: int, head: bool = False) -> dict[str, str]:
     """conv3x3_tile_blocks.wgsl's placeholders for a tile of ``blocks`` output blocks, written out (one
-    template instead of a hand-unrolled file per width; the code is the same as written out by hand)."""
+    template instead of a hand-unrolled file per width; the code is the same as written out by hand).
+    ``head``: the tile's pixels go through head_epilogue.wgsl's 1×1 head instead of being stored."""
     def accumulate(t: int) -> str:
         pair, odd = divmod(t, 2)
         taps = [f"pair{pair}_weight_block(tap{f' + {odd + 2 * kx}' if odd + 2 * kx else ''}, lane) * x.x{kx}"
@@ -346,7 +416,47 @@ def tile_blocks_code(blocks: int) -> dict[str, str]:
             "TILE_FIELDS": "\n".join(f"    block{t}: mat4x4f," for t in range(blocks)),
             "TILE_BIAS": ", ".join(f"bias_pixels({t})" for t in range(blocks)),
             "TILE_ACCUMULATE": "\n".join(accumulate(t) for t in range(blocks)),
-            "TILE_STORE": "\n".join(f"    store_pixels({t}, oy, ox0, tile.block{t});" for t in range(blocks))}
+            "TILE_STORE": head_store_code(blocks) if head
+            else "\n".join(f"    store_pixels({t}, oy, ox0, tile.block{t});" for t in range(blocks))}
+
+
+def head_store_code(blocks: int) -> str:
+    """The tile's store with a head (head_epilogue.wgsl): its blocks' activations as named 4-pixel
+    matrices, then per head block the bias plus one matrix product per tile block, written out.
+    Written out, the denoiser with its head folded takes the CPU time it takes with the head's own
+    dispatch on lavapipe (256², median of 30 runs: 232.2 vs 231.6 ms); a per-pixel loop over an array of
+    the tile's blocks instead took 1.3% more (loop-indexed arrays go to scratch memory)."""
+    inputs = "\n".join(f"    let a{t} = head_input(tile.block{t});" for t in range(blocks))
+    terms = " + ".join(f"head.blocks[w + {t}] * a{t}" if t else "head.blocks[w] * a0" for t in range(blocks))
+    return (f"{inputs}\n    for (var k = 0; k < HEAD_BLOCKS; k++) {{\n        let w = k * TILE_C;\n"
+            f"        store_head_pixels(k, oy, ox0, head_bias(k) + {terms});\n    }}")
+
+
+@dataclass
+class Head:
+    """A 1×1 convolution without activation folded into a 3×3 convolution's epilogue (head_epilogue.wgsl):
+    its layer and its weight blocks and bias, uploaded once as one uniform block."""
+
+    layer: Layer
+    buffer: object
+
+    @classmethod
+    def upload(cls, ctx, layer: Layer) -> Head:
+        cout, cin = layer.weight.shape[:2]
+        out_blocks, in_blocks = groups_of(cout, 4), groups_of(cin, 4)
+        padded = np.zeros((out_blocks * 4, in_blocks * 4), np.float32)
+        padded[:cout, :cin] = layer.weight[:, :, 0, 0]
+        # block (k, t), column j, row i: weight of output channel 4k + i for input channel 4t + j
+        blocks = padded.reshape(out_blocks, 4, in_blocks, 4).transpose(0, 2, 3, 1)
+        bias = np.zeros(out_blocks * 4, np.float32)
+        bias[:cout] = layer.bias
+        data = np.concatenate([blocks.ravel(), bias])
+        return cls(layer, ctx.upload(data, usage=wgpu.BufferUsage.UNIFORM, label=f"{layer.name} head"))
+
+    @staticmethod
+    def nbytes(layer: Layer) -> int:
+        cout, cin = layer.weight.shape[:2]
+        return groups_of(cout, 4) * (groups_of(cin, 4) * 64 + 16)
 
 
 class Conv3x3Kernel(ConvFamilyKernel):
@@ -394,9 +504,14 @@ class Conv3x3Kernel(ConvFamilyKernel):
     6): within 1% (on lavapipe a shuffle is a per-lane loop too); (4) other workgroup shapes: 2 × 32
     tiles of 4 pixels no faster, 64 × 1 1.7× slower (idle lanes on the narrow layers); (5) f16 inputs
     read as packed vec2<u32> (half the scalar loads per pixel): 4% faster on one fp16 layer, not worth a
-    second storage layout."""
+    second storage layout.
 
-    bindings = ("src", "dst", "weights", "header") + WINDOW_BINDINGS[1:]
+    With a ``head`` (a 1×1 conv without activation reading this layer's output, the network's last
+    layer), the epilogue runs the head on the tile and stores its output instead (head_epilogue.wgsl),
+    where one tile holds all the layer's output channels (``takes_head``: 16, or 32 in the direct
+    variant): the denoiser's last 3×3 conv and its head are one dispatch."""
+
+    bindings = ConvFamilyKernel.bindings + WINDOW_BINDINGS[1:] + ("head",)
     tile_x = 4
 
     def __init__(self, ctx, precision: Precision, staged: bool = False, uniform_windows: bool = False):
@@ -419,17 +534,36 @@ class Conv3x3Kernel(ConvFamilyKernel):
         return (layer.kind == "conv" and layer.weight.shape[2:] == (3, 3) and layer.stride == 1
                 and groups_of(layer.weight.shape[0], 4) % 4 == 0)
 
-    def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView):
+    def takes_head(self, layer: Layer, head: Layer) -> bool:
+        """Whether ``head`` (a 1×1 conv reading ``layer``'s output) can run in ``layer``'s epilogue: one
+        tile holds all of ``layer``'s output channels and the head's weights fit one uniform binding."""
+        uniform_limit = min(UNIFORM_WINDOW_LIMIT, self.ctx.limits.get("max-uniform-buffer-binding-size",
+                                                                      UNIFORM_WINDOW_LIMIT))
+        return (self.tile_blocks(layer) == groups_of(layer.weight.shape[0], 4)
+                and Head.nbytes(head) <= uniform_limit)
+
+    def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView, *,
+                   pooled: TensorView | None = None, input_image: ImageRows | None = None,
+                   output_image: ImageRows | None = None, head: Head | None = None):
+        """``pooled``, ``input_image``, ``output_image``: see ConvFamilyKernel.modules; ``head``: run it
+        on the output in the epilogue (``dst`` is then the head's output; see takes_head)."""
         top, left, _, _ = layer.pads
+        modules, replacements = self.modules(src, dst, pooled, input_image, output_image)
+        label = self.kernel_label(f"{self.shader}+tile{4 * packed.tile_c}", pooled, input_image, output_image,
+                           head is not None)
+        flops = layer.flops_per_pixel * dst.height * dst.width
+        if head is not None:
+            replacements["head_epilogue_none.wgsl"] = "head_epilogue.wgsl"
+            modules.update(HEAD_BLOCKS=groups_of(head.layer.weight.shape[0], 4),
+                           HEAD_BINDING=self.bindings.index("head"))
+            flops += head.layer.flops_per_pixel * dst.height * dst.width
         pipeline = self.pipeline(
-            layer.activation, **tile_blocks_code(packed.tile_c),
+            layer.activation, replacements, **tile_blocks_code(packed.tile_c, head is not None),
             IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
-            OUT_H=dst.height, OUT_W=dst.width, PAD_TOP=top, PAD_LEFT=left,
+            OUT_H=dst.height, OUT_W=dst.width, PAD_TOP=top, PAD_LEFT=left, **modules,
             **self.weight_constants(packed, tuple(f"pair{p}_weight" for p in range(packed.splits))))
         workgroups = (groups_of(groups_of(dst.width, self.tile_x), 8), groups_of(dst.height, 8))  # 8×8 tiles
-        flops = layer.flops_per_pixel * dst.height * dst.width
-        return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops,
-                            f"{self.shader}+tile{4 * packed.tile_c}")
+        return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops, label, pooled, head)
 
 
 class GemmKernel(ConvFamilyKernel):
@@ -437,13 +571,18 @@ class GemmKernel(ConvFamilyKernel):
 
     shader = "gemm.wgsl"
 
-    def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView):
+    def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView, *,
+                   output_image: ImageRows | None = None):
+        """``output_image``: write the planar output image (see ConvFamilyKernel.modules)."""
         pixels = dst.height * dst.width
+        modules, replacements = self.modules(src, dst, output_image=output_image)
         pipeline = self.pipeline(
-            layer.activation, PIXELS=pixels, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
-            TILE_X=self.tile_x, TILE_C=packed.tile_c, **self.weight_constants(packed))
+            layer.activation, replacements, PIXELS=pixels, OUT_W=dst.width, IN_BLOCK=src.block,
+            IN_BLOCKS=packed.in_blocks, TILE_X=self.tile_x, TILE_C=packed.tile_c, **modules,
+            **self.weight_constants(packed))
         workgroups = (groups_of(groups_of(pixels, self.tile_x), 64), 1)
-        return self.grouped(layer, packed, pipeline, src, dst, workgroups, layer.flops_per_pixel * pixels)
+        return self.grouped(layer, packed, pipeline, src, dst, workgroups, layer.flops_per_pixel * pixels,
+                            self.kernel_label(self.shader, output_image=output_image))
 
 
 class ConvTransposeKernel(ConvFamilyKernel):
@@ -458,13 +597,17 @@ class ConvTransposeKernel(ConvFamilyKernel):
     def __init__(self, ctx, precision: Precision, uniform_windows: bool = False):
         super().__init__(ctx, precision, self.tile_x, uniform_windows)
 
-    def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView):
+    def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView, *,
+                   output_image: ImageRows | None = None):
+        """``output_image``: write the planar output image (see ConvFamilyKernel.modules)."""
+        modules, replacements = self.modules(src, dst, output_image=output_image)
         pipeline = self.pipeline(
-            layer.activation, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
-            **self.weight_constants(packed))
+            layer.activation, replacements, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block,
+            IN_BLOCKS=packed.in_blocks, **modules, **self.weight_constants(packed))
         workgroups = (groups_of(groups_of(src.width, self.tile_x), 8), groups_of(src.height, 8))
         flops = layer.flops_per_pixel * dst.height * dst.width
-        return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops)
+        return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops,
+                            self.kernel_label(self.shader, output_image=output_image))
 
 
 class SpatialKernel(NnKernel):
@@ -547,11 +690,9 @@ class PackKernel(SpatialKernel):
 
     shader = "pack.wgsl"
 
-    def dispatches(self, planar, image_height: int, width: int, first_row: int, rows: int,
-                   dst: TensorView) -> list[Dispatch]:
-        pipeline = self.pipeline(CHANNELS=dst.channels, H=rows, W=width,
-                                 IMAGE_H=image_height, IN_ROW0=first_row, CANVAS_H=dst.height,
-                                 CANVAS_W=dst.width, OUT_BLOCK=dst.block)
+    def dispatches(self, planar, image: ImageRows, dst: TensorView) -> list[Dispatch]:
+        pipeline = self.pipeline(CANVAS_H=dst.height, CANVAS_W=dst.width, OUT_BLOCK=dst.block,
+                                 **image.load_constants(dst.channels))
         return [self.one("pack", pipeline, {"src": planar, "dst": dst.buffer}, dst.width, dst.height,
                          dst.blocks, dst.channels)]
 
@@ -561,10 +702,8 @@ class UnpackKernel(SpatialKernel):
 
     shader = "unpack.wgsl"
 
-    def dispatches(self, src: TensorView, planar, image_height: int, width: int, first_row: int,
-                   from_row: int, rows: int) -> list[Dispatch]:
-        pipeline = self.pipeline(CHANNELS=src.channels, H=rows, W=width, IMAGE_H=image_height,
-                                 OUT_ROW0=first_row, ROW_FROM=from_row, CANVAS_H=src.height,
-                                 CANVAS_W=src.width, IN_BLOCK=src.block)
-        return [self.one("unpack", pipeline, {"src": src.buffer, "dst": planar}, width, rows, src.blocks,
-                         src.channels)]
+    def dispatches(self, src: TensorView, planar, image: ImageRows) -> list[Dispatch]:
+        pipeline = self.pipeline(CANVAS_H=src.height, CANVAS_W=src.width, IN_BLOCK=src.block,
+                                 **image.store_constants(src.channels))
+        return [self.one("unpack", pipeline, {"src": src.buffer, "dst": planar}, image.width, image.rows,
+                         src.blocks, src.channels)]

@@ -4,12 +4,21 @@ Weights are uploaded once, at load. Everything that depends on the resolution �
 (H and W edge-padded up to the network's pooling multiple when the graph needs it, e.g. a U-Net at 37×53),
 the activation buffers and the specialized pipelines — is planned once per resolution and cached.
 
+Dispatches: the network's entry (converting the planar f32 input), its layers, its exit (writing the
+planar f32 output). Conversions and small ops are folded into neighbouring kernels where they can be:
+the first conv reads the input image itself, a conv's epilogue max-pools its output (the pool is not
+dispatched), the last layer writes the output image itself, with a 1×1 head run in the epilogue of
+the 3×3 conv before it where that conv's tile holds all its channels (pack and unpack remain for the
+graphs where no layer can). The shipped denoiser is 17 dispatches in the GPU plan (staged tiles, one
+dispatch per layer; 23 with every conversion and pool dispatched) and 27 on lavapipe (48).
+
 Buffer planning: every tensor lives in its root's buffer (a concat's inputs live inside the concat);
-a root is live from the first dispatch that writes it to the last that reads it; roots are packed
-greedily into a pool of buffers (a free buffer is reused, smallest fit first, else grown, else a new
-one). ``Plan.peak_bytes`` is the pool's total size, ``Plan.unplanned_bytes`` what one buffer per
-tensor would take. A frame whose largest activation would not fit one storage binding (the U-Net at
-1080p on lavapipe's 128 MiB) runs as bands of rows with receptive-field context, with the same result.
+a root is live from the first dispatch that writes it to the last that reads it; roots are packed,
+largest first, into a pool of buffers (into the smallest buffer free over the root's whole lifetime
+that fits it, else the largest free one, grown, else a new one). ``Plan.peak_bytes`` is the pool's
+total size, ``Plan.unplanned_bytes`` what one buffer per tensor would take. A frame whose largest
+activation would not fit one storage binding (the U-Net at 1080p on lavapipe's 128 MiB) runs as bands
+of rows with receptive-field context, with the same result.
 
 Numerics (both precisions): inputs are sanitized on entry (NaN → 0, ±Inf and out-of-range values →
 ± the largest finite value of the storage type) and every kernel clamps what it stores the same way, so
@@ -21,6 +30,7 @@ fp16 stores activations as f16 (relative error ≲ 1e-2 on the seed networks, se
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,10 +38,10 @@ import numpy as np
 
 from ..errors import DeviceLimitError, ModelError
 from . import autotune as autotuning
-from .graph import NetworkGraph, Shape, ShapeMismatch, load_graph
+from .graph import Layer, NetworkGraph, Shape, ShapeMismatch, load_graph
 from .kernels import (PRECISIONS, Conv3x3Kernel, ConvKernel, ConvTransposeKernel, CopyChannelsKernel,
-                      Dispatch, ElementwiseKernel, GemmKernel, MaxPoolKernel, PackKernel, ResizeKernel,
-                      TensorView, UnpackKernel, groups_of, record_dispatches)
+                      Dispatch, ElementwiseKernel, GemmKernel, Head, ImageRows, MaxPoolKernel, PackKernel,
+                      ResizeKernel, TensorView, UnpackKernel, groups_of, record_dispatches)
 
 # conv_tiling -> pixels per invocation of the loop kernels (conv.wgsl, gemm.wgsl); "register" also runs
 # 3×3 stride-1 convs with 16k output channels on conv3x3.wgsl's written-out 4×4 tile, "staged" on
@@ -55,6 +65,12 @@ def default_uniform_windows(ctx) -> bool:
     return ctx.adapter.info.get("adapter_type") == "CPU"
 
 
+def shape_view(shape: Shape, buffer=None) -> TensorView:
+    """A tensor of ``shape`` from the start of ``buffer``: the planar image an exit layer writes, or with
+    no buffer the shape alone (autotuning times a layer on scratch tensors of its shapes)."""
+    return TensorView(buffer, 0, shape.channels, shape.height, shape.width)
+
+
 @dataclass(frozen=True)
 class Band:
     """One pass of the network over part of a frame: it reads ``valid_rows`` image rows from
@@ -69,12 +85,15 @@ class Band:
 
 @dataclass
 class NetworkPlan:
-    """The network's dispatches and activation buffers for one canvas size."""
+    """The network's dispatches and activation buffers for one canvas size. ``dispatches`` run between
+    the entry, which reads the planar f32 input (``entry(input buffer, rows)``: pack.wgsl), and the
+    exit, which writes the planar f32 output (``exit(output buffer, rows)``: the last layer itself where
+    its kernel can, else unpack.wgsl); both are made per band, for ``ImageRows`` of the image."""
 
     canvas: tuple[int, int]
     dispatches: list[Dispatch]
-    input_view: TensorView
-    output_view: TensorView
+    entry: Callable[[object, ImageRows], list[Dispatch]]
+    exit: Callable[[object, ImageRows], list[Dispatch]]
     peak_bytes: int
     unplanned_bytes: int
 
@@ -92,8 +111,8 @@ class Plan:
     output_buffer: object
     flops: int  # of the whole frame in one pass (bands recompute their context rows on top of this)
     input_buffer: object = None  # staging for __call__
-    _entries: dict = field(default_factory=dict)  # id(input buffer) -> (buffer, pack dispatches)
-    _exits: list = field(default_factory=list)
+    _entries: dict = field(default_factory=dict)  # id(input buffer) -> (buffer, entry dispatches per band)
+    exits: list[list[Dispatch]] = field(default_factory=list)  # exit dispatches per band
 
     @property
     def canvas(self) -> tuple[int, int]:
@@ -109,9 +128,8 @@ class Plan:
 
     @property
     def dispatches(self) -> list[Dispatch]:
-        """The network's dispatches for one band (without entry/exit conversion)."""
+        """The network's dispatches for one band (without entry and exit)."""
         return self.network.dispatches
-
 
 
 class WgslModel:
@@ -167,13 +185,14 @@ class WgslModel:
                 self.prepared[layer.name] = self.kernels["elementwise"].prepare(layer, channels[layer.output])
         self._plans: dict[tuple[int, int], Plan] = {}
         self._networks: dict[tuple[int, int], NetworkPlan] = {}
+        self._heads: dict[str, Head] = {}  # head layer name -> its weights, where one is folded (_exit_layers)
 
     def kernel_for(self, layer, tiling: str | None = None, uniform_windows: bool | None = None):
         """The kernel running ``layer`` under ``tiling`` and window preference (defaults: the model's
         ``conv_tiling`` and ``uniform_windows``); tilings that run a layer the same way share one kernel
         object."""
         tiling = tiling or self.conv_tiling
-        windows = self.uniform_windows if uniform_windows is None else uniform_windows
+        windows = self.default_windows(layer) if uniform_windows is None else uniform_windows
         args = (self.ctx, self.precision)
         if tiling in ("register", "staged") and Conv3x3Kernel.handles(layer):
             key, make = ("conv3x3", tiling, windows), lambda: Conv3x3Kernel(
@@ -190,6 +209,14 @@ class WgslModel:
             self._tiled_kernels[key] = make()
         return self._tiled_kernels[key]
 
+    def default_windows(self, layer) -> bool:
+        """The model's window preference for ``layer``: ``uniform_windows``, except that transposed
+        convolutions run as one dispatch everywhere. On lavapipe the denoiser's 128 → 64 upsampling at
+        32² alone took the same CPU time as one dispatch reading storage (medians of 4 × 40 alternating
+        runs: 4.6–6.0 ms) as in 16 per-group dispatches of uniform windows (4.3–5.9 ms); its other two
+        fit one uniform binding anyway."""
+        return self.uniform_windows and layer.kind != "conv_transpose"
+
     def packed(self, layer, kernel):
         """``layer``'s weights as ``kernel`` reads them (uploaded once per layer and kernel)."""
         if kernel is self.kernel_for(layer):
@@ -199,11 +226,11 @@ class WgslModel:
             self._packed_for[key] = kernel.prepare(layer)
         return self._packed_for[key]
 
-    def tuned_kernel(self, layer, src: TensorView, dst: TensorView):
-        """The kernel for ``layer`` reading ``src``: the model's tiling and window preference, or with
-        autotuning the fastest pair measured on this adapter (cached per layer shape; see
-        wgpu_rt.nn.autotune). Variants are named by tiling, plus UNIFORM_WINDOWS where uniform windows
-        change how the layer is dispatched (kernels.WindowLayout)."""
+    def tuned_kernel(self, layer, src: TensorView, dst: TensorView, pooled: TensorView | None = None):
+        """The kernel for ``layer`` reading ``src`` (and max-pooling its output into ``pooled``, if given):
+        the model's tiling and window preference, or with autotuning the fastest pair measured on this
+        adapter (cached per layer shape; see wgpu_rt.nn.autotune). Variants are named by tiling, plus
+        UNIFORM_WINDOWS where uniform windows change how the layer is dispatched (kernels.WindowLayout)."""
         if self.autotuner is None:
             return self.kernel_for(layer)
         candidates, seen = {}, set()  # one variant per distinct kernel and dispatch layout
@@ -214,21 +241,24 @@ class WgslModel:
                 distinct = (id(self.kernel_for(layer, tiling, False)), layout.one_dispatch, layout.weight_space)
                 if distinct not in seen:
                     seen.add(distinct)
-                    candidates[tiling + UNIFORM_WINDOWS * windows] = self._trial(layer, kernel, src, dst)
-        default = self.conv_tiling + UNIFORM_WINDOWS * self.uniform_windows
-        variant = self.autotuner.choose(self.autotuner.key(layer, src, self.precision.name), candidates, default)
+                    candidates[tiling + UNIFORM_WINDOWS * windows] = self._trial(layer, kernel, src, dst, pooled)
+        default = self.conv_tiling + UNIFORM_WINDOWS * self.default_windows(layer)
+        key = self.autotuner.key(layer, src, self.precision.name, pooled is not None)
+        variant = self.autotuner.choose(key, candidates, default)
         tiling, windows = variant.removesuffix(UNIFORM_WINDOWS), variant.endswith(UNIFORM_WINDOWS)
         return self.kernel_for(layer, tiling, windows)
 
-    def _trial(self, layer, kernel, src: TensorView, dst: TensorView):
-        """The dispatches of ``kernel`` on scratch tensors shaped like ``src`` and ``dst``, made when called."""
+    def _trial(self, layer, kernel, src: TensorView, dst: TensorView, pooled: TensorView | None):
+        """The dispatches of ``kernel`` on scratch tensors shaped like ``src``, ``dst`` (and ``pooled``),
+        made when called."""
 
         def dispatches():
             def scratch(view: TensorView) -> TensorView:
                 size = view.blocks * view.height * view.width * self.precision.vec4_bytes
                 return TensorView(self.ctx.storage(size, label="autotune scratch"), 0, view.channels,
                                   view.height, view.width)
-            return kernel.dispatches(layer, kernel.prepare(layer), scratch(src), scratch(dst))
+            extra = {"pooled": scratch(pooled)} if pooled is not None else {}
+            return kernel.dispatches(layer, kernel.prepare(layer), scratch(src), scratch(dst), **extra)
         return dispatches
 
     @property
@@ -276,10 +306,8 @@ class WgslModel:
         flops = sum(layer.flops_per_pixel * shapes[layer.output].height * shapes[layer.output].width
                     for layer in self.graph.layers)
         plan = Plan(height, width, crop, network, bands, output_buffer, flops)
-        unpack = self.kernels["unpack"]
-        for band in bands:
-            plan._exits += unpack.dispatches(network.output_view, output_buffer, crop[1], crop[2],
-                                             band.source_row + band.keep_from, band.keep_from, band.keep_rows)
+        plan.exits = [network.exit(output_buffer, ImageRows(crop[1], crop[2], band.source_row + band.keep_from,
+                                                            band.keep_from, band.keep_rows)) for band in bands]
         return plan
 
     def _bands(self, height: int, canvas_rows: int, largest: int, limit: int, out_shape: Shape):
@@ -307,41 +335,94 @@ class WgslModel:
             bands.append(Band(source, min(rows, height - source), first - source, min(keep, height - first)))
         return bands, rows
 
+    def _exit_layer(self):
+        """The layer that writes the planar output image itself (store_planar.wgsl in its epilogue, no
+        unpack dispatch): the weighted layer producing the graph output, unless another layer reads that
+        output, it lies inside a concat, or the layer's epilogue also pools; else None."""
+        graph = self.graph
+        producer = next((layer for layer in graph.layers if layer.output == graph.output_name), None)
+        if (producer is None or producer.weight is None or producer.name in graph.epilogue_pools
+                or graph.placement(graph.output_name)[0] != graph.output_name
+                or any(graph.output_name in layer.inputs for layer in graph.layers)):
+            return None
+        return producer
+
+    def _exit_layers(self, shapes: dict[str, Shape]) -> tuple[Layer | None, Head | None]:
+        """What runs at the exit and writes the image: (the exit layer, None), or (the conv before it,
+        the exit layer as a Head in that conv's epilogue) where the kernel chosen for the conv takes it;
+        (None, None) where unpack writes the image."""
+        last = self._exit_layer()
+        body = self.graph.head_body(last) if last is not None else None
+        if body is not None:
+            kernel = self.tuned_kernel(body, shape_view(shapes[body.inputs[0]]), shape_view(shapes[body.output]))
+            if isinstance(kernel, Conv3x3Kernel) and kernel.takes_head(body, last):
+                if last.name not in self._heads:
+                    self._heads[last.name] = Head.upload(self.ctx, last)
+                return body, self._heads[last.name]
+        return last, None
+
+    def _entry_layer(self, at_exit: list[Layer]) -> Layer | None:
+        """The layer that reads the planar input image itself (load_planar.wgsl, no pack dispatch): the
+        graph input's only reader, if it is a conv that does not also run at the exit; else None (pack).
+        On lavapipe the denoiser with its first conv reading the image took the same CPU time as with
+        pack + that conv (256², median of 40 alternating runs each: fp32 232.1 vs 232.6 ms, fp16 258.3
+        vs 256.9 ms), with one dispatch and one canvas-sized buffer less; on a GPU it saves a round trip
+        of the input through memory. In fp16 that conv reads the input unrounded (load_planar.wgsl)."""
+        graph = self.graph
+        readers = [layer for layer in graph.layers if graph.input_name in layer.inputs]
+        if len(readers) != 1 or readers[0].kind != "conv" or any(readers[0] is layer for layer in at_exit):
+            return None
+        return readers[0]
+
     def _network_plan(self, canvas: tuple[int, int], shapes: dict[str, Shape]) -> NetworkPlan:
         """Buffers (liveness-planned) and dispatches of the network on ``canvas``; cached per canvas."""
         if canvas in self._networks:
             return self._networks[canvas]
         graph = self.graph
-        # steps: 0 = pack, 1..n = layers, n+1 = unpack; root -> [first write, last read]
+        exit_layer, head = self._exit_layers(shapes)
+        at_exit = [exit_layer, head.layer] if head else [exit_layer] if exit_layer else []
+        entry_layer = self._entry_layer(at_exit)
+        elsewhere = {id(layer) for layer in (*at_exit, entry_layer)}  # dispatched at the exit or entry
+        # steps: 0 = entry, 1..n = layers, n+1 = exit; root -> [first write, last read]. A max pool
+        # computed in its conv's epilogue is written at the conv's step; layers at the exit run there and
+        # their outputs need no activation buffer, nor does the input where the entry layer reads the image.
         lifetime: dict[str, list[int]] = {}
 
         def touch(tensor: str, step: int) -> None:
             span = lifetime.setdefault(graph.placement(tensor)[0], [step, step])
             span[0], span[1] = min(span[0], step), max(span[1], step)
 
+        exit_step = len(graph.layers) + 1
         touch(graph.input_name, 0)
         for step, layer in enumerate(graph.layers, start=1):
+            if any(layer is other for other in at_exit):  # (the entry layer runs at its own step)
+                continue
             touch(layer.output, step)
             for name in layer.inputs:
                 touch(name, step)
-        touch(graph.output_name, len(graph.layers) + 1)
+            if layer.name in graph.epilogue_pools:
+                touch(graph.epilogue_pools[layer.name].output, step)
+        touch(exit_layer.inputs[0] if exit_layer else graph.output_name, exit_step)  # weighted: one input
+        if entry_layer is not None:
+            del lifetime[graph.input_name]
         root_bytes = self._root_bytes(shapes)
 
         pool: list[dict] = []
         assignment: dict[str, dict] = {}
-        for root in sorted(lifetime, key=lambda r: lifetime[r][0]):
+        for root in sorted(lifetime, key=lambda r: (-root_bytes[r], lifetime[r][0])):
             first, last = lifetime[root]
             need = root_bytes[root]
-            free = [b for b in pool if b["free_after"] < first]
+            free = [b for b in pool if all(last < start or end < first for start, end in b["spans"])]
             fitting = [b for b in free if b["size"] >= need]
             if fitting:
                 slot = min(fitting, key=lambda b: b["size"])
             elif free:
                 slot = max(free, key=lambda b: b["size"])
             else:
-                slot = {"size": 0, "free_after": -1}
+                slot = {"size": 0, "spans": []}
                 pool.append(slot)
-            slot["size"], slot["free_after"] = max(slot["size"], need), last
+            slot["size"] = max(slot["size"], need)
+            slot["spans"].append((first, last))
             assignment[root] = slot
         for index, slot in enumerate(pool):
             slot["buffer"] = self.ctx.storage(slot["size"], label=f"nn activations {index}")
@@ -351,14 +432,25 @@ class WgslModel:
             shape = shapes[tensor]
             return TensorView(assignment[root]["buffer"], offset // 4, shape.channels, shape.height, shape.width)
 
+        def weighted(layer: Layer, src: TensorView, dst: TensorView, **modules):
+            """``layer``'s dispatches reading ``src`` into ``dst``, its epilogue pool included, by the
+            kernel chosen for it; ``modules``: the planar images it reads or writes, a head."""
+            pooled = graph.epilogue_pools.get(layer.name)
+            if pooled is not None:
+                modules["pooled"] = view(pooled.output)
+            kernel = self.tuned_kernel(layer, shape_view(shapes[layer.inputs[0]]),
+                                       shape_view(shapes[layer.output]), modules.get("pooled"))
+            return kernel.dispatches(layer, self.packed(layer, kernel), src, dst, **modules)
+
         dispatches = []
         for layer in graph.layers:
+            if graph.pooled_in_epilogue(layer) or id(layer) in elsewhere:
+                continue
             kernel = self.kernel_for(layer)
             sources = [view(name) for name in layer.inputs]
             dst = view(layer.output)
             if layer.weight is not None:
-                kernel = self.tuned_kernel(layer, sources[0], dst)
-                dispatches += kernel.dispatches(layer, self.packed(layer, kernel), sources[0], dst)
+                dispatches += weighted(layer, sources[0], dst)
             elif layer.kind == "elementwise":
                 dispatches += kernel.dispatches(layer, self.prepared.get(layer.name), sources, dst)
             elif layer.kind == "concat":
@@ -368,8 +460,29 @@ class WgslModel:
                         dispatches += kernel.dispatches(f"{layer.name} <- {name}", source, dst, int(offset))
             else:
                 dispatches += kernel.dispatches(layer, sources[0], dst)
-        network = NetworkPlan(canvas, dispatches, view(graph.input_name), view(graph.output_name),
-                              peak_bytes=sum(slot["size"] for slot in pool),
+
+        input_shape, output_shape = shapes[graph.input_name], shapes[graph.output_name]
+        if entry_layer is None:
+            input_view = view(graph.input_name)
+
+            def entry(buffer, image: ImageRows) -> list[Dispatch]:
+                return self.kernels["pack"].dispatches(buffer, image, input_view)
+        else:
+            def entry(buffer, image: ImageRows) -> list[Dispatch]:
+                return weighted(entry_layer, shape_view(input_shape, buffer), view(entry_layer.output),
+                                input_image=image)
+        if exit_layer is None:
+            output_view = view(graph.output_name)
+
+            def exit(buffer, image: ImageRows) -> list[Dispatch]:
+                return self.kernels["unpack"].dispatches(output_view, buffer, image)
+        else:
+            source = view(exit_layer.inputs[0])
+            extra = {"head": head} if head else {}
+
+            def exit(buffer, image: ImageRows) -> list[Dispatch]:
+                return weighted(exit_layer, source, shape_view(output_shape, buffer), output_image=image, **extra)
+        network = NetworkPlan(canvas, dispatches, entry, exit, peak_bytes=sum(slot["size"] for slot in pool),
                               unplanned_bytes=sum(root_bytes[root] for root in lifetime))
         self._networks[canvas] = network
         return network
@@ -389,12 +502,11 @@ class WgslModel:
         if key not in plan._entries:
             if len(plan._entries) >= 8:
                 plan._entries.clear()
-            pack, view = self.kernels["pack"], plan.network.input_view
             plan._entries[key] = (input_buffer, [
-                pack.dispatches(input_buffer, height, width, band.source_row, band.valid_rows, view)[0]
+                plan.network.entry(input_buffer, ImageRows(height, width, band.source_row, 0, band.valid_rows))
                 for band in plan.bands])
         entries = plan._entries[key][1]
-        return [d for entry, exit in zip(entries, plan._exits) for d in (entry, *plan.dispatches, exit)]
+        return [d for entry, exit in zip(entries, plan.exits) for d in (*entry, *plan.dispatches, *exit)]
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """Run on a numpy (N, C, H, W) or (C, H, W) array; returns float32 of the same rank."""
