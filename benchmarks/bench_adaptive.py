@@ -32,6 +32,14 @@ Not equal-error savings: the denoised error hardly falls with spp (on cornell it
 spp), so the spp uniform would need to match it is undefined.
 Plots: benchmarks/plots/adaptive_savings_<scene>.png.
 
+--pass-cost measures only the targeted pass's cost instead: per scene, sampler and budget, the device
+time (timestamp queries) of the targeted pass on that sampler's own sample map, after the 1-spp probe,
+against a uniform pass of the same total samples (budget − probe spp; whole budgets), --repeats pairs
+timed in alternation, printed as the median of their ratios (1: the targeted pass costs what its samples
+cost). On a CPU adapter the ratio of this process's CPU time is printed too: the cores are shared, and
+timestamps count the time other programs took them.
+
+    python3 benchmarks/bench_adaptive.py --pass-cost [--size 128x128] [--budgets 4] [--repeats 5]
     python3 benchmarks/bench_adaptive.py [--quick] [--size 96x96] [--budgets 2 4 8 16] [--seeds 3]
         [--k 1 3] [--variance-k 1] [--uniform-share 0 0.5] [--pool-sigma 0 2] [--oracle [--oracle-renders 64]]
         [--gold-spp 8192] [--gold-cache DIR] [--denoised]
@@ -84,6 +92,9 @@ def parse_args():
                         help="independent 1-spp renders behind the oracle's per-pixel variance")
     parser.add_argument("--denoised", action="store_true", help="also measure the denoised output's relMSE")
     parser.add_argument("--max-depth", type=int, default=8)
+    parser.add_argument("--pass-cost", action="store_true",
+                        help="only time the targeted pass against a uniform pass of the same samples")
+    parser.add_argument("--repeats", type=int, default=5, help="timed pairs of passes with --pass-cost")
     add_gold_arguments(parser, default_spp=8192)
     add_model_arguments(parser)
     return parse_with_quick_defaults(parser, QUICK)
@@ -248,11 +259,93 @@ def distinct_settings(samplers: list[tuple]) -> list[tuple]:
     return kept
 
 
+def timed_pass(trace, buffers, timer, schedule) -> tuple[float, float]:
+    """(device ms from timestamp queries, this process's CPU ms) of one pass adding ``schedule``'s
+    samples after a 1-spp probe into cleared planes (the probe runs and is waited for first)."""
+    from wgpu_rt.passes import SPP
+    from wgpu_rt.trace.trace_pass import SampleSchedule
+
+    ctx = trace.ctx
+    encoder = ctx.device.create_command_encoder()
+    trace.clear(encoder, buffers)
+    trace.execute(encoder, buffers, SampleSchedule(samples=1))
+    ctx.device.queue.submit([encoder.finish()])
+    ctx.read(buffers.get(SPP), np.uint32, nbytes=4)
+    encoder = ctx.device.create_command_encoder()
+    timer.start()
+    timer.mark(encoder, "start")
+    trace.execute(encoder, buffers, schedule)
+    timer.mark(encoder, "pass")
+    encoder.resolve_query_set(timer.query_set, 0, 2, timer.resolved, 0)
+    cpu = time.process_time()
+    ctx.device.queue.submit([encoder.finish()])
+    raw = ctx.device.queue.read_buffer(timer.resolved, 0, 16)
+    return timer.stage_ms(timer.names, raw)["pass"], (time.process_time() - cpu) * 1e3
+
+
+def pass_cost_row(trace, counts, settings: AdaptiveSettings, extra: int, repeats: int) -> list[float]:
+    """Median device ms of the targeted pass and of a uniform pass of ``extra`` spp, timed in alternation,
+    the median of their pairwise ratios, and that ratio in process CPU time (what a CPU adapter spends,
+    whatever else shares its cores; None on a GPU)."""
+    from wgpu_rt.frame.pipeline import StageTimer
+    from wgpu_rt.passes import FrameBuffers
+    from wgpu_rt.trace.trace_pass import SampleSchedule
+
+    buffers, timer = FrameBuffers(trace.ctx, trace.width, trace.height), StageTimer(trace.ctx, capacity=2)
+    targeted = SampleSchedule(samples=settings.max_extra, sample_counts=counts,
+                              total_samples=settings.extra_bound(trace.width * trace.height))
+    uniform = SampleSchedule(samples=extra)
+    timed_pass(trace, buffers, timer, targeted)   # compiles the kernels
+    pairs = np.array([[timed_pass(trace, buffers, timer, schedule) for schedule in (targeted, uniform)]
+                      for _ in range(repeats)])   # (repeat, targeted/uniform, device/cpu)
+    ratios = pairs[:, 0] / pairs[:, 1]
+    on_cpu = trace.ctx.adapter.info.get("adapter_type") == "CPU"
+    return [float(np.median(pairs[:, 0, 0])), float(np.median(pairs[:, 1, 0])), float(np.median(ratios[:, 0])),
+            float(np.median(ratios[:, 1])) if on_cpu else None]
+
+
+def pass_cost(args, size) -> None:
+    """The targeted pass's cost on each sampler's own sample map against a uniform pass of the same
+    total samples: ratio 1 means the pass costs what its samples cost. The uniform sampler's map is
+    the uniform pass's own samples, so its row is the targeted machinery's overhead alone; the others
+    also carry the cost of the pixels they pick (noisy pixels may have longer paths)."""
+    from wgpu_rt.accel.geometry import GeometryBuffers
+    from wgpu_rt.gpu import get_context
+    from wgpu_rt.trace.trace_pass import TracePass
+
+    if not get_context().has_timestamps:
+        raise SystemExit("--pass-cost needs timestamp queries, which this adapter lacks")
+    rows = []
+    for scene in load_scenes(args.scenes):
+        trace = TracePass(get_context(), scene, GeometryBuffers.build(scene), *size, max_depth=args.max_depth)
+        for sampler in ("heat", "variance", "uniform"):
+            for budget in sorted(args.budgets):
+                settings = AdaptiveSettings(sampler=sampler, budget=budget)
+                extra = budget - settings.probe_samples
+                if extra != int(extra) or extra < 1:
+                    print(f"skipping {sampler} at budget {budget}: {extra:g} extra spp is no uniform pass")
+                    continue
+                renderer = hdr_pipeline(scene, size, args, seed=0, adaptive=settings)
+                linear_frame(renderer)
+                plane = renderer.pipeline.buffers.read(EXTRA_SAMPLES.name)
+                rows.append([scene.name, sampler, budget, float(plane.mean()), int(plane.max()),
+                             float(np.mean(plane == 0)),
+                             *pass_cost_row(trace, renderer.pipeline.buffers.get(EXTRA_SAMPLES), settings,
+                                            int(extra), args.repeats)])
+    print_table(f"targeted pass against a uniform pass of the same samples ({args.repeats} pairs timed in "
+                f"alternation: device ms by timestamps, medians; ratio: median of the pairs' ratios)",
+                ["scene", "sampler", "budget", "mean extra", "max extra", "share with none", "targeted ms",
+                 "uniform ms", "ratio", "CPU-time ratio"], rows)
+
+
 def main() -> None:
     args = parse_args()
     resolve_models(args)
     print_header(args)
     size = parse_size(args.size)
+    if args.pass_cost:
+        pass_cost(args, size)
+        return
     print(f"size {size[0]}x{size[1]}, budgets {args.budgets}, uniform curve {args.uniform}, {args.seeds} "
           f"seed(s), gold {args.gold_spp} spp, max depth {args.max_depth}")
     samplers = [("heat", k, share, pool) for k in args.k for share in args.uniform_share for pool in args.pool_sigma]

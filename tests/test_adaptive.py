@@ -10,6 +10,7 @@ from wgpu_rt.frame.adaptive import (
     EXTRA_SAMPLES,
     HALF_RADIANCE,
     HEAT,
+    MAX_HEAT_SAMPLES,
     SAMPLE_ERROR,
     AdaptiveSettings,
     ExtraSamplesPass,
@@ -244,6 +245,14 @@ def test_exponent_defaults_per_mode():
     assert AdaptiveSettings(sampler="variance", budget=4.0).pooling == 0.0
     assert AdaptiveSettings(pool_sigma=3.0).pooling == 0.0
     assert AdaptiveSettings(sampler="uniform", budget=4.0, uniform_share=0.2).evenly_spread == 1.0
+
+
+def test_extra_bound_holds_every_map(gpu):
+    """The bound the targeted pass sizes its batches by: a budget's exact total, else the cap everywhere."""
+    assert AdaptiveSettings(budget=4.0).extra_bound(H * W) == 3 * H * W
+    assert AdaptiveSettings().extra_bound(H * W) == MAX_HEAT_SAMPLES * H * W
+    hot = np.ones((H, W), np.float32)
+    assert int(extra_on_gpu(gpu, hot, AdaptiveSettings()).sum()) == AdaptiveSettings().extra_bound(H * W)
 
 
 def test_budget_shares_follow_the_default_power_of_heat(gpu):

@@ -10,6 +10,7 @@ from wgpu_rt.passes import FrameBuffers
 from wgpu_rt.scene import load_scene
 from wgpu_rt.accel.geometry import GeometryBuffers
 from wgpu_rt.trace import SampleSchedule, TracePass
+from wgpu_rt.trace.trace_pass import WorkList, batch_count, item_counts, work_list_entries
 from wgpu_rt.trace.scene_data import alias_table
 
 SIZE = (24, 24)
@@ -24,16 +25,17 @@ def test_same_seed_same_bits_other_seed_other_noise(gpu):
     assert np.mean(np.abs(a.color - c.color)) > 1e-3
 
 
-def _trace(gpu, scene_name, counts=None, passes=(4,)):
+def _trace(gpu, scene_name, counts=None, passes=(4,), batch_items=None):
     scene = load_scene(scene_name)
-    trace = TracePass(gpu, scene, GeometryBuffers.build(scene), *SIZE, chunk_size=3)
+    trace = TracePass(gpu, scene, GeometryBuffers.build(scene), *SIZE, chunk_size=3, batch_items=batch_items)
     buffers = FrameBuffers(gpu, *SIZE)
     encoder = gpu.device.create_command_encoder()
     trace.clear(encoder, buffers)
     for samples in passes:
         trace.execute(encoder, buffers, SampleSchedule(samples))
     if counts is not None:
-        trace.execute(encoder, buffers, SampleSchedule(int(counts.max()), gpu.upload(counts.astype(np.uint32))))
+        trace.execute(encoder, buffers, SampleSchedule(int(counts.max()), gpu.upload(counts.astype(np.uint32)),
+                                                       total_samples=int(counts.sum())))
     gpu.device.queue.submit([encoder.finish()])
     return buffers
 
@@ -46,18 +48,103 @@ def test_split_passes_equal_one_pass(gpu):
     assert np.all(split.read("spp") == 8)
 
 
-def test_extra_sample_counts_add_distinct_samples(gpu):
+@pytest.mark.parametrize("batch_items", [None, 64])
+def test_extra_sample_counts_add_distinct_samples(gpu, batch_items):
+    """A targeted pass (a count per pixel) traces, per pixel, the very samples a uniform pass would add:
+    a pixel with 2 + k samples holds a uniform render's mean of its first 2 + k samples in every plane
+    that is a mean (the normal plane renormalizes at each fold, so it follows how the samples were
+    grouped). Counts up to 10 over items of at most 3 samples split a pixel into up to 4 items; 64 items
+    per batch spread a pixel's items over two batches, and a frame over many."""
     rng = np.random.default_rng(1)
-    counts = rng.integers(0, 7, size=SIZE[0] * SIZE[1])
-    uniform_then_extra = _trace(gpu, "cornell", counts=counts, passes=(2,))
+    counts = rng.integers(0, 11, size=SIZE[0] * SIZE[1])
+    uniform_then_extra = _trace(gpu, "cornell", counts=counts, passes=(2,), batch_items=batch_items)
     spp = uniform_then_extra.read("spp").ravel()
     np.testing.assert_array_equal(spp, 2 + counts)
-    # a pixel with 2 + k samples must equal a uniform render's mean of its first 2 + k samples
-    for k in (0, 3, 6):
-        reference = _trace(gpu, "cornell", passes=(2 + k,)).read("radiance").reshape(3, -1)
+    for k in (0, 1, 3, 4, 7, 10):
+        reference = _trace(gpu, "cornell", passes=(2 + k,))
         pick = counts == k
-        np.testing.assert_allclose(uniform_then_extra.read("radiance").reshape(3, -1)[:, pick],
-                                   reference[:, pick], rtol=1e-5, atol=1e-6)
+        for plane in ("radiance", "albedo", "depth"):
+            channels = reference.read(plane).shape[0]
+            np.testing.assert_allclose(uniform_then_extra.read(plane).reshape(channels, -1)[:, pick],
+                                       reference.read(plane).reshape(channels, -1)[:, pick], rtol=1e-5, atol=1e-6,
+                                       err_msg=f"{plane}, pixels with {k} extra samples")
+
+
+def test_targeted_pass_is_deterministic_and_skips_pixels_without_samples(gpu):
+    """The same counts give the same bits; a pixel with no samples keeps what it held, and an all-zero map
+    adds nothing."""
+    counts = np.random.default_rng(2).integers(0, 9, size=SIZE[0] * SIZE[1]) * (np.arange(SIZE[0] * SIZE[1]) % 3 > 0)
+    first = _trace(gpu, "cornell", counts=counts, passes=(1,), batch_items=128)
+    second = _trace(gpu, "cornell", counts=counts, passes=(1,), batch_items=128)
+    probe = _trace(gpu, "cornell", passes=(1,))
+    nothing = _trace(gpu, "cornell", counts=np.zeros_like(counts), passes=(1,))
+    for plane in TracePass.outputs:
+        assert first.read(plane.name).tobytes() == second.read(plane.name).tobytes(), plane.name
+        assert nothing.read(plane.name).tobytes() == probe.read(plane.name).tobytes(), plane.name
+    untouched = (counts == 0)
+    assert untouched.any()
+    np.testing.assert_array_equal(first.read("radiance").reshape(3, -1)[:, untouched],
+                                  probe.read("radiance").reshape(3, -1)[:, untouched])
+
+
+@pytest.mark.parametrize("size, item_samples", [((24, 24), 3), ((37, 29), 16), ((40, 8), 1)])
+def test_work_list_matches_reference(gpu, size, item_samples):
+    """The device's compacted list (wgsl/trace/work_list_build.wgsl) is the numpy reference's: the pixels
+    with samples in the reference's order, each entry's first item after the items of those before it,
+    each entry holding the samples its pixel had before the pass; and each batch dispatches its items,
+    and resolves those of pixels of several items."""
+    pixels = size[0] * size[1]
+    rng = np.random.default_rng(3)
+    counts = (rng.integers(0, 40, pixels) * (rng.uniform(size=pixels) < 0.7)).astype(np.uint32)
+    spp = rng.integers(0, 100, pixels).astype(np.uint32)
+    work = WorkList(gpu, *size, item_samples, batch_items=pixels)
+    encoder = gpu.device.create_command_encoder()
+    work.record_build(encoder, gpu.upload(counts), gpu.upload(spp), batches=2)
+    gpu.device.queue.submit([encoder.finish()])
+    expected_pixels, expected_first = work_list_entries(counts, item_samples)
+    items, entries, batch_items = (int(value) for value in gpu.read(work.totals, np.uint32)[:3])
+    assert entries == len(expected_pixels) and batch_items == work.batch_items
+    assert items == int(item_counts(counts, item_samples).sum())
+    listed = gpu.read(work.entries, np.uint32)[:3 * entries].reshape(-1, 3)
+    np.testing.assert_array_equal(listed[:, 0], expected_pixels)
+    np.testing.assert_array_equal(listed[:, 1], expected_first)
+    np.testing.assert_array_equal(listed[:, 2], spp[expected_pixels])
+    groups = gpu.read(work.batch_args(2), np.uint32)[:12].reshape(2, 2, 3)   # batch, trace/resolve, xyz
+    waiting = int(item_counts(counts, item_samples)[item_counts(counts, item_samples) > 1].sum())
+    for batch, (trace_groups, resolve_groups) in enumerate(groups):
+        first = batch * work.batch_items
+        assert trace_groups.tolist() == [-(-min(max(items - first, 0), work.batch_items) // 64), 1, 1]
+        assert resolve_groups.tolist() == [-(-min(max(waiting - first, 0), work.batch_items) // 64), 1, 1]
+
+
+def test_work_list_order_balances_items():
+    """The list's order: pixels of several items (whose sums wait for resolve_items) first, then those of
+    one; each group by size class (a pixel's items differ by at most one sample) from the largest down,
+    then by pixel. Neighbouring invocations so take nearly as many samples, and the resolve pass covers
+    only the front of the list."""
+    counts = np.array([5, 0, 1, 7, 3, 3, 12, 2])
+    pixels, first_items = work_list_entries(counts, 4)
+    # items: 5 → 3+2 (class 3), 7 → 4+3 (4), 12 → 4+4+4 (4); single: 1, 3, 3, 2 (classes 1, 3, 3, 2)
+    assert pixels.tolist() == [3, 6, 0, 4, 5, 7, 2]
+    assert first_items.tolist() == [0, 2, 5, 7, 8, 9, 10]
+    assert item_counts(counts, 4).tolist() == [2, 0, 1, 2, 1, 1, 3, 1]
+    # 9 → 3+3+3 and 5 → 3+2 (class 3) come before 4 (class 4), a single item
+    pixels, _ = work_list_entries(np.array([2, 9, 4, 5, 1]), 4)
+    assert pixels.tolist() == [1, 3, 2, 0, 4]
+
+
+def test_batches_cover_every_item():
+    """The batches recorded hold every item counts within the schedule's bounds can make, and no more
+    than the bounds call for."""
+    assert batch_count(100, 4, 64, 0, None) == 0
+    assert batch_count(100, 4, 64, 31, None) == -(-100 * 8 // 64)      # every pixel 31 samples: 8 items each
+    assert batch_count(100, 4, 64, 31, 300) == -(-(300 + 3 * 100) // 4 // 64)
+    assert batch_count(100, 4, 64, 31, 5) == 1                          # 5 samples make at most 5 items
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        counts = rng.integers(0, 32, 100) * (rng.uniform(size=100) < rng.uniform())
+        needed = -(-int(item_counts(counts, 4).sum()) // 64)
+        assert needed <= batch_count(100, 4, 64, int(counts.max()), int(counts.sum()))
 
 
 def test_alias_table_matches_weights():

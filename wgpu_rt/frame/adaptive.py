@@ -164,8 +164,13 @@ class AdaptiveSettings:
 
     @property
     def max_extra(self) -> int:
-        """Upper bound of any pixel's extra samples (the targeted pass's dispatch count follows it)."""
+        """Upper bound of any pixel's extra samples."""
         return MAX_HEAT_SAMPLES if self.budget is None else self.cap
+
+    def extra_bound(self, pixels: int) -> int:
+        """Upper bound of the extra samples of a sample map over ``pixels``: the budget's exactly, else
+        ``max_extra`` on every pixel (the targeted pass records as many batches as this could fill)."""
+        return self.extra_total(pixels) if self.budget is not None else self.max_extra * pixels
 
 
 # -- numpy references ---------------------------------------------------------------------------------

@@ -261,8 +261,10 @@ class FramePipeline:
         self._mark(encoder, "sample map")
         # No sample_offset: the tracer already numbers these after the probe's (each pixel's spp), so
         # probe and targeted samples are one unbroken prefix of the pixel's sequence, as brute force is.
-        trace.execute(encoder, buffers, SampleSchedule(samples=adaptive.max_extra,
-                                                       sample_counts=buffers.get(self.extra_samples.outputs[0])))
+        # The pass compacts the map on the device, so its cost follows the samples, not the image.
+        trace.execute(encoder, buffers, SampleSchedule(
+            samples=adaptive.max_extra, sample_counts=buffers.get(self.extra_samples.outputs[0]),
+            total_samples=adaptive.extra_bound(self.width * self.height)))
         self._mark(encoder, "targeted trace")
         return encoder
 

@@ -5,6 +5,11 @@ driver; the per-dispatch chunk start is copied into the frame parameters between
 and dispatches run in recording order), so a whole pass records into one encoder. Samples are numbered
 per pixel in the order taken (the spp plane holds how many a pixel has), so any later pass, uniform or
 per-pixel (adaptive), adds new sample indices and the planes stay unbiased running means.
+
+A targeted pass (a sample count per pixel) does not run over the image: wgsl/trace/work_list_build.wgsl
+compacts the counts into a list of work items of at most ``chunk_size`` samples, ordered so that
+neighbours hold nearly as many samples, and wgsl/trace/targeted.wgsl traces the list in batches sized
+on the device (indirect dispatches), so the pass costs what its samples cost whatever their spread.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ from ..passes import (
     FrameBuffers,
 )
 from ..scene.model import Scene
+from ..shaders import compose
 from .features import SceneFeatures
 from .scene_data import (
     FRAME_PARAMS_DTYPE,
@@ -43,6 +49,17 @@ from .scene_data import (
 TILE = 8   # a workgroup traces TILE × TILE pixels (wgsl/trace/trace.wgsl)
 KERNEL = "trace/trace.wgsl"
 AUX_KERNEL = "trace/aux.wgsl"
+TARGETED_KERNEL = "trace/targeted.wgsl"
+WORK_LIST_BUILD = "trace/work_list_build.wgsl"
+# Work items per batch of a targeted pass at most: a batch of one item per pixel is about one uniform
+# dispatch's work (an item holds up to chunk_size samples), and its slots fill 128 MiB at most, the
+# smallest max-storage-buffer-binding-size WebGPU allows.
+MAX_BATCH_ITEMS = 1 << 21
+SAMPLE_SUMS_BYTES = 64   # a SampleSums (wgsl/trace/trace.wgsl) in a storage array: one item's slot
+ENTRY_BYTES = 12         # an Entry (wgsl/trace/work_list.wgsl)
+BATCH_ARGS_BYTES = 24    # a batch's indirect dispatch arguments: trace_items', then resolve_items' (x, y, z)
+MAX_GRID = 65535         # workgroups along one dimension of a dispatch
+CHUNK_START_OFFSET = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
 # Delta-chain samples per pixel of the noise-free albedo (execute_aux). 1 is worse than none (an albedo
 # sample independent of the colour sample it demodulates); 4 keeps almost all of 8's gain at half the cost
 # (BENCHMARKS.md §5, "Noise-free albedo").
@@ -79,31 +96,41 @@ def trace_kernel_source(ctx, traversal: str | None = None, placement: BufferPlac
     return compose_with_traversal(ctx, kernel, traversal, replacements=replacements)
 
 
-def trace_layout(ctx, geometry_bindings: int, placement: BufferPlacement = BufferPlacement()):
+def trace_layout(ctx, geometry_bindings: int, placement: BufferPlacement = BufferPlacement(),
+                 work_list: bool = False):
     """The kernel's pipeline layout, spelled out: "auto" would drop the bindings that a specialization
     no longer reads, and then one set of bind groups could not serve every specialization.
     Group 0 is the geometry's buffers (read-only storage; the first two uniform with
     ``placement.geometry``), group 1 the frame uniform, the material and emitter tables (uniform or
-    read-only storage) and two read-only tables, group 2 the six output planes."""
+    read-only storage) and two read-only tables, group 2 the six output planes; with ``work_list``
+    (wgsl/trace/targeted.wgsl) group 3 is the work list's entries and totals (read-only) and the
+    per-item sums and their entries."""
     import wgpu
 
     key = (id(ctx.device), geometry_bindings, placement)
-    if key not in _layouts:
+    if key not in _group_layouts:
         def group(kinds):
             return ctx.device.create_bind_group_layout(entries=[
                 {"binding": i, "visibility": wgpu.ShaderStage.COMPUTE, "buffer": {"type": kind}}
                 for i, kind in enumerate(kinds)])
 
         read_only, uniform = wgpu.BufferBindingType.read_only_storage, wgpu.BufferBindingType.uniform
+        storage = wgpu.BufferBindingType.storage
         tables = uniform if placement.tables else read_only
         words = uniform if placement.geometry else read_only
-        _layouts[key] = ctx.device.create_pipeline_layout(bind_group_layouts=[
-            group([words] * 2 + [read_only] * (geometry_bindings - 2)),
-            group([uniform, tables, tables, read_only, read_only]),
-            group([wgpu.BufferBindingType.storage] * len(TracePass.outputs))])
-    return _layouts[key]
+        # one set of group layouts for both pipeline layouts, so one set of bind groups serves both
+        _group_layouts[key] = [group([words] * 2 + [read_only] * (geometry_bindings - 2)),
+                               group([uniform, tables, tables, read_only, read_only]),
+                               group([storage] * len(TracePass.outputs)),
+                               group([read_only, read_only, storage, storage])]
+    groups = _group_layouts[key]
+    if (*key, work_list) not in _layouts:
+        _layouts[(*key, work_list)] = ctx.device.create_pipeline_layout(
+            bind_group_layouts=groups if work_list else groups[:3])
+    return _layouts[(*key, work_list)]
 
 
+_group_layouts: dict = {}
 _layouts: dict = {}
 
 
@@ -130,11 +157,131 @@ def _padded(records: np.ndarray, capacity: int) -> np.ndarray:
 @dataclass(frozen=True)
 class SampleSchedule:
     """What the next ``execute`` adds: ``samples`` per pixel, or per pixel from ``sample_counts``
-    (a u32 plane; ``samples`` is then its maximum), with sample indices shifted by ``sample_offset``."""
+    (a u32 plane; ``samples`` is then its maximum, and ``total_samples``, when given, a bound on its sum
+    that spares the targeted pass recording batches no count could fill), with sample indices shifted
+    by ``sample_offset``."""
 
     samples: int = 1
     sample_counts: object | None = None
     sample_offset: int = 0
+    total_samples: int | None = None
+
+
+class BindGroupCache:
+    """Bind groups cached by their pipeline, group and buffers' identities (an entry holds its buffers, so
+    an id cannot be reused by another buffer while it is cached); a few entries are kept."""
+
+    def __init__(self, ctx, capacity: int = 16):
+        self.ctx, self.capacity = ctx, capacity
+        self._held: dict[tuple, tuple] = {}
+
+    def get(self, pipeline, group: int, buffers: list):
+        key = (id(pipeline), group, *map(id, buffers))
+        held = self._held.get(key)
+        if held is None:
+            if len(self._held) >= self.capacity:
+                self._held.clear()
+            held = self._held[key] = (self.ctx.bind_group(pipeline, buffers, group=group), pipeline, buffers)
+        return held[0]
+
+
+def item_counts(counts: np.ndarray, item_samples: int) -> np.ndarray:
+    """Work items per pixel of a targeted pass: ceil(count / item_samples)."""
+    return -(-np.asarray(counts, np.int64) // item_samples)
+
+
+def work_list_entries(counts: np.ndarray, item_samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """numpy reference of wgsl/trace/work_list_build.wgsl: the entries of a targeted pass's work list,
+    as (pixels, first items). Pixels with samples: those of several items first, then those of one;
+    each group by size class (the size of their largest item) from largest to smallest, then by pixel
+    index. Each entry's items follow the previous one's."""
+    counts = np.asarray(counts, np.int64).ravel()
+    items = item_counts(counts, item_samples)
+    size_class = -(-counts // np.maximum(items, 1))
+    pixels = np.flatnonzero(counts > 0)
+    pixels = pixels[np.lexsort((pixels, -size_class[pixels], items[pixels] == 1))]
+    first_items = np.concatenate([[0], np.cumsum(items[pixels])[:-1]]).astype(np.int64)
+    return pixels, first_items[:len(pixels)]
+
+
+def batch_count(pixels: int, item_samples: int, batch_items: int, samples: int, total_samples: int | None) -> int:
+    """Batches of ``batch_items`` that hold every work item of counts of at most ``samples`` per pixel
+    summing to at most ``total_samples``: a pixel's items are at most (count + item_samples − 1) /
+    item_samples, and only pixels with samples have any."""
+    items = pixels * -(-samples // item_samples)
+    if total_samples is not None:
+        items = min(items, (total_samples + (item_samples - 1) * min(pixels, total_samples)) // item_samples)
+    return -(-items // batch_items)
+
+
+class WorkList:
+    """The device buffers and kernels that compact a targeted pass's per-pixel sample counts into work
+    items (wgsl/trace/work_list_build.wgsl), and the per-item sums of one batch: all allocated once,
+    sized by the frame (``batch_items`` items per batch)."""
+
+    def __init__(self, ctx, width: int, height: int, item_samples: int, batch_items: int):
+        import wgpu
+
+        self.ctx, self.width, self.height, self.item_samples = ctx, width, height, item_samples
+        if not 1 <= item_samples <= 64:
+            raise ValueError(f"work items hold 1 to 64 samples, not {item_samples}")
+        pixels = width * height
+        self.batch_items = -(-batch_items // 64) * 64
+        blocks = -(-pixels // 64)
+        runs = -(-2 * item_samples * blocks // 64)
+        self.grids = {"count_items": (min(blocks, MAX_GRID), -(-blocks // MAX_GRID)),
+                      "scan_runs": (-(-runs // 64), 1), "scan_run_sums": (1, 1)}
+        self.grids["place_entries"] = self.grids["count_items"]
+        self.counts = ctx.storage(8 * 2 * item_samples * blocks, label="work item counts")
+        self.local_offsets = ctx.storage(8 * pixels, label="work item offsets in their blocks")
+        self.run_sums = ctx.storage(4 * 2 * runs, label="work item run sums")
+        self.entries = ctx.storage(ENTRY_BYTES * pixels, label="work list entries")
+        self.totals = ctx.storage(16, label="work list totals")
+        self.slots = ctx.storage(SAMPLE_SUMS_BYTES * self.batch_items, label="work item sums")
+        self.slot_entries = ctx.storage(4 * self.batch_items, label="work item entries")
+        self._batch_args = None
+        read_only, storage = wgpu.BufferBindingType.read_only_storage, wgpu.BufferBindingType.storage
+        self.layout = ctx.device.create_pipeline_layout(bind_group_layouts=[ctx.device.create_bind_group_layout(
+            entries=[{"binding": i, "visibility": wgpu.ShaderStage.COMPUTE, "buffer": {"type": kind}}
+                     for i, kind in enumerate([read_only] * 2 + [storage] * 6)])])
+        self._pipelines: dict[int, list] = {}
+        self._bind_groups = BindGroupCache(ctx, capacity=8)
+
+    def batches(self, samples: int, total_samples: int | None) -> int:
+        """batch_count for this list's frame, item size and batch size."""
+        return batch_count(self.width * self.height, self.item_samples, self.batch_items, samples, total_samples)
+
+    def batch_args(self, batches: int):
+        """The indirect dispatch arguments of ``batches`` batches, BATCH_ARGS_BYTES each (trace_items',
+        then resolve_items'); grown as needed."""
+        import wgpu
+
+        if self._batch_args is None or self._batch_args.size < BATCH_ARGS_BYTES * batches:
+            self._batch_args = self.ctx.storage(BATCH_ARGS_BYTES * max(batches, 8), label="work batch dispatch args",
+                                                usage=wgpu.BufferUsage.INDIRECT)
+        return self._batch_args
+
+    def record_build(self, encoder, sample_counts, spp, batches: int) -> None:
+        """Record the kernels that build the list from ``sample_counts`` (and the ``spp`` plane: the
+        samples each pixel holds before the pass) and write the ``batches`` batches' dispatch args."""
+        pipelines = self._pipelines.get(batches)
+        if pipelines is None:
+            constants = {"WIDTH": self.width, "HEIGHT": self.height, "ITEM_SAMPLES": self.item_samples,
+                         "BATCH_ITEMS": self.batch_items, "BATCHES": batches}
+            code = compose(WORK_LIST_BUILD)
+            pipelines = self._pipelines[batches] = [
+                self.ctx.compute_pipeline(code, entry, constants, label=f"work list {entry}", layout=self.layout)
+                for entry in self.grids]
+        bind_group = self._bind_groups.get(pipelines[0], 0, [
+            sample_counts, spp, self.counts, self.local_offsets, self.run_sums, self.entries, self.totals,
+            self.batch_args(batches)])
+        encoder.clear_buffer(self.counts)
+        compute = encoder.begin_compute_pass(label="work list")
+        for pipeline, grid in zip(pipelines, self.grids.values()):
+            compute.set_pipeline(pipeline)
+            compute.set_bind_group(0, bind_group)
+            compute.dispatch_workgroups(*grid, 1)
+        compute.end()
 
 
 class TracePass(ComputePass):
@@ -145,10 +292,11 @@ class TracePass(ComputePass):
     def __init__(self, ctx, scene: Scene, geometry, width: int, height: int, frame: int = 0,
                  max_depth: int = 8, seed: int = 0, features: SceneFeatures | None = None,
                  chunk_size: int | None = None, traversal: str | None = None,
-                 placement: BufferPlacement | None = None):
+                 placement: BufferPlacement | None = None, batch_items: int | None = None):
         """``traversal``: the BVH traversal module (tests and benchmarks compare them; default: the
         adapter's, wgpu_rt.accel.geometry.traversal_module). ``placement``: which tables live in
-        uniform buffers (default: each that fits)."""
+        uniform buffers (default: each that fits). ``batch_items``: work items per batch of a targeted
+        pass (default: one per pixel, at most MAX_BATCH_ITEMS)."""
         if max_depth < 1:
             raise ValueError(f"max_depth must be at least 1, got {max_depth}")
         self.ctx, self.width, self.height = ctx, width, height
@@ -178,6 +326,9 @@ class TracePass(ComputePass):
         # cornell); few enough to stay around a second on lavapipe and well within the kernel's
         # LOOP_BUDGET (wgsl/trace/trace.wgsl) on scenes with long paths.
         self.chunk_size = chunk_size or max(1, min(16, (1 << 20) // (width * height)))
+        self._batch_items = min(batch_items or width * height, MAX_BATCH_ITEMS)
+        self._work_list: WorkList | None = None     # made by the first targeted pass
+        self._targeted_pipelines: list | None = None   # trace_items and resolve_items, likewise
 
         self._emitter_table, self._max_depth = emitters, max_depth
         self.set_frame(scene, frame, seed)
@@ -194,8 +345,8 @@ class TracePass(ComputePass):
         self._triangle_density = ctx.upload(emitters.triangle_density, label="triangle emitter densities")
         self._no_counts = ctx.storage(16, label="no sample counts")
         self._param_buffers: dict[tuple, list] = {}
-        self._chunk_starts = None
-        self._bind_groups: dict[tuple, object] = {}
+        self._starts: dict[int, object] = {}
+        self._bind_groups = BindGroupCache(ctx)
 
     def set_frame(self, scene: Scene, frame: int, seed: int) -> None:
         """Point the pass at another frame of the same geometry (camera, previous camera, seed): the
@@ -230,7 +381,6 @@ class TracePass(ComputePass):
     def _params_buffer(self, schedule: SampleSchedule):
         params = self._params.copy()
         params["sample_offset"] = schedule.sample_offset
-        params["use_sample_counts"] = int(schedule.sample_counts is not None)
         params["pass_samples"] = schedule.samples
         params["chunk_size"] = self.chunk_size
         data = params.tobytes()
@@ -243,22 +393,17 @@ class TracePass(ComputePass):
             held[1] = data
         return held[0]
 
-    def _chunk_starts_buffer(self, dispatch_count: int):
-        if self._chunk_starts is None or self._chunk_starts.size < 4 * dispatch_count:
-            self._chunk_starts = self.ctx.upload(np.arange(max(dispatch_count, 64), dtype=np.uint32)
-                                                 * self.chunk_size, label="chunk starts")
-        return self._chunk_starts
+    def _starts_buffer(self, count: int, step: int):
+        """0, step, 2·step, … (``count`` of them at least): what the dispatches copy into chunk_start."""
+        held = self._starts.get(step)
+        if held is None or held.size < 4 * count:
+            held = self._starts[step] = self.ctx.upload(np.arange(max(count, 64), dtype=np.uint32) * step,
+                                                        label="chunk starts")
+        return held
 
-    def _cached_bind_group(self, group: int, buffers: list):
-        """The bind group of ``buffers``, cached by their identities (the entry holds the buffers, so an
-        id cannot be reused by another buffer while it is cached; a few entries are kept)."""
-        key = (group, *map(id, buffers))
-        held = self._bind_groups.get(key)
-        if held is None:
-            if len(self._bind_groups) >= 16:
-                self._bind_groups.clear()
-            held = self._bind_groups[key] = (self.ctx.bind_group(self.pipeline, buffers, group=group), buffers)
-        return held[0]
+    def _bind_group(self, group: int, buffers: list, pipeline=None):
+        """The bind group of ``buffers`` for ``group`` of ``pipeline``'s layout (default: the tracer's)."""
+        return self._bind_groups.get(pipeline or self.pipeline, group, buffers)
 
     def execute_aux(self, encoder, buffers: FrameBuffers, samples: int = AUX_SAMPLES) -> None:
         """Overwrite the albedo plane with a noise-free estimate of the same quantity from ``samples``
@@ -271,13 +416,13 @@ class TracePass(ComputePass):
                 trace_kernel_source(self.ctx, traversal, placement, instances, AUX_KERNEL), "aux",
                 constants={**self.features.constants(), "AUX_SAMPLES": samples}, label=f"aux {self.features}",
                 layout=trace_layout(self.ctx, geometry_bindings, placement))
-        shading = self._cached_bind_group(1, [self._params_buffer(SampleSchedule()), self._materials, self._emitters,
-                                              self._triangle_density, self._no_counts])
+        shading = self._bind_group(1, [self._params_buffer(SampleSchedule()), self._materials, self._emitters,
+                                       self._triangle_density, self._no_counts])
         compute = encoder.begin_compute_pass(label="aux")
         compute.set_pipeline(pipeline)
         compute.set_bind_group(0, self._geometry_group)
         compute.set_bind_group(1, shading)
-        compute.set_bind_group(2, self._cached_bind_group(2, [buffers.get(spec) for spec in self.outputs]))
+        compute.set_bind_group(2, self._bind_group(2, [buffers.get(spec) for spec in self.outputs]))
         compute.dispatch_workgroups(-(-self.width // TILE), -(-self.height // TILE), 1)
         compute.end()
 
@@ -288,23 +433,57 @@ class TracePass(ComputePass):
 
     def execute(self, encoder, buffers: FrameBuffers, schedule: SampleSchedule = SampleSchedule()) -> None:
         """Record the dispatches that add ``schedule``'s samples to ``buffers``."""
-        dispatch_count = -(-schedule.samples // self.chunk_size)
         uniform = self._params_buffer(schedule)
-        chunk_starts = self._chunk_starts_buffer(dispatch_count)
         counts = schedule.sample_counts if schedule.sample_counts is not None else self._no_counts
-        shading = self._cached_bind_group(1, [uniform, self._materials, self._emitters, self._triangle_density,
-                                              counts])
-        planes = self._cached_bind_group(2, [buffers.get(spec) for spec in self.outputs])
+        shading = self._bind_group(1, [uniform, self._materials, self._emitters, self._triangle_density, counts])
+        planes = self._bind_group(2, [buffers.get(spec) for spec in self.outputs])
+        if schedule.sample_counts is not None:
+            self._execute_targeted(encoder, buffers, schedule, uniform, shading, planes)
+            return
+        dispatch_count = -(-schedule.samples // self.chunk_size)
+        chunk_starts = self._starts_buffer(dispatch_count, self.chunk_size)
         groups = (-(-self.width // TILE), -(-self.height // TILE), 1)
-        chunk_offset = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
         for chunk in range(dispatch_count):
-            encoder.copy_buffer_to_buffer(chunk_starts, 4 * chunk, uniform, chunk_offset, 4)
+            encoder.copy_buffer_to_buffer(chunk_starts, 4 * chunk, uniform, CHUNK_START_OFFSET, 4)
             compute = encoder.begin_compute_pass(label="trace")
             compute.set_pipeline(self.pipeline)
             compute.set_bind_group(0, self._geometry_group)
             compute.set_bind_group(1, shading)
             compute.set_bind_group(2, planes)
             compute.dispatch_workgroups(*groups)
+            compute.end()
+
+    def _execute_targeted(self, encoder, buffers: FrameBuffers, schedule: SampleSchedule, uniform, shading,
+                          planes) -> None:
+        """The samples of ``schedule.sample_counts``, traced over the compacted work list, a batch at a time."""
+        if self._work_list is None:
+            self._work_list = WorkList(self.ctx, self.width, self.height, self.chunk_size, self._batch_items)
+            traversal, placement, instances, geometry_bindings = self._kernel_options
+            code = trace_kernel_source(self.ctx, traversal, placement, instances, TARGETED_KERNEL)
+            layout = trace_layout(self.ctx, geometry_bindings, placement, work_list=True)
+            self._targeted_pipelines = [self.ctx.compute_pipeline(code, entry, constants=self.features.constants(),
+                                                                  label=f"{entry} {self.features}", layout=layout)
+                                        for entry in ("trace_items", "resolve_items")]
+        work = self._work_list
+        batches = work.batches(schedule.samples, schedule.total_samples)
+        if batches == 0:
+            return
+        work.record_build(encoder, schedule.sample_counts, buffers.get(SPP), batches)
+        trace_items, resolve_items = self._targeted_pipelines
+        items = self._bind_group(3, [work.entries, work.totals, work.slots, work.slot_entries], trace_items)
+        batch_starts = self._starts_buffer(batches, work.batch_items)
+        arguments = work.batch_args(batches)
+        for batch in range(batches):
+            encoder.copy_buffer_to_buffer(batch_starts, 4 * batch, uniform, CHUNK_START_OFFSET, 4)
+            compute = encoder.begin_compute_pass(label="targeted trace")
+            compute.set_pipeline(trace_items)
+            compute.set_bind_group(0, self._geometry_group)
+            compute.set_bind_group(1, shading)
+            compute.set_bind_group(2, planes)
+            compute.set_bind_group(3, items)
+            compute.dispatch_workgroups_indirect(arguments, BATCH_ARGS_BYTES * batch)
+            compute.set_pipeline(resolve_items)
+            compute.dispatch_workgroups_indirect(arguments, BATCH_ARGS_BYTES * batch + 12)
             compute.end()
 
 

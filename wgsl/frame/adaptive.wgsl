@@ -34,6 +34,7 @@
 //   half_buffer_error: Cycles' estimate from the mean of all samples I and of the first half A:
 //                     Σ|I − A| / (1e-4 + sqrt(ΣI)) (the variance-based baseline's importance).
 // #import frame/common.wgsl
+// #import trace/workgroup_scan.wgsl
 
 override K: f32 = 3.0;
 override EVENLY_SPREAD: f32 = 0.0;
@@ -64,7 +65,6 @@ struct Budget {
 @group(0) @binding(9) var<storage, read_write> squared: array<f32>;   // p² of square_importance
 
 var<workgroup> partial: array<f32, 64>;
-var<workgroup> ranks: array<u32, 64>;
 
 fn tiles_x() -> u32 { return (WIDTH + TILE - 1u) / TILE; }
 
@@ -160,17 +160,6 @@ fn is_candidate(id: vec3u) -> bool {
     if (!in_frame(id)) { return false; }
     let i = pixel_index(id);
     return extra[i] < CAP && claim[i] >= THRESHOLD;
-}
-
-// Inclusive prefix sum of ranks[0..64) in place (Hillis–Steele); every lane of the workgroup calls it.
-fn scan_ranks(lane: u32) {
-    for (var offset = 1u; offset < 64u; offset = offset << 1u) {
-        var sum = ranks[lane];
-        if (lane >= offset) { sum += ranks[lane - offset]; }
-        workgroupBarrier();
-        ranks[lane] = sum;
-        workgroupBarrier();
-    }
 }
 
 @compute @workgroup_size(8, 8)

@@ -5,11 +5,11 @@
 // continuation probability min(max(throughput)·eta², 0.95). Diffuse and metal surfaces are two-sided
 // (the shading frame faces the incoming ray); glass keeps its outward normal to tell inside from out.
 //
-// One invocation is one pixel; a workgroup of 64 is an 8×8 tile. It takes the samples
-// [chunk_start, chunk_start + chunk_size) of this pass's count (uniform, or per pixel from
-// sample_counts for adaptive passes), numbered after the samples the pixel already holds (the spp
-// plane) so extra passes add new, distinct sample indices, and folds their mean into the running
-// means of the output planes.
+// `main` (uniform passes): one invocation is one pixel; a workgroup of 64 is an 8×8 tile. It takes the
+// samples [chunk_start, chunk_start + chunk_size) of this pass's count, numbered after the samples the
+// pixel already holds (the spp plane) so extra passes add new, distinct sample indices, and folds their
+// mean into the running means of the output planes. Targeted passes (a count per pixel) run the same
+// trace_samples and fold_samples from trace/targeted.wgsl over a compacted list of work items.
 //
 // Each turn of the main loop traces two rays per invocation in one BVH walk (trace_ray_pair): the
 // path's next segment and the shadow ray of the next-event estimate made at its previous vertex (whose
@@ -184,28 +184,33 @@ fn fold_mean(mean: f32, batch_sum: f32, count_before: f32, batch_count: f32) -> 
     return mean + (batch_sum - batch_count * mean) / (count_before + batch_count);
 }
 
-@compute @workgroup_size(TILE * TILE)
-fn main(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) local_index: u32) {
-    begin_traversal(local_index);
-    let xy = tile_pixel(tile, local_index);
-    let inside = xy.x < params.width && xy.y < params.height;
-    let pixel = select(0u, xy.y * params.width + xy.x, inside);
-    let plane = params.width * params.height;
-    let pass_count = select(params.pass_samples, sample_counts[pixel], params.use_sample_counts != 0u);
-    let taken = select(0u, min(params.chunk_size, max(pass_count, params.chunk_start) - params.chunk_start), inside);
-    let held = out_spp[pixel];
-    var radiance = vec3f(0.0);
-    var albedo = vec3f(0.0);
-    var normal = vec3f(0.0);
-    var depth = 0.0;
-    var motion = vec2f(0.0);
+// What one invocation's samples of a pixel add up to: sums over the samples completed, and their count.
+struct SampleSums {
+    radiance: vec3f,
+    count: u32,
+    albedo: vec3f,
+    depth: f32,
+    normal: vec3f,
+    motion: vec2f,
+}
+
+fn add_sums(a: SampleSums, b: SampleSums) -> SampleSums {
+    return SampleSums(a.radiance + b.radiance, a.count + b.count, a.albedo + b.albedo, a.depth + b.depth,
+                      a.normal + b.normal, a.motion + b.motion);
+}
+
+// Traces `taken` samples of `pixel` (film position `xy`), numbered first_index, first_index + 1, … in
+// its sequence (a pixel's sample index is its own: the same index gives the same path whichever
+// invocation traces it). Every invocation of a subgroup calls it together; one with nothing to take
+// (taken 0) idles in the loop until its subgroup is done.
+fn trace_samples(pixel: u32, xy: vec2u, first_index: u32, taken: u32) -> SampleSums {
+    var sums = SampleSums(vec3f(0.0), 0u, vec3f(0.0), 0.0, vec3f(0.0), vec2f(0.0));
     // Path regeneration: when a path ends the invocation starts its next sample in the same loop, so
     // the SIMD lanes of a subgroup stay busy until all of them have traced all their samples, instead
     // of each sample waiting for the longest path of its subgroup.
     let pixel_corner = vec2f(xy);
-    var index = 0u;
     var tracing = taken > 0u;
-    var sampler = sampler_start(pixel, params.sample_offset + held, params.seed);
+    var sampler = sampler_start(pixel, first_index, params.seed);
     var path = start_path(&sampler, pixel_corner);
     var shadow = ShadowRay(vec3f(0.0), 0.0, vec3f(0.0, 0.0, 1.0), false, vec3f(0.0));
     var loop_passes = 0u;
@@ -218,47 +223,67 @@ fn main(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loc
         loop_passes += traced.loop_passes + 1u;
         // a non-finite contribution (a degenerate configuration) is dropped rather than poisoning the pixel
         if shadow.pending && !traced.occluded && is_finite_vec3(shadow.contribution) {
-            radiance += shadow.contribution;
+            sums.radiance += shadow.contribution;
         }
         shadow.pending = false;
         if tracing && !extend_path(&path, &sampler, traced, &shadow) {
-            radiance += select(vec3f(0.0), path.radiance, is_finite_vec3(path.radiance));
+            sums.radiance += select(vec3f(0.0), path.radiance, is_finite_vec3(path.radiance));
             if WRITE_AOVS {
-                albedo += path.albedo;
-                normal += path.normal;
-                depth += path.linear_depth;
-                motion += path.motion;
+                sums.albedo += path.albedo;
+                sums.normal += path.normal;
+                sums.depth += path.linear_depth;
+                sums.motion += path.motion;
             }
-            index += 1u;
-            tracing = index < taken && loop_passes < LOOP_BUDGET;
-            sampler = sampler_start(pixel, params.sample_offset + held + index, params.seed);
+            sums.count += 1u;
+            tracing = sums.count < taken && loop_passes < LOOP_BUDGET;
+            sampler = sampler_start(pixel, first_index + sums.count, params.seed);
             path = start_path(&sampler, pixel_corner);
         }
     }
-    if !inside || index == 0u {
-        return;
-    }
+    return sums;
+}
+
+// Folds `sums` (at least one sample) into the running means of `pixel`, which hold `held` samples.
+fn fold_samples(pixel: u32, held: u32, sums: SampleSums) {
+    let plane = params.width * params.height;
     let before = f32(held);
-    let batch = f32(index);   // the samples completed: `taken` unless LOOP_BUDGET ran out
+    let batch = f32(sums.count);   // the samples completed: fewer than asked where LOOP_BUDGET ran out
     for (var c = 0u; c < 3u; c += 1u) {
         let at = c * plane + pixel;
-        out_radiance[at] = fold_mean(out_radiance[at], radiance[c], before, batch);
+        out_radiance[at] = fold_mean(out_radiance[at], sums.radiance[c], before, batch);
     }
-    out_spp[pixel] = held + index;
+    out_spp[pixel] = held + sums.count;
     if WRITE_AOVS {
         let previous_normal = vec3f(out_normal[pixel], out_normal[plane + pixel], out_normal[2u * plane + pixel]);
-        let summed_normal = previous_normal * before + normal;
+        let summed_normal = previous_normal * before + sums.normal;
         let magnitude = length(summed_normal);
         let new_normal = select(vec3f(0.0), summed_normal / magnitude, magnitude > 0.0);
         for (var c = 0u; c < 3u; c += 1u) {
             let at = c * plane + pixel;
-            out_albedo[at] = fold_mean(out_albedo[at], albedo[c], before, batch);
+            out_albedo[at] = fold_mean(out_albedo[at], sums.albedo[c], before, batch);
             out_normal[at] = new_normal[c];
         }
-        out_depth[pixel] = fold_mean(out_depth[pixel], depth, before, batch);
+        out_depth[pixel] = fold_mean(out_depth[pixel], sums.depth, before, batch);
         for (var c = 0u; c < 2u; c += 1u) {
             let at = c * plane + pixel;
-            out_motion[at] = fold_mean(out_motion[at], motion[c], before, batch);
+            out_motion[at] = fold_mean(out_motion[at], sums.motion[c], before, batch);
         }
+    }
+}
+
+// One invocation per pixel of an 8×8 tile: the samples [chunk_start, chunk_start + chunk_size) of the
+// pass's pass_samples, numbered after those the pixel holds.
+@compute @workgroup_size(TILE * TILE)
+fn main(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) local_index: u32) {
+    begin_traversal(local_index);
+    let xy = tile_pixel(tile, local_index);
+    let inside = xy.x < params.width && xy.y < params.height;
+    let pixel = select(0u, xy.y * params.width + xy.x, inside);
+    let taken = select(0u, min(params.chunk_size, max(params.pass_samples, params.chunk_start) - params.chunk_start),
+                       inside);
+    let held = out_spp[pixel];
+    let sums = trace_samples(pixel, xy, params.sample_offset + held, taken);
+    if inside && sums.count > 0u {
+        fold_samples(pixel, held, sums);
     }
 }
