@@ -2,6 +2,7 @@
 dataset (export, ONNX equality, model card, resume), and the NaN guard."""
 
 import hashlib
+import json
 
 import numpy as np
 import pytest
@@ -464,3 +465,11 @@ def test_throughput_is_printed_and_on_the_card(tiny_dataset, tmp_path, capsys):
     card = (out / "error_predictor.md").read_text()
     speed = [line for line in card.splitlines() if line.startswith("- throughput: ")]
     assert len(speed) == 1 and "steps/s" in speed[0] and "training views/hour (batch 2 × 1 process(es)" in speed[0]
+
+
+def test_the_card_names_a_worlds_dataset_by_its_family(tmp_path):
+    (tmp_path / "manifest.json").write_text(json.dumps({"config": {
+        "worlds": 3, "family": "held_out", "scenes": [], "size": 32, "spp": [1], "gold": 64, "seed": 5,
+        "max_depth": 8}, "views": []}))
+    line = Trainer._dataset_line(str(tmp_path))
+    assert "adapter: 3 generated worlds of the held_out family; 32² px" in line

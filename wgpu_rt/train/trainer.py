@@ -463,8 +463,12 @@ class Trainer:
         dataset = manifest.get("config", {})
         render_minutes = sum(v.get("seconds", 0.0) for v in manifest["views"]) / 60
         copies = int(dataset.get("noisy_copies", 1))
+        worlds = int(dataset.get("worlds") or 0)
+        scenes = ", ".join(dataset.get("scenes", []))
+        content = (f"{worlds} generated worlds of the {dataset.get('family', 'training')} family"
+                   + (f" and scenes {scenes}" if scenes else "")) if worlds else f"scenes {scenes}"
         return (f"- dataset `{folder}` (seed {dataset.get('seed')}), rendered by `wgpu-rt dataset` on this machine's "
-                f"adapter: scenes {', '.join(dataset.get('scenes', []))}; {dataset.get('size')}² px; noisy at "
+                f"adapter: {content}; {dataset.get('size')}² px; noisy at "
                 f"{dataset.get('spp')} spp"
                 + (f" ({copies} independent renders of each frame at {min(dataset['spp'])} spp)" if copies > 1 else "")
                 + f"; gold at {dataset.get('gold')} spp; max depth {dataset.get('max_depth')}; "
