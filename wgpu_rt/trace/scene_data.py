@@ -32,7 +32,7 @@ FRAME_PARAMS_DTYPE = np.dtype([
     ("camera_origin", "<f4", 3), ("width", "<u4"), ("camera_right", "<f4", 3), ("height", "<u4"),
     ("camera_up", "<f4", 3), ("seed", "<u4"), ("camera_forward", "<f4", 3), ("max_depth", "<u4"),
     ("previous_origin", "<f4", 3), ("sample_offset", "<u4"), ("previous_right", "<f4", 3),
-    ("emitter_count", "<u4"), ("previous_up", "<f4", 3), ("use_sample_counts", "<u4"),
+    ("emitter_count", "<u4"), ("previous_up", "<f4", 3), ("pad_up", "<u4"),
     ("previous_forward", "<f4", 3), ("background_pmf", "<f4"), ("background", "<f4", 3),
     ("chunk_start", "<u4"), ("chunk_size", "<u4"), ("pass_samples", "<u4"), ("pad", "<u4", 2)])
 
@@ -75,17 +75,20 @@ class EmitterTable:
         return len(self.records)
 
 
-def build_emitter_table(scene: Scene, triangles: np.ndarray, triangle_materials: list[Material],
+def build_emitter_table(scene: Scene, triangles: np.ndarray, material_ids: np.ndarray, materials: list[Material],
                         scene_radius: float) -> EmitterTable:
-    """The emitter table for world-space ``triangles`` (T, 3, 3) whose materials are given per triangle."""
-    emissive = np.array([m.is_emissive for m in triangle_materials], bool)
-    index = np.flatnonzero(emissive)
+    """The emitter table for world-space ``triangles`` (T, 3, 3), triangle t made of
+    ``materials[material_ids[t]]`` (array work per triangle: an instanced scene places millions)."""
+    material_ids = np.asarray(material_ids, np.intp)
+    emissive_material = np.array([m.is_emissive for m in materials], bool)
+    material_emission = np.array([m.emission for m in materials], np.float64).reshape(-1, 3)
+    index = np.flatnonzero(emissive_material[material_ids]) if len(materials) else np.zeros(0, np.intp)
     tri = triangles[index].astype(np.float64)
     edge1, edge2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
     area = 0.5 * np.linalg.norm(np.cross(edge1, edge2), axis=1)
     keep = area > 0
     index, tri, edge1, edge2, area = index[keep], tri[keep], edge1[keep], edge2[keep], area[keep]
-    emission = np.array([triangle_materials[i].emission for i in index], np.float64).reshape(-1, 3)
+    emission = material_emission[material_ids[index]].reshape(-1, 3)
 
     rows = []  # (kind, position, edge1, edge2, area, radiance, power)
     for k in range(len(index)):

@@ -302,8 +302,7 @@ class TracePass(ComputePass):
         self.ctx, self.width, self.height = ctx, width, height
         self.features = features or SceneFeatures.of(scene)
         materials = [scene.materials[n] for n in scene_material_names(scene)]
-        triangle_materials = [materials[i] for i in geometry.material_ids]
-        emitters = build_emitter_table(scene, geometry.triangles, triangle_materials,
+        emitters = build_emitter_table(scene, geometry.triangles, geometry.material_ids, materials,
                                        _scene_radius(geometry.triangles))
         fitting = BufferPlacement(tables=tables_fit_uniform(len(materials), emitters.count),
                                   geometry=geometry.fits_uniform)

@@ -18,13 +18,13 @@ struct FrameParams {
     previous_right: vec3f,    // unit right vector / tan(horizontal half-fov) of the previous camera
     emitter_count: u32,
     previous_up: vec3f,       // unit up vector / tan(vertical half-fov) of the previous camera
-    use_sample_counts: u32,   // 1: sample_counts[pixel] says how many samples this pass takes
+    pad_up: u32,
     previous_forward: vec3f,
     background_pmf: f32,      // probability that emitter sampling picks the background
     background: vec3f,
     chunk_start: u32,         // this dispatch takes samples [chunk_start, chunk_start + chunk_size)
     chunk_size: u32,          //   of each pixel's count for this pass
-    pass_samples: u32,        // the count for this pass when use_sample_counts is 0
+    pass_samples: u32,        // the count each pixel takes in a uniform pass
     pad0: u32,
     pad1: u32,
 }
