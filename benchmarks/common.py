@@ -72,13 +72,18 @@ def resolve_models(args) -> None:
 
 
 def load_scenes(names: list[str]) -> list:
-    """The scenes named (built-ins, or ``bunny``: the mesh scene with ../shared/meshes' Stanford bunny,
-    skipped with a message when the file is absent)."""
+    """The scenes named (built-ins; ``bunny``: the mesh scene with ../shared/meshes' Stanford bunny,
+    skipped with a message when the file is absent; ``world-SEED``: the generated world of that seed, as
+    the dataset names them, e.g. world-2147483648 is the held-out family's first)."""
+    from wgpu_rt.dataset.worlds import generate_world
     from wgpu_rt.scene import load_scene
 
     scenes = []
     for name in names:
-        if name == MESH_SCENE:
+        if name.startswith("world-") and name[len("world-"):].isdigit():
+            scene = generate_world(int(name[len("world-"):]))
+            scene.name = name
+        elif name == MESH_SCENE:
             if not BUNNY.exists():
                 print(f"skipping {MESH_SCENE}: {BUNNY} not found")
                 continue
