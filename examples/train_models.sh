@@ -2,8 +2,9 @@
 # The exact recipe behind models/{denoiser,error_predictor,confidence}.onnx: render a small dataset on
 # this machine's adapter (lavapipe, 2 CPU cores), train the three networks with CPU torch, export them
 # with model cards into models/. Resumable: rerun after an interruption and finished work is kept.
-# About 5 hours on 2 shared cores (renders ~2 h, denoiser 48 min + three fine-tunes of 25, 27 and 39 min,
-# the two small networks minutes); scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
+# About 6 hours on 2 shared cores (renders ~2 h, denoiser 48 min + three fine-tunes of 25, 27 and 39 min,
+# the two small networks minutes, then ~10 min of generated-world renders and a 47-min fine-tune on them);
+# scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -14,6 +15,8 @@ EXTRA_DATA3=${EXTRA_DATA3:-data/dataset-extra3}
 EXTRA_DATA4=${EXTRA_DATA4:-data/dataset-extra4}   # gold at 4 × GOLD spp: cleaner targets
 EXTRA_DATA8=${EXTRA_DATA8:-data/dataset-extra8}   # for the last fine-tune: gold at 2 × GOLD spp
 EXTRA_DATA9=${EXTRA_DATA9:-data/dataset-extra9}
+WORLDS_DATA=${WORLDS_DATA:-data/worlds-train}       # round 4: generated worlds (training family)
+BUILTIN_DATA=${BUILTIN_DATA:-data/builtin-train}   # round 4: built-in views at the worlds' size
 COPIES=${COPIES:-16}            # independent 1-spp renders per frame for the last fine-tune
 EXTRA_VIEWS=${EXTRA_VIEWS:-12}  # per scene: 10 train, 1 val, 1 test (the test views are never used)
 SEQ_DATA=${SEQ_DATA:-data/dataset-seq}   # + seed: confidence-model sequences (seeds 5 and 6)
@@ -78,3 +81,14 @@ for seed in 5 6; do
 done
 time $TRAIN confidence --extra-data "${SEQ_DATA}5" "${SEQ_DATA}6" --epochs "${HEATMAP_EPOCHS:-60}" --batch 4 \
     --crop 64 128 --lr 3e-3
+# Round 4, after the confidence model (which learned on round 3's output, as the shipped one did): the
+# denoiser fine-tuned from its exported weights on 64 generated worlds plus built-in views at 96², the
+# built-in views listed twice (twice the weight), so that unseen scenes gain without the built-ins losing.
+$NICE wgpu-rt dataset --worlds 64 --family training --size 96 --spp 1 --noisy-copies 4 --gold 256 \
+    --sequence-fraction 0 --seed 0 --out "$WORLDS_DATA" --quiet
+$NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views 12 --size 96 --spp 1 --noisy-copies 4 \
+    --gold 256 --sequence-fraction 0 --seed 11 --out "$BUILTIN_DATA" --quiet
+time $NICE wgpu-rt train denoiser --data "$BUILTIN_DATA" --extra-data "$BUILTIN_DATA" "$WORLDS_DATA" --out "$OUT" \
+    --checkpoints "$CHECKPOINTS/denoiser-worlds" --resume --init-from "$OUT/denoiser.onnx" \
+    --epochs "${WORLDS_EPOCHS:-500}" --batch 4 --crop 64 96 --widths 16 32 64 128 --lr 1e-4 --curriculum 1 \
+    --ssim-space display --validate-every 50
