@@ -8,8 +8,8 @@ import pytest
 from wgpu_rt.frame.adaptive import AdaptiveSettings
 from wgpu_rt.frame.planes import DENOISER_INPUT
 from wgpu_rt.frame.temporal import TemporalSettings
-from wgpu_rt.frame.unpack import converge
 from wgpu_rt.frame.tonemap import tonemap
+from wgpu_rt.frame.unpack import converge
 from wgpu_rt.passes import RADIANCE, SPP
 from wgpu_rt.renderer import Renderer, render
 from wgpu_rt.scene.builtin import builtin_scene
@@ -91,7 +91,7 @@ def test_one_readback_and_no_uploads_of_its_own(gpu, scene, monkeypatch):
     frames each take a new seed (one write each); the full pipeline's temporal mode converges on this
     static view under one seed, so its probe and targeted passes have nothing to write."""
     heat = np.linspace(0, 1, W * H).astype(np.float32)
-    plain, plain_traffic = frames_and_traffic(monkeypatch, gpu, scene, [1, 2])
+    _, plain_traffic = frames_and_traffic(monkeypatch, gpu, scene, [1, 2])
     full, full_traffic = frames_and_traffic(
         monkeypatch, gpu, scene, [1, 2], denoiser=IdentityDenoiser(gpu), error_predictor=FixedHeat(gpu, heat),
         adaptive=AdaptiveSettings(budget=2.0), temporal=TemporalSettings())
@@ -324,3 +324,41 @@ def test_wiring_is_checked_from_the_declared_planes(gpu):
     check_wiring([UnpackPass(gpu, W, H), tonemap], written=TracePass.outputs)
     with pytest.raises(ValueError, match="denoiser reads denoiser_input"):
         check_wiring([Stage("denoiser", (DENOISER_INPUT,), ())], written=TracePass.outputs)
+
+
+@pytest.mark.parametrize("denoised", [False, True])
+def test_hdr_false_drops_the_colour_plane_from_the_readback(gpu, scene, monkeypatch, denoised):
+    """hdr=False reads back the same display image and AOVs in a buffer smaller by exactly the colour
+    plane (12 bytes a pixel), still in one readback a frame, and leaves ``color`` None."""
+    def frame_of(hdr):
+        pipeline = make_pipeline(scene, gpu, denoiser=IdentityDenoiser(gpu) if denoised else None,
+                                 tonemap="aces", aovs=("depth",), hdr=hdr)
+        counter = TrafficCounter(monkeypatch, gpu)
+        result = pipeline.render(scene, 0)
+        monkeypatch.undo()
+        assert counter.reads == 1
+        return pipeline, result
+
+    with_colour, full = frame_of(True)
+    without_colour, display_only = frame_of(False)
+    colour_bytes = 12 * W * H
+    assert with_colour.color.nbytes(W, H) == colour_bytes
+    assert without_colour.layout.nbytes == with_colour.layout.nbytes - colour_bytes
+    assert all(buffer.size == without_colour.layout.nbytes for buffer in without_colour._readbacks)
+    assert display_only.color is None and full.color.shape == (H, W, 3) and full.color.max() > 0
+    np.testing.assert_array_equal(display_only.image, full.image)
+    np.testing.assert_array_equal(display_only.aovs["depth"], full.aovs["depth"])
+    assert set(display_only.aovs) == {"depth"}
+
+
+@pytest.mark.parametrize("options, message", [
+    (dict(hdr=False, aovs=()), "read nothing back"),
+    (dict(hdr=False, tonemap=None, aovs=""), "read nothing back"),
+    (dict(hdr="no", tonemap="aces"), "hdr must be True or False"),
+])
+def test_bad_readback_choices_are_refused_before_work(options, message):
+    """Checked before the scene is loaded: the unknown scene name is never reached."""
+    from wgpu_rt.errors import WgpuRtError
+
+    with pytest.raises(WgpuRtError, match=message):
+        render("no-such-scene", size=(W, H), **options)

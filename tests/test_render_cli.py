@@ -123,3 +123,31 @@ def test_console_holds_only_the_summary(gpu, tmp_path):
     assert done.stdout.count("\n") == 1 and done.stdout.startswith(str(out))
     lines = [line for line in done.stderr.replace("\r", "\n").splitlines() if line.strip()]
     assert all(line.lstrip().startswith("render cornell") for line in lines), lines
+
+
+def test_png_reads_back_no_hdr_colour_and_exr_still_does(gpu, tmp_path, monkeypatch):
+    """A PNG render reads back the display image alone (no colour, no AOVs), and its pixels are the
+    tone-mapped colour that the same render written as EXR carries."""
+    from PIL import Image
+
+    from wgpu_rt.frame.pipeline import FramePipeline
+    from wgpu_rt.frame.tonemap import tonemap
+
+    results, finish = [], FramePipeline.finish
+
+    def recorded_finish(self, pending):
+        results.append(finish(self, pending))
+        return results[-1]
+
+    monkeypatch.setattr(FramePipeline, "finish", recorded_finish)
+    args = ["render", "cornell", "--spp", "2", "--size", "20x12", "--seed", "3"]
+    assert main(args + ["--out", str(tmp_path / "c.png")]) == 0
+    assert main(args + ["--aov", "", "--out", str(tmp_path / "c.exr")]) == 0
+    png_frame, exr_frame = results
+    assert png_frame.color is None and png_frame.aovs == {} and png_frame.image.shape == (12, 20, 4)
+    assert exr_frame.color is not None and exr_frame.image is None
+    color = read_exr(tmp_path / "c.exr")["color"]
+    assert color.shape == (12, 20, 3) and color.max() > 0
+    pixels = np.asarray(Image.open(tmp_path / "c.png").convert("RGB")).astype(int)
+    expected = tonemap(color, "aces").astype(int)[..., :3]
+    assert np.abs(pixels - expected).max() <= 1

@@ -2,7 +2,7 @@
 adaptively, accumulates over time and tone-maps, on the device, returning numpy arrays.
 
     result = wgpu_rt.render("cornell", spp=1, size=(256, 256), denoise=True, adaptive=4)
-    result.color        # (H, W, 3) float32 linear HDR
+    result.color        # (H, W, 3) float32 linear HDR (None with hdr=False)
     result.aovs         # albedo, normal, depth, motion, spp: (H, W, C) float32
     result.image        # display image when ``tonemap`` names an operator
 
@@ -18,7 +18,7 @@ import time
 from typing import Iterable, Iterator
 
 from .errors import WgpuRtError
-from .frame.pipeline import AOV_PLANES, FramePipeline, RenderResult
+from .frame.pipeline import AOV_PLANES, FramePipeline, RenderResult, check_readback
 from .trace.trace_pass import AUX_SAMPLES
 
 DEFAULT_AOVS = ("albedo", "normal", "depth", "motion", "spp")
@@ -95,7 +95,7 @@ class Renderer:
                  temporal=False, max_depth: int = 8, seed: int = 0, aovs=DEFAULT_AOVS, tonemap: str | None = None,
                  exposure: float = 0.0, srgb: bool = True, display: str = "rgba8", precision: str = "fp32",
                  models_dir=None, networks: dict | None = None, mesh=None, ctx=None, progress: bool = False,
-                 timings: bool | None = None, aux_samples: int | None = None):
+                 timings: bool | None = None, aux_samples: int | None = None, hdr: bool = True):
         from .frame.adaptive import AdaptiveSettings
         from .frame.temporal import TemporalSettings
         from .frame.tonemap import check_settings
@@ -112,6 +112,7 @@ class Renderer:
             raise WgpuRtError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
         if tonemap is not None:
             check_settings(tonemap, display, exposure)
+        check_readback(hdr, tonemap, self.aovs)
         if adaptive is not None and not isinstance(adaptive, AdaptiveSettings):
             if not isinstance(adaptive, numbers.Real) or isinstance(adaptive, bool) or adaptive != adaptive:
                 raise WgpuRtError(f"adaptive must be a mean spp budget, got {adaptive!r}")
@@ -141,7 +142,7 @@ class Renderer:
             denoiser=networks.get("denoiser") if denoise else None, adaptive=adaptive,
             error_predictor=networks.get("error_predictor"), temporal=temporal,
             confidence=networks.get("confidence"), aovs=self.aovs, operator=tonemap, exposure=exposure,
-            srgb=srgb, output=display, timings=timings, progress=self._advance, aux_samples=aux_samples)
+            srgb=srgb, output=display, timings=timings, progress=self._advance, aux_samples=aux_samples, hdr=hdr)
         self.setup_seconds = time.perf_counter() - started
 
     def _trace_factory(self):
@@ -226,7 +227,9 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       ``aovs`` (names or "a,b"), ``tonemap`` (None, "aces", "reinhard" or "none": the display image),
       ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
-      ``progress`` (a progress bar), ``timings`` (per-stage GPU times; default: when the adapter has them).
+      ``progress`` (a progress bar), ``timings`` (per-stage GPU times; default: when the adapter has them),
+      ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a
+      pixel of readback, for callers that need only ``image`` or the AOVs; one of the three is required).
     """
     renderer = Renderer(scene, spp, size, denoise=denoise, adaptive=adaptive, temporal=temporal, **options)
     results = list(renderer.frames(frames))

@@ -100,10 +100,12 @@ def run(args) -> int:
     if args.spp is not None and args.adaptive is not None:
         raise WgpuRtError("--spp with --adaptive: the adaptive budget sets the samples (mean spp)")
     spp = args.spp if args.spp is not None else (1 if fused else 64)
+    # A PNG is the display image alone: neither the HDR colour nor any AOV is read back for it.
     renderer = Renderer(args.scene, spp, size, denoise=args.denoise, adaptive=args.adaptive,
                         temporal=args.temporal, max_depth=args.max_depth, seed=args.seed,
                         aovs=() if png else aovs, tonemap="aces" if png else None, display="f32",
-                        precision=args.precision, mesh=args.mesh, progress=True, aux_samples=args.aux_samples)
+                        precision=args.precision, mesh=args.mesh, progress=True, aux_samples=args.aux_samples,
+                        hdr=not png)
     mean_spp = args.adaptive if args.adaptive is not None else spp
     for result in renderer.frames(frames):
         path = output_path(args.out, result.frame)

@@ -1,6 +1,6 @@
 """The frame: trace → pack → denoiser → unpack → temporal → tone-map, recorded into one command encoder
-per frame, with exactly one readback (the frame's colour, the AOVs asked for, the display image and
-the per-stage timestamps ride in one buffer).
+per frame, with exactly one readback (the frame's HDR colour unless ``hdr=False``, the AOVs asked for,
+the display image and the per-stage timestamps ride in one buffer).
 
 Frames in flight: ``frames()`` records and submits frame N+1 before it reads frame N back, into two
 readback buffers used in turn, so the device never waits for the host between frames.
@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import wgpu
 
-from ..errors import ModelError
+from ..errors import ModelError, WgpuRtError
 from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, FrameBuffers, PlaneSpec
 from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
@@ -38,7 +38,8 @@ class RenderResult:
     """One rendered frame."""
 
     frame: int
-    color: np.ndarray                                   # (H, W, 3) float32 linear HDR: the frame's final colour
+    color: np.ndarray | None                            # (H, W, 3) float32 linear HDR: the frame's final
+                                                        # colour; None when not read back (hdr=False)
     aovs: dict[str, np.ndarray] = field(default_factory=dict)   # name → (H, W, C) float32
     image: np.ndarray | None = None                     # (H, W, 4) display image when tone-mapped
     stage_ms: dict[str, float] = field(default_factory=dict)    # GPU time per stage (timestamp queries)
@@ -105,6 +106,16 @@ def check_wiring(stages, written=()) -> None:
         available |= {plane.name for plane in stage.outputs}
 
 
+def check_readback(hdr: bool, operator: str | None, aovs) -> None:
+    """A frame must read something back: the HDR colour, the display image (a tone-map operator) or an
+    AOV."""
+    if not isinstance(hdr, bool):
+        raise WgpuRtError(f"hdr must be True or False, got {hdr!r}")
+    if not hdr and operator is None and not aovs:
+        raise WgpuRtError("hdr=False with no display image (tonemap) and no AOVs: the frame would read "
+                          "nothing back; ask for a display image, an AOV or the HDR colour")
+
+
 @dataclass
 class ReadbackLayout:
     """Where each plane read back sits in the frame's one readback buffer (byte offsets)."""
@@ -137,14 +148,18 @@ class FramePipeline:
     is told after each); ``adaptive`` replaces them by a 1-spp probe plus targeted samples. With
     ``aux_samples``, the albedo plane is then re-estimated noise-free from that many delta-chain paths
     per pixel (``TracePass.execute_aux``). ``aovs`` names
-    the G-buffer planes to read back with the colour; ``operator`` None skips the display image.
+    the G-buffer planes to read back with the colour; ``operator`` None skips the display image;
+    ``hdr=False`` skips the HDR colour (12 bytes a pixel; ``RenderResult.color`` is then None) for
+    callers that want only the display image or AOVs.
     """
 
     def __init__(self, ctx, width: int, height: int, trace_factory, *, spp: int = 1, denoiser=None,
                  adaptive: AdaptiveSettings | None = None, error_predictor=None,
                  temporal: TemporalSettings | None = None, confidence=None, aovs=(),
                  operator: str | None = "aces", exposure: float = 0.0, srgb: bool = True,
-                 output: str = "rgba8", timings: bool | None = None, progress=None, aux_samples: int = 0):
+                 output: str = "rgba8", timings: bool | None = None, progress=None, aux_samples: int = 0,
+                 hdr: bool = True):
+        check_readback(hdr, operator, aovs)
         if adaptive is not None and adaptive.sampler == "heat" and error_predictor is None:
             raise ModelError("the heat adaptive sampler needs an error predictor model")
         self.ctx, self.width, self.height = ctx, width, height
@@ -169,12 +184,13 @@ class FramePipeline:
             self.extra_samples = ExtraSamplesPass(ctx, width, height, adaptive, source)
             self.pack_error = PackErrorPass(ctx, width, height)
             self.half_buffer_error = HalfBufferErrorPass(ctx, width, height)
-        self.color = color
+        self.color, self.hdr = color, hdr
         self.tonemap = (TonemapPass(ctx, width, height, color, operator, exposure, srgb, output)
                         if operator is not None else None)
         check_wiring(self._stages(), written=TracePass.outputs)
         self.timer = StageTimer(ctx) if (ctx.has_timestamps if timings is None else timings) else None
-        self.layout = self._layout([color, *(AOV_PLANES[name] for name in aovs)])
+        read_back = ([color] if hdr else []) + [AOV_PLANES[name] for name in aovs]
+        self.layout = self._layout(read_back)
         self._readbacks = [ctx.device.create_buffer(size=self.layout.nbytes, label=f"readback {i}",
                                                     usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
                            for i in range(2)]
@@ -333,7 +349,7 @@ class FramePipeline:
                                        self.width, self.height)
         stage_ms = (self.timer.stage_ms(pending.stage_names, raw[self.layout.timestamps_offset:])
                     if self.timer else {})
-        color = planes.pop(self.color.name)
+        color = planes.pop(self.color.name) if self.hdr else None
         mean_spp = self.spp if self.adaptive is None else (self.adaptive.budget or self.adaptive.probe_samples)
         samples = mean_spp * self.width * self.height
         return RenderResult(pending.frame, color, planes, image, stage_ms, time.perf_counter() - pending.started,
