@@ -15,7 +15,7 @@ from wgpu_rt.accel.geometry import GeometryBuffers, scene_material_names
 from wgpu_rt.errors import DeviceLimitError, SceneError
 from wgpu_rt.gpu import GpuContext
 from wgpu_rt.scene import BUILTIN_SCENES, Camera, Scene, load_scene
-from wgpu_rt.scene.transforms import transform_points
+from wgpu_rt.scene.transforms import compose, rotate, scale, transform_points, translate
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((ROOT / "examples").glob("*.json")) + sorted((ROOT / "examples").glob("*.toml"))
@@ -573,6 +573,49 @@ def test_ply_and_multi_geometry_glb(tmp_path):
     assert canonical_triangles(ours, 4) == canonical_triangles(reference.vertices[reference.faces], 4)
     sphere = next(m for m in parts if len(m.faces) != 12)
     assert sphere.normals is not None, "glTF vertex normals are kept"
+
+
+def test_a_geometry_placed_at_several_nodes_is_instanced(tmp_path):
+    """A glTF placing one geometry at three nodes loads as three placements of one shape (the same
+    arrays, read once), each where its node puts it; an entry's instances of such a file still share
+    them. Distinct geometries, even equal ones, stay shapes of their own."""
+    placements = {"left": translate([-3, 0, 0]),
+                  "turned": compose(translate([3, 1, 0]), rotate([0, 1, 1], 70)),
+                  "small": compose(translate([0, 4, -2]), scale([0.5, 2, 1]))}
+    box = trimesh.creation.box(extents=(1, 2, 3))
+    group = trimesh.Scene()
+    group.add_geometry(box, geom_name="box", node_name="left", transform=placements["left"])
+    for node in ("turned", "small"):    # more nodes referencing the same geometry
+        group.graph.update(frame_to=node, frame_from=group.graph.base_frame, geometry="box",
+                           matrix=placements[node])
+    assert len(group.geometry) == 1
+    group.export(tmp_path / "boxes.glb")
+    scene = load_scene(scene_with_mesh(tmp_path, "boxes.glb"))
+    boxes = {m.name: m for m in scene.meshes if m.name.startswith("boxes/")}
+    assert sorted(boxes) == sorted(f"boxes/{node}" for node in placements)
+    first, *others = boxes.values()
+    assert all(m.vertices is first.vertices and m.faces is first.faces for m in others)
+    assert len({m.shape_key for m in boxes.values()}) == 1 and scene.has_instances
+    world = world_triangles(scene)
+    for node, matrix in placements.items():
+        expanded = transform_points(matrix, box.vertices)[box.faces]
+        assert canonical_triangles(world[f"boxes/{node}"], 4) == canonical_triangles(expanded, 4), node
+
+    data = json.loads(json.dumps(MINIMAL))
+    data["meshes"][0] = {"file": "boxes.glb", "material": "white",
+                         "instances": [{"transform": {"translate": [0, 0, i]}} for i in range(2)]}
+    scene = load_scene(write_json(tmp_path, data))
+    placed = [m for m in scene.meshes if m.name.startswith("boxes[")]
+    assert len(placed) == 6 and len({m.shape_key for m in placed}) == 1
+
+    twins = trimesh.Scene()
+    twins.add_geometry(trimesh.creation.box(), node_name="here")
+    twins.add_geometry(trimesh.creation.box(), node_name="there", transform=translate([2, 0, 0]))
+    twins.export(tmp_path / "twins.glb")
+    scene = load_scene(scene_with_mesh(tmp_path, "twins.glb"))
+    parts = [m for m in scene.meshes if m.name.startswith("twins/")]
+    assert len(parts) == 2 and not np.shares_memory(parts[0].vertices, parts[1].vertices)
+    assert len({m.shape_key for m in parts}) == 2 and all(m.vertices.flags.writeable for m in parts)
 
 
 # -- geometry buffers ---------------------------------------------------------------------------------

@@ -1,9 +1,11 @@
 """Mesh files (OBJ, PLY, glTF/GLB, anything trimesh reads) → ``Mesh`` objects.
 
 A file may hold several geometries placed by a scene graph (glTF nodes, OBJ groups); each placed
-geometry becomes one ``Mesh`` whose ``transform`` is its node's world transform, so instancing and
-hierarchy survive. Vertex normals are kept when the file has them (trimesh keeps loaded normals in
-its cache; without them we leave ``normals`` None and the tracer shades flat). Files are loaded with
+geometry becomes one ``Mesh`` whose ``transform`` is its node's world transform, so hierarchy survives.
+A geometry placed at several nodes is read once: its placements are instances of one shape
+(``Mesh.instance``), sharing their arrays, as a scene file's ``instances`` would make them. Vertex
+normals are kept when the file has them (trimesh keeps loaded normals in its cache; without them we
+leave ``normals`` None and the tracer shades flat). Files are loaded with
 ``process=False`` so vertices are neither merged nor reordered. Every problem is a SceneError naming
 the file.
 """
@@ -56,10 +58,15 @@ def load_mesh_file(path: Path, material: str, name: str | None = None) -> list:
         raise SceneError(f"{path}: cannot read mesh file ({type(err).__name__}: {err})") from err
     base = name or path.stem
     meshes = []
+    first_placement: dict[str, Mesh] = {}      # geometry name → the Mesh of its first node
     for node in scene.graph.nodes_geometry:
         transform, geometry_name = scene.graph[node]
         geometry = scene.geometry[geometry_name]
         if not isinstance(geometry, trimesh.Trimesh) or len(geometry.faces) == 0:
+            continue
+        label = base if not meshes and len(scene.graph.nodes_geometry) == 1 else f"{base}/{node}"
+        if geometry_name in first_placement:
+            meshes.append(first_placement[geometry_name].instance(label, transform=transform))
             continue
         vertices = np.asarray(geometry.vertices, np.float64)
         faces = np.asarray(geometry.faces, np.int64)
@@ -69,9 +76,10 @@ def load_mesh_file(path: Path, material: str, name: str | None = None) -> list:
             normals = np.asarray(geometry.vertex_normals, np.float32)
             if normals.shape != vertices.shape or not np.all(np.isfinite(normals)):
                 normals = None
-        label = base if not meshes and len(scene.graph.nodes_geometry) == 1 else f"{base}/{node}"
-        meshes.append(Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32), material,
-                           normals=normals, transform=np.asarray(transform, np.float32)))
+        first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
+                                              material, normals=normals,
+                                              transform=np.asarray(transform, np.float32))
+        meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")
     return meshes
