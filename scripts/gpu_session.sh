@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# The measurements only a lent GPU can give (issue 13's targets), one part per `device` run so that
+# each stays inside a call's 10 minutes; results go to $OUT (the device tool brings them back).
+#
+#   bash ../shared/device/prepare --peers          # here, once per session
+#   run: carry [".device", ".device-peers/peer-oidn.tar.xz"],
+#        command ". .device/setup.sh; bash scripts/gpu_session.sh tests nn"
+#   run: carry [".device", ".device-peers/peer-mitsuba.tar.xz"],
+#        command ". .device/setup.sh; bash scripts/gpu_session.sh trace frame"
+#
+# Parts: tests (the whole suite, CI=true; the three NVIDIA-only failures of issue 13), nn (profile of
+# the shipped denoiser at 1080p in both precisions, engine steps against torch cuDNN and OIDN CUDA),
+# trace (samples/s against Mitsuba cuda_ad_rgb), frame (fused frame, adaptive targeted pass, moving vs
+# static). SIZE (default 1080p) shrinks everything for a dry run on lavapipe: SIZE=small.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+OUT=${OUT:-out/gpu-session}
+mkdir -p "$OUT"
+small=$([ "${SIZE:-1080p}" = small ] && echo 1 || echo 0)
+W=$([ $small = 1 ] && echo 64 || echo 1920); H=$([ $small = 1 ] && echo 64 || echo 1080)
+SQUARE=$([ $small = 1 ] && echo 64 || echo 1024)   # the square-only benchmarks (bench_trace, bench_moving)
+NN=$([ $small = 1 ] && echo 256 || echo 1080p)
+
+part() {   # part NAME COMMAND...: run, keep its output, go on after a failure
+    local name=$1; shift
+    echo "== $name: $*" | tee -a "$OUT/summary.txt"
+    local started=$SECONDS
+    "$@" > "$OUT/$name.txt" 2>&1
+    echo "   exit $? after $((SECONDS - started)) s" | tee -a "$OUT/summary.txt"
+}
+
+nvidia-smi > "$OUT/nvidia-smi.txt" 2>&1 || true
+for what in "$@"; do
+    case $what in
+    tests)
+        root=$PWD
+        part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -q -x -p no:cacheprovider" ;;
+    nn)
+        part profile_fp32 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
+        part profile_fp16 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp16
+        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged fp16 autotuned --repeats 5 ;;
+    trace)
+        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp 16
+        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp 16 ;;
+    frame)
+        part pipeline python3 benchmarks/bench_pipeline.py --scene cornell --size ${W}x${H} --frames 32 --temporal
+        part adaptive_cost python3 benchmarks/bench_adaptive.py --pass-cost --size ${W}x${H} --budgets 4 --scenes cornell sun-room --repeats 5
+        part moving python3 benchmarks/bench_moving.py --scene moving --size $SQUARE --frames 40 --denoise ;;
+    *) echo "unknown part $what (tests, nn, trace, frame)"; exit 2 ;;
+    esac
+done
