@@ -680,3 +680,20 @@ def test_documented_examples_load(tmp_path):
                                              '[materials.pine]\n[materials.larch]\n' + instances)
     scene = load_scene(tmp_path / "instances.toml")
     assert [m.name for m in scene.meshes] == ["tree[0]", "tree[1]", "swaying"] and scene.has_instances
+
+
+def test_the_mesh_scene_fits_a_file_by_where_its_nodes_place_it(tmp_path):
+    """The `mesh` built-in sizes a file by its placed parts: two unit boxes 9 apart fit the room together
+    (sized by the untransformed box they overflowed the room ninefold) and stand on its floor."""
+    group = trimesh.Scene()
+    box = trimesh.creation.box(extents=(1, 1, 1))
+    group.add_geometry(box, geom_name="box", node_name="left", transform=translate([-4.5, 0, 0]))
+    group.graph.update(frame_to="right", frame_from=group.graph.base_frame, geometry="box",
+                       matrix=translate([4.5, 0, 0]))
+    group.export(tmp_path / "pair.glb")
+    scene = load_scene("mesh", mesh=tmp_path / "pair.glb")
+    world = np.concatenate([transform_points(m.transform, m.vertices) for m in scene.meshes
+                            if m.name.startswith("pair")])
+    assert np.ptp(world[:, 0]) == pytest.approx(1.2, rel=1e-5)          # the fitted width
+    assert world[:, 1].min() == pytest.approx(-1.0, abs=1e-5)          # on the floor
+    assert np.abs(world[:, [0, 2]]).max() < 1.0                        # inside the walls

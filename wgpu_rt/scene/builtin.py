@@ -22,7 +22,7 @@ from ..errors import SceneError
 from .meshio import load_mesh_file
 from .model import Camera, Material, Mesh, Scene
 from .primitives import primitive
-from .transforms import compose, rotate, scale, translate
+from .transforms import compose, rotate, scale, transform_points, translate
 
 CORNELL_WHITE = (0.885809, 0.698859, 0.666422)
 CORNELL_GREEN = (0.105421, 0.37798, 0.076425)
@@ -116,8 +116,9 @@ def mesh_room(path) -> Scene:
     materials, meshes = _cornell_room()
     materials["clay"] = Material("diffuse", reflectance=(0.7, 0.7, 0.7))
     loaded = load_mesh_file(Path(path), material="clay")
-    lo = np.min([m.vertices.min(axis=0) for m in loaded], axis=0).astype(np.float64)
-    hi = np.max([m.vertices.max(axis=0) for m in loaded], axis=0).astype(np.float64)
+    placed = [transform_points(m.transform, m.vertices) for m in loaded]   # a file's nodes place its parts
+    lo = np.min([v.min(axis=0) for v in placed], axis=0).astype(np.float64)
+    hi = np.max([v.max(axis=0) for v in placed], axis=0).astype(np.float64)
     size = float(np.max(hi - lo))
     if not size > 0:
         raise SceneError(f"{path}: the mesh has no extent (all vertices coincide)")
