@@ -147,13 +147,12 @@ class Renderer:
 
     def _trace_factory(self):
         """Tracer passes by geometry: a frame whose objects did not move reuses the pass (and its BVH),
-        with only the camera and seed changed. When objects move, and the scene's emitters stand still,
-        the new pass holds a two-level geometry (InstancedGeometry: each mesh's BVH built once) that
-        later frames move in place; a pass's first frame keeps the single-level BVH, which traces
-        faster, so a single frame never pays for levels. A scene that places a shape several times
-        (instances) gets the two-level geometry from its first frame on, which stores each shape's
-        triangles once (unless an emitter moves: then every frame is flattened). Frame f is seeded
-        seed + f (mod 2³²)."""
+        with only the camera and seed changed. When objects move, the new pass holds a two-level
+        geometry (InstancedGeometry: each mesh's BVH built once) that later frames move in place, moving
+        emissive meshes' entries of the emitter table with them; a pass's first frame keeps the
+        single-level BVH, which traces faster, so a single frame never pays for levels. A scene that
+        places a shape several times (instances) gets the two-level geometry from its first frame on,
+        which stores each shape's triangles once. Frame f is seeded seed + f (mod 2³²)."""
         from .accel.geometry import GeometryBuffers, InstancedGeometry
         from .trace.trace_pass import TracePass
 

@@ -299,9 +299,9 @@ class InstancedGeometry:
 
     @staticmethod
     def suits(scene: Scene) -> bool:
-        """Whether ``scene`` has a moving mesh or a shape placed several times, and no moving emitter."""
-        return ((scene.has_instances or any(mesh.is_animated for mesh in scene.meshes))
-                and not InstancedGeometry.moves_emitters(scene))
+        """Whether ``scene`` has a moving mesh or a shape placed several times (a moving emitter too: the
+        tracer's emitter table follows it, wgpu_rt.trace.TracePass.set_frame)."""
+        return scene.has_instances or any(mesh.is_animated for mesh in scene.meshes)
 
     @staticmethod
     def moves_emitters(scene: Scene) -> bool:

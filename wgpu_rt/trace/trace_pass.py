@@ -317,9 +317,11 @@ class TracePass(ComputePass):
         # A two-level geometry (InstancedGeometry) follows the frame: set_frame rewrites its per-frame part.
         self._geometry, self._geometry_buffers = geometry, geometry_buffers
         instanced = isinstance(geometry, InstancedGeometry)
-        if instanced and InstancedGeometry.moves_emitters(scene):
-            raise ValueError(f"scene {scene.name!r}: an emissive mesh moves, which its emitter table cannot follow")
         self._placed = geometry.transform_key(geometry.frame) if instanced else None
+        # Moving emissive meshes: the emitter table follows them (set_frame rebuilds it from the frame's
+        # placed triangles, with the scene radius of the frame the pass was built at).
+        self._moving_emitters = instanced and InstancedGeometry.moves_emitters(scene)
+        self._shading = (materials, _scene_radius(geometry.triangles))
         # Enough samples per dispatch to keep the device busy and the tail short (a subgroup runs until
         # its last invocation has traced its last path: ~11% idle turns at 16 samples, 15% at 8 on
         # cornell); few enough to stay around a second on lavapipe and well within the kernel's
@@ -330,18 +332,17 @@ class TracePass(ComputePass):
         self._targeted_pipelines: list | None = None   # trace_items and resolve_items, likewise
 
         self._emitter_table, self._max_depth = emitters, max_depth
-        self.set_frame(scene, frame, seed)
         self._geometry_group = ctx.bind_group(self.pipeline, geometry_buffers, group=0)
         material_records = pack_materials(materials)
         if self.placement.tables:
             self._materials = ctx.uniform(_padded(material_records, UNIFORM_TABLE_CAPACITY["materials"]).tobytes(),
                                           label="materials")
-            self._emitters = ctx.uniform(_padded(emitters.records, UNIFORM_TABLE_CAPACITY["emitters"]).tobytes(),
-                                         label="emitters")
+            self._emitters = ctx.uniform(self._emitter_bytes(emitters), label="emitters")
         else:
             self._materials = ctx.upload(material_records, label="materials")
             self._emitters = ctx.upload(emitters.records, label="emitters")
         self._triangle_density = ctx.upload(emitters.triangle_density, label="triangle emitter densities")
+        self.set_frame(scene, frame, seed)
         self._no_counts = ctx.storage(16, label="no sample counts")
         self._param_buffers: dict[tuple, list] = {}
         self._starts: dict[int, object] = {}
@@ -351,11 +352,31 @@ class TracePass(ComputePass):
         """Point the pass at another frame of the same geometry (camera, previous camera, seed): the
         uploaded geometry, materials and emitters are kept; a two-level geometry's instances move to
         the frame (only its small per-frame buffers are rewritten, and only when they change)."""
-        self._params = self._frame_params(scene, frame, self._max_depth, seed, self._emitter_table)
         placed = self._geometry.transform_key(frame) if self._placed is not None else None
         if placed != self._placed:
             self._geometry.write_frame(self.ctx, self._geometry_buffers, frame)
             self._placed = placed
+            if self._moving_emitters:
+                self._move_emitters(scene, frame)
+        self._params = self._frame_params(scene, frame, self._max_depth, seed, self._emitter_table)
+
+    def _emitter_bytes(self, emitters) -> bytes:
+        records = emitters.records
+        return (_padded(records, UNIFORM_TABLE_CAPACITY["emitters"]) if self.placement.tables else records).tobytes()
+
+    def _move_emitters(self, scene: Scene, frame: int) -> None:
+        """Rebuild the emitter table for the emissive meshes where ``frame`` puts them and rewrite it in
+        place (a transform is never singular, so no emissive triangle appears or vanishes)."""
+        materials, radius = self._shading
+        emitters = build_emitter_table(scene, self._geometry.world_triangles(frame), self._geometry.material_ids,
+                                       materials, radius)
+        if emitters.count != self._emitter_table.count:
+            raise ValueError(f"scene {scene.name!r}, frame {frame}: {emitters.count} emitters, "
+                             f"{self._emitter_table.count} at the pass's first frame")
+        queue = self.ctx.device.queue
+        queue.write_buffer(self._emitters, 0, self._emitter_bytes(emitters))
+        queue.write_buffer(self._triangle_density, 0, emitters.triangle_density.tobytes())
+        self._emitter_table = emitters
 
     def _frame_params(self, scene, frame, max_depth, seed, emitters) -> np.ndarray:
         w, h = self.width, self.height
