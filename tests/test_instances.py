@@ -545,3 +545,12 @@ def test_dataset_variations_keep_instances():
     assert geometry.placed_triangle_count == flat.triangle_count
     assert flat.triangle_count - geometry.triangle_count == 8 * 12 + 2 * 2    # the copies not stored
     assert np.all(np.isfinite(scene_bounds(varied, 1)))
+
+
+@pytest.mark.parametrize("frame", [0, 3])
+def test_placed_triangles_are_the_world_triangles_they_number(frame):
+    """placed_triangles (a moving light's per-frame emitter table asks only for its triangles) gives,
+    for numbers in any order, what world_triangles gives for the whole scene."""
+    geometry = InstancedGeometry(placed_scene(), 0)
+    numbers = np.random.default_rng(frame).permutation(geometry.placed_triangle_count)[:500]
+    np.testing.assert_array_equal(geometry.placed_triangles(frame, numbers), geometry.world_triangles(frame)[numbers])

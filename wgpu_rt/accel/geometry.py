@@ -341,6 +341,17 @@ class InstancedGeometry:
             world[start:start + len(mine) * size] = mapped.reshape(-1, 3, 3)
         return world
 
+    def placed_triangles(self, frame: int, numbers: np.ndarray) -> np.ndarray:
+        """(len(numbers), 3, 3) f32 world-space vertices at ``frame`` of the placed triangles ``numbers``
+        (the work follows their count, not the scene's: a moving light's emitter table per frame)."""
+        numbers = np.asarray(numbers, np.int64)
+        instance = np.searchsorted(self.first_prims, numbers, side="right") - 1
+        stored = self._first_triangles[self.instance_levels[instance]] + numbers - self.first_prims[instance]
+        transforms = self.instance_transforms(frame)[instance]
+        points = self.stored_triangles[stored].astype(np.float64)
+        world = np.einsum("tij,tvj->tvi", transforms[:, :3, :3], points) + transforms[:, None, :3, 3]
+        return world.astype(np.float32)
+
     def node_count(self, orderings: int = ORDERINGS) -> int:
         """Node slots in binding 0 with ``orderings`` copies of each bottom level (see top_level)."""
         return (ORDERINGS * self.top_node_count + 2 * len(self.instance_meshes)

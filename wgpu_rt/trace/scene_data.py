@@ -75,53 +75,65 @@ class EmitterTable:
         return len(self.records)
 
 
-def build_emitter_table(scene: Scene, triangles: np.ndarray, material_ids: np.ndarray, materials: list[Material],
-                        scene_radius: float) -> EmitterTable:
-    """The emitter table for world-space ``triangles`` (T, 3, 3), triangle t made of
-    ``materials[material_ids[t]]`` (array work per triangle: an instanced scene places millions)."""
-    material_ids = np.asarray(material_ids, np.intp)
-    emissive_material = np.array([m.is_emissive for m in materials], bool)
-    material_emission = np.array([m.emission for m in materials], np.float64).reshape(-1, 3)
-    index = np.flatnonzero(emissive_material[material_ids]) if len(materials) else np.zeros(0, np.intp)
-    tri = triangles[index].astype(np.float64)
+def emissive_triangles(material_ids: np.ndarray, materials: list[Material]) -> np.ndarray:
+    """The numbers of the triangles whose material emits (triangle t is made of
+    ``materials[material_ids[t]]``; array work: an instanced scene places millions)."""
+    emits = np.array([m.is_emissive for m in materials], bool)
+    return np.flatnonzero(emits[np.asarray(material_ids, np.intp)]) if len(materials) else np.zeros(0, np.intp)
+
+
+def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray, material_ids: np.ndarray,
+                        materials: list[Material], scene_radius: float) -> EmitterTable:
+    """The emitter table of ``scene``'s lights and of its emissive triangles ``numbers`` (from
+    ``emissive_triangles``), whose world-space vertices are ``triangles`` (len(numbers), 3, 3); the
+    scene has len(material_ids) triangles."""
+    numbers = np.asarray(numbers, np.intp)
+    tri = np.asarray(triangles, np.float64).reshape(-1, 3, 3)
     edge1, edge2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
     area = 0.5 * np.linalg.norm(np.cross(edge1, edge2), axis=1)
     keep = area > 0
-    index, tri, edge1, edge2, area = index[keep], tri[keep], edge1[keep], edge2[keep], area[keep]
-    emission = material_emission[material_ids[index]].reshape(-1, 3)
+    numbers, tri, edge1, edge2, area = numbers[keep], tri[keep], edge1[keep], edge2[keep], area[keep]
+    material_emission = np.array([m.emission for m in materials], np.float64).reshape(-1, 3)
+    emission = material_emission[np.asarray(material_ids, np.intp)[numbers]].reshape(-1, 3)
+    triangle_power = np.pi * area * (emission @ LUMINANCE)
 
-    rows = []  # (kind, position, edge1, edge2, area, radiance, power)
-    for k in range(len(index)):
-        power = np.pi * area[k] * float(LUMINANCE @ emission[k])
-        rows.append((EMITTER_TRIANGLE, tri[k, 0], edge1[k], edge2[k], area[k], emission[k], power))
+    lights = []  # (kind, position, edge1, edge2, area, radiance, power)
     cross_section = np.pi * scene_radius ** 2
     for light in scene.lights:
         if isinstance(light, PointLight):
             intensity = np.asarray(light.intensity, np.float64)
-            rows.append((EMITTER_POINT, light.position, 0, 0, 0, intensity, 4 * np.pi * LUMINANCE @ intensity))
+            lights.append((EMITTER_POINT, light.position, 0, 0, 0, intensity, 4 * np.pi * LUMINANCE @ intensity))
         elif isinstance(light, DirectionalLight):
             irradiance = np.asarray(light.irradiance, np.float64)
-            rows.append((EMITTER_DIRECTIONAL, 0, light.direction, 0, 0, irradiance,
-                         cross_section * LUMINANCE @ irradiance))
+            lights.append((EMITTER_DIRECTIONAL, 0, light.direction, 0, 0, irradiance,
+                           cross_section * LUMINANCE @ irradiance))
     background = np.asarray(scene.background, np.float64)
     if np.any(background > 0):
-        rows.append((EMITTER_BACKGROUND, 0, 0, 0, 0, background,
-                     4 * np.pi ** 2 * scene_radius ** 2 * max(float(LUMINANCE @ background), 1e-6)))
+        lights.append((EMITTER_BACKGROUND, 0, 0, 0, 0, background,
+                       4 * np.pi ** 2 * scene_radius ** 2 * max(float(LUMINANCE @ background), 1e-6)))
+    lights = [light for light in lights if light[6] > 0]
 
-    rows = [r for r in rows if r[6] > 0]
-    records = np.zeros(max(1, len(rows)), EMITTER_DTYPE)
-    triangle_density = np.zeros(len(triangles), np.float32)
+    triangle_count = len(numbers)
+    count = triangle_count + len(lights)
+    records = np.zeros(max(1, count), EMITTER_DTYPE)
+    triangle_density = np.zeros(len(material_ids), np.float32)
     background_pmf = 0.0
-    if rows:
-        power = np.array([r[6] for r in rows])
+    if count:
+        power = np.concatenate([triangle_power, [light[6] for light in lights]])
         pmf = power / power.sum()
         threshold, alias = alias_table(power)
-        for i, (kind, position, e1, e2, a, radiance, _) in enumerate(rows):
-            records[i] = (np.broadcast_to(position, 3), kind, np.broadcast_to(e1, 3), pmf[i],
-                          np.broadcast_to(e2, 3), a, radiance, threshold[i], alias[i], 0)
+        records["kind"][:triangle_count] = EMITTER_TRIANGLE
+        records["position"][:triangle_count] = tri[:, 0]
+        records["edge1"][:triangle_count], records["edge2"][:triangle_count] = edge1, edge2
+        records["area"][:triangle_count], records["radiance"][:triangle_count] = area, emission
+        for i, (kind, position, e1, e2, a, radiance, _) in enumerate(lights, start=triangle_count):
+            for field, value in zip(("kind", "position", "edge1", "edge2", "area", "radiance"),
+                                    (kind, position, e1, e2, a, radiance)):
+                records[field][i] = value
             if kind == EMITTER_BACKGROUND:
                 background_pmf = float(pmf[i])
-        triangle_density[index] = records["pmf"][:len(index)] / records["area"][:len(index)]
+        records["pmf"][:count], records["alias_threshold"][:count], records["alias_index"][:count] = pmf, threshold, alias
+        triangle_density[numbers] = records["pmf"][:triangle_count] / records["area"][:triangle_count]
     return EmitterTable(records, triangle_density, background_pmf)
 
 

@@ -43,6 +43,7 @@ from .scene_data import (
     FRAME_PARAMS_DTYPE,
     build_emitter_table,
     camera_vectors,
+    emissive_triangles,
     pack_materials,
 )
 
@@ -302,8 +303,9 @@ class TracePass(ComputePass):
         self.ctx, self.width, self.height = ctx, width, height
         self.features = features or SceneFeatures.of(scene)
         materials = [scene.materials[n] for n in scene_material_names(scene)]
-        emitters = build_emitter_table(scene, geometry.triangles, geometry.material_ids, materials,
-                                       _scene_radius(geometry.triangles))
+        emissive = emissive_triangles(geometry.material_ids, materials)
+        emitters = build_emitter_table(scene, emissive, geometry.triangles[emissive], geometry.material_ids,
+                                       materials, _scene_radius(geometry.triangles))
         fitting = BufferPlacement(tables=tables_fit_uniform(len(materials), emitters.count),
                                   geometry=geometry.fits_uniform)
         self.placement = placement or fitting
@@ -321,7 +323,7 @@ class TracePass(ComputePass):
         # Moving emissive meshes: the emitter table follows them (set_frame rebuilds it from the frame's
         # placed triangles, with the scene radius of the frame the pass was built at).
         self._moving_emitters = instanced and InstancedGeometry.moves_emitters(scene)
-        self._shading = (materials, _scene_radius(geometry.triangles))
+        self._shading = (materials, emissive, _scene_radius(geometry.triangles))
         # Enough samples per dispatch to keep the device busy and the tail short (a subgroup runs until
         # its last invocation has traced its last path: ~11% idle turns at 16 samples, 15% at 8 on
         # cornell); few enough to stay around a second on lavapipe and well within the kernel's
@@ -367,15 +369,17 @@ class TracePass(ComputePass):
     def _move_emitters(self, scene: Scene, frame: int) -> None:
         """Rebuild the emitter table for the emissive meshes where ``frame`` puts them and rewrite it in
         place (a transform is never singular, so no emissive triangle appears or vanishes)."""
-        materials, radius = self._shading
-        emitters = build_emitter_table(scene, self._geometry.world_triangles(frame), self._geometry.material_ids,
-                                       materials, radius)
+        materials, emissive, radius = self._shading
+        emitters = build_emitter_table(scene, emissive, self._geometry.placed_triangles(frame, emissive),
+                                       self._geometry.material_ids, materials, radius)
         if emitters.count != self._emitter_table.count:
             raise ValueError(f"scene {scene.name!r}, frame {frame}: {emitters.count} emitters, "
                              f"{self._emitter_table.count} at the pass's first frame")
         queue = self.ctx.device.queue
         queue.write_buffer(self._emitters, 0, self._emitter_bytes(emitters))
-        queue.write_buffer(self._triangle_density, 0, emitters.triangle_density.tobytes())
+        if len(emissive):   # only the emissive triangles' span of the densities changes (the rest stay 0)
+            first, last = int(emissive[0]), int(emissive[-1]) + 1
+            queue.write_buffer(self._triangle_density, 4 * first, emitters.triangle_density[first:last].tobytes())
         self._emitter_table = emitters
 
     def _frame_params(self, scene, frame, max_depth, seed, emitters) -> np.ndarray:
