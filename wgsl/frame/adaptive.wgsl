@@ -66,6 +66,16 @@ struct Budget {
 
 var<workgroup> partial: array<f32, 64>;
 
+// The sum of partial[0..64) into partial[0] (tree order, so the same values give the same bits); every
+// lane of the workgroup calls it after writing partial[lane].
+fn sum_partial(lane: u32) {
+    workgroupBarrier();
+    for (var stride = 32u; stride > 0u; stride = stride >> 1u) {
+        if (lane < stride) { partial[lane] += partial[lane + stride]; }
+        workgroupBarrier();
+    }
+}
+
 fn tiles_x() -> u32 { return (WIDTH + TILE - 1u) / TILE; }
 
 fn tile_count() -> u32 { return tiles_x() * ((HEIGHT + TILE - 1u) / TILE); }
@@ -115,11 +125,7 @@ fn weigh(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation_ind
         claim[pixel_index(id)] = w;
     }
     partial[lane] = w;
-    workgroupBarrier();
-    for (var stride = 32u; stride > 0u; stride = stride >> 1u) {
-        if (lane < stride) { partial[lane] += partial[lane + stride]; }
-        workgroupBarrier();
-    }
+    sum_partial(lane);
     if (lane == 0u) { tile_sums[tile.y * tiles_x() + tile.x] = partial[0]; }
 }
 
@@ -129,11 +135,7 @@ fn sum_weights(@builtin(local_invocation_index) lane: u32) {
     var total = 0.0;
     for (var t = lane; t < tiles; t += 64u) { total += tile_sums[t]; }
     partial[lane] = total;
-    workgroupBarrier();
-    for (var stride = 32u; stride > 0u; stride = stride >> 1u) {
-        if (lane < stride) { partial[lane] += partial[lane + stride]; }
-        workgroupBarrier();
-    }
+    sum_partial(lane);
     if (lane == 0u) {
         budget.weight_sum = partial[0];
         atomicStore(&budget.assigned, 0u);
