@@ -51,7 +51,7 @@ def main() -> None:
         for n in args.spp:
             noisy = render(scene, spp=n, size=size, max_depth=args.max_depth, seed=77,
                            aovs=("albedo", "normal", "depth"))
-            denoised = denoise(model, noisy.color, *(noisy.aovs[name] for name in ("albedo", "normal", "depth")))
+            denoised = denoise(model, noisy.color, *(noisy.aovs[name] for name in ("albedo", "normal", "depth")), n)
             blends = [metrics.psnr(gold, denoised + n / (n + k) * (noisy.color - denoised)) for k in args.k]
             losses.append(max(blends) - np.array(blends))
             rows.append([n, metrics.psnr(gold, noisy.color), metrics.psnr(gold, denoised), *blends])

@@ -35,7 +35,7 @@ class Network:
         return (Path(folder) if folder else Path(str(resources.files(__name__)))) / self.onnx
 
 
-DENOISER = Network("denoiser", 10, "noisy colour + albedo/normal/depth → clean colour")
+DENOISER = Network("denoiser", 11, "noisy colour + albedo/normal/depth + sample count → clean colour")
 ERROR_PREDICTOR = Network("error_predictor", 3, "1-spp probe → where error will be (adaptive sampling)")
 CONFIDENCE = Network("confidence", 8, "current + reprojected frame → how far to trust history (temporal)")
 NETWORKS = {network.name: network for network in (DENOISER, ERROR_PREDICTOR, CONFIDENCE)}

@@ -75,6 +75,36 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
 
 
+def test_the_sample_count_comes_from_the_spp_layer_or_the_flag(gpu, tmp_path, capsys):
+    """The network is told the colour's spp: the input's 'spp' layer (what `wgpu-rt render` writes), which
+    --spp overrides; a 10-input denoiser (trained before the plane existed) still runs. A malformed layer
+    is one line naming the file."""
+    pytest.importorskip("wgpu_rt.nn")
+    from wgpu_rt.frame.denoise import denoise, load_model
+
+    torch.manual_seed(1)
+    model_path = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    model = load_model("denoiser", path=model_path)
+    color, layers = _render_like()
+    counts = np.random.default_rng(0).integers(1, 300, (20, 28, 1))
+    write_exr(tmp_path / "in.exr", color, layers | {"spp": counts.astype(np.float32)})
+    out = lambda *flags: main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "o.exr"),  # noqa: E731
+                               "--model", str(model_path), *flags]) or read_exr(tmp_path / "o.exr")["color"]
+    aux = (layers["albedo"], layers["normal"], layers["depth"])
+    np.testing.assert_allclose(out(), denoise(model, color, *aux, counts), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(out("--spp", "16"), denoise(model, color, *aux, 16), rtol=1e-5, atol=1e-6)
+    assert not np.allclose(denoise(model, color, *aux, 1), denoise(model, color, *aux, 16), atol=1e-4)
+
+    ten = export_onnx(UNet(in_channels=10, widths=(4, 8)), tmp_path / "ten.onnx")
+    assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "o10.exr"), "--model", str(ten)]) == 0
+
+    write_exr(tmp_path / "bad.exr", color, layers | {"spp": np.full((20, 28, 1), -1, np.float32)})
+    capsys.readouterr()
+    assert main(["denoise", str(tmp_path / "bad.exr"), "--out", str(tmp_path / "b.exr"), "--model", str(model_path)]) == 2
+    assert f"{tmp_path / 'bad.exr'}: layer 'spp' must be one channel" in capsys.readouterr().err
+    assert not (tmp_path / "b.exr").exists()
+
+
 def test_nan_and_inf_in_the_layers_are_zeroed_with_one_warning_each(gpu, tmp_path, capfd):
     pytest.importorskip("wgpu_rt.nn")
     import OpenEXR

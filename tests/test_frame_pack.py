@@ -19,7 +19,7 @@ from wgpu_rt.frame.planes import (
     ERROR_INPUT,
     write_plane,
 )
-from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, RADIANCE, FrameBuffers, PlaneSpec
+from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, FrameBuffers, PlaneSpec
 
 H, W = 24, 40   # not multiples of the 8×8 tile, so edge guards are exercised
 
@@ -35,10 +35,13 @@ def run(gpu, passes, planes):
     return buffers
 
 
-def denoiser_on_gpu(gpu, color, albedo, normal, depth):
+def denoiser_on_gpu(gpu, color, albedo, normal, depth, spp=None):
+    """The pack pass's output; ``spp`` None leaves the trace's sample-count plane at 0 (counts as 1)."""
     depth_max = DepthMaxPass(gpu, W, H)
-    buffers = run(gpu, [depth_max, PackDenoiserPass(gpu, W, H, depth_max.result)],
-                  {RADIANCE: color, ALBEDO: albedo, NORMAL: normal, DEPTH: depth})
+    planes = {RADIANCE: color, ALBEDO: albedo, NORMAL: normal, DEPTH: depth}
+    if spp is not None:
+        planes[SPP] = np.asarray(spp, np.uint32)
+    buffers = run(gpu, [depth_max, PackDenoiserPass(gpu, W, H, depth_max.result)], planes)
     return buffers.read(DENOISER_INPUT.name)
 
 
@@ -53,11 +56,14 @@ def random_planes(rng):
 
 
 def test_pack_denoiser_matches_reference(gpu):
-    inputs = random_planes(np.random.default_rng(1))
+    rng = np.random.default_rng(1)
+    spp = rng.integers(0, 5000, (H, W))                    # an adaptive map, with 0s (counted as 1)
+    inputs = (*random_planes(rng), spp)
     out, ref = check_parity(None, pack_denoiser_input, lambda *a: denoiser_on_gpu(gpu, *a),
                             atol=1e-6, rtol=1e-6, inputs=inputs, name="pack_denoiser")
-    assert ref.shape == (10, H, W)
+    assert ref.shape == (11, H, W)
     assert ref[9].max() == pytest.approx(1.0)              # depth normalised by the frame max
+    np.testing.assert_allclose(ref[10], 1 / np.sqrt(np.maximum(spp, 1)), rtol=1e-6)
 
 
 def test_pack_denoiser_reference_layout():
@@ -76,6 +82,9 @@ def test_pack_denoiser_reference_layout():
     np.testing.assert_allclose(x[6:9, 0, 0], [0.5, 0.5, 1.0])
     np.testing.assert_allclose(x[6:9, 0, 1], [0.5, 0.0, 0.5])
     np.testing.assert_allclose(x[9, 0], [0.25, 1.0])
+    np.testing.assert_array_equal(x[10], 1.0)                         # one sample unless told
+    np.testing.assert_array_equal(pack_denoiser_input(color, albedo, normal, depth, 16)[10], 0.25)
+    np.testing.assert_array_equal(pack_denoiser_input(color, albedo, normal, depth, [[4, 0]])[10], [[0.5, 1]])
 
 
 def test_pack_denoiser_no_hit_frame_packs_zero_depth(gpu):

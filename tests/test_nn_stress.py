@@ -58,7 +58,7 @@ def test_nan_reads_as_zero_and_inf_saturates(error_predictor, gpu, precision):
 @pytest.mark.parametrize("precision", PRECISIONS)
 def test_all_zero_input_matches_onnxruntime(unet, gpu, precision):
     model = model_for(unet, precision, gpu)
-    x = np.zeros((1, 10, 16, 20), np.float32)
+    x = np.zeros((1, model.input_channels, 16, 20), np.float32)
     reference = ort.InferenceSession(str(unet), providers=["CPUExecutionProvider"]).run(None, {"input": x})[0]
     np.testing.assert_allclose(model(x), reference, atol=1e-4 if precision == "fp32" else 1e-2)
 
@@ -67,7 +67,7 @@ def test_all_zero_input_matches_onnxruntime(unet, gpu, precision):
 def test_huge_inputs_saturate_instead_of_overflowing(unet, gpu, precision):
     """1e30 overflows f16 and, through the convs, f32: outputs stay finite and at most the type's max."""
     model = model_for(unet, precision, gpu)
-    x = np.full((1, 10, 12, 12), 1e30, np.float32)
+    x = np.full((1, model.input_channels, 12, 12), 1e30, np.float32)
     x[0, ::2] = -1e30
     out = model(x)
     assert np.all(np.isfinite(out))

@@ -163,12 +163,14 @@ def test_adaptive_budget_reaches_the_spp_plane(gpu, scene):
     for sampler, error_predictor in (("heat", FixedHeat(gpu, heat)), ("uniform", None), ("variance", None)):
         pipeline = FramePipeline(gpu, W, H, lambda f, _: TracePass(gpu, scene, geometry, W, H, max_depth=2),
                                  adaptive=AdaptiveSettings(sampler=sampler, budget=3.5, pool_sigma=0.0),
-                                 error_predictor=error_predictor)
+                                 error_predictor=error_predictor, denoiser=IdentityDenoiser(gpu))
         pipeline.render(scene, 0)
         spp = pipeline.buffers.read(SPP.name)[0]
         assert int(spp.sum()) == round(3.5 * W * H), sampler
         if sampler == "heat":
             assert spp[:, W // 2:].max() <= 2 and spp[:, : W // 2].min() >= 4
+        # the denoiser is told each pixel's count
+        np.testing.assert_allclose(pipeline.buffers.read(DENOISER_INPUT.name)[-1], 1 / np.sqrt(spp), rtol=1e-6)
 
 
 def test_temporal_static_frames_converge(gpu, scene):

@@ -10,10 +10,11 @@ import torch
 from dataset_fakes import fake_render
 
 from wgpu_rt.dataset import DatasetConfig, TruthEngine
+from wgpu_rt.models import DENOISER
 from wgpu_rt.train import TrainConfig, TrainingError, train
 from wgpu_rt.train.losses import denoiser_loss, ssim
 from wgpu_rt.train.networks import UNet, export_onnx
-from wgpu_rt.train.samples import curriculum_spp
+from wgpu_rt.train.samples import ANY_SPP, curriculum_spp
 from wgpu_rt.train.trainer import Trainer, confidence_aucs, roc_auc
 
 
@@ -103,6 +104,10 @@ def test_curriculum_stages_can_be_weighted():
     assert [curriculum_spp(p, [1, 4, 16], stages) for p in (0.0, 0.3, 0.49, 0.5, 0.99)] == [16, 4, 4, 1, 1]
 
 
+def test_curriculum_any_stage_is_kept_whatever_the_first_view_has():
+    assert [curriculum_spp(p, [1], (1, ANY_SPP)) for p in (0.0, 0.6)] == [1, ANY_SPP]
+
+
 def test_validation_every_n_epochs_and_after_the_last(tiny_dataset, tmp_path):
     trainer = Trainer(TrainConfig(task="error-predictor", data=str(tiny_dataset), out=str(tmp_path), epochs=5,
                                   batch=2, crop_min=8, crop_max=16, validate_every=2), progress=False)
@@ -123,7 +128,7 @@ def test_residual_unet_adds_its_correction_to_the_input_colour():
 
     torch.manual_seed(3)
     net = UNet(widths=(4, 8), residual=True).eval()
-    x = torch.rand(1, 10, 16, 16)
+    x = torch.rand(1, DENOISER.input_channels, 16, 16)
     with torch.no_grad():
         np.testing.assert_array_equal(net(x).numpy(), x[:, :3].numpy())   # zero-initialised correction
         torch.nn.init.normal_(net.head.weight)
@@ -238,6 +243,20 @@ def test_fine_tune_starts_from_an_exported_model(tiny_dataset, tmp_path):
         Trainer(TrainConfig(epochs=1, init_from=str(onnx_path), **{**base, "widths": (4, 16)}), progress=False)
 
 
+def test_a_fine_tune_of_a_model_without_the_spp_plane_starts_as_that_model(tiny_dataset, tmp_path):
+    """A denoiser exported before the sample-count input (10 channels) fine-tunes into the 11-input network
+    with zero weights on the new plane: it computes what the base model computed, whatever the spp."""
+    torch.manual_seed(5)
+    source = UNet(in_channels=DENOISER.input_channels - 1, widths=(4, 8)).eval()
+    onnx_path = export_onnx(source, tmp_path / "ten_inputs.onnx")
+    tuned = Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out"), epochs=1,
+                                batch=2, crop_min=12, crop_max=16, widths=(4, 8), init_from=str(onnx_path)),
+                    progress=False)
+    x = torch.rand(2, DENOISER.input_channels, 16, 16)
+    with torch.no_grad():
+        np.testing.assert_allclose(tuned.model.eval()(x).numpy(), source(x[:, :-1]).numpy(), atol=1e-6)
+
+
 def test_a_fine_tune_of_an_exported_model_carries_its_card(tiny_dataset, tmp_path):
     """The card of a model fine-tuned from an .onnx names the file by digest and appends the base's own card
     (an exported model keeps no history, so its card is the only record of how it was made)."""
@@ -295,6 +314,11 @@ def test_denoiser_batches_draw_every_noisy_copy_at_1_spp_only(tmp_path):
         for _ in range(30):
             samples.batch([item], rng, Augmentation(8, 16), spp)
     assert {c for s, c in drawn if s == 1} == {0, 1, 2} and {c for s, c in drawn if s == 4} == {0}
+    drawn.clear()
+    for _ in range(30):
+        x, _ = samples.batch([item], rng, Augmentation(8, 16), ANY_SPP)
+        assert x[0, -1].unique().tolist() == [1 / drawn[-1][0] ** 0.5]   # the plane says which was drawn
+    assert {s for s, _ in drawn} == {1, 4}
     assert "(3 independent renders of each frame at 1 spp)" in Trainer._dataset_line(str(tmp_path))
     card = Trainer(TrainConfig(task="denoiser", data=str(tmp_path), out=str(tmp_path / "m"), widths=(4, 8)),
                    progress=False).model_card()
@@ -365,7 +389,8 @@ def test_exposure_on_the_packed_planes_equals_packing_the_scaled_render(tiny_dat
     noisy, gold = frame.noisy[4], frame.gold["color"]
     x, y = DenoiserSamples(views).full((0, 0), 4, 2.5)
     np.testing.assert_allclose(x, pack_denoiser_input(2.5 * noisy["color"], noisy["albedo"], noisy["normal"],
-                                                      noisy["depth"]), rtol=2e-6, atol=1e-6)
+                                                      noisy["depth"], 4), rtol=2e-6, atol=1e-6)
+    np.testing.assert_array_equal(x[-1], 0.5)    # the sample-count plane: 1/sqrt(4)
     np.testing.assert_allclose(y, np.concatenate([demodulated_log_color(2.5 * gold, noisy["albedo"]),
                                                   albedo_factor(noisy["albedo"])]), rtol=2e-6, atol=1e-6)
     x, y = ErrorSamples(views).full((0, 0), 1, 0.6)
@@ -396,7 +421,8 @@ def test_kept_planes_give_the_same_batches_and_are_built_once(tiny_dataset):
     noiseless = kept.batch(items, np.random.default_rng(0), Augmentation(8, 16, 2, aux_noise=0.0), 4)
     noisy = kept.batch(items, np.random.default_rng(0), Augmentation(8, 16, 2), 4)
     noise = (noisy[0] - noiseless[0]).abs().amax(dim=(0, 2, 3))   # per channel
-    assert (noise[3:] > 0).all() and (noise[:3] == 0).all() and torch.equal(noisy[1], noiseless[1])
+    assert (noise[3:10] > 0).all() and (noise[:3] == 0).all() and torch.equal(noisy[1], noiseless[1])
+    assert noise[10] == 0                                          # the sample count is exact
 
 
 def test_ranks_train_on_disjoint_equal_shares_of_each_epoch():

@@ -12,6 +12,7 @@ import numpy as np
 import torch
 from test_train import tiny_dataset  # noqa: F401  (the module-scoped fake dataset fixture)
 
+from wgpu_rt.models import DENOISER
 from wgpu_rt.train import TrainConfig, train
 from wgpu_rt.train.trainer import Trainer
 
@@ -79,7 +80,7 @@ def test_two_gloo_processes_train_one_model(tiny_dataset, tmp_path):  # noqa: F8
 
     replica = UNet(widths=(4, 8)).eval()
     replica.load_state_dict(weights[1])
-    x = np.random.default_rng(0).uniform(size=(1, 10, 16, 16)).astype(np.float32)
+    x = np.random.default_rng(0).uniform(size=(1, DENOISER.input_channels, 16, 16)).astype(np.float32)
     session = onnxruntime.InferenceSession(str(out / "denoiser.onnx"), providers=["CPUExecutionProvider"])
     with torch.no_grad():
         np.testing.assert_allclose(session.run(None, {"input": x})[0], replica(torch.from_numpy(x)).numpy(),

@@ -3,7 +3,7 @@ run by the WGSL network engine."""
 
 from __future__ import annotations
 
-HELP = "denoise an EXR that carries colour plus albedo, normal and depth layers"
+HELP = "denoise an EXR that carries colour plus albedo, normal and depth layers (and its sample count)"
 
 REQUIRED_LAYERS = ("color", "albedo", "normal", "depth")
 
@@ -14,6 +14,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--model", help="denoiser ONNX (default: the shipped denoiser.onnx)")
     parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
                         help="network arithmetic (fp16 needs the shader-f16 feature)")
+    parser.add_argument("--spp", type=int, metavar="N",
+                        help="samples per pixel of the colour (default: the input's 'spp' layer, which "
+                             "`wgpu-rt render` writes, else 1)")
 
 
 def run(args) -> int:
@@ -25,14 +28,33 @@ def run(args) -> int:
     check_output_path(args.out, "--out", (".exr",))
     images = read_exr(args.input)
     require_layers(images, args.input, *REQUIRED_LAYERS)
+    spp = sample_counts(images, args)
     model = load_model("denoiser", args.precision, path=args.model)
     images = finite_layers(images, args.input)
     started = time.perf_counter()
-    color = denoise(model, *(images[name] for name in REQUIRED_LAYERS))
+    color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp)
     seconds = time.perf_counter() - started
     write_exr(args.out, color, {k: v for k, v in images.items() if k != "color"})
     print(f"wrote {args.out} ({color.shape[1]}×{color.shape[0]}, {args.precision}, {seconds:.2f} s)")
     return 0
+
+
+def sample_counts(images: dict, args):
+    """The colour's samples per pixel: --spp, else the input's one-channel 'spp' layer, else 1."""
+    import numpy as np
+
+    from ..errors import ImageError
+    from ..renderer import check_int
+
+    if args.spp is not None:
+        return check_int("--spp", args.spp, 1)
+    layer = images.get("spp")
+    if layer is None:
+        return 1
+    if layer.shape[2] != 1 or not np.all(np.isfinite(layer)) or layer.min() < 0:
+        raise ImageError(f"{args.input}: layer 'spp' must be one channel of sample counts ≥ 0 "
+                         "(pass --spp N to override it)")
+    return layer
 
 
 def finite_layers(images: dict, path) -> dict:

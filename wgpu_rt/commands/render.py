@@ -17,7 +17,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--max-depth", type=int, default=8,
                         help="path segments, as Mitsuba's max_depth: 1 = emitters only (default 8)")
     parser.add_argument("--seed", type=int, default=0, help="sampling seed (same seed, same image; frame f uses seed+f)")
-    parser.add_argument("--aov", default="albedo,normal,depth,motion",
+    parser.add_argument("--aov", default="albedo,normal,depth,motion,spp",
                         help="comma-separated AOV layers for .exr output: albedo, normal, depth, motion, spp "
                         "('' for none)")
     parser.add_argument("--frames", help="A:B renders frames A..B-1 (the output needs a {frame} field)")

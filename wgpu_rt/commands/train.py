@@ -5,6 +5,20 @@ from ..models import NETWORKS
 HELP = "train the denoiser, error predictor or confidence model on a dataset and export ONNX + model card"
 
 
+def _curriculum_stage(text: str) -> int | str:
+    """A --curriculum stage: a sample count (TrainConfig checks it), or 'any'."""
+    import argparse
+
+    from ..train.samples import ANY_SPP
+
+    if text == ANY_SPP:
+        return ANY_SPP
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a sample count or '{ANY_SPP}', got {text!r}") from None
+
+
 def add_arguments(parser) -> None:
     parser.add_argument("task", choices=[network.cli_name for network in NETWORKS.values()])
     parser.add_argument("--data", required=True, help="dataset folder from `wgpu-rt dataset`")
@@ -20,8 +34,9 @@ def add_arguments(parser) -> None:
                         help="denoiser UNet level widths (default: 32 64 128)")
     parser.add_argument("--residual", action="store_true",
                         help="denoiser predicts a correction to its noisy input's log1p colour")
-    parser.add_argument("--curriculum", type=int, nargs="+", default=(16, 4, 1), metavar="SPP",
-                        help="denoiser input spp per equal share of the epochs (default: 16 4 1)")
+    parser.add_argument("--curriculum", type=_curriculum_stage, nargs="+", default=(16, 4, 1), metavar="SPP",
+                        help="denoiser input spp per equal share of the epochs; 'any': each crop draws one of "
+                             "its view's rendered sample counts (default: 16 4 1)")
     parser.add_argument("--pixel-loss", choices=["l1", "charbonnier"], default="l1")
     parser.add_argument("--ssim-space", choices=["log", "display"], default="log",
                         help="denoiser SSIM term on log1p colour or on the metrics' display values")

@@ -34,9 +34,12 @@ def load_model(name: str, precision: str = "fp32", models_dir=None, path=None, c
     return WgslModel(chosen, precision, ctx=ctx)
 
 
-def denoise(model, color, albedo, normal, depth) -> np.ndarray:
-    """(H, W, 3) linear HDR colour + G-buffers → the denoised (H, W, 3) colour (finite, ≥ 0)."""
-    out = np.asarray(model(pack_denoiser_input(color, albedo, normal, depth)[None]), np.float32)[0]
+def denoise(model, color, albedo, normal, depth, spp=1) -> np.ndarray:
+    """(H, W, 3) linear HDR colour of ``spp`` samples per pixel (one count, or an (H, W[, 1]) map) +
+    G-buffers → the denoised (H, W, 3) colour (finite, ≥ 0). ``model`` runs (N, C, H, W) batches; one with
+    fewer ``input_channels`` (10: trained before the sample-count plane existed) gets the first ones."""
+    x = pack_denoiser_input(color, albedo, normal, depth, spp)[None, :getattr(model, "input_channels", None)]
+    out = np.asarray(model(x), np.float32)[0]
     return unpack_denoiser_output(out, albedo)
 
 

@@ -17,12 +17,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, ComputePass
+from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, ComputePass
 from .kernel import FrameKernel, finite, nonnegative_finite
 from .planes import CONFIDENCE_INPUT, DENOISER_INPUT, ERROR_INPUT
 
 # The bindings each entry point of frame/pack.wgsl uses (their indices are read from the WGSL).
-DENOISER_BINDINGS = ("color", "albedo", "normal", "depth", "depth_max_bits", "packed")
+DENOISER_BINDINGS = ("color", "albedo", "normal", "depth", "depth_max_bits", "spp", "packed")
 ERROR_BINDINGS = ("color", "packed")
 CONFIDENCE_BINDINGS = ("color", "depth", "depth_max_bits", "reprojected", "packed")
 
@@ -58,14 +58,23 @@ def frame_max_depth(depth: np.ndarray) -> float:
     return float(nonnegative_finite(depth).max(initial=0.0))
 
 
-def pack_denoiser_input(color, albedo, normal, depth) -> np.ndarray:
-    """(H, W, 3) radiance, albedo, normal and (H, W[, 1]) depth → the denoiser's (10, H, W) float32 input:
-    log1p of the albedo-demodulated RGB, albedo clamped to [0, 1], normal·0.5+0.5 clamped to [0, 1],
-    depth / frame max depth."""
+def sample_count_plane(spp, shape: tuple[int, int]) -> np.ndarray:
+    """The denoiser's sample-count plane, (1, H, W): 1/sqrt(spp) per pixel (the colour's noise relative to
+    one sample's), from one count for the frame or an (H, W[, 1]) map; counts below 1 count as 1."""
+    counts = np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2]), shape)
+    return (1.0 / np.sqrt(np.maximum(np.nan_to_num(counts, nan=1.0), 1.0)))[None].astype(np.float32)
+
+
+def pack_denoiser_input(color, albedo, normal, depth, spp=1) -> np.ndarray:
+    """(H, W, 3) radiance, albedo, normal, (H, W[, 1]) depth and the sample count (one number, or an
+    (H, W[, 1]) map as adaptive sampling makes) → the denoiser's (11, H, W) float32 input: log1p of the
+    albedo-demodulated RGB, albedo clamped to [0, 1], normal·0.5+0.5 clamped to [0, 1], depth / frame max
+    depth, 1/sqrt(spp) (``sample_count_plane``)."""
     clamped_albedo = np.clip(nonnegative_finite(albedo), 0.0, 1.0).transpose(2, 0, 1)
     normal = np.clip(finite(normal) * 0.5 + 0.5, 0.0, 1.0).transpose(2, 0, 1)
     depth = normalize_depth(depth, frame_max_depth(depth))[None]
-    return np.concatenate([demodulated_log_color(color, albedo), clamped_albedo, normal, depth]).astype(np.float32)
+    return np.concatenate([demodulated_log_color(color, albedo), clamped_albedo, normal, depth,
+                           sample_count_plane(spp, depth.shape[1:])]).astype(np.float32)
 
 
 def pack_error_input(color) -> np.ndarray:
@@ -100,10 +109,11 @@ class DepthMaxPass(ComputePass):
 
 
 class PackDenoiserPass(ComputePass):
-    """radiance, albedo, normal, depth → denoiser_input (10 planes); ``depth_max`` is a DepthMaxPass's
-    result, recorded earlier in the same encoder."""
+    """radiance, albedo, normal, depth, spp → denoiser_input (11 planes); ``depth_max`` is a DepthMaxPass's
+    result, recorded earlier in the same encoder. A denoiser trained without the sample-count plane (10
+    inputs, models before it) reads the first 10 planes, which are laid out as before."""
 
-    inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH)
+    inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP)
     outputs = (DENOISER_INPUT,)
 
     def __init__(self, ctx, width: int, height: int, depth_max):
@@ -113,7 +123,7 @@ class PackDenoiserPass(ComputePass):
     def execute(self, encoder, buffers) -> None:
         self.kernel.dispatch(encoder, {
             "color": buffers.get(RADIANCE), "albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL),
-            "depth": buffers.get(DEPTH), "depth_max_bits": self.depth_max,
+            "depth": buffers.get(DEPTH), "depth_max_bits": self.depth_max, "spp": buffers.get(SPP),
             "packed": buffers.get(DENOISER_INPUT)})
 
 

@@ -1,7 +1,7 @@
 """The three networks, defined in torch (training only) and exported to ONNX for the WGSL engine.
 
-- ``UNet``: the denoiser. Input: 10 channels, NCHW — log1p(noisy HDR RGB / (albedo + 0.01)), albedo RGB,
-  normals mapped to [0, 1], normalized depth. Output: log1p of the clean irradiance (the pipeline applies
+- ``UNet``: the denoiser. Input: 11 channels, NCHW — log1p(noisy HDR RGB / (albedo + 0.01)), albedo RGB,
+  normals mapped to [0, 1], normalized depth, 1/sqrt(spp) (wgpu_rt.frame.pack.pack_denoiser_input). Output: log1p of the clean irradiance (the pipeline applies
   expm1 and multiplies by albedo + 0.01: wgpu_rt.frame.pack/unpack). Levels of
   ``widths`` channels, each a double 3×3 conv + ReLU; 2×2 max-pool down; 2×2 stride-2 transposed conv
   up; skips concatenated on channels; a 1×1 conv to RGB. With ``residual`` that conv (zero-initialised)
@@ -29,9 +29,6 @@ from torch import nn
 
 from ..models import CONFIDENCE, DENOISER, ERROR_PREDICTOR
 
-DENOISER_CHANNELS = 10
-ERROR_PREDICTOR_CHANNELS = 3
-CONFIDENCE_CHANNELS = 8
 ONNX_OPSET = 17
 
 
@@ -41,7 +38,7 @@ def _double_conv(cin: int, cout: int) -> nn.Sequential:
 
 
 class UNet(nn.Module):
-    def __init__(self, in_channels: int = DENOISER_CHANNELS, out_channels: int = 3,
+    def __init__(self, in_channels: int = DENOISER.input_channels, out_channels: int = 3,
                  widths: tuple[int, ...] = (32, 64, 128), residual: bool = False):
         super().__init__()
         self.widths = tuple(widths)
@@ -103,7 +100,7 @@ class _HeatmapCNN(nn.Module):
 
 class ErrorPredictor(_HeatmapCNN):
     def __init__(self, hidden: int = 16, layers: int = 2):
-        super().__init__(ERROR_PREDICTOR_CHANNELS, hidden, layers)
+        super().__init__(ERROR_PREDICTOR.input_channels, hidden, layers)
 
 
 class ConfidencePredictor(_HeatmapCNN):
@@ -113,7 +110,7 @@ class ConfidencePredictor(_HeatmapCNN):
     seeds each); 3 layers of 16 or 32 were no better."""
 
     def __init__(self, hidden: int = 32, layers: int = 2):
-        super().__init__(CONFIDENCE_CHANNELS, hidden, layers)
+        super().__init__(CONFIDENCE.input_channels, hidden, layers)
 
 
 def input_channels(model: nn.Module) -> int:

@@ -14,7 +14,9 @@ device, exposed, cropped and augmented:
   trust G-buffers blindly;
 - where the dataset has ``noisy_copies``, a random one of the frame's independent 1-spp renders (a
   fresh noise realization, G-buffers included), so the network cannot learn a view's noise by heart;
-- for the denoiser, a curriculum over sample counts: 16 spp first, then 4, then 1 (configurable).
+- for the denoiser, a curriculum over sample counts: 16 spp first, then 4, then 1 (configurable); a
+  stage of ``ANY_SPP`` lets each crop draw one of its view's rendered sample counts (uniformly), which
+  is how the sample-count input plane learns what it means.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from ..frame.pack import (albedo_factor, demodulated_log_color, log_color, pack_
                           pack_denoiser_input, pack_error_input)
 from .targets import HEATMAP_PERCENTILE, confidence_pair
 
+ANY_SPP = "any"   # a curriculum stage: each crop draws one of its view's rendered sample counts
 
 
 @dataclass(frozen=True)
@@ -102,7 +105,8 @@ class TaskSamples(ABC):
 
     def batch(self, items, rng: np.random.Generator, aug: Augmentation, spp: int = 1):
         """A (B, C, S, S) input batch and its targets on ``device``, augmented as the module docstring
-        says: ``rng`` draws every choice, the crops, turns, flips and noise are tensor ops on the device."""
+        says: ``rng`` draws every choice, the crops, turns, flips and noise are tensor ops on the device.
+        ``spp`` ANY_SPP: each item's sample count is drawn from its view's."""
         inputs, targets = [], []
         frame = self.views[items[0][0]].frames[0].gold["color"].shape[:2]
         largest = min(aug.crop_max, *frame) // aug.multiple * aug.multiple
@@ -110,7 +114,8 @@ class TaskSamples(ABC):
         crop = int(rng.integers(smallest, largest // aug.multiple + 1)) * aug.multiple
         for item in items:
             exposure = float(2.0 ** rng.uniform(-aug.exposure_stops, aug.exposure_stops))
-            x, y = self.exposed(item, spp, exposure, int(rng.integers(self.copies(item, spp))))
+            drawn = int(rng.choice(self.views[item[0]].spp)) if spp == ANY_SPP else spp
+            x, y = self.exposed(item, drawn, exposure, int(rng.integers(self.copies(item, drawn))))
             top = int(rng.integers(0, x.shape[1] - crop + 1))
             left = int(rng.integers(0, x.shape[2] - crop + 1))
             x, y = x[:, top:top + crop, left:left + crop], y[:, top:top + crop, left:left + crop]
@@ -148,7 +153,7 @@ class DenoiserSamples(TaskSamples):
     def planes(self, item, spp, copy=0):
         frame = self.views[item[0]].frames[item[1]]
         noisy = frame.renders_at(spp)[copy]
-        x = pack_denoiser_input(noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"])
+        x = pack_denoiser_input(noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"], spp)
         gold = frame.gold["color"]
         return x, np.concatenate([demodulated_log_color(gold, noisy["albedo"]), albedo_factor(noisy["albedo"])])
 
@@ -188,7 +193,8 @@ class OnnxDenoiser:
     def __call__(self, render: dict) -> np.ndarray:
         from ..frame.denoise import denoise
 
-        run = lambda x: self.session.run(None, {"input": x})[0]  # noqa: E731
+        channels = self.session.get_inputs()[0].shape[1]   # 10 for a denoiser without the spp plane
+        run = lambda x: self.session.run(None, {"input": x[:, :channels]})[0]  # noqa: E731
         return denoise(run, render["color"], render["albedo"], render["normal"], render["depth"])
 
 
@@ -239,8 +245,8 @@ def samples_for(task: str, views: list[View], denoiser: OnnxDenoiser | None = No
     return {"denoiser": DenoiserSamples, "error_predictor": ErrorSamples}[task](views)
 
 
-def curriculum_spp(progress: float, available: list[int], stages: tuple[int, ...] = (16, 4, 1)) -> int:
+def curriculum_spp(progress: float, available: list[int], stages: tuple[int | str, ...] = (16, 4, 1)) -> int | str:
     """The sample count for training ``progress`` ∈ [0, 1): equal shares of ``stages`` (by default
     thirds of 16, 4 and 1 spp; repeat a stage to give it more); stages the dataset lacks are skipped."""
-    usable = [s for s in stages if s in available] or [min(available)]
+    usable = [s for s in stages if s in available or s == ANY_SPP] or [min(available)]
     return usable[min(int(progress * len(usable)), len(usable) - 1)]

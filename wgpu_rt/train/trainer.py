@@ -31,7 +31,7 @@ from ..frame.denoise import pad_to_multiple
 from ..models import Network, network_named
 from ..io import atomic_output, check_output_path
 from .context import TrainContext, training_context
-from .samples import Augmentation, curriculum_spp, samples_for
+from .samples import ANY_SPP, Augmentation, curriculum_spp, samples_for
 
 # Settings a resumed run may change: more epochs stretch the schedule; the rest is bookkeeping.
 RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every", "device"}
@@ -57,7 +57,7 @@ class TrainConfig:
     ssim_space: str = "log"              # or "display" (the metrics' Reinhard + gamma mapping)
     widths: tuple[int, ...] = (32, 64, 128)
     residual: bool = False               # denoiser predicts a correction to its noisy input
-    curriculum: tuple[int, ...] = (16, 4, 1)   # denoiser spp per equal share of the epochs
+    curriculum: tuple[int | str, ...] = (16, 4, 1)   # denoiser spp per equal share of the epochs (ANY_SPP: per crop)
     grad_clip: float = 1.0
     resume: bool = False
     max_views: int | None = None
@@ -82,7 +82,8 @@ class TrainConfig:
         except KeyError as err:
             raise TrainingError(err.args[0]) from None
         counts = {"--epochs": [self.epochs], "--batch": [self.batch], "--widths": self.widths,
-                  "--curriculum": self.curriculum, "--validate-every": [self.validate_every],
+                  "--curriculum": [1 if stage == ANY_SPP else stage for stage in self.curriculum],
+                  "--validate-every": [self.validate_every],
                   "--crop": [self.crop_min, self.crop_max],
                   "--max-views": [] if self.max_views is None else [self.max_views]}
         for flag, values in counts.items():
@@ -292,6 +293,7 @@ class Trainer:
         except Exception as err:  # onnx raises several types for missing or corrupt files
             raise TrainingError(f"{path}: cannot read this ONNX model ({err})") from None
         expected = self.model.state_dict()
+        weights = _with_new_input_channels(weights, expected)
         wrong = [name for name, tensor in expected.items()
                  if name not in weights or tuple(weights[name].shape) != tuple(tensor.shape)]
         if wrong:
@@ -570,6 +572,20 @@ class Trainer:
                           "one level down)", ""]
                 lines += ["#" + line if line.startswith("#") else line for line in base["card"].splitlines()]
         return "\n".join(lines) + "\n"
+
+
+def _with_new_input_channels(weights: dict, expected: dict) -> dict:
+    """``weights`` of an exported model whose first layer reads fewer input channels than ``expected``'s
+    (a denoiser from before the sample-count plane: 10 of 11) with that layer's missing input channels
+    added as zeros, so the fine-tune starts from exactly the function the base model computed."""
+    first = next(name for name, tensor in expected.items() if tensor.dim() == 4)
+    old, new = weights.get(first), expected[first]
+    if old is None or old.ndim != 4 or old.shape[1] >= new.shape[1] or \
+            (old.shape[0], *old.shape[2:]) != (new.shape[0], *new.shape[2:]):
+        return weights
+    padded = np.zeros(tuple(new.shape), old.dtype)
+    padded[:, :old.shape[1]] = old
+    return weights | {first: padded}
 
 
 def train(config: TrainConfig, progress: bool = True) -> dict | None:

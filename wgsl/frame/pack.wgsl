@@ -3,8 +3,10 @@
 // values up to f16's 65504 land near 11 and the FP16 network path keeps precision; the denoiser's colour
 // is first demodulated by albedo (frame/albedo.wgsl: it sees irradiance); albedo is clamped
 // to [0, 1], normals are mapped by n·0.5 + 0.5, and depth is divided by the frame's max depth (read as
-// the bit pattern written by frame/depth_max.wgsl; a frame with no hit packs depth 0).
-//   pack_denoiser:   10 ch = log1p RGB/albedo factor, albedo, normal·0.5+0.5, depth/max
+// the bit pattern written by frame/depth_max.wgsl; a frame with no hit packs depth 0). The denoiser's
+// last plane says how many samples the pixel's colour averages, as 1/sqrt(spp) (its noise relative to
+// one sample's: 1 at 1 spp, 1/16 at 256; a pixel of 0 samples counts as 1).
+//   pack_denoiser:   11 ch = log1p RGB/albedo factor, albedo, normal·0.5+0.5, depth/max, 1/sqrt(spp)
 //   pack_error:       3 ch = log1p RGB                                     (error predictor)
 //   pack_confidence:  8 ch = log1p RGB, log1p reprojected history RGB, depth/max,
 //                            reprojected previous depth/max               (confidence predictor)
@@ -18,6 +20,7 @@
 @group(0) @binding(4) var<storage, read> depth_max_bits: u32;
 @group(0) @binding(5) var<storage, read> reprojected: array<f32>;   // frame/temporal.wgsl's 5 planes
 @group(0) @binding(6) var<storage, read_write> packed: array<f32>;
+@group(0) @binding(7) var<storage, read> spp: array<u32>;
 
 fn log_color(channel: u32, i: u32) -> f32 {
     return log1p_accurate(sanitize(color[channel * pixel_count() + i]));
@@ -40,6 +43,7 @@ fn pack_denoiser(@builtin(global_invocation_id) id: vec3u) {
         packed[(6u + c) * n + i] = clamp(finite_or_zero(normal[c * n + i]) * 0.5 + 0.5, 0.0, 1.0);
     }
     packed[9u * n + i] = normalized_depth(depth[i]);
+    packed[10u * n + i] = inverseSqrt(f32(max(spp[i], 1u)));
 }
 
 @compute @workgroup_size(8, 8)
