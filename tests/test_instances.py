@@ -15,12 +15,21 @@ from wgpu_rt.accel.bvh import build_bvh
 from wgpu_rt.accel.geometry import GeometryBuffers, InstancedGeometry
 from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
 from wgpu_rt.passes import FrameBuffers
+from wgpu_rt import renderer
 from wgpu_rt.renderer import Renderer
 from wgpu_rt.scene import Camera, Material, Mesh, Scene, load_scene
 from wgpu_rt.scene.primitives import primitive
 from wgpu_rt.scene.transforms import compose, rotate, scale, translate
 from wgpu_rt.trace import SampleSchedule, TracePass
 from wgpu_rt.trace.scene_data import FRAME_PARAMS_DTYPE
+
+
+@pytest.fixture(autouse=True)
+def two_levels_for_every_instanced_scene(monkeypatch):
+    """These tests are of the two-level path: the renderer takes it for any still scene with instances
+    (by default it flattens small ones, which the threshold's own test checks)."""
+    monkeypatch.setattr(renderer, "FLATTEN_PLACED_TRIANGLES", 0)
+
 
 FRAMES = 4
 
@@ -317,11 +326,17 @@ def test_a_shape_placed_many_times_is_stored_once(monkeypatch):
     assert geometry.placed_triangle_count == len(flat_positions)
 
 
-def test_static_instances_get_two_levels_from_the_first_frame(gpu):
+def test_static_instances_get_two_levels_from_the_first_frame(gpu, monkeypatch):
     """The renderer traces a still scene with instances through the two-level geometry from its first
-    frame on (reused by every frame), the same scene with copied meshes through the single-level one,
-    and a scene with instances and a moving emitter through one two-level pass that follows it."""
+    frame on (reused by every frame) when it places more than FLATTEN_PLACED_TRIANGLES, else through a
+    single level, as it does the same scene with copied meshes; and a scene with instances and a moving
+    emitter through one two-level pass that follows it."""
     scene = still_instanced_scene()
+    placed = sum(len(mesh.faces) for mesh in scene.meshes)
+    monkeypatch.setattr(renderer, "FLATTEN_PLACED_TRIANGLES", placed)
+    assert isinstance(Renderer(scene, size=(8, 8), ctx=gpu, aovs=())._trace_factory()(0, 0)._geometry,
+                      GeometryBuffers)
+    monkeypatch.setattr(renderer, "FLATTEN_PLACED_TRIANGLES", placed - 1)
     trace_for = Renderer(scene, size=(8, 8), ctx=gpu, aovs=())._trace_factory()
     first = trace_for(0, 0)
     assert isinstance(first._geometry, InstancedGeometry) and trace_for(1, 1) is first

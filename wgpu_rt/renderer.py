@@ -22,6 +22,10 @@ from .frame.pipeline import AOV_PLANES, FramePipeline, RenderResult, check_readb
 from .trace.trace_pass import AUX_SAMPLES
 
 DEFAULT_AOVS = ("albedo", "normal", "depth", "motion", "spp")
+# A still scene that places shapes several times traces through two levels only when its placed
+# triangles exceed this; below it, copying them costs little memory and BVH build (80k: 11.5 MiB,
+# 0.6 s on lavapipe) and a single level traces up to 1.27× faster (BENCHMARKS.md §6, "Instancing").
+FLATTEN_PLACED_TRIANGLES = 100_000
 PRECISIONS = ("fp32", "fp16")
 MAX_SIZE = 16384
 
@@ -152,7 +156,8 @@ class Renderer:
         emissive meshes' entries of the emitter table with them; a pass's first frame keeps the
         single-level BVH, which traces faster, so a single frame never pays for levels. A scene that
         places a shape several times (instances) gets the two-level geometry from its first frame on,
-        which stores each shape's triangles once. Frame f is seeded seed + f (mod 2³²)."""
+        which stores each shape's triangles once, unless it places at most FLATTEN_PLACED_TRIANGLES.
+        Frame f is seeded seed + f (mod 2³²)."""
         from .accel.geometry import GeometryBuffers, InstancedGeometry
         from .trace.trace_pass import TracePass
 
@@ -160,7 +165,8 @@ class Renderer:
         follows_every_frame = b"instanced"
         scene = self.scene
         can_instance = InstancedGeometry.suits(scene)
-        instanced_from_start = can_instance and scene.has_instances
+        placed_triangles = sum(len(mesh.faces) for mesh in scene.meshes)
+        instanced_from_start = can_instance and scene.has_instances and placed_triangles > FLATTEN_PLACED_TRIANGLES
 
         def trace_for(frame: int, seed_frame: int):
             seed = (self.seed + seed_frame) % 2 ** 32
