@@ -518,9 +518,10 @@ class Trainer:
         if cfg.task == "denoiser":
             lines.append("- input and output colour demodulated by albedo: log1p(colour / (albedo + "
                          f"{ALBEDO_EPSILON})); unpack multiplies back")
+            drawn = "; 'any': each crop draws one of its view's sample counts" if ANY_SPP in cfg.curriculum else ""
             lines.append(f"- loss 0.8·(1 − SSIM on {cfg.ssim_space} colour) + 0.2·{cfg.pixel_loss} on log1p "
                          f"irradiance; curriculum {' → '.join(map(str, cfg.curriculum))} spp (equal shares of the "
-                         "epochs)")
+                         f"epochs{drawn})")
         elif cfg.model_name == "error_predictor":
             lines.append("- target |log1p(1 spp) − log1p(gold)| / its 99th percentile, clipped to [0, 1]; BCE loss")
         else:
