@@ -1,10 +1,12 @@
 """Fitting the static-camera converge blend: how much weight the raw n-sample mean should get against
-the denoised frame of it (TemporalSettings.converge_spp).
+the denoised frame of it (TemporalSettings.converge_spp and converge_scale).
 
-Under a static camera the temporal pipeline accumulates the tracer's samples (frame n holds n spp, one
-stratified sequence) and shows mix(denoised(mean), mean, n / (n + k)). For each scene and n this prints
-the PSNR (wgpu_rt.metrics: x/(1+x), gamma 2.2) against gold of the raw mean, the denoised mean, and the
-blend for each k, plus each k's mean loss to the best k over every row (the column to minimise).
+A frame of n spp (a render at n spp, or a static camera's n accumulated frames) is shown as
+mix(denoised(mean), mean, n / (n + k)). For each scene and n this prints the PSNR (wgpu_rt.metrics:
+x/(1+x), gamma 2.2) against gold of the raw mean, the denoised mean, the blend for each constant k and
+for the shipped rule (k = max(CONVERGE_SPP, CONVERGE_SCALE / n), wgpu_rt.frame.unpack.converge), then
+each blend's mean loss to the best of that row (the number to minimise) and its worst row against the
+raw mean (brute force at the same spp; issue 12 wants it ≥ 0).
 Denoiser: our WGSL engine on the model in --models; gold: our own render at --gold-spp (--gold-cache
 shares it with the other benchmarks).
 
@@ -23,6 +25,7 @@ from common import (add_gold_arguments, add_model_arguments, gold_render, load_s
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.denoise import denoise, load_model
+from wgpu_rt.frame.unpack import converge
 from wgpu_rt.renderer import parse_size, render
 
 
@@ -44,7 +47,7 @@ def main() -> None:
     print_header(args)
     size = parse_size(args.size)
     model = load_model("denoiser", args.precision, args.models)
-    losses = []   # per (scene, n): each k's PSNR below the best k of that row
+    losses, below_brute = [], []   # per (scene, n): each blend's PSNR below the row's best, and above raw
     for scene in load_scenes(args.scenes):
         gold = gold_render(scene, size, args)
         rows = []
@@ -53,12 +56,16 @@ def main() -> None:
                            aovs=("albedo", "normal", "depth"))
             denoised = denoise(model, noisy.color, *(noisy.aovs[name] for name in ("albedo", "normal", "depth")), n)
             blends = [metrics.psnr(gold, denoised + n / (n + k) * (noisy.color - denoised)) for k in args.k]
+            blends.append(metrics.psnr(gold, converge(denoised, noisy.color, np.full(size[::-1], n))))
+            raw = metrics.psnr(gold, noisy.color)
             losses.append(max(blends) - np.array(blends))
-            rows.append([n, metrics.psnr(gold, noisy.color), metrics.psnr(gold, denoised), *blends])
+            below_brute.append(np.array(blends) - raw)
+            rows.append([n, raw, metrics.psnr(gold, denoised), *blends])
         print_table(f"{scene.name} at {size[0]}x{size[1]}: PSNR dB against {args.gold_spp}-spp gold",
-                    ["spp", "raw mean", "denoised", *(f"k={k:g}" for k in args.k)], rows)
-    print_table("mean PSNR loss to each row's best k (all scenes and spp)",
-                [f"k={k:g}" for k in args.k], [list(np.mean(losses, axis=0))])
+                    ["spp", "raw mean", "denoised", *(f"k={k:g}" for k in args.k), "rule"], rows)
+    names = [*(f"k={k:g}" for k in args.k), "rule"]
+    print_table("mean PSNR loss to each row's best blend (all scenes and spp)", names, [list(np.mean(losses, axis=0))])
+    print_table("worst row against brute force at the same spp (dB)", names, [list(np.min(below_brute, axis=0))])
 
 
 if __name__ == "__main__":

@@ -237,10 +237,10 @@ class ZeroDenoiser:
 
 
 def test_temporal_static_camera_fades_the_denoiser_as_samples_grow(gpu, scene):
-    """The converged frame is mix(denoised, sample mean, spp / (spp + converge_spp)): a black denoiser's
-    frame is black on the first frame (a cut takes the denoised frame alone) and half the 4-spp mean at
-    4 spp with converge_spp 4."""
-    settings = TemporalSettings(converge_spp=4)
+    """The converged frame is mix(denoised, sample mean, spp / (spp + max(converge_spp, converge_scale /
+    spp))): a black denoiser's frame is black on the first frame (a cut takes the denoised frame alone)
+    and half the 4-spp mean at 4 spp with converge_spp 2 and converge_scale 16."""
+    settings = TemporalSettings(converge_spp=2, converge_scale=16)
     pipeline = make_pipeline(scene, gpu, denoiser=ZeroDenoiser(gpu), temporal=settings)
     first = pipeline.render(scene, 0).color
     assert first.max() == 0
@@ -250,7 +250,8 @@ def test_temporal_static_camera_fades_the_denoiser_as_samples_grow(gpu, scene):
     assert (pipeline.buffers.read(SPP.name) == 4).all() and radiance.max() > 0
     np.testing.assert_allclose(image, 0.5 * radiance, rtol=1e-5, atol=1e-7)
     spp = pipeline.buffers.read(SPP.name)[0]
-    np.testing.assert_allclose(image, converge(np.zeros_like(radiance), radiance, spp, settings.converge_spp),
+    np.testing.assert_allclose(image, converge(np.zeros_like(radiance), radiance, spp, settings.converge_spp,
+                                                       settings.converge_scale),
                                rtol=1e-5, atol=1e-7)
 
 
@@ -299,8 +300,8 @@ def test_readme_python_example_runs(gpu):
 
 
 def test_a_frame_of_several_samples_hands_over_from_the_denoiser_to_their_mean(gpu, scene):
-    """denoise at n > 1 spp: out = mix(denoised, mean, n / (n + 32)) (a black denoiser's frame is the
-    mean scaled by n / (n + 32)); at 1 spp the denoised frame alone."""
+    """denoise at n > 1 spp: out = mix(denoised, mean, n / (n + max(32, 2048 / n))) (a black denoiser's
+    frame is the mean scaled by that: 4 / 516 at 4 spp); at 1 spp the denoised frame alone."""
     for spp in (1, 4):
         pipeline = make_pipeline(scene, gpu, denoiser=ZeroDenoiser(gpu), spp=spp)
         image = pipeline.render(scene, 0).color
@@ -309,6 +310,7 @@ def test_a_frame_of_several_samples_hands_over_from_the_denoiser_to_their_mean(g
         assert (counts == spp).all() and radiance.max() > 0
         expected = converge(np.zeros_like(radiance), radiance, counts) if spp > 1 else np.zeros_like(radiance)
         np.testing.assert_allclose(image, expected, rtol=1e-5, atol=1e-7)
+        np.testing.assert_allclose(expected, radiance * (4 / 516 if spp == 4 else 0), rtol=1e-5, atol=1e-7)
 
 
 def test_wiring_is_checked_from_the_declared_planes(gpu):

@@ -199,7 +199,7 @@ def test_bad_clamp_names_it():
 
 
 @pytest.mark.parametrize("field, value", [("max_frames", 0), ("gamma", 0.0), ("converge_spp", -1.0),
-                                          ("confidence_floor", 1.0), ("confidence_floor", -0.1)])
+                                          ("converge_scale", -1.0), ("confidence_floor", 1.0), ("confidence_floor", -0.1)])
 def test_bad_temporal_settings_are_refused(field, value):
     with pytest.raises(WgpuRtError, match=field):
         TemporalSettings(**{field: value})

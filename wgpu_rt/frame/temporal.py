@@ -24,7 +24,7 @@ from ..passes import DEPTH, MOTION, NORMAL, RADIANCE, SPP, ComputePass, PlaneSpe
 from .kernel import FrameKernel, finite, nonnegative_finite
 from .pack import PackConfidencePass
 from .planes import CONFIDENCE_INPUT
-from .unpack import CONVERGE_SPP
+from .unpack import CONVERGE_SCALE, CONVERGE_SPP
 
 CLAMP_MODES = ("none", "box", "variance")
 HISTORY = PlaneSpec("history", 8)           # RGB, depth, normal xyz, history length
@@ -52,8 +52,9 @@ class TemporalSettings:
     gamma: float = 2.0
     max_frames: int = 32           # α never drops below 1/max_frames
     # Static camera: the raw n-sample mean's share against the denoised frame of it is n / (n +
-    # converge_spp) (unpack.converge, where the default is fitted).
+    # max(converge_spp, converge_scale / n)) (unpack.converge, where the defaults are fitted).
     converge_spp: float = CONVERGE_SPP
+    converge_scale: float = CONVERGE_SCALE
     depth_tolerance: float = 0.05  # relative depth difference that still counts as the same surface
     normal_threshold: float = 0.9  # smallest normal dot product that counts as the same surface
     # Confidence at or below this keeps no history; above it, trust rises linearly to 1. The network
@@ -67,16 +68,17 @@ class TemporalSettings:
     def __post_init__(self):
         if self.clamp not in CLAMP_MODES:
             raise WgpuRtError(f"temporal clamp {self.clamp!r} is not one of {', '.join(CLAMP_MODES)}")
-        if not (self.max_frames >= 1 and self.gamma > 0 and self.converge_spp > 0
+        if not (self.max_frames >= 1 and self.gamma > 0 and self.converge_spp > 0 and self.converge_scale >= 0
                 and 0 <= self.confidence_floor < 1):
-            raise WgpuRtError(f"temporal max_frames must be ≥ 1, gamma and converge_spp > 0, confidence_floor "
-                              f"in [0, 1), got {self.max_frames}, {self.gamma}, {self.converge_spp}, "
-                              f"{self.confidence_floor}")
+            raise WgpuRtError(f"temporal max_frames must be ≥ 1, gamma and converge_spp > 0, converge_scale ≥ 0, "
+                              f"confidence_floor in [0, 1), got {self.max_frames}, {self.gamma}, "
+                              f"{self.converge_spp}, {self.converge_scale}, {self.confidence_floor}")
 
     def constants(self) -> dict:
         return {"CLAMP_MODE": CLAMP_MODES.index(self.clamp), "GAMMA": self.gamma,
                 "MAX_FRAMES": self.max_frames, "DEPTH_TOLERANCE": self.depth_tolerance,
                 "NORMAL_THRESHOLD": self.normal_threshold, "CONVERGE_SPP": self.converge_spp,
+                "CONVERGE_SCALE": self.converge_scale,
                 "CONFIDENCE_FLOOR": self.confidence_floor}
 
 

@@ -12,19 +12,23 @@ from .pack import albedo_factor
 from .planes import DENOISED
 
 MAX_LOG_RADIANCE = 88.0   # expm1(88) ≈ 1.65e38: times the factor (≤ 1.01) still a finite f32
-# The denoiser counts as this many samples when its output is blended with the n-sample mean it
-# denoised. Fitted with benchmarks/bench_converge.py (96², 1–128 spp, 8192-spp gold, the shipped
-# denoiser): the best constant per scene is 16–32 (cornell, sun-room) and 64–128 (cornell-glossy); 32
-# loses least to each row's best (0.20 dB on average). The 1 − 1/√n fade it replaced (≈ k = √n + 1)
-# lost to it at every n ≤ 32, at 16 spp by 0.8 dB on cornell and 2.2 dB on cornell-glossy.
+# The denoiser counts as k = max(CONVERGE_SPP, CONVERGE_SCALE / n) samples when its output is blended
+# with the n-sample mean it denoised. Fitted with benchmarks/bench_converge.py for the spp-aware
+# denoiser (64², 4–256 spp, 4096-spp gold, cornell, cornell-glossy, sun-room and four held-out worlds;
+# BENCHMARKS.md §7): the best constant k per row ranges from 32 (cornell, sun-room at any n) to 2048
+# (worlds with fireflies at 4–16 spp, whose mean would bring them in); this rule, 512 at 4 spp, 128 at
+# 16 and 32 from 64 on, loses 1.24 dB to each row's best against 1.69 for k = 32 alone, with the same
+# worst row against brute force. (A constant 32 was fitted for the previous, 1-spp denoiser.)
 CONVERGE_SPP = 32.0
+CONVERGE_SCALE = 2048.0
 
 
-def converge(denoised, samples_mean, spp, converge_spp: float = CONVERGE_SPP) -> np.ndarray:
+def converge(denoised, samples_mean, spp, converge_spp: float = CONVERGE_SPP,
+             converge_scale: float = CONVERGE_SCALE) -> np.ndarray:
     """(H, W, 3) denoised frame of an n-sample mean, blended with that mean: its share is
-    n / (n + converge_spp) per pixel (``spp`` (H, W))."""
-    spp = np.asarray(spp, np.float64)[..., None]
-    mean_weight = spp / (spp + converge_spp)
+    n / (n + max(converge_spp, converge_scale / n)) per pixel (``spp`` (H, W); 0 counts as 1)."""
+    spp = np.maximum(np.asarray(spp, np.float64), 1.0)[..., None]
+    mean_weight = spp / (spp + np.maximum(converge_spp, converge_scale / spp))
     denoised = nonnegative_finite(denoised).astype(np.float64)
     return (denoised + mean_weight * (nonnegative_finite(samples_mean) - denoised)).astype(np.float32)
 
@@ -38,13 +42,16 @@ def unpack_denoiser_output(output: np.ndarray, albedo: np.ndarray) -> np.ndarray
 
 class UnpackPass(ComputePass):
     """The network's output (a buffer, or a plane, given to each execute) and albedo → denoised (3 planes);
-    with ``converge_spp``, blended with the traced sample mean (radiance, spp) by ``converge``."""
+    with ``converge_spp`` (and ``converge_scale``), blended with the traced sample mean (radiance, spp)
+    by ``converge``."""
 
     inputs = (ALBEDO, RADIANCE, SPP)
     outputs = (DENOISED,)
 
-    def __init__(self, ctx, width: int, height: int, converge_spp: float | None = None):
-        constants = {"CONVERGE": converge_spp is not None, "CONVERGE_SPP": converge_spp or CONVERGE_SPP}
+    def __init__(self, ctx, width: int, height: int, converge_spp: float | None = None,
+                 converge_scale: float = CONVERGE_SCALE):
+        constants = {"CONVERGE": converge_spp is not None, "CONVERGE_SPP": converge_spp or CONVERGE_SPP,
+                     "CONVERGE_SCALE": converge_scale}
         self.kernel = FrameKernel(ctx, "frame/unpack.wgsl", "main",
                                   ("network_output", "albedo", "radiance", "samples_mean", "spp"), width, height,
                                   constants)
