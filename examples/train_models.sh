@@ -2,8 +2,9 @@
 # The exact recipe behind models/{denoiser,error_predictor,confidence}.onnx: render a small dataset on
 # this machine's adapter (lavapipe, 2 CPU cores), train the three networks with CPU torch, export them
 # with model cards into models/. Resumable: rerun after an interruption and finished work is kept.
-# About 6 hours on 2 shared cores (renders ~2 h, denoiser 48 min + three fine-tunes of 25, 27 and 39 min,
-# the two small networks minutes, then ~10 min of generated-world renders and a 47-min fine-tune on them);
+# About 7.5 hours on 2 shared cores (renders ~2 h, denoiser 48 min + three fine-tunes of 25, 27 and 39 min,
+# the two small networks minutes, then ~10 min of generated-world renders and a 47-min fine-tune on them,
+# then ~55 min of renders at several spp and two 13-min fine-tunes for the sample-count input);
 # scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,6 +18,9 @@ EXTRA_DATA8=${EXTRA_DATA8:-data/dataset-extra8}   # for the last fine-tune: gold
 EXTRA_DATA9=${EXTRA_DATA9:-data/dataset-extra9}
 WORLDS_DATA=${WORLDS_DATA:-data/worlds-train}       # round 4: generated worlds (training family)
 BUILTIN_DATA=${BUILTIN_DATA:-data/builtin-train}   # round 4: built-in views at the worlds' size
+WORLDS_SPP_DATA=${WORLDS_SPP_DATA:-data/worlds-spp}     # round 5: worlds at 1-64 spp
+WORLDS_SPP_DATA2=${WORLDS_SPP_DATA2:-data/worlds-spp2}
+BUILTIN_SPP_DATA=${BUILTIN_SPP_DATA:-data/builtin-spp}  # round 5: built-in views at 1-64 spp
 COPIES=${COPIES:-16}            # independent 1-spp renders per frame for the last fine-tune
 EXTRA_VIEWS=${EXTRA_VIEWS:-12}  # per scene: 10 train, 1 val, 1 test (the test views are never used)
 SEQ_DATA=${SEQ_DATA:-data/dataset-seq}   # + seed: confidence-model sequences (seeds 5 and 6)
@@ -92,3 +96,21 @@ time $NICE wgpu-rt train denoiser --data "$BUILTIN_DATA" --extra-data "$BUILTIN_
     --checkpoints "$CHECKPOINTS/denoiser-worlds" --resume --init-from "$OUT/denoiser.onnx" \
     --epochs "${WORLDS_EPOCHS:-500}" --batch 4 --crop 64 96 --widths 16 32 64 128 --lr 1e-4 --curriculum 1 \
     --ssim-space display --validate-every 50
+# Round 5: the sample-count input. The denoiser now reads 1/sqrt(spp) as an 11th plane; the round-4 model
+# (10 inputs) is its start, with zero weights on the new plane, so it starts as that model. 192 more
+# generated worlds and 32 built-in views rendered at 1-64 spp, and every crop draws one of its view's
+# sample counts (--curriculum any). Two fine-tunes, 13 min each on two threads.
+$NICE wgpu-rt dataset --worlds 96 --family training --size 96 --spp 1,2,4,8,16,64 --noisy-copies 2 --gold 512 \
+    --sequence-fraction 0 --seed 1 --out "$WORLDS_SPP_DATA" --quiet
+$NICE wgpu-rt dataset --worlds 96 --family training --size 96 --spp 1,2,4,16,64 --noisy-copies 3 --gold 512 \
+    --sequence-fraction 0 --seed 2 --out "$WORLDS_SPP_DATA2" --quiet
+$NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views 8 --size 96 --spp 1,4,16,64 \
+    --gold 1024 --sequence-fraction 0 --seed 21 --out "$BUILTIN_SPP_DATA" --quiet
+time OMP_NUM_THREADS=2 $NICE wgpu-rt train denoiser --data "$BUILTIN_DATA" --extra-data "$BUILTIN_DATA" "$WORLDS_DATA" \
+    "$WORLDS_SPP_DATA" --out "$CHECKPOINTS/denoiser-spp" --checkpoints "$CHECKPOINTS/denoiser-spp" --resume \
+    --init-from "$OUT/denoiser.onnx" --epochs 200 --batch 4 --crop 64 96 --widths 16 32 64 128 --lr 1e-4 \
+    --curriculum any --ssim-space display --validate-every 25
+time OMP_NUM_THREADS=2 $NICE wgpu-rt train denoiser --data "$BUILTIN_SPP_DATA" --extra-data "$BUILTIN_DATA" \
+    "$WORLDS_DATA" "$WORLDS_SPP_DATA" "$WORLDS_SPP_DATA2" --out "$OUT" --checkpoints "$CHECKPOINTS/denoiser-spp2" \
+    --resume --init-from "$CHECKPOINTS/denoiser-spp/denoiser.onnx" --epochs 150 --batch 4 --crop 64 96 \
+    --widths 16 32 64 128 --lr 2e-4 --curriculum any --ssim-space display --validate-every 25
