@@ -14,11 +14,12 @@ from .planes import DENOISED
 MAX_LOG_RADIANCE = 88.0   # expm1(88) ≈ 1.65e38: times the factor (≤ 1.01) still a finite f32
 # The denoiser counts as k = max(CONVERGE_SPP, CONVERGE_SCALE / n) samples when its output is blended
 # with the n-sample mean it denoised. Fitted with benchmarks/bench_converge.py for the spp-aware
-# denoiser (64², 4–256 spp, 4096-spp gold, cornell, cornell-glossy, sun-room and four held-out worlds;
-# BENCHMARKS.md §7): the best constant k per row ranges from 32 (cornell, sun-room at any n) to 2048
-# (worlds with fireflies at 4–16 spp, whose mean would bring them in); this rule, 512 at 4 spp, 128 at
-# 16 and 32 from 64 on, loses 1.24 dB to each row's best against 1.69 for k = 32 alone, with the same
-# worst row against brute force. (A constant 32 was fitted for the previous, 1-spp denoiser.)
+# denoiser (64², 4–256 spp, 4096-spp gold; cornell, cornell-glossy, sun-room and three held-out worlds,
+# checked on four other held-out worlds; BENCHMARKS.md §7): the best constant k per row ranges from 32
+# (cornell, sun-room at any n) to 2048 (worlds with fireflies at 4–16 spp, whose mean would bring them
+# in); this rule, 512 at 4 spp, 128 at 16 and 32 from 64 on, loses 1.24 dB to each row's best against
+# 1.69 for k = 32 alone, with the same worst row against brute force. (The constant 32 was fitted for
+# the previous, 1-spp denoiser.)
 CONVERGE_SPP = 32.0
 CONVERGE_SCALE = 2048.0
 
