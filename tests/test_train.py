@@ -106,6 +106,20 @@ def test_curriculum_stages_can_be_weighted():
 
 def test_curriculum_any_stage_is_kept_whatever_the_first_view_has():
     assert [curriculum_spp(p, [1], (1, ANY_SPP)) for p in (0.0, 0.6)] == [1, ANY_SPP]
+    assert curriculum_spp(0.0, [], (16, 4)) == ANY_SPP     # the views share no sample count
+
+
+def test_a_fixed_stage_needs_every_view_to_have_it(tmp_path):
+    """Datasets with other spp lists train together: a stage only some views have is skipped (the first
+    view's list is not the dataset's)."""
+    for name, spp in (("a", (1, 4)), ("b", (1,))):
+        config = DatasetConfig(scenes=("cornell",), views=3, size=16, spp=spp, gold=8, sequence_fraction=0.0)
+        TruthEngine(config, tmp_path / name, renderer=fake_render).run(progress=False)
+    trainer = Trainer(TrainConfig(task="denoiser", data=str(tmp_path / "a"), extra_data=(str(tmp_path / "b"),),
+                                  out=str(tmp_path / "m"), epochs=2, batch=2, crop_min=12, crop_max=16,
+                                  widths=(4, 8), curriculum=(4, 1)), progress=False)
+    trainer.run()
+    assert [h["spp"] for h in trainer.history] == [1, 1]
 
 
 def test_validation_every_n_epochs_and_after_the_last(tiny_dataset, tmp_path):

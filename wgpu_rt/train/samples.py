@@ -247,6 +247,7 @@ def samples_for(task: str, views: list[View], denoiser: OnnxDenoiser | None = No
 
 def curriculum_spp(progress: float, available: list[int], stages: tuple[int | str, ...] = (16, 4, 1)) -> int | str:
     """The sample count for training ``progress`` ∈ [0, 1): equal shares of ``stages`` (by default
-    thirds of 16, 4 and 1 spp; repeat a stage to give it more); stages the dataset lacks are skipped."""
-    usable = [s for s in stages if s in available or s == ANY_SPP] or [min(available)]
+    thirds of 16, 4 and 1 spp; repeat a stage to give it more); stages the dataset lacks are skipped (with
+    no count every view has, each crop draws from its own view's: ANY_SPP)."""
+    usable = [s for s in stages if s in available or s == ANY_SPP] or [min(available, default=ANY_SPP)]
     return usable[min(int(progress * len(usable)), len(usable) - 1)]

@@ -368,7 +368,8 @@ class Trainer:
         validation metrics."""
         from tqdm import tqdm
 
-        available = self.train_set.views[0].spp
+        # a fixed stage must be rendered for every view; 'any' draws from each view's own counts
+        available = sorted(set.intersection(*(set(view.spp) for view in self.train_set.views)))
         with tqdm(total=self.total_steps, initial=self.step, desc=f"train {self.config.task}", unit="step",
                   disable=not self.progress) as bar:
             while self.epoch < self.config.epochs:
