@@ -43,16 +43,14 @@ def unpack_denoiser_output(output: np.ndarray, albedo: np.ndarray) -> np.ndarray
 
 class UnpackPass(ComputePass):
     """The network's output (a buffer, or a plane, given to each execute) and albedo → denoised (3 planes);
-    with ``converge_spp`` (and ``converge_scale``), blended with the traced sample mean (radiance, spp)
-    by ``converge``."""
+    with ``converge_spp``, blended with the traced sample mean (radiance, spp) by ``converge``."""
 
     inputs = (ALBEDO, RADIANCE, SPP)
     outputs = (DENOISED,)
 
-    def __init__(self, ctx, width: int, height: int, converge_spp: float | None = None,
-                 converge_scale: float = CONVERGE_SCALE):
+    def __init__(self, ctx, width: int, height: int, converge_spp: float | None = None):
         constants = {"CONVERGE": converge_spp is not None, "CONVERGE_SPP": converge_spp or CONVERGE_SPP,
-                     "CONVERGE_SCALE": converge_scale}
+                     "CONVERGE_SCALE": CONVERGE_SCALE}
         self.kernel = FrameKernel(ctx, "frame/unpack.wgsl", "main",
                                   ("network_output", "albedo", "radiance", "samples_mean", "spp"), width, height,
                                   constants)
