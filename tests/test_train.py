@@ -387,6 +387,11 @@ def test_onnx_denoiser_is_the_denoise_command_with_the_exported_network(tiny_dat
     denoiser = OnnxDenoiser(export_onnx(network, tmp_path / "denoiser.onnx"))
     np.testing.assert_allclose(denoiser(render), expected, rtol=1e-4, atol=1e-5)
     assert not np.allclose(expected, render["color"], atol=1e-3)   # the network changed the render
+    ten_inputs = UNet(in_channels=DENOISER.input_channels - 1, widths=(4, 8)).eval()   # before the spp plane
+    np.testing.assert_allclose(OnnxDenoiser(export_onnx(ten_inputs, tmp_path / "ten.onnx"))(render),
+                               denoise(lambda x: ten_inputs(torch.from_numpy(x[:, :-1])).detach().numpy(),
+                                       render["color"], render["albedo"], render["normal"], render["depth"]),
+                               rtol=1e-4, atol=1e-5)
 
 
 def test_exposure_on_the_packed_planes_equals_packing_the_scaled_render(tiny_dataset):

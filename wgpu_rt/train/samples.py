@@ -193,8 +193,10 @@ class OnnxDenoiser:
     def __call__(self, render: dict) -> np.ndarray:
         from ..frame.denoise import denoise
 
-        channels = self.session.get_inputs()[0].shape[1]   # 10 for a denoiser without the spp plane
-        run = lambda x: self.session.run(None, {"input": x[:, :channels]})[0]  # noqa: E731
+        def run(x):
+            return self.session.run(None, {"input": x})[0]
+
+        run.input_channels = self.session.get_inputs()[0].shape[1]   # denoise() packs that many planes
         return denoise(run, render["color"], render["albedo"], render["normal"], render["depth"])
 
 
