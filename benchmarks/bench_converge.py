@@ -1,18 +1,19 @@
-"""Fitting the static-camera converge blend: how much weight the raw n-sample mean should get against
-the denoised frame of it (TemporalSettings.converge_spp and converge_scale).
+"""Fitting the converge blend: how a frame of n spp mixes its raw mean with the denoised frame of it.
 
-A frame of n spp (a render at n spp, or a static camera's n accumulated frames) is shown as
-mix(denoised(mean), mean, n / (n + k)). For each scene and n this prints the PSNR (wgpu_rt.metrics:
-x/(1+x), gamma 2.2) against gold of the raw mean, the denoised mean, the blend for each constant k and
-for the shipped rule (k = max(CONVERGE_SPP, CONVERGE_SCALE / n), wgpu_rt.frame.unpack.converge), then
-each blend's mean loss to the best of that row (the number to minimise) and its worst row against the
-raw mean (brute force at the same spp; issue 12 wants it ≥ 0).
-Denoiser: our WGSL engine on the model in --models; gold: our own render at --gold-spp (--gold-cache
-shares it with the other benchmarks).
+For each scene and n this prints the PSNR (wgpu_rt.metrics: x/(1+x), gamma 2.2) against gold of the raw
+mean (brute force at the same spp), the denoised mean, the blend mix(denoised, mean, n / (n + k)) for each
+constant k, the n-only rule that shipped before (k = max(32, 2048 / n)) and the shipped per-pixel rule
+(wgpu_rt.frame.converge: the mean's error, from how its first half and the whole differ, against the
+denoiser's, capped at n² / (n² + CAP_SCALE); the first half is a render of n // 2 spp with the same seed,
+the very samples the pipeline copies). Then, for each blend, its mean loss to the best constant k of each row
+and its worst row against the raw mean (issue 12 wants ≥ 0), and whether the shipped rule's PSNR rises
+with n in every scene. --radius and --cap-scale try other settings of the per-pixel rule.
+Denoiser: the model in --models (numpy packing, our WGSL engine); gold: our own render at --gold-spp
+(--gold-cache shares it with the other benchmarks).
 
-    python3 benchmarks/bench_converge.py [--scenes cornell cornell-glossy sun-room] [--size 96x96]
-        [--spp 1 2 4 8 16 32 64 128] [--k 4 8 16 24 32 64 128] [--gold-spp 8192] [--gold-cache DIR]
-        [--models DIR]
+    python3 benchmarks/bench_converge.py [--scenes cornell cornell-glossy sun-room world-2147483648 ...]
+        [--size 64x64] [--spp 2 4 8 16 64 256] [--k 8 32 128 512 2048] [--radius 2] [--cap-scale 1024]
+        [--gold-spp 4096] [--gold-cache DIR] [--models DIR]
 """
 
 from __future__ import annotations
@@ -24,21 +25,27 @@ from common import (add_gold_arguments, add_model_arguments, gold_render, load_s
                     print_table, resolve_models)
 
 from wgpu_rt import metrics
+from wgpu_rt.frame.converge import CONVERGE_CAP_SCALE, CONVERGE_RADIUS, converge, half_count
 from wgpu_rt.frame.denoise import denoise, load_model
-from wgpu_rt.frame.unpack import converge
 from wgpu_rt.renderer import parse_size, render
 
 
 def parse_args():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=["cornell", "cornell-glossy", "sun-room"])
-    parser.add_argument("--size", default="96x96")
-    parser.add_argument("--spp", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32, 64, 128])
-    parser.add_argument("--k", type=float, nargs="+", default=[4, 8, 16, 24, 32, 64, 128])
+    parser.add_argument("--size", default="64x64")
+    parser.add_argument("--spp", type=int, nargs="+", default=[2, 4, 8, 16, 64, 256])
+    parser.add_argument("--k", type=float, nargs="+", default=[8, 32, 128, 512, 2048])
+    parser.add_argument("--radius", type=int, default=CONVERGE_RADIUS)
+    parser.add_argument("--cap-scale", type=float, default=CONVERGE_CAP_SCALE)
     parser.add_argument("--max-depth", type=int, default=8)
-    add_gold_arguments(parser, default_spp=8192)
+    add_gold_arguments(parser, default_spp=4096)
     add_model_arguments(parser)
     return parser.parse_args()
+
+
+def mix(denoised, mean, weight):
+    return denoised + weight * (mean - denoised)
 
 
 def main() -> None:
@@ -47,25 +54,36 @@ def main() -> None:
     print_header(args)
     size = parse_size(args.size)
     model = load_model("denoiser", args.precision, args.models)
-    losses, below_brute = [], []   # per (scene, n): each blend's PSNR below the row's best, and above raw
+    names = [*(f"k={k:g}" for k in args.k), "n-only", "per-pixel"]
+    losses, above_raw, falls = [], [], []
     for scene in load_scenes(args.scenes):
         gold = gold_render(scene, size, args)
         rows = []
         for n in args.spp:
             noisy = render(scene, spp=n, size=size, max_depth=args.max_depth, seed=77,
                            aovs=("albedo", "normal", "depth"))
-            denoised = denoise(model, noisy.color, *(noisy.aovs[name] for name in ("albedo", "normal", "depth")), n)
-            blends = [metrics.psnr(gold, denoised + n / (n + k) * (noisy.color - denoised)) for k in args.k]
-            blends.append(metrics.psnr(gold, converge(denoised, noisy.color, np.full(size[::-1], n))))
-            raw = metrics.psnr(gold, noisy.color)
-            losses.append(max(blends) - np.array(blends))
-            below_brute.append(np.array(blends) - raw)
+            mean = noisy.color
+            first = half_count(n)
+            half = render(scene, spp=first, size=size, max_depth=args.max_depth, seed=77, aovs=()).color
+            denoised = denoise(model, mean, *(noisy.aovs[name] for name in ("albedo", "normal", "depth")), n)
+            constant = [metrics.psnr(gold, mix(denoised, mean, n / (n + k))) for k in args.k]
+            n_only = metrics.psnr(gold, mix(denoised, mean, n / (n + max(32.0, 2048.0 / n))))
+            counts = np.full(size[::-1], n)
+            per_pixel = metrics.psnr(gold, converge(denoised, mean, counts, half, counts // n * first,
+                                                    args.radius, args.cap_scale))
+            blends = np.array([*constant, n_only, per_pixel])
+            raw = metrics.psnr(gold, mean)
+            losses.append(max(constant) - blends)
+            above_raw.append(blends - raw)
             rows.append([n, raw, metrics.psnr(gold, denoised), *blends])
+        falls += [f"{scene.name} {a[0]}→{b[0]} spp {b[-1] - a[-1]:+.2f} dB" for a, b in zip(rows, rows[1:])
+                  if b[-1] < a[-1]]
         print_table(f"{scene.name} at {size[0]}x{size[1]}: PSNR dB against {args.gold_spp}-spp gold",
-                    ["spp", "raw mean", "denoised", *(f"k={k:g}" for k in args.k), "rule"], rows)
-    names = [*(f"k={k:g}" for k in args.k), "rule"]
-    print_table("mean PSNR loss to each row's best blend (all scenes and spp)", names, [list(np.mean(losses, axis=0))])
-    print_table("worst row against brute force at the same spp (dB)", names, [list(np.min(below_brute, axis=0))])
+                    ["spp", "raw mean", "denoised", *names], rows)
+    print_table("mean PSNR loss to each row's best constant k (all scenes and spp; < 0: better than it)", names,
+                [list(np.mean(losses, axis=0))])
+    print_table("worst row against brute force at the same spp (dB)", names, [list(np.min(above_raw, axis=0))])
+    print("per-pixel rule: PSNR falls with spp in " + ("; ".join(falls) if falls else "no scene"))
 
 
 if __name__ == "__main__":

@@ -5,11 +5,11 @@ device (an identity denoiser, a fixed heatmap), so the test checks the wiring, n
 import numpy as np
 import pytest
 
-from wgpu_rt.frame.adaptive import AdaptiveSettings
+from wgpu_rt.frame.adaptive import HALF_RADIANCE, AdaptiveSettings
 from wgpu_rt.frame.planes import DENOISER_INPUT
 from wgpu_rt.frame.temporal import TemporalSettings
 from wgpu_rt.frame.tonemap import tonemap
-from wgpu_rt.frame.unpack import converge
+from wgpu_rt.frame.converge import HALF_SPP, converge
 from wgpu_rt.passes import RADIANCE, SPP
 from wgpu_rt.renderer import Renderer, render
 from wgpu_rt.scene.builtin import builtin_scene
@@ -236,23 +236,34 @@ class ZeroDenoiser:
         return self.output
 
 
+def converged_planes(pipeline):
+    """The converge reference's inputs from ``pipeline``'s planes: radiance (H, W, 3), spp (H, W), the
+    copy of the radiance after part of the samples and that part's spp."""
+    read = pipeline.buffers.read
+    return (read(RADIANCE.name).transpose(1, 2, 0), read(SPP.name)[0], read(HALF_RADIANCE.name).transpose(1, 2, 0),
+            read(HALF_SPP.name)[0])
+
+
 def test_temporal_static_camera_fades_the_denoiser_as_samples_grow(gpu, scene):
-    """The converged frame is mix(denoised, sample mean, spp / (spp + max(converge_spp, converge_scale /
-    spp))): a black denoiser's frame is black on the first frame (a cut takes the denoised frame alone)
-    and half the 4-spp mean at 4 spp with converge_spp 2 and converge_scale 16."""
-    settings = TemporalSettings(converge_spp=2, converge_scale=16)
-    pipeline = make_pipeline(scene, gpu, denoiser=ZeroDenoiser(gpu), temporal=settings)
+    """Under a static camera the samples accumulate and each frame shows the converge pass's blend of
+    their mean and its denoised frame: a black denoiser's frame is black on the first frame (a cut takes
+    the denoised frame alone), then frame after frame brings in more of the mean, as the converge
+    reference says."""
+    pipeline = make_pipeline(scene, gpu, denoiser=ZeroDenoiser(gpu), temporal=True)
     first = pipeline.render(scene, 0).color
     assert first.max() == 0
-    for frame in range(1, 4):
+    shares, copies = [], []
+    for frame in range(1, 16):
         image = pipeline.render(scene, frame).color
-    radiance = pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0)
-    assert (pipeline.buffers.read(SPP.name) == 4).all() and radiance.max() > 0
-    np.testing.assert_allclose(image, 0.5 * radiance, rtol=1e-5, atol=1e-7)
-    spp = pipeline.buffers.read(SPP.name)[0]
-    np.testing.assert_allclose(image, converge(np.zeros_like(radiance), radiance, spp, settings.converge_spp,
-                                                       settings.converge_scale),
-                               rtol=1e-5, atol=1e-7)
+        radiance, spp, half, half_spp = converged_planes(pipeline)
+        assert (spp == frame + 1).all() and radiance.max() > 0
+        np.testing.assert_allclose(image, converge(np.zeros_like(radiance), radiance, spp, half, half_spp),
+                                   rtol=1e-4, atol=1e-6)
+        shares.append(image.sum() / radiance.sum())
+        copies.append(int(half_spp[0, 0]))
+    # the copy is taken again once the samples since it reach those before it: 1, 2, 4, 8 …
+    assert copies == [1, 2, 2, 4, 4, 4, 4, 8, 8, 8, 8, 8, 8, 8, 8]
+    assert 0 < shares[0] < 0.01 and shares[-1] > 0.1
 
 
 def test_moving_camera_traces_each_frame_afresh(gpu):
@@ -300,17 +311,40 @@ def test_readme_python_example_runs(gpu):
 
 
 def test_a_frame_of_several_samples_hands_over_from_the_denoiser_to_their_mean(gpu, scene):
-    """denoise at n > 1 spp: out = mix(denoised, mean, n / (n + max(32, 2048 / n))) (a black denoiser's
-    frame is the mean scaled by that: 4 / 516 at 4 spp); at 1 spp the denoised frame alone."""
-    for spp in (1, 4):
+    """denoise at n > 1 spp: the converge pass blends the denoised frame with the mean (a black
+    denoiser's frame is the mean scaled by the mean's weight: at most n² / (n² + 1024)); at 1 spp the
+    denoised frame alone."""
+    for spp in (1, 4, 32):
         pipeline = make_pipeline(scene, gpu, denoiser=ZeroDenoiser(gpu), spp=spp)
         image = pipeline.render(scene, 0).color
-        radiance = pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0)
-        counts = pipeline.buffers.read(SPP.name)[0]
+        if spp == 1:
+            assert image.max() == 0
+            continue
+        radiance, counts, half, half_spp = converged_planes(pipeline)
         assert (counts == spp).all() and radiance.max() > 0
-        expected = converge(np.zeros_like(radiance), radiance, counts) if spp > 1 else np.zeros_like(radiance)
-        np.testing.assert_allclose(image, expected, rtol=1e-5, atol=1e-7)
-        np.testing.assert_allclose(expected, radiance * (4 / 516 if spp == 4 else 0), rtol=1e-5, atol=1e-7)
+        assert (half_spp == spp // 2).all()
+        np.testing.assert_allclose(image, converge(np.zeros_like(radiance), radiance, counts, half, half_spp),
+                                   rtol=1e-4, atol=1e-6)
+        lit = radiance > 0.01
+        share = image[lit] / radiance[lit]
+        assert share.max() <= spp ** 2 / (spp ** 2 + 1024) * (1 + 1e-4) and share.mean() > 0.1 * spp ** 2 / (spp ** 2 + 1024)
+
+
+@pytest.mark.parametrize("sampler", ["variance", "heat"])
+def test_an_adaptive_frame_measures_its_means_error_against_the_probe(gpu, scene, sampler):
+    """An adaptive frame's converge pass reads the probe's mean as the copy (1 spp, 2 for the variance
+    sampler's two probe samples): pixels that took extra samples can hand over, the rest keep the
+    denoised frame."""
+    heat = np.random.default_rng(5).random((H, W)).astype(np.float32) + 0.1
+    pipeline = make_pipeline(scene, gpu, denoiser=ZeroDenoiser(gpu), error_predictor=FixedHeat(gpu, heat),
+                             adaptive=AdaptiveSettings(sampler=sampler, budget=4.0, pool_sigma=0.0, uniform_share=0.0))
+    image = pipeline.render(scene, 0).color
+    radiance, counts, half, half_spp = converged_planes(pipeline)
+    probe = 2 if sampler == "variance" else 1
+    assert (half_spp == probe).all() and (counts > probe).any() and (counts == probe).any()
+    np.testing.assert_allclose(image, converge(np.zeros_like(radiance), radiance, counts, half, half_spp),
+                               rtol=1e-4, atol=1e-6)
+    assert image[counts == probe].max() == 0 and image.max() > 0
 
 
 def test_wiring_is_checked_from_the_declared_planes(gpu):

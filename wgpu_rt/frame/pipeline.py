@@ -23,11 +23,12 @@ from ..errors import ModelError, WgpuRtError
 from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, FrameBuffers, PlaneSpec
 from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
+from .converge import CONVERGED, HALF_SPP, ConvergePass, half_count
 from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
 from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT
 from .temporal import TEMPORAL, TemporalPass, TemporalSettings, frame_change
 from .tonemap import TonemapPass
-from .unpack import CONVERGE_SPP, UnpackPass
+from .unpack import UnpackPass
 
 AOV_PLANES = {plane.name: plane for plane in (ALBEDO, NORMAL, DEPTH, MOTION, SPP)}
 SAMPLES_PER_SUBMIT = 1 << 21   # pixel samples per command buffer (a fraction of a second on lavapipe)
@@ -170,11 +171,14 @@ class FramePipeline:
         color = RADIANCE
         if denoiser is not None:
             self.pack = PackDenoiserPass(ctx, width, height, self.depth_max.result)
-            # A frame of several samples per pixel hands over from the denoiser to their mean as they
-            # grow; temporal mode does that itself across frames (its converge step).
-            converge = spp > 1 and adaptive is None and temporal is None
-            self.unpack = UnpackPass(ctx, width, height, CONVERGE_SPP if converge else None)
+            self.unpack = UnpackPass(ctx, width, height)
             color = DENOISED
+        # A frame of several samples per pixel hands over from the denoiser to their mean as they grow;
+        # temporal mode does that itself across frames (its converge step).
+        self.converge = None
+        if denoiser is not None and (spp > 1 or adaptive is not None) and temporal is None:
+            self.converge = ConvergePass(ctx, width, height)
+            color = CONVERGED
         self.temporal = None
         if temporal is not None:
             self.temporal = TemporalPass(ctx, width, height, color, temporal, confidence, self.depth_max.result)
@@ -197,11 +201,17 @@ class FramePipeline:
         self._submitted = 0
         self.previous_frame: int | None = None
         self.seed_frame = 0
+        # Under a static camera (temporal mode) the planes accumulate: samples per pixel they hold, and
+        # how many the converge pass's copy of them holds (it is taken again once the samples since the
+        # copy reach those before it, so the copy holds a quarter to a half of them).
+        self.accumulated = self.half_copied = 0
 
     def _stages(self) -> list:
         """What a frame runs after the tracer, in order, each with the planes it declares it reads and
         writes (networks and the pipeline's own copies included), for ``check_wiring``."""
         stages = [self.depth_max]
+        if self.converge is not None or self.temporal is not None:
+            stages.append(Stage("copy of part of the samples' mean", (RADIANCE, SPP), (HALF_RADIANCE, HALF_SPP)))
         if self.adaptive is not None:
             if self.adaptive.sampler == "variance":
                 stages += [Stage("copy of the first probe sample", (RADIANCE,), (HALF_RADIANCE,)),
@@ -211,6 +221,8 @@ class FramePipeline:
             stages.append(self.extra_samples)
         if self.denoiser is not None:
             stages += [self.pack, Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack]
+        if self.converge is not None:
+            stages.append(self.converge)
         if self.temporal is not None:
             stages.append(self.temporal)
         if self.tonemap is not None:
@@ -234,11 +246,11 @@ class FramePipeline:
         if self.timer:
             self.timer.mark(encoder, name)
 
-    def _uniform_batches(self, trace) -> list[int]:
-        """``spp`` split into the batches of one submit each (whole dispatches of the trace's chunks)."""
+    def _uniform_batches(self, trace, samples: int) -> list[int]:
+        """``samples`` split into the batches of one submit each (whole dispatches of the trace's chunks)."""
         chunk = trace.chunk_size
         per_submit = max(chunk, SAMPLES_PER_SUBMIT // (self.width * self.height) // chunk * chunk)
-        return [min(per_submit, self.spp - done) for done in range(0, self.spp, per_submit)]
+        return [min(per_submit, samples - done) for done in range(0, samples, per_submit)]
 
     def _trace(self, encoder, trace, keep_samples: bool):
         """Record this frame's samples (submitting all but the last batch of a large ``spp`` on their
@@ -248,15 +260,22 @@ class FramePipeline:
         if not keep_samples:
             trace.clear(encoder, buffers)
         if adaptive is None:
-            batches = self._uniform_batches(trace)
-            for batch in batches[:-1]:
-                trace.execute(encoder, buffers, SampleSchedule(samples=batch))
+            # A converging frame copies its mean after the first half of its samples (None below).
+            first = half_count(self.spp) if self.converge is not None else self.spp
+            steps = self._uniform_batches(trace, first)
+            if first < self.spp:
+                steps += [None, *self._uniform_batches(trace, self.spp - first)]
+            for step in steps[:-1]:
+                if step is None:
+                    self.converge.copy_half(encoder, buffers)
+                    continue
+                trace.execute(encoder, buffers, SampleSchedule(samples=step))
                 self.ctx.device.queue.submit([encoder.finish()])
                 if self.progress is not None:
                     self.ctx.read(buffers.get(SPP), np.uint32, nbytes=4)   # waits, so the bar tells time
-                    self.progress(batch)
+                    self.progress(step)
                 encoder = self.ctx.device.create_command_encoder(label="trace batch")
-            trace.execute(encoder, buffers, SampleSchedule(samples=batches[-1]))
+            trace.execute(encoder, buffers, SampleSchedule(samples=steps[-1]))
             self._mark(encoder, "trace")
             return encoder
         if adaptive.sampler == "variance":
@@ -273,6 +292,8 @@ class FramePipeline:
                 self.pack_error.execute(encoder, buffers)
                 heat = self.error_predictor.record(encoder, buffers.get(ERROR_INPUT), self.height, self.width)
                 encoder.copy_buffer_to_buffer(heat, 0, buffers.get(HEAT), 0, HEAT.nbytes(self.width, self.height))
+        if self.converge is not None:   # the probe is the part the converge pass measures the mean's error by
+            self.converge.copy_half(encoder, buffers)
         self.extra_samples.execute(encoder, buffers)
         self._mark(encoder, "sample map")
         # No sample_offset: the tracer already numbers these after the probe's (each pixel's spp), so
@@ -301,7 +322,13 @@ class FramePipeline:
         if self.timer:
             self.timer.start()
         self._mark(encoder, "start")
+        if not converging:
+            self.accumulated = self.half_copied = 0
+        elif self.accumulated >= 2 * self.half_copied:
+            self.temporal.converge.copy_half(encoder, self.buffers)
+            self.half_copied = self.accumulated
         encoder = self._trace(encoder, trace, keep_samples=converging)
+        self.accumulated += self.spp
         if self.aux_samples:
             trace.execute_aux(encoder, buffers, self.aux_samples)
             self._mark(encoder, "aux")
@@ -312,6 +339,9 @@ class FramePipeline:
             network_output = self.denoiser.record(encoder, buffers.get(DENOISER_INPUT), self.height, self.width)
             self._mark(encoder, "denoise")
             self.unpack.execute(encoder, buffers, network_output)
+        if self.converge is not None:
+            self.converge.execute(encoder, buffers)
+            self._mark(encoder, "converge")
         if self.temporal is not None:
             self.temporal.execute(encoder, buffers, "converge" if converging else change)
             self._mark(encoder, "temporal")

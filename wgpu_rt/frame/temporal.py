@@ -20,11 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import WgpuRtError
-from ..passes import DEPTH, MOTION, NORMAL, RADIANCE, SPP, ComputePass, PlaneSpec
+from ..passes import DEPTH, MOTION, NORMAL, ComputePass, PlaneSpec
+from .converge import CONVERGED, ConvergePass
 from .kernel import FrameKernel, finite, nonnegative_finite
 from .pack import PackConfidencePass
 from .planes import CONFIDENCE_INPUT
-from .unpack import CONVERGE_SCALE, CONVERGE_SPP
 
 CLAMP_MODES = ("none", "box", "variance")
 HISTORY = PlaneSpec("history", 8)           # RGB, depth, normal xyz, history length
@@ -36,7 +36,7 @@ ENTRY_BINDINGS = {
     "reproject": ("depth", "normal", "motion", "history", "reprojected"),
     "blend": ("color", "depth", "normal", "history", "reprojected", "confidence", "output"),
     "accumulate": ("color", "depth", "normal", "history", "output"),
-    "converge": ("color", "depth", "normal", "history", "output", "samples_mean", "spp"),
+    "converge": ("color", "depth", "normal", "history", "output"),
 }
 CUT_ANGLE_DEGREES = 30.0
 CUT_DISTANCE_FRACTION = 0.25
@@ -51,10 +51,6 @@ class TemporalSettings:
     # 0.0047 → 0.0035 at 64², disocclusion error unchanged).
     gamma: float = 2.0
     max_frames: int = 32           # α never drops below 1/max_frames
-    # Static camera: the raw n-sample mean's share against the denoised frame of it is n / (n +
-    # max(converge_spp, converge_scale / n)) (unpack.converge, where the defaults are fitted).
-    converge_spp: float = CONVERGE_SPP
-    converge_scale: float = CONVERGE_SCALE
     depth_tolerance: float = 0.05  # relative depth difference that still counts as the same surface
     normal_threshold: float = 0.9  # smallest normal dot product that counts as the same surface
     # Confidence at or below this keeps no history; above it, trust rises linearly to 1. The network
@@ -68,18 +64,14 @@ class TemporalSettings:
     def __post_init__(self):
         if self.clamp not in CLAMP_MODES:
             raise WgpuRtError(f"temporal clamp {self.clamp!r} is not one of {', '.join(CLAMP_MODES)}")
-        if not (self.max_frames >= 1 and self.gamma > 0 and self.converge_spp > 0 and self.converge_scale >= 0
-                and 0 <= self.confidence_floor < 1):
-            raise WgpuRtError(f"temporal max_frames must be ≥ 1, gamma and converge_spp > 0, converge_scale ≥ 0, "
-                              f"confidence_floor in [0, 1), got {self.max_frames}, {self.gamma}, "
-                              f"{self.converge_spp}, {self.converge_scale}, {self.confidence_floor}")
+        if not (self.max_frames >= 1 and self.gamma > 0 and 0 <= self.confidence_floor < 1):
+            raise WgpuRtError(f"temporal max_frames must be ≥ 1, gamma > 0, confidence_floor in [0, 1), got "
+                              f"{self.max_frames}, {self.gamma}, {self.confidence_floor}")
 
     def constants(self) -> dict:
         return {"CLAMP_MODE": CLAMP_MODES.index(self.clamp), "GAMMA": self.gamma,
                 "MAX_FRAMES": self.max_frames, "DEPTH_TOLERANCE": self.depth_tolerance,
-                "NORMAL_THRESHOLD": self.normal_threshold, "CONVERGE_SPP": self.converge_spp,
-                "CONVERGE_SCALE": self.converge_scale,
-                "CONFIDENCE_FLOOR": self.confidence_floor}
+                "NORMAL_THRESHOLD": self.normal_threshold, "CONFIDENCE_FLOOR": self.confidence_floor}
 
 
 def frame_change(scene, previous_frame: int | None, frame: int) -> str:
@@ -209,7 +201,8 @@ class TemporalPass(ComputePass):
             raise ValueError("a confidence model needs the frame's depth_max buffer")
         self.ctx, self.width, self.height = ctx, width, height
         self.source, self.settings, self.confidence = source, settings, confidence
-        self.inputs = (source, DEPTH, NORMAL, MOTION, RADIANCE, SPP)
+        self.converge = ConvergePass(ctx, width, height, source)
+        self.inputs = (source, DEPTH, NORMAL, MOTION, *self.converge.inputs[1:])
         constants = {**settings.constants(), "USE_CONFIDENCE": confidence is not None}
         self.kernels = {entry: FrameKernel(ctx, "frame/temporal.wgsl", entry, bindings, width, height,
                                            constants)
@@ -222,8 +215,8 @@ class TemporalPass(ComputePass):
                   "normal": buffers.get(NORMAL), "history": buffers.get(HISTORY),
                   "output": buffers.get(TEMPORAL)}
         if change == "converge":
-            self.kernels["converge"].dispatch(encoder, planes | {"samples_mean": buffers.get(RADIANCE),
-                                                                 "spp": buffers.get(SPP)})
+            self.converge.execute(encoder, buffers)
+            self.kernels["converge"].dispatch(encoder, planes | {"color": buffers.get(CONVERGED)})
             return
         if change in ("cut", "static"):
             if change == "cut":

@@ -1,21 +1,66 @@
-// The denoised frame of an n-sample mean, blended with that mean: out = mix(denoised, mean, n / (n + k))
-// with k = max(CONVERGE_SPP, CONVERGE_SCALE / n): the denoiser counts as k samples. Inverse-variance
-// weights when its error equals that of k samples while the mean's variance falls as 1/n: the denoiser
-// leads at low spp and hands over to the samples as they converge. k is large at a few spp, where a
-// firefly in the mean would come through any sizeable weight, and CONVERGE_SPP from
-// sqrt(CONVERGE_SCALE) spp on (fitted: wgpu_rt/frame/unpack.py). Used by unpack (a frame of n spp)
-// and by temporal's converge step (a static view accumulating samples frame after frame).
+// The denoised frame of an n-sample mean, blended with that mean per pixel by how far each can be
+// trusted, measured in the pixel's neighbourhood (RADIUS; the window shrinks at the image's edges).
+// The mean's error comes from a copy of it taken after its first h samples (the half planes):
+// the two parts' means differ by m_h − m_rest, so σ² ≈ (m − m_h)² · h / (n − h) estimates the
+// variance of the n-sample mean (exact in expectation for independent samples; for the tracer's
+// stratified sequence both parts are stratified alike, so it follows the error the sequence really
+// has, where the samples' own spread would overstate it). Then, averaged over the window,
+//   D² = the squared difference between denoised frame and mean,
+//   e² = max(D² − σ², 0): the denoiser's own squared error (D² ≈ e² + σ² when the errors are independent),
+//   out = mix(denoised, mean, w), w = min(e² / (e² + σ²), n² / (n² + CAP_SCALE)),
+// per channel: inverse-variance weights, so a converged mean takes over where the denoiser is biased,
+// while one whose parts disagree (a firefly) leaves the denoised value. The cap keeps the mean out at
+// a few spp, where an estimate from so few samples cannot be trusted. Only pixels with samples after
+// the copy (n > h) have an estimate: the window's averages leave the others out, and such a pixel
+// keeps its denoised value. Fitted with benchmarks/bench_converge.py (wgpu_rt/frame/converge.py).
 // #import frame/common.wgsl
 
-override CONVERGE_SPP: f32 = 32.0;
-override CONVERGE_SCALE: f32 = 2048.0;
+override RADIUS: i32 = 2;
+override CAP_SCALE: f32 = 1024.0;
 
-@group(0) @binding(8) var<storage, read> samples_mean: array<f32>;
-@group(0) @binding(9) var<storage, read> spp: array<u32>;
+@group(0) @binding(0) var<storage, read> denoised: array<f32>;
+@group(0) @binding(1) var<storage, read> samples_mean: array<f32>;
+@group(0) @binding(2) var<storage, read> spp: array<u32>;
+@group(0) @binding(3) var<storage, read> half_mean: array<f32>;
+@group(0) @binding(4) var<storage, read> half_spp: array<u32>;
+@group(0) @binding(5) var<storage, read_write> converged: array<f32>;
 
-fn converged(i: u32, denoised: vec3f) -> vec3f {
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) id: vec3u) {
+    if (!in_frame(id)) { return; }
     let n = pixel_count();
-    let mean = vec3f(sanitize(samples_mean[i]), sanitize(samples_mean[n + i]), sanitize(samples_mean[2u * n + i]));
+    let i = pixel_index(id);
+    let low = max(vec2i(id.xy) - RADIUS, vec2i(0));
+    let high = min(vec2i(id.xy) + RADIUS, vec2i(i32(WIDTH), i32(HEIGHT)) - 1);
+    var variance = vec3f(0.0);
+    var difference = vec3f(0.0);
+    var window = 0.0;
+    for (var y = low.y; y <= high.y; y++) {
+        for (var x = low.x; x <= high.x; x++) {
+            let j = u32(y) * WIDTH + u32(x);
+            let first = half_spp[j];
+            if (spp[j] <= first) { continue; }
+            window += 1.0;
+            for (var c = 0u; c < 3u; c++) {
+                let mean = sanitize(samples_mean[c * n + j]);
+                let split = mean - sanitize(half_mean[c * n + j]);
+                variance[c] += split * split * f32(first) / f32(spp[j] - first);
+                let d = sanitize(denoised[c * n + j]) - mean;
+                difference[c] += d * d;
+            }
+        }
+    }
+    let estimated = spp[i] > half_spp[i];
     let samples = f32(max(spp[i], 1u));
-    return mix(denoised, mean, samples / (samples + max(CONVERGE_SPP, CONVERGE_SCALE / samples)));
+    let cap = samples * samples / (samples * samples + CAP_SCALE);
+    for (var c = 0u; c < 3u; c++) {
+        let sigma2 = variance[c] / max(window, 1.0);
+        let error2 = max(difference[c] / max(window, 1.0) - sigma2, 0.0);
+        var weight = cap;
+        if (error2 + sigma2 > 0.0) { weight = min(error2 / (error2 + sigma2), cap); }
+        // overflowed sums (inf − inf, inf / inf) must not reach the image: the denoised value stands
+        if (!estimated || !is_finite(sigma2) || !is_finite(error2) || !is_finite(weight)) { weight = 0.0; }
+        let d = sanitize(denoised[c * n + i]);
+        converged[c * n + i] = d + weight * (sanitize(samples_mean[c * n + i]) - d);
+    }
 }

@@ -15,11 +15,10 @@
 //   accumulate: static camera and scene: no reprojection or clamping, α = max(1/(length+1), 1/MAX_FRAMES)
 //               per pixel (a cleared history, length 0, makes it a reset).
 //   converge:   static view whose tracer planes keep accumulating (the frame pipeline's temporal mode):
-//               the denoised frame of the n-sample mean is blended with that mean (frame/converge.wgsl).
-//               The result replaces the history (length 1).
+//               the colour given is the converge pass's blend of the n-sample mean and its denoised
+//               frame (frame/converge.wgsl); it replaces the history (length 1).
 // Every path writes the output plane and the new history; NaN/Inf in the current frame count as 0.
 // #import frame/common.wgsl
-// #import frame/converge.wgsl
 
 override CLAMP_MODE: u32 = 2u;
 override GAMMA: f32 = 1.0;
@@ -167,5 +166,5 @@ fn accumulate(@builtin(global_invocation_id) id: vec3u) {
 fn converge(@builtin(global_invocation_id) id: vec3u) {
     if (!in_frame(id)) { return; }
     let i = pixel_index(id);
-    write_result(i, converged(i, current_color(i)), 1.0);
+    write_result(i, current_color(i), 1.0);
 }

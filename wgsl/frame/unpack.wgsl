@@ -1,14 +1,11 @@
 // The denoiser's output back to linear radiance: expm1 of its log1p irradiance, remodulated by the
 // albedo factor pack_denoiser divided by (frame/albedo.wgsl). NaN/±Inf in the network's output become 0,
 // and the log value is clamped to [0, 88] first, so the result is finite (expm1(88) · 1.01 ≈ 1.67e38 <
-// f32 max) and non-negative (a network may undershoot below log1p(0) = 0). With CONVERGE (a frame of more
-// than one sample per pixel), the result is blended with the sample mean by frame/converge.wgsl.
+// f32 max) and non-negative (a network may undershoot below log1p(0) = 0).
 // #import frame/common.wgsl
 // #import frame/albedo.wgsl
-// #import frame/converge.wgsl
 
 const MAX_LOG_RADIANCE: f32 = 88.0;
-override CONVERGE: bool = false;
 
 @group(0) @binding(0) var<storage, read> network_output: array<f32>;
 @group(0) @binding(1) var<storage, read> albedo: array<f32>;
@@ -24,6 +21,5 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
         let log_irradiance = clamp(finite_or_zero(network_output[c * n + i]), 0.0, MAX_LOG_RADIANCE);
         denoised[c] = expm1_accurate(log_irradiance) * albedo_factor(albedo[c * n + i]);
     }
-    if (CONVERGE) { denoised = converged(i, denoised); }
     for (var c = 0u; c < 3u; c++) { radiance[c * n + i] = denoised[c]; }
 }

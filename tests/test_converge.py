@@ -1,0 +1,96 @@
+"""The converge pass (wgpu_rt/frame/converge.py): its kernel against the numpy reference, and what the
+rule promises: a converged mean takes over from a biased denoiser (up to the cap), a mean whose two
+parts disagree (a firefly) does not, a few samples barely count, and nothing non-finite comes out."""
+
+import numpy as np
+import pytest
+from parity import check_parity
+
+from wgpu_rt.frame.adaptive import HALF_RADIANCE
+from wgpu_rt.frame.converge import CONVERGE_CAP_SCALE, CONVERGED, HALF_SPP, ConvergePass, converge
+from wgpu_rt.frame.planes import DENOISED, write_plane
+from wgpu_rt.passes import RADIANCE, SPP, FrameBuffers
+
+
+def converge_on_gpu(gpu, denoised, mean, half, spp, half_spp):
+    height, width = spp.shape
+    buffers = FrameBuffers(gpu, width, height)
+    for plane, image in ((DENOISED, denoised), (RADIANCE, mean), (HALF_RADIANCE, half)):
+        write_plane(buffers, plane, image)
+    write_plane(buffers, SPP, spp.astype(np.uint32))
+    write_plane(buffers, HALF_SPP, half_spp.astype(np.uint32))
+    encoder = gpu.device.create_command_encoder()
+    ConvergePass(gpu, width, height).execute(encoder, buffers)
+    gpu.device.queue.submit([encoder.finish()])
+    return buffers.read(CONVERGED.name).transpose(1, 2, 0)
+
+
+def random_frame(shape, seed=0):
+    """A mean, its copy after part of the samples (far off where a firefly came later), a denoised
+    frame near the mean, per-pixel sample counts 1–300 and the copy's counts (some pixels with no
+    samples after it)."""
+    rng = np.random.default_rng(seed)
+    height, width = shape
+    mean = rng.gamma(2.0, 0.3, (height, width, 3)).astype(np.float32)
+    off = np.where(rng.random((height, width, 1)) < 0.1, 0.9, 0.05) * rng.uniform(-1, 1, mean.shape)
+    half = (mean * (1 + off)).astype(np.float32)
+    denoised = (mean * rng.uniform(0.7, 1.3, mean.shape)).astype(np.float32)
+    spp = rng.integers(1, 300, (height, width))
+    half_spp = np.where(rng.random((height, width)) < 0.03, spp, spp // 2)
+    return denoised, mean, half, spp, half_spp
+
+
+@pytest.mark.parametrize("shape", [(16, 16), (13, 21), (3, 5)])
+def test_kernel_matches_reference(gpu, shape):
+    denoised, mean, half, spp, half_spp = random_frame(shape)
+    check_parity(None, lambda *x: converge(*x[:2], spp, x[2], half_spp),
+                 lambda *x: converge_on_gpu(gpu, *x, spp, half_spp),
+                 inputs=[denoised, mean, half], atol=1e-5, rtol=1e-4, name=f"converge {shape}")
+
+
+def test_non_finite_inputs_give_finite_output_as_the_reference(gpu):
+    denoised, mean, half, spp, half_spp = random_frame((16, 16), seed=1)
+    half_spp[:] = spp // 2
+    denoised[0, 0], mean[1, 1], half[2, 2] = np.nan, np.inf, -np.inf
+    mean[9, 9] = 2e19        # squares overflow f32
+    half[12, 12] = 3e38
+    ours = converge_on_gpu(gpu, denoised, mean, half, spp, half_spp)
+    assert np.all(np.isfinite(ours)) and np.all(ours >= 0)
+    np.testing.assert_allclose(ours, converge(denoised, mean, spp, half, half_spp), rtol=1e-4, atol=1e-5)
+
+
+def test_a_converged_mean_takes_over_a_biased_denoiser_up_to_the_cap():
+    """The two parts of the mean agree closely and the denoised frame is 20 % off: the mean's share
+    is the cap, n² / (n² + CAP_SCALE)."""
+    mean = np.full((8, 8, 3), 0.5, np.float32)
+    for n in (4, 64, 256):
+        spp = np.full((8, 8), n)
+        out = converge(mean * 1.2, mean, spp, mean * 1.001, spp // 2)
+        share = (mean * 1.2 - out) / (mean * 0.2)
+        np.testing.assert_allclose(share, n * n / (n * n + CONVERGE_CAP_SCALE), rtol=1e-3)
+
+
+def test_a_firefly_leaves_the_denoised_value():
+    """A pixel whose second half brought a firefly (its two parts disagree by as much as the mean
+    differs from the denoised frame) keeps almost all of the denoised value however many samples."""
+    denoised = np.full((8, 8, 3), 0.5, np.float32)
+    mean, half = denoised.copy(), denoised.copy()
+    mean[4, 4] = 40.0
+    out = converge(denoised, mean, np.full((8, 8), 256), half, np.full((8, 8), 128))
+    assert abs(out[4, 4, 0] - 0.5) < 0.05 * (40.0 - 0.5)
+
+
+def test_pixels_without_samples_after_the_copy_keep_the_denoised_value_and_are_left_out():
+    """Such a pixel (an adaptive map's pixel that took no extra samples) has no estimate of its mean's
+    error: it keeps the denoised value, and its neighbours' averages leave it out (its stale copy would
+    otherwise read as a huge error of the mean)."""
+    denoised, mean, half, spp, _ = random_frame((8, 8), seed=2)
+    np.testing.assert_allclose(converge(denoised, mean, spp, half, spp), denoised, rtol=1e-6, atol=1e-7)
+    mean = np.full((8, 8, 3), 0.5, np.float32)
+    spp, half_spp = np.full((8, 8), 64), np.full((8, 8), 32)
+    half_spp[:, :4] = spp[:, :4]                       # the left half took nothing after the copy
+    stale = mean.copy()
+    stale[:, :4] = 100.0
+    out = converge(mean * 1.2, mean, spp, stale, half_spp)
+    np.testing.assert_allclose(out[:, :4], mean[:, :4] * 1.2)
+    np.testing.assert_allclose(out[:, 4:], converge(mean * 1.2, mean, spp, mean, spp // 2)[:, 4:], rtol=1e-6)

@@ -1,0 +1,98 @@
+"""Converge: a frame of n samples per pixel shown as its denoised frame blended with the raw mean, per
+pixel, by how much each can be trusted there (wgsl/frame/converge.wgsl has the rule). The mean's
+error is estimated from a copy of the running mean taken after its first h samples (HALF_RADIANCE and
+HALF_SPP, which the frame pipeline copies: after the first half of a frame's samples, or under a
+static camera whenever the samples since the last copy reach those before it); the denoiser's error is
+what the difference between the two frames holds beyond that, both averaged over the pixels of a
+(2·RADIUS + 1)² window that took samples after the copy. Used for a frame of several spp and by
+temporal mode's static camera."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..passes import RADIANCE, SPP, ComputePass, PlaneSpec
+from .adaptive import HALF_RADIANCE
+from .kernel import FrameKernel, nonnegative_finite
+from .planes import DENOISED
+
+CONVERGED = PlaneSpec("converged", 3)
+HALF_SPP = PlaneSpec("half_spp", 1, "u32")   # the samples HALF_RADIANCE holds
+# Fitted with benchmarks/bench_converge.py (BENCHMARKS.md §8): 64², 2–256 spp, 4096-spp gold, cornell,
+# cornell-glossy, sun-room and twelve held-out worlds. The 5×5 window and the cap's scale of 1024 (the
+# mean gets at most 4/(4 + 256) of a 4-spp frame, 0.8 of a 64-spp one) were chosen on a numpy
+# prototype among radii 1–5 and scales 256–4096.
+CONVERGE_RADIUS = 2
+CONVERGE_CAP_SCALE = 1024.0
+F32_MAX = float(np.finfo(np.float32).max)
+
+
+def half_count(n: int) -> int:
+    """The samples after which a frame of ``n`` spp copies its running mean: n // 2."""
+    return n // 2
+
+
+def window_sums(image: np.ndarray, radius: int, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W, C) sums of ``image`` over the ``valid`` (H, W, 1) pixels of each pixel's (2·radius + 1)²
+    window, cut at the image's edges (float64), and (H, W, 1) how many there are."""
+    height, width = image.shape[:2]
+    padded = np.pad(np.where(valid, np.asarray(image, np.float64), 0.0), ((radius, radius), (radius, radius), (0, 0)))
+    inside = np.pad(valid.astype(np.float64), ((radius, radius), (radius, radius), (0, 0)))
+    sums, counts = np.zeros((height, width, image.shape[2])), np.zeros((height, width, 1))
+    for dy in range(2 * radius + 1):
+        for dx in range(2 * radius + 1):
+            sums += padded[dy:dy + height, dx:dx + width]
+            counts += inside[dy:dy + height, dx:dx + width]
+    return sums, counts
+
+
+def converge(denoised, samples_mean, spp, half_mean, half_spp, radius: int = CONVERGE_RADIUS,
+             cap_scale: float = CONVERGE_CAP_SCALE) -> np.ndarray:
+    """Numpy reference of the converge pass: (H, W, 3) denoised frame and mean of ``spp`` (H, W) samples,
+    and the mean of their first ``half_spp`` (H, W) → (H, W, 3) blend, finite and ≥ 0."""
+    denoised = nonnegative_finite(denoised).astype(np.float64)
+    mean = nonnegative_finite(samples_mean).astype(np.float64)
+    half = nonnegative_finite(half_mean).astype(np.float64)
+    spp, first = np.asarray(spp, np.int64)[..., None], np.asarray(half_spp, np.int64)[..., None]
+    estimated = spp > first
+    with np.errstate(over="ignore", invalid="ignore"):
+        each = (mean - half) ** 2 * first / np.maximum(spp - first, 1)
+    variance_sums, window = window_sums(each, radius, estimated)
+    difference_sums, _ = window_sums((denoised - mean) ** 2, radius, estimated)
+    window = np.maximum(window, 1.0)
+    sigma2 = variance_sums / window
+    error2 = np.maximum(difference_sums / window - sigma2, 0.0)
+    samples = np.maximum(spp, 1).astype(np.float64)
+    cap = samples ** 2 / (samples ** 2 + cap_scale)
+    total = error2 + sigma2
+    weight = np.where(total > 0, np.minimum(error2 / np.where(total > 0, total, 1.0), cap), cap)
+    # where the kernel's f32 sums overflow, it keeps the denoised value
+    overflow = (variance_sums > F32_MAX) | (difference_sums > F32_MAX) | (total > F32_MAX)
+    weight = np.where(overflow | ~estimated, 0.0, weight)
+    return (denoised + weight * (mean - denoised)).astype(np.float32)
+
+
+class ConvergePass(ComputePass):
+    """``source`` (a denoised frame), the tracer's radiance and spp planes and their copies after the first
+    part of the samples (HALF_RADIANCE, HALF_SPP) → converged (3 planes)."""
+
+    outputs = (CONVERGED,)
+
+    def __init__(self, ctx, width: int, height: int, source: PlaneSpec = DENOISED):
+        self.source = source
+        self.inputs = (source, RADIANCE, SPP, HALF_RADIANCE, HALF_SPP)
+        self.width, self.height = width, height
+        self.kernel = FrameKernel(ctx, "frame/converge.wgsl", "main",
+                                  ("denoised", "samples_mean", "spp", "half_mean", "half_spp", "converged"),
+                                  width, height, {"RADIUS": CONVERGE_RADIUS, "CAP_SCALE": CONVERGE_CAP_SCALE})
+
+    def copy_half(self, encoder, buffers) -> None:
+        """Record the copy of the running mean and its counts that the blend measures the mean's error by."""
+        for source, copy in ((RADIANCE, HALF_RADIANCE), (SPP, HALF_SPP)):
+            encoder.copy_buffer_to_buffer(buffers.get(source), 0, buffers.get(copy), 0,
+                                          source.nbytes(self.width, self.height))
+
+    def execute(self, encoder, buffers) -> None:
+        self.kernel.dispatch(encoder, {"denoised": buffers.get(self.source), "samples_mean": buffers.get(RADIANCE),
+                                       "spp": buffers.get(SPP), "half_mean": buffers.get(HALF_RADIANCE),
+                                       "half_spp": buffers.get(HALF_SPP), "converged": buffers.get(CONVERGED)})
