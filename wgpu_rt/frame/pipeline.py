@@ -173,8 +173,9 @@ class FramePipeline:
             self.pack = PackDenoiserPass(ctx, width, height, self.depth_max.result)
             self.unpack = UnpackPass(ctx, width, height)
             color = DENOISED
-        # A frame of several samples per pixel hands over from the denoiser to their mean as they grow;
-        # temporal mode does that itself across frames (its converge step).
+        # A frame of several samples per pixel (uniform or an adaptive map) hands over from the denoiser to
+        # their mean where that has converged (frame/converge.py); temporal mode does that itself across
+        # frames (its converge step).
         self.converge = None
         if denoiser is not None and (spp > 1 or adaptive is not None) and temporal is None:
             self.converge = ConvergePass(ctx, width, height)
