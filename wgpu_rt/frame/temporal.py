@@ -5,8 +5,9 @@ to the previous one (``frame_change``): a cut (first frame, skipped frames, a ca
 history; a static camera over a static scene accumulates plainly (no reprojection or clamping, so noise
 averages out over up to ``max_frames`` frames); anything else reprojects and blends. ``converge`` (set
 by the frame pipeline, which keeps accumulating the tracer's samples under a static camera, so the
-source is the denoised mean of all of them) blends that frame with the raw sample mean by spp and takes
-the result whole as the new history.
+source is the denoised mean of all of them) runs the converge pass (``frame/converge.py``: per pixel, the
+raw mean where it has converged, the denoised frame where not) and takes the result whole as the new
+history.
 
 Confidence (the optional Confidence Predictor's output c) is read as trust in the history: α =
 mix(1, 0.01, t) with t = max(c − floor, 0) / (1 − floor), so 1 keeps 99 % history and anything at or
@@ -187,7 +188,8 @@ class TemporalPass(ComputePass):
     """``source`` (the denoised frame), depth, normal, motion, history → temporal (3 planes), history.
 
     Each execute is told the frame's ``change`` (``frame_change``'s answer, or ``converge``: the source is
-    the denoised mean of every sample of a static view, in the radiance and spp planes). With a
+    the denoised mean of every sample of a static view, in the radiance and spp planes, and the pipeline
+    keeps the converge pass's copy of them, ``self.converge.copy_half``). With a
     ``confidence`` network (an object with ``record(encoder, input_buffer, height, width) ->
     output_buffer``, such as ``wgpu_rt.nn.WgslModel``) and the frame's ``depth_max`` buffer, moving frames run the Confidence
     Predictor on the packed (current, reprojected) pair and blend by its output.
