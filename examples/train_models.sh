@@ -4,7 +4,8 @@
 # with model cards into models/. Resumable: rerun after an interruption and finished work is kept.
 # About 7.5 hours on 2 shared cores (renders ~2 h, denoiser 48 min + three fine-tunes of 25, 27 and 39 min,
 # the two small networks minutes, then ~10 min of generated-world renders and a 47-min fine-tune on them,
-# then ~55 min of renders at several spp and two 13-min fine-tunes for the sample-count input);
+# then ~55 min of renders at several spp and two 13-min fine-tunes for the sample-count input, then ~40
+# min of generated-world sequences and a 2-min confidence model on them);
 # scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,6 +22,8 @@ BUILTIN_DATA=${BUILTIN_DATA:-data/builtin-train}   # round 4: built-in views at 
 WORLDS_SPP_DATA=${WORLDS_SPP_DATA:-data/worlds-spp}     # round 5: worlds at 1-64 spp
 WORLDS_SPP_DATA2=${WORLDS_SPP_DATA2:-data/worlds-spp2}
 BUILTIN_SPP_DATA=${BUILTIN_SPP_DATA:-data/builtin-spp}  # round 5: built-in views at 1-64 spp
+WORLDS_SEQ_DATA=${WORLDS_SEQ_DATA:-data/worlds-seq}     # round 6: generated-world sequences (confidence)
+BUILTIN_SEQ_DATA=${BUILTIN_SEQ_DATA:-data/builtin-seq}
 COPIES=${COPIES:-16}            # independent 1-spp renders per frame for the last fine-tune
 EXTRA_VIEWS=${EXTRA_VIEWS:-12}  # per scene: 10 train, 1 val, 1 test (the test views are never used)
 SEQ_DATA=${SEQ_DATA:-data/dataset-seq}   # + seed: confidence-model sequences (seeds 5 and 6)
@@ -114,3 +117,11 @@ time OMP_NUM_THREADS=2 $NICE wgpu-rt train denoiser --data "$BUILTIN_SPP_DATA" -
     "$WORLDS_DATA" "$WORLDS_SPP_DATA" "$WORLDS_SPP_DATA2" --out "$OUT" --checkpoints "$CHECKPOINTS/denoiser-spp2" \
     --resume --init-from "$CHECKPOINTS/denoiser-spp/denoiser.onnx" --epochs 150 --batch 4 --crop 64 96 \
     --widths 16 32 64 128 --lr 2e-4 --curriculum any --ssim-space display --validate-every 25
+# Round 6: the confidence model again, now on what the round-5 denoiser makes of 48 generated-world
+# sequences (3 frames each) and 20 built-in ones, at 96² (its earlier data: built-in sequences only).
+$NICE wgpu-rt dataset --worlds 48 --family training --size 96 --spp 1 --gold 256 --sequence-fraction 1 --seed 7 \
+    --out "$WORLDS_SEQ_DATA" --quiet
+$NICE wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views 5 --size 96 --spp 1 --gold 128 \
+    --sequence-fraction 1 --seed 5 --out "$BUILTIN_SEQ_DATA" --quiet
+time $NICE wgpu-rt train confidence --data "$WORLDS_SEQ_DATA" --extra-data "$BUILTIN_SEQ_DATA" --out "$OUT" \
+    --checkpoints "$CHECKPOINTS/confidence-worlds" --resume --epochs 60 --batch 4 --crop 64 128 --lr 3e-3
