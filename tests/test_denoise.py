@@ -105,6 +105,39 @@ def test_the_sample_count_comes_from_the_spp_layer_or_the_flag(gpu, tmp_path, ca
     assert not (tmp_path / "b.exr").exists()
 
 
+def test_a_render_with_half_layers_hands_over_as_the_fused_frame_does(gpu, tmp_path, capsys):
+    """`wgpu-rt render --aov …,half_radiance,half_spp` writes the mean after the first half of the
+    samples; `wgpu-rt denoise` then blends per pixel with the converge reference, as a denoised render of
+    that many spp does on the device. One half layer without the other is one line naming the file."""
+    pytest.importorskip("wgpu_rt.nn")
+    from wgpu_rt.frame.converge import converge
+    from wgpu_rt.frame.denoise import denoise, load_model
+    from wgpu_rt.renderer import render
+
+    torch.manual_seed(2)
+    model_path = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    noisy = tmp_path / "noisy.exr"
+    assert main(["render", "cornell", "--spp", "8", "--size", "16x12", "--seed", "4", "--out", str(noisy),
+                 "--aov", "albedo,normal,depth,spp,half_radiance,half_spp"]) == 0
+    layers = read_exr(noisy)
+    assert (layers["half_spp"] == 4).all() and (layers["spp"] == 8).all()
+    half = render("cornell", spp=4, size=(16, 12), seed=4, aovs=()).color   # the same first 4 samples
+    np.testing.assert_allclose(layers["half_radiance"], half, rtol=1e-5, atol=1e-6)
+    assert main(["denoise", str(noisy), "--out", str(tmp_path / "o.exr"), "--model", str(model_path)]) == 0
+    model = load_model("denoiser", path=model_path)
+    aux = [layers[name] for name in ("albedo", "normal", "depth")]
+    denoised = denoise(model, layers["color"], *aux, layers["spp"])
+    expected = converge(denoised, layers["color"], np.full((12, 16), 8), half, np.full((12, 16), 4))
+    np.testing.assert_allclose(read_exr(tmp_path / "o.exr")["color"], expected, rtol=1e-5, atol=1e-6)
+    assert not np.allclose(expected, denoised, atol=1e-4)
+
+    write_exr(tmp_path / "one.exr", layers["color"], {k: v for k, v in layers.items() if k not in ("color", "half_spp")})
+    capsys.readouterr()
+    assert main(["denoise", str(tmp_path / "one.exr"), "--out", str(tmp_path / "b.exr"), "--model", str(model_path)]) == 2
+    assert f"{tmp_path / 'one.exr'}: layer 'half_radiance' needs layer 'half_spp' too" in capsys.readouterr().err
+    assert not (tmp_path / "b.exr").exists()
+
+
 def test_nan_and_inf_in_the_layers_are_zeroed_with_one_warning_each(gpu, tmp_path, capfd):
     pytest.importorskip("wgpu_rt.nn")
     import OpenEXR

@@ -151,3 +151,14 @@ def test_png_reads_back_no_hdr_colour_and_exr_still_does(gpu, tmp_path, monkeypa
     pixels = np.asarray(Image.open(tmp_path / "c.png").convert("RGB")).astype(int)
     expected = tonemap(color, "aces").astype(int)[..., :3]
     assert np.abs(pixels - expected).max() <= 1
+
+
+def test_half_layers_are_refused_in_temporal_mode(tmp_path, capsys):
+    """The half_* AOVs are one frame's copy after half its samples; temporal mode keeps its own across
+    frames, so asking for them there is one line naming the AOV and no output."""
+    out = tmp_path / "x.exr"
+    assert main(["render", "cornell", "--size", "8x8", "--denoise", "--temporal", "--aov", "spp,half_spp",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "AOV 'half_spp'" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()

@@ -6,6 +6,7 @@ from __future__ import annotations
 HELP = "denoise an EXR that carries colour plus albedo, normal and depth layers (and its sample count)"
 
 REQUIRED_LAYERS = ("color", "albedo", "normal", "depth")
+HALF_LAYERS = {"half_radiance": 3, "half_spp": 1}   # `wgpu-rt render --aov …,half_radiance,half_spp`
 
 
 def add_arguments(parser) -> None:
@@ -16,11 +17,15 @@ def add_arguments(parser) -> None:
                         help="network arithmetic (fp16 needs the shader-f16 feature)")
     parser.add_argument("--spp", type=int, metavar="N",
                         help="samples per pixel of the colour (default: the input's 'spp' layer, which "
-                             "`wgpu-rt render` writes, else 1)")
+                             "`wgpu-rt render` writes, else 1). With 'half_radiance' and 'half_spp' layers too "
+                             "(the mean after the first half of the samples), each pixel hands over to the "
+                             "colour where that has converged, as `wgpu-rt render --denoise` does")
 
 
 def run(args) -> int:
     import time
+
+    import numpy as np
 
     from ..frame.denoise import denoise, load_model
     from ..io import check_output_path, read_exr, require_layers, write_exr
@@ -29,10 +34,16 @@ def run(args) -> int:
     images = read_exr(args.input)
     require_layers(images, args.input, *REQUIRED_LAYERS)
     spp = sample_counts(images, args)
+    half = half_layers(images, args.input)
     model = load_model("denoiser", args.precision, path=args.model)
     images = finite_layers(images, args.input)
     started = time.perf_counter()
     color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp)
+    if half is not None:
+        from ..frame.converge import converge
+
+        counts = np.broadcast_to(np.asarray(spp)[..., 0] if np.ndim(spp) == 3 else spp, color.shape[:2])
+        color = converge(color, images["color"], counts, images["half_radiance"], half)
     seconds = time.perf_counter() - started
     write_exr(args.out, color, {k: v for k, v in images.items() if k != "color"})
     print(f"wrote {args.out} ({color.shape[1]}×{color.shape[0]}, {args.precision}, {seconds:.2f} s)")
@@ -55,6 +66,27 @@ def sample_counts(images: dict, args):
         raise ImageError(f"{args.input}: layer 'spp' must be one channel of sample counts ≥ 0 "
                          "(pass --spp N to override it)")
     return layer
+
+
+def half_layers(images: dict, path):
+    """The input's 'half_spp' counts when it has both half layers (else None), checked."""
+    import numpy as np
+
+    from ..errors import ImageError
+
+    present = [name for name in HALF_LAYERS if name in images]
+    if not present:
+        return None
+    if len(present) < len(HALF_LAYERS):
+        missing = next(name for name in HALF_LAYERS if name not in images)
+        raise ImageError(f"{path}: layer {present[0]!r} needs layer {missing!r} too (or neither)")
+    for name, channels in HALF_LAYERS.items():
+        if images[name].shape[2] != channels:
+            raise ImageError(f"{path}: layer {name!r} must have {channels} channel(s), got {images[name].shape[2]}")
+    counts = images["half_spp"][..., 0]
+    if not np.all(np.isfinite(counts)) or counts.min() < 0:
+        raise ImageError(f"{path}: layer 'half_spp' must hold sample counts ≥ 0")
+    return counts.astype(np.int64)
 
 
 def finite_layers(images: dict, path) -> dict:

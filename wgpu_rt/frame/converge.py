@@ -72,6 +72,14 @@ def converge(denoised, samples_mean, spp, half_mean, half_spp, radius: int = CON
     return (denoised + weight * (mean - denoised)).astype(np.float32)
 
 
+def copy_half(encoder, buffers) -> None:
+    """Record the copy of the running mean and its counts (HALF_RADIANCE, HALF_SPP) that the blend
+    measures the mean's error by."""
+    for source, copy in ((RADIANCE, HALF_RADIANCE), (SPP, HALF_SPP)):
+        encoder.copy_buffer_to_buffer(buffers.get(source), 0, buffers.get(copy), 0,
+                                      source.nbytes(buffers.width, buffers.height))
+
+
 class ConvergePass(ComputePass):
     """``source`` (a denoised frame), the tracer's radiance and spp planes and their copies after the first
     part of the samples (HALF_RADIANCE, HALF_SPP) → converged (3 planes)."""
@@ -81,16 +89,9 @@ class ConvergePass(ComputePass):
     def __init__(self, ctx, width: int, height: int, source: PlaneSpec = DENOISED):
         self.source = source
         self.inputs = (source, RADIANCE, SPP, HALF_RADIANCE, HALF_SPP)
-        self.width, self.height = width, height
         self.kernel = FrameKernel(ctx, "frame/converge.wgsl", "main",
                                   ("denoised", "samples_mean", "spp", "half_mean", "half_spp", "converged"),
                                   width, height, {"RADIUS": CONVERGE_RADIUS, "CAP_SCALE": CONVERGE_CAP_SCALE})
-
-    def copy_half(self, encoder, buffers) -> None:
-        """Record the copy of the running mean and its counts that the blend measures the mean's error by."""
-        for source, copy in ((RADIANCE, HALF_RADIANCE), (SPP, HALF_SPP)):
-            encoder.copy_buffer_to_buffer(buffers.get(source), 0, buffers.get(copy), 0,
-                                          source.nbytes(self.width, self.height))
 
     def execute(self, encoder, buffers) -> None:
         self.kernel.dispatch(encoder, {"denoised": buffers.get(self.source), "samples_mean": buffers.get(RADIANCE),

@@ -23,14 +23,16 @@ from ..errors import ModelError, WgpuRtError
 from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, FrameBuffers, PlaneSpec
 from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
-from .converge import CONVERGED, HALF_SPP, ConvergePass, half_count
+from .converge import CONVERGED, HALF_SPP, ConvergePass, copy_half, half_count
 from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
 from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT
 from .temporal import TEMPORAL, TemporalPass, TemporalSettings, frame_change
 from .tonemap import TonemapPass
 from .unpack import UnpackPass
 
-AOV_PLANES = {plane.name: plane for plane in (ALBEDO, NORMAL, DEPTH, MOTION, SPP)}
+# half_radiance and half_spp: the mean after the first half of the samples (see frame/converge.py),
+# so that `wgpu-rt denoise` can hand over to an EXR's own mean as a denoised render does.
+AOV_PLANES = {plane.name: plane for plane in (ALBEDO, NORMAL, DEPTH, MOTION, SPP, HALF_RADIANCE, HALF_SPP)}
 SAMPLES_PER_SUBMIT = 1 << 21   # pixel samples per command buffer (a fraction of a second on lavapipe)
 
 
@@ -180,6 +182,11 @@ class FramePipeline:
         if denoiser is not None and (spp > 1 or adaptive is not None) and temporal is None:
             self.converge = ConvergePass(ctx, width, height)
             color = CONVERGED
+        half_aovs = {HALF_RADIANCE.name, HALF_SPP.name} & set(aovs)
+        if half_aovs and temporal is not None:
+            raise WgpuRtError(f"AOV {sorted(half_aovs)[0]!r} is the mean after the first half of one frame's samples; "
+                              "temporal mode keeps its own copy across frames: leave it out")
+        self.copies_half = self.converge is not None or bool(half_aovs)
         self.temporal = None
         if temporal is not None:
             self.temporal = TemporalPass(ctx, width, height, color, temporal, confidence, self.depth_max.result)
@@ -211,7 +218,7 @@ class FramePipeline:
         """What a frame runs after the tracer, in order, each with the planes it declares it reads and
         writes (networks and the pipeline's own copies included), for ``check_wiring``."""
         stages = [self.depth_max]
-        if self.converge is not None or self.temporal is not None:
+        if self.copies_half or self.temporal is not None:
             stages.append(Stage("copy of part of the samples' mean", (RADIANCE, SPP), (HALF_RADIANCE, HALF_SPP)))
         if self.adaptive is not None:
             if self.adaptive.sampler == "variance":
@@ -262,13 +269,13 @@ class FramePipeline:
             trace.clear(encoder, buffers)
         if adaptive is None:
             # A converging frame copies its mean after the first half of its samples (None below).
-            first = half_count(self.spp) if self.converge is not None else self.spp
+            first = half_count(self.spp) if self.copies_half else self.spp
             steps = self._uniform_batches(trace, first)
             if first < self.spp:
                 steps += [None, *self._uniform_batches(trace, self.spp - first)]
             for step in steps[:-1]:
                 if step is None:
-                    self.converge.copy_half(encoder, buffers)
+                    copy_half(encoder, buffers)
                     continue
                 trace.execute(encoder, buffers, SampleSchedule(samples=step))
                 self.ctx.device.queue.submit([encoder.finish()])
@@ -293,8 +300,8 @@ class FramePipeline:
                 self.pack_error.execute(encoder, buffers)
                 heat = self.error_predictor.record(encoder, buffers.get(ERROR_INPUT), self.height, self.width)
                 encoder.copy_buffer_to_buffer(heat, 0, buffers.get(HEAT), 0, HEAT.nbytes(self.width, self.height))
-        if self.converge is not None:   # the probe is the part the converge pass measures the mean's error by
-            self.converge.copy_half(encoder, buffers)
+        if self.copies_half:   # the probe is the part the converge pass measures the mean's error by
+            copy_half(encoder, buffers)
         self.extra_samples.execute(encoder, buffers)
         self._mark(encoder, "sample map")
         # No sample_offset: the tracer already numbers these after the probe's (each pixel's spp), so
@@ -326,7 +333,7 @@ class FramePipeline:
         if not converging:
             self.accumulated = self.half_copied = 0
         elif self.accumulated >= 2 * self.half_copied:
-            self.temporal.converge.copy_half(encoder, self.buffers)
+            copy_half(encoder, self.buffers)
             self.half_copied = self.accumulated
         encoder = self._trace(encoder, trace, keep_samples=converging)
         self.accumulated += self.spp

@@ -189,7 +189,7 @@ class TemporalPass(ComputePass):
 
     Each execute is told the frame's ``change`` (``frame_change``'s answer, or ``converge``: the source is
     the denoised mean of every sample of a static view, in the radiance and spp planes, and the pipeline
-    keeps the converge pass's copy of them, ``self.converge.copy_half``). With a
+    keeps the converge pass's copy of them, ``converge.copy_half``). With a
     ``confidence`` network (an object with ``record(encoder, input_buffer, height, width) ->
     output_buffer``, such as ``wgpu_rt.nn.WgslModel``) and the frame's ``depth_max`` buffer, moving frames run the Confidence
     Predictor on the packed (current, reprojected) pair and blend by its output.
