@@ -184,6 +184,17 @@ def test_temporal_static_frames_converge(gpu, scene):
     assert error_accumulated < np.abs(single - reference).mean()
 
 
+def test_without_a_denoiser_a_static_view_shows_its_sample_mean_whole(gpu, scene):
+    """Nothing to hand over without a denoiser: no converge pass, no copy of the mean, and each static
+    frame shows exactly the accumulated mean."""
+    pipeline = make_pipeline(scene, gpu, temporal=True)
+    assert pipeline.temporal.converge is None
+    for frame in range(3):
+        image = pipeline.render(scene, frame).color
+    np.testing.assert_array_equal(image, pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0))
+    assert (pipeline.buffers.read(SPP.name) == 3).all()
+
+
 def brute_force_planes(gpu, scene, geometry, samples):
     """Mean radiance and spp of one trace of ``samples`` samples per pixel, seeded as frame 0."""
     from wgpu_rt.passes import FrameBuffers

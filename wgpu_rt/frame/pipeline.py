@@ -218,7 +218,7 @@ class FramePipeline:
         """What a frame runs after the tracer, in order, each with the planes it declares it reads and
         writes (networks and the pipeline's own copies included), for ``check_wiring``."""
         stages = [self.depth_max]
-        if self.copies_half or self.temporal is not None:
+        if self.copies_half or (self.temporal is not None and self.temporal.converge is not None):
             stages.append(Stage("copy of part of the samples' mean", (RADIANCE, SPP), (HALF_RADIANCE, HALF_SPP)))
         if self.adaptive is not None:
             if self.adaptive.sampler == "variance":
@@ -332,7 +332,7 @@ class FramePipeline:
         self._mark(encoder, "start")
         if not converging:
             self.accumulated = self.half_copied = 0
-        elif self.accumulated >= 2 * self.half_copied:
+        elif self.temporal.converge is not None and self.accumulated >= 2 * self.half_copied:
             copy_half(encoder, self.buffers)
             self.half_copied = self.accumulated
         encoder = self._trace(encoder, trace, keep_samples=converging)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import WgpuRtError
-from ..passes import DEPTH, MOTION, NORMAL, ComputePass, PlaneSpec
+from ..passes import DEPTH, MOTION, NORMAL, RADIANCE, ComputePass, PlaneSpec
 from .converge import CONVERGED, ConvergePass
 from .kernel import FrameKernel, finite, nonnegative_finite
 from .pack import PackConfidencePass
@@ -203,8 +203,9 @@ class TemporalPass(ComputePass):
             raise ValueError("a confidence model needs the frame's depth_max buffer")
         self.ctx, self.width, self.height = ctx, width, height
         self.source, self.settings, self.confidence = source, settings, confidence
-        self.converge = ConvergePass(ctx, width, height, source)
-        self.inputs = (source, DEPTH, NORMAL, MOTION, *self.converge.inputs[1:])
+        # Without a denoiser the source is the sample mean itself: nothing to hand over, it is taken whole.
+        self.converge = ConvergePass(ctx, width, height, source) if source != RADIANCE else None
+        self.inputs = (source, DEPTH, NORMAL, MOTION, *(self.converge.inputs[1:] if self.converge else ()))
         constants = {**settings.constants(), "USE_CONFIDENCE": confidence is not None}
         self.kernels = {entry: FrameKernel(ctx, "frame/temporal.wgsl", entry, bindings, width, height,
                                            constants)
@@ -217,8 +218,10 @@ class TemporalPass(ComputePass):
                   "normal": buffers.get(NORMAL), "history": buffers.get(HISTORY),
                   "output": buffers.get(TEMPORAL)}
         if change == "converge":
-            self.converge.execute(encoder, buffers)
-            self.kernels["converge"].dispatch(encoder, planes | {"color": buffers.get(CONVERGED)})
+            if self.converge is not None:
+                self.converge.execute(encoder, buffers)
+                planes["color"] = buffers.get(CONVERGED)
+            self.kernels["converge"].dispatch(encoder, planes)
             return
         if change in ("cut", "static"):
             if change == "cut":
