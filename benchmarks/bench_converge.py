@@ -69,7 +69,7 @@ def main() -> None:
             constant = [metrics.psnr(gold, mix(denoised, mean, n / (n + k))) for k in args.k]
             n_only = metrics.psnr(gold, mix(denoised, mean, n / (n + max(32.0, 2048.0 / n))))
             counts = np.full(size[::-1], n)
-            per_pixel = metrics.psnr(gold, converge(denoised, mean, counts, half, counts // n * first,
+            per_pixel = metrics.psnr(gold, converge(denoised, mean, counts, half, np.full(size[::-1], first),
                                                     args.radius, args.cap_scale))
             blends = np.array([*constant, n_only, per_pixel])
             raw = metrics.psnr(gold, mean)
