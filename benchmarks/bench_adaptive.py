@@ -4,13 +4,15 @@ reach the error adaptive sampling reaches at a budget B, divided by B (> 1: adap
 Samplers run through the fused pipeline's probe → sample map → targeted trace, each spending exactly
 B·pixels samples (the measured mean spp and the share of pixels at the per-pixel cap are printed):
 ``heat`` (the Error Predictor, learned) and ``variance`` (Cycles' half-buffer error of a 2-spp probe,
-the classic baseline). --oracle adds two allocations fed true errors in place of the heatmap (k 1, no
+the classic baseline). --oracle adds three allocations fed true errors in place of the heatmap (k 1, no
 pooling, nothing spread evenly): ``oracle σ``, the per-sample error sqrt(mean_c σ_c² / (μ_c² + ε)) (σ²
 from --oracle-renders independent 1-spp renders against the gold, μ the gold; the allocation relMSE
 asks for in expectation, n ∝ σ/sqrt(μ² + ε)), and ``oracle probe``, which also knows each run's own
 probe error δ: sqrt(mean_c δ_c² / (μ_c² + ε) + σ-term²) (relMSE after n samples is (δ² + (n − 1)σ²)/n²
 per pixel, so the probe's own error decides at low budgets). The first bounds a predictor of σ, the
-second a perfect predictor of what the heat is trained on (one probe's error).
+second a perfect predictor of what the heat is trained on (one probe's error); the third, ``oracle
+denoised``, knows where each run's denoised probe is wrong, sqrt(mean_c (d_c − μ_c)² / (μ_c² + ε)) with d
+our denoiser's output on the probe: the bound for a predictor trained on the denoised frame's error.
 The reference curve is brute-force rendering at --uniform spp: the pipeline's
 ``uniform`` sampler at an integer budget B is exactly brute-force B spp (tests/test_adaptive.py), and
 the curve reaches past the samplers' 32-spp ceiling. --k, --variance-k and --uniform-share sweep the
@@ -66,7 +68,7 @@ QUICK = {"size": "32x32", "budgets": [2, 4, 8], "seeds": 1, "gold_spp": 2048, "u
 RAW_METRICS = ("relMSE", "trimmed relMSE", "display MSE")
 DENOISED = "denoised relMSE"
 DENOISED_RATIO = "denoised error ratio"
-ORACLES = ("oracle σ", "oracle probe")
+ORACLES = ("oracle σ", "oracle probe", "oracle denoised")
 ORACLE_SEED = 1000   # the oracle's 1-spp renders use seeds ORACLE_SEED..; the runs measured use 0..seeds-1
 
 
@@ -166,6 +168,20 @@ def probe_oracle(scene, size, args, gold, sigma_term: np.ndarray):
         delta = (np.nan_to_num(probe.astype(np.float64)) - gold) ** 2
         relative = np.mean(delta / (gold.astype(np.float64) ** 2 + metrics.REL_MSE_EPSILON), axis=-1)
         return FixedImportance(np.sqrt(relative + sigma_term.astype(np.float64) ** 2))
+
+    return model
+
+
+def denoised_oracle(scene, size, args, gold):
+    """seed → FixedImportance of sqrt(mean_c (d_c − μ_c)² / (μ_c² + ε)), d that seed's probe denoised by
+    our denoiser: a perfect predictor of where the denoised 1-spp frame is wrong (what the samples must
+    fix once the frame is denoised)."""
+    def model(seed):
+        denoised = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=seed, aovs=(), denoise=True,
+                          models_dir=args.models, precision=args.precision).color
+        delta = (np.nan_to_num(denoised.astype(np.float64)) - gold) ** 2
+        return FixedImportance(np.sqrt(np.mean(delta / (gold.astype(np.float64) ** 2 + metrics.REL_MSE_EPSILON),
+                                               axis=-1)))
 
     return model
 
@@ -370,7 +386,8 @@ def main() -> None:
         if args.oracle:
             sigma_term = oracle_importance(scene, size, args, gold)
             oracles = {ORACLES[0]: FixedImportance(sigma_term),
-                       ORACLES[1]: probe_oracle(scene, size, args, gold, sigma_term)}
+                       ORACLES[1]: probe_oracle(scene, size, args, gold, sigma_term),
+                       ORACLES[2]: denoised_oracle(scene, size, args, gold)}
         rows = []
         for sampler, k, share, pool in samplers:
             for budget in sorted(args.budgets):

@@ -24,7 +24,9 @@ LOG1P_HALF_MAX = math.log1p(65504.0)
 
 pytestmark = pytest.mark.gpu
 
-NETWORKS = {"unet": UNet, "error_predictor": ErrorPredictor, "confidence_predictor": ConfidencePredictor}
+NETWORKS = {"unet": UNet, "error_predictor": ErrorPredictor, "confidence_predictor": ConfidencePredictor,
+            # a deepest level added to the skip above it (an Add of two activations) instead of merged
+            "unet_bottom_add": lambda: UNet(widths=(16, 32, 32, 32), bottom_merge="add")}
 SMALL_NET_SIZES = [(37, 53), (1, 1), (255, 257), (256, 256), (512, 512)]
 UNET_SIZES = [(37, 53), (1, 1), pytest.param((256, 256), marks=pytest.mark.slow),
               pytest.param((255, 257), marks=pytest.mark.slow), pytest.param((512, 512), marks=pytest.mark.slow)]
@@ -77,8 +79,9 @@ def test_small_networks(networks, name, size, precision):
 
 @pytest.mark.parametrize("precision", ["fp32", "fp16"])
 @pytest.mark.parametrize("size", UNET_SIZES, ids=lambda s: f"{s[0]}x{s[1]}")
-def test_unet(networks, size, precision):
-    check_network(networks, "unet", size, precision)
+@pytest.mark.parametrize("name", ["unet", "unet_bottom_add"])
+def test_unet(networks, name, size, precision):
+    check_network(networks, name, size, precision)
 
 
 @pytest.mark.parametrize("name", list(NETWORKS))

@@ -271,6 +271,34 @@ def test_a_fine_tune_of_a_model_without_the_spp_plane_starts_as_that_model(tiny_
         np.testing.assert_allclose(tuned.model.eval()(x).numpy(), source(x[:, :-1]).numpy(), atol=1e-6)
 
 
+@pytest.mark.parametrize("bottom_merge", ["concat", "add"])
+def test_a_fine_tune_one_level_deeper_starts_as_the_shallower_model_and_trains_the_new_level(
+        tiny_dataset, tmp_path, bottom_merge):
+    """--widths with one more level than the base model's: the old levels keep their weights and what
+    comes up from the new level starts with no influence (a concat merge passes the old bottom through,
+    an add merge gets a zero transposed conv), so the deeper network starts as exactly the base model;
+    the weights that let the new level in get a gradient at once."""
+    torch.manual_seed(6)
+    source = UNet(widths=(4, 8)).eval()
+    onnx_path = export_onnx(source, tmp_path / "two_levels.onnx")
+    tuned = Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out"), epochs=1,
+                                batch=2, crop_min=12, crop_max=16, widths=(4, 8, 8), bottom_merge=bottom_merge,
+                                init_from=str(onnx_path)),
+                    progress=False)
+    x = torch.rand(2, DENOISER.input_channels, 16, 16)
+    with torch.no_grad():
+        np.testing.assert_allclose(tuned.model.eval()(x).numpy(), source(x).numpy(), atol=1e-6)
+    assert torch.equal(tuned.model.state_dict()["up.1.weight"], source.state_dict()["up.0.weight"])
+    tuned.model.train()
+    tuned.model(x).square().mean().backward()
+    gate = tuned.model.merge[0][0].weight.grad[:, :8] if bottom_merge == "concat" else tuned.model.up[0].weight.grad
+    assert gate.abs().sum() > 0
+    with pytest.raises(TrainingError, match="not a denoiser with these --widths"):   # two levels deeper
+        Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out2"), epochs=1,
+                            batch=2, crop_min=16, crop_max=16, widths=(4, 8, 8, 8), init_from=str(onnx_path)),
+                progress=False)
+
+
 def test_a_fine_tune_of_an_exported_model_carries_its_card(tiny_dataset, tmp_path):
     """The card of a model fine-tuned from an .onnx names the file by digest and appends the base's own card
     (an exported model keeps no history, so its card is the only record of how it was made)."""

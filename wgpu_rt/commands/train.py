@@ -32,6 +32,9 @@ def add_arguments(parser) -> None:
                         help="random crop size range in pixels (default: 128 256)")
     parser.add_argument("--widths", type=int, nargs="+", default=(32, 64, 128),
                         help="denoiser UNet level widths (default: 32 64 128)")
+    parser.add_argument("--bottom-merge", choices=["concat", "add"], default="concat",
+                        help="denoiser: the deepest level's upsampled output is concatenated with the skip above "
+                             "it and merged by two 3×3 convs, or added to it (cheaper; default: %(default)s)")
     parser.add_argument("--residual", action="store_true",
                         help="denoiser predicts a correction to its noisy input's log1p colour")
     parser.add_argument("--curriculum", type=_curriculum_stage, nargs="+", default=(16, 4, 1), metavar="SPP",
@@ -46,7 +49,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--resume", action="store_true", help="continue from the last checkpoint")
     parser.add_argument("--init-from", metavar="CHECKPOINT",
                         help="fine-tune: start from another run's checkpoint (.pt) or an exported model (.onnx, "
-                             "e.g. the shipped one) of the same task and widths, with a fresh optimizer and "
+                             "e.g. the shipped one) of the same task and widths (or, for the denoiser, --widths with "
+                             "one level more: it starts as the shallower model), with a fresh optimizer and "
                              "schedule; give this run its own --checkpoints folder")
     parser.add_argument("--validate-every", type=int, default=1, metavar="N",
                         help="validate every N epochs and after the last (validation is slow on a CPU)")
@@ -63,7 +67,7 @@ def run(args) -> int:
     config = TrainConfig(task=args.task, data=args.data, out=args.out, epochs=args.epochs, batch=args.batch,
                          lr=args.lr, seed=args.seed, crop_min=args.crop[0], crop_max=args.crop[1],
                          pixel_loss=args.pixel_loss, ssim_space=args.ssim_space,
-                         widths=tuple(args.widths), residual=args.residual,
+                         widths=tuple(args.widths), residual=args.residual, bottom_merge=args.bottom_merge,
                          curriculum=tuple(args.curriculum), resume=args.resume,
                          extra_data=tuple(args.extra_data), max_views=args.max_views,
                          checkpoints=args.checkpoints, init_from=args.init_from,

@@ -57,6 +57,7 @@ class TrainConfig:
     ssim_space: str = "log"              # or "display" (the metrics' Reinhard + gamma mapping)
     widths: tuple[int, ...] = (32, 64, 128)
     residual: bool = False               # denoiser predicts a correction to its noisy input
+    bottom_merge: str = "concat"         # or "add": the denoiser's deepest level added to the skip above
     curriculum: tuple[int | str, ...] = (16, 4, 1)   # denoiser spp per equal share of the epochs (ANY_SPP: per crop)
     grad_clip: float = 1.0
     resume: bool = False
@@ -114,7 +115,7 @@ def build_model(config: TrainConfig):
     from .networks import ConfidencePredictor, ErrorPredictor, UNet
 
     if config.task == "denoiser":
-        return UNet(widths=tuple(config.widths), residual=config.residual)
+        return UNet(widths=tuple(config.widths), residual=config.residual, bottom_merge=config.bottom_merge)
     if config.model_name == "error_predictor":
         return ErrorPredictor()
     return ConfidencePredictor()
@@ -293,7 +294,7 @@ class Trainer:
         except Exception as err:  # onnx raises several types for missing or corrupt files
             raise TrainingError(f"{path}: cannot read this ONNX model ({err})") from None
         expected = self.model.state_dict()
-        weights = _with_new_input_channels(weights, expected)
+        weights = _deepened(_with_new_input_channels(weights, expected), expected)
         wrong = [name for name, tensor in expected.items()
                  if name not in weights or tuple(weights[name].shape) != tuple(tensor.shape)]
         if wrong:
@@ -502,6 +503,8 @@ class Trainer:
             f"Trained by `wgpu-rt train {cfg.network.cli_name}` (wgpu_rt/train). {parameters:,} parameters"
             + (f", UNet widths {tuple(cfg.widths)}" + (", residual (output = input log1p RGB + correction)"
                                                         if cfg.residual else "")
+               + (", deepest level added to the skip above it (no merge convs there)"
+                  if cfg.bottom_merge == "add" else "")
                if cfg.task == "denoiser" else "") + ".",
             "",
             "## Data",
@@ -588,6 +591,43 @@ def _with_new_input_channels(weights: dict, expected: dict) -> dict:
     padded = np.zeros(tuple(new.shape), old.dtype)
     padded[:, :old.shape[1]] = old
     return weights | {first: padded}
+
+
+def _deepened(weights: dict, expected: dict) -> dict:
+    """``weights`` of a U-Net with one level fewer than ``expected``'s (its widths are the first ones of
+    the new network's) mapped into the deeper one so that it computes exactly the same function: each old
+    up/merge stage moves one index down and the new bottom level keeps its fresh initialisation. What
+    comes up from the new level starts at zero influence: a concat merge at the old bottom passes the skip
+    through (identity centre taps on the skip half, zeros on the half from below; its input is post-ReLU,
+    so ReLU(identity) is exact), an add merge gets a zero transposed conv. Training then decides how much
+    the new level contributes. Anything else is returned as it is, for the shape check to report."""
+    def levels(names):
+        return len({name.split(".")[1] for name in names if name.startswith("down.")})
+
+    new_levels = levels(expected)
+    if levels(weights) != new_levels - 1 or new_levels < 3:
+        return weights
+    bottom_width = expected["up.0.weight"].shape[1]    # ConvTranspose2d weights: (in, out, kh, kw)
+    if tuple(weights.get(f"down.{new_levels - 2}.2.weight", np.zeros(0)).shape)[:1] != (bottom_width,):
+        return weights
+    moved = {name: value for name, value in weights.items() if not name.startswith(("up.", "merge."))}
+    for name, value in weights.items():
+        if name.startswith(("up.", "merge.")):
+            kind, index, rest = name.split(".", 2)
+            moved[f"{kind}.{int(index) + 1}.{rest}"] = value
+    for name in expected:
+        if name.startswith((f"down.{new_levels - 1}.", "up.0.")):
+            moved[name] = expected[name].detach().cpu().numpy()
+    if "merge.0.0.weight" not in expected:      # add merge: nothing comes up until training says so
+        return moved | {name: np.zeros(tuple(expected[name].shape), np.float32) for name in ("up.0.weight", "up.0.bias")}
+    first = np.zeros(tuple(expected["merge.0.0.weight"].shape), np.float32)
+    channels = np.arange(bottom_width)
+    first[channels, bottom_width + channels, 1, 1] = 1.0     # cat([from below, skip]): the skip half
+    second = np.zeros(tuple(expected["merge.0.2.weight"].shape), np.float32)
+    second[channels, channels, 1, 1] = 1.0
+    zeros = np.zeros(bottom_width, np.float32)
+    return moved | {"merge.0.0.weight": first, "merge.0.0.bias": zeros,
+                    "merge.0.2.weight": second, "merge.0.2.bias": zeros}
 
 
 def train(config: TrainConfig, progress: bool = True) -> dict | None:
