@@ -14,10 +14,12 @@ pass's depth/normal tests ("model, tested pixels": the only ones where the model
 for the temporal stage as a whole ("temporal stage": failed tests count as certain disocclusion, the
 model scores the rest). The dataset's gold is noisy enough that its noise alone flags pixels, so
 ``--mask-spp N`` also scores against masks from N-spp gold of every pair's frames, raw and compared
-after a σ 1.5 px blur (which ignores what noise is left). All networks run in the WGSL engine.
+after a σ 1.5 px blur (which ignores what noise is left). ``--noise-seeds N`` scores ours and OIDN on
+N more 1-spp renders of every test view and prints per-view means: one realization moves a view's gap
+by a few tenths of a dB. All networks run in the WGSL engine.
 
     python benchmarks/bench_denoise.py --data data/dataset [DIR ...] [--models models] [--extra-spp 64 256] [--gold-spp 1024]
-        [--per-view] [--mask-spp 512] [--skip-denoiser] [--oidn-quality fast balanced high]
+        [--per-view] [--noise-seeds 3] [--mask-spp 512] [--skip-denoiser] [--oidn-quality fast balanced high]
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from wgpu_rt.train.targets import confidence_pair, disocclusion_mask, error_heat
 from wgpu_rt.train.trainer import confidence_aucs, rank_correlation
 
 FRAME_SEED_STRIDE = 7919   # frame f > 0 of a reference render: seeds shifted by f times this
+NOISE_SEED = 30_000        # --noise-seeds: the k-th realization renders with seed NOISE_SEED + 1000·k + spp
 AUC_WAYS = {"roc_auc": "model", "roc_auc_tested": "model, tested pixels", "roc_auc_stage": "temporal stage"}
 NOISE_ROBUST_BLUR = 1.5    # σ (pixels) of the --mask-spp mask that ignores gold noise: see disocclusion_mask
 
@@ -58,22 +61,26 @@ def equivalent_spp(spp: list[int], error: list[float], target: float) -> str:
 
 
 def render_test_views(data: Path, view_ids: set[str], spp: list[int], seed: int,
-                      frame: int = 0) -> dict[str, dict[int, np.ndarray]]:
+                      frame: int = 0, gbuffers: bool = False) -> dict[str, dict[int, np.ndarray | dict]]:
     """Renders of the test views' ``frame`` at each of ``spp`` (the dataset's scenes, seeds ``seed`` + spp
-    (+ FRAME_SEED_STRIDE · frame), independent of the dataset's own renders)."""
+    (+ FRAME_SEED_STRIDE · frame), independent of the dataset's own renders): the colour, or with
+    ``gbuffers`` a dict of colour, albedo, normal and depth rendered as the dataset renders its noisy
+    frames (its --aux-samples), the denoisers' input."""
     from wgpu_rt.renderer import render
 
     config = read_manifest(data)["config"]
     config = DatasetConfig(**{**config, "scenes": tuple(config["scenes"]), "spp": tuple(config["spp"])})
     engine = TruthEngine(config, data, renderer=render)
+    aux = dict(aovs=("albedo", "normal", "depth"), aux_samples=config.aux_samples) if gbuffers else dict(aovs=())
     result = {}
     for plan in plan_views(config):
         if plan.view_id in view_ids:
             scene = engine.scene_for(plan)
-            result[plan.view_id] = {s: render(scene, spp=s, size=(config.size, config.size),
-                                              max_depth=config.max_depth, seed=seed + s + FRAME_SEED_STRIDE * frame,
-                                              frames=frame, aovs=()).color
-                                    for s in spp}
+            renders = {s: render(scene, spp=s, size=(config.size, config.size), max_depth=config.max_depth,
+                                 seed=seed + s + FRAME_SEED_STRIDE * frame, frames=frame, **aux)
+                       for s in spp}
+            result[plan.view_id] = {s: ({"color": r.color, **r.aovs} if gbuffers else r.color)
+                                    for s, r in renders.items()}
     return result
 
 
@@ -133,6 +140,9 @@ def main() -> None:
                              "rendered at this spp (cached in DATA/reference/), which flags less gold noise")
     parser.add_argument("--per-view", action="store_true",
                         help="also print each view's PSNR, ours against OIDN")
+    parser.add_argument("--noise-seeds", type=int, default=0, metavar="N",
+                        help="also score ours and OIDN per view on N more 1-spp renders of each test view (fresh "
+                             "seeds, the dataset's aux settings) and print per-view means over them")
     parser.add_argument("--skip-denoiser", action="store_true",
                         help="only the error predictor and the confidence model (no denoiser/OIDN/brute-force "
                              "table, no renders beyond --mask-spp's)")
@@ -160,6 +170,8 @@ def main() -> None:
               f"{args.gold_spp or dataset_gold_spp} spp")
         if not args.skip_denoiser:
             table.add_views(args, Path(data), views, denoiser, gold_override, dataset_gold_spp)
+            if args.noise_seeds:
+                table.add_noise_seeds(args, Path(data), views, denoiser, gold_override)
 
         sequences = {v.view_id for v in views if len(v.frames) > 1}
         mask_references = ({f: reference_gold(Path(data), sequences, args.mask_spp, f)
@@ -184,6 +196,8 @@ def main() -> None:
                     auc.setdefault(name, {}).setdefault(way, []).extend(values)
     if not args.skip_denoiser:
         table.print()
+        if args.noise_seeds:
+            table.print_noise_seeds()
 
     print(f"error predictor: Spearman vs true error {np.mean(spearman):.3f} (min {np.min(spearman):.3f})")
     for name, by_way in auc.items():
@@ -204,6 +218,7 @@ class DenoiserTable:
         self.rows: dict[str, list[dict]] = {}
         self.seconds = dict.fromkeys([self.OURS, *self.oidn], 0.0)
         self.views = 0
+        self.seeded: dict[str, dict[str, list[float]]] = {}   # view → method → PSNR per noise realization
 
     def denoisers(self, denoiser) -> dict:
         """Method name → function of the 1-spp images returning the denoised colour."""
@@ -241,6 +256,41 @@ class DenoiserTable:
                 print(f"  {data}/{view.view_id} {view.scene:15s} PSNR ours {psnr[self.OURS]:6.2f}"
                       + "".join(f", {name.removesuffix(' (1 spp)')} {value:6.2f} ({value - psnr[self.OURS]:+.2f} dB)"
                                 for name, value in psnr.items() if name != self.OURS))
+
+    def add_noise_seeds(self, args, data: Path, views, denoiser, gold_override: dict) -> None:
+        """Each view's PSNR per method over its dataset render and --noise-seeds fresh 1-spp renders (the
+        dataset's aux settings, seeds NOISE_SEED + 1000·k): a per-view gap to OIDN that one realization's
+        noise does not decide."""
+        denoisers = self.denoisers(denoiser)
+        fresh = [render_test_views(data, {v.view_id for v in views}, [1], seed=NOISE_SEED + 1000 * k, gbuffers=True)
+                 for k in range(args.noise_seeds)]
+        for view in views:
+            gold = gold_override.get(view.view_id, view.frames[0].gold["color"])
+            scores = self.seeded.setdefault(f"{data}/{view.view_id} {view.scene}", {})
+            for noisy in [view.frames[0].noisy[1], *(renders[view.view_id][1] for renders in fresh)]:
+                for name, run in denoisers.items():
+                    scores.setdefault(name, []).append(metrics.psnr(gold, run(noisy)))
+
+    def print_noise_seeds(self) -> None:
+        """Per view and method the mean PSNR over the realizations, the gap of each OIDN quality to ours,
+        and the mean and worst gap over the views."""
+        first = next(iter(self.seeded.values()))
+        print(f"PSNR over {len(first[self.OURS])} noise realizations per view (the dataset's 1-spp render and "
+              f"{len(first[self.OURS]) - 1} fresh ones): mean, and each OIDN quality's lead over ours")
+        gaps = {name: [] for name in self.oidn}
+        for view, scores in self.seeded.items():
+            ours = float(np.mean(scores[self.OURS]))
+            line = f"  {view:40s} ours {ours:6.2f}"
+            for name in self.oidn:
+                theirs = float(np.mean(scores[name]))
+                gaps[name].append(theirs - ours)
+                line += f", {name.removesuffix(' (1 spp)')} {theirs:6.2f} ({theirs - ours:+.2f} dB)"
+            print(line)
+        means = {name: float(np.mean([np.mean(s[name]) for s in self.seeded.values()])) for name in first}
+        print("  mean PSNR " + ", ".join(f"{name.removesuffix(' (1 spp)')} {value:.2f}" for name, value in means.items())
+              + "".join(f"; {name.removesuffix(' (1 spp)')} ahead by {np.mean(g):+.2f} dB on average, "
+                        f"{max(g):+.2f} on the worst view, {sum(x > 0 for x in g)} of {len(g)} views"
+                        for name, g in gaps.items()))
 
     def print(self) -> None:
         rows = self.rows
