@@ -116,15 +116,17 @@ def test_mitsuba_variant_is_cuda_when_drjit_finds_a_device(peers, monkeypatch):
     assert variant == "scalar_rgb" and len(lines) == 2 and lines[1].startswith("Mitsuba llvm_ad_rgb: skipped (")
 
 
-@pytest.mark.parametrize("model, size", [("denoiser", (16, 24)), ("error_predictor", (12, 20)),
-                                          ("confidence", (12, 20))])
-def test_torch_network_matches_onnxruntime(peers, model, size):
+@pytest.mark.parametrize("model, blocks", [("denoiser", (1, 2)), ("error_predictor", (12, 20)),
+                                            ("confidence", (12, 20))])
+def test_torch_network_matches_onnxruntime(peers, model, blocks):
+    """At a size of ``blocks`` times the network's size multiple (the shipped U-Net's levels' 2^(levels−1))."""
     pytest.importorskip("torch")
     import onnxruntime as ort
 
     path = MODELS / f"{model}.onnx"
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     network = peers.TorchNetwork(path)
+    size = tuple(network.graph.multiple * b for b in blocks)
     check_parity([(1, network.graph.input_channels, *size)], lambda x: session.run(None, {"input": x})[0], network.numpy, atol=1e-4, low=0.0,
                  high=1.0, name=f"torch {model}")
 
@@ -146,18 +148,18 @@ def test_torch_network_fp16_stays_near_onnxruntime(peers):
     path = MODELS / "denoiser.onnx"
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     network = peers.TorchNetwork(path, precision="fp16")
-    channels = network.graph.input_channels
-    assert network.numpy(np.zeros((1, channels, 8, 8), np.float32)).dtype == np.float32
-    check_parity([(1, channels, 16, 16)], lambda x: session.run(None, {"input": x})[0], network.numpy, atol=2e-2,
+    channels, multiple = network.graph.input_channels, network.graph.multiple
+    assert network.numpy(np.zeros((1, channels, multiple, multiple), np.float32)).dtype == np.float32
+    check_parity([(1, channels, multiple, 2 * multiple)], lambda x: session.run(None, {"input": x})[0], network.numpy, atol=2e-2,
                  low=0.0, high=1.0, name="torch fp16 denoiser")
 
 
 def test_torch_network_refuses_sizes_it_cannot_run(peers):
     pytest.importorskip("torch")
     network = peers.TorchNetwork(MODELS / "denoiser.onnx")
-    channels = network.graph.input_channels
-    with pytest.raises(ValueError, match="multiples of 8"):
-        network.input(np.zeros((1, channels, 12, 16), np.float32))
+    channels, multiple = network.graph.input_channels, network.graph.multiple
+    with pytest.raises(ValueError, match=f"multiples of {multiple}"):
+        network.input(np.zeros((1, channels, multiple + 4, multiple), np.float32))
     with pytest.raises(ValueError, match=f"N×{channels}×H×W"):
         network.input(np.zeros((1, 3, 16, 16), np.float32))
 

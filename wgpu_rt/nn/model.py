@@ -9,8 +9,10 @@ planar f32 output). Conversions and small ops are folded into neighbouring kerne
 the first conv reads the input image itself, a conv's epilogue max-pools its output (the pool is not
 dispatched), the last layer writes the output image itself, with a 1×1 head run in the epilogue of
 the 3×3 conv before it where that conv's tile holds all its channels (pack and unpack remain for the
-graphs where no layer can). The shipped denoiser is 17 dispatches in the GPU plan (staged tiles, one
-dispatch per layer; 23 with every conversion and pool dispatched) and 27 on lavapipe (48).
+graphs where no layer can). The shipped denoiser (five levels, the deepest added to the skip above it) is
+21 dispatches in the GPU plan (staged tiles, one dispatch per layer; one of them that Add) and 37 on
+lavapipe; the four-level model before it was 17 and 27 (23 and 48 with every conversion and pool
+dispatched).
 
 Buffer planning: every tensor lives in its root's buffer (a concat's inputs live inside the concat);
 a root is live from the first dispatch that writes it to the last that reads it; roots are packed,
