@@ -73,6 +73,24 @@ def test_display_space_loss_is_zero_only_at_the_target_and_has_gradients_at_blac
     assert torch.isfinite(guess.grad).all() and guess.grad.abs().sum() > 0
 
 
+def test_block_mean_term_adds_the_l1_of_8x8_block_means_of_the_compared_colours():
+    """lowpass·L1 between the 8×8 block means of the display colours on top of the usual loss: zero at
+    the target; a shift of one block's mean costs that shift (in display values) times the weight, over
+    the number of blocks."""
+    from wgpu_rt.train.losses import log_to_display, remodulate
+
+    log_irradiance = 0.5 + 0.2 * torch.rand(1, 3, 16, 16)
+    target = with_albedo_factor(log_irradiance)
+    assert float(denoiser_loss(log_irradiance, target, ssim_space="display", lowpass=3.0)) == pytest.approx(0.0, abs=1e-6)
+    shifted = log_irradiance.clone()
+    shifted[..., :8, :8] += 0.3
+    base = denoiser_loss(shifted, target, ssim_space="display")
+    display = lambda x: log_to_display(remodulate(x, target[:, 3:]))   # noqa: E731
+    block_shift = (display(shifted) - display(log_irradiance))[..., :8, :8].mean(dim=(2, 3)).abs().mean() / 4
+    assert float(denoiser_loss(shifted, target, ssim_space="display", lowpass=3.0) - base) == \
+        pytest.approx(3.0 * float(block_shift), rel=1e-4)
+
+
 def test_denoiser_loss_scores_remodulated_colour_against_skimage():
     """0.8·(1 − SSIM of the display colours, irradiance × albedo factor) + 0.2·L1 on log1p irradiance,
     recomputed with numpy, the metrics' display mapping and scikit-image's SSIM."""

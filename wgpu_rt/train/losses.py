@@ -24,6 +24,7 @@ SSIM_WEIGHT = 0.8
 CHARBONNIER_EPSILON = 1e-3
 DISPLAY_GAMMA = 2.2
 DISPLAY_EPSILON = 1e-5      # keeps the gamma curve's slope finite at black
+LOWPASS_BLOCK = 8           # the block-mean term's block size (px)
 MAX_LOG_IRRADIANCE = 30.0   # expm1(30) ≈ 1e13: far above any training radiance, finite in float32
 
 
@@ -66,14 +67,18 @@ def remodulate(log_irradiance: torch.Tensor, factor: torch.Tensor) -> torch.Tens
 
 
 def denoiser_loss(prediction: torch.Tensor, target: torch.Tensor, pixel_loss: str = "l1",
-                  ssim_space: str = "log") -> torch.Tensor:
-    """0.8·(1 − SSIM) + 0.2·(L1 or Charbonnier). ``prediction``: (N, 3, H, W) log1p irradiance;
-    ``target``: (N, 6, H, W), the gold log1p irradiance and the albedo factor. The pixel term compares
-    log1p irradiance; SSIM compares the remodulated colours, in log1p or (``ssim_space="display"``)
-    display values."""
+                  ssim_space: str = "log", lowpass: float = 0.0) -> torch.Tensor:
+    """0.8·(1 − SSIM) + 0.2·(L1 or Charbonnier) [+ lowpass · L1 of 8×8 block means]. ``prediction``:
+    (N, 3, H, W) log1p irradiance; ``target``: (N, 6, H, W), the gold log1p irradiance and the albedo
+    factor. The pixel term compares log1p irradiance; SSIM compares the remodulated colours, in log1p or
+    (``ssim_space="display"``) display values; the block-mean term compares the same colours averaged
+    over 8×8 blocks, where low-frequency blotches that SSIM's 11-px window barely sees stand out."""
     target, factor = target[:, :3], target[:, 3:]
     pixel = charbonnier(prediction, target) if pixel_loss == "charbonnier" else F.l1_loss(prediction, target)
     prediction, target = remodulate(prediction, factor), remodulate(target, factor)
     if ssim_space == "display":
         prediction, target = log_to_display(prediction), log_to_display(target)
-    return SSIM_WEIGHT * (1.0 - ssim(prediction, target)) + (1.0 - SSIM_WEIGHT) * pixel
+    loss = SSIM_WEIGHT * (1.0 - ssim(prediction, target)) + (1.0 - SSIM_WEIGHT) * pixel
+    if lowpass:
+        loss = loss + lowpass * F.l1_loss(F.avg_pool2d(prediction, LOWPASS_BLOCK), F.avg_pool2d(target, LOWPASS_BLOCK))
+    return loss

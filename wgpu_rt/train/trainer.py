@@ -55,6 +55,7 @@ class TrainConfig:
     crop_max: int = 256
     pixel_loss: str = "l1"               # or "charbonnier"
     ssim_space: str = "log"              # or "display" (the metrics' Reinhard + gamma mapping)
+    lowpass: float = 0.0                 # weight of the denoiser's 8×8 block-mean L1 term (0: none)
     widths: tuple[int, ...] = (32, 64, 128)
     residual: bool = False               # denoiser predicts a correction to its noisy input
     bottom_merge: str = "concat"         # or "add": the denoiser's deepest level added to the skip above
@@ -332,7 +333,8 @@ class Trainer:
         from .losses import denoiser_loss
 
         if self.config.task == "denoiser":
-            return denoiser_loss(prediction, target, self.config.pixel_loss, self.config.ssim_space)
+            return denoiser_loss(prediction, target, self.config.pixel_loss, self.config.ssim_space,
+                                 self.config.lowpass)
         if self.config.task == "confidence":
             # Disocclusions (target 0: history invalid) are rare: weight them by the batch's class ratio.
             invalid = (1 - target).mean().clamp(0.01, 0.99)
@@ -524,7 +526,8 @@ class Trainer:
                          f"{ALBEDO_EPSILON})); unpack multiplies back")
             drawn = "; 'any': each crop draws one of its view's sample counts" if ANY_SPP in cfg.curriculum else ""
             lines.append(f"- loss 0.8·(1 − SSIM on {cfg.ssim_space} colour) + 0.2·{cfg.pixel_loss} on log1p "
-                         f"irradiance; curriculum {' → '.join(map(str, cfg.curriculum))} spp (equal shares of the "
+                         "irradiance" + (f" + {cfg.lowpass:g}·L1 of its 8×8 block means" if cfg.lowpass else "")
+                         + f"; curriculum {' → '.join(map(str, cfg.curriculum))} spp (equal shares of the "
                          f"epochs{drawn})")
         elif cfg.model_name == "error_predictor":
             lines.append("- target |log1p(1 spp) − log1p(gold)| / its 99th percentile, clipped to [0, 1]; BCE loss")
