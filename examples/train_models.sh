@@ -2,11 +2,11 @@
 # The exact recipe behind models/{denoiser,error_predictor,confidence}.onnx: render a small dataset on
 # this machine's adapter (lavapipe, 2 CPU cores), train the three networks with CPU torch, export them
 # with model cards into models/. Resumable: rerun after an interruption and finished work is kept.
-# About 8.3 hours on 2 shared cores (renders ~2 h, denoiser 48 min + three fine-tunes of 25, 27 and 39 min,
+# About 8.5 hours on 2 shared cores (renders ~2 h, denoiser 48 min + three fine-tunes of 25, 27 and 39 min,
 # the two small networks minutes, then ~10 min of generated-world renders and a 47-min fine-tune on them,
 # then ~55 min of renders at several spp and two 13-min fine-tunes for the sample-count input, then ~40
 # min of generated-world sequences and a 2-min confidence model on them, then 23 min of world renders and
-# a ~20-min fine-tune of a denoiser one level deeper);
+# ~20- and 14-min fine-tunes of a denoiser one level deeper);
 # scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -130,7 +130,8 @@ time $NICE wgpu-rt train confidence --data "$WORLDS_SEQ_DATA" --extra-data "$BUI
 # Round 7: the denoiser one U-Net level deeper (a fifth level of 128 channels at 1/16 resolution, added to
 # the level above rather than concatenated and merged: +3.9 % FLOPs at 1080p). The fine-tune from the
 # round-5 model starts as exactly that model (the new level's transposed conv at zero); 96 more worlds;
-# 150 epochs, ~20 min on two threads (a second round measured no gain). The confidence model stays round 6's.
+# 150 epochs, ~20 min on two threads (a second round measured no gain); then 120 epochs more with a loss term
+# on 8×8 block means (--lowpass 2), 14 min. The confidence model stays round 6's.
 $NICE wgpu-rt dataset --worlds 96 --family training --size 96 --spp 1,2,4,16,64 --noisy-copies 3 --gold 512 \
     --sequence-fraction 0 --seed 3 --out "$WORLDS_SPP_DATA3" --quiet
 time OMP_NUM_THREADS=2 $NICE wgpu-rt train denoiser --data "$BUILTIN_SPP_DATA" --extra-data "$BUILTIN_DATA" \
@@ -138,3 +139,8 @@ time OMP_NUM_THREADS=2 $NICE wgpu-rt train denoiser --data "$BUILTIN_SPP_DATA" -
     --checkpoints "$CHECKPOINTS/denoiser-deeper" --resume --init-from "$OUT/denoiser.onnx" \
     --widths 16 32 64 128 128 --bottom-merge add --epochs 150 --batch 4 --crop 64 96 --lr 1e-4 --seed 3 \
     --curriculum any --ssim-space display --validate-every 25
+time OMP_NUM_THREADS=2 $NICE wgpu-rt train denoiser --data "$BUILTIN_SPP_DATA" --extra-data "$BUILTIN_DATA" \
+    "$WORLDS_DATA" "$WORLDS_SPP_DATA" "$WORLDS_SPP_DATA2" "$WORLDS_SPP_DATA3" --out "$OUT" \
+    --checkpoints "$CHECKPOINTS/denoiser-lowpass" --resume --init-from "$OUT/denoiser.onnx" \
+    --widths 16 32 64 128 128 --bottom-merge add --epochs 120 --batch 4 --crop 64 96 --lr 1e-4 --seed 5 \
+    --lowpass 2 --curriculum any --ssim-space display --validate-every 30

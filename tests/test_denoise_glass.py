@@ -7,7 +7,7 @@ of the same tracer (PSNR on the display mapping) over the pixels that see only g
 
 The bounds sit between the model shipped before the worlds fine-tune (glass 20.02 dB, whole image
 25.02 dB, means over these four seeds on lavapipe) and the one that followed it (20.96 / 26.26 dB): that
-earlier model fails them; the shipped five-level model scores 21.58 / 26.95 (BENCHMARKS.md §9). OIDN 2.5
+earlier model fails them; the shipped five-level model scores 21.62 / 26.98 (BENCHMARKS.md §9). OIDN 2.5
 (CPU, balanced) on the same inputs with the same noise-free albedo: 21.44 / 27.13 dB (BENCHMARKS.md §5).
 """
 
