@@ -9,9 +9,9 @@
   ``bottom_merge="add"`` the deepest level's upsampled output is instead added to the skip above it, no
   merge convolutions there: a level that widens the receptive field at a sixth of what a concat level
   costs (1080p, widths 16-32-64-128 + 128: 158.7 GFLOP against 187.6 with concat, 152.8 without the
-  level). A fine-tune one level deeper starts with that transposed conv at zero, as the shallower model. With ``residual`` that conv (zero-initialised)
-  predicts a correction added to the input's log1p colour (a fixed 1×1 conv selects those channels, then
-  an Add), so the untrained network is the identity. In a short run on 1-spp inputs it fit the training
+  level). A fine-tune one level deeper starts with that transposed conv at zero, as the shallower model.
+  With ``residual`` the 1×1 conv (zero-initialised) predicts a correction added to the input's log1p
+  colour (a fixed 1×1 conv selects those channels, then an Add), so the untrained network is the identity. In a short run on 1-spp inputs it fit the training
   set worse than direct prediction (loss 0.41 vs 0.27 after 165 steps), so it is off by default.
   H and W must be multiples of 2**(levels-1) (the engine pads and crops).
 - ``ErrorPredictor``: 1-spp log1p RGB → a [0, 1] heatmap of where error will be (3×3 convs, sigmoid).
