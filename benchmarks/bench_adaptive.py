@@ -160,14 +160,18 @@ def denoised_curve(scene, size, args, gold) -> dict[int, dict[str, float]]:
             for spp in sorted(args.uniform) if spp <= 1 + MAX_HEAT_SAMPLES}
 
 
+def relative_squared_error(image: np.ndarray, gold: np.ndarray) -> np.ndarray:
+    """(H, W) mean over channels of (x_c − μ_c)² / (μ_c² + ε): relMSE's per-pixel term."""
+    delta = (np.nan_to_num(image.astype(np.float64)) - gold) ** 2
+    return np.mean(delta / (gold.astype(np.float64) ** 2 + metrics.REL_MSE_EPSILON), axis=-1)
+
+
 def probe_oracle(scene, size, args, gold, sigma_term: np.ndarray):
     """seed → FixedImportance of sqrt(mean_c δ_c² / (μ_c² + ε) + sigma_term²), δ that seed's probe error
     against the gold (the pipeline's probe is brute-force 1 spp with the run's seed, tested)."""
     def model(seed):
         probe = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=seed, aovs=()).color
-        delta = (np.nan_to_num(probe.astype(np.float64)) - gold) ** 2
-        relative = np.mean(delta / (gold.astype(np.float64) ** 2 + metrics.REL_MSE_EPSILON), axis=-1)
-        return FixedImportance(np.sqrt(relative + sigma_term.astype(np.float64) ** 2))
+        return FixedImportance(np.sqrt(relative_squared_error(probe, gold) + sigma_term.astype(np.float64) ** 2))
 
     return model
 
@@ -179,9 +183,7 @@ def denoised_oracle(scene, size, args, gold):
     def model(seed):
         denoised = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=seed, aovs=(), denoise=True,
                           models_dir=args.models, precision=args.precision).color
-        delta = (np.nan_to_num(denoised.astype(np.float64)) - gold) ** 2
-        return FixedImportance(np.sqrt(np.mean(delta / (gold.astype(np.float64) ** 2 + metrics.REL_MSE_EPSILON),
-                                               axis=-1)))
+        return FixedImportance(np.sqrt(relative_squared_error(denoised, gold)))
 
     return model
 
