@@ -124,18 +124,18 @@ def test_batch_of_two(networks):
 
 @pytest.mark.parametrize("widths,limit,bands", [((8, 16, 32), 820_000, 3), ((16, 32), 1_000_000, 3)],
                          ids=["conv", "conv3x3_head"])
-def test_frames_over_the_binding_limit_run_in_bands_with_identical_results(tmp_path, gpu, widths, limit, bands):
-    """A frame whose activations exceed max-storage-buffer-binding-size (1080p U-Net on lavapipe) runs
-    as bands of rows with receptive-field context; shrink the limit to force that at a small size. Each
-    band's first conv reads its rows of the input image and its last layer writes its kept rows of the
-    output image: conv.wgsl and the 1×1 head (8 channels), conv3x3 with the head in its epilogue (16)."""
+def test_frames_over_the_buffer_limit_run_in_bands_with_identical_results(tmp_path, gpu, widths, limit, bands):
+    """A frame whose activations exceed max-buffer-size runs as bands of rows with receptive-field
+    context; shrink the limits to force that at a small size. Each band's first conv reads its rows of
+    the input image and its last layer writes its kept rows of the output image: conv.wgsl and the 1×1
+    head (8 channels), conv3x3 with the head in its epilogue (16)."""
     from wgpu_rt.gpu import GpuContext
     from wgpu_rt.nn import WgslModel
 
     torch.manual_seed(4)
     path = export_onnx(UNet(widths=widths), tmp_path / "unet.onnx")
     small = GpuContext(gpu.adapter, gpu.device, gpu.features)
-    small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": limit}
+    small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": limit, "max-buffer-size": limit}
     x = np.random.default_rng(7).uniform(0, 1, (1, DENOISER.input_channels, 403, 45)).astype(np.float32)
     banded = WgslModel(path, ctx=small, conv_tiling="register")
     assert len(banded.plan(403, 45).bands) == bands
@@ -143,6 +143,39 @@ def test_frames_over_the_binding_limit_run_in_bands_with_identical_results(tmp_p
     assert kernels.count("pack+conv.wgsl" if widths[0] == 8 else "pack+conv3x3.wgsl+tile16") == bands
     assert kernels.count("gemm.wgsl+unpack" if widths[0] == 8 else "conv3x3.wgsl+tile16+head+unpack") == bands
     np.testing.assert_array_equal(banded(x), WgslModel(path, ctx=gpu, conv_tiling="register")(x))
+
+
+@pytest.mark.parametrize("tiling", ["register", "staged", "loop"])
+def test_frames_over_the_binding_limit_bind_windows_and_split_inputs(tmp_path, gpu, monkeypatch, tiling):
+    """A frame whose tensors fit max-buffer-size but not one storage binding (the 1080p U-Net on
+    lavapipe's 128 MiB) runs whole: each tensor is bound as a window of its buffer, and the merge conv
+    reading the full-resolution concat (over the limit by itself) reads it through two windows
+    (load_blocks_split.wgsl), in conv3x3.wgsl (register), its staged variant and conv.wgsl (loop). The
+    result equals the unconstrained plan's bit for bit."""
+    from wgpu_rt.gpu import GpuContext
+    from wgpu_rt.nn import WgslModel, kernels
+
+    torch.manual_seed(4)
+    path = export_onnx(UNet(widths=(16, 32)), tmp_path / "unet.onnx")
+    small = GpuContext(gpu.adapter, gpu.device, gpu.features)
+    plane = 404 * 46 * 16  # one fp32 block of the 403×45 frame's 404×46 canvas
+    small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": 6 * plane}  # concat: 8 blocks
+    split_reads = []
+    modules = kernels.ConvFamilyKernel.modules
+
+    def spy(self, src, *args, **kwargs):
+        split_reads.append((src.split_block, src.upper[2]) if src.upper else None)
+        return modules(self, src, *args, **kwargs)
+
+    monkeypatch.setattr(kernels.ConvFamilyKernel, "modules", spy)
+    x = np.random.default_rng(7).uniform(0, 1, (1, DENOISER.input_channels, 403, 45)).astype(np.float32)
+    windowed = WgslModel(path, ctx=small, conv_tiling=tiling)
+    plan = windowed.plan(403, 45)
+    assert plan.canvas == (404, 46) and len(plan.bands) == 1 and plan.peak_bytes > 6 * plane
+    assert [read for read in split_reads if read] == [(6, 2 * plane)]  # the merge conv: blocks 6, 7 upper
+    whole = WgslModel(path, ctx=gpu, conv_tiling=tiling)
+    np.testing.assert_array_equal(windowed(x), whole(x))
+    assert whole.plan(403, 45).peak_bytes == plan.peak_bytes
 
 
 @pytest.mark.parametrize("tiling,precision", [("register", "fp32"), ("staged", "fp32"), ("loop", "fp32"),

@@ -148,9 +148,14 @@ class GpuContext:
             data=padded, usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC
             | wgpu.BufferUsage.COPY_DST | usage, label=label)
 
-    def storage(self, nbytes: int, label: str = "", usage=0) -> object:
-        """An uninitialised (zeroed) storage buffer of ``nbytes`` (rounded up to 16)."""
-        self.check_buffer_size(nbytes, label or "a storage buffer")
+    def storage(self, nbytes: int, label: str = "", usage=0, windowed: bool = False) -> object:
+        """An uninitialised (zeroed) storage buffer of ``nbytes`` (rounded up to 16). ``windowed``: it is
+        only ever bound in windows, so it may exceed one binding (up to max-buffer-size)."""
+        if windowed and nbytes > self.limits["max-buffer-size"]:
+            raise DeviceLimitError(f"{label or 'a storage buffer'} needs {nbytes / 2**20:.1f} MiB, over this "
+                                   f"device's max-buffer-size of {self.limits['max-buffer-size'] / 2**20:.1f} MiB")
+        if not windowed:
+            self.check_buffer_size(nbytes, label or "a storage buffer")
         return self.device.create_buffer(
             size=max(16, (nbytes + 15) // 16 * 16), label=label,
             usage=wgpu.BufferUsage.STORAGE | wgpu.BufferUsage.COPY_SRC | wgpu.BufferUsage.COPY_DST | usage)

@@ -51,13 +51,19 @@ PRECISIONS = {"fp32": FP32, "fp16": FP16}
 
 @dataclass
 class TensorView:
-    """A tensor inside an activation buffer: ``channels`` channels starting at block ``block``."""
+    """A tensor inside an activation buffer: ``channels`` channels starting at block ``block``.
+    ``buffer`` is what a kernel binds: a buffer, or a window (buffer, offset, size) of one too large for a
+    single storage binding (``block`` then counts from the window's start). A convolution's input too
+    large for one window is two: its blocks from ``split_block`` on are read through ``upper``
+    (load_blocks_split.wgsl)."""
 
     buffer: object
     block: int
     channels: int
     height: int
     width: int
+    upper: tuple | None = None
+    split_block: int = 0
 
     @property
     def blocks(self) -> int:
@@ -307,8 +313,9 @@ class ConvFamilyKernel(NnKernel):
     read the planar input image (the first layer) and max-pool their output in the epilogue (see
     ``modules``)."""
 
-    bindings = ("src", "dst", "weights", "header", "pooled")
+    bindings = ("src", "dst", "weights", "header", "pooled", "src_upper")
     tile_c_default = 1
+    reads_through_load_blocks = False  # its shader reads the input via load_blocks.wgsl (can split it)
 
     def __init__(self, ctx, precision: Precision, tile_x: int, uniform_windows: bool = False):
         super().__init__(ctx, precision)
@@ -331,8 +338,14 @@ class ConvFamilyKernel(NnKernel):
         planar input image (load_planar.wgsl: ``src`` is then the image buffer) and, with
         ``output_image``, the planar output image (store_planar.wgsl: ``dst`` likewise); with
         ``pooled`` the epilogue writes the output's 2×2 max pool too (pool_epilogue.wgsl, else
-        pool_epilogue_none.wgsl)."""
+        pool_epilogue_none.wgsl); an input split over two bindings (TensorView.upper) is read through
+        load_blocks_split.wgsl."""
         substitutions, replacements = {}, {}
+        if src.upper is not None:
+            if not self.reads_through_load_blocks or input_image is not None:
+                raise ValueError(f"{self.shader} cannot read an input split over two bindings")
+            substitutions.update(IN_SPLIT=src.split_block, UPPER_BINDING=self.bindings.index("src_upper"))
+            replacements["load_blocks.wgsl"] = "load_blocks_split.wgsl"
         if input_image is not None:
             substitutions.update(input_image.load_constants(src.channels))
             replacements["load_blocks.wgsl"] = "load_planar.wgsl"
@@ -362,7 +375,7 @@ class ConvFamilyKernel(NnKernel):
         channels = dst.channels
         kernel = kernel or self.shader
         tensors = {"src": src.buffer, "dst": dst.buffer, **({"pooled": pooled.buffer} if pooled else {}),
-                   **({"head": head.buffer} if head else {})}
+                   **({"head": head.buffer} if head else {}), **({"src_upper": src.upper} if src.upper else {})}
         label = layer.name + (f" + {head.layer.name}" if head else "")
         if packed.one_dispatch:
             resources = {**tensors, **packed.windows(None), "header": packed.header(dst.block, None)}
@@ -383,6 +396,7 @@ class ConvKernel(ConvFamilyKernel):
     """conv.wgsl: k×k convolution, stride 1–2, zero padding, fused bias + activation."""
 
     shader = "conv.wgsl"
+    reads_through_load_blocks = True
 
     def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView, *,
                    pooled: TensorView | None = None, input_image: ImageRows | None = None,
@@ -513,6 +527,7 @@ class Conv3x3Kernel(ConvFamilyKernel):
 
     bindings = ConvFamilyKernel.bindings + WINDOW_BINDINGS[1:] + ("head",)
     tile_x = 4
+    reads_through_load_blocks = True
 
     def __init__(self, ctx, precision: Precision, staged: bool = False, uniform_windows: bool = False):
         super().__init__(ctx, precision, self.tile_x, uniform_windows)

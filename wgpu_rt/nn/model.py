@@ -18,9 +18,14 @@ Buffer planning: every tensor lives in its root's buffer (a concat's inputs live
 a root is live from the first dispatch that writes it to the last that reads it; roots are packed,
 largest first, into a pool of buffers (into the smallest buffer free over the root's whole lifetime
 that fits it, else the largest free one, grown, else a new one). ``Plan.peak_bytes`` is the pool's
-total size, ``Plan.unplanned_bytes`` what one buffer per tensor would take. A frame whose largest
-activation would not fit one storage binding (the U-Net at 1080p on lavapipe's 128 MiB) runs as bands
-of rows with receptive-field context, with the same result.
+total size, ``Plan.unplanned_bytes`` what one buffer per tensor would take. A buffer larger than one
+storage binding (the U-Net's 32-channel full-resolution concat at 1080p in fp32 is 255 MiB, lavapipe
+binds 128 MiB) is bound in windows: each kernel binds just the blocks of the tensor it reads or writes,
+and a convolution whose input alone is over the limit reads it through two windows
+(load_blocks_split.wgsl). Only a frame that cannot be bound so (a buffer over max-buffer-size, or a
+window over the binding limit or off its offset alignment) runs as bands of rows with receptive-field
+context, with the same result; at 1080p on lavapipe windows took the shipped denoiser from 8.5 s in
+five bands to 4.0 s whole (BENCHMARKS.md §10).
 
 Numerics (both precisions): inputs are sanitized on entry (NaN → 0, ±Inf and out-of-range values →
 ± the largest finite value of the storage type) and every kernel clamps what it stores the same way, so
@@ -71,6 +76,11 @@ def shape_view(shape: Shape, buffer=None) -> TensorView:
     """A tensor of ``shape`` from the start of ``buffer``: the planar image an exit layer writes, or with
     no buffer the shape alone (autotuning times a layer on scratch tensors of its shapes)."""
     return TensorView(buffer, 0, shape.channels, shape.height, shape.width)
+
+
+class _BandsNeeded(Exception):
+    """A whole-frame plan would bind a tensor over the device's storage binding limit (see
+    WgslModel._bound_view): the frame runs in bands instead."""
 
 
 @dataclass(frozen=True)
@@ -255,12 +265,13 @@ class WgslModel:
         made when called."""
 
         def dispatches():
-            def scratch(view: TensorView) -> TensorView:
+            def scratch(view: TensorView, split: bool = False) -> TensorView:
                 size = view.blocks * view.height * view.width * self.precision.vec4_bytes
-                return TensorView(self.ctx.storage(size, label="autotune scratch"), 0, view.channels,
-                                  view.height, view.width)
+                buffer = self.ctx.storage(size, label="autotune scratch", windowed=True)
+                return self._bound_view(buffer, 0, Shape(view.channels, view.height, view.width), split)
             extra = {"pooled": scratch(pooled)} if pooled is not None else {}
-            return kernel.dispatches(layer, kernel.prepare(layer), scratch(src), scratch(dst), **extra)
+            return kernel.dispatches(layer, kernel.prepare(layer), scratch(src, kernel.reads_through_load_blocks),
+                                     scratch(dst), **extra)
         return dispatches
 
     @property
@@ -297,13 +308,14 @@ class WgslModel:
         canvas, shapes = self._canvas_shapes(height, width)
         out_shape = shapes[self.graph.output_name]
         crop = (out_shape.channels, out_shape.height * height // canvas[0], out_shape.width * width // canvas[1])
-        limit = min(self.ctx.limits["max-storage-buffer-binding-size"], self.ctx.limits["max-buffer-size"])
-        largest = max(self._root_bytes(shapes).values())
-        if largest <= limit:
-            bands, rows = [Band(0, height, 0, crop[1])], height
-        else:
+        bands = [Band(0, height, 0, crop[1])]
+        try:
+            network = self._network_plan(canvas, shapes)
+        except _BandsNeeded:
+            limit = min(self.ctx.limits["max-storage-buffer-binding-size"], self.ctx.limits["max-buffer-size"])
+            largest = max(self._root_bytes(shapes).values())
             bands, rows = self._bands(height, canvas[0], largest, limit, out_shape)
-        network = self._network_plan(*self._canvas_shapes(rows, width))
+            network = self._network_plan(*self._canvas_shapes(rows, width))
         output_buffer = self.ctx.storage(4 * int(np.prod(crop)), label="nn output")
         flops = sum(layer.flops_per_pixel * shapes[layer.output].height * shapes[layer.output].width
                     for layer in self.graph.layers)
@@ -376,6 +388,29 @@ class WgslModel:
             return None
         return readers[0]
 
+    def _bound_view(self, buffer, block: int, shape: Shape, split: bool = False) -> TensorView:
+        """The tensor of ``shape`` at ``block`` of ``buffer`` as a kernel binds it: the whole buffer where
+        that fits one storage binding, else a window of just the tensor's blocks, or for a convolution's
+        input (``split``) two windows where one is too large. Raises _BandsNeeded where the device cannot
+        bind it so (a window over the limit, or one starting off the offset alignment)."""
+        limit = self.ctx.limits["max-storage-buffer-binding-size"]
+        if buffer.size <= limit:
+            return TensorView(buffer, block, shape.channels, shape.height, shape.width)
+        alignment = self.ctx.limits["min-storage-buffer-offset-alignment"]
+        plane = shape.height * shape.width * self.precision.vec4_bytes
+        blocks = groups_of(shape.channels, 4)
+
+        def window(first: int, count: int) -> tuple:
+            if count * plane > limit or first * plane % alignment:
+                raise _BandsNeeded
+            return buffer, first * plane, count * plane
+
+        if blocks * plane <= limit or not split:
+            return TensorView(window(block, blocks), 0, shape.channels, shape.height, shape.width)
+        lower = min(blocks - 1, limit // plane)
+        return TensorView(window(block, lower), 0, shape.channels, shape.height, shape.width,
+                          upper=window(block + lower, blocks - lower), split_block=lower)
+
     def _network_plan(self, canvas: tuple[int, int], shapes: dict[str, Shape]) -> NetworkPlan:
         """Buffers (liveness-planned) and dispatches of the network on ``canvas``; cached per canvas."""
         if canvas in self._networks:
@@ -426,22 +461,26 @@ class WgslModel:
             slot["size"] = max(slot["size"], need)
             slot["spans"].append((first, last))
             assignment[root] = slot
+        if max(slot["size"] for slot in pool) > self.ctx.limits["max-buffer-size"]:
+            raise _BandsNeeded
         for index, slot in enumerate(pool):
-            slot["buffer"] = self.ctx.storage(slot["size"], label=f"nn activations {index}")
+            slot["buffer"] = self.ctx.storage(slot["size"], label=f"nn activations {index}", windowed=True)
 
-        def view(tensor: str) -> TensorView:
+        def view(tensor: str, split: bool = False) -> TensorView:
             root, offset = graph.placement(tensor)
-            shape = shapes[tensor]
-            return TensorView(assignment[root]["buffer"], offset // 4, shape.channels, shape.height, shape.width)
+            return self._bound_view(assignment[root]["buffer"], offset // 4, shapes[tensor], split)
 
-        def weighted(layer: Layer, src: TensorView, dst: TensorView, **modules):
-            """``layer``'s dispatches reading ``src`` into ``dst``, its epilogue pool included, by the
-            kernel chosen for it; ``modules``: the planar images it reads or writes, a head."""
+        def weighted(layer: Layer, src: TensorView | str, dst: TensorView, **modules):
+            """``layer``'s dispatches reading ``src`` (a view, or the tensor's name) into ``dst``, its
+            epilogue pool included, by the kernel chosen for it; ``modules``: the planar images it reads
+            or writes, a head."""
             pooled = graph.epilogue_pools.get(layer.name)
             if pooled is not None:
                 modules["pooled"] = view(pooled.output)
             kernel = self.tuned_kernel(layer, shape_view(shapes[layer.inputs[0]]),
                                        shape_view(shapes[layer.output]), modules.get("pooled"))
+            if isinstance(src, str):
+                src = view(src, split=kernel.reads_through_load_blocks)
             return kernel.dispatches(layer, self.packed(layer, kernel), src, dst, **modules)
 
         dispatches = []
@@ -449,19 +488,21 @@ class WgslModel:
             if graph.pooled_in_epilogue(layer) or id(layer) in elsewhere:
                 continue
             kernel = self.kernel_for(layer)
-            sources = [view(name) for name in layer.inputs]
+            if layer.kind == "concat":  # its inputs live inside it, but for those copied in
+                offsets = np.cumsum([0] + [shapes[name].channels for name in layer.inputs])
+                for name, offset in zip(layer.inputs, offsets):
+                    if name in graph.concat_copies[layer.name]:
+                        dispatches += kernel.dispatches(f"{layer.name} <- {name}", view(name),
+                                                        view(layer.output), int(offset))
+                continue
             dst = view(layer.output)
             if layer.weight is not None:
-                dispatches += weighted(layer, sources[0], dst)
+                dispatches += weighted(layer, layer.inputs[0], dst)
             elif layer.kind == "elementwise":
-                dispatches += kernel.dispatches(layer, self.prepared.get(layer.name), sources, dst)
-            elif layer.kind == "concat":
-                offsets = np.cumsum([0] + [s.channels for s in sources])
-                for name, source, offset in zip(layer.inputs, sources, offsets):
-                    if name in graph.concat_copies[layer.name]:
-                        dispatches += kernel.dispatches(f"{layer.name} <- {name}", source, dst, int(offset))
+                dispatches += kernel.dispatches(layer, self.prepared.get(layer.name),
+                                                [view(name) for name in layer.inputs], dst)
             else:
-                dispatches += kernel.dispatches(layer, sources[0], dst)
+                dispatches += kernel.dispatches(layer, view(layer.inputs[0]), dst)
 
         input_shape, output_shape = shapes[graph.input_name], shapes[graph.output_name]
         if entry_layer is None:
@@ -479,11 +520,11 @@ class WgslModel:
             def exit(buffer, image: ImageRows) -> list[Dispatch]:
                 return self.kernels["unpack"].dispatches(output_view, buffer, image)
         else:
-            source = view(exit_layer.inputs[0])
             extra = {"head": head} if head else {}
 
             def exit(buffer, image: ImageRows) -> list[Dispatch]:
-                return weighted(exit_layer, source, shape_view(output_shape, buffer), output_image=image, **extra)
+                return weighted(exit_layer, exit_layer.inputs[0], shape_view(output_shape, buffer),
+                                output_image=image, **extra)
         network = NetworkPlan(canvas, dispatches, entry, exit, peak_bytes=sum(slot["size"] for slot in pool),
                               unplanned_bytes=sum(root_bytes[root] for root in lifetime))
         self._networks[canvas] = network
