@@ -19,7 +19,8 @@ N more 1-spp renders of every test view and prints per-view means: one realizati
 by a few tenths of a dB. All networks run in the WGSL engine.
 
     python benchmarks/bench_denoise.py --data data/dataset [DIR ...] [--models models] [--extra-spp 64 256] [--gold-spp 1024]
-        [--per-view] [--noise-seeds 3] [--mask-spp 512] [--skip-denoiser] [--oidn-quality fast balanced high]
+        [--per-view] [--noise-seeds 3] [--mask-spp 512] [--skip-denoiser] [--quality balanced high]
+        [--oidn-quality fast balanced high]
 """
 
 from __future__ import annotations
@@ -33,7 +34,8 @@ import numpy as np
 from common import save_array
 from peers import DEVICE_NAMES, QUALITIES, oidn_denoise, oidn_devices, preferred
 from wgpu_rt import metrics
-from wgpu_rt.frame.denoise import denoise
+from wgpu_rt.frame.denoise import QUALITIES as OUR_QUALITIES
+from wgpu_rt.frame.denoise import denoise, load_model
 from wgpu_rt.dataset import DatasetConfig, TruthEngine, load_views, plan_views, read_manifest
 from wgpu_rt.frame.pack import pack_confidence_input, pack_error_input
 from wgpu_rt.nn import WgslModel
@@ -146,6 +148,8 @@ def main() -> None:
     parser.add_argument("--skip-denoiser", action="store_true",
                         help="only the error predictor and the confidence model (no denoiser/OIDN/brute-force "
                              "table, no renders beyond --mask-spp's)")
+    parser.add_argument("--quality", nargs="+", default=["balanced"], choices=OUR_QUALITIES,
+                        help="rows of ours, one per quality (high: an ensemble of 4 turned passes)")
     parser.add_argument("--oidn-quality", nargs="+", default=["balanced", "high"], choices=QUALITIES,
                         help="OIDN rows, one per quality (on CUDA when benchmarks/peers.py finds it, else the CPU)")
     args = parser.parse_args()
@@ -157,7 +161,10 @@ def main() -> None:
     devices, skipped = oidn_devices()
     for line in skipped:
         print(line)
-    table = DenoiserTable(preferred(devices), args.oidn_quality)
+    ours = {quality: denoiser if quality == "balanced" else
+            load_model("denoiser", args.precision, path=models / "denoiser.onnx", quality=quality)
+            for quality in args.quality}
+    table = DenoiserTable(preferred(devices), args.oidn_quality, ours)
     spearman = []
     auc: dict[str, dict[str, list[float]]] = {}
     for data in args.data:
@@ -169,9 +176,9 @@ def main() -> None:
               f"{views[0].frames[0].gold['color'].shape[1]}² px, precision {args.precision}, gold "
               f"{args.gold_spp or dataset_gold_spp} spp")
         if not args.skip_denoiser:
-            table.add_views(args, Path(data), views, denoiser, gold_override, dataset_gold_spp)
+            table.add_views(args, Path(data), views, gold_override, dataset_gold_spp)
             if args.noise_seeds:
-                table.add_noise_seeds(args, Path(data), views, denoiser, gold_override)
+                table.add_noise_seeds(args, Path(data), views, gold_override)
 
         sequences = {v.view_id for v in views if len(v.frames) > 1}
         mask_references = ({f: reference_gold(Path(data), sequences, args.mask_spp, f)
@@ -210,28 +217,31 @@ class DenoiserTable:
     force at rising spp on each view's frame 0, pooled over the dataset folders given, printed as one
     table with equivalent spp and time per view."""
 
-    OURS = "ours (1 spp)"
-
-    def __init__(self, oidn_device: str | None, qualities: list[str]):
+    def __init__(self, oidn_device: str | None, qualities: list[str], ours: dict):
+        """``ours``: quality → our denoiser (WgslModel) at it; the first is the one OIDN is compared with."""
         self.oidn_device = oidn_device
+        self.ours = {("ours (1 spp)" if quality == "balanced" else f"ours {quality} (1 spp)"): model
+                     for quality, model in ours.items()}
+        self.OURS = next(iter(self.ours))
         self.oidn = {f"OIDN {quality} (1 spp)": quality for quality in (qualities if oidn_device else [])}
         self.rows: dict[str, list[dict]] = {}
-        self.seconds = dict.fromkeys([self.OURS, *self.oidn], 0.0)
+        self.seconds = dict.fromkeys([*self.ours, *self.oidn], 0.0)
         self.views = 0
         self.seeded: dict[str, dict[str, list[float]]] = {}   # view → method → PSNR per noise realization
 
-    def denoisers(self, denoiser) -> dict:
+    def denoisers(self) -> dict:
         """Method name → function of the 1-spp images returning the denoised colour."""
-        ours = {self.OURS: lambda noisy: denoise(denoiser, noisy["color"], noisy["albedo"], noisy["normal"],
-                                                 noisy["depth"])}
+        ours = {name: lambda noisy, model=model: denoise(model, noisy["color"], noisy["albedo"], noisy["normal"],
+                                                         noisy["depth"])
+                for name, model in self.ours.items()}
         return ours | {name: lambda noisy, quality=quality: oidn_denoise(noisy["color"], noisy["albedo"],
                                                                          noisy["normal"], quality, self.oidn_device)
                        for name, quality in self.oidn.items()}
 
-    def add_views(self, args, data: Path, views, denoiser, gold_override: dict, dataset_gold_spp: int) -> None:
+    def add_views(self, args, data: Path, views, gold_override: dict, dataset_gold_spp: int) -> None:
         extra = (render_test_views(data, {v.view_id for v in views}, args.extra_spp, seed=10_000)
                  if args.extra_spp else {})
-        denoisers = self.denoisers(denoiser)
+        denoisers = self.denoisers()
         if not self.views:   # warm-up: pipeline compilation and OIDN's set-up are not denoising time
             for run in denoisers.values():
                 run(views[0].frames[0].noisy[1])
@@ -257,11 +267,11 @@ class DenoiserTable:
                       + "".join(f", {name.removesuffix(' (1 spp)')} {value:6.2f} ({value - psnr[self.OURS]:+.2f} dB)"
                                 for name, value in psnr.items() if name != self.OURS))
 
-    def add_noise_seeds(self, args, data: Path, views, denoiser, gold_override: dict) -> None:
+    def add_noise_seeds(self, args, data: Path, views, gold_override: dict) -> None:
         """Each view's PSNR per method over its dataset render and --noise-seeds fresh 1-spp renders (the
         dataset's aux settings, seeds NOISE_SEED + 1000·k): a per-view gap to OIDN that one realization's
         noise does not decide."""
-        denoisers = self.denoisers(denoiser)
+        denoisers = self.denoisers()
         fresh = [render_test_views(data, {v.view_id for v in views}, [1], seed=NOISE_SEED + 1000 * k, gbuffers=True)
                  for k in range(args.noise_seeds)]
         for view in views:
@@ -275,22 +285,23 @@ class DenoiserTable:
         """Per view and method the mean PSNR over the realizations, the gap of each OIDN quality to ours,
         and the mean and worst gap over the views."""
         first = next(iter(self.seeded.values()))
+        short = lambda name: name.removesuffix(" (1 spp)")  # noqa: E731
         print(f"PSNR over {len(first[self.OURS])} noise realizations per view (the dataset's 1-spp render and "
-              f"{len(first[self.OURS]) - 1} fresh ones): mean, and each OIDN quality's lead over ours")
-        gaps = {name: [] for name in self.oidn}
-        for view, scores in self.seeded.items():
-            ours = float(np.mean(scores[self.OURS]))
-            line = f"  {view:40s} ours {ours:6.2f}"
+              f"{len(first[self.OURS]) - 1} fresh ones): mean, and each other method's lead over {short(self.OURS)}")
+        mean = {view: {name: float(np.mean(values)) for name, values in scores.items()}
+                for view, scores in self.seeded.items()}
+        for view, scores in mean.items():
+            ours = scores[self.OURS]
+            print(f"  {view:40s} {short(self.OURS)} {ours:6.2f}" + "".join(
+                f", {short(name)} {value:6.2f} ({value - ours:+.2f} dB)" for name, value in scores.items()
+                if name != self.OURS))
+        print("  mean PSNR " + ", ".join(f"{short(name)} {np.mean([m[name] for m in mean.values()]):.2f}"
+                                         for name in first))
+        for ours in self.ours:
             for name in self.oidn:
-                theirs = float(np.mean(scores[name]))
-                gaps[name].append(theirs - ours)
-                line += f", {name.removesuffix(' (1 spp)')} {theirs:6.2f} ({theirs - ours:+.2f} dB)"
-            print(line)
-        means = {name: float(np.mean([np.mean(s[name]) for s in self.seeded.values()])) for name in first}
-        print("  mean PSNR " + ", ".join(f"{name.removesuffix(' (1 spp)')} {value:.2f}" for name, value in means.items())
-              + "".join(f"; {name.removesuffix(' (1 spp)')} ahead by {np.mean(g):+.2f} dB on average, "
-                        f"{max(g):+.2f} on the worst view, {sum(x > 0 for x in g)} of {len(g)} views"
-                        for name, g in gaps.items()))
+                gaps = [m[name] - m[ours] for m in mean.values()]
+                print(f"  {short(name)} ahead of {short(ours)} by {np.mean(gaps):+.2f} dB on average, "
+                      f"{max(gaps):+.2f} on the worst view, on {sum(g > 0 for g in gaps)} of {len(gaps)} views")
 
     def print(self) -> None:
         rows = self.rows
@@ -308,8 +319,9 @@ class DenoiserTable:
             print(f"equivalent spp of {name}: {by_rel_mse} by relMSE, {by_psnr} by PSNR")
         ours = self.seconds[self.OURS] / self.views
         print(f"time per view: ours {ours:.3f} s (WGSL on the adapter)"
-              + "".join(f"; {name.removesuffix(' (1 spp)')} {seconds / self.views:.3f} s "
-                        f"({DEVICE_NAMES[self.oidn_device]}), ours ÷ it {self.seconds[self.OURS] / max(seconds, 1e-9):.2f}"
+              + "".join(f"; {name.removesuffix(' (1 spp)')} {seconds / self.views:.3f} s"
+                        + (f" ({DEVICE_NAMES[self.oidn_device]})" if name in self.oidn else "")
+                        + f", ours ÷ it {self.seconds[self.OURS] / max(seconds, 1e-9):.2f}"
                         for name, seconds in self.seconds.items() if name != self.OURS))
 
 

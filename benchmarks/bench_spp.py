@@ -2,7 +2,7 @@
 at each spp, on the same noisy renders, against a gold render. Issue 12's bar: ours rises with spp and
 never falls below brute force at the same spp.
 
-    python3 benchmarks/bench_spp.py --size 96 --spp 1 2 4 16 64 256 --gold-spp 4096 [--scenes ...]
+    python3 benchmarks/bench_spp.py --size 96 --spp 1 2 4 16 64 256 --gold-spp 4096 [--scenes ...] [--quality high]
 """
 
 from __future__ import annotations
@@ -22,6 +22,8 @@ def main():
     parser.add_argument("--seeds", type=int, default=1,
                         help="noisy renders per row (seeds 7, 8, …); the table shows their mean PSNR, "
                              "since one 64² realization moves a model's score by a few tenths of a dB")
+    parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
+                        help="our denoiser's quality (high: an ensemble of 4 turned passes)")
     add_gold_arguments(parser, 4096)
     add_model_arguments(parser)
     args = parse_with_quick_defaults(parser, {"size": 48, "spp": [1, 4, 16], "gold_spp": 512})
@@ -39,7 +41,7 @@ def main():
                 options = dict(size=size, max_depth=args.max_depth, seed=seed, models_dir=args.models,
                                precision=args.precision)
                 noisy = next(Renderer(scene, spp, aovs=("albedo", "normal"), **options).frames())
-                ours = next(Renderer(scene, spp, denoise=True, aovs=(), **options).frames()).color
+                ours = next(Renderer(scene, spp, denoise=True, aovs=(), quality=args.quality, **options).frames()).color
                 theirs = oidn(noisy.color, noisy.aovs["albedo"], noisy.aovs["normal"])
                 for name, image in (("brute", noisy.color), ("ours", ours), ("oidn", theirs)):
                     scores[name].append(errors(gold, image)["PSNR"])

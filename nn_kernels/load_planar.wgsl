@@ -7,10 +7,15 @@
 // load_blocks.wgsl, so that the layer reads the image itself (no pack dispatch). That layer takes the
 // values unrounded: in fp16 its input keeps f32 precision, and no f16 round trip is paid per load (one
 // per load cost ≈ 2% of the denoiser's CPU time on lavapipe, where each input pixel is loaded ≈ 4.5
-// times by the 3×3 conv).
+// times by the 3×3 conv). The image may be seen flipped or turned (an ensemble's pass): pixel (r, c) of
+// the IMAGE_H × IMAGE_W image as seen is ORIGIN + r · ROW_STRIDE + c · COL_STRIDE of each stored
+// channel plane (kernels.dihedral_strides; IMAGE_W, 1, 0 as stored).
 const CHANNELS: i32 = {{CHANNELS}};
 const IMAGE_H: i32 = {{IMAGE_H}};
 const IMAGE_W: i32 = {{IMAGE_W}};
+const ROW_STRIDE: i32 = {{ROW_STRIDE}};
+const COL_STRIDE: i32 = {{COL_STRIDE}};
+const ORIGIN: i32 = {{ORIGIN}};
 const IN_ROW0: i32 = {{IN_ROW0}};
 const ROWS: i32 = {{ROWS}};
 
@@ -23,12 +28,13 @@ struct InputRow {
 
 // Canvas row iy of channel block cb.
 fn input_row(cb: i32, iy: i32) -> InputRow {
-    return InputRow((4 * cb * IMAGE_H + IN_ROW0 + clamp(iy, 0, ROWS - 1)) * IMAGE_W, CHANNELS - 4 * cb);
+    return InputRow(4 * cb * IMAGE_H * IMAGE_W + ORIGIN + (IN_ROW0 + clamp(iy, 0, ROWS - 1)) * ROW_STRIDE,
+                    CHANNELS - 4 * cb);
 }
 
 // Canvas pixel ix of `row`.
 fn load_input(row: InputRow, ix: i32) -> vec4f {
-    let pixel = row.start + clamp(ix, 0, IMAGE_W - 1);
+    let pixel = row.start + clamp(ix, 0, IMAGE_W - 1) * COL_STRIDE;
     var value = vec4f(0.0);
     for (var k = 0; k < 4; k++) {
         if (k < row.channels) {

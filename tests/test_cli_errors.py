@@ -44,6 +44,8 @@ CASES = {
                                      "--output IN/file/o.npy", "IN/file is a file, not a folder"),
     "infer --output .txt": (["infer", "m.onnx", "--input", "IN/empty.npy", "--output", "IN/o.txt"],
                             "--output IN/o.txt", "must end in .npy"),
+    "render --quality without --denoise": (["render", "cornell", "--out", "IN/o.exr", "--quality", "high"],
+                                           "--quality high", "is the denoiser's: add --denoise"),
     "infer empty batch": (["infer", "m.onnx", "--input", "IN/empty.npy", "--output", "IN/o.npy"],
                           "IN/empty.npy", "shape (0, 10, 8, 8) is empty"),
 }

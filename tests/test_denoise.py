@@ -75,6 +75,28 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
 
 
+def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
+    """`--quality high`: the mean of the network over the image as given and turned 90°, 180°, 270°."""
+    import onnxruntime
+
+    from wgpu_rt.frame.pack import pack_denoiser_input
+    from wgpu_rt.frame.unpack import unpack_denoiser_output
+
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    write_exr(tmp_path / "in.exr", color, layers)
+    assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.exr"), "--model", str(model),
+                 "--quality", "high"]) == 0
+    assert ", high, " in capsys.readouterr().out
+    x = pack_denoiser_input(color, layers["albedo"], layers["normal"], layers["depth"])[None]
+    session = onnxruntime.InferenceSession(str(model), providers=["CPUExecutionProvider"])
+    turned = [np.rot90(session.run(None, {"input": np.ascontiguousarray(np.rot90(x, k, axes=(2, 3)))})[0], -k,
+                       axes=(2, 3)) for k in range(4)]
+    expected = unpack_denoiser_output(np.mean(turned, axis=0)[0], layers["albedo"])
+    np.testing.assert_allclose(read_exr(tmp_path / "out.exr")["color"], expected, rtol=1e-3, atol=1e-4)
+
+
 def test_the_sample_count_comes_from_the_spp_layer_or_the_flag(gpu, tmp_path, capsys):
     """The network is told the colour's spp: the input's 'spp' layer (what `wgpu-rt render` writes), which
     --spp overrides; a 10-input denoiser (trained before the plane existed) still runs. A malformed layer

@@ -106,6 +106,41 @@ def test_unet_plan_reuses_memory_and_concat_is_free(networks):
     assert plan.canvas == (64, 64) and model.plan(37, 53).canvas == (40, 56)
 
 
+def test_an_add_after_a_transposed_conv_runs_in_its_epilogue(networks, tmp_path, gpu):
+    """The add-merge U-Net's Add (deepest level + skip) is stored by the transposed conv's epilogue: no
+    elementwise dispatch, no buffer for the transposed conv's own output (parity: test_unet). An Add whose
+    transposed-conv input is read elsewhere too stays a dispatch of its own, with the same result as
+    onnxruntime."""
+    from wgpu_rt.nn import WgslModel
+
+    _, model = networks("unet_bottom_add", "fp32")
+    (up, add), = model.graph.epilogue_adds.items()
+    assert up.endswith("ConvTranspose") and add.kind == "elementwise"
+    dispatches = model.plan(64, 64).dispatches
+    assert not any(d.kernel.startswith("elementwise") for d in dispatches)
+    assert sum(d.kernel == "conv_transpose.wgsl+add" for d in dispatches) >= 1
+
+    class TwoReaders(torch.nn.Module):
+        def __init__(self):
+            super().__init__()
+            self.up = torch.nn.ConvTranspose2d(DENOISER.input_channels, 8, 2, stride=2)
+            self.skip = torch.nn.Conv2d(DENOISER.input_channels, 8, 3, padding=1)
+            self.out = torch.nn.Conv2d(16, 3, 1)
+
+        def forward(self, x):
+            up = self.up(torch.nn.functional.max_pool2d(x, 2))
+            return self.out(torch.cat([up + self.skip(x), up], 1))
+
+    torch.manual_seed(9)
+    path = export_onnx(TwoReaders(), tmp_path / "two_readers.onnx")
+    shared = WgslModel(path, ctx=gpu)
+    assert shared.graph.epilogue_adds == {}
+    assert any(d.kernel.startswith("elementwise") for d in shared.plan(20, 24).dispatches)
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    check_parity([(1, DENOISER.input_channels, 20, 24)], padded_reference(session, shared.graph.multiple), shared,
+                 atol=FP32_ATOL, low=0.0, high=1.0, name="Add not folded")
+
+
 def test_record_on_gpu_buffers_matches_numpy_call(networks, gpu):
     """The frame pipeline's path: planar input buffer in, planar output buffer out, one encoder."""
     _, model = networks("error_predictor", "fp32")
@@ -120,6 +155,64 @@ def test_batch_of_two(networks):
     session, model = networks("confidence_predictor", "fp32")
     x = np.random.default_rng(6).uniform(0, 1, (2, 8, 9, 11)).astype(np.float32)
     np.testing.assert_allclose(model(x), session.run(None, {"input": x})[0], atol=FP32_ATOL)
+
+
+@pytest.mark.parametrize("height,width", [(3, 5), (4, 4), (1, 7)])
+def test_dihedral_strides_address_numpys_flips_and_turns(height, width):
+    from wgpu_rt.nn.kernels import dihedral_strides
+
+    stored = np.arange(height * width).reshape(height, width)
+    for transform in range(8):
+        seen = np.rot90(stored, transform % 4)[:, ::-1 if transform >= 4 else 1]
+        row_stride, col_stride, origin = dihedral_strides(transform, *seen.shape)
+        rows, cols = np.indices(seen.shape)
+        np.testing.assert_array_equal(origin + rows * row_stride + cols * col_stride, seen, err_msg=str(transform))
+
+
+def ensemble_reference(run, k):
+    """The mean of ``run`` over the first ``k`` dihedral transforms of its (N, C, H, W) input, turned back."""
+    def averaged(x):
+        outputs = []
+        for transform in range(k):
+            seen = np.rot90(x, transform % 4, axes=(2, 3))[..., ::-1 if transform >= 4 else 1]
+            output = run(np.ascontiguousarray(seen))[..., ::-1 if transform >= 4 else 1]
+            outputs.append(np.rot90(output, -(transform % 4), axes=(2, 3)))
+        return np.mean(outputs, axis=0)
+    return averaged
+
+
+@pytest.mark.parametrize("k", [2, 8])
+def test_ensemble_averages_the_flipped_and_turned_passes(networks, gpu, k):
+    """``ensemble=k``: each pass's first conv reads the input turned, its last layer writes the output turned
+    back and adds it up; 37×53 turns into a 53×37 plan of its own (canvas padding on the other side)."""
+    from wgpu_rt.nn import WgslModel
+
+    session, model = networks("unet", "fp32")
+    ensemble = WgslModel(model.path, ctx=gpu, ensemble=k)
+    reference = ensemble_reference(padded_reference(session, model.graph.multiple), k)
+    check_parity([(1, model.input_channels, 37, 53)], reference, ensemble, atol=FP32_ATOL, low=0.0, high=1.0,
+                 name=f"ensemble of {k}")
+    image = ensemble.plan(37, 53).input_buffer
+    assert len(ensemble.dispatches(37, 53, image)) == k * len(model.dispatches(37, 53, image))
+
+
+def test_ensemble_in_bands_and_bad_sizes(tmp_path, gpu):
+    """An ensemble of a frame in bands (its turned pass in more bands of its own) equals the same
+    ensemble run whole; an ensemble size other than 1, 2, 4, 8 is a clear error."""
+    from wgpu_rt.errors import ModelError
+    from wgpu_rt.gpu import GpuContext
+    from wgpu_rt.nn import WgslModel
+
+    torch.manual_seed(4)
+    path = export_onnx(UNet(widths=(16, 32)), tmp_path / "unet.onnx")
+    small = GpuContext(gpu.adapter, gpu.device, gpu.features)
+    small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": 10**6, "max-buffer-size": 10**6}
+    x = np.random.default_rng(8).uniform(0, 1, (1, DENOISER.input_channels, 203, 45)).astype(np.float32)
+    banded = WgslModel(path, ctx=small, ensemble=2)
+    assert 1 < len(banded.plan(203, 45).bands) < len(banded.plan(45, 203).bands)  # 2 and 4
+    np.testing.assert_allclose(banded(x), WgslModel(path, ctx=gpu, ensemble=2)(x), rtol=0, atol=1e-6)
+    with pytest.raises(ModelError, match="ensemble 3: choose one of 1, 2, 4, 8"):
+        WgslModel(path, ctx=gpu, ensemble=3)
 
 
 @pytest.mark.parametrize("widths,limit,bands", [((8, 16, 32), 820_000, 3), ((16, 32), 1_000_000, 3)],

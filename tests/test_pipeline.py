@@ -400,7 +400,20 @@ def test_hdr_false_drops_the_colour_plane_from_the_readback(gpu, scene, monkeypa
     assert set(display_only.aovs) == {"depth"}
 
 
+def test_quality_high_denoises_with_an_ensemble_of_four(gpu):
+    """render(quality="high") runs the denoiser as an ensemble of 4 passes on the device: the frame equals
+    the same frame denoised by a model built with ensemble=4, and differs from the one-pass frame."""
+    from wgpu_rt.frame.denoise import load_model
+
+    options = dict(spp=1, size=(W, H), seed=5, denoise=True, ctx=gpu)
+    high = render("cornell", quality="high", **options).color
+    given = render("cornell", networks={"denoiser": load_model("denoiser", ctx=gpu, quality="high")}, **options)
+    assert given.color is not None and np.array_equal(high, given.color) and np.all(np.isfinite(high))
+    assert not np.allclose(high, render("cornell", **options).color, atol=1e-3)
+
+
 @pytest.mark.parametrize("options, message", [
+    (dict(quality="best"), "quality 'best': choose one of balanced, high"),
     (dict(hdr=False, aovs=()), "read nothing back"),
     (dict(hdr=False, tonemap=None, aovs=""), "read nothing back"),
     (dict(hdr="no", tonemap="aces"), "hdr must be True or False"),

@@ -99,7 +99,8 @@ class Renderer:
                  temporal=False, max_depth: int = 8, seed: int = 0, aovs=DEFAULT_AOVS, tonemap: str | None = None,
                  exposure: float = 0.0, srgb: bool = True, display: str = "rgba8", precision: str = "fp32",
                  models_dir=None, networks: dict | None = None, mesh=None, ctx=None, progress: bool = False,
-                 timings: bool | None = None, aux_samples: int | None = None, hdr: bool = True):
+                 timings: bool | None = None, aux_samples: int | None = None, hdr: bool = True,
+                 quality: str = "balanced"):
         from .frame.adaptive import AdaptiveSettings
         from .frame.temporal import TemporalSettings
         from .frame.tonemap import check_settings
@@ -114,6 +115,10 @@ class Renderer:
         aux_samples = (AUX_SAMPLES if denoise else 0) if aux_samples is None else check_int("aux_samples", aux_samples, 0)
         if precision not in PRECISIONS:
             raise WgpuRtError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
+        from .frame.denoise import QUALITIES
+
+        if quality not in QUALITIES:
+            raise WgpuRtError(f"quality {quality!r}: choose one of {', '.join(QUALITIES)}")
         if tonemap is not None:
             check_settings(tonemap, display, exposure)
         check_readback(hdr, tonemap, self.aovs)
@@ -135,7 +140,7 @@ class Renderer:
         self.ctx = ctx or get_context()
         networks = dict(networks or {})
         if denoise and "denoiser" not in networks:
-            networks["denoiser"] = load_model("denoiser", precision, models_dir, ctx=self.ctx)
+            networks["denoiser"] = load_model("denoiser", precision, models_dir, ctx=self.ctx, quality=quality)
         if adaptive is not None and adaptive.sampler == "heat" and "error_predictor" not in networks:
             networks["error_predictor"] = load_model("error_predictor", precision, models_dir, ctx=self.ctx)
         if temporal is not None and "confidence" not in networks:
@@ -231,6 +236,7 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
     - options: ``max_depth`` (8; Mitsuba's convention), ``seed`` (0; frame f is seeded seed + f),
       ``aovs`` (names or "a,b"), ``tonemap`` (None, "aces", "reinhard" or "none": the display image),
       ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks),
+      ``quality`` ("balanced", or "high": the denoiser averages 4 flipped/turned passes, 4× its time),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
       ``progress`` (a progress bar), ``timings`` (per-stage GPU times; default: when the adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a

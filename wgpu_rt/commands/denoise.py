@@ -15,6 +15,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--model", help="denoiser ONNX (default: the shipped denoiser.onnx)")
     parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
                         help="network arithmetic (fp16 needs the shader-f16 feature)")
+    parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
+                        help="high: average the image denoised as given and turned three ways "
+                             "(4× the time, ≈ 0.3 dB cleaner)")
     parser.add_argument("--spp", type=int, metavar="N",
                         help="samples per pixel of the colour (default: the input's 'spp' layer, which "
                              "`wgpu-rt render` writes, else 1). With 'half_radiance' and 'half_spp' layers too "
@@ -35,7 +38,7 @@ def run(args) -> int:
     require_layers(images, args.input, *REQUIRED_LAYERS)
     spp = sample_counts(images, args)
     half = half_layers(images, args.input)
-    model = load_model("denoiser", args.precision, path=args.model)
+    model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
     images = finite_layers(images, args.input)
     started = time.perf_counter()
     color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp)
@@ -46,7 +49,7 @@ def run(args) -> int:
         color = converge(color, images["color"], counts, images["half_radiance"], half)
     seconds = time.perf_counter() - started
     write_exr(args.out, color, {k: v for k, v in images.items() if k != "color"})
-    print(f"wrote {args.out} ({color.shape[1]}×{color.shape[0]}, {args.precision}, {seconds:.2f} s)")
+    print(f"wrote {args.out} ({color.shape[1]}×{color.shape[0]}, {args.precision}, {args.quality}, {seconds:.2f} s)")
     return 0
 
 

@@ -36,6 +36,9 @@ def add_arguments(parser) -> None:
                              "glass and mirrors (default: 4 with --denoise, else 0: the tracer's own)")
     parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
                         help="network arithmetic (fp16 needs the shader-f16 feature)")
+    parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
+                        help="denoiser quality; high: average the frame denoised as given and turned three "
+                             "ways (4× the denoiser's time, ≈ 0.3 dB cleaner)")
 
 
 def parse_frames(text: str | None) -> range:
@@ -98,6 +101,8 @@ def run(args) -> int:
     check_pattern(args.out, frames)
     png = output_path(args.out, frames[0]).suffix.lower() == ".png"
     fused = args.denoise or args.adaptive is not None or args.temporal
+    if args.quality != "balanced" and not args.denoise:
+        raise WgpuRtError(f"--quality {args.quality} is the denoiser's: add --denoise")
     if args.spp is not None and args.adaptive is not None:
         raise WgpuRtError("--spp with --adaptive: the adaptive budget sets the samples (mean spp)")
     spp = args.spp if args.spp is not None else (1 if fused else 64)
@@ -106,7 +111,7 @@ def run(args) -> int:
                         temporal=args.temporal, max_depth=args.max_depth, seed=args.seed,
                         aovs=() if png else aovs, tonemap="aces" if png else None, display="f32",
                         precision=args.precision, mesh=args.mesh, progress=True, aux_samples=args.aux_samples,
-                        hdr=not png)
+                        hdr=not png, quality=args.quality)
     mean_spp = args.adaptive if args.adaptive is not None else spp
     for result in renderer.frames(frames):
         path = output_path(args.out, result.frame)

@@ -19,9 +19,18 @@ from .pack import pack_denoiser_input
 from .unpack import unpack_denoiser_output
 
 
-def load_model(name: str, precision: str = "fp32", models_dir=None, path=None, ctx=None, required: bool = True):
+# Denoiser quality → passes of its self-ensemble (nn.WgslModel's ``ensemble``): "high" averages the image
+# denoised as given and turned three ways, 4× the work for 0.33 dB on held-out worlds (BENCHMARKS.md §10).
+QUALITIES = {"balanced": 1, "high": 4}
+
+
+def load_model(name: str, precision: str = "fp32", models_dir=None, path=None, ctx=None, required: bool = True,
+               quality: str = "balanced"):
     """A ``WgslModel`` of network ``name`` from ``path``, else from ``models_dir`` (default: the shipped
-    models). A missing file is a ModelError naming it, or None when not ``required``."""
+    models), running ``quality``'s ensemble (QUALITIES). A missing file is a ModelError naming it, or None
+    when not ``required``."""
+    if quality not in QUALITIES:
+        raise ModelError(f"quality {quality!r}: choose one of {', '.join(QUALITIES)}")
     network = network_named(name)
     chosen = Path(path) if path else network.path(models_dir)
     if not chosen.is_file():
@@ -31,7 +40,7 @@ def load_model(name: str, precision: str = "fp32", models_dir=None, path=None, c
         return None
     from ..nn import WgslModel
 
-    return WgslModel(chosen, precision, ctx=ctx)
+    return WgslModel(chosen, precision, ctx=ctx, ensemble=QUALITIES[quality])
 
 
 def denoise(model, color, albedo, normal, depth, spp=1) -> np.ndarray:

@@ -12,6 +12,11 @@ computed in that conv's epilogue: the conv writes both its output and the pooled
 MaxPool layer, kept in ``layers`` for shapes, is not dispatched (``NetworkGraph.epilogue_pools``). This
 needs no single consumer: the full-resolution output (a U-Net's skip) is stored as before.
 
+An Add of two tensors, one of them a transposed conv's output that nothing else reads (a U-Net whose
+deepest level is added to the skip above it), is computed in that transposed conv's epilogue: it stores
+its output plus the other tensor straight into the Add's output (``NetworkGraph.epilogue_adds``; the Add
+layer, kept for shapes, is not dispatched).
+
 Concat is free: each input that starts on a 4-channel boundary (and, unless it is the last input, spans
 whole 4-channel blocks) is written by its producer straight into its channel slice of the concatenated
 tensor ("aliased"); only misaligned inputs, graph inputs already placed elsewhere and inputs whose
@@ -95,10 +100,21 @@ class NetworkGraph:
     concat_copies: dict[str, list[str]] = field(default_factory=dict)
     # conv layer name -> the MaxPool layer its epilogue computes (that layer is not dispatched)
     epilogue_pools: dict[str, Layer] = field(default_factory=dict)
+    # transposed conv layer name -> the Add layer its epilogue computes (that layer is not dispatched)
+    epilogue_adds: dict[str, Layer] = field(default_factory=dict)
 
     def pooled_in_epilogue(self, layer: Layer) -> bool:
         """Whether ``layer`` is a MaxPool that its producer's epilogue computes."""
         return any(pool is layer for pool in self.epilogue_pools.values())
+
+    def in_epilogue(self, layer: Layer) -> bool:
+        """Whether ``layer`` (a MaxPool or an Add) is computed in its producer's epilogue."""
+        return self.pooled_in_epilogue(layer) or any(add is layer for add in self.epilogue_adds.values())
+
+    def residual(self, layer: Layer) -> str | None:
+        """The tensor ``layer``'s epilogue adds to its output (the folded Add's other input), or None."""
+        add = self.epilogue_adds.get(layer.name)
+        return None if add is None else next(name for name in add.inputs if name != layer.output)
 
     def head_body(self, head: Layer) -> Layer | None:
         """The conv that could run ``head`` in its epilogue, or None: ``head`` must be a 1×1 conv without
@@ -240,6 +256,7 @@ def load_graph(path: str | Path) -> NetworkGraph:
     network = NetworkGraph(path, inputs[0].name, dims[1].dim_value, graph.output[0].name, lowering.layers)
     _fold_pools(network)
     _plan_concats(network)
+    _fold_adds(network)
     return network
 
 
@@ -424,6 +441,31 @@ def _fold_pools(network: NetworkGraph) -> None:
         if (layer.kind == "maxpool" and producer is not None and producer.kind == "conv"
                 and producer.name not in network.epilogue_pools):
             network.epilogue_pools[producer.name] = layer
+
+
+def _fold_adds(network: NetworkGraph) -> None:
+    """Give each Add of two tensors (no activation), one of them the output of a transposed conv that
+    nothing else reads, to that transposed conv's epilogue; not where a tensor it reads shares the buffer
+    the Add writes (a binding may not be both read and written), nor for the graph's output."""
+    producers = {layer.output: layer for layer in network.layers}
+    readers: dict[str, int] = {}
+    for layer in network.layers:
+        for name in layer.inputs:
+            readers[name] = readers.get(name, 0) + 1
+    for layer in network.layers:
+        if (layer.kind != "elementwise" or layer.op != 0 or len(layer.inputs) != 2 or layer.inputs[0] == layer.inputs[1]
+                or layer.activation != NO_ACTIVATION or layer.output == network.output_name):
+            continue
+        for name in layer.inputs:
+            producer = producers.get(name)
+            if (producer is None or producer.kind != "conv_transpose" or readers[name] != 1
+                    or producer.name in network.epilogue_adds or network.placement(name)[0] != name):
+                continue
+            other = next(n for n in layer.inputs if n != name)
+            written = network.placement(layer.output)[0]
+            if all(network.placement(n)[0] != written for n in (*producer.inputs, other)):
+                network.epilogue_adds[producer.name] = layer
+                break
 
 
 def _plan_concats(network: NetworkGraph) -> None:

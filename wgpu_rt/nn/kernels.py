@@ -70,28 +70,59 @@ class TensorView:
         return math.ceil(self.channels / 4)
 
 
+def dihedral_strides(transform: int, height: int, width: int) -> tuple[int, int, int]:
+    """Where pixel (r, c) of an image seen under dihedral ``transform`` lies in the stored image: at
+    flat index ``origin + r · row_stride + c · col_stride`` of each channel plane, returned as
+    (row_stride, col_stride, origin). ``height`` × ``width`` is the image as seen (the stored one is
+    width × height for odd transforms). Transform t is ``np.rot90(image, t % 4)``, mirrored left to
+    right for t ≥ 4: the 8 flips and 90° turns the networks are trained under."""
+    turns, mirrored = transform % 4, transform >= 4
+    stored_width = height if turns % 2 else width
+
+    def stored_pixel(r: int, c: int) -> int:
+        rows, cols = height, width
+        if mirrored:
+            c = cols - 1 - c
+        for _ in range(turns):  # np.rot90 of a rows × cols array B gave A: A[i, j] = B[j, rows - 1 - i]
+            r, c, rows, cols = c, rows - 1 - r, cols, rows
+        return r * stored_width + c
+
+    origin = stored_pixel(0, 0)
+    return stored_pixel(1, 0) - origin, stored_pixel(0, 1) - origin, origin
+
+
 @dataclass(frozen=True)
 class ImageRows:
     """Where a canvas of one pass of the network lies in a planar NCHW f32 image ``height`` × ``width``:
     canvas rows ``from_row`` .. ``from_row + rows - 1`` (their first ``width`` columns) are image rows
-    ``first_row`` onwards (the whole image, or a band's kept rows; see model.Band)."""
+    ``first_row`` onwards (the whole image, or a band's kept rows; see model.Band). The image is seen
+    under dihedral ``transform`` (see dihedral_strides; ``height`` × ``width`` as seen). An output image
+    is written scaled by ``weight``, and with ``accumulate`` added to what it holds (an ensemble's passes)."""
 
     height: int
     width: int
     first_row: int
     from_row: int
     rows: int
+    transform: int = 0
+    weight: float = 1.0
+    accumulate: bool = False
+
+    def _layout(self, channels: int) -> dict:
+        row_stride, col_stride, origin = dihedral_strides(self.transform, self.height, self.width)
+        return {"CHANNELS": channels, "IMAGE_H": self.height, "IMAGE_W": self.width, "ROW_STRIDE": row_stride,
+                "COL_STRIDE": col_stride, "ORIGIN": origin}
 
     def store_constants(self, channels: int) -> dict:
         """store_planar.wgsl's substitutions for an image of ``channels`` channels."""
-        return {"CHANNELS": channels, "IMAGE_H": self.height, "IMAGE_W": self.width,
-                "OUT_ROW0": self.first_row, "ROW_FROM": self.from_row, "ROWS": self.rows}
+        return {**self._layout(channels), "OUT_ROW0": self.first_row, "ROW_FROM": self.from_row,
+                "ROWS": self.rows, "WEIGHT": wgsl_float(self.weight),
+                "ACCUMULATE": "true" if self.accumulate else "false"}
 
     def load_constants(self, channels: int) -> dict:
         """load_planar.wgsl's substitutions for an image of ``channels`` channels (the canvas starts at
         image row ``first_row``: ``from_row`` is 0)."""
-        return {"CHANNELS": channels, "IMAGE_H": self.height, "IMAGE_W": self.width,
-                "IN_ROW0": self.first_row, "ROWS": self.rows}
+        return {**self._layout(channels), "IN_ROW0": self.first_row, "ROWS": self.rows}
 
 
 @dataclass
@@ -313,7 +344,7 @@ class ConvFamilyKernel(NnKernel):
     read the planar input image (the first layer) and max-pool their output in the epilogue (see
     ``modules``)."""
 
-    bindings = ("src", "dst", "weights", "header", "pooled", "src_upper")
+    bindings = ("src", "dst", "weights", "header", "pooled", "src_upper", "residual")
     tile_c_default = 1
     reads_through_load_blocks = False  # its shader reads the input via load_blocks.wgsl (can split it)
 
@@ -367,15 +398,16 @@ class ConvFamilyKernel(NnKernel):
                 + ("+head" if head else "") + ("+unpack" if output_image is not None else ""))
 
     def grouped(self, layer, packed, pipeline, src, dst, workgroups, flops, kernel=None,
-                pooled: TensorView | None = None, head=None) -> list[Dispatch]:
+                pooled: TensorView | None = None, head=None, residual: TensorView | None = None) -> list[Dispatch]:
         """The layer's dispatches over ``workgroups`` (x, y) per group: one with the groups in z, or one
         per group, each with the share of ``flops`` of the real (unpadded) channels it writes, so the
         dispatches add up to the layer's FLOPs exactly. ``kernel``: the label (default: the shader);
-        ``pooled`` and ``head`` (kernels.Head): bound where the epilogue writes or reads them."""
+        ``pooled``, ``head`` (kernels.Head) and ``residual``: bound where the epilogue writes or reads them."""
         channels = dst.channels
         kernel = kernel or self.shader
         tensors = {"src": src.buffer, "dst": dst.buffer, **({"pooled": pooled.buffer} if pooled else {}),
-                   **({"head": head.buffer} if head else {}), **({"src_upper": src.upper} if src.upper else {})}
+                   **({"head": head.buffer} if head else {}), **({"src_upper": src.upper} if src.upper else {}),
+                   **({"residual": residual.buffer} if residual else {})}
         label = layer.name + (f" + {head.layer.name}" if head else "")
         if packed.one_dispatch:
             resources = {**tensors, **packed.windows(None), "header": packed.header(dst.block, None)}
@@ -613,16 +645,20 @@ class ConvTransposeKernel(ConvFamilyKernel):
         super().__init__(ctx, precision, self.tile_x, uniform_windows)
 
     def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView, *,
-                   output_image: ImageRows | None = None):
-        """``output_image``: write the planar output image (see ConvFamilyKernel.modules)."""
+                   output_image: ImageRows | None = None, residual: TensorView | None = None):
+        """``output_image``: write the planar output image (see ConvFamilyKernel.modules); ``residual``:
+        store the output plus this tensor (an Add folded in, store_blocks_residual.wgsl)."""
         modules, replacements = self.modules(src, dst, output_image=output_image)
+        if residual is not None:
+            replacements["store_blocks.wgsl"] = "store_blocks_residual.wgsl"
+            modules.update(RESIDUAL_BINDING=self.bindings.index("residual"), RESIDUAL_SHIFT=residual.block - dst.block)
         pipeline = self.pipeline(
             layer.activation, replacements, IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block,
             IN_BLOCKS=packed.in_blocks, **modules, **self.weight_constants(packed))
         workgroups = (groups_of(groups_of(src.width, self.tile_x), 8), groups_of(src.height, 8))
         flops = layer.flops_per_pixel * dst.height * dst.width
-        return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops,
-                            self.kernel_label(self.shader, output_image=output_image))
+        label = self.kernel_label(self.shader, output_image=output_image) + ("+add" if residual else "")
+        return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops, label, residual=residual)
 
 
 class SpatialKernel(NnKernel):

@@ -8,11 +8,11 @@ Dispatches: the network's entry (converting the planar f32 input), its layers, i
 planar f32 output). Conversions and small ops are folded into neighbouring kernels where they can be:
 the first conv reads the input image itself, a conv's epilogue max-pools its output (the pool is not
 dispatched), the last layer writes the output image itself, with a 1×1 head run in the epilogue of
-the 3×3 conv before it where that conv's tile holds all its channels (pack and unpack remain for the
-graphs where no layer can). The shipped denoiser (five levels, the deepest added to the skip above it) is
-21 dispatches in the GPU plan (staged tiles, one dispatch per layer; one of them that Add) and 37 on
-lavapipe; the four-level model before it was 17 and 27 (23 and 48 with every conversion and pool
-dispatched).
+the 3×3 conv before it where that conv's tile holds all its channels, and a transposed conv's epilogue
+adds the skip tensor an Add sums it with (pack and unpack remain for the graphs where no layer can). The
+shipped denoiser (five levels, the deepest added to the skip above it) is 20 dispatches in the GPU plan
+(staged tiles, one dispatch per layer) and 36 on lavapipe; the four-level model before it was 17 and 27
+(23 and 48 with every conversion and pool dispatched).
 
 Buffer planning: every tensor lives in its root's buffer (a concat's inputs live inside the concat);
 a root is live from the first dispatch that writes it to the last that reads it; roots are packed,
@@ -56,6 +56,9 @@ from .kernels import (PRECISIONS, Conv3x3Kernel, ConvKernel, ConvTransposeKernel
 CONV_TILINGS = {"none": 1, "loop": 4, "register": 4, "staged": 4}
 # suffix of an autotuned variant that prefers one dispatch per group of uniform windows (kernels.WindowLayout)
 UNIFORM_WINDOWS = "+uniform-windows"
+# Passes of a self-ensemble: the image under the first k of the 8 dihedral transforms (the flips and
+# turns the networks are trained under), the outputs turned back and averaged.
+ENSEMBLES = (1, 2, 4, 8)
 
 
 def default_conv_tiling(ctx) -> str:
@@ -120,11 +123,10 @@ class Plan:
     output_shape: tuple[int, int, int]  # (C, H, W) of the cropped output
     network: NetworkPlan
     bands: list[Band]
-    output_buffer: object
     flops: int  # of the whole frame in one pass (bands recompute their context rows on top of this)
+    output_buffer: object = None  # planar f32 output, made with the first inference at this size
     input_buffer: object = None  # staging for __call__
-    _entries: dict = field(default_factory=dict)  # id(input buffer) -> (buffer, entry dispatches per band)
-    exits: list[list[Dispatch]] = field(default_factory=list)  # exit dispatches per band
+    _passes: dict = field(default_factory=dict)  # id(input buffer) -> (buffer, every dispatch of an inference)
 
     @property
     def canvas(self) -> tuple[int, int]:
@@ -155,14 +157,22 @@ class WgslModel:
     this adapter once and caching the choice (see ``wgpu_rt.nn.autotune``; True, or an ``Autotuner``).
     Off by default (the first run of a new shape pays for compiling and timing every candidate) unless
     $WGPU_RT_AUTOTUNE=1; $WGPU_RT_AUTOTUNE=0 turns it off everywhere. A ``conv_tiling`` given here wins
-    over autotuning."""
+    over autotuning.
+
+    ``ensemble`` (1, 2, 4 or 8): run the network on the input as given and turned / flipped (dihedral
+    transforms 0 .. k−1, see kernels.dihedral_strides) and average the outputs turned back, k times the
+    work for a cleaner result (the denoiser's "high" quality). The first conv reads the input turned and
+    the last layer writes and accumulates its output turned back, so a pass costs no extra dispatch."""
 
     def __init__(self, path: str | Path, precision: str = "fp32", ctx=None, conv_tiling: str | None = None,
-                 autotune: bool | autotuning.Autotuner | None = None):
+                 autotune: bool | autotuning.Autotuner | None = None, ensemble: int = 1):
         from ..gpu import get_context
 
         if precision not in PRECISIONS:
             raise ModelError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
+        if ensemble not in ENSEMBLES:
+            raise ModelError(f"ensemble {ensemble!r}: choose one of {', '.join(map(str, ENSEMBLES))}")
+        self.ensemble = ensemble
         self.ctx = ctx or get_context()
         given = isinstance(autotune, autotuning.Autotuner)
         self.autotuner = None
@@ -316,13 +326,9 @@ class WgslModel:
             largest = max(self._root_bytes(shapes).values())
             bands, rows = self._bands(height, canvas[0], largest, limit, out_shape)
             network = self._network_plan(*self._canvas_shapes(rows, width))
-        output_buffer = self.ctx.storage(4 * int(np.prod(crop)), label="nn output")
         flops = sum(layer.flops_per_pixel * shapes[layer.output].height * shapes[layer.output].width
                     for layer in self.graph.layers)
-        plan = Plan(height, width, crop, network, bands, output_buffer, flops)
-        plan.exits = [network.exit(output_buffer, ImageRows(crop[1], crop[2], band.source_row + band.keep_from,
-                                                            band.keep_from, band.keep_rows)) for band in bands]
-        return plan
+        return Plan(height, width, crop, network, bands, flops)
 
     def _bands(self, height: int, canvas_rows: int, largest: int, limit: int, out_shape: Shape):
         """Split a frame whose largest activation exceeds one storage binding into bands of rows that
@@ -432,9 +438,13 @@ class WgslModel:
         exit_step = len(graph.layers) + 1
         touch(graph.input_name, 0)
         for step, layer in enumerate(graph.layers, start=1):
-            if any(layer is other for other in at_exit):  # (the entry layer runs at its own step)
-                continue
-            touch(layer.output, step)
+            if any(layer is other for other in (*at_exit, *graph.epilogue_adds.values())):
+                continue  # (the entry layer runs at its own step; a folded Add at its producer's)
+            if layer.name in graph.epilogue_adds:  # writes the Add's output, reads its other input
+                touch(graph.epilogue_adds[layer.name].output, step)
+                touch(graph.residual(layer), step)
+            else:
+                touch(layer.output, step)
             for name in layer.inputs:
                 touch(name, step)
             if layer.name in graph.epilogue_pools:
@@ -477,6 +487,8 @@ class WgslModel:
             pooled = graph.epilogue_pools.get(layer.name)
             if pooled is not None:
                 modules["pooled"] = view(pooled.output)
+            if layer.name in graph.epilogue_adds:
+                modules["residual"] = view(graph.residual(layer))
             kernel = self.tuned_kernel(layer, shape_view(shapes[layer.inputs[0]]),
                                        shape_view(shapes[layer.output]), modules.get("pooled"))
             if isinstance(src, str):
@@ -485,7 +497,7 @@ class WgslModel:
 
         dispatches = []
         for layer in graph.layers:
-            if graph.pooled_in_epilogue(layer) or id(layer) in elsewhere:
+            if graph.in_epilogue(layer) or id(layer) in elsewhere:
                 continue
             kernel = self.kernel_for(layer)
             if layer.kind == "concat":  # its inputs live inside it, but for those copied in
@@ -495,7 +507,7 @@ class WgslModel:
                         dispatches += kernel.dispatches(f"{layer.name} <- {name}", view(name),
                                                         view(layer.output), int(offset))
                 continue
-            dst = view(layer.output)
+            dst = view(graph.epilogue_adds[layer.name].output if layer.name in graph.epilogue_adds else layer.output)
             if layer.weight is not None:
                 dispatches += weighted(layer, layer.inputs[0], dst)
             elif layer.kind == "elementwise":
@@ -539,17 +551,37 @@ class WgslModel:
         return self.plan(height, width).output_buffer
 
     def dispatches(self, height: int, width: int, input_buffer) -> list[Dispatch]:
-        """Every dispatch of one inference: per band, entry conversion, the network, exit conversion."""
+        """Every dispatch of one inference: per pass of the ensemble and per band, entry conversion, the
+        network, exit conversion."""
         plan = self.plan(height, width)
+        if plan.output_buffer is None:
+            plan.output_buffer = self.ctx.storage(4 * int(np.prod(plan.output_shape)), label="nn output")
         key = id(input_buffer)
-        if key not in plan._entries:
-            if len(plan._entries) >= 8:
-                plan._entries.clear()
-            plan._entries[key] = (input_buffer, [
-                plan.network.entry(input_buffer, ImageRows(height, width, band.source_row, 0, band.valid_rows))
-                for band in plan.bands])
-        entries = plan._entries[key][1]
-        return [d for entry, exit in zip(entries, plan.exits) for d in (*entry, *plan.dispatches, *exit)]
+        if key not in plan._passes:
+            if len(plan._passes) >= 8:
+                plan._passes.clear()
+            plan._passes[key] = (input_buffer, [
+                dispatch for transform in range(self.ensemble)
+                for dispatch in self._pass(height, width, transform, input_buffer, plan.output_buffer)])
+        return plan._passes[key][1]
+
+    def _pass(self, height: int, width: int, transform: int, input_buffer, output_buffer) -> list[Dispatch]:
+        """The dispatches of one pass of the ensemble: the network on the input seen under dihedral
+        ``transform`` (kernels.dihedral_strides; 0: as stored), its output written back as stored, weighted
+        1/ensemble and, but in the first pass, added to the passes before it. A turned image runs on the
+        plan of its turned size."""
+        rows, cols = (width, height) if transform % 2 else (height, width)
+        seen = self.plan(rows, cols)
+        weight = 1.0 / self.ensemble
+        dispatches = []
+        for band in seen.bands:
+            dispatches += seen.network.entry(input_buffer, ImageRows(rows, cols, band.source_row, 0, band.valid_rows,
+                                                                     transform))
+            dispatches += seen.dispatches
+            dispatches += seen.network.exit(output_buffer, ImageRows(
+                *seen.output_shape[1:], band.source_row + band.keep_from, band.keep_from, band.keep_rows,
+                transform, weight, accumulate=transform > 0))
+        return dispatches
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """Run on a numpy (N, C, H, W) or (C, H, W) array; returns float32 of the same rank."""

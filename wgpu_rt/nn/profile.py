@@ -71,7 +71,10 @@ class Profile:
 
 
 def profile(model, height: int, width: int, repeat: int = 5, seed: int = 0) -> Profile:
-    """Time every dispatch of ``model`` (a ``WgslModel``) at height×width on uniform [0, 1) input."""
+    """Time every dispatch of ``model`` (a ``WgslModel`` of one pass: no ensemble) at height×width on
+    uniform [0, 1) input."""
+    if model.ensemble != 1:
+        raise ValueError(f"profile one pass of the network: {model.path} runs an ensemble of {model.ensemble}")
     ctx = model.ctx
     if not ctx.has_timestamps:
         raise DeviceLimitError(f"profiling needs the timestamp-query feature, which {ctx.label} lacks")
