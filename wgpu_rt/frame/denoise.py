@@ -20,7 +20,7 @@ from .unpack import unpack_denoiser_output
 
 
 # Denoiser quality → passes of its self-ensemble (nn.WgslModel's ``ensemble``): "high" averages the image
-# denoised as given and turned three ways, 4× the work for 0.33 dB on held-out worlds (BENCHMARKS.md §10).
+# denoised as given and turned three ways, 4× the work for 0.35 dB on held-out worlds (BENCHMARKS.md §10).
 QUALITIES = {"balanced": 1, "high": 4}
 
 

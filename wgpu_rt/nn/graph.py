@@ -103,13 +103,14 @@ class NetworkGraph:
     # transposed conv layer name -> the Add layer its epilogue computes (that layer is not dispatched)
     epilogue_adds: dict[str, Layer] = field(default_factory=dict)
 
-    def pooled_in_epilogue(self, layer: Layer) -> bool:
-        """Whether ``layer`` is a MaxPool that its producer's epilogue computes."""
-        return any(pool is layer for pool in self.epilogue_pools.values())
-
     def in_epilogue(self, layer: Layer) -> bool:
         """Whether ``layer`` (a MaxPool or an Add) is computed in its producer's epilogue."""
-        return self.pooled_in_epilogue(layer) or any(add is layer for add in self.epilogue_adds.values())
+        return any(folded is layer for folded in (*self.epilogue_pools.values(), *self.epilogue_adds.values()))
+
+    def stored_output(self, layer: Layer) -> str:
+        """The tensor ``layer``'s dispatches store: the folded Add's output, else its own."""
+        add = self.epilogue_adds.get(layer.name)
+        return layer.output if add is None else add.output
 
     def residual(self, layer: Layer) -> str | None:
         """The tensor ``layer``'s epilogue adds to its output (the folded Add's other input), or None."""
@@ -453,13 +454,13 @@ def _fold_adds(network: NetworkGraph) -> None:
         for name in layer.inputs:
             readers[name] = readers.get(name, 0) + 1
     for layer in network.layers:
-        if (layer.kind != "elementwise" or layer.op != 0 or len(layer.inputs) != 2 or layer.inputs[0] == layer.inputs[1]
+        if (layer.kind != "elementwise" or layer.op != 0 or len(layer.inputs) != 2
                 or layer.activation != NO_ACTIVATION or layer.output == network.output_name):
             continue
-        for name in layer.inputs:
+        for name in layer.inputs:  # (x + x reads x twice: not folded)
             producer = producers.get(name)
             if (producer is None or producer.kind != "conv_transpose" or readers[name] != 1
-                    or producer.name in network.epilogue_adds or network.placement(name)[0] != name):
+                    or name == network.output_name or network.placement(name)[0] != name):
                 continue
             other = next(n for n in layer.inputs if n != name)
             written = network.placement(layer.output)[0]

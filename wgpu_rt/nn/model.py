@@ -440,12 +440,8 @@ class WgslModel:
         for step, layer in enumerate(graph.layers, start=1):
             if any(layer is other for other in (*at_exit, *graph.epilogue_adds.values())):
                 continue  # (the entry layer runs at its own step; a folded Add at its producer's)
-            if layer.name in graph.epilogue_adds:  # writes the Add's output, reads its other input
-                touch(graph.epilogue_adds[layer.name].output, step)
-                touch(graph.residual(layer), step)
-            else:
-                touch(layer.output, step)
-            for name in layer.inputs:
+            touch(graph.stored_output(layer), step)
+            for name in (*layer.inputs, *filter(None, [graph.residual(layer)])):
                 touch(name, step)
             if layer.name in graph.epilogue_pools:
                 touch(graph.epilogue_pools[layer.name].output, step)
@@ -487,7 +483,7 @@ class WgslModel:
             pooled = graph.epilogue_pools.get(layer.name)
             if pooled is not None:
                 modules["pooled"] = view(pooled.output)
-            if layer.name in graph.epilogue_adds:
+            if graph.residual(layer) is not None:
                 modules["residual"] = view(graph.residual(layer))
             kernel = self.tuned_kernel(layer, shape_view(shapes[layer.inputs[0]]),
                                        shape_view(shapes[layer.output]), modules.get("pooled"))
@@ -507,7 +503,7 @@ class WgslModel:
                         dispatches += kernel.dispatches(f"{layer.name} <- {name}", view(name),
                                                         view(layer.output), int(offset))
                 continue
-            dst = view(graph.epilogue_adds[layer.name].output if layer.name in graph.epilogue_adds else layer.output)
+            dst = view(graph.stored_output(layer))
             if layer.weight is not None:
                 dispatches += weighted(layer, layer.inputs[0], dst)
             elif layer.kind == "elementwise":
