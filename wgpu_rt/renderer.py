@@ -236,7 +236,7 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
     - options: ``max_depth`` (8; Mitsuba's convention), ``seed`` (0; frame f is seeded seed + f),
       ``aovs`` (names or "a,b"), ``tonemap`` (None, "aces", "reinhard" or "none": the display image),
       ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks),
-      ``quality`` ("balanced", or "high": the denoiser averages 4 flipped/turned passes, 4× its time),
+      ``quality`` ("balanced", or "high": the denoiser averages 4 turned passes, 4× its work),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
       ``progress`` (a progress bar), ``timings`` (per-stage GPU times; default: when the adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a

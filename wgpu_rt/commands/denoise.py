@@ -17,7 +17,7 @@ def add_arguments(parser) -> None:
                         help="network arithmetic (fp16 needs the shader-f16 feature)")
     parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
                         help="high: average the image denoised as given and turned three ways "
-                             "(4× the time, ≈ 0.3 dB cleaner)")
+                             "(4 network passes, ≈ 0.3 dB cleaner)")
     parser.add_argument("--spp", type=int, metavar="N",
                         help="samples per pixel of the colour (default: the input's 'spp' layer, which "
                              "`wgpu-rt render` writes, else 1). With 'half_radiance' and 'half_spp' layers too "

@@ -38,7 +38,7 @@ def add_arguments(parser) -> None:
                         help="network arithmetic (fp16 needs the shader-f16 feature)")
     parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
                         help="denoiser quality; high: average the frame denoised as given and turned three "
-                             "ways (4× the denoiser's time, ≈ 0.3 dB cleaner)")
+                             "ways (4 network passes, ≈ 0.3 dB cleaner)")
 
 
 def parse_frames(text: str | None) -> range:
