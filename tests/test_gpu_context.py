@@ -4,9 +4,10 @@ import sys
 
 import numpy as np
 import pytest
+import wgpu
 
 from wgpu_rt.errors import NoAdapterError
-from wgpu_rt.gpu import select_adapter
+from wgpu_rt.gpu import BOUNDS_CHECKS_ENV, select_adapter, shader_module
 
 
 def test_roundtrip_and_compute(gpu):
@@ -26,6 +27,29 @@ def test_roundtrip_and_compute(gpu):
     cp.end()
     gpu.device.queue.submit([enc.finish()])
     np.testing.assert_array_equal(gpu.read(buf, shape=(100,)), values * 2 + 1)
+
+
+def test_shader_modules_drop_bounds_checks_unless_asked(gpu, monkeypatch):
+    """Modules come from wgpu-native's trusted call (no naga clamps); WGPU_RT_BOUNDS_CHECKS=1 goes back
+    to wgpu-py's checked create_shader_module. Both compile the same WGSL and validate it alike."""
+    device_type = type(gpu.device)
+    checked_calls = []
+    checked = device_type.create_shader_module
+
+    def counting(self, **kwargs):
+        checked_calls.append(kwargs["label"])
+        return checked(self, **kwargs)
+
+    monkeypatch.setattr(device_type, "create_shader_module", counting)
+    code = "@compute @workgroup_size(1) fn main() { }"
+    monkeypatch.delenv(BOUNDS_CHECKS_ENV, raising=False)
+    assert "GPUShaderModule" in repr(shader_module(gpu.device, code, "trusted"))
+    assert checked_calls == []
+    with pytest.raises(wgpu.GPUValidationError, match="'bad'"):
+        shader_module(gpu.device, "@compute @workgroup_size(1) fn main() { let x: f32 = 1u; }", "bad")
+    monkeypatch.setenv(BOUNDS_CHECKS_ENV, "1")
+    shader_module(gpu.device, code, "checked")
+    assert checked_calls == ["checked"]
 
 
 def test_prefers_vulkan_over_opengl(gpu):

@@ -21,6 +21,8 @@ import wgpu
 from .errors import DeviceLimitError, NoAdapterError
 
 ADAPTER_ENV = "WGPU_RT_ADAPTER"
+# "1" keeps the bounds checks naga adds to every buffer access (a debugging aid: see shader_module)
+BOUNDS_CHECKS_ENV = "WGPU_RT_BOUNDS_CHECKS"
 
 NO_ADAPTER_HELP = (
     "no WebGPU adapter found. wgpu-rt needs a Vulkan driver: on Debian/Ubuntu without a GPU run "
@@ -80,6 +82,30 @@ def select_adapter(name: str | None = None):
             return adapter
     labels = "\n  ".join(adapter_label(a) for a in adapters)
     raise NoAdapterError(f"no adapter matches {wanted!r} (from --adapter or ${ADAPTER_ENV}); available:\n  {labels}")
+
+
+def shader_module(device, code: str, label: str = ""):
+    """A WGSL shader module without naga's per-access bounds checks, which wgpu-native's
+    ``wgpuDeviceCreateShaderModuleTrusted`` allows and wgpu-py does not expose (its descriptor is built
+    here as wgpu-py builds it for ``create_shader_module``). Every buffer index in wgpu-rt's shaders is in
+    range by construction, and the test suite runs them all this way; dropping the clamps made
+    `cornell` trace about 5 % faster on lavapipe (BENCHMARKS.md §11). Loops stay bounded, so a shader that failed
+    to terminate could not hang the device. ``WGPU_RT_BOUNDS_CHECKS=1``, or a wgpu-py without the
+    call, gives the checked module of ``device.create_shader_module``."""
+    from wgpu.backends.wgpu_native import _api
+    trusted = getattr(_api.libf, "wgpuDeviceCreateShaderModuleTrusted", None)
+    if os.environ.get(BOUNDS_CHECKS_ENV) == "1" or trusted is None:
+        return device.create_shader_module(code=code, label=label)
+    source = _api.new_struct_p("WGPUShaderSourceWGSL *", code=_api.to_c_string_view(code))
+    source[0].chain.next = _api.ffi.NULL
+    source[0].chain.sType = _api.lib.WGPUSType_ShaderSourceWGSL
+    descriptor = _api.new_struct_p("WGPUShaderModuleDescriptor *",
+                                   nextInChain=_api.ffi.cast("WGPUChainedStruct *", source),
+                                   label=_api.to_c_string_view(label))
+    handle = trusted(device._internal, descriptor, _api.lib.WGPUShaderRuntimeChecks_ForceLoopBounding)
+    if handle == _api.ffi.NULL:
+        raise RuntimeError(f"shader module {label!r} could not be created")
+    return _api.GPUShaderModule(label, handle, device)
 
 
 @dataclass
@@ -185,7 +211,7 @@ class GpuContext:
         if pipeline is None:
             module = self._modules.get(code)
             if module is None:
-                module = self._modules[code] = self.device.create_shader_module(code=code, label=label)
+                module = self._modules[code] = shader_module(self.device, code, label)
             compute = {"module": module, "entry_point": entry_point}
             if constants:
                 compute["constants"] = {k: float(v) for k, v in constants.items()}
