@@ -9,8 +9,8 @@
 #        command ". .device/setup.sh; bash scripts/gpu_session.sh trace frame"
 #
 # Parts: tests (the whole suite, CI=true; the three NVIDIA-only failures of issue 13), nn (profile of
-# the shipped denoiser at 1080p in both precisions, engine steps against torch cuDNN and OIDN CUDA),
-# trace (samples/s against Mitsuba cuda_ad_rgb), frame (fused frame, adaptive targeted pass, moving vs
+# the shipped denoiser at 1080p in both precisions and with naga's bounds checks, engine steps against torch cuDNN and OIDN CUDA),
+# trace (samples/s against Mitsuba cuda_ad_rgb; cornell also with bounds checks), frame (fused frame, adaptive targeted pass, moving vs
 # static). SIZE (default 1080p) shrinks everything for a dry run on lavapipe: SIZE=small.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -38,9 +38,11 @@ for what in "$@"; do
     nn)
         part profile_fp32 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
         part profile_fp16 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp16
+        part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged fp16 autotuned --repeats 5 ;;
     trace)
         part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp 16
+        part trace_cornell_checked env WGPU_RT_BOUNDS_CHECKS=1 python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp 16
         part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp 16 ;;
     frame)
         part pipeline python3 benchmarks/bench_pipeline.py --scene cornell --size ${W}x${H} --frames 32 --temporal
