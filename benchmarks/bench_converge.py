@@ -4,9 +4,11 @@ For each scene and n this prints the PSNR (wgpu_rt.metrics: x/(1+x), gamma 2.2) 
 mean (brute force at the same spp), the denoised mean, the blend mix(denoised, mean, n / (n + k)) for each
 constant k, the n-only rule that shipped before (k = max(32, 2048 / n)) and the shipped per-pixel rule
 (wgpu_rt.frame.converge: the mean's error, from how its first half and the whole differ, against the
-denoiser's, capped at n² / (n² + CAP_SCALE); the first half is a render of n // 2 spp with the same seed,
-the very samples the pipeline copies). Then, for each blend, its mean loss to the best constant k of each row
-and its worst row against the raw mean (issue 12 wants ≥ 0), and whether the shipped rule's PSNR rises
+denoiser's, capped at n² / (n² + CAP_SCALE), squared differences weighed by how they show on screen; the
+first half is a render of n // 2 spp with the same seed, the very samples the pipeline copies), and that
+rule with unweighed (linear) sums, as it was before BENCHMARKS.md §11. Then, for each blend, its mean
+loss to the best constant k of each row, its worst row against the raw mean (issue 12 wants ≥ 0) and how
+many rows are below it, and whether the shipped rule's PSNR rises
 with n in every scene. --radius and --cap-scale try other settings of the per-pixel rule.
 Denoiser: the model in --models (numpy packing, our WGSL engine); gold: our own render at --gold-spp
 (--gold-cache shares it with the other benchmarks).
@@ -54,8 +56,8 @@ def main() -> None:
     print_header(args)
     size = parse_size(args.size)
     model = load_model("denoiser", args.precision, args.models)
-    names = [*(f"k={k:g}" for k in args.k), "n-only", "per-pixel"]
-    losses, above_raw, falls = [], [], []
+    names = [*(f"k={k:g}" for k in args.k), "n-only", "linear", "per-pixel"]
+    losses, above_raw, falls, psnrs = [], [], [], []
     for scene in load_scenes(args.scenes):
         gold = gold_render(scene, size, args)
         rows = []
@@ -68,21 +70,25 @@ def main() -> None:
             denoised = denoise(model, mean, *(noisy.aovs[name] for name in ("albedo", "normal", "depth")), n)
             constant = [metrics.psnr(gold, mix(denoised, mean, n / (n + k))) for k in args.k]
             n_only = metrics.psnr(gold, mix(denoised, mean, n / (n + max(32.0, 2048.0 / n))))
-            counts = np.full(size[::-1], n)
-            per_pixel = metrics.psnr(gold, converge(denoised, mean, counts, half, np.full(size[::-1], first),
-                                                    args.radius, args.cap_scale))
-            blends = np.array([*constant, n_only, per_pixel])
+            counts, first_counts = np.full(size[::-1], n), np.full(size[::-1], first)
+            linear, per_pixel = (metrics.psnr(gold, converge(denoised, mean, counts, half, first_counts, args.radius,
+                                                             args.cap_scale, on_screen))
+                                 for on_screen in (False, True))
+            blends = np.array([*constant, n_only, linear, per_pixel])
             raw = metrics.psnr(gold, mean)
             losses.append(max(constant) - blends)
             above_raw.append(blends - raw)
+            psnrs.append(blends)
             rows.append([n, raw, metrics.psnr(gold, denoised), *blends])
         falls += [f"{scene.name} {a[0]}→{b[0]} spp {b[-1] - a[-1]:+.2f} dB" for a, b in zip(rows, rows[1:])
                   if b[-1] < a[-1]]
         print_table(f"{scene.name} at {size[0]}x{size[1]}: PSNR dB against {args.gold_spp}-spp gold",
                     ["spp", "raw mean", "denoised", *names], rows)
+    print_table("mean PSNR over all rows (dB)", names, [list(np.mean(psnrs, axis=0))])
     print_table("mean PSNR loss to each row's best constant k (all scenes and spp; < 0: better than it)", names,
                 [list(np.mean(losses, axis=0))])
     print_table("worst row against brute force at the same spp (dB)", names, [list(np.min(above_raw, axis=0))])
+    print_table("rows below brute force at the same spp", names, [list(np.sum(np.array(above_raw) < 0, axis=0))])
     print("per-pixel rule: PSNR falls with spp in " + ("; ".join(falls) if falls else "no scene"))
 
 

@@ -80,6 +80,22 @@ def test_a_firefly_leaves_the_denoised_value():
     assert abs(out[4, 4, 0] - 0.5) < 0.05 * (40.0 - 0.5)
 
 
+def test_a_dark_pixel_is_weighed_as_it_shows_on_screen():
+    """A converged black pixel (both parts of its mean 0) among pixels of 0.02 whose mean is still a
+    little noisy and whose denoised value is right. The denoiser's 4e-4 at the black pixel is tiny in
+    linear terms but shows as 0.03 after (x / (1 + x))^(1/2.2), more than the neighbours' noise shows:
+    weighed on screen, the window hands most of that pixel to the mean, where linear sums (which the
+    neighbours' noise dominates) handed it none."""
+    rng = np.random.default_rng(3)
+    n, size = 256, (9, 9)
+    denoised = np.full(size + (3,), 0.02, np.float32)
+    noise = rng.normal(0.0, 1e-4, size + (3,)).astype(np.float32)
+    mean, half = denoised + noise, denoised - noise
+    denoised[4, 4], mean[4, 4], half[4, 4] = 4e-4, 0.0, 0.0
+    out = converge(denoised, mean, np.full(size, n), half, np.full(size, n // 2))
+    assert np.all(1.0 - out[4, 4] / 4e-4 > 0.85)
+
+
 def test_pixels_without_samples_after_the_copy_keep_the_denoised_value_and_are_left_out():
     """Such a pixel (an adaptive map's pixel that took no extra samples) has no estimate of its mean's
     error: it keeps the denoised value, and its neighbours' averages leave it out (its stale copy would

@@ -4,7 +4,8 @@ error is estimated from a copy of the running mean taken after its first h sampl
 HALF_SPP, which the frame pipeline copies: after the first half of a frame's samples, or under a
 static camera whenever the samples since the last copy reach those before it); the denoiser's error is
 what the difference between the two frames holds beyond that, both averaged over the pixels of a
-(2·RADIUS + 1)² window that took samples after the copy. Used for a frame of several spp and by
+(2·RADIUS + 1)² window that took samples after the copy, each pixel's squared differences weighed by
+how much they show on screen (display_slope2). Used for a frame of several spp and by
 temporal mode's static camera."""
 
 from __future__ import annotations
@@ -24,6 +25,12 @@ HALF_SPP = PlaneSpec("half_spp", 1, "u32")   # the samples HALF_RADIANCE holds
 # prototype among radii 1–5 and scales 256–4096.
 CONVERGE_RADIUS = 2
 CONVERGE_CAP_SCALE = 1024.0
+# Squared differences are weighed by the squared slope of the display transform the quality metrics
+# use (wgpu_rt.metrics: x / (1 + x), gamma 2.2) at the denoised value, floored here so that a black
+# pixel's slope stays finite (BENCHMARKS.md §11: without it, a dark pixel beside brighter noisy ones
+# kept a denoised value whose tiny linear error is large on screen).
+SLOPE_GAMMA = 2.2
+SLOPE_FLOOR = 1e-4
 F32_MAX = float(np.finfo(np.float32).max)
 
 
@@ -46,29 +53,41 @@ def window_sums(image: np.ndarray, radius: int, valid: np.ndarray) -> tuple[np.n
     return sums, counts
 
 
+def display_slope2(value: np.ndarray) -> np.ndarray:
+    """Squared derivative of (x / (1 + x))^(1/2.2) at max(value, SLOPE_FLOOR): how much a small linear
+    error at that value weighs on screen."""
+    x = np.maximum(value, SLOPE_FLOOR)
+    return ((x / (1.0 + x)) ** (1.0 / SLOPE_GAMMA - 1.0) / (SLOPE_GAMMA * (1.0 + x) ** 2)) ** 2
+
+
 def converge(denoised, samples_mean, spp, half_mean, half_spp, radius: int = CONVERGE_RADIUS,
-             cap_scale: float = CONVERGE_CAP_SCALE) -> np.ndarray:
+             cap_scale: float = CONVERGE_CAP_SCALE, on_screen: bool = True) -> np.ndarray:
     """Numpy reference of the converge pass: (H, W, 3) denoised frame and mean of ``spp`` (H, W) samples,
-    and the mean of their first ``half_spp`` (H, W) → (H, W, 3) blend, finite and ≥ 0."""
+    and the mean of their first ``half_spp`` (H, W) → (H, W, 3) blend, finite and ≥ 0. ``on_screen=False``
+    sums the squared differences unweighed (the rule before BENCHMARKS.md §11, for comparison)."""
     denoised = nonnegative_finite(denoised).astype(np.float64)
     mean = nonnegative_finite(samples_mean).astype(np.float64)
     half = nonnegative_finite(half_mean).astype(np.float64)
     spp, first = np.asarray(spp, np.int64)[..., None], np.asarray(half_spp, np.int64)[..., None]
     estimated = spp > first
+    slope2 = display_slope2(denoised) if on_screen else np.ones_like(denoised)
     with np.errstate(over="ignore", invalid="ignore"):
-        each = (mean - half) ** 2 * first / np.maximum(spp - first, 1)
-    variance_sums, window = window_sums(each, radius, estimated)
-    difference_sums, _ = window_sums((denoised - mean) ** 2, radius, estimated)
-    window = np.maximum(window, 1.0)
-    sigma2 = variance_sums / window
-    error2 = np.maximum(difference_sums / window - sigma2, 0.0)
-    samples = np.maximum(spp, 1).astype(np.float64)
-    cap = samples ** 2 / (samples ** 2 + cap_scale)
-    total = error2 + sigma2
-    weight = np.where(total > 0, np.minimum(error2 / np.where(total > 0, total, 1.0), cap), cap)
-    # where the kernel's f32 sums overflow, it keeps the denoised value
-    overflow = (variance_sums > F32_MAX) | (difference_sums > F32_MAX) | (total > F32_MAX)
-    weight = np.where(overflow | ~estimated, 0.0, weight)
+        # the kernel squares in f32 before weighing: a square over F32_MAX is inf there
+        split2, difference2 = (np.where(x * x > F32_MAX, np.inf, x * x) for x in (mean - half, denoised - mean))
+        each = slope2 * (split2 * first / np.maximum(spp - first, 1))
+        differences = slope2 * difference2
+        variance_sums, window = window_sums(each, radius, estimated)
+        difference_sums, _ = window_sums(differences, radius, estimated)
+        window = np.maximum(window, 1.0)
+        sigma2 = variance_sums / window
+        error2 = np.maximum(difference_sums / window - sigma2, 0.0)
+        samples = np.maximum(spp, 1).astype(np.float64)
+        cap = samples ** 2 / (samples ** 2 + cap_scale)
+        total = error2 + sigma2
+        weight = np.where(total > 0, np.minimum(error2 / np.where(total > 0, total, 1.0), cap), cap)
+        # where the kernel's f32 sums overflow (inf − inf: NaN here), it keeps the denoised value
+        overflow = (variance_sums > F32_MAX) | (difference_sums > F32_MAX) | (total > F32_MAX)
+        weight = np.where(overflow | ~estimated, 0.0, weight)
     return (denoised + weight * (mean - denoised)).astype(np.float32)
 
 
@@ -91,7 +110,8 @@ class ConvergePass(ComputePass):
         self.inputs = (source, RADIANCE, SPP, HALF_RADIANCE, HALF_SPP)
         self.kernel = FrameKernel(ctx, "frame/converge.wgsl", "main",
                                   ("denoised", "samples_mean", "spp", "half_mean", "half_spp", "converged"),
-                                  width, height, {"RADIUS": CONVERGE_RADIUS, "CAP_SCALE": CONVERGE_CAP_SCALE})
+                                  width, height, {"RADIUS": CONVERGE_RADIUS, "CAP_SCALE": CONVERGE_CAP_SCALE,
+                                   "SLOPE_GAMMA": SLOPE_GAMMA, "SLOPE_FLOOR": SLOPE_FLOOR})
 
     def execute(self, encoder, buffers) -> None:
         self.kernel.dispatch(encoder, {"denoised": buffers.get(self.source), "samples_mean": buffers.get(RADIANCE),

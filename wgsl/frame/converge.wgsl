@@ -4,7 +4,10 @@
 // the two parts' means differ by m_h − m_rest, so σ² ≈ (m − m_h)² · h / (n − h) estimates the
 // variance of the n-sample mean (exact in expectation for independent samples; for the tracer's
 // stratified sequence both parts are stratified alike, so it follows the error the sequence really
-// has, where the samples' own spread would overstate it). Then, averaged over the window,
+// has, where the samples' own spread would overstate it). Then, averaged over the window, each
+// pixel's squared differences weighed by q, the squared slope of the display transform
+// (x / (1 + x))^(1/2.2) at its denoised value (a dark pixel's error counts as it shows on screen, not
+// by its small linear size; display_slope2 in the reference),
 //   D² = the squared difference between denoised frame and mean,
 //   e² = max(D² − σ², 0): the denoiser's own squared error (D² ≈ e² + σ² when the errors are independent),
 //   out = mix(denoised, mean, w), w = min(e² / (e² + σ²), n² / (n² + CAP_SCALE)),
@@ -17,6 +20,8 @@
 
 override RADIUS: i32 = 2;
 override CAP_SCALE: f32 = 1024.0;
+override SLOPE_GAMMA: f32 = 2.2;
+override SLOPE_FLOOR: f32 = 1e-4;
 
 @group(0) @binding(0) var<storage, read> denoised: array<f32>;
 @group(0) @binding(1) var<storage, read> samples_mean: array<f32>;
@@ -24,6 +29,13 @@ override CAP_SCALE: f32 = 1024.0;
 @group(0) @binding(3) var<storage, read> half_mean: array<f32>;
 @group(0) @binding(4) var<storage, read> half_spp: array<u32>;
 @group(0) @binding(5) var<storage, read_write> converged: array<f32>;
+
+// Squared derivative of (x / (1 + x))^(1/γ) at max(x, SLOPE_FLOOR).
+fn display_slope2(value: f32) -> f32 {
+    let x = max(value, SLOPE_FLOOR);
+    let slope = pow(x / (1.0 + x), 1.0 / SLOPE_GAMMA - 1.0) / (SLOPE_GAMMA * (1.0 + x) * (1.0 + x));
+    return slope * slope;
+}
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) id: vec3u) {
@@ -44,9 +56,11 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
             for (var c = 0u; c < 3u; c++) {
                 let mean = sanitize(samples_mean[c * n + j]);
                 let split = mean - sanitize(half_mean[c * n + j]);
-                variance[c] += split * split * f32(first) / f32(spp[j] - first);
-                let d = sanitize(denoised[c * n + j]) - mean;
-                difference[c] += d * d;
+                let value = sanitize(denoised[c * n + j]);
+                let q = display_slope2(value);
+                variance[c] += q * (split * split * f32(first) / f32(spp[j] - first));
+                let d = value - mean;
+                difference[c] += q * (d * d);
             }
         }
     }
