@@ -7,11 +7,16 @@
 #        command ". .device/setup.sh; bash scripts/gpu_session.sh tests nn"
 #   run: carry [".device", ".device-peers/peer-mitsuba.tar.xz"],
 #        command ". .device/setup.sh; bash scripts/gpu_session.sh trace frame"
+#   run: carry [".device", ".device-peers/peer-oidn.tar.xz"],
+#        command ". .device/setup.sh; bash scripts/gpu_session.sh heldout"
 #
 # Parts: tests (the whole suite, CI=true; the three NVIDIA-only failures of issue 13), nn (profile of
 # the shipped denoiser at 1080p in both precisions and with naga's bounds checks, engine steps against torch cuDNN and OIDN CUDA),
 # trace (samples/s against Mitsuba cuda_ad_rgb; cornell also with bounds checks), frame (fused frame, adaptive targeted pass, moving vs
-# static). SIZE (default 1080p) shrinks everything for a dry run on lavapipe: SIZE=small.
+# static), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
+# ours "balanced"/"high" against OIDN balanced/high over 3 noise realizations, brute force up to 256 spp,
+# and the product path against spp at 256²). SIZE (default 1080p) shrinks everything for a dry run on
+# lavapipe: SIZE=small.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-out/gpu-session}
@@ -20,6 +25,8 @@ small=$([ "${SIZE:-1080p}" = small ] && echo 1 || echo 0)
 W=$([ $small = 1 ] && echo 64 || echo 1920); H=$([ $small = 1 ] && echo 64 || echo 1080)
 SQUARE=$([ $small = 1 ] && echo 64 || echo 1024)   # the square-only benchmarks (bench_trace, bench_moving)
 NN=$([ $small = 1 ] && echo 256 || echo 1080p)
+WORLDS=$([ $small = 1 ] && echo 2 || echo 24); VIEW=$([ $small = 1 ] && echo 32 || echo 256)
+GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 
 part() {   # part NAME COMMAND...: run, keep its output, go on after a failure
     local name=$1; shift
@@ -48,6 +55,14 @@ for what in "$@"; do
         part pipeline python3 benchmarks/bench_pipeline.py --scene cornell --size ${W}x${H} --frames 32 --temporal
         part adaptive_cost python3 benchmarks/bench_adaptive.py --pass-cost --size ${W}x${H} --budgets 4 --scenes cornell sun-room --repeats 5
         part moving python3 benchmarks/bench_moving.py --scene moving --size $SQUARE --frames 40 --denoise ;;
-    *) echo "unknown part $what (tests, nn, trace, frame)"; exit 2 ;;
+    heldout)
+        data=data/worlds-heldout-$VIEW
+        part heldout_render wgpu-rt dataset --worlds $WORLDS --family held_out --size $VIEW --spp 1,4,16,64 \
+            --gold $GOLD --sequence-fraction 0 --out $data --quiet
+        part heldout_denoise python3 benchmarks/bench_denoise.py --data $data --per-view --noise-seeds 3 \
+            --extra-spp 256 --quality balanced high --oidn-quality balanced high
+        part heldout_spp python3 benchmarks/bench_spp.py --size $VIEW --spp 1 2 4 16 64 256 --gold-spp $GOLD \
+            --scenes cornell cornell-glossy sun-room world-2147483648 world-2147483649 world-2147483650 ;;
+    *) echo "unknown part $what (tests, nn, trace, frame, heldout)"; exit 2 ;;
     esac
 done
