@@ -6,7 +6,7 @@ constant k, the n-only rule that shipped before (k = max(32, 2048 / n)) and the 
 (wgpu_rt.frame.converge: the mean's error, from how its first half and the whole differ, against the
 denoiser's, capped at n² / (n² + CAP_SCALE), squared differences weighed by how they show on screen; the
 first half is a render of n // 2 spp with the same seed, the very samples the pipeline copies), and that
-rule with unweighed (linear) sums, as it was before BENCHMARKS.md §11. Then, for each blend, its mean
+rule as it was before BENCHMARKS.md §11 ("linear": a 5×5 window of unweighed sums). Then, for each blend, its mean
 loss to the best constant k of each row, its worst row against the raw mean (issue 12 wants ≥ 0) and how
 many rows are below it, and whether the shipped rule's PSNR rises
 with n in every scene. --radius and --cap-scale try other settings of the per-pixel rule.
@@ -71,9 +71,9 @@ def main() -> None:
             constant = [metrics.psnr(gold, mix(denoised, mean, n / (n + k))) for k in args.k]
             n_only = metrics.psnr(gold, mix(denoised, mean, n / (n + max(32.0, 2048.0 / n))))
             counts, first_counts = np.full(size[::-1], n), np.full(size[::-1], first)
-            linear, per_pixel = (metrics.psnr(gold, converge(denoised, mean, counts, half, first_counts, args.radius,
-                                                             args.cap_scale, on_screen))
-                                 for on_screen in (False, True))
+            before = converge(denoised, mean, counts, half, first_counts, 2, args.cap_scale, False, np.inf)
+            linear, per_pixel = (metrics.psnr(gold, image) for image in (
+                before, converge(denoised, mean, counts, half, first_counts, args.radius, args.cap_scale)))
             blends = np.array([*constant, n_only, linear, per_pixel])
             raw = metrics.psnr(gold, mean)
             losses.append(max(constant) - blends)

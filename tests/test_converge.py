@@ -96,6 +96,25 @@ def test_a_dark_pixel_is_weighed_as_it_shows_on_screen():
     assert np.all(1.0 - out[4, 4] / 4e-4 > 0.85)
 
 
+def test_a_bright_pixel_whose_halves_disagree_does_not_hold_back_its_neighbours():
+    """A caustic: one pixel of 586 whose first half read 1172 (the second found nothing), beside pixels
+    whose mean has converged (both halves 0.0129) where the denoiser is off (0.19). Its variance used to
+    fill every window it fell in, so its neighbours kept the denoised value; weighed by how alike their
+    denoised values look on screen (0.81 against 0.47), it no longer counts for them, and the mean takes
+    over up to the cap. The bright pixel itself still keeps its denoised value."""
+    n, size = 256, (9, 9)
+    denoised = np.full(size + (3,), 0.19, np.float32)
+    mean = np.full(size + (3,), 0.0129, np.float32)
+    half = mean.copy()
+    denoised[4, 5], mean[4, 5], half[4, 5] = 1.74, 586.0, 1172.0
+    counts, first = np.full(size, n), np.full(size, n // 2)
+    share = (denoised[4, 4] - converge(denoised, mean, counts, half, first)[4, 4]) / (0.19 - 0.0129)
+    np.testing.assert_allclose(share, n * n / (n * n + CONVERGE_CAP_SCALE), rtol=1e-3)
+    before = converge(denoised, mean, counts, half, first, radius=2, on_screen=False, tau=np.inf)
+    assert np.all(before[4, 4] > 0.18)
+    assert np.all(converge(denoised, mean, counts, half, first)[4, 5] < 2.0)
+
+
 def test_pixels_without_samples_after_the_copy_keep_the_denoised_value_and_are_left_out():
     """Such a pixel (an adaptive map's pixel that took no extra samples) has no estimate of its mean's
     error: it keeps the denoised value, and its neighbours' averages leave it out (its stale copy would

@@ -5,7 +5,8 @@ HALF_SPP, which the frame pipeline copies: after the first half of a frame's sam
 static camera whenever the samples since the last copy reach those before it); the denoiser's error is
 what the difference between the two frames holds beyond that, both averaged over the pixels of a
 (2·RADIUS + 1)² window that took samples after the copy, each pixel's squared differences weighed by
-how much they show on screen (display_slope2). Used for a frame of several spp and by
+how much they show on screen (display_slope2) and each neighbour by how alike its denoised value looks
+to the centre's (CONVERGE_TAU). Used for a frame of several spp and by
 temporal mode's static camera."""
 
 from __future__ import annotations
@@ -19,12 +20,16 @@ from .planes import DENOISED
 
 CONVERGED = PlaneSpec("converged", 3)
 HALF_SPP = PlaneSpec("half_spp", 1, "u32")   # the samples HALF_RADIANCE holds
-# Fitted with benchmarks/bench_converge.py (BENCHMARKS.md §8): 64², 2–256 spp, 4096-spp gold, cornell,
-# cornell-glossy, sun-room and twelve held-out worlds. The 5×5 window and the cap's scale of 1024 (the
-# mean gets at most 4/(4 + 256) of a 4-spp frame, 0.8 of a 64-spp one) were chosen on a numpy
-# prototype among radii 1–5 and scales 256–4096.
-CONVERGE_RADIUS = 2
+# Fitted with benchmarks/bench_converge.py (BENCHMARKS.md §8, §11): 64², 2–256 spp, 4096-spp gold,
+# cornell, cornell-glossy, sun-room and twelve held-out worlds. The cap's scale of 1024 (the mean gets at
+# most 4/(4 + 256) of a 4-spp frame, 0.8 of a 64-spp one) was chosen on a numpy prototype among scales
+# 256–4096; the window grew from 5×5 to 7×7 when its neighbours came to be weighed by likeness (§11).
+CONVERGE_RADIUS = 3      # a const in the kernel (its workgroup tile is sized by it); parity tests hold them equal
 CONVERGE_CAP_SCALE = 1024.0
+# A neighbour counts in the window by how alike its denoised value looks on screen: weight
+# exp(−Δ² / 2τ²) of the difference Δ of display values (BENCHMARKS.md §11: one bright pixel whose
+# halves disagree, a caustic, no longer makes its whole window keep the denoised frame).
+CONVERGE_TAU = 0.05
 # Squared differences are weighed by the squared slope of the display transform the quality metrics
 # use (wgpu_rt.metrics: x / (1 + x), gamma 2.2) at the denoised value, floored here so that a black
 # pixel's slope stays finite (BENCHMARKS.md §11: without it, a dark pixel beside brighter noisy ones
@@ -39,18 +44,30 @@ def half_count(n: int) -> int:
     return n // 2
 
 
-def window_sums(image: np.ndarray, radius: int, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def window_sums(image: np.ndarray, radius: int, valid: np.ndarray, key: np.ndarray,
+                tau: float) -> tuple[np.ndarray, np.ndarray]:
     """(H, W, C) sums of ``image`` over the ``valid`` (H, W, 1) pixels of each pixel's (2·radius + 1)²
-    window, cut at the image's edges (float64), and (H, W, 1) how many there are."""
+    window, cut at the image's edges, each neighbour weighed by exp(−(key_j − key_i)² / 2τ²), how alike
+    its (H, W, C) ``key`` is to the centre's (float64); and (H, W, C) the sums of those weights."""
     height, width = image.shape[:2]
-    padded = np.pad(np.where(valid, np.asarray(image, np.float64), 0.0), ((radius, radius), (radius, radius), (0, 0)))
-    inside = np.pad(valid.astype(np.float64), ((radius, radius), (radius, radius), (0, 0)))
-    sums, counts = np.zeros((height, width, image.shape[2])), np.zeros((height, width, 1))
+    pad = ((radius, radius), (radius, radius), (0, 0))
+    padded = np.pad(np.where(valid, np.asarray(image, np.float64), 0.0), pad)
+    inside = np.pad(np.broadcast_to(valid, key.shape).astype(np.float64), pad)
+    keys = np.pad(np.asarray(key, np.float64), pad)
+    sums, weights = np.zeros(key.shape), np.zeros(key.shape)
     for dy in range(2 * radius + 1):
         for dx in range(2 * radius + 1):
-            sums += padded[dy:dy + height, dx:dx + width]
-            counts += inside[dy:dy + height, dx:dx + width]
-    return sums, counts
+            alike = keys[dy:dy + height, dx:dx + width] - key
+            weight = inside[dy:dy + height, dx:dx + width] * np.exp(-alike * alike / (2.0 * tau * tau))
+            sums += weight * padded[dy:dy + height, dx:dx + width]
+            weights += weight
+    return sums, weights
+
+
+def display_value(value: np.ndarray) -> np.ndarray:
+    """(x / (1 + x))^(1/2.2) of x = max(value, 0): the display transform the quality metrics use."""
+    x = np.maximum(value, 0.0)
+    return (x / (1.0 + x)) ** (1.0 / SLOPE_GAMMA)
 
 
 def display_slope2(value: np.ndarray) -> np.ndarray:
@@ -61,23 +78,26 @@ def display_slope2(value: np.ndarray) -> np.ndarray:
 
 
 def converge(denoised, samples_mean, spp, half_mean, half_spp, radius: int = CONVERGE_RADIUS,
-             cap_scale: float = CONVERGE_CAP_SCALE, on_screen: bool = True) -> np.ndarray:
+             cap_scale: float = CONVERGE_CAP_SCALE, on_screen: bool = True,
+             tau: float = CONVERGE_TAU) -> np.ndarray:
     """Numpy reference of the converge pass: (H, W, 3) denoised frame and mean of ``spp`` (H, W) samples,
     and the mean of their first ``half_spp`` (H, W) → (H, W, 3) blend, finite and ≥ 0. ``on_screen=False``
-    sums the squared differences unweighed (the rule before BENCHMARKS.md §11, for comparison)."""
+    sums the squared differences unweighed; with ``tau=inf`` and ``radius=2`` that is the rule before
+    BENCHMARKS.md §11 (for comparison)."""
     denoised = nonnegative_finite(denoised).astype(np.float64)
     mean = nonnegative_finite(samples_mean).astype(np.float64)
     half = nonnegative_finite(half_mean).astype(np.float64)
     spp, first = np.asarray(spp, np.int64)[..., None], np.asarray(half_spp, np.int64)[..., None]
     estimated = spp > first
     slope2 = display_slope2(denoised) if on_screen else np.ones_like(denoised)
+    key = display_value(denoised)
     with np.errstate(over="ignore", invalid="ignore"):
         # the kernel squares in f32 before weighing: a square over F32_MAX is inf there
         split2, difference2 = (np.where(x * x > F32_MAX, np.inf, x * x) for x in (mean - half, denoised - mean))
         each = slope2 * (split2 * first / np.maximum(spp - first, 1))
         differences = slope2 * difference2
-        variance_sums, window = window_sums(each, radius, estimated)
-        difference_sums, _ = window_sums(differences, radius, estimated)
+        variance_sums, window = window_sums(each, radius, estimated, key, tau)
+        difference_sums, _ = window_sums(differences, radius, estimated, key, tau)
         window = np.maximum(window, 1.0)
         sigma2 = variance_sums / window
         error2 = np.maximum(difference_sums / window - sigma2, 0.0)
@@ -110,7 +130,7 @@ class ConvergePass(ComputePass):
         self.inputs = (source, RADIANCE, SPP, HALF_RADIANCE, HALF_SPP)
         self.kernel = FrameKernel(ctx, "frame/converge.wgsl", "main",
                                   ("denoised", "samples_mean", "spp", "half_mean", "half_spp", "converged"),
-                                  width, height, {"RADIUS": CONVERGE_RADIUS, "CAP_SCALE": CONVERGE_CAP_SCALE,
+                                  width, height, {"CAP_SCALE": CONVERGE_CAP_SCALE, "TAU": CONVERGE_TAU,
                                    "SLOPE_GAMMA": SLOPE_GAMMA, "SLOPE_FLOOR": SLOPE_FLOOR})
 
     def execute(self, encoder, buffers) -> None:

@@ -7,7 +7,10 @@
 // has, where the samples' own spread would overstate it). Then, averaged over the window, each
 // pixel's squared differences weighed by q, the squared slope of the display transform
 // (x / (1 + x))^(1/2.2) at its denoised value (a dark pixel's error counts as it shows on screen, not
-// by its small linear size; display_slope2 in the reference),
+// by its small linear size; display_slope2 in the reference) and each neighbour j by how alike it looks
+// to the centre i, exp(−(v_j − v_i)² / 2 TAU²) of their denoised display values v (so one bright pixel
+// whose two parts disagree, a caustic, does not make its whole window keep the denoised frame; the
+// averages divide by the sum of these weights),
 //   D² = the squared difference between denoised frame and mean,
 //   e² = max(D² − σ², 0): the denoiser's own squared error (D² ≈ e² + σ² when the errors are independent),
 //   out = mix(denoised, mean, w), w = min(e² / (e² + σ²), n² / (n² + CAP_SCALE)),
@@ -16,10 +19,15 @@
 // a few spp, where an estimate from so few samples cannot be trusted. Only pixels with samples after
 // the copy (n > h) have an estimate: the window's averages leave the others out, and such a pixel
 // keeps its denoised value. Fitted with benchmarks/bench_converge.py (wgpu_rt/frame/converge.py).
+// Each 8×8 workgroup first works out, once per pixel of its tile and the tile's RADIUS-wide halo, what
+// the window sums need (display value, weighed squared split and difference, whether it took samples
+// after the copy) in workgroup memory; the windows then read only that.
 // #import frame/common.wgsl
 
-override RADIUS: i32 = 2;
+const RADIUS: i32 = 3;                          // CONVERGE_RADIUS in wgpu_rt/frame/converge.py
+const SPAN: u32 = TILE + 2u * u32(RADIUS);      // the tile and its halo, per side
 override CAP_SCALE: f32 = 1024.0;
+override TAU: f32 = 0.05;
 override SLOPE_GAMMA: f32 = 2.2;
 override SLOPE_FLOOR: f32 = 1e-4;
 
@@ -30,6 +38,19 @@ override SLOPE_FLOOR: f32 = 1e-4;
 @group(0) @binding(4) var<storage, read> half_spp: array<u32>;
 @group(0) @binding(5) var<storage, read_write> converged: array<f32>;
 
+// Per pixel of the tile and halo, per channel: display value of the denoised frame, the weighed squared
+// split of the mean (its variance term) and squared difference denoised − mean; and 1 where the pixel is
+// in the frame and took samples after the copy, else 0.
+var<workgroup> tile_value: array<vec3f, SPAN * SPAN>;
+var<workgroup> tile_variance: array<vec3f, SPAN * SPAN>;
+var<workgroup> tile_difference: array<vec3f, SPAN * SPAN>;
+var<workgroup> tile_estimated: array<f32, SPAN * SPAN>;
+
+// (x / (1 + x))^(1/γ) of x ≥ 0: the display value.
+fn display_value(x: f32) -> f32 {
+    return pow(x / (1.0 + x), 1.0 / SLOPE_GAMMA);
+}
+
 // Squared derivative of (x / (1 + x))^(1/γ) at max(x, SLOPE_FLOOR).
 fn display_slope2(value: f32) -> f32 {
     let x = max(value, SLOPE_FLOOR);
@@ -37,39 +58,66 @@ fn display_slope2(value: f32) -> f32 {
     return slope * slope;
 }
 
+fn load_tile_pixel(k: u32, origin: vec2i) {
+    let n = pixel_count();
+    let p = origin + vec2i(i32(k % SPAN), i32(k / SPAN));
+    var value = vec3f(0.0);
+    var variance = vec3f(0.0);
+    var difference = vec3f(0.0);
+    var estimated = 0.0;
+    if (all(p >= vec2i(0)) && p.x < i32(WIDTH) && p.y < i32(HEIGHT)) {
+        let j = u32(p.y) * WIDTH + u32(p.x);
+        let first = half_spp[j];
+        let later = spp[j] > first;
+        estimated = select(0.0, 1.0, later);
+        for (var c = 0u; c < 3u; c++) {
+            let denoised_value = sanitize(denoised[c * n + j]);
+            value[c] = display_value(denoised_value);
+            if (later) {
+                let mean = sanitize(samples_mean[c * n + j]);
+                let split = mean - sanitize(half_mean[c * n + j]);
+                let q = display_slope2(denoised_value);
+                variance[c] = q * (split * split * f32(first) / f32(spp[j] - first));
+                let d = denoised_value - mean;
+                difference[c] = q * (d * d);
+            }
+        }
+    }
+    tile_value[k] = value;
+    tile_variance[k] = variance;
+    tile_difference[k] = difference;
+    tile_estimated[k] = estimated;
+}
+
 @compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) id: vec3u) {
+fn main(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation_id) local: vec3u,
+        @builtin(local_invocation_index) local_index: u32, @builtin(workgroup_id) group: vec3u) {
+    let origin = vec2i(group.xy * TILE) - RADIUS;
+    for (var k = local_index; k < SPAN * SPAN; k += TILE * TILE) { load_tile_pixel(k, origin); }
+    workgroupBarrier();
     if (!in_frame(id)) { return; }
     let n = pixel_count();
     let i = pixel_index(id);
-    let low = max(vec2i(id.xy) - RADIUS, vec2i(0));
-    let high = min(vec2i(id.xy) + RADIUS, vec2i(i32(WIDTH), i32(HEIGHT)) - 1);
+    let centre = tile_value[(local.y + u32(RADIUS)) * SPAN + local.x + u32(RADIUS)];
     var variance = vec3f(0.0);
     var difference = vec3f(0.0);
-    var window = 0.0;
-    for (var y = low.y; y <= high.y; y++) {
-        for (var x = low.x; x <= high.x; x++) {
-            let j = u32(y) * WIDTH + u32(x);
-            let first = half_spp[j];
-            if (spp[j] <= first) { continue; }
-            window += 1.0;
-            for (var c = 0u; c < 3u; c++) {
-                let mean = sanitize(samples_mean[c * n + j]);
-                let split = mean - sanitize(half_mean[c * n + j]);
-                let value = sanitize(denoised[c * n + j]);
-                let q = display_slope2(value);
-                variance[c] += q * (split * split * f32(first) / f32(spp[j] - first));
-                let d = value - mean;
-                difference[c] += q * (d * d);
-            }
+    var window = vec3f(0.0);
+    for (var y = 0u; y <= 2u * u32(RADIUS); y++) {
+        for (var x = 0u; x <= 2u * u32(RADIUS); x++) {
+            let k = (local.y + y) * SPAN + local.x + x;
+            let alike = tile_value[k] - centre;
+            let w = tile_estimated[k] * exp(-alike * alike / (2.0 * TAU * TAU));
+            window += w;
+            variance += w * tile_variance[k];
+            difference += w * tile_difference[k];
         }
     }
     let estimated = spp[i] > half_spp[i];
     let samples = f32(max(spp[i], 1u));
     let cap = samples * samples / (samples * samples + CAP_SCALE);
     for (var c = 0u; c < 3u; c++) {
-        let sigma2 = variance[c] / max(window, 1.0);
-        let error2 = max(difference[c] / max(window, 1.0) - sigma2, 0.0);
+        let sigma2 = variance[c] / max(window[c], 1.0);
+        let error2 = max(difference[c] / max(window[c], 1.0) - sigma2, 0.0);
         var weight = cap;
         if (error2 + sigma2 > 0.0) { weight = min(error2 / (error2 + sigma2), cap); }
         // overflowed sums (inf − inf, inf / inf) must not reach the image: the denoised value stands
