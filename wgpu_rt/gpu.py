@@ -88,10 +88,10 @@ def shader_module(device, code: str, label: str = ""):
     """A WGSL shader module without naga's per-access bounds checks, which wgpu-native's
     ``wgpuDeviceCreateShaderModuleTrusted`` allows and wgpu-py does not expose (its descriptor is built
     here as wgpu-py builds it for ``create_shader_module``). Every buffer index in wgpu-rt's shaders is in
-    range by construction, and the test suite runs them all this way; dropping the clamps made
-    `cornell` trace about 5 % faster on lavapipe (BENCHMARKS.md §11). Loops stay bounded, so a shader that failed
-    to terminate could not hang the device. ``WGPU_RT_BOUNDS_CHECKS=1``, or a wgpu-py without the
-    call, gives the checked module of ``device.create_shader_module``."""
+    range by construction, and the test suite runs them all this way; dropping the clamps made `cornell`
+    trace about 5 % faster on lavapipe (BENCHMARKS.md §11). Loops stay bounded, so a shader that failed
+    to terminate could not hang the device. ``WGPU_RT_BOUNDS_CHECKS=1``, or a wgpu-py without the call,
+    gives the checked module of ``device.create_shader_module``."""
     from wgpu.backends.wgpu_native import _api
     trusted = getattr(_api.libf, "wgpuDeviceCreateShaderModuleTrusted", None)
     if os.environ.get(BOUNDS_CHECKS_ENV) == "1" or trusted is None:
