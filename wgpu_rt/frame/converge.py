@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..metrics import DISPLAY_GAMMA, to_display
 from ..passes import RADIANCE, SPP, ComputePass, PlaneSpec
 from .adaptive import HALF_RADIANCE
 from .kernel import FrameKernel, nonnegative_finite
@@ -34,7 +35,7 @@ CONVERGE_TAU = 0.05
 # use (wgpu_rt.metrics: x / (1 + x), gamma 2.2) at the denoised value, floored here so that a black
 # pixel's slope stays finite (BENCHMARKS.md §11: without it, a dark pixel beside brighter noisy ones
 # kept a denoised value whose tiny linear error is large on screen).
-SLOPE_GAMMA = 2.2
+SLOPE_GAMMA = DISPLAY_GAMMA
 SLOPE_FLOOR = 1e-4
 F32_MAX = float(np.finfo(np.float32).max)
 
@@ -64,12 +65,6 @@ def window_sums(image: np.ndarray, radius: int, valid: np.ndarray, key: np.ndarr
     return sums, weights
 
 
-def display_value(value: np.ndarray) -> np.ndarray:
-    """(x / (1 + x))^(1/2.2) of x = max(value, 0): the display transform the quality metrics use."""
-    x = np.maximum(value, 0.0)
-    return (x / (1.0 + x)) ** (1.0 / SLOPE_GAMMA)
-
-
 def display_slope2(value: np.ndarray) -> np.ndarray:
     """Squared derivative of (x / (1 + x))^(1/2.2) at max(value, SLOPE_FLOOR): how much a small linear
     error at that value weighs on screen."""
@@ -90,7 +85,7 @@ def converge(denoised, samples_mean, spp, half_mean, half_spp, radius: int = CON
     spp, first = np.asarray(spp, np.int64)[..., None], np.asarray(half_spp, np.int64)[..., None]
     estimated = spp > first
     slope2 = display_slope2(denoised) if on_screen else np.ones_like(denoised)
-    key = display_value(denoised)
+    key = to_display(denoised)
     with np.errstate(over="ignore", invalid="ignore"):
         # the kernel squares in f32 before weighing: a square over F32_MAX is inf there
         split2, difference2 = (np.where(x * x > F32_MAX, np.inf, x * x) for x in (mean - half, denoised - mean))
