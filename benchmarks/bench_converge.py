@@ -4,11 +4,12 @@ For each scene and n this prints the PSNR (wgpu_rt.metrics: x/(1+x), gamma 2.2) 
 mean (brute force at the same spp), the denoised mean, the blend mix(denoised, mean, n / (n + k)) for each
 constant k, the n-only rule that shipped before (k = max(32, 2048 / n)) and the shipped per-pixel rule
 (wgpu_rt.frame.converge: the mean's error, from how its first half and the whole differ, against the
-denoiser's, capped at n² / (n² + CAP_SCALE), squared differences weighed by how they show on screen; the
+denoiser's, capped at n² / (n² + CAP_SCALE), squared differences weighed by how they show on screen and
+neighbours by how alike they look, in a 7×7 window; the
 first half is a render of n // 2 spp with the same seed, the very samples the pipeline copies), and that
-rule as it was before BENCHMARKS.md §11 ("linear": a 5×5 window of unweighed sums). Then, for each blend, its mean
-loss to the best constant k of each row, its worst row against the raw mean (issue 12 wants ≥ 0) and how
-many rows are below it, and whether the shipped rule's PSNR rises
+rule as it was before BENCHMARKS.md §11 ("linear": a 5×5 window of unweighed sums). Then, for each
+blend, its mean PSNR, its mean loss to the best constant k of each row, its worst row against the raw
+mean (issue 12 wants ≥ 0) and how many rows are below it, and whether the shipped rule's PSNR rises
 with n in every scene. --radius and --cap-scale try other settings of the per-pixel rule.
 Denoiser: the model in --models (numpy packing, our WGSL engine); gold: our own render at --gold-spp
 (--gold-cache shares it with the other benchmarks).
@@ -71,7 +72,8 @@ def main() -> None:
             constant = [metrics.psnr(gold, mix(denoised, mean, n / (n + k))) for k in args.k]
             n_only = metrics.psnr(gold, mix(denoised, mean, n / (n + max(32.0, 2048.0 / n))))
             counts, first_counts = np.full(size[::-1], n), np.full(size[::-1], first)
-            before = converge(denoised, mean, counts, half, first_counts, 2, args.cap_scale, False, np.inf)
+            before = converge(denoised, mean, counts, half, first_counts, radius=2, cap_scale=args.cap_scale,
+                              on_screen=False, tau=np.inf)
             linear, per_pixel = (metrics.psnr(gold, image) for image in (
                 before, converge(denoised, mean, counts, half, first_counts, args.radius, args.cap_scale)))
             blends = np.array([*constant, n_only, linear, per_pixel])

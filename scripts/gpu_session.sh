@@ -11,9 +11,9 @@
 #        command ". .device/setup.sh; bash scripts/gpu_session.sh heldout"
 #
 # Parts: tests (the whole suite, CI=true; the three NVIDIA-only failures of issue 13), nn (profile of
-# the shipped denoiser at 1080p in both precisions and with naga's bounds checks, engine steps against torch cuDNN and OIDN CUDA),
-# trace (samples/s against Mitsuba cuda_ad_rgb; cornell also with bounds checks), frame (fused frame, adaptive targeted pass, moving vs
-# static), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
+# the shipped denoiser at 1080p in both precisions and with naga's bounds checks, engine steps against
+# torch cuDNN and OIDN CUDA), trace (samples/s against Mitsuba cuda_ad_rgb; cornell also with bounds
+# checks), frame (fused frame, adaptive targeted pass, moving vs static), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
 # ours "balanced"/"high" against OIDN balanced/high over 3 noise realizations, brute force up to 256 spp,
 # and the product path against spp at 256²). SIZE (default 1080p) shrinks everything for a dry run on
 # lavapipe: SIZE=small.
