@@ -16,11 +16,16 @@
 # checks), frame (fused frame, adaptive targeted pass, moving vs static), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
 # ours "balanced"/"high" against OIDN balanced/high over 3 noise realizations, brute force up to 256 spp,
 # and the product path against spp at 256²). SIZE (default 1080p) shrinks everything for a dry run on
-# lavapipe: SIZE=small.
+# lavapipe: SIZE=small. Each part stops after PART_LIMIT seconds (default 300), and parts that would
+# start after DEADLINE seconds (default: none) are skipped, so one call keeps inside the device time it
+# was given. A folder .meshes (ignored by git, named in `carry`) stands in for ../shared/meshes, which
+# does not travel: the bunny rows (trace, moving) need its stanford-bunny.obj. With ARCHIVE=FILE.tgz
+# the results so far are packed into FILE after every part (the device tool brings back 8 files at most).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-out/gpu-session}
 mkdir -p "$OUT"
+if [ -d .meshes ] && [ ! -e ../shared/meshes ]; then mkdir -p ../shared && cp -r .meshes ../shared/meshes; fi
 small=$([ "${SIZE:-1080p}" = small ] && echo 1 || echo 0)
 W=$([ $small = 1 ] && echo 64 || echo 1920); H=$([ $small = 1 ] && echo 64 || echo 1080)
 SQUARE=$([ $small = 1 ] && echo 64 || echo 1024)   # the square-only benchmarks (bench_trace, bench_moving)
@@ -30,10 +35,14 @@ GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 
 part() {   # part NAME COMMAND...: run, keep its output, go on after a failure
     local name=$1; shift
+    if [ -n "${DEADLINE:-}" ] && [ $SECONDS -ge "$DEADLINE" ]; then
+        echo "== $name: skipped (past DEADLINE=$DEADLINE s)" | tee -a "$OUT/summary.txt"; return
+    fi
     echo "== $name: $*" | tee -a "$OUT/summary.txt"
     local started=$SECONDS
-    "$@" > "$OUT/$name.txt" 2>&1
+    timeout "${PART_LIMIT:-300}" "$@" > "$OUT/$name.txt" 2>&1
     echo "   exit $? after $((SECONDS - started)) s" | tee -a "$OUT/summary.txt"
+    if [ -n "${ARCHIVE:-}" ]; then tar -czf "$ARCHIVE" -C "$(dirname "$OUT")" "$(basename "$OUT")"; fi
 }
 
 nvidia-smi > "$OUT/nvidia-smi.txt" 2>&1 || true
@@ -41,7 +50,8 @@ for what in "$@"; do
     case $what in
     tests)
         root=$PWD
-        part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -q -x -p no:cacheprovider" ;;
+        workers=$(python3 -c "import xdist" 2>/dev/null && echo "-n 8" || echo "")
+        part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -q $workers -p no:cacheprovider" ;;
     nn)
         part profile_fp32 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
         part profile_fp16 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp16
@@ -50,11 +60,13 @@ for what in "$@"; do
     trace)
         part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp 16
         part trace_cornell_checked env WGPU_RT_BOUNDS_CHECKS=1 python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp 16
-        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp 16 ;;
+        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp 16
+        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp 16 ;;
     frame)
         part pipeline python3 benchmarks/bench_pipeline.py --scene cornell --size ${W}x${H} --frames 32 --temporal
         part adaptive_cost python3 benchmarks/bench_adaptive.py --pass-cost --size ${W}x${H} --budgets 4 --scenes cornell sun-room --repeats 5
-        part moving python3 benchmarks/bench_moving.py --scene moving --size $SQUARE --frames 40 --denoise ;;
+        part moving python3 benchmarks/bench_moving.py --scene moving --size $SQUARE --frames 40 --denoise
+        part moving_bunny python3 benchmarks/bench_moving.py --scene bunny --size $SQUARE --frames 40 --denoise ;;
     heldout)
         data=data/worlds-heldout-$VIEW
         part heldout_render wgpu-rt dataset --worlds $WORLDS --family held_out --size $VIEW --spp 1,4,16,64 \
