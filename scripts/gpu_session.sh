@@ -1,23 +1,26 @@
 #!/usr/bin/env bash
-# The measurements only a lent GPU can give (issue 13's targets), one part per `device` run so that
-# each stays inside a call's 10 minutes; results go to $OUT (the device tool brings them back).
+# The measurements only a lent GPU can give (issues 13 and 12 at their scale); results go to $OUT (the
+# device tool brings them back). A session has 15 minutes of device time, starts included, so two
+# calls do it (session 14 on an H200: the first 358 s, the second 26 s; BENCHMARKS.md §12):
 #
 #   bash ../shared/device/prepare --peers          # here, once per session
-#   run: carry [".device", ".device-peers/peer-oidn.tar.xz"],
-#        command ". .device/setup.sh; bash scripts/gpu_session.sh tests nn"
-#   run: carry [".device", ".device-peers/peer-mitsuba.tar.xz"],
-#        command ". .device/setup.sh; bash scripts/gpu_session.sh trace frame"
-#   run: carry [".device", ".device-peers/peer-oidn.tar.xz"],
-#        command ". .device/setup.sh; bash scripts/gpu_session.sh heldout"
+#   mkdir -p .meshes && cp ../shared/meshes/stanford-bunny.obj .meshes/   # .meshes in .git/info/exclude
+#   run: carry [".device", ".device-peers/peer-oidn.tar.xz", ".meshes"],
+#        command ". .device/setup.sh; D=$OUT; OUT=/tmp/gs/r1 ARCHIVE=$D/r1.tgz DEADLINE=380 PART_LIMIT=170
+#                 bash scripts/gpu_session.sh nn tests frame heldout"
+#   run: carry [".device", ".device-peers/peer-mitsuba.tar.xz", ".meshes"], at once (the machine stays
+#        warm for 30 s), command ". .device/setup.sh; D=$OUT; OUT=/tmp/gs/r2 ARCHIVE=$D/r2.tgz
+#                 bash scripts/gpu_session.sh trace"
 #
-# Parts: tests (the whole suite, CI=true; the three NVIDIA-only failures of issue 13), nn (profile of
-# the shipped denoiser at 1080p in both precisions and with naga's bounds checks, engine steps against
-# torch cuDNN and OIDN CUDA), trace (samples/s against Mitsuba cuda_ad_rgb; cornell also with bounds
-# checks), frame (fused frame, adaptive targeted pass, moving vs static), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
-# ours "balanced"/"high" against OIDN balanced/high over 3 noise realizations, brute force up to 256 spp,
-# and the product path against spp at 256²). SIZE (default 1080p) shrinks everything for a dry run on
-# lavapipe: SIZE=small. Each part stops after PART_LIMIT seconds (default 300), and parts that would
-# start after DEADLINE seconds (default: none) are skipped, so one call keeps inside the device time it
+# Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p in
+# both precisions and with naga's bounds checks, engine steps against torch cuDNN and OIDN CUDA), trace
+# (samples/s against Mitsuba cuda_ad_rgb; cornell also with bounds checks; what the watertight tests
+# cost), frame (fused frame, adaptive targeted pass, moving vs static: the `moving` scene and the
+# bunny), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
+# ours "balanced"/"high" against OIDN balanced/high over 3 noise realizations, brute force up to 256
+# spp, and the product path against spp at 256²). SIZE (default 1080p) shrinks everything for a dry run
+# on lavapipe: SIZE=small. Each part stops after PART_LIMIT seconds (default 300), and parts that would
+# start after DEADLINE seconds (default: none) are skipped, so a call keeps inside the device time it
 # was given. A folder .meshes (ignored by git, named in `carry`) stands in for ../shared/meshes, which
 # does not travel: the bunny rows (trace, moving) need its stanford-bunny.obj. With ARCHIVE=FILE.tgz
 # the results so far are packed into FILE after every part (the device tool brings back 8 files at most).
@@ -32,6 +35,7 @@ SQUARE=$([ $small = 1 ] && echo 64 || echo 1024)   # the square-only benchmarks 
 NN=$([ $small = 1 ] && echo 256 || echo 1080p)
 WORLDS=$([ $small = 1 ] && echo 2 || echo 24); VIEW=$([ $small = 1 ] && echo 32 || echo 256)
 GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
+TRACE_SPP=$([ $small = 1 ] && echo 4 || echo 64)   # at 16 spp 1024² the fixed costs of a render weigh in
 
 part() {   # part NAME COMMAND...: run, keep its output, go on after a failure
     local name=$1; shift
@@ -58,10 +62,11 @@ for what in "$@"; do
         part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged fp16 autotuned --repeats 5 ;;
     trace)
-        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp 16
-        part trace_cornell_checked env WGPU_RT_BOUNDS_CHECKS=1 python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp 16
-        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp 16
-        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp 16 ;;
+        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP
+        part trace_cornell_checked env WGPU_RT_BOUNDS_CHECKS=1 python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP
+        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp $TRACE_SPP
+        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP
+        part watertight python3 benchmarks/bench_watertight.py --size $SQUARE --spp $TRACE_SPP ;;
     frame)
         part pipeline python3 benchmarks/bench_pipeline.py --scene cornell --size ${W}x${H} --frames 32 --temporal
         part adaptive_cost python3 benchmarks/bench_adaptive.py --pass-cost --size ${W}x${H} --budgets 4 --scenes cornell sun-room --repeats 5

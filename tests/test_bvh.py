@@ -359,7 +359,12 @@ def test_watertight_at_shared_edges_and_vertices(gpu, contraction):
 
 def test_pre_fix_edge_function_leaks_when_fused(gpu):
     """The control for the test above: the edge function as it was before, compiled with fused
-    multiply-adds, lets rays through (as it did on the H100), so the emulation and the rays can catch it."""
+    multiply-adds, lets rays through (as it did on the H100), so the emulation and the rays can catch it.
+    The emulation is exact where the driver compiles its arithmetic as written (lavapipe, which CI runs);
+    NVIDIA's compiler contracts the emulation's own products too (no leaks there), so on a GPU the
+    driver-contraction test above is the one that speaks."""
+    if gpu.adapter.info.get("adapter_type") != "CPU":
+        pytest.skip("the fused emulation is exact only on a driver that contracts nothing (lavapipe)")
     origins, targets = grid_edge_rays()
     geometry = GeometryBuffers.build(triangle_scene(_grid()))
     query = ray_query(gpu, geometry, "fused", PRE_FIX_EDGE_FUNCTION)

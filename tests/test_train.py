@@ -270,7 +270,7 @@ def test_fine_tune_starts_from_an_exported_model(tiny_dataset, tmp_path):
                 crop_max=16, widths=(4, 8))
     tuned = Trainer(TrainConfig(epochs=1, init_from=str(onnx_path), **base), progress=False)
     for name, weight in source.state_dict().items():
-        assert torch.equal(tuned.model.state_dict()[name], weight), name
+        assert torch.equal(tuned.model.state_dict()[name].cpu(), weight), name
     with pytest.raises(TrainingError, match="not a denoiser with these --widths"):
         Trainer(TrainConfig(epochs=1, init_from=str(onnx_path), **{**base, "widths": (4, 16)}), progress=False)
 
@@ -286,7 +286,7 @@ def test_a_fine_tune_of_a_model_without_the_spp_plane_starts_as_that_model(tiny_
                     progress=False)
     x = torch.rand(2, DENOISER.input_channels, 16, 16)
     with torch.no_grad():
-        np.testing.assert_allclose(tuned.model.eval()(x).numpy(), source(x[:, :-1]).numpy(), atol=1e-6)
+        np.testing.assert_allclose(tuned.model.eval().cpu()(x).numpy(), source(x[:, :-1]).numpy(), atol=1e-6)
 
 
 @pytest.mark.parametrize("bottom_merge", ["concat", "add"])
@@ -305,7 +305,7 @@ def test_a_fine_tune_one_level_deeper_starts_as_the_shallower_model_and_trains_t
                     progress=False)
     x = torch.rand(2, DENOISER.input_channels, 16, 16)
     with torch.no_grad():
-        np.testing.assert_allclose(tuned.model.eval()(x).numpy(), source(x).numpy(), atol=1e-6)
+        np.testing.assert_allclose(tuned.model.eval().cpu()(x).numpy(), source(x).numpy(), atol=1e-6)
     assert torch.equal(tuned.model.state_dict()["up.1.weight"], source.state_dict()["up.0.weight"])
     tuned.model.train()
     tuned.model(x).square().mean().backward()
@@ -346,9 +346,12 @@ def test_a_nan_loss_stops_training_with_a_clear_message(tiny_dataset, tmp_path, 
 def test_confidence_needs_sequences(tmp_path):
     config = DatasetConfig(scenes=("cornell",), views=5, size=8, spp=(1,), gold=4,
                            sequence_fraction=0.0)
-    TruthEngine(config, tmp_path, renderer=fake_render).run(progress=False)
+    TruthEngine(config, tmp_path / "data", renderer=fake_render).run(progress=False)
+    (tmp_path / "out").mkdir()
+    export_onnx(UNet(widths=(4, 8)), tmp_path / "out" / "denoiser.onnx")   # the denoiser it learns behind
     with pytest.raises(TrainingError, match="no train samples for confidence.*sequences"):
-        Trainer(TrainConfig(task="confidence", data=str(tmp_path)), progress=False)
+        Trainer(TrainConfig(task="confidence", data=str(tmp_path / "data"), out=str(tmp_path / "out")),
+                progress=False)
 
 
 def test_denoiser_batches_draw_every_noisy_copy_at_1_spp_only(tmp_path):
@@ -515,8 +518,11 @@ def test_a_resumed_run_ends_where_the_uninterrupted_one_does(tiny_dataset, tmp_p
     interrupted._save_checkpoint = save_then_get_killed   # stops after epoch 1's checkpoint
     with pytest.raises(KeyboardInterrupt):
         interrupted.run()
-    resumed = Trainer(TrainConfig(epochs=2, out=str(tmp_path / "split"), resume=True, **{**base, "device": "auto"}),
-                      progress=False)
+    # --device may change on resume; "auto" is the CPU unless torch sees CUDA, where the second epoch would
+    # train on another device and not end bit for bit where the CPU run did
+    other_spelling = "cpu" if torch.cuda.is_available() else "auto"
+    resumed = Trainer(TrainConfig(epochs=2, out=str(tmp_path / "split"), resume=True,
+                                  **{**base, "device": other_spelling}), progress=False)
     assert resumed.epoch == 1
     resumed.run()
     for name, weight in whole.model.state_dict().items():
