@@ -52,9 +52,13 @@ STEPS = {"naive": {"precision": "fp32", "conv_tiling": "none"},
          "autotuned": {"precision": "fp32", "conv_tiling": None, "autotune": True}}
 
 
-def fma_ceiling(ctx, iterations: int = 4096, invocations: int = 64 * 512) -> float:
-    """GFLOP/s of the FMA loop kernel (best of 3)."""
+def fma_ceiling(ctx, iterations: int = 4096, invocations: int | None = None) -> float:
+    """GFLOP/s of the FMA loop kernel (best of 4). Default invocations: 32,768 on a CPU adapter, 16× that
+    elsewhere (32,768 read 10–13 TFLOP/s on an H200, a fraction of what it does: BENCHMARKS.md §12)."""
     from wgpu_rt import shaders
+
+    if invocations is None:
+        invocations = 64 * 512 * (1 if ctx.adapter.info.get("adapter_type") == "CPU" else 16)
 
     pipeline = ctx.compute_pipeline(shaders.compose("fma_peak.wgsl", Path(__file__).parent,
                                                     {"ITERATIONS": iterations}))

@@ -55,7 +55,7 @@ for what in "$@"; do
     tests)
         root=$PWD
         workers=$(python3 -c "import xdist" 2>/dev/null && echo "-n 8" || echo "")
-        part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -q $workers -p no:cacheprovider" ;;
+        part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -q -rs $workers -p no:cacheprovider" ;;
     nn)
         part profile_fp32 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
         part profile_fp16 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp16
