@@ -148,6 +148,23 @@ def test_validation_every_n_epochs_and_after_the_last(tiny_dataset, tmp_path):
     assert "| 1 | " in trainer.model_card() and "—" in trainer.model_card()
 
 
+@pytest.mark.parametrize("minutes, epochs_run", [(1e-9, 1), (600.0, 4)])
+def test_a_time_budget_cuts_the_epochs_and_the_schedule_still_ends(tiny_dataset, tmp_path, minutes, epochs_run):
+    """--minutes: a budget spent by the first epoch ends the run after it, validated, with the learning
+    rate decayed to its end and the card saying why; a budget that fits changes nothing."""
+    trainer = Trainer(TrainConfig(task="error-predictor", data=str(tiny_dataset), out=str(tmp_path), epochs=4,
+                                  batch=2, crop_min=8, crop_max=16, validate_every=3, minutes=minutes),
+                      progress=False)
+    trainer.run()
+    assert trainer.epoch == trainer.config.epochs == epochs_run
+    assert trainer.step == trainer.total_steps == trainer.steps_per_epoch * epochs_run
+    assert "val_spearman" in trainer.history[-1]
+    assert trainer.learning_rate_factor(trainer.step) == pytest.approx(0.0, abs=1e-12)
+    assert ("of 4 asked: cut to fit --minutes" in trainer.model_card()) == (epochs_run < 4)
+    with pytest.raises(TrainingError, match="--minutes must be a positive number"):
+        TrainConfig(task="denoiser", data=str(tiny_dataset), minutes=0).check()
+
+
 def test_resume_refuses_a_checkpoint_trained_with_other_settings(tiny_dataset, tmp_path):
     base = dict(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), widths=(4, 8))
     Trainer(TrainConfig(epochs=1, **base), progress=False).run()

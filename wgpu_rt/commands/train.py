@@ -61,6 +61,9 @@ def add_arguments(parser) -> None:
                         help="train with CUDA torch (data kept on the GPU, mixed precision) or on the CPU; auto: "
                              "CUDA when torch sees it. Under `torchrun --nproc_per_node=N -m wgpu_rt train ...` "
                              "N processes train one model data-parallel (default: %(default)s)")
+    parser.add_argument("--minutes", type=float,
+                        help="time budget: once the first epochs show the pace, cut --epochs to what fits "
+                             "(the learning-rate schedule then decays inside the budget; the card says so)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -74,7 +77,8 @@ def run(args) -> int:
                          curriculum=tuple(args.curriculum), resume=args.resume,
                          extra_data=tuple(args.extra_data), max_views=args.max_views,
                          checkpoints=args.checkpoints, init_from=args.init_from,
-                         validate_every=args.validate_every, device=args.device)
+                         validate_every=args.validate_every, device=args.device,
+                         minutes=args.minutes)
     summary = train(config, progress=not args.quiet)
     if summary is None:   # a data-parallel rank other than 0: rank 0 reports
         return 0

@@ -34,7 +34,7 @@ from .context import TrainContext, training_context
 from .samples import ANY_SPP, Augmentation, curriculum_spp, samples_for
 
 # Settings a resumed run may change: more epochs stretch the schedule; the rest is bookkeeping.
-RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every", "device"}
+RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every", "device", "minutes"}
 
 
 class TrainingError(WgpuRtError):
@@ -67,6 +67,7 @@ class TrainConfig:
     init_from: str | None = None         # fine-tune: start from this checkpoint's weights (fresh optimizer)
     validate_every: int = 1              # epochs between validations (the last epoch is always validated)
     device: str = "auto"                 # cuda, cpu, or auto: CUDA when torch sees it
+    minutes: float | None = None         # a time budget: fewer epochs when the first ones show they won't fit
 
     @property
     def network(self) -> Network:
@@ -95,6 +96,8 @@ class TrainConfig:
             raise TrainingError(f"--crop MIN MAX: min {self.crop_min} is larger than max {self.crop_max}")
         if not (math.isfinite(self.lr) and self.lr > 0):
             raise TrainingError(f"--lr must be a positive number, got {self.lr}")
+        if self.minutes is not None and not (math.isfinite(self.minutes) and self.minutes > 0):
+            raise TrainingError(f"--minutes must be a positive number, got {self.minutes}")
         if self.init_from is not None and not Path(self.init_from).is_file():
             raise TrainingError(f"--init-from {self.init_from}: no such checkpoint or ONNX file")
         checkpoint, *exported = self.outputs()
@@ -198,6 +201,7 @@ class Trainer:
         rank = self.context.rank
         self.rng = np.random.default_rng(config.seed if rank == 0 else (config.seed, rank))
         self.epoch, self.step, self.seconds, self.history = 0, 0, 0.0, []
+        self.epochs_asked: int | None = None   # set when --minutes cut the epochs
         self.timed = {"steps": 0, "seconds": 0.0}   # this session's training steps and their time
         self.checkpoint_path = config.checkpoint_path
         self.base: dict | None = None     # the run a fine-tune starts from: its path, epochs, time, metrics
@@ -373,6 +377,8 @@ class Trainer:
 
         # a fixed stage must be rendered for every view; 'any' draws from each view's own counts
         available = sorted(set.intersection(*(set(view.spp) for view in self.train_set.views)))
+        session_started = time.perf_counter()
+        epoch_at_start = self.epoch
         with tqdm(total=self.total_steps, initial=self.step, desc=f"train {self.config.task}", unit="step",
                   disable=not self.progress) as bar:
             while self.epoch < self.config.epochs:
@@ -392,6 +398,8 @@ class Trainer:
                 self.timed["steps"] += len(losses)
                 self.timed["seconds"] += time.perf_counter() - started
                 self.epoch += 1
+                self._fit_epochs_to_minutes(time.perf_counter() - session_started, self.epoch - epoch_at_start)
+                bar.total = self.total_steps
                 due = self.epoch % self.config.validate_every == 0 or self.epoch == self.config.epochs
                 metrics = self.validate() if due and self.context.main else {}
                 self.seconds += time.perf_counter() - started
@@ -402,6 +410,19 @@ class Trainer:
                         f"{k} {v:.4g}" for k, v in self.history[-1].items() if isinstance(v, float)))
                 self._save_checkpoint()
         return self.history[-1] if self.history else {}
+
+    def _fit_epochs_to_minutes(self, seconds: float, epochs_done: int) -> None:
+        """With ``minutes``, cut the epochs to those that fit the budget at this session's pace so far
+        (validations and checkpoints included), so the learning-rate schedule still decays to its end
+        inside it; never below the epochs already done. Rank 0's clock decides for every process."""
+        if self.config.minutes is None or self.epoch >= self.config.epochs:
+            return
+        pace = seconds / epochs_done
+        fits = self.context.broadcast(self.epoch + int(max(self.config.minutes * 60 - seconds, 0.0) // pace))
+        if fits < self.config.epochs:
+            self.epochs_asked = self.epochs_asked or self.config.epochs
+            self.config.epochs = max(self.epoch, fits)
+            self.total_steps = self.steps_per_epoch * self.config.epochs
 
     def _synchronize(self) -> None:
         """Wait for the device's queued work, so the time measured is the work's."""
@@ -515,7 +536,9 @@ class Trainer:
             f"(never trained on): {len(val_views)} ({len(self.val_set.items)} samples)",
             "",
             "## Recipe",
-            f"- epochs {cfg.epochs}, steps {self.step}, batch {cfg.batch}, Adam, LR {cfg.lr} with warm-up + cosine decay, "
+            f"- epochs {cfg.epochs}"
+            + (f" (of {self.epochs_asked} asked: cut to fit --minutes {cfg.minutes:g})" if self.epochs_asked else "")
+            + f", steps {self.step}, batch {cfg.batch}, Adam, LR {cfg.lr} with warm-up + cosine decay, "
             f"grad-norm clip {cfg.grad_clip}, seed {cfg.seed}",
             f"- crops {cfg.crop_min}–{cfg.crop_max} px (clamped to the frame), flips + 90° rotations, "
             "exposure jitter ±1 stop, aux-channel noise σ 0.01"
