@@ -1,9 +1,10 @@
 """Noise-free albedo (the aux pass) for the denoisers: PSNR of ours and OIDN at 1 spp with the tracer's
-own albedo (aux 0) and with the albedo re-estimated from N delta-chain paths per pixel, on the built-in
+own albedo (aux 0) and with the albedo re-estimated from N delta-chain paths per pixel (F·N in pixels
+whose paths meet a mirror or smooth glass: --delta-factor F, default the renderer's), on the built-in
 scenes with glass or none and on held-out generated worlds that hold glass; and the aux pass's GPU time
 against the 1-spp trace's (timestamp queries).
 
-    python3 benchmarks/bench_aux.py --size 96 --gold-spp 1024 --aux 0 1 2 4 8 --worlds 4
+    python3 benchmarks/bench_aux.py --size 96 --gold-spp 1024 --aux 0 1 2 4 8 --worlds 4 [--delta-factor 1]
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import numpy as np
 
 from common import (add_gold_arguments, add_model_arguments, errors, gold_render, load_scenes, oidn,
                     parse_with_quick_defaults, print_header, print_table, resolve_models)
+from wgpu_rt.trace import trace_pass
 
 
 def glass_worlds(count: int) -> list:
@@ -36,11 +38,15 @@ def main():
     parser.add_argument("--size", type=int, default=96)
     parser.add_argument("--aux", type=int, nargs="+", default=[0, 1, 2, 4, 8])
     parser.add_argument("--max-depth", type=int, default=8)
+    parser.add_argument("--delta-factor", type=int, default=trace_pass.AUX_DELTA_FACTOR,
+                        help="aux samples behind mirrors and glass, per aux sample elsewhere (1: the same "
+                             "everywhere; default: %(default)s, the renderer's)")
     add_gold_arguments(parser, 1024)
     add_model_arguments(parser)
     args = parse_with_quick_defaults(parser, {"size": 48, "worlds": 1, "gold_spp": 256, "aux": [0, 4]})
     resolve_models(args)
     print_header(args)
+    trace_pass.AUX_DELTA_FACTOR = args.delta_factor   # read by TracePass.execute_aux at each call
     from wgpu_rt.renderer import Renderer
 
     size = (args.size, args.size)
@@ -68,7 +74,8 @@ def main():
         if aux in (0, max(args.aux)):
             headers.append(f"OIDN aux {aux}")
     print_table(f"PSNR (dB) at 1 spp against {args.gold_spp}-spp gold, {args.size}² (aux N: albedo from N "
-                "delta-chain paths; 0: the tracer's own)", headers, rows)
+                f"delta-chain paths, {args.delta_factor}·N behind mirrors and glass; 0: the tracer's own)",
+                headers, rows)
     if times:
         print_table("GPU time per frame (median of 3, ms)", ["scene", "aux samples", "1-spp trace", "aux pass",
                                                              "aux / trace"], [[*t, t[3] / t[2]] for t in times])

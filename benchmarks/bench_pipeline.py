@@ -21,7 +21,7 @@ def timed(scene, frames, **settings):
     start = time.perf_counter()
     out = list(renderer.frames(frames))
     per_frame = (time.perf_counter() - start) / len(frames)
-    stages = {name: np.median([f.stage_ms.get(name, 0.0) for f in out]) for name in out[-1].stage_ms}
+    stages = {name: round(float(np.median([f.stage_ms.get(name, 0.0) for f in out])), 3) for name in out[-1].stage_ms}
     return per_frame, stages
 
 

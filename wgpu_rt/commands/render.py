@@ -32,8 +32,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--temporal", action="store_true",
                         help="temporal accumulation over --frames (reprojection, clamping, confidence)")
     parser.add_argument("--aux-samples", type=int, metavar="N",
-                        help="re-estimate the albedo layer from N delta-chain paths per pixel, noise-free behind "
-                             "glass and mirrors (default: 4 with --denoise, else 0: the tracer's own)")
+                        help="re-estimate the albedo layer from N delta-chain paths per pixel, 2·N where they "
+                             "meet glass or mirrors, so it is noise-free there (default: 4 with --denoise, else "
+                             "0: the tracer's own)")
     parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
                         help="network arithmetic (fp16 needs the shader-f16 feature)")
     parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",

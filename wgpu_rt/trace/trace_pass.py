@@ -63,8 +63,11 @@ MAX_GRID = 65535         # workgroups along one dimension of a dispatch
 CHUNK_START_OFFSET = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
 # Delta-chain samples per pixel of the noise-free albedo (execute_aux). 1 is worse than none (an albedo
 # sample independent of the colour sample it demodulates); 4 keeps almost all of 8's gain at half the cost
-# (BENCHMARKS.md §5, "Noise-free albedo").
+# at 96² (BENCHMARKS.md §5, "Noise-free albedo"). Pixels whose paths meet a mirror or smooth glass take
+# AUX_DELTA_FACTOR times as many: at 256² 2× buys about two thirds of what 4× buys behind glass (up to
+# 2 dB there) for a third of its extra cost (BENCHMARKS.md §13).
 AUX_SAMPLES = 4
+AUX_DELTA_FACTOR = 2
 
 
 STORAGE_TABLES = "trace/shading_tables_storage.wgsl"   # what trace/trace_bindings.wgsl imports
@@ -315,7 +318,7 @@ class TracePass(ComputePass):
         self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement,
                                        geometry.instances_module)
         self._kernel_options = (traversal, self.placement, geometry.instances_module, len(geometry_buffers))
-        self._aux_pipelines: dict[int, object] = {}
+        self._aux_pipelines: dict[tuple[int, int], object] = {}
         # A two-level geometry (InstancedGeometry) follows the frame: set_frame rewrites its per-frame part.
         self._geometry, self._geometry_buffers = geometry, geometry_buffers
         instanced = isinstance(geometry, InstancedGeometry)
@@ -429,17 +432,21 @@ class TracePass(ComputePass):
         """The bind group of ``buffers`` for ``group`` of ``pipeline``'s layout (default: the tracer's)."""
         return self._bind_groups.get(pipeline or self.pipeline, group, buffers)
 
-    def execute_aux(self, encoder, buffers: FrameBuffers, samples: int = AUX_SAMPLES) -> None:
+    def execute_aux(self, encoder, buffers: FrameBuffers, samples: int = AUX_SAMPLES,
+                    delta_samples: int | None = None) -> None:
         """Overwrite the albedo plane with a noise-free estimate of the same quantity from ``samples``
         delta-chain paths per pixel (wgsl/trace/aux.wgsl), for the denoiser: behind glass a 1-spp path
-        shows the reflected or the refracted surface at random."""
-        pipeline = self._aux_pipelines.get(samples)
+        shows the reflected or the refracted surface at random. Pixels whose first paths meet a mirror
+        or smooth glass take ``delta_samples`` (default ``AUX_DELTA_FACTOR × samples``; never fewer
+        than ``samples``)."""
+        delta_samples = max(samples, AUX_DELTA_FACTOR * samples if delta_samples is None else delta_samples)
+        pipeline = self._aux_pipelines.get((samples, delta_samples))
         if pipeline is None:
             traversal, placement, instances, geometry_bindings = self._kernel_options
-            pipeline = self._aux_pipelines[samples] = self.ctx.compute_pipeline(
+            pipeline = self._aux_pipelines[samples, delta_samples] = self.ctx.compute_pipeline(
                 trace_kernel_source(self.ctx, traversal, placement, instances, AUX_KERNEL), "aux",
-                constants={**self.features.constants(), "AUX_SAMPLES": samples}, label=f"aux {self.features}",
-                layout=trace_layout(self.ctx, geometry_bindings, placement))
+                constants={**self.features.constants(), "AUX_SAMPLES": samples, "AUX_DELTA_SAMPLES": delta_samples},
+                label=f"aux {self.features}", layout=trace_layout(self.ctx, geometry_bindings, placement))
         shading = self._bind_group(1, [self._params_buffer(SampleSchedule()), self._materials, self._emitters,
                                        self._triangle_density, self._no_counts])
         compute = encoder.begin_compute_pass(label="aux")

@@ -5,7 +5,10 @@
 // random: speckle the network reproduces. This pass overwrites the albedo plane with the same quantity
 // estimated from AUX_SAMPLES paths per pixel that follow only the delta chain (pixel jitter, then delta
 // lobes sampled as the tracer samples them; no lights, no shading), which costs a few primary rays per
-// sample instead of full paths. Escaping, or running out of max_depth inside the chain, counts as
+// sample instead of full paths. A pixel whose first AUX_SAMPLES paths meet a mirror or smooth glass
+// goes on to AUX_DELTA_SAMPLES: only there does the estimate stay noisy (a pixel seen directly varies
+// only by its jitter at edges), and only there does the cost rise. (The count depends on what the first
+// paths met, so at the rim of a glass object the average leans slightly towards its delta side.) Escaping, or running out of max_depth inside the chain, counts as
 // albedo 0, as in the tracer. Like the tracer (LOOP_BUDGET in trace/trace.wgsl), an invocation starts no
 // new sample once its loops have gone round AUX_LOOP_BUDGET times (lavapipe ends loops at 65535 turns per
 // dispatch) and averages the samples it completed.
@@ -18,6 +21,7 @@
 // #import trace/surface.wgsl
 
 override AUX_SAMPLES: u32 = 4u;
+override AUX_DELTA_SAMPLES: u32 = 8u;   // at least AUX_SAMPLES (trace_pass.py sees to it)
 const AUX_SEED_SALT: u32 = 0x5bd1e995u;   // aux samples draw numbers no trace sample draws
 const AUX_FAR: f32 = 3.0e38;
 const AUX_LOOP_BUDGET: u32 = 49152u;
@@ -36,6 +40,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
     var index = 0u;
     var sum = vec3f(0.0);
     var sampling = inside;
+    var met_delta = false;
     var loop_passes = 0u;
     // Every invocation stays in the loop until its whole subgroup is done (the subgroup traversal walks
     // the BVH as one packet); finished ones query with t_max 0.
@@ -50,6 +55,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
             var sample_done = true;
             if hit.prim != NO_HIT {
                 let material = materials[tri_material(hit.prim)];
+                met_delta = met_delta || material_is_delta(material);
                 if !material_is_delta(material) {
                     sum += bsdf_albedo(material);
                 } else if depth + 1u < params.max_depth {
@@ -69,7 +75,8 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
             }
             if sample_done {
                 index += 1u;
-                sampling = index < AUX_SAMPLES && loop_passes < AUX_LOOP_BUDGET;
+                sampling = index < select(AUX_SAMPLES, AUX_DELTA_SAMPLES, met_delta)
+                           && loop_passes < AUX_LOOP_BUDGET;
                 sampler = sampler_start(pixel, index, seed);
                 origin = params.camera_origin;
                 dir = camera_ray_direction(vec2f(xy) + next_2d(&sampler));
