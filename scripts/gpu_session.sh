@@ -18,9 +18,10 @@
 # cost), frame (fused frame, adaptive targeted pass, moving vs static: the `moving` scene and the
 # bunny), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
 # ours "balanced"/"high" against OIDN balanced/high over 3 noise realizations, brute force up to 256
-# spp, and the product path against spp at 256²), train (after heldout: the shipped denoiser fine-tuned
-# for TRAIN_MINUTES on training worlds rendered at 256², the model in $OUT/model, scored on the held-out
-# worlds against OIDN; not yet run on a GPU). SIZE (default 1080p) shrinks everything for a dry run
+# spp, and the product path against spp at 256²), train (the shipped denoiser fine-tuned for
+# TRAIN_MINUTES on training worlds rendered at 256², the model in $OUT/model, scored on the held-out
+# worlds against OIDN; renders those first unless heldout did; not yet run on a GPU: run it alone,
+# DEADLINE unset, PART_LIMIT=300, ARCHIVE set, timeout_s 590). SIZE (default 1080p) shrinks everything for a dry run
 # on lavapipe: SIZE=small. Each part stops after PART_LIMIT seconds (default 300), and parts that would
 # start after DEADLINE seconds (default: none) are skipped, so a call keeps inside the device time it
 # was given. A folder .meshes (ignored by git, named in `carry`) stands in for ../shared/meshes, which
@@ -37,8 +38,10 @@ SQUARE=$([ $small = 1 ] && echo 64 || echo 1024)   # the square-only benchmarks 
 NN=$([ $small = 1 ] && echo 256 || echo 1080p)
 WORLDS=$([ $small = 1 ] && echo 2 || echo 24); VIEW=$([ $small = 1 ] && echo 32 || echo 256)
 GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
-TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 120); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
-TRAIN_MINUTES=$([ $small = 1 ] && echo 0.5 || echo 4)
+# part train in one call of ~9 minutes (estimates from §12's 4 s per held-out view, not yet measured):
+# held-out render 100 s, training worlds ~150 s, training TRAIN_MINUTES, scoring ~40 s
+TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
+TRAIN_MINUTES=$([ $small = 1 ] && echo 0.5 || echo 3.5)
 TRACE_SPP=$([ $small = 1 ] && echo 4 || echo 64)   # at 16 spp 1024² the fixed costs of a render weigh in
 
 part() {   # part NAME COMMAND...: run, keep its output, go on after a failure
@@ -51,6 +54,12 @@ part() {   # part NAME COMMAND...: run, keep its output, go on after a failure
     timeout "${PART_LIMIT:-300}" "$@" > "$OUT/$name.txt" 2>&1
     echo "   exit $? after $((SECONDS - started)) s" | tee -a "$OUT/summary.txt"
     if [ -n "${ARCHIVE:-}" ]; then tar -czf "$ARCHIVE" -C "$(dirname "$OUT")" "$(basename "$OUT")"; fi
+}
+
+HELDOUT=data/worlds-heldout-$VIEW
+render_heldout() {   # the held-out worlds, the test set of parts heldout and train
+    part heldout_render wgpu-rt dataset --worlds $WORLDS --family held_out --size $VIEW --spp 1,4,16,64 \
+        --gold $GOLD --sequence-fraction 0 --out $HELDOUT --quiet
 }
 
 nvidia-smi > "$OUT/nvidia-smi.txt" 2>&1 || true
@@ -77,15 +86,14 @@ for what in "$@"; do
         part moving python3 benchmarks/bench_moving.py --scene moving --size $SQUARE --frames 40 --denoise
         part moving_bunny python3 benchmarks/bench_moving.py --scene bunny --size $SQUARE --frames 40 --denoise ;;
     heldout)
-        data=data/worlds-heldout-$VIEW
-        part heldout_render wgpu-rt dataset --worlds $WORLDS --family held_out --size $VIEW --spp 1,4,16,64 \
-            --gold $GOLD --sequence-fraction 0 --out $data --quiet
-        part heldout_denoise python3 benchmarks/bench_denoise.py --data $data --per-view --noise-seeds 3 \
+        render_heldout
+        part heldout_denoise python3 benchmarks/bench_denoise.py --data $HELDOUT --per-view --noise-seeds 3 \
             --extra-spp 256 --quality balanced high --oidn-quality balanced high
         part heldout_spp python3 benchmarks/bench_spp.py --size $VIEW --spp 1 2 4 16 64 256 --gold-spp $GOLD \
             --scenes cornell cornell-glossy sun-room world-2147483648 world-2147483649 world-2147483650 ;;
-    train)   # after heldout (its worlds are the test set): §12 found the 96²-trained network 2.45 dB behind
-             # OIDN at 256², so this fine-tunes the shipped one on training worlds rendered at 256² on CUDA
+    train)   # §12 found the 96²-trained network 2.45 dB behind OIDN at 256², so this fine-tunes the shipped
+             # one on training worlds rendered at 256², on CUDA, and scores it on the held-out worlds
+        [ -d "$HELDOUT" ] || render_heldout
         data=data/worlds-train-$VIEW
         part train_render wgpu-rt dataset --worlds $TRAIN_WORLDS --family training --size $VIEW \
             --spp 1,2,4,16,64 --noisy-copies 2 --gold $TRAIN_GOLD --sequence-fraction 0 --seed 14 --out $data --quiet
@@ -94,7 +102,7 @@ for what in "$@"; do
             --curriculum any --ssim-space display --lowpass 2 --validate-every 50 --device auto \
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet
         cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/"   # bench_denoise reads a whole set
-        part train_eval python3 benchmarks/bench_denoise.py --data data/worlds-heldout-$VIEW --models "$OUT/model" \
+        part train_eval python3 benchmarks/bench_denoise.py --data $HELDOUT --models "$OUT/model" \
             --per-view --noise-seeds 3 --oidn-quality balanced ;;
     *) echo "unknown part $what (tests, nn, trace, frame, heldout, train)"; exit 2 ;;
     esac
