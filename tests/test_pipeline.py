@@ -286,6 +286,24 @@ def test_moving_camera_traces_each_frame_afresh(gpu):
         assert (pipeline.buffers.read(SPP.name)[0] == 1).all()
 
 
+def test_read_back_frames_own_their_arrays(gpu):
+    """Planes are copied out of the mapped readback before it is unmapped: a frame's arrays stay as they
+    were while the two readback buffers serve later frames, and match the planes on the device
+    (channels interleaved, u32 sample counts as float32)."""
+    from wgpu_rt.frame.pipeline import interleaved
+
+    frames = render("moving", frames=range(4), size=(12, 10), max_depth=2, ctx=gpu, aovs=("albedo", "spp"))
+    again = render("moving", frames=[0], size=(12, 10), max_depth=2, ctx=gpu, aovs=("albedo", "spp"))[0]
+    np.testing.assert_array_equal(frames[0].color, again.color)
+    np.testing.assert_array_equal(frames[0].aovs["albedo"], again.aovs["albedo"])
+    assert frames[0].color.flags.owndata and frames[0].color.shape == (10, 12, 3)
+    assert not np.array_equal(frames[0].color, frames[3].color)
+    planar = np.arange(3 * 10 * 12, dtype=np.uint32)
+    expected = planar.reshape(3, 10, 12).transpose(1, 2, 0).astype(np.float32)
+    np.testing.assert_array_equal(interleaved(planar, 10, 12), expected)
+    assert interleaved(planar, 10, 12).dtype == np.float32
+
+
 def test_missing_model_is_named(tmp_path, scene, gpu):
     from wgpu_rt.errors import ModelError
 

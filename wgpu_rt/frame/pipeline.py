@@ -36,6 +36,16 @@ AOV_PLANES = {plane.name: plane for plane in (ALBEDO, NORMAL, DEPTH, MOTION, SPP
 SAMPLES_PER_SUBMIT = 1 << 21   # pixel samples per command buffer (a fraction of a second on lavapipe)
 
 
+def interleaved(values: np.ndarray, height: int, width: int) -> np.ndarray:
+    """Planar channels (C·H·W values, any dtype) → a new (H, W, C) float32 array, one channel at a time
+    (a strided copy of the whole (C, H, W) view is about twice as slow)."""
+    channels = values.size // (height * width)
+    out = np.empty((height, width, channels), np.float32)
+    for channel in range(channels):
+        out[..., channel] = values[channel * height * width:(channel + 1) * height * width].reshape(height, width)
+    return out
+
+
 @dataclass
 class RenderResult:
     """One rendered frame."""
@@ -370,23 +380,24 @@ class FramePipeline:
         return PendingFrame(frame, readback, list(self.timer.names) if self.timer else [], started)
 
     def finish(self, pending: PendingFrame) -> RenderResult:
-        """Wait for a submitted frame and read it back (one mapping of its readback buffer)."""
+        """Wait for a submitted frame and read it back: one mapping of its readback buffer, each plane
+        copied once from the mapped memory into the (H, W, C) array returned (a 1080p HDR frame is
+        25 MB, and the host's copies are what a frame costs beyond its GPU time)."""
         pending.readback.map_sync(wgpu.MapMode.READ)
         try:
-            raw = pending.readback.read_mapped()
+            raw = pending.readback.read_mapped(copy=False)   # valid until unmap: nothing below keeps it
+            planes = {name: interleaved(np.frombuffer(raw, NUMPY_DTYPE[plane.dtype],
+                                                      count=plane.channels * self.height * self.width,
+                                                      offset=offset), self.height, self.width)
+                      for name, (plane, offset) in self.layout.planes.items()}
+            image = None
+            if self.tonemap is not None:
+                image = self.tonemap.image(raw[self.layout.display_offset:self.layout.timestamps_offset],
+                                           self.width, self.height)
+            stage_ms = (self.timer.stage_ms(pending.stage_names, raw[self.layout.timestamps_offset:])
+                        if self.timer else {})
         finally:
             pending.readback.unmap()
-        planes = {}
-        for name, (plane, offset) in self.layout.planes.items():
-            shape = (plane.channels, self.height, self.width)
-            values = np.frombuffer(raw, NUMPY_DTYPE[plane.dtype], count=int(np.prod(shape)), offset=offset)
-            planes[name] = np.ascontiguousarray(values.reshape(shape).transpose(1, 2, 0)).astype(np.float32)
-        image = None
-        if self.tonemap is not None:
-            image = self.tonemap.image(raw[self.layout.display_offset:self.layout.timestamps_offset],
-                                       self.width, self.height)
-        stage_ms = (self.timer.stage_ms(pending.stage_names, raw[self.layout.timestamps_offset:])
-                    if self.timer else {})
         color = planes.pop(self.color.name) if self.hdr else None
         mean_spp = self.spp if self.adaptive is None else (self.adaptive.budget or self.adaptive.probe_samples)
         samples = mean_spp * self.width * self.height
