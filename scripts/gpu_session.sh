@@ -12,6 +12,10 @@
 #        warm for 30 s), command ". .device/setup.sh; D=$OUT; OUT=/tmp/gs/r2 ARCHIVE=$D/r2.tgz
 #                 bash scripts/gpu_session.sh trace"
 #
+# Next (session 14's advice): first `train` alone (the 256² fine-tune, ~9 minutes: PART_LIMIT=300,
+# timeout_s 590, carry .device and the OIDN peer), then, if the machine is still warm, `frame nn` with
+# DEADLINE=150 to see what the readback change and the fp16 question come to.
+#
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p in
 # both precisions and with naga's bounds checks, engine steps against torch cuDNN and OIDN CUDA), trace
 # (samples/s against Mitsuba cuda_ad_rgb; cornell also with bounds checks; what the watertight tests
@@ -73,6 +77,9 @@ for what in "$@"; do
         part profile_fp32 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
         part profile_fp16 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp16
         part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
+        # §12: the profiler's fp16 figure (27.4 ms) disagrees with bench_nn's fp16 step (9.6 ms); bench_nn
+        # feeds the padded canvas itself, so profile that size too
+        part profile_fp16_canvas wgpu-rt profile models/denoiser.onnx --size ${W}x$(( (H + 15) / 16 * 16 )) --precision fp16
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged fp16 autotuned --repeats 5 ;;
     trace)
         part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP
