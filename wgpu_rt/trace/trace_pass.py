@@ -65,7 +65,7 @@ CHUNK_START_OFFSET = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
 # sample independent of the colour sample it demodulates); 4 keeps almost all of 8's gain at half the cost
 # at 96² (BENCHMARKS.md §5, "Noise-free albedo"). Pixels whose paths meet a mirror or smooth glass take
 # AUX_DELTA_FACTOR times as many: at 256² 2× buys about two thirds of what 4× buys behind glass (up to
-# 2 dB there) for a third of its extra cost (BENCHMARKS.md §13).
+# 2 dB there) for a quarter to a third of its extra cost (BENCHMARKS.md §13).
 AUX_SAMPLES = 4
 AUX_DELTA_FACTOR = 2
 

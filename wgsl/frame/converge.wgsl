@@ -51,10 +51,11 @@ fn display_value(x: f32) -> f32 {
     return pow(x / (1.0 + x), 1.0 / SLOPE_GAMMA);
 }
 
-// Squared derivative of (x / (1 + x))^(1/γ) at max(x, SLOPE_FLOOR).
-fn display_slope2(value: f32) -> f32 {
+// Squared derivative of (x / (1 + x))^(1/γ) at max(x, SLOPE_FLOOR), from ``shown``, the display value
+// of x already worked out: the derivative is that value / (γ x (1 + x)), so no second pow per channel.
+fn display_slope2(value: f32, shown: f32) -> f32 {
     let x = max(value, SLOPE_FLOOR);
-    let slope = pow(x / (1.0 + x), 1.0 / SLOPE_GAMMA - 1.0) / (SLOPE_GAMMA * (1.0 + x) * (1.0 + x));
+    let slope = select(shown, display_value(SLOPE_FLOOR), value < SLOPE_FLOOR) / (SLOPE_GAMMA * x * (1.0 + x));
     return slope * slope;
 }
 
@@ -76,7 +77,7 @@ fn load_tile_pixel(k: u32, origin: vec2i) {
             if (later) {
                 let mean = sanitize(samples_mean[c * n + j]);
                 let split = mean - sanitize(half_mean[c * n + j]);
-                let q = display_slope2(denoised_value);
+                let q = display_slope2(denoised_value, value[c]);
                 variance[c] = q * (split * split * f32(first) / f32(spp[j] - first));
                 let d = denoised_value - mean;
                 difference[c] = q * (d * d);

@@ -8,10 +8,11 @@
 // sample instead of full paths. A pixel whose first AUX_SAMPLES paths meet a mirror or smooth glass
 // goes on to AUX_DELTA_SAMPLES: only there does the estimate stay noisy (a pixel seen directly varies
 // only by its jitter at edges), and only there does the cost rise. (The count depends on what the first
-// paths met, so at the rim of a glass object the average leans slightly towards its delta side.) Escaping, or running out of max_depth inside the chain, counts as
-// albedo 0, as in the tracer. Like the tracer (LOOP_BUDGET in trace/trace.wgsl), an invocation starts no
-// new sample once its loops have gone round AUX_LOOP_BUDGET times (lavapipe ends loops at 65535 turns per
-// dispatch) and averages the samples it completed.
+// paths met, so at the rim of a glass object the average leans slightly towards its delta side.)
+// Escaping, or running out of max_depth inside the chain, counts as albedo 0, as in the tracer. Like
+// the tracer (LOOP_BUDGET in trace/trace.wgsl), an invocation starts no new sample once its loops have
+// gone round AUX_LOOP_BUDGET times (lavapipe ends loops at 65535 turns per dispatch) and averages the
+// samples it completed.
 
 // #import trace/features.wgsl
 // #import trace/trace_bindings.wgsl
@@ -55,8 +56,9 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
             var sample_done = true;
             if hit.prim != NO_HIT {
                 let material = materials[tri_material(hit.prim)];
-                met_delta = met_delta || material_is_delta(material);
-                if !material_is_delta(material) {
+                let delta = material_is_delta(material);
+                met_delta = met_delta || delta;
+                if !delta {
                     sum += bsdf_albedo(material);
                 } else if depth + 1u < params.max_depth {
                     let geometric_normal = traced.geometric_normal;
