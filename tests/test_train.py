@@ -405,6 +405,27 @@ def test_denoiser_batches_draw_every_noisy_copy_at_1_spp_only(tmp_path):
     assert "each draw takes a random one of a frame's independent 1-spp renders" in card
 
 
+def test_a_batch_mixing_frame_sizes_crops_to_fit_the_smallest(tmp_path):
+    """Datasets rendered at several sizes train together (--extra-data): a batch's one crop size must fit
+    every frame in it, not only the first item's (a 192² view first and a 96² one after it failed)."""
+    from wgpu_rt.dataset import load_views
+    from wgpu_rt.train.samples import Augmentation, DenoiserSamples
+
+    for name, size in (("large", 32), ("small", 16)):
+        config = DatasetConfig(scenes=("cornell",), views=2, size=size, spp=(1,), gold=8, sequence_fraction=0.0)
+        TruthEngine(config, tmp_path / name, renderer=fake_render).run(progress=False)
+    samples = DenoiserSamples(load_views(tmp_path / "large") + load_views(tmp_path / "small"))
+    sizes = [view.frames[0].gold["color"].shape[0] for view in samples.views]
+    large = next(item for item in samples.items if sizes[item[0]] == 32)
+    small = next(item for item in samples.items if sizes[item[0]] == 16)
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        x, y = samples.batch([large, small], rng, Augmentation(8, 32), 1)
+        assert x.shape[-2:] == y.shape[-2:] and 8 <= x.shape[-1] <= 16
+    x, _ = samples.batch([large], rng, Augmentation(32, 32), 1)
+    assert x.shape[-1] == 32   # alone, the large frame still gives whole-frame crops
+
+
 def test_confidence_needs_the_denoiser_it_learns_on(tiny_dataset, tmp_path):
     with pytest.raises(TrainingError, match=r"denoiser\.onnx: no denoiser"):
         Trainer(TrainConfig(task="confidence", data=str(tiny_dataset), out=str(tmp_path)), progress=False)

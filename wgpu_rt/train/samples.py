@@ -108,8 +108,9 @@ class TaskSamples(ABC):
         says: ``rng`` draws every choice, the crops, turns, flips and noise are tensor ops on the device.
         ``spp`` ANY_SPP: each item's sample count is drawn from its view's."""
         inputs, targets = [], []
-        frame = self.views[items[0][0]].frames[0].gold["color"].shape[:2]
-        largest = min(aug.crop_max, *frame) // aug.multiple * aug.multiple
+        # one crop size for the batch, so it fits the smallest frame in it (datasets of several sizes mix)
+        smallest_side = min(min(self.views[view].frames[0].gold["color"].shape[:2]) for view, _ in items)
+        largest = min(aug.crop_max, smallest_side) // aug.multiple * aug.multiple
         smallest = min(aug.crop_min, largest) // aug.multiple
         crop = int(rng.integers(smallest, largest // aug.multiple + 1)) * aug.multiple
         for item in items:
