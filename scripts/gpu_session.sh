@@ -43,9 +43,11 @@ NN=$([ $small = 1 ] && echo 256 || echo 1080p)
 WORLDS=$([ $small = 1 ] && echo 2 || echo 24); VIEW=$([ $small = 1 ] && echo 32 || echo 256)
 GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 # part train in one call of ~9 minutes (estimates from §12's 4 s per held-out view, not yet measured):
-# held-out render 100 s, training worlds ~150 s, training TRAIN_MINUTES, scoring ~40 s
+# held-out render 100 s, training worlds ~150 s (+ ~40 s of built-in and 96² views), training
+# TRAIN_MINUTES, scoring ~40 s
 TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 TRAIN_MINUTES=$([ $small = 1 ] && echo 0.5 || echo 3.5)
+SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
 TRACE_SPP=$([ $small = 1 ] && echo 4 || echo 64)   # at 16 spp 1024² the fixed costs of a render weigh in
 
 part() {   # part NAME COMMAND...: run, keep its output, go on after a failure
@@ -101,10 +103,19 @@ for what in "$@"; do
     train)   # §12 found the 96²-trained network 2.45 dB behind OIDN at 256², so this fine-tunes the shipped
              # one on training worlds rendered at 256², on CUDA, and scores it on the held-out worlds
         [ -d "$HELDOUT" ] || render_heldout
+        # built-in views at the same size and worlds at 96² (SMALL_VIEW) join them: on lavapipe (§14) a fine-tune on
+        # 192² worlds alone lost up to 0.4 dB on the built-ins and 0.2 at 128²
         data=data/worlds-train-$VIEW
         part train_render wgpu-rt dataset --worlds $TRAIN_WORLDS --family training --size $VIEW \
             --spp 1,2,4,16,64 --noisy-copies 2 --gold $TRAIN_GOLD --sequence-fraction 0 --seed 14 --out $data --quiet
-        part train wgpu-rt train denoiser --data $data --init-from models/denoiser.onnx --widths 16 32 64 128 128 \
+        part train_render_builtin wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views 8 \
+            --size $VIEW --spp 1,2,4,16,64 --noisy-copies 2 --gold $TRAIN_GOLD --sequence-fraction 0 --seed 18 \
+            --out data/builtin-$VIEW --quiet
+        part train_render_small wgpu-rt dataset --worlds $TRAIN_WORLDS --family training --size $SMALL_VIEW \
+            --spp 1,2,4,16,64 --noisy-copies 2 --gold $TRAIN_GOLD --sequence-fraction 0 --seed 19 \
+            --out data/worlds-train-small --quiet
+        part train wgpu-rt train denoiser --data $data --extra-data data/builtin-$VIEW data/worlds-train-small \
+            --init-from models/denoiser.onnx --widths 16 32 64 128 128 \
             --bottom-merge add --epochs 400 --minutes $TRAIN_MINUTES --batch 8 --crop $((VIEW / 2)) $VIEW --lr 1e-4 \
             --curriculum any --ssim-space display --lowpass 2 --validate-every 50 --device auto \
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet
