@@ -23,13 +23,14 @@
 # bunny), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
 # ours "balanced"/"high" against OIDN balanced/high over 3 noise realizations, brute force up to 256
 # spp, and the product path against spp at 256²), train (the shipped denoiser fine-tuned for
-# TRAIN_MINUTES on training worlds rendered at 256², the model in $OUT/model, scored on the held-out
-# worlds against OIDN; renders those first unless heldout did; not yet run on a GPU: run it alone,
-# DEADLINE unset, PART_LIMIT=300, ARCHIVE set, timeout_s 590). SIZE (default 1080p) shrinks everything for a dry run
-# on lavapipe: SIZE=small. Each part stops after PART_LIMIT seconds (default 300), and parts that would
-# start after DEADLINE seconds (default: none) are skipped, so a call keeps inside the device time it
-# was given. A folder .meshes (ignored by git, named in `carry`) stands in for ../shared/meshes, which
-# does not travel: the bunny rows (trace, moving) need its stanford-bunny.obj. With ARCHIVE=FILE.tgz
+# TRAIN_MINUTES on training worlds rendered at 256² with built-in views and 96² worlds mixed in, the
+# model in $OUT/model, scored on the held-out worlds against OIDN, then shipped and new on §14's checks
+# at 256² and 128²; renders the held-out worlds first unless heldout did; not yet run on a GPU: run it
+# alone, DEADLINE unset, PART_LIMIT=300, ARCHIVE set, timeout_s 590). SIZE (default 1080p) shrinks
+# everything for a dry run on lavapipe: SIZE=small. Each part stops after PART_LIMIT seconds (default
+# 300), and parts that would start after DEADLINE seconds (default: none) are skipped, so a call keeps
+# inside the device time it was given. A folder .meshes (ignored by git, named in `carry`) stands in for
+# ../shared/meshes, which does not travel: the bunny rows (trace, moving) need its stanford-bunny.obj. With ARCHIVE=FILE.tgz
 # the results so far are packed into FILE after every part (the device tool brings back 8 files at most).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -44,10 +45,15 @@ WORLDS=$([ $small = 1 ] && echo 2 || echo 24); VIEW=$([ $small = 1 ] && echo 32 
 GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 # part train in one call of ~9 minutes (estimates from §12's 4 s per held-out view, not yet measured):
 # held-out render 100 s, training worlds ~150 s (+ ~40 s of built-in and 96² views), training
-# TRAIN_MINUTES, scoring ~40 s
+# TRAIN_MINUTES, scoring ~40 s, §14's checks (estimate) ~60 s
 TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 TRAIN_MINUTES=$([ $small = 1 ] && echo 0.5 || echo 3.5)
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
+CHECK_VIEW=$([ $small = 1 ] && echo 48 || echo 128); CHECK_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
+CHECK_SCENES="cornell cornell-glossy sun-room world-2147483661 world-2147483667 world-2147483660 world-2147483665
+    world-2147483670 world-2147483656 world-2147483648 world-2147483651 world-2147483652 world-2147483654"
+CHECK_SCENES_SMALL="world-2147483648 world-2147483651 world-2147483653 cornell cornell-glossy sun-room
+    world-2147483660 world-2147483661"
 TRACE_SPP=$([ $small = 1 ] && echo 4 || echo 64)   # at 16 spp 1024² the fixed costs of a render weigh in
 
 part() {   # part NAME COMMAND...: run, keep its output, go on after a failure
@@ -121,7 +127,15 @@ for what in "$@"; do
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet
         cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/"   # bench_denoise reads a whole set
         part train_eval python3 benchmarks/bench_denoise.py --data $HELDOUT --models "$OUT/model" \
-            --per-view --noise-seeds 3 --oidn-quality balanced ;;
+            --per-view --noise-seeds 3 --oidn-quality balanced
+        # §14's checks, where the CPU fine-tunes lost (built-ins, 128² at 4 spp, …660's pane): shipped and new
+        for set in models "$OUT/model"; do
+            name=$([ "$set" = models ] && echo shipped || echo new)
+            part check_${name}_$VIEW python3 benchmarks/bench_aux.py --size $VIEW --gold-spp $CHECK_GOLD \
+                --gold-cache /tmp/gold --aux 4 --delta-factor 2 --worlds 0 --models "$set" --scenes $CHECK_SCENES
+            part check_${name}_$CHECK_VIEW python3 benchmarks/bench_spp.py --size $CHECK_VIEW --spp 1 4 \
+                --gold-spp $GOLD --gold-cache /tmp/gold --seeds 2 --models "$set" --scenes $CHECK_SCENES_SMALL
+        done ;;
     *) echo "unknown part $what (tests, nn, trace, frame, heldout, train)"; exit 2 ;;
     esac
 done
