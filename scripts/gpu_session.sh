@@ -30,8 +30,9 @@
 # everything for a dry run on lavapipe: SIZE=small. Each part stops after PART_LIMIT seconds (default
 # 300), and parts that would start after DEADLINE seconds (default: none) are skipped, so a call keeps
 # inside the device time it was given. A folder .meshes (ignored by git, named in `carry`) stands in for
-# ../shared/meshes, which does not travel: the bunny rows (trace, moving) need its stanford-bunny.obj. With ARCHIVE=FILE.tgz
-# the results so far are packed into FILE after every part (the device tool brings back 8 files at most).
+# ../shared/meshes, which does not travel: the bunny rows (trace, moving) need its stanford-bunny.obj.
+# With ARCHIVE=FILE.tgz the results so far are packed into FILE after every part (the device tool brings
+# back 8 files at most).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 OUT=${OUT:-out/gpu-session}
@@ -47,7 +48,7 @@ GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 # held-out render 100 s, training worlds ~150 s (+ ~40 s of built-in and 96² views), training
 # TRAIN_MINUTES, scoring ~40 s, §14's checks (estimate) ~60 s
 TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
-TRAIN_MINUTES=$([ $small = 1 ] && echo 0.5 || echo 3.5)
+TRAIN_MINUTES=$([ $small = 1 ] && echo 0.5 || echo 2.5)   # with the estimates above, ~9 min in all
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
 CHECK_VIEW=$([ $small = 1 ] && echo 48 || echo 128); CHECK_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 CHECK_SCENES="cornell cornell-glossy sun-room world-2147483661 world-2147483667 world-2147483660 world-2147483665
