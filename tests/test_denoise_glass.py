@@ -7,8 +7,10 @@ of the same tracer (PSNR on the display mapping) over the pixels that see only g
 
 The bounds sit between the model shipped before the worlds fine-tune (glass 20.02 dB, whole image
 25.02 dB, means over these four seeds on lavapipe) and the one that followed it (20.96 / 26.26 dB): that
-earlier model fails them; the shipped five-level model scores 21.62 / 26.98 (BENCHMARKS.md §9). OIDN 2.5
-(CPU, balanced) on the same inputs with the same noise-free albedo: 21.44 / 27.13 dB (BENCHMARKS.md §5).
+earlier model fails them; the shipped five-level model scores 21.62 / 26.98 (BENCHMARKS.md §9), 21.95 /
+27.18 with twice the aux paths behind glass (§13) and 22.58 / 27.61 since the aux pass shares the first
+glass bounce's lobes by Fresnel weight (§15). OIDN 2.5 (CPU) on the same inputs with the same noise-free
+albedo: 21.44 / 27.13 dB (BENCHMARKS.md §5), 21.48 / 27.17 with today's aux pass (§15).
 """
 
 from pathlib import Path

@@ -438,7 +438,8 @@ class TracePass(ComputePass):
         delta-chain paths per pixel (wgsl/trace/aux.wgsl), for the denoiser: behind glass a 1-spp path
         shows the reflected or the refracted surface at random. Pixels whose first paths meet a mirror
         or smooth glass take ``delta_samples`` (default ``AUX_DELTA_FACTOR × samples``; never fewer
-        than ``samples``)."""
+        than ``samples``), which share the first glass bounce's two lobes by Fresnel weight instead of
+        picking one at random."""
         delta_samples = max(samples, AUX_DELTA_FACTOR * samples if delta_samples is None else delta_samples)
         pipeline = self._aux_pipelines.get((samples, delta_samples))
         if pipeline is None:

@@ -2,13 +2,21 @@
 // takes whatever the albedo plane holds for texture). The albedo AOV is the first non-delta surface seen
 // through mirrors and smooth glass; the path tracer estimates it with its own paths, one per sample, so at
 // 1 spp every pixel behind glass shows either the reflected or the refracted surface, picked by Fresnel at
-// random: speckle the network reproduces. This pass overwrites the albedo plane with the same quantity
-// estimated from AUX_SAMPLES paths per pixel that follow only the delta chain (pixel jitter, then delta
-// lobes sampled as the tracer samples them; no lights, no shading), which costs a few primary rays per
-// sample instead of full paths. A pixel whose first AUX_SAMPLES paths meet a mirror or smooth glass
-// goes on to AUX_DELTA_SAMPLES: only there does the estimate stay noisy (a pixel seen directly varies
-// only by its jitter at edges), and only there does the cost rise. (The count depends on what the first
-// paths met, so at the rim of a glass object the average leans slightly towards its delta side.)
+// random: speckle the network reproduces. This pass overwrites the albedo plane with an estimate of that
+// quantity from AUX_SAMPLES paths per pixel that follow only the delta chain (pixel jitter, then delta
+// lobes; no lights, no shading), which costs a few primary rays per sample instead of full paths. A pixel
+// whose first AUX_SAMPLES paths meet a mirror or smooth glass goes on to AUX_DELTA_SAMPLES (n), and its
+// lobes are not left to chance: at a path's first smooth-glass bounce the sample's number picks the lobe
+// (samples 0 .. k − 1 reflect, k = F·n rounded and kept within 1 .. n − 1 for Fresnel reflectance F) and
+// weighs it by its share (F·n / k reflected, (1 − F)·n / (n − k) refracted). Where F and what lies behind
+// vary little across the pixel (a pane, a flat face) its samples then add up to F·(reflected albedo) +
+// (1 − F)·(refracted albedo) with no lobe noise left; elsewhere the estimate stays unbiased over the
+// jitter. At later glass bounces a path takes the more likely lobe, weight 1: what a slab's inner
+// reflections reach is mostly what its transmission reaches, and random picks there brought the speckle
+// back (BENCHMARKS.md §15, which also has halving the samples between the lobes at the first bounces).
+// Only pixels behind mirrors and glass take the extra samples (a pixel seen directly varies only by its
+// jitter at edges). (The count depends on what the first paths met, so at the rim of a glass object the
+// average leans slightly towards its delta side.)
 // Escaping, or running out of max_depth inside the chain, counts as albedo 0, as in the tracer. Like
 // the tracer (LOOP_BUDGET in trace/trace.wgsl), an invocation starts no new sample once its loops have
 // gone round AUX_LOOP_BUDGET times (lavapipe ends loops at 65535 turns per dispatch) and averages the
@@ -43,6 +51,8 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
     var sampling = inside;
     var met_delta = false;
     var loop_passes = 0u;
+    var weight = 1.0;          // of the current sample's albedo: its first glass lobe's share
+    var met_glass = false;     // has the current sample met smooth glass yet?
     // Every invocation stays in the loop until its whole subgroup is done (the subgroup traversal walks
     // the BVH as one packet); finished ones query with t_max 0.
     loop {
@@ -59,14 +69,29 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                 let delta = material_is_delta(material);
                 met_delta = met_delta || delta;
                 if !delta {
-                    sum += bsdf_albedo(material);
+                    sum += weight * bsdf_albedo(material);
                 } else if depth + 1u < params.max_depth {
                     let geometric_normal = traced.geometric_normal;
                     let cos_front = -dot(geometric_normal, dir);
                     let frame = frame_from_normal(shading_normal_at(hit, geometric_normal, material, cos_front));
-                    let u_lobe = next_1d(&sampler);
-                    let bs = bsdf_sample(material, to_local(frame, -dir), u_lobe, next_2d(&sampler));
-                    if any(bs.weight != vec3f(0.0)) {
+                    let wi = to_local(frame, -dir);
+                    var take_reflection = true;   // a mirror's only lobe
+                    if HAS_DIELECTRIC && material.kind == MATERIAL_DIELECTRIC {
+                        let reflectance = fresnel_dielectric(wi.z, material.ior).reflectance;
+                        take_reflection = reflectance > 0.5;   // past the first glass bounce: the major lobe
+                        if !met_glass && AUX_DELTA_SAMPLES >= 2u {
+                            // the sample's number picks the lobe: the first `reflected` samples reflect
+                            let n = f32(AUX_DELTA_SAMPLES);
+                            let reflected = clamp(round(reflectance * n), 1.0, n - 1.0);
+                            take_reflection = f32(index) < reflected;
+                            weight = select((1.0 - reflectance) * n / (n - reflected), reflectance * n / reflected,
+                                            take_reflection);
+                        }
+                        met_glass = true;
+                    }
+                    // (dielectric_sample reflects when its u_lobe is below F: 0 always, 1 never unless F = 1)
+                    let bs = bsdf_sample(material, wi, select(1.0, 0.0, take_reflection), next_2d(&sampler));
+                    if weight > 0.0 && any(bs.weight != vec3f(0.0)) {
                         let position = origin + hit.t * dir;
                         dir = normalize(to_world(frame, bs.wo));
                         origin = offset_ray_origin(position, geometric_normal, dir);
@@ -83,6 +108,8 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                 origin = params.camera_origin;
                 dir = camera_ray_direction(vec2f(xy) + next_2d(&sampler));
                 depth = 0u;
+                weight = 1.0;
+                met_glass = false;
             }
         }
     }
