@@ -30,6 +30,7 @@ def main():
     resolve_models(args)
     print_header(args)
     from wgpu_rt.renderer import Renderer
+    from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 
     size = (args.size, args.size)
     rows = []
@@ -40,7 +41,8 @@ def main():
             for seed in range(7, 7 + args.seeds):
                 options = dict(size=size, max_depth=args.max_depth, seed=seed, models_dir=args.models,
                                precision=args.precision)
-                noisy = next(Renderer(scene, spp, aovs=("albedo", "normal"), **options).frames())
+                noisy = next(Renderer(scene, spp, aovs=("albedo", "normal"), aux_samples=AUX_SAMPLES,
+                                       **options).frames())   # OIDN gets the albedo ours gets
                 ours = next(Renderer(scene, spp, denoise=True, aovs=(), quality=args.quality, **options).frames()).color
                 theirs = oidn(noisy.color, noisy.aovs["albedo"], noisy.aovs["normal"])
                 for name, image in (("brute", noisy.color), ("ours", ours), ("oidn", theirs)):

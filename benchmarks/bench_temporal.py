@@ -30,6 +30,7 @@ from wgpu_rt import metrics
 from wgpu_rt.frame.temporal import CLAMP_MODES, TemporalSettings
 from wgpu_rt.renderer import parse_size, render
 from wgpu_rt.scene import load_scene
+from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 from wgpu_rt.train.targets import disocclusion_mask
 
 QUICK = {"size": "32x32", "frames": 8, "gold_spp": 1024, "static_frames": 16}
@@ -82,7 +83,7 @@ def main() -> None:
 
     def noisy_oidn(frame):
         one = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=0, frames=frame,
-                     aovs=("albedo", "normal"))
+                     aovs=("albedo", "normal"), aux_samples=AUX_SAMPLES)   # the albedo ours gets
         return oidn(one.color, one.aovs["albedo"], one.aovs["normal"])
 
     per_frame = hdr_pipeline(scene, size, args, denoise=True)

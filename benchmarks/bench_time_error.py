@@ -26,6 +26,7 @@ from common import (add_gold_arguments, add_model_arguments, crossing, errors, g
                     print_header, print_table, resolve_models, save_figure, steady)
 
 from wgpu_rt.renderer import parse_size, render
+from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 
 TARGET_SPP = (64, 256, 1024)
 QUICK = {"size": "32x32", "spp": [1, 4, 16, 64, 256, 1024], "gold_spp": 2048, "budgets": [2, 4, 8]}
@@ -69,7 +70,8 @@ def measure(scene, size, args, mi) -> dict[str, list[dict]]:
         pipeline = hdr_pipeline(scene, size, args, denoise=True, adaptive=budget)
         image, seconds = steady(lambda: linear_frame(pipeline), repeats=3)
         add("adaptive + denoise", budget, seconds, image)
-    one = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=0, aovs=("albedo", "normal"))
+    one = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=0, aovs=("albedo", "normal"),
+                 aux_samples=AUX_SAMPLES)   # the albedo ours gets, its aux pass timed with the render
     image, seconds = steady(lambda: oidn(one.color, one.aovs["albedo"], one.aovs["normal"]), repeats=3)
     add("1 spp + OIDN (CPU)", 1, one.seconds + seconds, image)
     return points
