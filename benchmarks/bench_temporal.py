@@ -23,7 +23,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, gold_frame, gold_render, hdr_pipeline,
+from common import (add_gold_arguments, add_model_arguments, gold_frame, gold_render, hdr_pipeline, load_scenes,
                     linear_frame, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models)
 
 from wgpu_rt import metrics
@@ -110,7 +110,7 @@ def main() -> None:
               f"{difference.std(ddof=1) / np.sqrt(len(difference)):.4f} (mean ± standard error over "
               f"{len(difference)} frames)")
 
-    static = load_scene(args.static_scene)
+    (static,) = load_scenes([args.static_scene])   # a built-in, a scene file or world-SEED
     static_gold = gold_render(static, size, args)
     single = linear_frame(hdr_pipeline(static, size, args, denoise=True), 0)
     accumulating = hdr_pipeline(static, size, args, denoise=True, temporal=settings)
