@@ -89,7 +89,8 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                         }
                         met_glass = true;
                     }
-                    // (dielectric_sample reflects when its u_lobe is below F: 0 always, 1 never unless F = 1)
+                    // (dielectric_sample reflects when its u_lobe is below F: 0 does unless F = 0, 1 does not unless F = 1;
+                    // a lobe of share 0 ends the sample below)
                     let bs = bsdf_sample(material, wi, select(1.0, 0.0, take_reflection), next_2d(&sampler));
                     if weight > 0.0 && any(bs.weight != vec3f(0.0)) {
                         let position = origin + hit.t * dir;
