@@ -64,8 +64,10 @@ CHUNK_START_OFFSET = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
 # Delta-chain samples per pixel of the noise-free albedo (execute_aux). 1 is worse than none (an albedo
 # sample independent of the colour sample it demodulates); 4 keeps almost all of 8's gain at half the cost
 # at 96² (BENCHMARKS.md §5, "Noise-free albedo"). Pixels whose paths meet a mirror or smooth glass take
-# AUX_DELTA_FACTOR times as many: at 256² 2× buys about two thirds of what 4× buys behind glass (up to
-# 2 dB there) for a quarter to a third of its extra cost (BENCHMARKS.md §13).
+# AUX_DELTA_FACTOR times as many: at 256² 2× bought about two thirds of what 4× buys behind glass (up to
+# 2 dB there) for a quarter to a third of its extra cost (BENCHMARKS.md §13), when each path picked its
+# lobes at random; since the lobes are shared by Fresnel weight, 2× buys up to 0.16 dB over 1× for about
+# twice the aux pass on glass scenes (§15): kept for quality, the first saving to take where it weighs.
 AUX_SAMPLES = 4
 AUX_DELTA_FACTOR = 2
 
