@@ -236,7 +236,9 @@ def _albedo(gpu, scene, spp, aux_samples=0, delta_samples=None):
 def test_aux_pass_estimates_the_tracers_albedo_without_its_noise(gpu):
     """Behind cornell-glossy's glass sphere a 1-spp albedo is the reflected or the refracted surface at
     random. The aux pass estimates the same quantity (the tracer's albedo at 1024 spp) from delta-chain
-    paths only: with 64 of them it is close, and 8 already beat the 1-spp plane several times over."""
+    paths only: with 64 of them it is close (0.0027 on lavapipe: past the first glass bounce its paths
+    take the more likely lobe, a small bias; BENCHMARKS.md §15), and 8 already beat the 1-spp plane
+    several times over."""
     scene = load_scene("cornell-glossy")
     reference = _albedo(gpu, scene, 1024)
     one_spp = np.abs(_albedo(gpu, scene, 1) - reference).mean()
