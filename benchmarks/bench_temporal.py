@@ -23,13 +23,12 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, gold_frame, gold_render, hdr_pipeline, load_scenes,
-                    linear_frame, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models)
+from common import (add_gold_arguments, add_model_arguments, gold_frame, gold_render, hdr_pipeline, linear_frame,
+                    load_scenes, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models)
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.temporal import CLAMP_MODES, TemporalSettings
 from wgpu_rt.renderer import parse_size, render
-from wgpu_rt.scene import load_scene
 from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 from wgpu_rt.train.targets import disocclusion_mask
 
@@ -39,7 +38,8 @@ QUICK = {"size": "32x32", "frames": 8, "gold_spp": 1024, "static_frames": 16}
 def parse_args():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="moving")
-    parser.add_argument("--static-scene", default="cornell")
+    parser.add_argument("--static-scene", default="cornell",
+                        help="a built-in scene, a scene file or world-SEED (a generated world); so is --scene")
     parser.add_argument("--size", default="96x96")
     parser.add_argument("--frames", type=int, default=16)
     parser.add_argument("--static-frames", type=int, default=16)
@@ -72,7 +72,7 @@ def main() -> None:
     resolve_models(args)
     print_header(args)
     size = parse_size(args.size)
-    scene = load_scene(args.scene)
+    (scene,) = load_scenes([args.scene])
     frames = range(min(args.frames, scene.frame_count))
     print(f"{scene.name}: {len(frames)} frames at {size[0]}x{size[1]}, gold {args.gold_spp} spp, "
           f"max depth {args.max_depth}")
@@ -110,7 +110,7 @@ def main() -> None:
               f"{difference.std(ddof=1) / np.sqrt(len(difference)):.4f} (mean ± standard error over "
               f"{len(difference)} frames)")
 
-    (static,) = load_scenes([args.static_scene])   # a built-in, a scene file or world-SEED
+    (static,) = load_scenes([args.static_scene])
     static_gold = gold_render(static, size, args)
     single = linear_frame(hdr_pipeline(static, size, args, denoise=True), 0)
     accumulating = hdr_pipeline(static, size, args, denoise=True, temporal=settings)
