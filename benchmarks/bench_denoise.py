@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common import save_array
+from common import low_band, save_array
 from peers import DEVICE_NAMES, QUALITIES, oidn_denoise, oidn_devices, preferred
 from wgpu_rt import metrics
 from wgpu_rt.frame.denoise import QUALITIES as OUR_QUALITIES
@@ -152,6 +152,8 @@ def main() -> None:
                         help="rows of ours, one per quality (high: an ensemble of 4 turned passes)")
     parser.add_argument("--oidn-quality", nargs="+", default=["balanced", "high"], choices=QUALITIES,
                         help="OIDN rows, one per quality (on CUDA when benchmarks/peers.py finds it, else the CPU)")
+    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
+                        help="our denoiser's low band from a half-resolution pass (auto: by image size)")
     args = parser.parse_args()
 
     models = Path(args.models)
@@ -164,7 +166,7 @@ def main() -> None:
     ours = {quality: denoiser if quality == "balanced" else
             load_model("denoiser", args.precision, path=models / "denoiser.onnx", quality=quality)
             for quality in args.quality}
-    table = DenoiserTable(preferred(devices), args.oidn_quality, ours)
+    table = DenoiserTable(preferred(devices), args.oidn_quality, ours, low_band(args))
     spearman = []
     auc: dict[str, dict[str, list[float]]] = {}
     for data in args.data:
@@ -217,9 +219,10 @@ class DenoiserTable:
     force at rising spp on each view's frame 0, pooled over the dataset folders given, printed as one
     table with equivalent spp and time per view."""
 
-    def __init__(self, oidn_device: str | None, qualities: list[str], ours: dict):
-        """``ours``: quality → our denoiser (WgslModel) at it; the first is the one OIDN is compared with."""
-        self.oidn_device = oidn_device
+    def __init__(self, oidn_device: str | None, qualities: list[str], ours: dict, low_band=None):
+        """``ours``: quality → our denoiser (WgslModel) at it; the first is the one OIDN is compared with;
+        ``low_band``: denoise()'s option."""
+        self.oidn_device, self.low_band = oidn_device, low_band
         self.ours = {("ours (1 spp)" if quality == "balanced" else f"ours {quality} (1 spp)"): model
                      for quality, model in ours.items()}
         self.OURS = next(iter(self.ours))
@@ -232,7 +235,7 @@ class DenoiserTable:
     def denoisers(self) -> dict:
         """Method name → function of the 1-spp images returning the denoised colour."""
         ours = {name: lambda noisy, model=model: denoise(model, noisy["color"], noisy["albedo"], noisy["normal"],
-                                                         noisy["depth"])
+                                                         noisy["depth"], low_band=self.low_band)
                 for name, model in self.ours.items()}
         return ours | {name: lambda noisy, quality=quality: oidn_denoise(noisy["color"], noisy["albedo"],
                                                                          noisy["normal"], quality, self.oidn_device)

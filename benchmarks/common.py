@@ -49,6 +49,14 @@ def add_model_arguments(parser) -> None:
                         help="export untrained seed networks into a temp folder and use those (checks the "
                              "script's mechanics before trained models exist)")
     parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32", help="network precision")
+    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
+                        help="our denoiser's low band from a half-resolution pass (wgpu_rt/frame/lowband.py; "
+                             "auto: the renderer's choice by frame size)")
+
+
+def low_band(args):
+    """``--low-band`` as the renderer's ``low_band`` option (None: auto)."""
+    return {"auto": None, "on": True, "off": False}[args.low_band]
 
 
 def parse_with_quick_defaults(parser, quick: dict):
@@ -171,6 +179,8 @@ def hdr_pipeline(scene, size, args, **settings):
     """A renderer set up once (``wgpu_rt.renderer.Renderer``) that returns linear HDR colour, no AOVs."""
     from wgpu_rt.renderer import Renderer
 
+    if settings.get("denoise"):
+        settings.setdefault("low_band", low_band(args))
     return Renderer(scene, size=size, max_depth=args.max_depth, precision=args.precision,
                     models_dir=args.models, aovs=(), **settings)
 

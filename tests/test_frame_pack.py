@@ -93,7 +93,7 @@ def test_pack_denoiser_no_hit_frame_packs_zero_depth(gpu):
     assert np.all(out[9] == 0)
 
 
-@pytest.mark.parametrize("poison", [np.nan, np.inf, -np.inf, -1e30])
+@pytest.mark.parametrize("poison", [np.nan, np.inf, -np.inf, -1e30, 3e38])
 def test_pack_denoiser_never_emits_non_finite(gpu, poison):
     rng = np.random.default_rng(3)
     planes = list(random_planes(rng))

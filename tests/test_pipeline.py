@@ -430,8 +430,29 @@ def test_quality_high_denoises_with_an_ensemble_of_four(gpu):
     assert not np.allclose(high, render("cornell", **options).color, atol=1e-3)
 
 
+def test_low_band_frame_equals_the_numpy_path(gpu):
+    """A denoised frame with the half-resolution low band (forced on at an odd size) equals ``denoise()``
+    with the same model on the frame's own traced planes, and differs from the frame without it; the
+    automatic choice takes it from 256 pixels a side."""
+    from wgpu_rt.frame.denoise import denoise, load_model
+    from wgpu_rt.trace.trace_pass import AUX_SAMPLES
+
+    model = load_model("denoiser", ctx=gpu)
+    options = dict(spp=1, size=(21, 13), seed=3, ctx=gpu)
+    planes = render("cornell", aovs=("albedo", "normal", "depth", "spp"), aux_samples=AUX_SAMPLES, **options)
+    frames = {setting: render("cornell", denoise=True, aovs=(), low_band=setting, networks={"denoiser": model},
+                              **options).color for setting in (False, True)}
+    expected = denoise(model, planes.color, *(planes.aovs[name] for name in ("albedo", "normal", "depth")),
+                       planes.aovs["spp"], low_band=True)
+    np.testing.assert_allclose(frames[True], expected, rtol=1e-4, atol=1e-5)
+    assert not np.allclose(frames[True], frames[False], rtol=1e-3, atol=1e-4)
+    assert Renderer("cornell", size=(256, 300), denoise=True, ctx=gpu).pipeline.low_band is not None
+    assert Renderer("cornell", size=(255, 300), denoise=True, ctx=gpu).pipeline.low_band is None
+
+
 @pytest.mark.parametrize("options, message", [
     (dict(quality="best"), "quality 'best': choose one of balanced, high"),
+    (dict(low_band="on"), "low_band must be True, False or None"),
     (dict(hdr=False, aovs=()), "read nothing back"),
     (dict(hdr=False, tonemap=None, aovs=""), "read nothing back"),
     (dict(hdr="no", tonemap="aces"), "hdr must be True or False"),

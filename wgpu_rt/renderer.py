@@ -100,7 +100,7 @@ class Renderer:
                  exposure: float = 0.0, srgb: bool = True, display: str = "rgba8", precision: str = "fp32",
                  models_dir=None, networks: dict | None = None, mesh=None, ctx=None, progress: bool = False,
                  timings: bool | None = None, aux_samples: int | None = None, hdr: bool = True,
-                 quality: str = "balanced"):
+                 quality: str = "balanced", low_band: bool | None = None):
         from .frame.adaptive import AdaptiveSettings
         from .frame.temporal import TemporalSettings
         from .frame.tonemap import check_settings
@@ -119,6 +119,9 @@ class Renderer:
 
         if quality not in QUALITIES:
             raise WgpuRtError(f"quality {quality!r}: choose one of {', '.join(QUALITIES)}")
+        from .frame.lowband import uses_low_band
+
+        uses_low_band(self.width, self.height, low_band)   # checks the setting
         if tonemap is not None:
             check_settings(tonemap, display, exposure)
         check_readback(hdr, tonemap, self.aovs)
@@ -151,7 +154,8 @@ class Renderer:
             denoiser=networks.get("denoiser") if denoise else None, adaptive=adaptive,
             error_predictor=networks.get("error_predictor"), temporal=temporal,
             confidence=networks.get("confidence"), aovs=self.aovs, operator=tonemap, exposure=exposure,
-            srgb=srgb, output=display, timings=timings, progress=self._advance, aux_samples=aux_samples, hdr=hdr)
+            srgb=srgb, output=display, timings=timings, progress=self._advance, aux_samples=aux_samples, hdr=hdr,
+            low_band=low_band)
         self.setup_seconds = time.perf_counter() - started
 
     def _trace_factory(self):
@@ -237,6 +241,8 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       ``aovs`` (names or "a,b"), ``tonemap`` (None, "aces", "reinhard" or "none": the display image),
       ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks),
       ``quality`` ("balanced", or "high": the denoiser averages 4 turned passes, 4× its work),
+      ``low_band`` (the denoiser's band below quarter resolution from a second pass at half resolution,
+      1.25× its work; None: on frames whose sides are all ≥ 256, True, False),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
       ``progress`` (a progress bar), ``timings`` (per-stage GPU times; default: when the adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a

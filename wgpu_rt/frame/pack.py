@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, ComputePass
-from .kernel import FrameKernel, finite, nonnegative_finite
+from .kernel import TILE, FrameKernel, ceil_div, finite, nonnegative_finite
 from .planes import CONFIDENCE_INPUT, DENOISER_INPUT, ERROR_INPUT
 
 # The bindings each entry point of frame/pack.wgsl uses (their indices are read from the WGSL).
@@ -38,9 +38,10 @@ def albedo_factor(albedo: np.ndarray) -> np.ndarray:
 
 
 def demodulated_log_color(color: np.ndarray, albedo: np.ndarray) -> np.ndarray:
-    """(H, W, 3) radiance and albedo → (3, H, W) log1p of the sanitised radiance / albedo_factor."""
-    irradiance = nonnegative_finite(color).transpose(2, 0, 1) / albedo_factor(albedo)
-    return np.log1p(irradiance).astype(np.float32)
+    """(H, W, 3) radiance and albedo → (3, H, W) log1p of the sanitised radiance / albedo_factor (clamped
+    to f32's max first: bright radiance over black albedo would overflow)."""
+    irradiance = nonnegative_finite(color).transpose(2, 0, 1).astype(np.float64) / albedo_factor(albedo)
+    return np.log1p(np.minimum(irradiance, np.finfo(np.float32).max)).astype(np.float32)
 
 
 def log_color(color: np.ndarray) -> np.ndarray:
@@ -65,16 +66,45 @@ def sample_count_plane(spp, shape: tuple[int, int]) -> np.ndarray:
     return (1.0 / np.sqrt(np.maximum(np.nan_to_num(counts, nan=1.0), 1.0)))[None].astype(np.float32)
 
 
-def pack_denoiser_input(color, albedo, normal, depth, spp=1) -> np.ndarray:
+def pack_denoiser_input(color, albedo, normal, depth, spp=1, frame_max: float | None = None) -> np.ndarray:
     """(H, W, 3) radiance, albedo, normal, (H, W[, 1]) depth and the sample count (one number, or an
     (H, W[, 1]) map as adaptive sampling makes) → the denoiser's (11, H, W) float32 input: log1p of the
     albedo-demodulated RGB, albedo clamped to [0, 1], normal·0.5+0.5 clamped to [0, 1], depth / frame max
-    depth, 1/sqrt(spp) (``sample_count_plane``)."""
+    depth (``frame_max``, default this depth's own), 1/sqrt(spp) (``sample_count_plane``)."""
     clamped_albedo = np.clip(nonnegative_finite(albedo), 0.0, 1.0).transpose(2, 0, 1)
     normal = np.clip(finite(normal) * 0.5 + 0.5, 0.0, 1.0).transpose(2, 0, 1)
-    depth = normalize_depth(depth, frame_max_depth(depth))[None]
+    depth = normalize_depth(depth, frame_max_depth(depth) if frame_max is None else frame_max)[None]
     return np.concatenate([demodulated_log_color(color, albedo), clamped_albedo, normal, depth,
                            sample_count_plane(spp, depth.shape[1:])]).astype(np.float32)
+
+
+def block_mean(image: np.ndarray, factor: int) -> np.ndarray:
+    """(H, W, C) → (ceil(H/factor), ceil(W/factor), C) float32: each block's mean over the pixels it
+    holds (fewer at the bottom and right edges when the size is not a multiple of ``factor``)."""
+    image = np.asarray(image, np.float64)
+    rows, cols = range(0, image.shape[0], factor), range(0, image.shape[1], factor)
+    sums = np.add.reduceat(np.add.reduceat(image, rows, axis=0), cols, axis=1)
+    heights = np.minimum(factor, image.shape[0] - np.asarray(rows))
+    widths = np.minimum(factor, image.shape[1] - np.asarray(cols))
+    return (sums / (heights[:, None, None] * widths[None, :, None])).astype(np.float32)
+
+
+def pack_half_denoiser_input(color, albedo, normal, depth, spp=1) -> np.ndarray:
+    """The denoiser's (11, ceil(H/2), ceil(W/2)) input for the frame at half resolution (frame/lowband.py):
+    each pixel packs the mean of its 2×2 block of frame pixels (sanitised colour, albedo and depth; the
+    normals' mean renormalised, 0 where its largest component is under 1e-6), the block's sample counts summed, depth divided by
+    the full frame's max."""
+    height, width = np.shape(color)[:2]
+    depth = np.asarray(depth).reshape(height, width, 1)
+    normal = block_mean(finite(normal), 2).astype(np.float64)
+    largest = np.abs(normal).max(axis=2, keepdims=True)
+    normal = normal / np.where(largest > 1e-6, largest, np.inf)
+    normal /= np.maximum(np.linalg.norm(normal, axis=2, keepdims=True), 1.0)
+    counts = np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2]), (height, width))
+    summed = np.add.reduceat(np.add.reduceat(counts, range(0, height, 2), axis=0), range(0, width, 2), axis=1)
+    return pack_denoiser_input(block_mean(nonnegative_finite(color), 2), block_mean(nonnegative_finite(albedo), 2),
+                               normal, block_mean(nonnegative_finite(depth), 2), summed,
+                               frame_max=frame_max_depth(depth))
 
 
 def pack_error_input(color) -> np.ndarray:
@@ -125,6 +155,26 @@ class PackDenoiserPass(ComputePass):
             "color": buffers.get(RADIANCE), "albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL),
             "depth": buffers.get(DEPTH), "depth_max_bits": self.depth_max, "spp": buffers.get(SPP),
             "packed": buffers.get(DENOISER_INPUT)})
+
+
+class PackHalfDenoiserPass(ComputePass):
+    """radiance, albedo, normal, depth, spp → ``self.result``, the denoiser's input at half resolution
+    (``self.size``: ceil(W/2)×ceil(H/2); not a frame-sized plane, so the pass owns it); ``depth_max`` as
+    for PackDenoiserPass."""
+
+    inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP)
+
+    def __init__(self, ctx, width: int, height: int, depth_max):
+        self.depth_max = depth_max
+        self.size = (ceil_div(width, 2), ceil_div(height, 2))
+        self.result = ctx.storage(DENOISER_INPUT.nbytes(*self.size), label="denoiser_input at half resolution")
+        self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_denoiser_half", DENOISER_BINDINGS, width, height)
+
+    def execute(self, encoder, buffers) -> None:
+        self.kernel.dispatch(encoder, {
+            "color": buffers.get(RADIANCE), "albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL),
+            "depth": buffers.get(DEPTH), "depth_max_bits": self.depth_max, "spp": buffers.get(SPP),
+            "packed": self.result}, groups=(ceil_div(self.size[0], TILE), ceil_div(self.size[1], TILE)))
 
 
 class PackErrorPass(ComputePass):

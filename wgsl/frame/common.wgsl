@@ -5,6 +5,7 @@
 override WIDTH: u32;
 override HEIGHT: u32;
 const TILE: u32 = 8u;
+const F32_MAX: f32 = 3.4028234e38;   // the largest finite f32 (rounded to it)
 
 fn pixel_count() -> u32 { return WIDTH * HEIGHT; }
 

@@ -7,6 +7,7 @@
 // last plane says how many samples the pixel's colour averages, as 1/sqrt(spp) (its noise relative to
 // one sample's: 1 at 1 spp, 1/16 at 256; a pixel of 0 samples counts as 1).
 //   pack_denoiser:   11 ch = log1p RGB/albedo factor, albedo, normal·0.5+0.5, depth/max, 1/sqrt(spp)
+//   pack_denoiser_half: the same at half resolution (frame/lowband.wgsl)
 //   pack_error:       3 ch = log1p RGB                                     (error predictor)
 //   pack_confidence:  8 ch = log1p RGB, log1p reprojected history RGB, depth/max,
 //                            reprojected previous depth/max               (confidence predictor)
@@ -32,18 +33,69 @@ fn normalized_depth(d: f32) -> f32 {
     return sanitize(d) / frame_max;
 }
 
+// The denoiser's 11 input values of pixel i on a canvas of n pixels, from sanitised colour and albedo and
+// finite normal components (irradiance beyond f32's range, bright radiance over black albedo, is
+// clamped to its max before the log).
+fn write_denoiser_input(i: u32, n: u32, rgb: vec3f, albedo_value: vec3f, normal_value: vec3f, d: f32,
+                        samples: u32) {
+    for (var c = 0u; c < 3u; c++) {
+        packed[c * n + i] = log1p_accurate(min(rgb[c] / albedo_factor(albedo_value[c]), F32_MAX));
+        packed[(3u + c) * n + i] = clamp(albedo_value[c], 0.0, 1.0);
+        packed[(6u + c) * n + i] = clamp(normal_value[c] * 0.5 + 0.5, 0.0, 1.0);
+    }
+    packed[9u * n + i] = normalized_depth(d);
+    packed[10u * n + i] = inverseSqrt(f32(max(samples, 1u)));
+}
+
 @compute @workgroup_size(8, 8)
 fn pack_denoiser(@builtin(global_invocation_id) id: vec3u) {
     if (!in_frame(id)) { return; }
     let i = pixel_index(id);
     let n = pixel_count();
+    var rgb: vec3f;
+    var albedo_value: vec3f;
+    var normal_value: vec3f;
     for (var c = 0u; c < 3u; c++) {
-        packed[c * n + i] = log1p_accurate(sanitize(color[c * n + i]) / albedo_factor(albedo[c * n + i]));
-        packed[(3u + c) * n + i] = clamp(sanitize(albedo[c * n + i]), 0.0, 1.0);
-        packed[(6u + c) * n + i] = clamp(finite_or_zero(normal[c * n + i]) * 0.5 + 0.5, 0.0, 1.0);
+        rgb[c] = sanitize(color[c * n + i]);
+        albedo_value[c] = sanitize(albedo[c * n + i]);
+        normal_value[c] = finite_or_zero(normal[c * n + i]);
     }
-    packed[9u * n + i] = normalized_depth(depth[i]);
-    packed[10u * n + i] = inverseSqrt(f32(max(spp[i], 1u)));
+    write_denoiser_input(i, n, rgb, albedo_value, normal_value, depth[i], spp[i]);
+}
+
+// The denoiser's input at half resolution (frame/lowband.wgsl): one invocation per pixel of the
+// ceil(W/2)×ceil(H/2) canvas, packing the mean of the frame pixels in its 2×2 block (fewer at an odd
+// edge): colour, albedo and depth averaged, the normals' mean renormalised (0 where they cancel: no
+// component above 1e-6), the block's samples summed, depth still divided by the full frame's max.
+@compute @workgroup_size(8, 8)
+fn pack_denoiser_half(@builtin(global_invocation_id) id: vec3u) {
+    let half_size = vec2u((WIDTH + 1u) / 2u, (HEIGHT + 1u) / 2u);
+    if (id.x >= half_size.x || id.y >= half_size.y) { return; }
+    let n = pixel_count();
+    let first = 2u * id.xy;
+    let last = min(first + 2u, vec2u(WIDTH, HEIGHT));
+    let share = 1.0 / f32((last.x - first.x) * (last.y - first.y));   // each term pre-scaled: no overflow
+    var rgb = vec3f(0.0);
+    var albedo_value = vec3f(0.0);
+    var normal_value = vec3f(0.0);
+    var d = 0.0;
+    var samples = 0u;
+    for (var y = first.y; y < last.y; y++) {
+        for (var x = first.x; x < last.x; x++) {
+            let i = y * WIDTH + x;
+            for (var c = 0u; c < 3u; c++) {
+                rgb[c] += sanitize(color[c * n + i]) * share;
+                albedo_value[c] += sanitize(albedo[c * n + i]) * share;
+                normal_value[c] += finite_or_zero(normal[c * n + i]) * share;
+            }
+            d += sanitize(depth[i]) * share;
+            samples += spp[i];
+        }
+    }
+    let largest = max(max(abs(normal_value.x), abs(normal_value.y)), abs(normal_value.z));
+    normal_value = select(vec3f(0.0), normalize(normal_value / largest), largest > 1e-6);   // no overflow
+    write_denoiser_input(id.y * half_size.x + id.x, half_size.x * half_size.y, min(rgb, vec3f(F32_MAX)),
+                         albedo_value, normal_value, d, samples);
 }
 
 @compute @workgroup_size(8, 8)
