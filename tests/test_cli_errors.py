@@ -46,6 +46,8 @@ CASES = {
                             "--output IN/o.txt", "must end in .npy"),
     "render --quality without --denoise": (["render", "cornell", "--out", "IN/o.exr", "--quality", "high"],
                                            "--quality high", "is the denoiser's: add --denoise"),
+    "render --low-band without --denoise": (["render", "cornell", "--out", "IN/o.exr", "--low-band", "on"],
+                                            "--low-band on", "is the denoiser's: add --denoise"),
     "infer empty batch": (["infer", "m.onnx", "--input", "IN/empty.npy", "--output", "IN/o.npy"],
                           "IN/empty.npy", "shape (0, 10, 8, 8) is empty"),
 }

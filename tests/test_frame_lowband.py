@@ -162,3 +162,26 @@ def test_cli_help_states_the_auto_rule(command):
     sub = next(a for a in parser._actions if a.dest == "command").choices[command]
     help_text = " ".join(next(a for a in sub._actions if a.dest == "low_band").help.split())
     assert f"at least {LOW_BAND_MIN_SIDE} pixels a side" in help_text
+
+
+def test_denoise_command_takes_the_low_band_setting(gpu, tmp_path):
+    """``wgpu-rt denoise --low-band on|off`` writes what ``denoise()`` gives with that setting (auto: off
+    on this small image)."""
+    from wgpu_rt.cli import main
+    from wgpu_rt.frame.denoise import denoise, load_model
+    from wgpu_rt.io import read_exr, write_exr
+
+    rng = np.random.default_rng(6)
+    color, albedo, normal, depth, _ = random_planes(rng, 22, 17)
+    write_exr(tmp_path / "in.exr", color, {"albedo": albedo, "normal": normal, "depth": depth[..., None]})
+    model = load_model("denoiser")
+    written = {}
+    for setting in ("auto", "on", "off"):
+        out = tmp_path / f"{setting}.exr"
+        assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(out), "--low-band", setting]) == 0
+        written[setting] = read_exr(out)["color"]
+    for setting, low_band in (("on", True), ("off", False)):
+        np.testing.assert_allclose(written[setting], denoise(model, color, albedo, normal, depth, low_band=low_band),
+                                   rtol=1e-4, atol=1e-5)
+    np.testing.assert_array_equal(written["auto"], written["off"])
+    assert not np.allclose(written["on"], written["off"], rtol=1e-3, atol=1e-4)
