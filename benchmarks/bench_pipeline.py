@@ -1,5 +1,6 @@
 """Fused frame pipeline cost: per-stage GPU time (timestamp queries) and wall time per frame of
-denoise (+ adaptive, + temporal) against the plain 1-spp trace measured in the same run.
+denoise (+ adaptive, + temporal) against the plain 1-spp trace measured in the same run; on frames that
+take the denoiser's half-resolution low band (256 pixels a side and up), the fused pipeline without it too.
 
 Needs the trained models in models/ (denoiser.onnx; error_predictor.onnx for --adaptive).
     python3 benchmarks/bench_pipeline.py --size 128x128 --frames 8 [--adaptive 4] [--temporal]
@@ -10,6 +11,7 @@ import time
 
 import numpy as np
 
+from wgpu_rt.frame.lowband import uses_low_band
 from wgpu_rt.renderer import Renderer, parse_size
 from wgpu_rt.scene import load_scene
 
@@ -42,6 +44,11 @@ def main():
     print(f"plain 1-spp trace : {plain * 1e3:8.1f} ms/frame  stages {plain_stages}")
     print(f"fused pipeline    : {fused * 1e3:8.1f} ms/frame  stages {fused_stages}")
     print(f"ratio fused/plain : {fused / plain:.2f}")
+    if uses_low_band(width, height):
+        bare, bare_stages = timed(scene, denoise=True, adaptive=args.adaptive, temporal=args.temporal,
+                                  low_band=False, **common)
+        print(f"fused, no low band: {bare * 1e3:8.1f} ms/frame  stages {bare_stages}")
+        print(f"ratio fused/plain : {bare / plain:.2f} without the low band")
 
 
 if __name__ == "__main__":
