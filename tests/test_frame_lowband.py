@@ -134,6 +134,11 @@ def test_transfer_low_band_by_hand():
     np.testing.assert_allclose(transfer_low_band(denoised, half, 4), 2.0 * (0.25 * 3 + 0.75 * 2 + eps) / (2 + eps),
                                rtol=1e-6)
     np.testing.assert_allclose(transfer_low_band(denoised, denoised[::2, ::2], 1), denoised, rtol=1e-6)
+    # the weight is a low band too: a checkerboard sample map moves every pixel by its mean 1/spp
+    counts = np.where(np.indices((8, 8)).sum(0) % 2, 1, 16)
+    w = (1 + 1 / 16) / 2
+    np.testing.assert_allclose(transfer_low_band(denoised, half, counts), 2.0 * (w * 3 + (1 - w) * 2 + eps) / (2 + eps),
+                               rtol=1e-6)
     # F's detail above the quarter band is kept: a checkerboard on a flat half image comes back as it was
     checker = (1 + (np.indices((8, 8)).sum(0) % 2))[..., None].repeat(3, 2).astype(np.float32)
     np.testing.assert_allclose(transfer_low_band(checker, np.full((4, 4, 3), 1.5, np.float32), 1), checker, rtol=1e-3)

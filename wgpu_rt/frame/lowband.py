@@ -5,8 +5,9 @@ residue (blotches about its reach wide, colour drifting over large flat surfaces
 at 1 spp grows from 128² to 512². Run on the frame averaged down 2×2, the same network sees 4× the
 samples per pixel and twice the scene per receptive field, so its coarse band is cleaner, while its fine
 detail is lost. The frame keeps its own detail and takes its band below quarter resolution from the
-half-resolution pass (``transfer_low_band``) by a weight w = 1/spp per pixel: the residue falls with the
-samples, the half-resolution pass's own bias does not. BENCHMARKS.md §16: at 1 spp +0.59 dB over 13
+half-resolution pass (``transfer_low_band``) by a weight w = 1/spp (a low band itself: the mean over the
+same blocks, so an adaptive sample map does not print its pixels into the correction): the residue falls
+with the samples, the half-resolution pass's own bias does not. BENCHMARKS.md §16: at 1 spp +0.59 dB over 13
 scenes at 256² and +1.16 over 6 at 512², at 4 spp +0.08 at 256²; at 128² −0.09 on the mean and −1.8 on
 `sun-room`, so frames with a side under LOW_BAND_MIN_SIDE go without. It costs 1.3× the denoiser's GPU
 time on lavapipe (a quarter of the work, on a canvas that fills the device less well).
@@ -58,15 +59,16 @@ def bilinear_up(image: np.ndarray, factor: int, shape: tuple[int, int]) -> np.nd
 def transfer_low_band(denoised: np.ndarray, half_denoised: np.ndarray, spp=1) -> np.ndarray:
     """(H, W, 3) denoised radiance F and (ceil(H/2), ceil(W/2), 3) radiance H of the half-resolution pass,
     and the samples per pixel (one count or an (H, W[, 1]) map) → F · (w·LH + (1 − w)·LF + ε) / (LF + ε),
-    w = 1/spp, LF and LH the two images' means over 4×4 frame pixels, bilinear between them (float32,
-    finite, ≥ 0)."""
+    with LF, LH and w the means of F, H and 1/spp over 4×4 frame pixels, bilinear between block centres
+    (float32, finite, ≥ 0)."""
     height, width = denoised.shape[:2]
     full = nonnegative_finite(denoised)
     replicated = np.repeat(np.repeat(nonnegative_finite(half_denoised), 2, axis=0), 2, axis=1)[:height, :width]
     low_full = bilinear_up(block_mean(full, 4), 4, (height, width))
     low_half = bilinear_up(block_mean(replicated, 4), 4, (height, width))
     counts = np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2]), (height, width))
-    w = (1.0 / np.maximum(np.nan_to_num(counts, nan=1.0), 1.0))[..., None]
+    w = bilinear_up(block_mean((1.0 / np.maximum(np.nan_to_num(counts, nan=1.0), 1.0))[..., None], 4), 4,
+                    (height, width))
     ratio = np.minimum((w * low_half + (1 - w) * low_full + LOW_BAND_EPSILON) / (low_full + LOW_BAND_EPSILON),
                        F32_MAX)
     return np.minimum(full * ratio, F32_MAX).astype(np.float32)
@@ -83,11 +85,11 @@ class LowBandPass(ComputePass):
     def __init__(self, ctx, width: int, height: int, half_input):
         self.half_input = half_input
         self.quarter = (ceil_div(width, 4), ceil_div(height, 4))
-        self.means_buffer = ctx.storage(4 * 6 * self.quarter[0] * self.quarter[1], label="low band means")
+        self.means_buffer = ctx.storage(4 * 7 * self.quarter[0] * self.quarter[1], label="low band means")
         constants = {"EPSILON": LOW_BAND_EPSILON}
         self.means = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_means",
-                                 ("denoised", "half_output", "half_input", "means"), width, height, constants)
-        self.apply = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_apply", ("denoised", "means", "spp"),
+                                 ("denoised", "half_output", "half_input", "means", "spp"), width, height, constants)
+        self.apply = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_apply", ("denoised", "means"),
                                  width, height, constants)
 
     def execute(self, encoder, buffers, half_output) -> None:

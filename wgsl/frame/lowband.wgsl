@@ -1,10 +1,11 @@
 // The denoised frame's low band taken from a second denoiser pass at half resolution
 // (wgpu_rt/frame/lowband.py says why and when). With F the full-resolution denoised radiance, H the
 // half-resolution one (4× the samples per pixel, twice the network's reach), LF and LH their means over
-// 4×4 frame pixels (quarter resolution) and w = 1/spp of the pixel:
-//   out = F · (w·LH + (1 − w)·LF + ε) / (LF + ε),   LF and LH bilinear between quarter-pixel centres,
-// so the detail above the quarter band is F's own and the band below it moves towards H by w.
-//   low_band_means: one invocation per quarter pixel → `means`, 6 planes: LF (3), then LH (3)
+// 4×4 frame pixels (quarter resolution) and w the mean of 1/spp over the same pixels:
+//   out = F · (w·LH + (1 − w)·LF + ε) / (LF + ε),   LF, LH and w bilinear between quarter-pixel centres,
+// so the detail above the quarter band is F's own and the band below it moves towards H by w (a low-band
+// weight too: an adaptive sample map does not print its pixels into the correction).
+//   low_band_means: one invocation per quarter pixel → `means`, 7 planes: LF (3), LH (3), w
 //   low_band_apply: one invocation per frame pixel, `denoised` rewritten in place
 // #import frame/common.wgsl
 // #import frame/albedo.wgsl
@@ -40,9 +41,11 @@ fn low_band_means(@builtin(global_invocation_id) id: vec3u) {
     let last = min(first + 4u, vec2u(WIDTH, HEIGHT));
     let share = 1.0 / f32((last.x - first.x) * (last.y - first.y));   // per frame pixel of the block
     var low_full = vec3f(0.0);
+    var weight_mean = 0.0;
     for (var y = first.y; y < last.y; y++) {
         for (var x = first.x; x < last.x; x++) {
             for (var c = 0u; c < 3u; c++) { low_full[c] += denoised[c * n + y * WIDTH + x] * share; }
+            weight_mean += share / f32(max(spp[y * WIDTH + x], 1u));
         }
     }
     // The half pixels of the block, each weighed by the frame pixels it covers (fewer at an odd edge).
@@ -61,6 +64,7 @@ fn low_band_means(@builtin(global_invocation_id) id: vec3u) {
         means[c * m + q] = min(low_full[c], F32_MAX);
         means[(3u + c) * m + q] = min(low_half[c], F32_MAX);
     }
+    means[6u * m + q] = weight_mean;
 }
 
 // Bilinear weights between quarter-pixel centres along one axis: (first index, second index, t).
@@ -87,7 +91,7 @@ fn low_band_apply(@builtin(global_invocation_id) id: vec3u) {
     let n = pixel_count();
     let ax = quarter_axis(id.x, quarter_size().x);
     let ay = quarter_axis(id.y, quarter_size().y);
-    let w = 1.0 / f32(max(spp[i], 1u));
+    let w = bilinear(6u, ax, ay);
     for (var c = 0u; c < 3u; c++) {
         let low_full = bilinear(c, ax, ay);
         let low_half = bilinear(3u + c, ax, ay);
