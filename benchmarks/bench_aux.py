@@ -50,7 +50,7 @@ def main():
     from wgpu_rt.renderer import Renderer
 
     size = (args.size, args.size)
-    rows, times = [], []
+    rows, times, others = [], [], []
     for scene in load_scenes(args.scenes) + glass_worlds(args.worlds):
         gold = gold_render(scene, size, args)
         row = [scene.name]
@@ -59,10 +59,15 @@ def main():
             ours = Renderer(scene, denoise=True, aovs=("albedo", "normal"), models_dir=args.models,
                             precision=args.precision, low_band=low_band(args), **options)
             result = next(ours.frames())
-            row.append(errors(gold, result.color)["PSNR"])
+            ours_errors = errors(gold, result.color)
+            row.append(ours_errors["PSNR"])
             if aux in (0, max(args.aux)):
                 noisy = next(Renderer(scene, aovs=(), **options).frames()).color   # the same 1-spp colour
-                row.append(errors(gold, oidn(noisy, result.aovs["albedo"], result.aovs["normal"]))["PSNR"])
+                oidn_errors = errors(gold, oidn(noisy, result.aovs["albedo"], result.aovs["normal"]))
+                row.append(oidn_errors["PSNR"])
+                if aux == max(args.aux):
+                    others.append([scene.name, *(e.get(m, float("nan")) for m in ("relMSE", "FLIP")
+                                                 for e in (ours_errors, oidn_errors))])
             if aux == max(args.aux) and "aux" in result.stage_ms:
                 steady = [next(ours.frames(f)).stage_ms for f in (1, 2, 3)]
                 times.append([scene.name, aux, float(np.median([s["trace"] for s in steady])),
@@ -76,6 +81,9 @@ def main():
     print_table(f"PSNR (dB) at 1 spp against {args.gold_spp}-spp gold, {args.size}² (aux N: albedo from N "
                 f"delta-chain paths, {args.delta_factor}·N behind mirrors and glass; 0: the tracer's own)",
                 headers, rows)
+    print_table(f"relMSE and FLIP at aux {max(args.aux)} (lower is better)",
+                ["scene", "ours relMSE", "OIDN relMSE", "ours FLIP", "OIDN FLIP"],
+                others + [["mean", *np.mean([row[1:] for row in others], axis=0)]])
     if times:
         print_table("GPU time per frame (median of 3, ms)", ["scene", "aux samples", "1-spp trace", "aux pass",
                                                              "aux / trace"], [[*t, t[3] / t[2]] for t in times])
