@@ -1,15 +1,16 @@
-"""The half-resolution low band (frame/lowband.py): its two device passes against their numpy references
-at sizes that are not multiples of 2, 4 or the 8×8 tile, the references against hand-worked values, the
-auto rule, and the frame pipeline against ``denoise()``."""
+"""The low band (frame/lowband.py): its device passes against their numpy references at sizes that are
+not multiples of 2, 4 or the 8×8 tile, the references against hand-worked values, the level rule, the
+CLI, and the whole chain on the device against ``denoise()``."""
 
 import numpy as np
 import pytest
 from parity import check_parity
 
 from wgpu_rt.errors import WgpuRtError
-from wgpu_rt.frame.lowband import LOW_BAND_MIN_SIDE, LowBandPass, bilinear_up, transfer_low_band, uses_low_band
-from wgpu_rt.frame.pack import DepthMaxPass, PackHalfDenoiserPass, block_mean, pack_half_denoiser_input
-from wgpu_rt.frame.planes import DENOISED, write_plane
+from wgpu_rt.frame.lowband import (LOW_BAND_MIN_SIDE, LowBandPass, bilinear_up, low_band_levels, transfer_low_band,
+                                   uses_low_band)
+from wgpu_rt.frame.pack import DepthMaxPass, PackLevelPass, block_mean, pack_denoiser_input, pack_level_input
+from wgpu_rt.frame.planes import write_plane
 from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, FrameBuffers
 
 SIZES = [(21, 13), (24, 16), (9, 30), (1, 1)]   # (W, H): odd, even, a tall strip, one pixel
@@ -25,76 +26,69 @@ def random_planes(rng, width, height):
     return color, albedo, normal, depth, spp
 
 
-def pack_half_on_gpu(gpu, width, height, color, albedo, normal, depth, spp):
+def pack_level_on_gpu(gpu, width, height, factor, color, albedo, normal, depth, spp):
     buffers = FrameBuffers(gpu, width, height)
     for spec, image in ((RADIANCE, color), (ALBEDO, albedo), (NORMAL, normal), (DEPTH, depth), (SPP, spp)):
         write_plane(buffers, spec, image)
     depth_max = DepthMaxPass(gpu, width, height)
-    pack_half = PackHalfDenoiserPass(gpu, width, height, depth_max.result)
+    pack = PackLevelPass(gpu, width, height, depth_max.result, factor)
     encoder = gpu.device.create_command_encoder()
     depth_max.execute(encoder, buffers)
-    pack_half.execute(encoder, buffers)
+    pack.execute(encoder, buffers)
     gpu.device.queue.submit([encoder.finish()])
-    half_width, half_height = pack_half.size
-    return gpu.read(pack_half.result, np.float32, (11, half_height, half_width))
+    level_width, level_height = pack.size
+    return gpu.read(pack.result, np.float32, (11, level_height, level_width))
 
 
+@pytest.mark.parametrize("factor", [2, 4])
 @pytest.mark.parametrize("width,height", SIZES)
-def test_pack_half_matches_reference(gpu, width, height):
+def test_pack_level_matches_reference(gpu, width, height, factor):
     inputs = random_planes(np.random.default_rng(width * 100 + height), width, height)
-    check_parity(None, pack_half_denoiser_input, lambda *a: pack_half_on_gpu(gpu, width, height, *a),
-                 atol=1e-5, rtol=1e-5, inputs=inputs, name=f"pack_denoiser_half {width}x{height}")
+    check_parity(None, lambda *a: pack_level_input(*a, factor=factor),
+                 lambda *a: pack_level_on_gpu(gpu, width, height, factor, *a),
+                 atol=1e-5, rtol=1e-5, inputs=inputs, name=f"pack_denoiser_level {width}x{height} /{factor}")
 
 
 @pytest.mark.parametrize("poison", [np.nan, np.inf, -np.inf, 3e38])
-def test_pack_half_never_emits_non_finite(gpu, poison):
+def test_pack_level_never_emits_non_finite(gpu, poison):
     rng = np.random.default_rng(4)
     color, albedo, normal, depth, spp = random_planes(rng, 21, 13)
     for plane in (color, albedo, normal, depth):
         plane[rng.uniform(size=plane.shape) < 0.2] = poison
-    out = pack_half_on_gpu(gpu, 21, 13, color, albedo, normal, depth, spp)
+    out = pack_level_on_gpu(gpu, 21, 13, 2, color, albedo, normal, depth, spp)
     assert np.all(np.isfinite(out))
-    np.testing.assert_allclose(out, pack_half_denoiser_input(color, albedo, normal, depth, spp), atol=1e-5, rtol=1e-5)
+    np.testing.assert_allclose(out, pack_level_input(color, albedo, normal, depth, spp), atol=1e-5, rtol=1e-5)
 
 
-def test_pack_half_reference_by_hand():
+def test_pack_level_reference_by_hand():
     """A 3×1 frame: the first half pixel averages two pixels, the second holds the odd one alone."""
     color = np.array([[[1.0, 2.0, 0.0], [3.0, 2.0, np.nan], [5.0, 5.0, 5.0]]], np.float32)
     albedo = np.ones((1, 3, 3), np.float32)
     normal = np.array([[[1, 0, 0], [-1, 0, 0], [0, 1, 0]]], np.float32)   # the first two cancel
     depth = np.array([[2.0, 4.0, 8.0]], np.float32)
-    x = pack_half_denoiser_input(color, albedo, normal, depth, np.array([[1, 3, 4]]))
+    x = pack_level_input(color, albedo, normal, depth, np.array([[1, 3, 4]]))
     assert x.shape == (11, 1, 2)
     np.testing.assert_allclose(np.expm1(x[:3, 0, 0]) * 1.01, [2.0, 2.0, 0.0], rtol=1e-6)
     np.testing.assert_allclose(x[6:9, 0, 0], [0.5, 0.5, 0.5])            # cancelled normals pack as 0
     np.testing.assert_allclose(x[6:9, 0, 1], [0.5, 1.0, 0.5])
     np.testing.assert_allclose(x[9, 0], [3 / 8, 1.0])                    # divided by the frame's max depth
     np.testing.assert_allclose(x[10, 0], [0.5, 0.5])                     # 1 + 3 samples, then 4
+    quarter = pack_level_input(color, albedo, normal, depth, np.array([[1, 3, 4]]), factor=4)
+    np.testing.assert_allclose(quarter[10], [[1 / np.sqrt(8)]])          # one block of all three
 
 
-def low_band_on_gpu(gpu, width, height, denoised, half_output, half_albedo, spp):
-    """LowBandPass on a given denoised frame and half-resolution network output (log1p irradiance)."""
-    buffers = FrameBuffers(gpu, width, height)
-    write_plane(buffers, DENOISED, denoised)
-    write_plane(buffers, SPP, spp)
-    half_height, half_width = half_output.shape[1:]
-    half_input = np.zeros((11, half_height, half_width), np.float32)
-    half_input[3:6] = half_albedo.transpose(2, 0, 1)
-    half_input_buffer = gpu.storage(half_input.nbytes)
-    output_buffer = gpu.storage(half_output.nbytes)
-    gpu.device.queue.write_buffer(half_input_buffer, 0, half_input)
-    gpu.device.queue.write_buffer(output_buffer, 0, np.ascontiguousarray(half_output, np.float32))
-    low_band = LowBandPass(gpu, width, height, half_input_buffer)
+def low_band_on_gpu(gpu, width, height, denoised, coarse, spp):
+    """One LowBandPass on a given level: its denoised radiance, the coarser level's radiance, and its
+    sample counts packed as pack_denoiser does (the pass reads w from the 1/sqrt(spp) plane)."""
+    fine_input = pack_denoiser_input(np.zeros_like(denoised), np.zeros_like(denoised), np.zeros_like(denoised),
+                                     np.zeros(denoised.shape[:2], np.float32), spp)
+    buffers = [gpu.storage(array.nbytes) for array in (denoised, coarse, fine_input)]
+    for buffer, array in zip(buffers, (denoised.transpose(2, 0, 1), coarse.transpose(2, 0, 1), fine_input)):
+        gpu.device.queue.write_buffer(buffer, 0, np.ascontiguousarray(array, np.float32))
     encoder = gpu.device.create_command_encoder()
-    low_band.execute(encoder, buffers, output_buffer)
+    LowBandPass(gpu, width, height).execute(encoder, *buffers)
     gpu.device.queue.submit([encoder.finish()])
-    return buffers.read(DENOISED.name).transpose(1, 2, 0)
-
-
-def low_band_reference(denoised, half_output, half_albedo, spp):
-    from wgpu_rt.frame.unpack import unpack_denoiser_output
-
-    return transfer_low_band(denoised, unpack_denoiser_output(half_output, half_albedo), spp)
+    return gpu.read(buffers[0], np.float32, (3, height, width)).transpose(1, 2, 0)
 
 
 @pytest.mark.parametrize("width,height", SIZES)
@@ -102,27 +96,24 @@ def test_low_band_matches_reference(gpu, width, height):
     rng = np.random.default_rng(width + 7 * height)
     half = ((height + 1) // 2, (width + 1) // 2)
     inputs = (rng.exponential(1.0, (height, width, 3)).astype(np.float32),
-              rng.uniform(-0.5, 3.0, (3, *half)).astype(np.float32),
-              rng.uniform(0, 1, (*half, 3)).astype(np.float32),
+              rng.exponential(1.0, (*half, 3)).astype(np.float32),
               rng.integers(0, 6, (height, width)).astype(np.uint32))
-    check_parity(None, low_band_reference, lambda *a: low_band_on_gpu(gpu, width, height, *a),
+    check_parity(None, transfer_low_band, lambda *a: low_band_on_gpu(gpu, width, height, *a),
                  atol=1e-5, rtol=1e-5, inputs=inputs, name=f"low band {width}x{height}")
 
 
 def test_low_band_never_emits_non_finite(gpu):
-    """Radiance at f32's max, network outputs beyond the unpack's clamp, NaN and ±Inf."""
+    """Radiance at f32's max and 0 on either level."""
     rng = np.random.default_rng(5)
     denoised = rng.exponential(1.0, (13, 21, 3)).astype(np.float32)
-    denoised[rng.uniform(size=denoised.shape) < 0.2] = np.finfo(np.float32).max
-    denoised[rng.uniform(size=denoised.shape) < 0.1] = 0.0
-    half_output = rng.uniform(0, 3, (3, 7, 11)).astype(np.float32)
-    for poison in (1e4, np.nan, np.inf, -np.inf):
-        half_output[rng.uniform(size=half_output.shape) < 0.1] = poison
-    albedo = rng.uniform(0, 1, (7, 11, 3)).astype(np.float32)
+    coarse = rng.exponential(1.0, (7, 11, 3)).astype(np.float32)
+    for image in (denoised, coarse):
+        image[rng.uniform(size=image.shape) < 0.2] = np.finfo(np.float32).max
+        image[rng.uniform(size=image.shape) < 0.1] = 0.0
     spp = np.ones((13, 21), np.uint32)
-    out = low_band_on_gpu(gpu, 21, 13, denoised, half_output, albedo, spp)
+    out = low_band_on_gpu(gpu, 21, 13, denoised, coarse, spp)
     assert np.all(np.isfinite(out)) and out.min() >= 0
-    np.testing.assert_allclose(out, low_band_reference(denoised, half_output, albedo, spp), rtol=1e-5)
+    np.testing.assert_allclose(out, transfer_low_band(denoised, coarse, spp), rtol=1e-5)
 
 
 def test_transfer_low_band_by_hand():
@@ -151,11 +142,14 @@ def test_block_mean_and_bilinear_up_by_hand():
     np.testing.assert_allclose(up, [0, 0, 0.5, 1.5, 2.5, 3.5, 4, 4])                 # clamped at the edges
 
 
-def test_uses_low_band():
+def test_uses_low_band_and_its_levels():
     assert uses_low_band(LOW_BAND_MIN_SIDE, 1080) and not uses_low_band(LOW_BAND_MIN_SIDE - 1, 1080)
     assert uses_low_band(8, 8, True) and not uses_low_band(1920, 1080, False)
     with pytest.raises(WgpuRtError, match="low_band"):
         uses_low_band(64, 64, "on")
+    side = LOW_BAND_MIN_SIDE
+    assert [low_band_levels(s, s) for s in (side - 1, side, 2 * side - 2, 2 * side - 1, 8 * side)] == [0, 1, 1, 2, 2]
+    assert low_band_levels(1920, 1080) == 2 and low_band_levels(8, 8, True) == 1 and low_band_levels(1920, 1080, False) == 0
 
 
 @pytest.mark.parametrize("command", ["render", "denoise"])

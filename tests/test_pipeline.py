@@ -430,15 +430,20 @@ def test_quality_high_denoises_with_an_ensemble_of_four(gpu):
     assert not np.allclose(high, render("cornell", **options).color, atol=1e-3)
 
 
-def test_low_band_frame_equals_the_numpy_path(gpu):
-    """A denoised frame with the half-resolution low band (forced on at an odd size) equals ``denoise()``
-    with the same model on the frame's own traced planes, and differs from the frame without it; the
-    automatic choice takes it from 256 pixels a side."""
+@pytest.mark.parametrize("size, min_side, levels", [((21, 13), None, 1), ((37, 29), 8, 2)])
+def test_low_band_frame_equals_the_numpy_path(gpu, monkeypatch, size, min_side, levels):
+    """A denoised frame with the low band (forced on at an odd size: one coarser level; with the level
+    rule's side lowered to 8: two) equals ``denoise()`` with the same model on the frame's own traced
+    planes, and differs from the frame without it; the automatic choice takes it from 256 pixels a side."""
+    from wgpu_rt.frame import lowband
     from wgpu_rt.frame.denoise import denoise, load_model
     from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 
+    if min_side is not None:
+        monkeypatch.setattr(lowband, "LOW_BAND_MIN_SIDE", min_side)
+    assert lowband.low_band_levels(*size, True) == levels
     model = load_model("denoiser", ctx=gpu)
-    options = dict(spp=1, size=(21, 13), seed=3, ctx=gpu)
+    options = dict(spp=1, size=size, seed=3, ctx=gpu)
     planes = render("cornell", aovs=("albedo", "normal", "depth", "spp"), aux_samples=AUX_SAMPLES, **options)
     frames = {setting: render("cornell", denoise=True, aovs=(), low_band=setting, networks={"denoiser": model},
                               **options).color for setting in (False, True)}
@@ -446,8 +451,9 @@ def test_low_band_frame_equals_the_numpy_path(gpu):
                        planes.aovs["spp"], low_band=True)
     np.testing.assert_allclose(frames[True], expected, rtol=1e-4, atol=1e-5)
     assert not np.allclose(frames[True], frames[False], rtol=1e-3, atol=1e-4)
-    assert Renderer("cornell", size=(256, 300), denoise=True, ctx=gpu).pipeline.low_band is not None
-    assert Renderer("cornell", size=(255, 300), denoise=True, ctx=gpu).pipeline.low_band is None
+    if min_side is None:
+        assert Renderer("cornell", size=(256, 300), denoise=True, ctx=gpu).pipeline.low_band is not None
+        assert Renderer("cornell", size=(255, 300), denoise=True, ctx=gpu).pipeline.low_band is None
 
 
 @pytest.mark.parametrize("options, message", [

@@ -1,5 +1,5 @@
 """Loading the networks, and ``denoise()``: one image through the denoiser off the frame loop
-(pack → run → unpack, and on large frames the low band of a half-resolution pass: frame/lowband.py),
+(pack → run → unpack, and on large frames the low band of coarser passes: frame/lowband.py),
 for the ``denoise`` command, training's validation, benchmarks and tests.
 
 The padding rule is the engine's: a network whose pooling needs H and W to be multiples of some size
@@ -16,8 +16,8 @@ import numpy as np
 
 from ..errors import ModelError
 from ..models import network_named
-from .lowband import transfer_low_band, uses_low_band
-from .pack import pack_denoiser_input, pack_half_denoiser_input
+from .lowband import low_band_denoise, low_band_levels
+from .pack import pack_denoiser_input
 from .unpack import unpack_denoiser_output
 
 
@@ -49,19 +49,16 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None) -> np.nda
     """(H, W, 3) linear HDR colour of ``spp`` samples per pixel (one count, or an (H, W[, 1]) map) +
     G-buffers → the denoised (H, W, 3) colour (finite, ≥ 0). ``model`` runs (N, C, H, W) batches; one with
     fewer ``input_channels`` (10: trained before the sample-count plane existed) gets the first ones.
-    ``low_band``: take the band below quarter resolution from a second pass at half resolution
-    (frame/lowband.py; None: for frames whose sides are at least LOW_BAND_MIN_SIDE)."""
+    ``low_band``: take the band below quarter resolution from the denoiser run again at half (and
+    quarter) resolution (frame/lowband.py; None: for frames whose sides are at least LOW_BAND_MIN_SIDE)."""
     channels = getattr(model, "input_channels", None)
 
     def run(packed):
         return np.asarray(model(packed[None, :channels]), np.float32)[0]
 
     denoised = unpack_denoiser_output(run(pack_denoiser_input(color, albedo, normal, depth, spp)), albedo)
-    if not uses_low_band(denoised.shape[1], denoised.shape[0], low_band):
-        return denoised
-    half_input = pack_half_denoiser_input(color, albedo, normal, depth, spp)
-    half = unpack_denoiser_output(run(half_input), half_input[3:6].transpose(1, 2, 0))
-    return transfer_low_band(denoised, half, spp)
+    levels = low_band_levels(denoised.shape[1], denoised.shape[0], low_band)
+    return low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels) if levels else denoised
 
 
 def pad_to_multiple(x: np.ndarray, multiple: int) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""The denoised frame's low band from a second denoiser pass at half resolution.
+"""The denoised frame's low band from the denoiser run again at half (and quarter) resolution.
 
 The denoiser was trained on renders of 96–192 pixels, and on larger frames it leaves low-frequency
 residue (blotches about its reach wide, colour drifting over large flat surfaces): OIDN's lead over it
@@ -9,11 +9,16 @@ half-resolution pass (``transfer_low_band``) by a weight w = 1/spp (a low band i
 same blocks, so an adaptive sample map does not print its pixels into the correction): the residue falls
 with the samples, the half-resolution pass's own bias does not. BENCHMARKS.md §16: at 1 spp +0.59 dB over 13
 scenes at 256² and +1.16 over 6 at 512², at 4 spp +0.08 at 256²; at 128² −0.09 on the mean and −1.8 on
-`sun-room`, so frames with a side under LOW_BAND_MIN_SIDE go without. It costs 1.3× the denoiser's GPU
-time on lavapipe (a quarter of the work, on a canvas that fills the device less well).
+`sun-room`, so frames with a side under LOW_BAND_MIN_SIDE go without. The half-resolution level takes
+its own low band from a quarter-resolution one in turn when its sides reach LOW_BAND_MIN_SIDE too
+(frames of 512² and up; its weight is 1/(4·spp)): +0.08 to +0.32 dB more at 512² and 1024², where a
+fourth level added nothing, so at most LOW_BAND_LEVELS coarser levels. The half-resolution level costs
+1.3× the denoiser's GPU time on lavapipe (a quarter of the work, on a canvas that fills the device less
+well), the quarter one a sixteenth more.
 
-On the device: ``PackHalfDenoiserPass`` (frame/pack.wgsl), the denoiser on that canvas, ``LowBandPass``
-(frame/lowband.wgsl); ``transfer_low_band`` and ``pack.pack_half_denoiser_input`` are their references.
+On the device: ``LowBand`` (``pack.PackLevelPass``, the denoiser on each coarser canvas, ``UnpackPass``,
+then ``LowBandPass`` from the coarsest level up); ``low_band_denoise`` with ``transfer_low_band`` and
+``pack.pack_level_input`` is the numpy reference.
 """
 
 from __future__ import annotations
@@ -21,24 +26,37 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import WgpuRtError
-from ..passes import SPP, ComputePass
+from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, ComputePass
 from .kernel import TILE, FrameKernel, ceil_div, nonnegative_finite
-from .pack import block_mean
-from .planes import DENOISED
+from .pack import PackLevelPass, block_mean, level_sample_counts, pack_level_input
+from .planes import DENOISED, DENOISER_INPUT
+from .unpack import UnpackPass, unpack_denoiser_output
 
 LOW_BAND_EPSILON = 1e-3    # radiance added to both low bands: a black level, so near-black blocks keep F
-LOW_BAND_MIN_SIDE = 256    # "auto" takes the low band for frames at least this wide and high
+LOW_BAND_MIN_SIDE = 256    # "auto" takes the low band for frames (and levels) at least this wide and high
+LOW_BAND_LEVELS = 2        # coarser levels at most (half and quarter resolution)
 F32_MAX = float(np.finfo(np.float32).max)
 
 
 def uses_low_band(width: int, height: int, setting=None) -> bool:
-    """Whether a width×height frame takes the half-resolution low band: ``setting`` True or False, or
-    None (auto: when both sides are at least LOW_BAND_MIN_SIDE)."""
+    """Whether a width×height frame takes the low band: ``setting`` True or False, or None (auto: when
+    both sides are at least LOW_BAND_MIN_SIDE)."""
     if setting is None:
         return min(width, height) >= LOW_BAND_MIN_SIDE
     if not isinstance(setting, bool):
         raise WgpuRtError(f"low_band must be True, False or None (auto), got {setting!r}")
     return setting
+
+
+def low_band_levels(width: int, height: int, setting=None) -> int:
+    """How many coarser levels (half, quarter resolution) the frame's denoiser runs on: none unless
+    ``uses_low_band``; then the half-resolution level, and the next while the level above it has both
+    sides at least LOW_BAND_MIN_SIDE, up to LOW_BAND_LEVELS."""
+    levels = int(uses_low_band(width, height, setting))
+    while levels and levels < LOW_BAND_LEVELS and min(ceil_div(width, 2 ** levels),
+                                                       ceil_div(height, 2 ** levels)) >= LOW_BAND_MIN_SIDE:
+        levels += 1
+    return levels
 
 
 def bilinear_up(image: np.ndarray, factor: int, shape: tuple[int, int]) -> np.ndarray:
@@ -56,44 +74,84 @@ def bilinear_up(image: np.ndarray, factor: int, shape: tuple[int, int]) -> np.nd
     return top[:, cols0] * (1 - tx[None, :, None]) + top[:, cols1] * tx[None, :, None]
 
 
-def transfer_low_band(denoised: np.ndarray, half_denoised: np.ndarray, spp=1) -> np.ndarray:
-    """(H, W, 3) denoised radiance F and (ceil(H/2), ceil(W/2), 3) radiance H of the half-resolution pass,
-    and the samples per pixel (one count or an (H, W[, 1]) map) → F · (w·LH + (1 − w)·LF + ε) / (LF + ε),
-    with LF, LH and w the means of F, H and 1/spp over 4×4 frame pixels, bilinear between block centres
-    (float32, finite, ≥ 0)."""
+def transfer_low_band(denoised: np.ndarray, coarse: np.ndarray, spp=1) -> np.ndarray:
+    """(H, W, 3) denoised radiance F of a level, (ceil(H/2), ceil(W/2), 3) radiance C of the next coarser
+    one and the level's samples per pixel (one count or an (H, W[, 1]) map) → F · (w·LC + (1 − w)·LF + ε) /
+    (LF + ε), with LF, LC and w the means of F, C (replicated to F's size) and 1/spp over 4×4 pixels,
+    bilinear between block centres (float32, finite, ≥ 0)."""
     height, width = denoised.shape[:2]
     full = nonnegative_finite(denoised)
-    replicated = np.repeat(np.repeat(nonnegative_finite(half_denoised), 2, axis=0), 2, axis=1)[:height, :width]
+    replicated = np.repeat(np.repeat(nonnegative_finite(coarse), 2, axis=0), 2, axis=1)[:height, :width]
     low_full = bilinear_up(block_mean(full, 4), 4, (height, width))
-    low_half = bilinear_up(block_mean(replicated, 4), 4, (height, width))
-    counts = np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2]), (height, width))
+    low_coarse = bilinear_up(block_mean(replicated, 4), 4, (height, width))
+    counts = level_sample_counts(spp, (height, width), 1)
     w = bilinear_up(block_mean((1.0 / np.maximum(np.nan_to_num(counts, nan=1.0), 1.0))[..., None], 4), 4,
                     (height, width))
-    ratio = np.minimum((w * low_half + (1 - w) * low_full + LOW_BAND_EPSILON) / (low_full + LOW_BAND_EPSILON),
+    ratio = np.minimum((w * low_coarse + (1 - w) * low_full + LOW_BAND_EPSILON) / (low_full + LOW_BAND_EPSILON),
                        F32_MAX)
     return np.minimum(full * ratio, F32_MAX).astype(np.float32)
 
 
+def low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels: int) -> np.ndarray:
+    """``denoised`` (the frame's denoiser output, unpacked) with the low band of ``levels`` coarser levels:
+    each denoised by ``run`` (packed (11, h, w) input → (3, h, w) output) on the frame averaged over
+    2^k × 2^k blocks, then from the coarsest up each level takes its band below quarter resolution from
+    the next (``transfer_low_band``, the level's own summed sample counts)."""
+    shape = np.shape(color)[:2]
+    radiance = [denoised]
+    for level in range(1, levels + 1):
+        packed = pack_level_input(color, albedo, normal, depth, spp, 2 ** level)
+        radiance.append(unpack_denoiser_output(run(packed), packed[3:6].transpose(1, 2, 0)))
+    for level in reversed(range(levels)):
+        radiance[level] = transfer_low_band(radiance[level], radiance[level + 1],
+                                            level_sample_counts(spp, shape, 2 ** level))
+    return radiance[0]
+
+
 class LowBandPass(ComputePass):
-    """denoised (the full-resolution pass, unpacked), the half-resolution network's output (a buffer given
-    to ``execute``), ``half_input`` (PackHalfDenoiserPass's result: the albedo it was demodulated by) and
-    spp → denoised, its low band moved towards the half-resolution pass's."""
+    """One step on a width×height level: ``fine`` (its denoised radiance, rewritten), ``coarse`` (the next
+    coarser level's radiance) and ``fine_input`` (the level's packed denoiser input, whose 1/sqrt(spp)
+    plane gives w) are buffers given to ``execute``."""
 
-    inputs = (DENOISED, SPP)
-    outputs = (DENOISED,)
-
-    def __init__(self, ctx, width: int, height: int, half_input):
-        self.half_input = half_input
-        self.quarter = (ceil_div(width, 4), ceil_div(height, 4))
-        self.means_buffer = ctx.storage(4 * 7 * self.quarter[0] * self.quarter[1], label="low band means")
+    def __init__(self, ctx, width: int, height: int):
+        self.blocks = (ceil_div(width, 4), ceil_div(height, 4))
+        self.means_buffer = ctx.storage(4 * 7 * self.blocks[0] * self.blocks[1], label="low band means")
         constants = {"EPSILON": LOW_BAND_EPSILON}
         self.means = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_means",
-                                 ("denoised", "half_output", "half_input", "means", "spp"), width, height, constants)
-        self.apply = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_apply", ("denoised", "means"),
+                                 ("fine", "coarse", "fine_input", "means"), width, height, constants)
+        self.apply = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_apply", ("fine", "means"),
                                  width, height, constants)
 
-    def execute(self, encoder, buffers, half_output) -> None:
-        bound = {"denoised": buffers.get(DENOISED), "half_output": half_output, "half_input": self.half_input,
-                 "means": self.means_buffer, "spp": buffers.get(SPP)}
-        self.means.dispatch(encoder, bound, groups=(ceil_div(self.quarter[0], TILE), ceil_div(self.quarter[1], TILE)))
+    def execute(self, encoder, fine, coarse, fine_input) -> None:
+        bound = {"fine": fine, "coarse": coarse, "fine_input": fine_input, "means": self.means_buffer}
+        self.means.dispatch(encoder, bound, groups=(ceil_div(self.blocks[0], TILE), ceil_div(self.blocks[1], TILE)))
         self.apply.dispatch(encoder, bound)
+
+
+class LowBand(ComputePass):
+    """The low band of a frame's denoised radiance on the device (``low_band_denoise``'s steps): for each of
+    ``levels`` coarser levels its pack (``self.packs``), ``denoiser`` on that canvas and an unpack into the
+    level's own radiance buffer; then, from the coarsest up, a LowBandPass per level, the last on the
+    frame's denoised plane in place (read against the frame's packed input, DENOISER_INPUT)."""
+
+    inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP, DENOISER_INPUT, DENOISED)
+    outputs = (DENOISED,)
+
+    def __init__(self, ctx, width: int, height: int, depth_max, denoiser, levels: int):
+        self.denoiser = denoiser
+        self.packs = [PackLevelPass(ctx, width, height, depth_max, 2 ** level) for level in range(1, levels + 1)]
+        self.unpacks = [UnpackPass(ctx, *pack.size, albedo_plane=3) for pack in self.packs]
+        self.radiance = [ctx.storage(DENOISED.nbytes(*pack.size), label=f"denoised, level {level}")
+                         for level, pack in enumerate(self.packs, 1)]
+        sizes = [(width, height)] + [pack.size for pack in self.packs[:-1]]
+        self.steps = [LowBandPass(ctx, *size) for size in sizes]
+
+    def execute(self, encoder, buffers) -> None:
+        for pack, unpack, radiance in zip(self.packs, self.unpacks, self.radiance):
+            pack.execute(encoder, buffers)
+            width, height = pack.size
+            unpack.unpack(encoder, self.denoiser.record(encoder, pack.result, height, width), pack.result, radiance)
+        fines = [buffers.get(DENOISED)] + self.radiance[:-1]
+        inputs = [buffers.get(DENOISER_INPUT)] + [pack.result for pack in self.packs[:-1]]
+        for step, fine, coarse, fine_input in reversed(list(zip(self.steps, fines, self.radiance, inputs))):
+            step.execute(encoder, fine, coarse, fine_input)

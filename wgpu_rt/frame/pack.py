@@ -89,22 +89,29 @@ def block_mean(image: np.ndarray, factor: int) -> np.ndarray:
     return (sums / (heights[:, None, None] * widths[None, :, None])).astype(np.float32)
 
 
-def pack_half_denoiser_input(color, albedo, normal, depth, spp=1) -> np.ndarray:
-    """The denoiser's (11, ceil(H/2), ceil(W/2)) input for the frame at half resolution (frame/lowband.py):
-    each pixel packs the mean of its 2×2 block of frame pixels (sanitised colour, albedo and depth; the
-    normals' mean renormalised, 0 where its largest component is under 1e-6), the block's sample counts summed, depth divided by
-    the full frame's max."""
+def level_sample_counts(spp, shape: tuple[int, int], factor: int) -> np.ndarray:
+    """The sample counts (one number or an (H, W[, 1]) map) of an (H, W) frame summed over its
+    factor×factor blocks: (ceil(H/factor), ceil(W/factor)) float64."""
+    height, width = shape
+    counts = np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2]), (height, width))
+    return np.add.reduceat(np.add.reduceat(counts, range(0, height, factor), axis=0), range(0, width, factor), axis=1)
+
+
+def pack_level_input(color, albedo, normal, depth, spp=1, factor: int = 2) -> np.ndarray:
+    """The denoiser's (11, ceil(H/f), ceil(W/f)) input for the frame averaged over f×f blocks, f = ``factor``
+    (a coarser level of frame/lowband.py): each pixel packs the mean of its block of frame pixels
+    (sanitised colour, albedo and depth; the normals' mean renormalised, 0 where its largest component
+    is under 1e-6), the block's sample counts summed, depth divided by the full frame's max."""
     height, width = np.shape(color)[:2]
     depth = np.asarray(depth).reshape(height, width, 1)
-    normal = block_mean(finite(normal), 2).astype(np.float64)
+    normal = block_mean(finite(normal), factor).astype(np.float64)
     largest = np.abs(normal).max(axis=2, keepdims=True)
     normal = normal / np.where(largest > 1e-6, largest, np.inf)
     normal /= np.maximum(np.linalg.norm(normal, axis=2, keepdims=True), 1.0)
-    counts = np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2]), (height, width))
-    summed = np.add.reduceat(np.add.reduceat(counts, range(0, height, 2), axis=0), range(0, width, 2), axis=1)
-    return pack_denoiser_input(block_mean(nonnegative_finite(color), 2), block_mean(nonnegative_finite(albedo), 2),
-                               normal, block_mean(nonnegative_finite(depth), 2), summed,
-                               frame_max=frame_max_depth(depth))
+    return pack_denoiser_input(block_mean(nonnegative_finite(color), factor),
+                               block_mean(nonnegative_finite(albedo), factor), normal,
+                               block_mean(nonnegative_finite(depth), factor),
+                               level_sample_counts(spp, (height, width), factor), frame_max=frame_max_depth(depth))
 
 
 def pack_error_input(color) -> np.ndarray:
@@ -157,18 +164,19 @@ class PackDenoiserPass(ComputePass):
             "packed": buffers.get(DENOISER_INPUT)})
 
 
-class PackHalfDenoiserPass(ComputePass):
-    """radiance, albedo, normal, depth, spp → ``self.result``, the denoiser's input at half resolution
-    (``self.size``: ceil(W/2)×ceil(H/2); not a frame-sized plane, so the pass owns it); ``depth_max`` as
-    for PackDenoiserPass."""
+class PackLevelPass(ComputePass):
+    """radiance, albedo, normal, depth, spp → ``self.result``, the denoiser's input for the frame averaged
+    over ``factor``×``factor`` blocks (``self.size``: ceil(W/factor)×ceil(H/factor); not a frame-sized
+    plane, so the pass owns it); ``depth_max`` as for PackDenoiserPass."""
 
     inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP)
 
-    def __init__(self, ctx, width: int, height: int, depth_max):
+    def __init__(self, ctx, width: int, height: int, depth_max, factor: int):
         self.depth_max = depth_max
-        self.size = (ceil_div(width, 2), ceil_div(height, 2))
-        self.result = ctx.storage(DENOISER_INPUT.nbytes(*self.size), label="denoiser_input at half resolution")
-        self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_denoiser_half", DENOISER_BINDINGS, width, height)
+        self.size = (ceil_div(width, factor), ceil_div(height, factor))
+        self.result = ctx.storage(DENOISER_INPUT.nbytes(*self.size), label=f"denoiser_input, {factor}x{factor} blocks")
+        self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_denoiser_level", DENOISER_BINDINGS, width, height,
+                                  constants={"LEVEL_FACTOR": factor})
 
     def execute(self, encoder, buffers) -> None:
         self.kernel.dispatch(encoder, {

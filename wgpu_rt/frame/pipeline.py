@@ -24,8 +24,8 @@ from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, 
 from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
 from .converge import CONVERGED, HALF_SPP, ConvergePass, copy_half, half_count
-from .lowband import LowBandPass, uses_low_band
-from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass, PackHalfDenoiserPass
+from .lowband import LowBand, low_band_levels
+from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
 from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT
 from .temporal import TEMPORAL, TemporalPass, TemporalSettings, frame_change
 from .tonemap import TonemapPass
@@ -161,8 +161,8 @@ class FramePipeline:
     ``spp`` samples per pixel are traced per frame (in several submits when they are many; ``progress``
     is told after each); ``adaptive`` replaces them by a 1-spp probe plus targeted samples. With
     ``aux_samples``, the albedo plane is then re-estimated noise-free from that many delta-chain paths
-    per pixel (``TracePass.execute_aux``). ``low_band``: the denoiser's low band from a second pass at
-    half resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE). ``aovs`` names
+    per pixel (``TracePass.execute_aux``). ``low_band``: the denoiser's low band from passes at half
+    (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE). ``aovs`` names
     the G-buffer planes to read back with the colour; ``operator`` None skips the display image;
     ``hdr=False`` skips the HDR colour (12 bytes a pixel; ``RenderResult.color`` is then None) for
     callers that want only the display image or AOVs.
@@ -187,10 +187,10 @@ class FramePipeline:
             self.pack = PackDenoiserPass(ctx, width, height, self.depth_max.result)
             self.unpack = UnpackPass(ctx, width, height)
             color = DENOISED
-        self.pack_half = self.low_band = None
-        if denoiser is not None and uses_low_band(width, height, low_band):
-            self.pack_half = PackHalfDenoiserPass(ctx, width, height, self.depth_max.result)
-            self.low_band = LowBandPass(ctx, width, height, self.pack_half.result)
+        self.low_band = None
+        levels = low_band_levels(width, height, low_band) if denoiser is not None else 0
+        if levels:
+            self.low_band = LowBand(ctx, width, height, self.depth_max.result, denoiser, levels)
         # A frame of several samples per pixel (uniform or an adaptive map) hands over from the denoiser to
         # their mean where that has converged (frame/converge.py); temporal mode does that itself across
         # frames (its converge step).
@@ -246,7 +246,7 @@ class FramePipeline:
         if self.denoiser is not None:
             stages += [self.pack, Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack]
         if self.low_band is not None:
-            stages += [self.pack_half, Stage("denoiser at half resolution", (), ()), self.low_band]
+            stages.append(self.low_band)
         if self.converge is not None:
             stages.append(self.converge)
         if self.temporal is not None:
@@ -366,9 +366,7 @@ class FramePipeline:
             self._mark(encoder, "denoise")
             self.unpack.execute(encoder, buffers, network_output)
         if self.low_band is not None:
-            self.pack_half.execute(encoder, buffers)
-            half_output = self.denoiser.record(encoder, self.pack_half.result, *reversed(self.pack_half.size))
-            self.low_band.execute(encoder, buffers, half_output)
+            self.low_band.execute(encoder, buffers)
             self._mark(encoder, "low band")
         if self.converge is not None:
             self.converge.execute(encoder, buffers)

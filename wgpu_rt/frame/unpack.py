@@ -21,16 +21,20 @@ def unpack_denoiser_output(output: np.ndarray, albedo: np.ndarray) -> np.ndarray
 
 
 class UnpackPass(ComputePass):
-    """The network's output (a buffer, or a plane, given to each execute) and albedo → denoised (3 planes)."""
+    """The network's output (a buffer, or a plane, given to each execute) and albedo → denoised (3 planes).
+    ``albedo_plane`` 3: the albedo comes from the denoiser's packed input instead (planes 3–5), for a
+    coarser level's canvas (frame/lowband.py), written by ``unpack``."""
 
     inputs = (ALBEDO,)
     outputs = (DENOISED,)
 
-    def __init__(self, ctx, width: int, height: int):
+    def __init__(self, ctx, width: int, height: int, albedo_plane: int = 0):
         self.kernel = FrameKernel(ctx, "frame/unpack.wgsl", "main", ("network_output", "albedo", "radiance"),
-                                  width, height)
+                                  width, height, constants={"ALBEDO_PLANE": albedo_plane})
 
     def execute(self, encoder, buffers, source) -> None:
         source = buffers.get(source) if hasattr(source, "channels") else source
-        self.kernel.dispatch(encoder, {"network_output": source, "albedo": buffers.get(ALBEDO),
-                                       "radiance": buffers.get(DENOISED)})
+        self.unpack(encoder, source, buffers.get(ALBEDO), buffers.get(DENOISED))
+
+    def unpack(self, encoder, network_output, albedo, radiance) -> None:
+        self.kernel.dispatch(encoder, {"network_output": network_output, "albedo": albedo, "radiance": radiance})

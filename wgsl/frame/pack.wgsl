@@ -7,7 +7,7 @@
 // last plane says how many samples the pixel's colour averages, as 1/sqrt(spp) (its noise relative to
 // one sample's: 1 at 1 spp, 1/16 at 256; a pixel of 0 samples counts as 1).
 //   pack_denoiser:   11 ch = log1p RGB/albedo factor, albedo, normal·0.5+0.5, depth/max, 1/sqrt(spp)
-//   pack_denoiser_half: the same at half resolution (frame/lowband.wgsl)
+//   pack_denoiser_level: the same for the frame averaged over LEVEL_FACTOR² blocks (frame/lowband.wgsl)
 //   pack_error:       3 ch = log1p RGB                                     (error predictor)
 //   pack_confidence:  8 ch = log1p RGB, log1p reprojected history RGB, depth/max,
 //                            reprojected previous depth/max               (confidence predictor)
@@ -63,17 +63,20 @@ fn pack_denoiser(@builtin(global_invocation_id) id: vec3u) {
     write_denoiser_input(i, n, rgb, albedo_value, normal_value, depth[i], spp[i]);
 }
 
-// The denoiser's input at half resolution (frame/lowband.wgsl): one invocation per pixel of the
-// ceil(W/2)×ceil(H/2) canvas, packing the mean of the frame pixels in its 2×2 block (fewer at an odd
-// edge): colour, albedo and depth averaged, the normals' mean renormalised (0 where they cancel: no
-// component above 1e-6), the block's samples summed, depth still divided by the full frame's max.
+// The denoiser's input for a coarser level of the frame (frame/lowband.wgsl): one invocation per pixel
+// of the ceil(W/f)×ceil(H/f) canvas, f = LEVEL_FACTOR (2, 4, …), packing the mean of the frame pixels in
+// its f×f block (fewer at the bottom and right edges): colour, albedo and depth averaged, the normals'
+// mean renormalised (0 where they cancel: no component above 1e-6), the block's samples summed, depth
+// still divided by the full frame's max.
+override LEVEL_FACTOR: u32 = 2u;
+
 @compute @workgroup_size(8, 8)
-fn pack_denoiser_half(@builtin(global_invocation_id) id: vec3u) {
-    let half_size = vec2u((WIDTH + 1u) / 2u, (HEIGHT + 1u) / 2u);
-    if (id.x >= half_size.x || id.y >= half_size.y) { return; }
+fn pack_denoiser_level(@builtin(global_invocation_id) id: vec3u) {
+    let level_size = (vec2u(WIDTH, HEIGHT) + LEVEL_FACTOR - 1u) / LEVEL_FACTOR;
+    if (id.x >= level_size.x || id.y >= level_size.y) { return; }
     let n = pixel_count();
-    let first = 2u * id.xy;
-    let last = min(first + 2u, vec2u(WIDTH, HEIGHT));
+    let first = LEVEL_FACTOR * id.xy;
+    let last = min(first + LEVEL_FACTOR, vec2u(WIDTH, HEIGHT));
     let share = 1.0 / f32((last.x - first.x) * (last.y - first.y));   // each term pre-scaled: no overflow
     var rgb = vec3f(0.0);
     var albedo_value = vec3f(0.0);
@@ -94,7 +97,7 @@ fn pack_denoiser_half(@builtin(global_invocation_id) id: vec3u) {
     }
     let largest = max(max(abs(normal_value.x), abs(normal_value.y)), abs(normal_value.z));
     normal_value = select(vec3f(0.0), normalize(normal_value / largest), largest > 1e-6);   // no overflow
-    write_denoiser_input(id.y * half_size.x + id.x, half_size.x * half_size.y, min(rgb, vec3f(F32_MAX)),
+    write_denoiser_input(id.y * level_size.x + id.x, level_size.x * level_size.y, min(rgb, vec3f(F32_MAX)),
                          albedo_value, normal_value, d, samples);
 }
 
