@@ -241,8 +241,8 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       ``aovs`` (names or "a,b"), ``tonemap`` (None, "aces", "reinhard" or "none": the display image),
       ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks),
       ``quality`` ("balanced", or "high": the denoiser averages 4 turned passes, 4× its work),
-      ``low_band`` (the denoiser's band below quarter resolution from a second pass at half resolution,
-      1.25× its work; None: on frames whose sides are all ≥ 256, True, False),
+      ``low_band`` (the denoiser's band below quarter resolution from passes at half and, from 512² up,
+      quarter resolution, 1.25–1.31× its work; None: on frames whose sides are all ≥ 256, True, False),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
       ``progress`` (a progress bar), ``timings`` (per-stage GPU times; default: when the adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a

@@ -19,9 +19,9 @@ def add_arguments(parser) -> None:
                         help="high: average the image denoised as given and turned three ways "
                              "(4 network passes, ≈ 0.3 dB cleaner)")
     parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
-                        help="the denoiser's band below quarter resolution from a second pass at half resolution, weighed by "
-                             "1/spp: cleaner large-scale shading on big images for 1.25× the network's work (auto: "
-                             "on for images at least 256 pixels a side)")
+                        help="the denoiser's band below quarter resolution from passes at half (and, from "
+                             "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
+                             "images for 1.25–1.31× the network's work (auto: on for images at least 256 pixels a side)")
     parser.add_argument("--spp", type=int, metavar="N",
                         help="samples per pixel of the colour (default: the input's 'spp' layer, which "
                              "`wgpu-rt render` writes, else 1). With 'half_radiance' and 'half_spp' layers too "

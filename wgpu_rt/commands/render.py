@@ -41,9 +41,9 @@ def add_arguments(parser) -> None:
                         help="denoiser quality; high: average the frame denoised as given and turned three "
                              "ways (4 network passes, ≈ 0.3 dB cleaner)")
     parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
-                        help="the denoiser's band below quarter resolution from a second pass at half resolution, weighed by "
-                             "1/spp: cleaner large-scale shading on big frames for 1.25× the network's work (auto: "
-                             "on for frames at least 256 pixels a side)")
+                        help="the denoiser's band below quarter resolution from passes at half (and, from "
+                             "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
+                             "frames for 1.25–1.31× the network's work (auto: on for frames at least 256 pixels a side)")
 
 
 LOW_BAND_SETTINGS = {"auto": None, "on": True, "off": False}   # --low-band → the low_band option

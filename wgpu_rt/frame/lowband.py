@@ -6,15 +6,15 @@ at 1 spp grows from 128² to 512². Run on the frame averaged down 2×2, the sam
 samples per pixel and twice the scene per receptive field, so its coarse band is cleaner, while its fine
 detail is lost. The frame keeps its own detail and takes its band below quarter resolution from the
 half-resolution pass (``transfer_low_band``) by a weight w = 1/spp (a low band itself: the mean over the
-same blocks, so an adaptive sample map does not print its pixels into the correction): the residue falls
-with the samples, the half-resolution pass's own bias does not. BENCHMARKS.md §16: at 1 spp +0.59 dB over 13
-scenes at 256² and +1.16 over 6 at 512², at 4 spp +0.08 at 256²; at 128² −0.09 on the mean and −1.8 on
-`sun-room`, so frames with a side under LOW_BAND_MIN_SIDE go without. The half-resolution level takes
-its own low band from a quarter-resolution one in turn when its sides reach LOW_BAND_MIN_SIDE too
-(frames of 512² and up; its weight is 1/(4·spp)): +0.08 to +0.32 dB more at 512² and 1024², where a
-fourth level added nothing, so at most LOW_BAND_LEVELS coarser levels. The half-resolution level costs
-1.3× the denoiser's GPU time on lavapipe (a quarter of the work, on a canvas that fills the device less
-well), the quarter one a sixteenth more.
+same blocks, so an adaptive sample map does not print its pixels into the correction): the residue
+falls with the samples, the half-resolution pass's own bias does not. BENCHMARKS.md §16: at 1 spp +0.59
+dB over 13 scenes at 256², +1.26 over 6 at 512², +1.2 and +3.9 on two at 1024², at 4 spp +0.08 at 256²;
+at 128² (forced) −0.09 on the mean and −1.8 on `sun-room`, so frames with a side under LOW_BAND_MIN_SIDE
+go without. The half-resolution level takes its own low band from a quarter-resolution one in turn when
+its sides reach LOW_BAND_MIN_SIDE too (frames of 512² and up; its weight is 1/(4·spp)): +0.08 to +0.32
+dB more at 512² and 1024², where a fourth level added nothing, so at most LOW_BAND_LEVELS coarser
+levels. On lavapipe at 1080p the two cost 0.40× the denoiser's GPU time (0.29× the half-resolution one
+alone): a quarter and a sixteenth of the work, on canvases that fill the device less well.
 
 On the device: ``LowBand`` (``pack.PackLevelPass``, the denoiser on each coarser canvas, ``UnpackPass``,
 then ``LowBandPass`` from the coarsest level up); ``low_band_denoise`` with ``transfer_low_band`` and
