@@ -8,7 +8,7 @@ detail is lost. The frame keeps its own detail and takes its band below quarter 
 half-resolution pass (``transfer_low_band``) by a weight w = 1/spp (a low band itself: the mean over the
 same blocks, so an adaptive sample map does not print its pixels into the correction): the residue
 falls with the samples, the half-resolution pass's own bias does not. BENCHMARKS.md §16: at 1 spp +0.59
-dB over 13 scenes at 256², +1.26 over 6 at 512², +1.2 and +3.9 on two at 1024², at 4 spp +0.08 at 256²;
+dB over 13 scenes at 256², +1.26 over 6 at 512², +1.2 to +3.9 on three at 1024², at 4 spp +0.08 at 256²;
 at 128² (forced) −0.09 on the mean and −1.8 on `sun-room`, so frames with a side under LOW_BAND_MIN_SIDE
 go without. The half-resolution level takes its own low band from a quarter-resolution one in turn when
 its sides reach LOW_BAND_MIN_SIDE too (frames of 512² and up; its weight is 1/(4·spp)): +0.08 to +0.32
