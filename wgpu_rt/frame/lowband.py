@@ -13,8 +13,8 @@ at 128² (forced) −0.09 on the mean and −1.8 on `sun-room`, so frames with a
 go without. The half-resolution level takes its own low band from a quarter-resolution one in turn when
 its sides reach LOW_BAND_MIN_SIDE too (frames of 512² and up; its weight is 1/(4·spp)): +0.08 to +0.32
 dB more at 512² and 1024², where a fourth level added nothing, so at most LOW_BAND_LEVELS coarser
-levels. On lavapipe at 1080p the two cost 0.40× the denoiser's GPU time (0.29× the half-resolution one
-alone): a quarter and a sixteenth of the work, on canvases that fill the device less well.
+levels. On lavapipe at 1080p the two cost 0.36× the denoiser's GPU time (0.29× the half-resolution one
+alone).
 
 On the device: ``LowBand`` (``pack.PackLevelPass``, the denoiser on each coarser canvas, ``UnpackPass``,
 then ``LowBandPass`` from the coarsest level up); ``low_band_denoise`` with ``transfer_low_band`` and
