@@ -36,6 +36,7 @@ from peers import DEVICE_NAMES, QUALITIES, oidn_denoise, oidn_devices, preferred
 from wgpu_rt import metrics
 from wgpu_rt.frame.denoise import QUALITIES as OUR_QUALITIES
 from wgpu_rt.frame.denoise import denoise, load_model
+from wgpu_rt.frame.lowband import LOW_BAND_SETTINGS
 from wgpu_rt.dataset import DatasetConfig, TruthEngine, load_views, plan_views, read_manifest
 from wgpu_rt.frame.pack import pack_confidence_input, pack_error_input
 from wgpu_rt.nn import WgslModel
@@ -152,8 +153,9 @@ def main() -> None:
                         help="rows of ours, one per quality (high: an ensemble of 4 turned passes)")
     parser.add_argument("--oidn-quality", nargs="+", default=["balanced", "high"], choices=QUALITIES,
                         help="OIDN rows, one per quality (on CUDA when benchmarks/peers.py finds it, else the CPU)")
-    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
-                        help="our denoiser's low band from a half-resolution pass (auto: by image size)")
+    parser.add_argument("--low-band", choices=list(LOW_BAND_SETTINGS), default="auto",
+                        help="our denoiser's low band from passes at half and quarter resolution (auto: by "
+                             "image size)")
     args = parser.parse_args()
 
     models = Path(args.models)

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from wgpu_rt import metrics
+from wgpu_rt.frame.lowband import LOW_BAND_SETTINGS
 
 REPO = Path(__file__).resolve().parents[1]
 BUNNY = REPO.parent / "shared" / "meshes" / "stanford-bunny.obj"
@@ -49,14 +50,14 @@ def add_model_arguments(parser) -> None:
                         help="export untrained seed networks into a temp folder and use those (checks the "
                              "script's mechanics before trained models exist)")
     parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32", help="network precision")
-    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
-                        help="our denoiser's low band from a half-resolution pass (wgpu_rt/frame/lowband.py; "
-                             "auto: the renderer's choice by frame size)")
+    parser.add_argument("--low-band", choices=list(LOW_BAND_SETTINGS), default="auto",
+                        help="our denoiser's low band from passes at half and quarter resolution "
+                             "(wgpu_rt/frame/lowband.py; auto: the renderer's choice by frame size)")
 
 
 def low_band(args):
     """``--low-band`` as the renderer's ``low_band`` option (None: auto)."""
-    return {"auto": None, "on": True, "off": False}[args.low_band]
+    return LOW_BAND_SETTINGS[args.low_band]
 
 
 def parse_with_quick_defaults(parser, quick: dict):

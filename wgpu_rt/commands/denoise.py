@@ -35,8 +35,8 @@ def run(args) -> int:
     import numpy as np
 
     from ..frame.denoise import denoise, load_model
+    from ..frame.lowband import LOW_BAND_SETTINGS
     from ..io import check_output_path, read_exr, require_layers, write_exr
-    from .render import LOW_BAND_SETTINGS
 
     check_output_path(args.out, "--out", (".exr",))
     images = read_exr(args.input)

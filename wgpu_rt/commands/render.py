@@ -46,9 +46,6 @@ def add_arguments(parser) -> None:
                              "frames for 1.25–1.31× the network's work (auto: on for frames at least 256 pixels a side)")
 
 
-LOW_BAND_SETTINGS = {"auto": None, "on": True, "off": False}   # --low-band → the low_band option
-
-
 def parse_frames(text: str | None) -> range:
     from ..errors import WgpuRtError
 
@@ -93,6 +90,7 @@ def output_path(pattern: str, frame: int):
 
 def run(args) -> int:
     from ..errors import WgpuRtError
+    from ..frame.lowband import LOW_BAND_SETTINGS
     from ..io import write_exr, write_png
     from ..renderer import Renderer, check_aovs, check_int, parse_size
 

@@ -36,6 +36,7 @@ LOW_BAND_EPSILON = 1e-3    # radiance added to both low bands: a black level, so
 LOW_BAND_MIN_SIDE = 256    # "auto" takes the low band for frames (and levels) at least this wide and high
 LOW_BAND_LEVELS = 2        # coarser levels at most (half and quarter resolution)
 F32_MAX = float(np.finfo(np.float32).max)
+LOW_BAND_SETTINGS = {"auto": None, "on": True, "off": False}   # a --low-band flag → the low_band option
 
 
 def uses_low_band(width: int, height: int, setting=None) -> bool:

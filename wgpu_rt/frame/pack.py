@@ -78,23 +78,24 @@ def pack_denoiser_input(color, albedo, normal, depth, spp=1, frame_max: float | 
                            sample_count_plane(spp, depth.shape[1:])]).astype(np.float32)
 
 
-def block_mean(image: np.ndarray, factor: int) -> np.ndarray:
-    """(H, W, C) → (ceil(H/factor), ceil(W/factor), C) float32: each block's mean over the pixels it
-    holds (fewer at the bottom and right edges when the size is not a multiple of ``factor``)."""
+def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
+    """(H, W[, C]) → (ceil(H/factor), ceil(W/factor)[, C]) float64: each factor×factor block's sum over the
+    pixels it holds (fewer at the bottom and right edges when the size is not a multiple of ``factor``)."""
     image = np.asarray(image, np.float64)
-    rows, cols = range(0, image.shape[0], factor), range(0, image.shape[1], factor)
-    sums = np.add.reduceat(np.add.reduceat(image, rows, axis=0), cols, axis=1)
-    heights = np.minimum(factor, image.shape[0] - np.asarray(rows))
-    widths = np.minimum(factor, image.shape[1] - np.asarray(cols))
-    return (sums / (heights[:, None, None] * widths[None, :, None])).astype(np.float32)
+    return np.add.reduceat(np.add.reduceat(image, range(0, image.shape[0], factor), axis=0),
+                           range(0, image.shape[1], factor), axis=1)
+
+
+def block_mean(image: np.ndarray, factor: int) -> np.ndarray:
+    """(H, W, C) → (ceil(H/factor), ceil(W/factor), C) float32: each block's mean over the pixels it holds."""
+    pixels = block_sum(np.ones(np.shape(image)[:2]), factor)
+    return (block_sum(image, factor) / pixels[..., None]).astype(np.float32)
 
 
 def level_sample_counts(spp, shape: tuple[int, int], factor: int) -> np.ndarray:
     """The sample counts (one number or an (H, W[, 1]) map) of an (H, W) frame summed over its
     factor×factor blocks: (ceil(H/factor), ceil(W/factor)) float64."""
-    height, width = shape
-    counts = np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2]), (height, width))
-    return np.add.reduceat(np.add.reduceat(counts, range(0, height, factor), axis=0), range(0, width, factor), axis=1)
+    return block_sum(np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2]), shape), factor)
 
 
 def pack_level_input(color, albedo, normal, depth, spp=1, factor: int = 2) -> np.ndarray:

@@ -1,8 +1,8 @@
 // The denoiser's output back to linear radiance: expm1 of its log1p irradiance, remodulated by the
 // albedo factor pack_denoiser divided by (frame/albedo.wgsl), read from the albedo plane (ALBEDO_PLANE 0)
-// or from the packed input itself (ALBEDO_PLANE 3: a coarser level's, frame/lowband.wgsl). NaN/±Inf in the network's output become 0,
-// and the log value is clamped to [0, 88] first, so the result is finite (expm1(88) · 1.01 ≈ 1.67e38 <
-// f32 max) and non-negative (a network may undershoot below log1p(0) = 0).
+// or from the packed input itself (ALBEDO_PLANE 3: a coarser level's, frame/lowband.wgsl). NaN/±Inf in
+// the network's output become 0, and the log value is clamped to [0, 88] first, so the result is finite
+// (expm1(88) · 1.01 ≈ 1.67e38 < f32 max) and non-negative (a network may undershoot below log1p(0) = 0).
 // #import frame/common.wgsl
 // #import frame/albedo.wgsl
 
