@@ -283,8 +283,8 @@ PANE_SCENE = {   # a diffuse wall seen through a tilted pane of glass; what the 
 def test_aux_albedo_behind_a_pane_of_glass_is_noise_free(gpu, delta_samples):
     """Behind a flat pane every pixel's aux albedo is the wall's times the pane's transmittance 1 − F at
     the ray's incidence angle (F: Fresnel reflectance; the reflected side is black): the samples of a
-    pixel behind glass (8 by default; an odd count too) share the first glass bounce's two lobes in proportion to F, each weighed by its
-    lobe's share, and leave the slab along its more likely lobe. Picking the lobes at random, as the
+    pixel behind glass (8 by default; an odd count too) share the first glass bounce's two lobes in
+    proportion to F, each weighed by its lobe's share, and leave the slab along its more likely lobe. Picking the lobes at random, as the
     tracer does, spread these pixels by ±0.046 around the mean and fails this test."""
     from pathlib import Path
 
