@@ -55,7 +55,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, gold_render, hdr_pipeline, linear_frame, low_band,
+from common import (add_gold_arguments, add_model_arguments, gold_render, hdr_pipeline, linear_frame, denoiser_options,
                     load_scenes, parse_with_quick_defaults, print_header, print_table, resolve_models,
                     save_array, save_figure, trimmed_rel_mse)
 
@@ -182,7 +182,7 @@ def denoised_oracle(scene, size, args, gold):
     fix once the frame is denoised)."""
     def model(seed):
         denoised = render(scene, spp=1, size=size, max_depth=args.max_depth, seed=seed, aovs=(), denoise=True,
-                          models_dir=args.models, precision=args.precision, low_band=low_band(args)).color
+                          models_dir=args.models, precision=args.precision, **denoiser_options(args)).color
         return FixedImportance(np.sqrt(relative_squared_error(denoised, gold)))
 
     return model

@@ -13,7 +13,7 @@ import argparse
 
 import numpy as np
 
-from common import (add_gold_arguments, add_model_arguments, errors, gold_render, load_scenes, low_band, oidn,
+from common import (add_gold_arguments, add_model_arguments, errors, gold_render, load_scenes, denoiser_options, oidn,
                     parse_with_quick_defaults, print_header, print_table, resolve_models)
 from wgpu_rt.trace import trace_pass
 
@@ -57,7 +57,7 @@ def main():
         for aux in args.aux:
             options = dict(size=size, max_depth=args.max_depth, seed=7, aux_samples=aux)
             ours = Renderer(scene, denoise=True, aovs=("albedo", "normal"), models_dir=args.models,
-                            precision=args.precision, low_band=low_band(args), **options)
+                            precision=args.precision, **denoiser_options(args), **options)
             result = next(ours.frames())
             ours_errors = errors(gold, result.color)
             row.append(ours_errors["PSNR"])

@@ -24,7 +24,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, gold_render, load_scenes, low_band, print_header,
+from common import (add_gold_arguments, add_model_arguments, gold_render, load_scenes, denoiser_options, print_header,
                     print_table, resolve_models)
 
 from wgpu_rt import metrics
@@ -69,7 +69,7 @@ def main() -> None:
             first = half_count(n)
             half = render(scene, spp=first, size=size, max_depth=args.max_depth, seed=77, aovs=()).color
             denoised = denoise(model, mean, *(noisy.aovs[name] for name in ("albedo", "normal", "depth")), n,
-                               low_band=low_band(args))
+                               **denoiser_options(args))
             constant = [metrics.psnr(gold, mix(denoised, mean, n / (n + k))) for k in args.k]
             n_only = metrics.psnr(gold, mix(denoised, mean, n / (n + max(32.0, 2048.0 / n))))
             counts, first_counts = np.full(size[::-1], n), np.full(size[::-1], first)

@@ -31,12 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from common import low_band, save_array
+from common import denoiser_options, save_array
 from peers import DEVICE_NAMES, QUALITIES, oidn_denoise, oidn_devices, preferred
 from wgpu_rt import metrics
 from wgpu_rt.frame.denoise import QUALITIES as OUR_QUALITIES
 from wgpu_rt.frame.denoise import denoise, load_model
-from wgpu_rt.frame.lowband import LOW_BAND_SETTINGS
 from wgpu_rt.dataset import DatasetConfig, TruthEngine, load_views, plan_views, read_manifest
 from wgpu_rt.frame.pack import pack_confidence_input, pack_error_input
 from wgpu_rt.nn import WgslModel
@@ -153,9 +152,11 @@ def main() -> None:
                         help="rows of ours, one per quality (high: an ensemble of 4 turned passes)")
     parser.add_argument("--oidn-quality", nargs="+", default=["balanced", "high"], choices=QUALITIES,
                         help="OIDN rows, one per quality (on CUDA when benchmarks/peers.py finds it, else the CPU)")
-    parser.add_argument("--low-band", choices=list(LOW_BAND_SETTINGS), default="auto",
+    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
                         help="our denoiser's low band from passes at half and quarter resolution (auto: by "
                              "image size)")
+    parser.add_argument("--chroma", choices=["on", "off"], default="on",
+                        help="our denoised colour balance held to the samples' block means")
     args = parser.parse_args()
 
     models = Path(args.models)
@@ -168,7 +169,7 @@ def main() -> None:
     ours = {quality: denoiser if quality == "balanced" else
             load_model("denoiser", args.precision, path=models / "denoiser.onnx", quality=quality)
             for quality in args.quality}
-    table = DenoiserTable(preferred(devices), args.oidn_quality, ours, low_band(args))
+    table = DenoiserTable(preferred(devices), args.oidn_quality, ours, denoiser_options(args))
     spearman = []
     auc: dict[str, dict[str, list[float]]] = {}
     for data in args.data:
@@ -221,10 +222,10 @@ class DenoiserTable:
     force at rising spp on each view's frame 0, pooled over the dataset folders given, printed as one
     table with equivalent spp and time per view."""
 
-    def __init__(self, oidn_device: str | None, qualities: list[str], ours: dict, low_band=None):
+    def __init__(self, oidn_device: str | None, qualities: list[str], ours: dict, options=None):
         """``ours``: quality → our denoiser (WgslModel) at it; the first is the one OIDN is compared with;
-        ``low_band``: denoise()'s option."""
-        self.oidn_device, self.low_band = oidn_device, low_band
+        ``options``: denoise()'s (low_band, chroma)."""
+        self.oidn_device, self.options = oidn_device, options or {}
         self.ours = {("ours (1 spp)" if quality == "balanced" else f"ours {quality} (1 spp)"): model
                      for quality, model in ours.items()}
         self.OURS = next(iter(self.ours))
@@ -237,7 +238,7 @@ class DenoiserTable:
     def denoisers(self) -> dict:
         """Method name → function of the 1-spp images returning the denoised colour."""
         ours = {name: lambda noisy, model=model: denoise(model, noisy["color"], noisy["albedo"], noisy["normal"],
-                                                         noisy["depth"], low_band=self.low_band)
+                                                         noisy["depth"], **self.options)
                 for name, model in self.ours.items()}
         return ours | {name: lambda noisy, quality=quality: oidn_denoise(noisy["color"], noisy["albedo"],
                                                                          noisy["normal"], quality, self.oidn_device)

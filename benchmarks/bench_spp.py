@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from common import (add_gold_arguments, add_model_arguments, errors, gold_render, load_scenes, low_band, oidn,
+from common import (add_gold_arguments, add_model_arguments, errors, gold_render, load_scenes, denoiser_options, oidn,
                     parse_with_quick_defaults, print_header, print_table, resolve_models)
 
 
@@ -43,7 +43,7 @@ def main():
                                precision=args.precision)
                 noisy = next(Renderer(scene, spp, aovs=("albedo", "normal"), aux_samples=AUX_SAMPLES,
                                        **options).frames())   # OIDN gets the albedo ours gets
-                ours = next(Renderer(scene, spp, denoise=True, aovs=(), quality=args.quality, low_band=low_band(args),
+                ours = next(Renderer(scene, spp, denoise=True, aovs=(), quality=args.quality, **denoiser_options(args),
                                      **options).frames()).color
                 theirs = oidn(noisy.color, noisy.aovs["albedo"], noisy.aovs["normal"])
                 for name, image in (("brute", noisy.color), ("ours", ours), ("oidn", theirs)):

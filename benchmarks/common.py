@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from wgpu_rt import metrics
-from wgpu_rt.frame.lowband import LOW_BAND_SETTINGS
+from wgpu_rt.commands._denoiser_flags import denoiser_options  # noqa: F401 (the benchmarks' import)
 
 REPO = Path(__file__).resolve().parents[1]
 BUNNY = REPO.parent / "shared" / "meshes" / "stanford-bunny.obj"
@@ -50,14 +50,11 @@ def add_model_arguments(parser) -> None:
                         help="export untrained seed networks into a temp folder and use those (checks the "
                              "script's mechanics before trained models exist)")
     parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32", help="network precision")
-    parser.add_argument("--low-band", choices=list(LOW_BAND_SETTINGS), default="auto",
+    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
                         help="our denoiser's low band from passes at half and quarter resolution "
                              "(wgpu_rt/frame/lowband.py; auto: the renderer's choice by frame size)")
-
-
-def low_band(args):
-    """``--low-band`` as the renderer's ``low_band`` option (None: auto)."""
-    return LOW_BAND_SETTINGS[args.low_band]
+    parser.add_argument("--chroma", choices=["on", "off"], default="on",
+                        help="our denoised colour balance held to the samples' block means (wgpu_rt/frame/chroma.py)")
 
 
 def parse_with_quick_defaults(parser, quick: dict):
@@ -181,7 +178,8 @@ def hdr_pipeline(scene, size, args, **settings):
     from wgpu_rt.renderer import Renderer
 
     if settings.get("denoise"):
-        settings.setdefault("low_band", low_band(args))
+        for name, value in denoiser_options(args).items():
+            settings.setdefault(name, value)
     return Renderer(scene, size=size, max_depth=args.max_depth, precision=args.precision,
                     models_dir=args.models, aovs=(), **settings)
 

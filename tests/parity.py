@@ -30,3 +30,18 @@ def check_parity(shapes, reference_fn, our_fn, atol=1e-4, rtol=0.0, low=-1.0, hi
             f"worst at {worst}: ours {ours[worst]:.6g} ref {reference[worst]:.6g}; "
             f"{np.count_nonzero(err > bound)} of {err.size} elements over")
     return ours, reference
+
+
+def run_frame_pass(gpu, frame_pass, width: int, height: int, planes: dict):
+    """Upload ``planes`` ({PlaneSpec: (H, W[, C]) array}) into fresh FrameBuffers, record and submit
+    ``frame_pass.execute(encoder, buffers)``, and return the buffers (read them with ``buffers.read``)."""
+    from wgpu_rt.frame.planes import write_plane
+    from wgpu_rt.passes import FrameBuffers
+
+    buffers = FrameBuffers(gpu, width, height)
+    for spec, image in planes.items():
+        write_plane(buffers, spec, image)
+    encoder = gpu.device.create_command_encoder()
+    frame_pass.execute(encoder, buffers)
+    gpu.device.queue.submit([encoder.finish()])
+    return buffers

@@ -3,7 +3,7 @@ variance (half-buffer) baselines; and the adaptive frame's samples against brute
 
 import numpy as np
 import pytest
-from parity import check_parity
+from parity import check_parity, run_frame_pass
 
 from wgpu_rt.errors import WgpuRtError
 from wgpu_rt.frame.adaptive import (
@@ -175,12 +175,7 @@ def test_half_buffer_error_matches_reference(gpu):
     half[0, 0] = np.nan
 
     def ours(f, h):
-        buffers = FrameBuffers(gpu, W, H)
-        write_plane(buffers, RADIANCE, f)
-        write_plane(buffers, HALF_RADIANCE, h)
-        encoder = gpu.device.create_command_encoder()
-        HalfBufferErrorPass(gpu, W, H).execute(encoder, buffers)
-        gpu.device.queue.submit([encoder.finish()])
+        buffers = run_frame_pass(gpu, HalfBufferErrorPass(gpu, W, H), W, H, {RADIANCE: f, HALF_RADIANCE: h})
         return buffers.read(SAMPLE_ERROR.name)[0]
 
     check_parity(None, half_buffer_error, ours, atol=1e-5, rtol=1e-5, inputs=[full, half],

@@ -456,8 +456,27 @@ def test_low_band_frame_equals_the_numpy_path(gpu, monkeypatch, size, min_side, 
         assert Renderer("cornell", size=(255, 300), denoise=True, ctx=gpu).pipeline.low_band is None
 
 
+def test_chroma_frame_equals_the_numpy_path(gpu):
+    """A denoised frame with its colour balance held to the samples (the default) and without it each
+    equal ``denoise()`` with that setting on the frame's own traced planes, and differ from each other."""
+    from wgpu_rt.frame.denoise import denoise, load_model
+    from wgpu_rt.trace.trace_pass import AUX_SAMPLES
+
+    model = load_model("denoiser", ctx=gpu)
+    options = dict(spp=1, size=(37, 29), seed=4, ctx=gpu)
+    planes = render("cornell", aovs=("albedo", "normal", "depth", "spp"), aux_samples=AUX_SAMPLES, **options)
+    inputs = (planes.color, *(planes.aovs[name] for name in ("albedo", "normal", "depth", "spp")))
+    frames = {}
+    for chroma in (True, False):
+        frames[chroma] = render("cornell", denoise=True, aovs=(), chroma=chroma, networks={"denoiser": model},
+                                **options).color
+        np.testing.assert_allclose(frames[chroma], denoise(model, *inputs, chroma=chroma), rtol=1e-4, atol=1e-5)
+    assert not np.allclose(frames[True], frames[False], rtol=1e-3, atol=1e-4)
+
+
 @pytest.mark.parametrize("options, message", [
     (dict(quality="best"), "quality 'best': choose one of balanced, high"),
+    (dict(chroma="on"), "chroma must be True or False"),
     (dict(low_band="on"), "low_band must be True, False or None"),
     (dict(hdr=False, aovs=()), "read nothing back"),
     (dict(hdr=False, tonemap=None, aovs=""), "read nothing back"),

@@ -2,7 +2,7 @@
 
 Each subcommand is a module of ``wgpu_rt.commands`` with ``HELP`` (one line), ``add_arguments(parser)``
 and ``run(args) -> int``; modules import their heavy dependencies inside ``run`` so that ``--help``
-stays fast. Errors a user can cause (``WgpuRtError``, or an ``OSError`` about a named path) print one
+stays fast. Modules whose name starts with ``_`` are helpers the subcommands share. Errors a user can cause (``WgpuRtError``, or an ``OSError`` about a named path) print one
 line and exit 2.
 """
 
@@ -24,6 +24,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default: $WGPU_RT_ADAPTER, else the best: a real GPU before lavapipe)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
         module = importlib.import_module(f"{commands.__name__}.{info.name}")
         name = info.name.replace("_", "-")
         command = sub.add_parser(name, help=module.HELP, description=module.HELP)

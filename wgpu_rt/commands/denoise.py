@@ -3,6 +3,8 @@ run by the WGSL network engine."""
 
 from __future__ import annotations
 
+from ._denoiser_flags import add_denoiser_flags, denoiser_options
+
 HELP = "denoise an EXR that carries colour plus albedo, normal and depth layers (and its sample count)"
 
 REQUIRED_LAYERS = ("color", "albedo", "normal", "depth")
@@ -13,15 +15,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("input", metavar="IN.exr", help="noisy render with albedo, normal and depth layers")
     parser.add_argument("--out", required=True, metavar="OUT.exr", help="denoised EXR (other layers kept)")
     parser.add_argument("--model", help="denoiser ONNX (default: the shipped denoiser.onnx)")
-    parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
-                        help="network arithmetic (fp16 needs the shader-f16 feature)")
-    parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
-                        help="high: average the image denoised as given and turned three ways "
-                             "(4 network passes, ≈ 0.3 dB cleaner)")
-    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
-                        help="the denoiser's band below quarter resolution from passes at half (and, from "
-                             "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
-                             "images for 1.25–1.31× the network's work (auto: on for images at least 256 pixels a side)")
+    add_denoiser_flags(parser, "image")
     parser.add_argument("--spp", type=int, metavar="N",
                         help="samples per pixel of the colour (default: the input's 'spp' layer, which "
                              "`wgpu-rt render` writes, else 1). With 'half_radiance' and 'half_spp' layers too "
@@ -35,7 +29,6 @@ def run(args) -> int:
     import numpy as np
 
     from ..frame.denoise import denoise, load_model
-    from ..frame.lowband import LOW_BAND_SETTINGS
     from ..io import check_output_path, read_exr, require_layers, write_exr
 
     check_output_path(args.out, "--out", (".exr",))
@@ -46,8 +39,7 @@ def run(args) -> int:
     model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
     images = finite_layers(images, args.input)
     started = time.perf_counter()
-    color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp,
-                    low_band=LOW_BAND_SETTINGS[args.low_band])
+    color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp, **denoiser_options(args))
     if half is not None:
         from ..frame.converge import converge
 

@@ -2,6 +2,8 @@
 adaptively and accumulate over time on the device, and write an EXR (linear HDR colour + AOV layers) or
 a PNG (the tone-mapped display image) per frame. Every flag means the same with or without ``--denoise``."""
 
+from ._denoiser_flags import add_denoiser_flags, check_denoiser_flags, denoiser_options
+
 HELP = "path trace a scene (built-in name or scene file) to .exr (color + AOVs) or .png"
 
 SUFFIXES = (".exr", ".png")
@@ -35,15 +37,7 @@ def add_arguments(parser) -> None:
                         help="re-estimate the albedo layer from N delta-chain paths per pixel, 2·N where they "
                              "meet glass or mirrors, so it is noise-free there (default: 4 with --denoise, else "
                              "0: the tracer's own)")
-    parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
-                        help="network arithmetic (fp16 needs the shader-f16 feature)")
-    parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
-                        help="denoiser quality; high: average the frame denoised as given and turned three "
-                             "ways (4 network passes, ≈ 0.3 dB cleaner)")
-    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
-                        help="the denoiser's band below quarter resolution from passes at half (and, from "
-                             "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
-                             "frames for 1.25–1.31× the network's work (auto: on for frames at least 256 pixels a side)")
+    add_denoiser_flags(parser, "frame")
 
 
 def parse_frames(text: str | None) -> range:
@@ -90,7 +84,6 @@ def output_path(pattern: str, frame: int):
 
 def run(args) -> int:
     from ..errors import WgpuRtError
-    from ..frame.lowband import LOW_BAND_SETTINGS
     from ..io import write_exr, write_png
     from ..renderer import Renderer, check_aovs, check_int, parse_size
 
@@ -107,10 +100,8 @@ def run(args) -> int:
     check_pattern(args.out, frames)
     png = output_path(args.out, frames[0]).suffix.lower() == ".png"
     fused = args.denoise or args.adaptive is not None or args.temporal
-    if args.quality != "balanced" and not args.denoise:
-        raise WgpuRtError(f"--quality {args.quality} is the denoiser's: add --denoise")
-    if args.low_band != "auto" and not args.denoise:
-        raise WgpuRtError(f"--low-band {args.low_band} is the denoiser's: add --denoise")
+    if not args.denoise:
+        check_denoiser_flags(args)
     if args.spp is not None and args.adaptive is not None:
         raise WgpuRtError("--spp with --adaptive: the adaptive budget sets the samples (mean spp)")
     spp = args.spp if args.spp is not None else (1 if fused else 64)
@@ -119,7 +110,7 @@ def run(args) -> int:
                         temporal=args.temporal, max_depth=args.max_depth, seed=args.seed,
                         aovs=() if png else aovs, tonemap="aces" if png else None, display="f32",
                         precision=args.precision, mesh=args.mesh, progress=True, aux_samples=args.aux_samples,
-                        hdr=not png, quality=args.quality, low_band=LOW_BAND_SETTINGS[args.low_band])
+                        hdr=not png, quality=args.quality, **denoiser_options(args))
     mean_spp = args.adaptive if args.adaptive is not None else spp
     for result in renderer.frames(frames):
         path = output_path(args.out, result.frame)

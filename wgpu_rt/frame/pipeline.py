@@ -24,6 +24,7 @@ from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, 
 from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
 from .converge import CONVERGED, HALF_SPP, ConvergePass, copy_half, half_count
+from .chroma import ChromaPass
 from .lowband import LowBand, low_band_levels
 from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
 from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT
@@ -162,7 +163,8 @@ class FramePipeline:
     is told after each); ``adaptive`` replaces them by a 1-spp probe plus targeted samples. With
     ``aux_samples``, the albedo plane is then re-estimated noise-free from that many delta-chain paths
     per pixel (``TracePass.execute_aux``). ``low_band``: the denoiser's low band from passes at half
-    (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE). ``aovs`` names
+    (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE). ``chroma``: the denoised
+    colour balance held to the samples' block means (frame/chroma.py). ``aovs`` names
     the G-buffer planes to read back with the colour; ``operator`` None skips the display image;
     ``hdr=False`` skips the HDR colour (12 bytes a pixel; ``RenderResult.color`` is then None) for
     callers that want only the display image or AOVs.
@@ -173,7 +175,7 @@ class FramePipeline:
                  temporal: TemporalSettings | None = None, confidence=None, aovs=(),
                  operator: str | None = "aces", exposure: float = 0.0, srgb: bool = True,
                  output: str = "rgba8", timings: bool | None = None, progress=None, aux_samples: int = 0,
-                 hdr: bool = True, low_band: bool | None = None):
+                 hdr: bool = True, low_band: bool | None = None, chroma: bool = True):
         check_readback(hdr, operator, aovs)
         if adaptive is not None and adaptive.sampler == "heat" and error_predictor is None:
             raise ModelError("the heat adaptive sampler needs an error predictor model")
@@ -191,6 +193,7 @@ class FramePipeline:
         levels = low_band_levels(width, height, low_band) if denoiser is not None else 0
         if levels:
             self.low_band = LowBand(ctx, width, height, self.depth_max.result, denoiser, levels)
+        self.chroma = ChromaPass(ctx, width, height) if denoiser is not None and chroma else None
         # A frame of several samples per pixel (uniform or an adaptive map) hands over from the denoiser to
         # their mean where that has converged (frame/converge.py); temporal mode does that itself across
         # frames (its converge step).
@@ -247,6 +250,8 @@ class FramePipeline:
             stages += [self.pack, Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack]
         if self.low_band is not None:
             stages.append(self.low_band)
+        if self.chroma is not None:
+            stages.append(self.chroma)
         if self.converge is not None:
             stages.append(self.converge)
         if self.temporal is not None:
@@ -368,6 +373,9 @@ class FramePipeline:
         if self.low_band is not None:
             self.low_band.execute(encoder, buffers)
             self._mark(encoder, "low band")
+        if self.chroma is not None:
+            self.chroma.execute(encoder, buffers)
+            self._mark(encoder, "chroma")
         if self.converge is not None:
             self.converge.execute(encoder, buffers)
             self._mark(encoder, "converge")

@@ -10,6 +10,7 @@
 //   low_band_means: one invocation per 4×4 block → `means`, 7 planes: LF (3), LC (3), w
 //   low_band_apply: one invocation per pixel of the level, `fine` rewritten in place
 // #import frame/common.wgsl
+// #import frame/block_grid.wgsl
 
 override EPSILON: f32;                 // radiance added to both low bands (LOW_BAND_EPSILON)
 
@@ -20,15 +21,13 @@ override EPSILON: f32;                 // radiance added to both low bands (LOW_
 
 fn coarse_size() -> vec2u { return vec2u((WIDTH + 1u) / 2u, (HEIGHT + 1u) / 2u); }
 
-fn block_count() -> vec2u { return vec2u((WIDTH + 3u) / 4u, (HEIGHT + 3u) / 4u); }
-
 @compute @workgroup_size(8, 8)
 fn low_band_means(@builtin(global_invocation_id) id: vec3u) {
     let blocks = block_count();
     if (id.x >= blocks.x || id.y >= blocks.y) { return; }
     let n = pixel_count();
-    let first = 4u * id.xy;
-    let last = min(first + 4u, vec2u(WIDTH, HEIGHT));
+    let first = block_first(id.xy);
+    let last = block_last(id.xy);
     let share = 1.0 / f32((last.x - first.x) * (last.y - first.y));   // per pixel of the block
     var low_fine = vec3f(0.0);
     var weight_mean = 0.0;
@@ -62,21 +61,9 @@ fn low_band_means(@builtin(global_invocation_id) id: vec3u) {
     means[6u * m + q] = weight_mean;
 }
 
-// Bilinear weights between block centres along one axis: (first index, second index, t).
-fn block_axis(position: u32, count: u32) -> vec3f {
-    let u = clamp((f32(position) + 0.5) * 0.25 - 0.5, 0.0, f32(count - 1u));
-    let first = floor(u);
-    return vec3f(first, min(first + 1.0, f32(count - 1u)), u - first);
-}
-
-fn bilinear(plane: u32, ax: vec3f, ay: vec3f) -> f32 {
-    let blocks = block_count();
-    let base = plane * blocks.x * blocks.y;
-    let row0 = base + u32(ay.x) * blocks.x;
-    let row1 = base + u32(ay.y) * blocks.x;
-    let top = mix(means[row0 + u32(ax.x)], means[row0 + u32(ax.y)], ax.z);
-    let bottom = mix(means[row1 + u32(ax.x)], means[row1 + u32(ax.y)], ax.z);
-    return mix(top, bottom, ay.z);
+fn bilinear(plane: u32, at: BlockLookup) -> f32 {
+    let base = plane * block_count().x * block_count().y;
+    return block_mix(at, means[base + at.i00], means[base + at.i01], means[base + at.i10], means[base + at.i11]);
 }
 
 @compute @workgroup_size(8, 8)
@@ -84,12 +71,11 @@ fn low_band_apply(@builtin(global_invocation_id) id: vec3u) {
     if (!in_frame(id)) { return; }
     let i = pixel_index(id);
     let n = pixel_count();
-    let ax = block_axis(id.x, block_count().x);
-    let ay = block_axis(id.y, block_count().y);
-    let w = bilinear(6u, ax, ay);
+    let at = block_lookup(id.xy);
+    let w = bilinear(6u, at);
     for (var c = 0u; c < 3u; c++) {
-        let low_fine = bilinear(c, ax, ay);
-        let low_coarse = bilinear(3u + c, ax, ay);
+        let low_fine = bilinear(c, at);
+        let low_coarse = bilinear(3u + c, at);
         let ratio = min((w * low_coarse + (1.0 - w) * low_fine + EPSILON) / (low_fine + EPSILON), F32_MAX);
         fine[c * n + i] = min(fine[c * n + i] * ratio, F32_MAX);
     }

@@ -1,0 +1,39 @@
+"""The denoiser's flags, shared by ``render`` and ``denoise`` so that they mean the same in both."""
+
+from __future__ import annotations
+
+from ..errors import WgpuRtError
+
+SWITCHES = {"on": True, "off": False}
+
+
+def add_denoiser_flags(parser, image: str) -> None:
+    """--precision, --quality, --low-band and --chroma; ``image`` names what is denoised ("frame")."""
+    parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
+                        help="network arithmetic (fp16 needs the shader-f16 feature)")
+    parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
+                        help=f"denoiser quality; high: average the {image} denoised as given and turned three "
+                             "ways (4 network passes, ≈ 0.3 dB cleaner)")
+    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
+                        help="the denoiser's band below quarter resolution from passes at half (and, from "
+                             "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
+                             f"{image}s for 1.25–1.31× the network's work (auto: on for {image}s at least 256 "
+                             "pixels a side)")
+    parser.add_argument("--chroma", choices=list(SWITCHES), default="on",
+                        help="hold the denoised colour balance over 4×4-pixel blocks to the samples' own "
+                             "means where they are sure of it (default on)")
+
+
+def denoiser_options(args) -> dict:
+    """The renderer's / ``denoise()``'s options from the flags (quality and precision left to the caller)."""
+    from ..frame.lowband import LOW_BAND_SETTINGS
+
+    return {"low_band": LOW_BAND_SETTINGS[args.low_band], "chroma": SWITCHES[args.chroma]}
+
+
+def check_denoiser_flags(args) -> None:
+    """Without --denoise the denoiser's flags must be left at their defaults (``render``)."""
+    for flag, value, default in (("--quality", args.quality, "balanced"), ("--low-band", args.low_band, "auto"),
+                                 ("--chroma", args.chroma, "on")):
+        if value != default:
+            raise WgpuRtError(f"{flag} {value} is the denoiser's: add --denoise")
