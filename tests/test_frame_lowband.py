@@ -7,8 +7,8 @@ import pytest
 from parity import check_parity
 
 from wgpu_rt.errors import WgpuRtError
-from wgpu_rt.frame.lowband import (LOW_BAND_MIN_SIDE, LowBandPass, bilinear_up, low_band_levels, transfer_low_band,
-                                   uses_low_band)
+from wgpu_rt.frame.lowband import (LOW_BAND_MAX_SPP, LOW_BAND_MIN_SIDE, LowBandPass, bilinear_up, fewest_samples,
+                                   low_band_levels, transfer_low_band, uses_low_band)
 from wgpu_rt.frame.pack import DepthMaxPass, PackLevelPass, block_mean, pack_denoiser_input, pack_level_input
 from wgpu_rt.frame.planes import write_plane
 from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, FrameBuffers
@@ -150,6 +150,39 @@ def test_uses_low_band_and_its_levels():
     side = LOW_BAND_MIN_SIDE
     assert [low_band_levels(s, s) for s in (side - 1, side, 2 * side - 2, 2 * side - 1, 8 * side)] == [0, 1, 1, 2, 2]
     assert low_band_levels(1920, 1080) == 2 and low_band_levels(8, 8, True) == 1 and low_band_levels(1920, 1080, False) == 0
+    # auto leaves out frames whose every pixel holds LOW_BAND_MAX_SPP samples or more; "on" does not
+    assert low_band_levels(1920, 1080, None, LOW_BAND_MAX_SPP - 1) == 2
+    assert low_band_levels(1920, 1080, None, LOW_BAND_MAX_SPP) == 0 and low_band_levels(8, 8, True, 1024) == 1
+
+
+def test_fewest_samples():
+    counts = np.full((4, 5, 1), 32.0)
+    counts[2, 3] = 3
+    assert fewest_samples(counts) == 3 and fewest_samples(16) == 16
+    counts[0, 0] = np.nan   # a non-finite count is no samples
+    assert fewest_samples(counts) == 0
+
+
+def test_denoise_leaves_the_low_band_out_from_16_samples_everywhere(monkeypatch):
+    """``denoise()`` with low_band None runs the coarser levels unless every pixel holds
+    LOW_BAND_MAX_SPP samples; one pixel short is enough to keep them."""
+    from wgpu_rt.frame import denoise as denoise_module
+
+    levels_run = []
+    monkeypatch.setattr(denoise_module, "low_band_denoise", lambda *a: levels_run.append(a[-1]) or a[1])
+    from wgpu_rt.frame import lowband
+    monkeypatch.setattr(lowband, "LOW_BAND_MIN_SIDE", 8)
+    rng = np.random.default_rng(2)
+    color, albedo, normal, depth, _ = random_planes(rng, 12, 10)
+
+    def model(x):
+        return np.zeros((1, 3, *x.shape[2:]), np.float32)
+
+    spp = np.full((10, 12), LOW_BAND_MAX_SPP)
+    denoise_module.denoise(model, color, albedo, normal, depth, spp, chroma=False)
+    spp[4, 4] = LOW_BAND_MAX_SPP - 1
+    denoise_module.denoise(model, color, albedo, normal, depth, spp, chroma=False)
+    assert levels_run == [1]
 
 
 @pytest.mark.parametrize("command", ["render", "denoise"])
@@ -160,7 +193,7 @@ def test_cli_help_states_the_auto_rule(command):
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command").choices[command]
     help_text = " ".join(next(a for a in sub._actions if a.dest == "low_band").help.split())
-    assert f"at least {LOW_BAND_MIN_SIDE} pixels a side" in help_text
+    assert f"at least {LOW_BAND_MIN_SIDE} pixels a side, unless every pixel holds {LOW_BAND_MAX_SPP} samples" in help_text
 
 
 def test_denoise_command_takes_the_low_band_setting(gpu, tmp_path):

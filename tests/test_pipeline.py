@@ -456,6 +456,24 @@ def test_low_band_frame_equals_the_numpy_path(gpu, monkeypatch, size, min_side, 
         assert Renderer("cornell", size=(255, 300), denoise=True, ctx=gpu).pipeline.low_band is None
 
 
+def test_low_band_left_out_from_16_samples_a_pixel(gpu, monkeypatch):
+    """Auto: a frame of 16 spp is built without the coarser levels, one of 15 with them; a static view
+    accumulating 4 spp a frame in temporal mode runs them on its first three frames (4, 8, 12 samples)
+    and not from the fourth (16) on; forced on, every frame runs them."""
+    from wgpu_rt.frame import lowband
+
+    monkeypatch.setattr(lowband, "LOW_BAND_MIN_SIDE", 8)
+    options = dict(size=(21, 13), denoise=True, aovs=(), ctx=gpu)
+    assert Renderer("cornell", spp=lowband.LOW_BAND_MAX_SPP, **options).pipeline.low_band is None
+    assert Renderer("cornell", spp=lowband.LOW_BAND_MAX_SPP - 1, **options).pipeline.low_band is not None
+    runs = []
+    monkeypatch.setattr(lowband.LowBand, "execute", lambda self, encoder, buffers: runs.append(1))
+    for setting, expected in ((None, 3), (True, 5)):
+        runs.clear()
+        render("cornell", spp=4, temporal=True, frames=range(5), low_band=setting, **options)
+        assert len(runs) == expected
+
+
 def test_chroma_frame_equals_the_numpy_path(gpu):
     """A denoised frame with its colour balance held to the samples (the default) and without it each
     equal ``denoise()`` with that setting on the frame's own traced planes, and differ from each other."""

@@ -244,7 +244,8 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks),
       ``quality`` ("balanced", or "high": the denoiser averages 4 turned passes, 4× its work),
       ``low_band`` (the denoiser's band below quarter resolution from passes at half and, from 512² up,
-      quarter resolution, 1.25–1.31× its work; None: on frames whose sides are all ≥ 256, True, False),
+      quarter resolution, 1.25–1.31× its work; None: on frames whose sides are all ≥ 256 while some
+      pixel holds fewer than 16 samples, True, False),
       ``chroma`` (True: the denoised colour balance over 4×4-pixel blocks held to what the samples' own
       means there support; False: the network's as it comes),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,

@@ -18,7 +18,7 @@ def add_denoiser_flags(parser, image: str) -> None:
                         help="the denoiser's band below quarter resolution from passes at half (and, from "
                              "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
                              f"{image}s for 1.25–1.31× the network's work (auto: on for {image}s at least 256 "
-                             "pixels a side)")
+                             "pixels a side, unless every pixel holds 16 samples or more)")
     parser.add_argument("--chroma", choices=list(SWITCHES), default="on",
                         help="hold the denoised colour balance over 4×4-pixel blocks to the samples' own "
                              "means where they are sure of it (default on)")

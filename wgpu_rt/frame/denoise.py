@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import ModelError
 from ..models import network_named
 from .chroma import match_sample_chroma
-from .lowband import low_band_denoise, low_band_levels
+from .lowband import fewest_samples, low_band_denoise, low_band_levels
 from .pack import pack_denoiser_input
 from .unpack import unpack_denoiser_output
 
@@ -51,7 +51,8 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     G-buffers → the denoised (H, W, 3) colour (finite, ≥ 0). ``model`` runs (N, C, H, W) batches; one with
     fewer ``input_channels`` (10: trained before the sample-count plane existed) gets the first ones.
     ``low_band``: take the band below quarter resolution from the denoiser run again at half (and
-    quarter) resolution (frame/lowband.py; None: for frames whose sides are at least LOW_BAND_MIN_SIDE).
+    quarter) resolution (frame/lowband.py; None: for frames whose sides are at least LOW_BAND_MIN_SIDE and
+    whose pixels hold fewer than LOW_BAND_MAX_SPP samples somewhere).
     ``chroma``: hold the result's colour balance to the samples' block means (frame/chroma.py)."""
     channels = getattr(model, "input_channels", None)
 
@@ -59,7 +60,7 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
         return np.asarray(model(packed[None, :channels]), np.float32)[0]
 
     denoised = unpack_denoiser_output(run(pack_denoiser_input(color, albedo, normal, depth, spp)), albedo)
-    levels = low_band_levels(denoised.shape[1], denoised.shape[0], low_band)
+    levels = low_band_levels(denoised.shape[1], denoised.shape[0], low_band, fewest_samples(spp))
     if levels:
         denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels)
     return match_sample_chroma(denoised, color) if chroma else denoised

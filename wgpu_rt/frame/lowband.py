@@ -10,7 +10,9 @@ same blocks, so an adaptive sample map does not print its pixels into the correc
 falls with the samples, the half-resolution pass's own bias does not. BENCHMARKS.md §16: at 1 spp +0.59
 dB over 13 scenes at 256², +1.26 over 6 at 512², +1.2 to +3.9 on three at 1024², at 4 spp +0.08 at 256²;
 at 128² (forced) −0.09 on the mean and −1.8 on `sun-room`, so frames with a side under LOW_BAND_MIN_SIDE
-go without. The half-resolution level takes its own low band from a quarter-resolution one in turn when
+go without, and so do frames whose every pixel holds LOW_BAND_MAX_SPP samples or more (w ≤ 1/16: it added
+0.01 dB at 256² and at most 0.02 at 512² there, §17), which spares a static view accumulating in temporal
+mode the coarser passes' whole cost from its 16th sample on. The half-resolution level takes its own low band from a quarter-resolution one in turn when
 its sides reach LOW_BAND_MIN_SIDE too (frames of 512² and up; its weight is 1/(4·spp)): +0.08 to +0.32
 dB more at 512² and 1024², where a fourth level added nothing, so at most LOW_BAND_LEVELS coarser
 levels. On lavapipe at 1080p the two cost 0.36× the denoiser's GPU time (0.29× the half-resolution one
@@ -35,29 +37,37 @@ from .unpack import UnpackPass, unpack_denoiser_output
 LOW_BAND_EPSILON = 1e-3    # radiance added to both low bands: a black level, so near-black blocks keep F
 LOW_BAND_MIN_SIDE = 256    # "auto" takes the low band for frames (and levels) at least this wide and high
 LOW_BAND_LEVELS = 2        # coarser levels at most (half and quarter resolution)
+LOW_BAND_MAX_SPP = 16      # "auto" leaves out frames whose every pixel holds at least this many samples
 F32_MAX = float(np.finfo(np.float32).max)
 LOW_BAND_SETTINGS = {"auto": None, "on": True, "off": False}   # a --low-band flag → the low_band option
 
 
-def uses_low_band(width: int, height: int, setting=None) -> bool:
-    """Whether a width×height frame takes the low band: ``setting`` True or False, or None (auto: when
-    both sides are at least LOW_BAND_MIN_SIDE)."""
+def uses_low_band(width: int, height: int, setting=None, min_spp: float = 1) -> bool:
+    """Whether a width×height frame whose every pixel holds at least ``min_spp`` samples takes the low
+    band: ``setting`` True or False, or None (auto: when both sides are at least LOW_BAND_MIN_SIDE and
+    ``min_spp`` is under LOW_BAND_MAX_SPP)."""
     if setting is None:
-        return min(width, height) >= LOW_BAND_MIN_SIDE
+        return min(width, height) >= LOW_BAND_MIN_SIDE and min_spp < LOW_BAND_MAX_SPP
     if not isinstance(setting, bool):
         raise WgpuRtError(f"low_band must be True, False or None (auto), got {setting!r}")
     return setting
 
 
-def low_band_levels(width: int, height: int, setting=None) -> int:
+def low_band_levels(width: int, height: int, setting=None, min_spp: float = 1) -> int:
     """How many coarser levels (half, quarter resolution) the frame's denoiser runs on: none unless
     ``uses_low_band``; then the half-resolution level, and the next while the level above it has both
     sides at least LOW_BAND_MIN_SIDE, up to LOW_BAND_LEVELS."""
-    levels = int(uses_low_band(width, height, setting))
+    levels = int(uses_low_band(width, height, setting, min_spp))
     while levels and levels < LOW_BAND_LEVELS and min(ceil_div(width, 2 ** levels),
                                                        ceil_div(height, 2 ** levels)) >= LOW_BAND_MIN_SIDE:
         levels += 1
     return levels
+
+
+def fewest_samples(spp) -> float:
+    """The smallest sample count of one count or an (H, W[, 1]) map (non-finite entries count as 0)."""
+    counts = np.asarray(spp, np.float64)
+    return float(np.nan_to_num(counts, nan=0.0, posinf=0.0, neginf=0.0).min(initial=np.inf)) if counts.size else 0.0
 
 
 def bilinear_up(image: np.ndarray, factor: int, shape: tuple[int, int]) -> np.ndarray:

@@ -25,7 +25,7 @@ from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
 from .converge import CONVERGED, HALF_SPP, ConvergePass, copy_half, half_count
 from .chroma import ChromaPass
-from .lowband import LowBand, low_band_levels
+from .lowband import LowBand, low_band_levels, uses_low_band
 from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
 from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT
 from .temporal import TEMPORAL, TemporalPass, TemporalSettings, frame_change
@@ -163,9 +163,10 @@ class FramePipeline:
     is told after each); ``adaptive`` replaces them by a 1-spp probe plus targeted samples. With
     ``aux_samples``, the albedo plane is then re-estimated noise-free from that many delta-chain paths
     per pixel (``TracePass.execute_aux``). ``low_band``: the denoiser's low band from passes at half
-    (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE). ``chroma``: the denoised
-    colour balance held to the samples' block means (frame/chroma.py). ``aovs`` names
-    the G-buffer planes to read back with the colour; ``operator`` None skips the display image;
+    (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE
+    while some pixel holds fewer than LOW_BAND_MAX_SPP samples). ``chroma``: the denoised colour
+    balance held to the samples' block means (frame/chroma.py). ``aovs`` names the G-buffer planes to
+    read back with the colour; ``operator`` None skips the display image;
     ``hdr=False`` skips the HDR colour (12 bytes a pixel; ``RenderResult.color`` is then None) for
     callers that want only the display image or AOVs.
     """
@@ -189,8 +190,11 @@ class FramePipeline:
             self.pack = PackDenoiserPass(ctx, width, height, self.depth_max.result)
             self.unpack = UnpackPass(ctx, width, height)
             color = DENOISED
-        self.low_band = None
-        levels = low_band_levels(width, height, low_band) if denoiser is not None else 0
+        # The low band: built when some frame may take it (a single frame of many samples never does);
+        # each frame then asks again with the samples every pixel is sure to hold (``_runs_low_band``).
+        self.low_band, self.low_band_setting = None, low_band
+        fewest = spp if temporal is None and adaptive is None else 1
+        levels = low_band_levels(width, height, low_band, fewest) if denoiser is not None else 0
         if levels:
             self.low_band = LowBand(ctx, width, height, self.depth_max.result, denoiser, levels)
         self.chroma = ChromaPass(ctx, width, height) if denoiser is not None and chroma else None
@@ -259,6 +263,12 @@ class FramePipeline:
         if self.tonemap is not None:
             stages.append(self.tonemap)
         return stages
+
+    def _runs_low_band(self) -> bool:
+        """Whether this frame's denoiser takes the low band: the samples every pixel is sure to hold are
+        those accumulated so far (uniform ones; an adaptive frame's probes, not its targeted samples)."""
+        return self.low_band is not None and uses_low_band(self.width, self.height, self.low_band_setting,
+                                                           self.accumulated)
 
     def _layout(self, planes: list[PlaneSpec]) -> ReadbackLayout:
         offsets, offset = {}, 0
@@ -370,7 +380,7 @@ class FramePipeline:
             network_output = self.denoiser.record(encoder, buffers.get(DENOISER_INPUT), self.height, self.width)
             self._mark(encoder, "denoise")
             self.unpack.execute(encoder, buffers, network_output)
-        if self.low_band is not None:
+        if self._runs_low_band():
             self.low_band.execute(encoder, buffers)
             self._mark(encoder, "low band")
         if self.chroma is not None:
