@@ -157,6 +157,8 @@ def main() -> None:
                              "image size)")
     parser.add_argument("--chroma", choices=["on", "off"], default="on",
                         help="our denoised colour balance held to the samples' block means")
+    parser.add_argument("--post-filter", choices=["on", "off"], default="on",
+                        help="our denoised frame smoothed by the edge-aware à-trous filter")
     args = parser.parse_args()
 
     models = Path(args.models)

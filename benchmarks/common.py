@@ -55,6 +55,8 @@ def add_model_arguments(parser) -> None:
                              "(wgpu_rt/frame/lowband.py; auto: the renderer's choice by frame size)")
     parser.add_argument("--chroma", choices=["on", "off"], default="on",
                         help="our denoised colour balance held to the samples' block means (wgpu_rt/frame/chroma.py)")
+    parser.add_argument("--post-filter", choices=["on", "off"], default="on",
+                        help="our denoised frame smoothed by the edge-aware à-trous filter (wgpu_rt/frame/atrous.py)")
 
 
 def parse_with_quick_defaults(parser, quick: dict):

@@ -22,7 +22,8 @@
 # cost), frame (fused frame, adaptive targeted pass, moving vs static: the `moving` scene and the
 # bunny), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
 # ours "balanced"/"high" against OIDN balanced/high over 3 noise realizations, brute force up to 256
-# spp, ours again without the low band, and the product path against spp at 256²), train (the shipped denoiser fine-tuned for
+# spp, ours again without the low band, chroma hold and post filter and without the post filter alone,
+# and the product path against spp at 256²), train (the shipped denoiser fine-tuned for
 # TRAIN_MINUTES on training worlds rendered at 256² with built-in views and 96² worlds mixed in, the
 # model in $OUT/model, scored on the held-out worlds against OIDN, then shipped and new on §14's checks
 # at 256² and 128²; renders the held-out worlds first unless heldout did; not yet run on a GPU: run it
@@ -105,9 +106,12 @@ for what in "$@"; do
         render_heldout
         part heldout_denoise python3 benchmarks/bench_denoise.py --data $HELDOUT --per-view --noise-seeds 3 \
             --extra-spp 256 --quality balanced high --oidn-quality balanced high
-        # §16: the low band is on at 256² (auto); the same without it, for its gain on the held-out family
-        part heldout_denoise_no_low_band python3 benchmarks/bench_denoise.py --data $HELDOUT --per-view \
-            --noise-seeds 3 --quality balanced --oidn-quality balanced --low-band off
+        # §16 / §17: the low band (auto: on at 256²), the chroma hold and the post filter are on by default;
+        # the same without all three (§12's product), then without the post filter alone
+        part heldout_denoise_bare python3 benchmarks/bench_denoise.py --data $HELDOUT --per-view \
+            --noise-seeds 3 --quality balanced --oidn-quality balanced --low-band off --chroma off --post-filter off
+        part heldout_denoise_no_post_filter python3 benchmarks/bench_denoise.py --data $HELDOUT --per-view \
+            --noise-seeds 3 --quality balanced --oidn-quality balanced --post-filter off
         part heldout_spp python3 benchmarks/bench_spp.py --size $VIEW --spp 1 2 4 16 64 256 --gold-spp $GOLD \
             --scenes cornell cornell-glossy sun-room world-2147483648 world-2147483649 world-2147483650 ;;
     train)   # §12 found the 96²-trained network 2.45 dB behind OIDN at 256², so this fine-tunes the shipped

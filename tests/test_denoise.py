@@ -58,6 +58,7 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
         pytest.skip("no shader-f16 on this adapter")
     import onnxruntime
 
+    from wgpu_rt.frame.atrous import atrous_filter
     from wgpu_rt.frame.chroma import match_sample_chroma
     from wgpu_rt.frame.pack import pack_denoiser_input
     from wgpu_rt.frame.unpack import unpack_denoiser_output
@@ -73,7 +74,8 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
     x = pack_denoiser_input(color, layers["albedo"], layers["normal"], layers["depth"])[None]
     session = onnxruntime.InferenceSession(str(model), providers=["CPUExecutionProvider"])
     network = unpack_denoiser_output(session.run(None, {"input": x})[0][0, :, :20, :28], layers["albedo"])
-    expected = match_sample_chroma(network, color)   # the colour balance step (frame/chroma.py), on by default
+    # the colour balance and the post filter (frame/chroma.py, frame/atrous.py), on by default
+    expected = atrous_filter(match_sample_chroma(network, color), layers["albedo"], layers["normal"], layers["depth"])
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
 
 
@@ -81,6 +83,7 @@ def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
     """`--quality high`: the mean of the network over the image as given and turned 90°, 180°, 270°."""
     import onnxruntime
 
+    from wgpu_rt.frame.atrous import atrous_filter
     from wgpu_rt.frame.chroma import match_sample_chroma
     from wgpu_rt.frame.pack import pack_denoiser_input
     from wgpu_rt.frame.unpack import unpack_denoiser_output
@@ -96,7 +99,8 @@ def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
     session = onnxruntime.InferenceSession(str(model), providers=["CPUExecutionProvider"])
     turned = [np.rot90(session.run(None, {"input": np.ascontiguousarray(np.rot90(x, k, axes=(2, 3)))})[0], -k,
                        axes=(2, 3)) for k in range(4)]
-    expected = match_sample_chroma(unpack_denoiser_output(np.mean(turned, axis=0)[0], layers["albedo"]), color)
+    expected = atrous_filter(match_sample_chroma(unpack_denoiser_output(np.mean(turned, axis=0)[0], layers["albedo"]),
+                                                 color), layers["albedo"], layers["normal"], layers["depth"])
     np.testing.assert_allclose(read_exr(tmp_path / "out.exr")["color"], expected, rtol=1e-3, atol=1e-4)
 
 

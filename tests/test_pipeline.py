@@ -141,7 +141,7 @@ def test_identity_denoiser_gives_tonemapped_radiance(gpu, scene):
 
     geometry = GeometryBuffers.build(scene, 0)
     pipeline = FramePipeline(gpu, W, H, lambda f, _: TracePass(gpu, scene, geometry, W, H, frame=f, max_depth=3),
-                             denoiser=IdentityDenoiser(gpu), operator="reinhard")
+                             denoiser=IdentityDenoiser(gpu), operator="reinhard", chroma=False, post_filter=False)
     frame = pipeline.render(scene, 0)
     radiance = pipeline.buffers.read(RADIANCE.name).transpose(1, 2, 0)
     assert radiance.max() > 0
@@ -226,7 +226,7 @@ def test_temporal_static_camera_accumulates_samples_before_denoising(gpu, scene)
         return TracePass(gpu, scene, geometry, W, H, frame=frame, max_depth=3, seed=seed_frame)
 
     pipeline = FramePipeline(gpu, W, H, trace_factory, denoiser=IdentityDenoiser(gpu),
-                             temporal=TemporalSettings(), operator=None)
+                             temporal=TemporalSettings(), operator=None, post_filter=False)
     frames = [pipeline.render(scene, frame) for frame in range(4)]
     expected, expected_spp = brute_force_planes(gpu, scene, geometry, 4)
     assert (expected_spp == 4).all() and seeds == [0, 0, 0, 0]
@@ -474,9 +474,10 @@ def test_low_band_left_out_from_16_samples_a_pixel(gpu, monkeypatch):
         assert len(runs) == expected
 
 
-def test_chroma_frame_equals_the_numpy_path(gpu):
-    """A denoised frame with its colour balance held to the samples (the default) and without it each
-    equal ``denoise()`` with that setting on the frame's own traced planes, and differ from each other."""
+def test_denoiser_steps_frame_equals_the_numpy_path(gpu):
+    """A denoised frame with its colour balance held to the samples and the à-trous post filter (both
+    by default), and with each left out, equals ``denoise()`` with the same settings on the frame's own
+    traced planes; each step changes the frame."""
     from wgpu_rt.frame.denoise import denoise, load_model
     from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 
@@ -485,16 +486,19 @@ def test_chroma_frame_equals_the_numpy_path(gpu):
     planes = render("cornell", aovs=("albedo", "normal", "depth", "spp"), aux_samples=AUX_SAMPLES, **options)
     inputs = (planes.color, *(planes.aovs[name] for name in ("albedo", "normal", "depth", "spp")))
     frames = {}
-    for chroma in (True, False):
-        frames[chroma] = render("cornell", denoise=True, aovs=(), chroma=chroma, networks={"denoiser": model},
-                                **options).color
-        np.testing.assert_allclose(frames[chroma], denoise(model, *inputs, chroma=chroma), rtol=1e-4, atol=1e-5)
-    assert not np.allclose(frames[True], frames[False], rtol=1e-3, atol=1e-4)
+    for settings in ((True, True), (False, True), (True, False)):
+        steps = dict(zip(("chroma", "post_filter"), settings))
+        frames[settings] = render("cornell", denoise=True, aovs=(), networks={"denoiser": model}, **steps,
+                                  **options).color
+        np.testing.assert_allclose(frames[settings], denoise(model, *inputs, **steps), rtol=1e-4, atol=1e-5)
+    for settings in ((False, True), (True, False)):
+        assert not np.allclose(frames[True, True], frames[settings], rtol=1e-3, atol=1e-4)
 
 
 @pytest.mark.parametrize("options, message", [
     (dict(quality="best"), "quality 'best': choose one of balanced, high"),
     (dict(chroma="on"), "chroma must be True or False"),
+    (dict(post_filter=1), "post_filter must be True or False"),
     (dict(low_band="on"), "low_band must be True, False or None"),
     (dict(hdr=False, aovs=()), "read nothing back"),
     (dict(hdr=False, tonemap=None, aovs=""), "read nothing back"),

@@ -100,7 +100,8 @@ class Renderer:
                  exposure: float = 0.0, srgb: bool = True, display: str = "rgba8", precision: str = "fp32",
                  models_dir=None, networks: dict | None = None, mesh=None, ctx=None, progress: bool = False,
                  timings: bool | None = None, aux_samples: int | None = None, hdr: bool = True,
-                 quality: str = "balanced", low_band: bool | None = None, chroma: bool = True):
+                 quality: str = "balanced", low_band: bool | None = None, chroma: bool = True,
+                 post_filter: bool = True):
         from .frame.adaptive import AdaptiveSettings
         from .frame.temporal import TemporalSettings
         from .frame.tonemap import check_settings
@@ -122,8 +123,9 @@ class Renderer:
         from .frame.lowband import uses_low_band
 
         uses_low_band(self.width, self.height, low_band)   # checks the setting
-        if not isinstance(chroma, bool):
-            raise WgpuRtError(f"chroma must be True or False, got {chroma!r}")
+        for name, value in (("chroma", chroma), ("post_filter", post_filter)):
+            if not isinstance(value, bool):
+                raise WgpuRtError(f"{name} must be True or False, got {value!r}")
         if tonemap is not None:
             check_settings(tonemap, display, exposure)
         check_readback(hdr, tonemap, self.aovs)
@@ -157,7 +159,7 @@ class Renderer:
             error_predictor=networks.get("error_predictor"), temporal=temporal,
             confidence=networks.get("confidence"), aovs=self.aovs, operator=tonemap, exposure=exposure,
             srgb=srgb, output=display, timings=timings, progress=self._advance, aux_samples=aux_samples, hdr=hdr,
-            low_band=low_band, chroma=chroma)
+            low_band=low_band, chroma=chroma, post_filter=post_filter)
         self.setup_seconds = time.perf_counter() - started
 
     def _trace_factory(self):
@@ -247,7 +249,8 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       quarter resolution, 1.25–1.31× its work; None: on frames whose sides are all ≥ 256 while some
       pixel holds fewer than 16 samples, True, False),
       ``chroma`` (True: the denoised colour balance over 4×4-pixel blocks held to what the samples' own
-      means there support; False: the network's as it comes),
+      means there support; False: the network's as it comes), ``post_filter`` (True: the denoised frame
+      smoothed by an edge-aware à-trous filter guided by albedo, normal and depth; False: not),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
       ``progress`` (a progress bar), ``timings`` (per-stage GPU times; default: when the adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a

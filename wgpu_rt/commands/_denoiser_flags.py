@@ -8,7 +8,7 @@ SWITCHES = {"on": True, "off": False}
 
 
 def add_denoiser_flags(parser, image: str) -> None:
-    """--precision, --quality, --low-band and --chroma; ``image`` names what is denoised ("frame")."""
+    """--precision, --quality, --low-band, --chroma and --post-filter; ``image`` names what is denoised."""
     parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
                         help="network arithmetic (fp16 needs the shader-f16 feature)")
     parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
@@ -22,18 +22,22 @@ def add_denoiser_flags(parser, image: str) -> None:
     parser.add_argument("--chroma", choices=list(SWITCHES), default="on",
                         help="hold the denoised colour balance over 4×4-pixel blocks to the samples' own "
                              "means where they are sure of it (default on)")
+    parser.add_argument("--post-filter", choices=list(SWITCHES), default="on",
+                        help="smooth what the denoiser leaves with an edge-aware à-trous filter guided by the "
+                             "albedo, normal and depth (default on)")
 
 
 def denoiser_options(args) -> dict:
     """The renderer's / ``denoise()``'s options from the flags (quality and precision left to the caller)."""
     from ..frame.lowband import LOW_BAND_SETTINGS
 
-    return {"low_band": LOW_BAND_SETTINGS[args.low_band], "chroma": SWITCHES[args.chroma]}
+    return {"low_band": LOW_BAND_SETTINGS[args.low_band], "chroma": SWITCHES[args.chroma],
+            "post_filter": SWITCHES[args.post_filter]}
 
 
 def check_denoiser_flags(args) -> None:
     """Without --denoise the denoiser's flags must be left at their defaults (``render``)."""
     for flag, value, default in (("--quality", args.quality, "balanced"), ("--low-band", args.low_band, "auto"),
-                                 ("--chroma", args.chroma, "on")):
+                                 ("--chroma", args.chroma, "on"), ("--post-filter", args.post_filter, "on")):
         if value != default:
             raise WgpuRtError(f"{flag} {value} is the denoiser's: add --denoise")

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import ModelError
 from ..models import network_named
+from .atrous import atrous_filter
 from .chroma import match_sample_chroma
 from .lowband import fewest_samples, low_band_denoise, low_band_levels
 from .pack import pack_denoiser_input
@@ -46,14 +47,16 @@ def load_model(name: str, precision: str = "fp32", models_dir=None, path=None, c
     return WgslModel(chosen, precision, ctx=ctx, ensemble=QUALITIES[quality])
 
 
-def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: bool = True) -> np.ndarray:
+def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: bool = True,
+            post_filter: bool = True) -> np.ndarray:
     """(H, W, 3) linear HDR colour of ``spp`` samples per pixel (one count, or an (H, W[, 1]) map) +
     G-buffers → the denoised (H, W, 3) colour (finite, ≥ 0). ``model`` runs (N, C, H, W) batches; one with
     fewer ``input_channels`` (10: trained before the sample-count plane existed) gets the first ones.
     ``low_band``: take the band below quarter resolution from the denoiser run again at half (and
     quarter) resolution (frame/lowband.py; None: for frames whose sides are at least LOW_BAND_MIN_SIDE and
     whose pixels hold fewer than LOW_BAND_MAX_SPP samples somewhere).
-    ``chroma``: hold the result's colour balance to the samples' block means (frame/chroma.py)."""
+    ``chroma``: hold the result's colour balance to the samples' block means (frame/chroma.py).
+    ``post_filter``: then smooth it by the edge-aware à-trous filter (frame/atrous.py)."""
     channels = getattr(model, "input_channels", None)
 
     def run(packed):
@@ -63,7 +66,9 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     levels = low_band_levels(denoised.shape[1], denoised.shape[0], low_band, fewest_samples(spp))
     if levels:
         denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels)
-    return match_sample_chroma(denoised, color) if chroma else denoised
+    if chroma:
+        denoised = match_sample_chroma(denoised, color)
+    return atrous_filter(denoised, albedo, normal, depth) if post_filter else denoised
 
 
 def pad_to_multiple(x: np.ndarray, multiple: int) -> np.ndarray:

@@ -24,6 +24,7 @@ from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, 
 from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
 from .converge import CONVERGED, HALF_SPP, ConvergePass, copy_half, half_count
+from .atrous import AtrousPass
 from .chroma import ChromaPass
 from .lowband import LowBand, low_band_levels, uses_low_band
 from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
@@ -165,7 +166,8 @@ class FramePipeline:
     per pixel (``TracePass.execute_aux``). ``low_band``: the denoiser's low band from passes at half
     (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE
     while some pixel holds fewer than LOW_BAND_MAX_SPP samples). ``chroma``: the denoised colour
-    balance held to the samples' block means (frame/chroma.py). ``aovs`` names the G-buffer planes to
+    balance held to the samples' block means (frame/chroma.py). ``post_filter``: the denoised frame
+    smoothed by an edge-aware à-trous filter (frame/atrous.py). ``aovs`` names the G-buffer planes to
     read back with the colour; ``operator`` None skips the display image;
     ``hdr=False`` skips the HDR colour (12 bytes a pixel; ``RenderResult.color`` is then None) for
     callers that want only the display image or AOVs.
@@ -176,7 +178,7 @@ class FramePipeline:
                  temporal: TemporalSettings | None = None, confidence=None, aovs=(),
                  operator: str | None = "aces", exposure: float = 0.0, srgb: bool = True,
                  output: str = "rgba8", timings: bool | None = None, progress=None, aux_samples: int = 0,
-                 hdr: bool = True, low_band: bool | None = None, chroma: bool = True):
+                 hdr: bool = True, low_band: bool | None = None, chroma: bool = True, post_filter: bool = True):
         check_readback(hdr, operator, aovs)
         if adaptive is not None and adaptive.sampler == "heat" and error_predictor is None:
             raise ModelError("the heat adaptive sampler needs an error predictor model")
@@ -198,6 +200,7 @@ class FramePipeline:
         if levels:
             self.low_band = LowBand(ctx, width, height, self.depth_max.result, denoiser, levels)
         self.chroma = ChromaPass(ctx, width, height) if denoiser is not None and chroma else None
+        self.post_filter = AtrousPass(ctx, width, height) if denoiser is not None and post_filter else None
         # A frame of several samples per pixel (uniform or an adaptive map) hands over from the denoiser to
         # their mean where that has converged (frame/converge.py); temporal mode does that itself across
         # frames (its converge step).
@@ -256,6 +259,8 @@ class FramePipeline:
             stages.append(self.low_band)
         if self.chroma is not None:
             stages.append(self.chroma)
+        if self.post_filter is not None:
+            stages.append(self.post_filter)
         if self.converge is not None:
             stages.append(self.converge)
         if self.temporal is not None:
@@ -386,6 +391,9 @@ class FramePipeline:
         if self.chroma is not None:
             self.chroma.execute(encoder, buffers)
             self._mark(encoder, "chroma")
+        if self.post_filter is not None:
+            self.post_filter.execute(encoder, buffers)
+            self._mark(encoder, "post filter")
         if self.converge is not None:
             self.converge.execute(encoder, buffers)
             self._mark(encoder, "converge")
