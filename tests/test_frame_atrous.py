@@ -8,13 +8,14 @@ from parity import check_parity, run_frame_pass
 
 from wgpu_rt.frame.atrous import FILTER_LIMIT, AtrousPass, atrous_filter
 from wgpu_rt.frame.planes import DENOISED
-from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL
+from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, SPP
 
 SIZES = [(21, 13), (24, 16), (9, 30), (1, 1), (40, 37)]   # (W, H)
 
 
-def atrous_on_gpu(gpu, width, height, denoised, albedo, normal, depth):
-    planes = {DENOISED: denoised, ALBEDO: albedo, NORMAL: normal, DEPTH: depth}
+def atrous_on_gpu(gpu, width, height, denoised, albedo, normal, depth, spp=None):
+    planes = {DENOISED: denoised, ALBEDO: albedo, NORMAL: normal, DEPTH: depth,
+              SPP: np.ones((height, width), np.uint32) if spp is None else spp}
     buffers = run_frame_pass(gpu, AtrousPass(gpu, width, height), width, height, planes)
     return gpu.read(buffers.get(DENOISED), np.float32, (3, height, width)).transpose(1, 2, 0)
 
@@ -35,6 +36,7 @@ def test_atrous_matches_reference(gpu, width, height):
     rng = np.random.default_rng(width * 13 + height)
     inputs = list(noisy_scene(rng, width, height))
     inputs[2] = inputs[2] + rng.normal(0, 0.05, inputs[2].shape).astype(np.float32)   # unlike normals too
+    inputs.append(rng.choice([0, 1, 16, 64, 1024], (height, width)).astype(np.uint32))   # the tolerance fades
     check_parity(None, atrous_filter, lambda *a: atrous_on_gpu(gpu, width, height, *a),
                  atol=1e-5, rtol=1e-5, inputs=inputs, name=f"atrous {width}x{height}")
 
@@ -63,6 +65,9 @@ def test_atrous_by_hand():
         assert ratio_out.std() < 0.5 * ratio_in.std()
         np.testing.assert_allclose(ratio_out.mean(), ratio_in.mean(), rtol=0.01)   # each keeps its level
     assert np.abs(out[:, 15] / albedo[:, 15] - 1).max() < 0.05 and np.abs(out[:, 16] / albedo[:, 16] - 1).max() < 0.05
+    # the tolerance narrows past FADE_SPP samples: at 1024 spp the same residue is left nearly as it is
+    many = atrous_filter(radiance, albedo, normal, depth, 1024)
+    assert np.abs(many - radiance).mean() < 0.3 * np.abs(out - radiance).mean()
     # a sharp brightness step on one surface (a shadow edge: same albedo, normal and depth) is kept
     step = np.where(np.arange(32)[None, :, None] < 16, 0.05, 2.0).astype(np.float32) * np.ones((24, 1, 3), np.float32)
     same = np.full((24, 32, 3), 0.5, np.float32)

@@ -7,8 +7,9 @@ wavelet filter of Dammertz et al. (HPG 2010, as SVGF uses it): STEPS passes of a
 whose taps lie STEP pixels apart (1, 2, 4: a 25-pixel reach for 75 taps), each tap weighed by how alike
 the two pixels are in albedo, normal, relative depth and display luminance of the current pass's input
 (x/(1+x))^(1/2.2) of the channel mean, the metric's own display), so edges in any of them stop it.
-Indices are clamped at the frame's edges. Radiance is clamped to FILTER_LIMIT first, so the weighted
-sums stay finite.
+The luminance tolerance narrows as the centre pixel's samples grow past FADE_SPP, by sqrt(FADE_SPP / spp):
+what the denoiser leaves shrinks with the noise it was given. Indices are clamped at the frame's edges.
+Radiance is clamped to FILTER_LIMIT first, so the weighted sums stay finite.
 
 BENCHMARKS.md §17: +0.50 dB over 13 scenes at 256² and 1 spp, +0.74 over 6 at 512², every scene up.
 ``AtrousPass`` runs it on the device; ``atrous_filter`` is the numpy reference (``denoise()``'s path).
@@ -18,13 +19,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..passes import ALBEDO, DEPTH, NORMAL, ComputePass
+from ..passes import ALBEDO, DEPTH, NORMAL, SPP, ComputePass
 from .kernel import FrameKernel, finite, nonnegative_finite
 from .planes import DENOISED
 
 STEPS = (1, 2, 4)            # tap spacing of each pass, in pixels
 B3_SPLINE = (1 / 16, 1 / 4, 3 / 8, 1 / 4, 1 / 16)
-SIGMA_LUMINANCE = 0.02       # display luminance (x/(1+x))^(1/2.2)
+SIGMA_LUMINANCE = 0.02       # display luminance (x/(1+x))^(1/2.2), up to FADE_SPP samples a pixel
+FADE_SPP = 16                # beyond it, SIGMA_LUMINANCE · sqrt(FADE_SPP / spp)
 SIGMA_ALBEDO = 0.05          # Euclidean distance of albedo RGB
 SIGMA_NORMAL = 0.1           # Euclidean distance of the normal planes
 SIGMA_DEPTH = 0.02           # depth difference relative to the centre's depth (floored at DEPTH_FLOOR)
@@ -39,10 +41,21 @@ def display_luminance(radiance: np.ndarray) -> np.ndarray:
     return (mean / (1.0 + mean)) ** (1.0 / DISPLAY_GAMMA)
 
 
-def atrous_filter(denoised: np.ndarray, albedo: np.ndarray, normal: np.ndarray, depth: np.ndarray) -> np.ndarray:
+def luminance_sigma(spp, shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) tolerance in display luminance for pixels of ``spp`` samples (one count or an (H, W[, 1])
+    map; non-finite counts as 0): SIGMA_LUMINANCE up to FADE_SPP, then · sqrt(FADE_SPP / spp)."""
+    counts = np.nan_to_num(np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2]), shape),
+                           nan=0.0, posinf=0.0, neginf=0.0)
+    return SIGMA_LUMINANCE * np.sqrt(FADE_SPP / np.maximum(counts, FADE_SPP))
+
+
+def atrous_filter(denoised: np.ndarray, albedo: np.ndarray, normal: np.ndarray, depth: np.ndarray,
+                  spp=1) -> np.ndarray:
     """(H, W, 3) denoised radiance and its (H, W, 3) albedo, (H, W, 3) normal and (H, W[, 1]) depth planes
-    → the radiance after the STEPS passes of the module docstring (float32, finite, ≥ 0)."""
+    and sample counts (one count or an (H, W[, 1]) map) → the radiance after the STEPS passes of the
+    module docstring (float32, finite, ≥ 0)."""
     height, width = np.shape(denoised)[:2]
+    sigma = luminance_sigma(spp, (height, width))
     out = np.minimum(nonnegative_finite(denoised).astype(np.float64), FILTER_LIMIT)
     albedo = nonnegative_finite(albedo).astype(np.float64)
     normal = finite(normal).astype(np.float64)
@@ -56,7 +69,7 @@ def atrous_filter(denoised: np.ndarray, albedo: np.ndarray, normal: np.ndarray, 
             r = np.clip(rows + dy * step, 0, height - 1)[:, None]
             for j, dx in enumerate(range(-2, 3)):
                 c = np.clip(cols + dx * step, 0, width - 1)[None, :]
-                exponent = ((luminance[r, c] - luminance) ** 2 / (2 * SIGMA_LUMINANCE ** 2)
+                exponent = ((luminance[r, c] - luminance) ** 2 / (2 * sigma * sigma)
                             + ((albedo[r, c] - albedo) ** 2).sum(-1) / (2 * SIGMA_ALBEDO ** 2)
                             + ((normal[r, c] - normal) ** 2).sum(-1) / (2 * SIGMA_NORMAL ** 2)
                             + ((depth[r, c] - depth) / depth_scale) ** 2 / (2 * SIGMA_DEPTH ** 2))
@@ -71,21 +84,22 @@ class AtrousPass(ComputePass):
     """``atrous_filter`` on the device: DENOISED smoothed in place (one dispatch per step, ping-ponging
     through a buffer of its own, which the last step's result is copied back from when STEPS is odd)."""
 
-    inputs = (DENOISED, ALBEDO, NORMAL, DEPTH)
+    inputs = (DENOISED, ALBEDO, NORMAL, DEPTH, SPP)
     outputs = (DENOISED,)
 
     def __init__(self, ctx, width: int, height: int):
         self.scratch = ctx.storage(DENOISED.nbytes(width, height), label="a-trous scratch")
         self.nbytes = DENOISED.nbytes(width, height)
-        constants = {"SIGMA_LUMINANCE": SIGMA_LUMINANCE, "SIGMA_ALBEDO": SIGMA_ALBEDO, "SIGMA_NORMAL": SIGMA_NORMAL,
+        constants = {"SIGMA_LUMINANCE": SIGMA_LUMINANCE, "FADE_SPP": FADE_SPP, "SIGMA_ALBEDO": SIGMA_ALBEDO, "SIGMA_NORMAL": SIGMA_NORMAL,
                      "SIGMA_DEPTH": SIGMA_DEPTH, "DEPTH_FLOOR": DEPTH_FLOOR, "FILTER_LIMIT": FILTER_LIMIT}
         self.steps = [FrameKernel(ctx, "frame/atrous.wgsl", "atrous_step",
-                                  ("source", "filtered", "albedo", "normal", "depth"), width, height,
+                                  ("source", "filtered", "albedo", "normal", "depth", "spp"), width, height,
                                   {**constants, "STEP": step}) for step in STEPS]
 
     def execute(self, encoder, buffers) -> None:
         planes = [buffers.get(DENOISED), self.scratch]
-        guides = {"albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL), "depth": buffers.get(DEPTH)}
+        guides = {"albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL), "depth": buffers.get(DEPTH),
+                  "spp": buffers.get(SPP)}
         for k, kernel in enumerate(self.steps):
             kernel.dispatch(encoder, {"source": planes[k % 2], "filtered": planes[(k + 1) % 2], **guides})
         if len(self.steps) % 2:

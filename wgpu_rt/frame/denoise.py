@@ -68,7 +68,7 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
         denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels)
     if chroma:
         denoised = match_sample_chroma(denoised, color)
-    return atrous_filter(denoised, albedo, normal, depth) if post_filter else denoised
+    return atrous_filter(denoised, albedo, normal, depth, spp) if post_filter else denoised
 
 
 def pad_to_multiple(x: np.ndarray, multiple: int) -> np.ndarray:

@@ -1,12 +1,14 @@
 // One pass of the edge-aware à-trous filter over the denoised radiance (wgpu_rt/frame/atrous.py says why
 // and is the reference): a 5×5 B3-spline kernel with taps STEP pixels apart (indices clamped at the
 // frame's edges), each tap weighed by exp(−Σ d²/2σ²) over the differences in display luminance of
-// `source`, albedo, normal and depth relative to the centre's; `filtered` = the weighted mean of `source`.
+// `source` (σ narrowing with the centre's samples past FADE_SPP), albedo, normal and depth relative to the
+// centre's; `filtered` = the weighted mean of `source`.
 // One invocation per pixel.
 // #import frame/common.wgsl
 
 override STEP: i32;
-override SIGMA_LUMINANCE: f32;
+override SIGMA_LUMINANCE: f32;   // up to FADE_SPP samples at the centre pixel, then · sqrt(FADE_SPP / spp)
+override FADE_SPP: f32;
 override SIGMA_ALBEDO: f32;
 override SIGMA_NORMAL: f32;
 override SIGMA_DEPTH: f32;
@@ -19,6 +21,7 @@ const DISPLAY_GAMMA: f32 = 2.2;
 @group(0) @binding(2) var<storage, read> albedo: array<f32>;        // 3 planes
 @group(0) @binding(3) var<storage, read> normal: array<f32>;        // 3 planes
 @group(0) @binding(4) var<storage, read> depth: array<f32>;
+@group(0) @binding(5) var<storage, read> spp: array<u32>;
 
 struct Guide { radiance: vec3f, luminance: f32, albedo: vec3f, normal: vec3f, depth: f32 }
 
@@ -43,6 +46,7 @@ fn atrous_step(@builtin(global_invocation_id) id: vec3u) {
     let n = pixel_count();
     let centre = guide_at(pixel_index(id));
     let depth_scale = max(centre.depth, DEPTH_FLOOR);
+    let sigma = SIGMA_LUMINANCE * sqrt(FADE_SPP / max(f32(spp[pixel_index(id)]), FADE_SPP));
     var total = vec3f(0.0);
     var weights = 0.0;
     for (var dy = -2; dy <= 2; dy++) {
@@ -54,7 +58,7 @@ fn atrous_step(@builtin(global_invocation_id) id: vec3u) {
             let da = tap.albedo - centre.albedo;
             let dn = tap.normal - centre.normal;
             let dd = (tap.depth - centre.depth) / depth_scale;
-            let exponent = dl * dl / (2.0 * SIGMA_LUMINANCE * SIGMA_LUMINANCE)
+            let exponent = dl * dl / (2.0 * sigma * sigma)
                          + dot(da, da) / (2.0 * SIGMA_ALBEDO * SIGMA_ALBEDO)
                          + dot(dn, dn) / (2.0 * SIGMA_NORMAL * SIGMA_NORMAL)
                          + dd * dd / (2.0 * SIGMA_DEPTH * SIGMA_DEPTH);
