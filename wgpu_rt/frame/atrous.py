@@ -81,26 +81,32 @@ def atrous_filter(denoised: np.ndarray, albedo: np.ndarray, normal: np.ndarray, 
 
 
 class AtrousPass(ComputePass):
-    """``atrous_filter`` on the device: DENOISED smoothed in place (one dispatch per step, ping-ponging
-    through a buffer of its own, which the last step's result is copied back from when STEPS is odd)."""
+    """``atrous_filter`` on the device: DENOISED smoothed in place. A first dispatch lays out what every
+    tap reads per pixel, side by side (the radiance with its display luminance; the guides with the
+    pixel's luminance tolerance), then one dispatch per step ping-pongs between two work buffers, the
+    last writing DENOISED."""
 
     inputs = (DENOISED, ALBEDO, NORMAL, DEPTH, SPP)
     outputs = (DENOISED,)
 
     def __init__(self, ctx, width: int, height: int):
-        self.scratch = ctx.storage(DENOISED.nbytes(width, height), label="a-trous scratch")
-        self.nbytes = DENOISED.nbytes(width, height)
-        constants = {"SIGMA_LUMINANCE": SIGMA_LUMINANCE, "FADE_SPP": FADE_SPP, "SIGMA_ALBEDO": SIGMA_ALBEDO, "SIGMA_NORMAL": SIGMA_NORMAL,
-                     "SIGMA_DEPTH": SIGMA_DEPTH, "DEPTH_FLOOR": DEPTH_FLOOR, "FILTER_LIMIT": FILTER_LIMIT}
-        self.steps = [FrameKernel(ctx, "frame/atrous.wgsl", "atrous_step",
-                                  ("source", "filtered", "albedo", "normal", "depth", "spp"), width, height,
-                                  {**constants, "STEP": step}) for step in STEPS]
+        pixels = width * height
+        self.work = [ctx.storage(16 * pixels, label=f"a-trous work {k}") for k in range(2)]
+        self.guides = ctx.storage(32 * pixels, label="a-trous guides")
+        constants = {"SIGMA_LUMINANCE": SIGMA_LUMINANCE, "FADE_SPP": FADE_SPP, "SIGMA_ALBEDO": SIGMA_ALBEDO,
+                     "SIGMA_NORMAL": SIGMA_NORMAL, "SIGMA_DEPTH": SIGMA_DEPTH, "DEPTH_FLOOR": DEPTH_FLOOR,
+                     "FILTER_LIMIT": FILTER_LIMIT}
+        self.prepare = FrameKernel(ctx, "frame/atrous.wgsl", "atrous_prepare",
+                                   ("denoised", "work_out", "albedo", "normal", "depth", "spp", "guides"),
+                                   width, height, constants)
+        self.steps = [FrameKernel(ctx, "frame/atrous.wgsl", entry, ("work_in", output, "guides"), width, height,
+                                  {**constants, "STEP": step})
+                      for step, (entry, output) in zip(STEPS, [("atrous_step", "work_out")] * (len(STEPS) - 1)
+                                                       + [("atrous_last", "denoised")])]
 
     def execute(self, encoder, buffers) -> None:
-        planes = [buffers.get(DENOISED), self.scratch]
-        guides = {"albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL), "depth": buffers.get(DEPTH),
-                  "spp": buffers.get(SPP)}
+        bound = {"denoised": buffers.get(DENOISED), "albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL),
+                 "depth": buffers.get(DEPTH), "spp": buffers.get(SPP), "guides": self.guides}
+        self.prepare.dispatch(encoder, {**bound, "work_out": self.work[0]})
         for k, kernel in enumerate(self.steps):
-            kernel.dispatch(encoder, {"source": planes[k % 2], "filtered": planes[(k + 1) % 2], **guides})
-        if len(self.steps) % 2:
-            encoder.copy_buffer_to_buffer(self.scratch, 0, planes[0], 0, self.nbytes)
+            kernel.dispatch(encoder, {**bound, "work_in": self.work[k % 2], "work_out": self.work[(k + 1) % 2]})
