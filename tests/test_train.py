@@ -4,6 +4,8 @@ dataset (export, ONNX equality, model card, resume), and the NaN guard."""
 import hashlib
 import json
 
+import itertools
+
 import numpy as np
 import pytest
 import torch
@@ -424,6 +426,29 @@ def test_a_batch_mixing_frame_sizes_crops_to_fit_the_smallest(tmp_path):
         assert x.shape[-2:] == y.shape[-2:] and 8 <= x.shape[-1] <= 16
     x, _ = samples.batch([large], rng, Augmentation(32, 32), 1)
     assert x.shape[-1] == 32   # alone, the large frame still gives whole-frame crops
+
+
+def test_colour_permutation_reorders_colour_and_albedo_alike(tiny_dataset):
+    """With permute_colours a denoiser crop's colour and albedo planes (input) and gold and albedo factor
+    (target) are the unpermuted crop's channels in one shared order; normals, depth and spp are kept; the
+    order varies between draws (the identity among them)."""
+    from wgpu_rt.dataset import load_views
+    from wgpu_rt.train.samples import Augmentation, DenoiserSamples
+
+    samples = DenoiserSamples(load_views(tiny_dataset))
+    item = samples.items[0]
+    orders = set()
+    for seed in range(12):
+        plain = samples.batch([item], np.random.default_rng(seed), Augmentation(8, 8, aux_noise=0.0), 1)
+        permuted = samples.batch([item], np.random.default_rng(seed), Augmentation(8, 8, aux_noise=0.0,
+                                                                               permute_colours=True), 1)
+        (x, y), (px, py) = ([t[0].numpy() for t in pair] for pair in (plain, permuted))
+        order = next(o for o in itertools.permutations(range(3)) if np.array_equal(px[0:3], x[0:3][list(o)]))
+        orders.add(order)
+        for a, b in ((px[3:6], x[3:6]), (py[0:3], y[0:3]), (py[3:6], y[3:6])):
+            np.testing.assert_array_equal(a, b[list(order)])
+        np.testing.assert_array_equal(px[6:], x[6:])
+    assert len(orders) > 2 and (0, 1, 2) in orders
 
 
 def test_confidence_needs_the_denoiser_it_learns_on(tiny_dataset, tmp_path):

@@ -46,6 +46,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--lowpass", type=float, default=0.0, metavar="WEIGHT",
                         help="denoiser: add WEIGHT × L1 of 8×8 block means of the compared colours, against "
                              "low-frequency blotches (default: 0, off)")
+    parser.add_argument("--permute-colours", action="store_true",
+                        help="denoiser: draw a random order of the R, G, B channels per crop (colour, albedo and "
+                             "target alike), so bounce light of every hue is seen (default: off)")
     parser.add_argument("--max-views", type=int, help="use at most this many views per split")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--checkpoints", help="checkpoint folder (default: OUT/checkpoints)")
@@ -73,6 +76,7 @@ def run(args) -> int:
     config = TrainConfig(task=args.task, data=args.data, out=args.out, epochs=args.epochs, batch=args.batch,
                          lr=args.lr, seed=args.seed, crop_min=args.crop[0], crop_max=args.crop[1],
                          pixel_loss=args.pixel_loss, ssim_space=args.ssim_space, lowpass=args.lowpass,
+                         permute_colours=args.permute_colours,
                          widths=tuple(args.widths), residual=args.residual, bottom_merge=args.bottom_merge,
                          curriculum=tuple(args.curriculum), resume=args.resume,
                          extra_data=tuple(args.extra_data), max_views=args.max_views,

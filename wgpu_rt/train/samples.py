@@ -12,6 +12,10 @@ device, exposed, cropped and augmented:
 - one of the 8 flips/90° rotations;
 - small Gaussian noise on the auxiliary channels (albedo, normal, depth), so the network does not
   trust G-buffers blindly;
+- with ``permute_colours``, one random order of the R, G, B channels per crop, applied alike to every
+  colour triple of input and target (colour, albedo): exact for an RGB renderer, whose light transport
+  is the same per channel, so the network sees bounce light of every hue (the shipped one greys a room
+  lit by a green wall: BENCHMARKS.md §17);
 - where the dataset has ``noisy_copies``, a random one of the frame's independent 1-spp renders (a
   fresh noise realization, G-buffers included), so the network cannot learn a view's noise by heart;
 - for the denoiser, a curriculum over sample counts: 16 spp first, then 4, then 1 (configurable); a
@@ -43,6 +47,7 @@ class Augmentation:
     multiple: int = 4
     exposure_stops: float = 1.0
     aux_noise: float = 0.01
+    permute_colours: bool = False
 
 
 class TaskSamples(ABC):
@@ -52,6 +57,8 @@ class TaskSamples(ABC):
     aux_channels: slice = slice(0, 0)
     exposed_input: slice = slice(0, 3)
     exposed_target: slice = slice(0, 0)
+    colour_inputs: tuple[slice, ...] = ()    # RGB triples a colour permutation reorders
+    colour_targets: tuple[slice, ...] = ()
 
     def __init__(self, views: list[View]):
         self.views = views
@@ -124,6 +131,9 @@ class TaskSamples(ABC):
             x, y = (torch.rot90(a, turns, dims=(1, 2)) for a in (x, y))
             if flip:
                 x, y = x.flip(2), y.flip(2)
+            if aug.permute_colours and self.colour_inputs:
+                order = torch.from_numpy(rng.permutation(3)).to(x.device)
+                x, y = _reorder(x, self.colour_inputs, order), _reorder(y, self.colour_targets, order)
             inputs.append(x)
             targets.append(y)
         x, y = torch.stack(inputs), torch.stack(targets)   # copies: the kept planes stay untouched
@@ -132,6 +142,14 @@ class TaskSamples(ABC):
             aux = x[:, self.aux_channels]
             aux += aug.aux_noise * torch.randn(aux.shape, generator=generator, device=x.device)
         return x, y
+
+
+def _reorder(planes: torch.Tensor, triples: tuple[slice, ...], order: torch.Tensor) -> torch.Tensor:
+    """``planes`` (C, H, W) with each RGB triple's channels taken in ``order`` (a copy)."""
+    reordered = planes.clone()
+    for triple in triples:
+        reordered[triple] = planes[triple][order]
+    return reordered
 
 
 def _expose(planes: torch.Tensor, channels: slice, exposure: float) -> torch.Tensor:
@@ -150,6 +168,8 @@ class DenoiserSamples(TaskSamples):
 
     aux_channels = slice(3, 10)
     exposed_target = slice(0, 3)
+    colour_inputs = (slice(0, 3), slice(3, 6))    # log irradiance, albedo
+    colour_targets = (slice(0, 3), slice(3, 6))   # gold log irradiance, albedo factor
 
     def planes(self, item, spp, copy=0):
         frame = self.views[item[0]].frames[item[1]]

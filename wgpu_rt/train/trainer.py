@@ -56,6 +56,7 @@ class TrainConfig:
     pixel_loss: str = "l1"               # or "charbonnier"
     ssim_space: str = "log"              # or "display" (the metrics' Reinhard + gamma mapping)
     lowpass: float = 0.0                 # weight of the denoiser's 8×8 block-mean L1 term (0: none)
+    permute_colours: bool = False        # a random RGB order per crop (samples.Augmentation)
     widths: tuple[int, ...] = (32, 64, 128)
     residual: bool = False               # denoiser predicts a correction to its noisy input
     bottom_merge: str = "concat"         # or "add": the denoiser's deepest level added to the skip above
@@ -195,7 +196,8 @@ class Trainer:
         self.total_steps = self.steps_per_epoch * config.epochs
         self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
         self.schedule = torch.optim.lr_scheduler.LambdaLR(self.optimizer, self.learning_rate_factor)
-        self.augmentation = Augmentation(config.crop_min, config.crop_max, self.multiple)
+        self.augmentation = Augmentation(config.crop_min, config.crop_max, self.multiple,
+                                         permute_colours=config.permute_colours)
         # Rank 0 draws each epoch's order (shared with the others) and its own augmentations, as a single
         # process does; the other ranks draw their augmentations from streams of their own.
         rank = self.context.rank
@@ -542,6 +544,7 @@ class Trainer:
             f"grad-norm clip {cfg.grad_clip}, seed {cfg.seed}",
             f"- crops {cfg.crop_min}–{cfg.crop_max} px (clamped to the frame), flips + 90° rotations, "
             "exposure jitter ±1 stop, aux-channel noise σ 0.01"
+            + (", a random RGB order per crop" if cfg.permute_colours else "")
             + ("; each draw takes a random one of a frame's independent 1-spp renders" if copied else ""),
         ]
         if cfg.task == "denoiser":
