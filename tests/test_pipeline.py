@@ -474,6 +474,26 @@ def test_low_band_left_out_from_16_samples_a_pixel(gpu, monkeypatch):
         assert len(runs) == expected
 
 
+def test_static_view_traces_its_aux_albedo_once(gpu, monkeypatch):
+    """In temporal mode a static view's aux albedo (the same seed, camera and scene each frame) is traced
+    on its first frame and put back on the next ones: every frame reads back the albedo a fresh aux pass
+    gives, and after a cut it is traced again."""
+    from wgpu_rt.trace.trace_pass import AUX_SAMPLES, TracePass
+
+    calls = []
+    traced = TracePass.execute_aux
+    monkeypatch.setattr(TracePass, "execute_aux", lambda self, *a, **k: calls.append(1) or traced(self, *a, **k))
+    options = dict(size=(21, 13), aovs=("albedo",), aux_samples=AUX_SAMPLES, ctx=gpu, seed=2)
+    frames = render("cornell", temporal=True, frames=range(3), **options)
+    assert len(calls) == 1
+    fresh = render("cornell", **options).aovs["albedo"]   # frame 0 on its own: the aux pass's estimate
+    for frame in frames:
+        np.testing.assert_array_equal(frame.aovs["albedo"], fresh)
+    calls.clear()
+    render("cornell", temporal=True, frames=[0, 1, 5, 6], **options)   # 5 is a cut (frames skipped)
+    assert len(calls) == 2
+
+
 def test_denoiser_steps_frame_equals_the_numpy_path(gpu):
     """A denoised frame with its colour balance held to the samples and the à-trous post filter (both
     by default), and with each left out, equals ``denoise()`` with the same settings on the frame's own

@@ -239,6 +239,7 @@ class FramePipeline:
         # how many the converge pass's copy of them holds (it is taken again once the samples since the
         # copy reach those before it, so the copy holds a quarter to a half of them).
         self.accumulated = self.half_copied = 0
+        self._aux_kept = None   # a static view's aux albedo (_aux_albedo)
 
     def _stages(self) -> list:
         """What a frame runs after the tracer, in order, each with the planes it declares it reads and
@@ -268,6 +269,22 @@ class FramePipeline:
         if self.tonemap is not None:
             stages.append(self.tonemap)
         return stages
+
+    def _aux_albedo(self, encoder, trace, converging: bool) -> None:
+        """The noise-free albedo plane. A converging static view (temporal mode) keeps its first frame's
+        seed, camera and scene, so its aux estimate would come out the same every frame: it is traced on
+        the view's first frame and kept in a copy, which later frames put back (the tracer folds its own
+        noisy albedo samples into the plane each frame)."""
+        albedo = self.buffers.get(ALBEDO)
+        if self.temporal is None:
+            trace.execute_aux(encoder, self.buffers, self.aux_samples)
+        elif converging and self._aux_kept is not None:
+            encoder.copy_buffer_to_buffer(self._aux_kept, 0, albedo, 0, albedo.size)
+        else:
+            trace.execute_aux(encoder, self.buffers, self.aux_samples)
+            if self._aux_kept is None:
+                self._aux_kept = self.ctx.storage(albedo.size, label="aux albedo, kept")
+            encoder.copy_buffer_to_buffer(albedo, 0, self._aux_kept, 0, albedo.size)
 
     def _runs_low_band(self) -> bool:
         """Whether this frame's denoiser takes the low band: the samples every pixel is sure to hold are
@@ -376,7 +393,7 @@ class FramePipeline:
         encoder = self._trace(encoder, trace, keep_samples=converging)
         self.accumulated += self.spp
         if self.aux_samples:
-            trace.execute_aux(encoder, buffers, self.aux_samples)
+            self._aux_albedo(encoder, trace, converging)
             self._mark(encoder, "aux")
         self.depth_max.execute(encoder, buffers)
         if self.denoiser is not None:
