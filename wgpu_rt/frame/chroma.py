@@ -8,9 +8,8 @@ not. So over blocks of BLOCK×BLOCK pixels (Gaussian-weighted over neighbouring 
 each colour channel's mean of the denoised frame F is moved towards the samples' mean N by a
 James-Stein factor k = max(0, 1 − var / (N̄ − F̄)²), var being the estimated variance of N̄ (the
 spread of N − F about its mean over each block, Σ(r − r̄)² / (n(n − 1)), weighed by the squared
-Gaussian weights):
-a difference well beyond the noise is taken whole, one within it is left alone (so fireflies, whose
-blocks have a large var, move nothing). Only the block's chromaticity — each channel's share of the
+Gaussian weights): a difference well beyond the noise is taken whole, one within it is left alone (so
+fireflies, whose blocks have a large var, move nothing). Only the block's chromaticity — each channel's share of the
 three channels' sum, ε added — is taken from the result, so brightness and its edges stay the
 denoiser's: F's pixels are scaled per channel by share(target) / share(F̄), bilinear between block
 centres and clamped to [1/RATIO_LIMIT, RATIO_LIMIT].
@@ -30,7 +29,7 @@ from .lowband import bilinear_up
 from .pack import block_sum
 from .planes import DENOISED
 
-BLOCK = 4                 # pixels per block side
+BLOCK = 4                 # pixels per block side (wgsl/frame/block_grid.wgsl's BLOCK)
 SIGMA_BLOCKS = 1.0        # the Gaussian's σ over the block grid, in blocks
 RADIUS_BLOCKS = 3         # taps either side (3σ)
 SHARE_EPSILON = 1e-4      # radiance added to each channel's mean before taking shares (near-black blocks stay)
