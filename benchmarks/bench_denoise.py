@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common import denoiser_options, save_array
+from common import add_denoiser_step_flags, denoiser_options, save_array
 from peers import DEVICE_NAMES, QUALITIES, oidn_denoise, oidn_devices, preferred
 from wgpu_rt import metrics
 from wgpu_rt.frame.denoise import QUALITIES as OUR_QUALITIES
@@ -152,13 +152,7 @@ def main() -> None:
                         help="rows of ours, one per quality (high: an ensemble of 4 turned passes)")
     parser.add_argument("--oidn-quality", nargs="+", default=["balanced", "high"], choices=QUALITIES,
                         help="OIDN rows, one per quality (on CUDA when benchmarks/peers.py finds it, else the CPU)")
-    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
-                        help="our denoiser's low band from passes at half and quarter resolution (auto: by "
-                             "image size)")
-    parser.add_argument("--chroma", choices=["on", "off"], default="on",
-                        help="our denoised colour balance held to the samples' block means")
-    parser.add_argument("--post-filter", choices=["on", "off"], default="on",
-                        help="our denoised frame smoothed by the edge-aware à-trous filter")
+    add_denoiser_step_flags(parser, "image")
     args = parser.parse_args()
 
     models = Path(args.models)

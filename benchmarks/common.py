@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from wgpu_rt import metrics
-from wgpu_rt.commands._denoiser_flags import denoiser_options  # noqa: F401 (the benchmarks' import)
+from wgpu_rt.commands._denoiser_flags import add_denoiser_step_flags, denoiser_options  # noqa: F401 (the benchmarks')
 
 REPO = Path(__file__).resolve().parents[1]
 BUNNY = REPO.parent / "shared" / "meshes" / "stanford-bunny.obj"
@@ -50,13 +50,7 @@ def add_model_arguments(parser) -> None:
                         help="export untrained seed networks into a temp folder and use those (checks the "
                              "script's mechanics before trained models exist)")
     parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32", help="network precision")
-    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
-                        help="our denoiser's low band from passes at half and quarter resolution "
-                             "(wgpu_rt/frame/lowband.py; auto: the renderer's choice by frame size)")
-    parser.add_argument("--chroma", choices=["on", "off"], default="on",
-                        help="our denoised colour balance held to the samples' block means (wgpu_rt/frame/chroma.py)")
-    parser.add_argument("--post-filter", choices=["on", "off"], default="on",
-                        help="our denoised frame smoothed by the edge-aware à-trous filter (wgpu_rt/frame/atrous.py)")
+    add_denoiser_step_flags(parser)
 
 
 def parse_with_quick_defaults(parser, quick: dict):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..errors import WgpuRtError
+from ..frame.lowband import LOW_BAND_SETTINGS
 
 SWITCHES = {"on": True, "off": False}
 
@@ -14,7 +15,12 @@ def add_denoiser_flags(parser, image: str) -> None:
     parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
                         help=f"denoiser quality; high: average the {image} denoised as given and turned three "
                              "ways (4 network passes, ≈ 0.3 dB cleaner)")
-    parser.add_argument("--low-band", choices=["auto", "on", "off"], default="auto",
+    add_denoiser_step_flags(parser, image)
+
+
+def add_denoiser_step_flags(parser, image: str = "frame") -> None:
+    """--low-band, --chroma and --post-filter: the steps around the network (also the benchmarks')."""
+    parser.add_argument("--low-band", choices=list(LOW_BAND_SETTINGS), default="auto",
                         help="the denoiser's band below quarter resolution from passes at half (and, from "
                              "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
                              f"{image}s for 1.25–1.31× the network's work (auto: on for {image}s at least 256 "
@@ -29,8 +35,6 @@ def add_denoiser_flags(parser, image: str) -> None:
 
 def denoiser_options(args) -> dict:
     """The renderer's / ``denoise()``'s options from the flags (quality and precision left to the caller)."""
-    from ..frame.lowband import LOW_BAND_SETTINGS
-
     return {"low_band": LOW_BAND_SETTINGS[args.low_band], "chroma": SWITCHES[args.chroma],
             "post_filter": SWITCHES[args.post_filter]}
 
