@@ -98,8 +98,9 @@ class ChromaPass(ComputePass):
         count = self.blocks[0] * self.blocks[1]
         self.statistics = ctx.storage(4 * 9 * count, label="chroma block statistics")
         self.ratios = ctx.storage(4 * 3 * count, label="chroma ratios")
-        constants = {"SHARE_EPSILON": SHARE_EPSILON, "RATIO_LIMIT": RATIO_LIMIT,
-                     "STATISTICS_LIMIT": STATISTICS_LIMIT, "TAP_SIGMA": SIGMA_BLOCKS}
+        taps = gaussian_taps()[RADIUS_BLOCKS:]   # offsets 0 … RADIUS_BLOCKS (the kernel's TAP_k)
+        constants = {"SHARE_EPSILON": SHARE_EPSILON, "RATIO_LIMIT": RATIO_LIMIT, "STATISTICS_LIMIT": STATISTICS_LIMIT,
+                     **{f"TAP_{k}": float(tap) for k, tap in enumerate(taps)}}
         names = ("color", "denoised", "statistics", "ratios")
         self.kernels = [FrameKernel(ctx, "frame/chroma.wgsl", entry, uses, width, height, constants)
                         for entry, uses in (("chroma_statistics", names[:3]), ("chroma_ratios", names[2:]),

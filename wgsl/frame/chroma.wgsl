@@ -15,7 +15,10 @@
 override SHARE_EPSILON: f32;      // radiance added to each channel's mean before taking shares
 override RATIO_LIMIT: f32;
 override STATISTICS_LIMIT: f32;   // radiance clamped to this for the statistics (squares stay finite)
-override TAP_SIGMA: f32;          // the Gaussian's σ, in blocks
+override TAP_0: f32;              // the normalised Gaussian's weights at offsets 0 … RADIUS blocks
+override TAP_1: f32;              // (chroma.gaussian_taps)
+override TAP_2: f32;
+override TAP_3: f32;
 const RADIUS: i32 = 3;            // chroma.RADIUS_BLOCKS
 
 @group(0) @binding(0) var<storage, read> color: array<f32>;              // N, 3 planes
@@ -67,8 +70,8 @@ fn chroma_statistics(@builtin(global_invocation_id) id: vec3u) {
 }
 
 fn tap(offset: i32) -> f32 {
-    let d = f32(offset);
-    return exp(-d * d / (2.0 * TAP_SIGMA * TAP_SIGMA));
+    let d = abs(offset);
+    return select(select(select(TAP_3, TAP_2, d == 2), TAP_1, d == 1), TAP_0, d == 0);
 }
 
 @compute @workgroup_size(8, 8)
@@ -76,8 +79,6 @@ fn chroma_ratios(@builtin(global_invocation_id) id: vec3u) {
     let blocks = block_count();
     if (id.x >= blocks.x || id.y >= blocks.y) { return; }
     let m = blocks.x * blocks.y;
-    var total = 0.0;
-    for (var d = -RADIUS; d <= RADIUS; d++) { total += tap(d); }
     var low_f = vec3f(0.0);
     var low_n = vec3f(0.0);
     var variance = vec3f(0.0);
@@ -85,7 +86,7 @@ fn chroma_ratios(@builtin(global_invocation_id) id: vec3u) {
         let y = u32(clamp(i32(id.y) + dy, 0, i32(blocks.y) - 1));
         for (var dx = -RADIUS; dx <= RADIUS; dx++) {
             let x = u32(clamp(i32(id.x) + dx, 0, i32(blocks.x) - 1));
-            let w = tap(dx) * tap(dy) / (total * total);
+            let w = tap(dx) * tap(dy);
             let q = y * blocks.x + x;
             for (var c = 0u; c < 3u; c++) {
                 low_f[c] += w * statistics[c * m + q];
