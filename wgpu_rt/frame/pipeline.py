@@ -256,19 +256,8 @@ class FramePipeline:
             stages.append(self.extra_samples)
         if self.denoiser is not None:
             stages += [self.pack, Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack]
-        if self.low_band is not None:
-            stages.append(self.low_band)
-        if self.chroma is not None:
-            stages.append(self.chroma)
-        if self.post_filter is not None:
-            stages.append(self.post_filter)
-        if self.converge is not None:
-            stages.append(self.converge)
-        if self.temporal is not None:
-            stages.append(self.temporal)
-        if self.tonemap is not None:
-            stages.append(self.tonemap)
-        return stages
+        optional = (self.low_band, self.chroma, self.post_filter, self.converge, self.temporal, self.tonemap)
+        return stages + [stage for stage in optional if stage is not None]
 
     def _aux_albedo(self, encoder, trace, converging: bool) -> None:
         """The noise-free albedo plane. A converging static view (temporal mode) keeps its first frame's
