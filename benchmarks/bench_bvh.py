@@ -1,7 +1,8 @@
 """BVH build time and size for 10k / 100k / 1M triangles and the Stanford bunny, plus GPU traversal
 throughput (closest-hit rays per second through wgsl/accel/ray_query.wgsl) with each traversal module:
 `lanes` (every invocation walks alone) and `packet` (a subgroup walks together, on CPU adapters with
-subgroups). The rays start at random points all around the mesh, so neighbouring invocations share
+subgroups), both over the threaded binary layout, and `wide` (every invocation walks the 4-wide layout
+with a stack: wgsl/accel/walk_wide.wgsl). The rays start at random points all around the mesh, so neighbouring invocations share
 nothing: the worst case for packets, which the path tracer's neighbouring pixels are not.
 
 Peer: Mitsuba 3 (scalar_rgb) loading a scene that holds the same triangles, which includes building
@@ -20,7 +21,9 @@ import numpy as np
 from wgpu_rt.accel.bvh import build_bvh
 from wgpu_rt.accel.geometry import LANES_TRAVERSAL, SUBGROUP_TRAVERSAL
 
-MODULES = (LANES_TRAVERSAL, SUBGROUP_TRAVERSAL)
+# Columns: name, traversal module, BVH layout.
+WALKS = (("lanes", LANES_TRAVERSAL, "threaded"), ("packet", SUBGROUP_TRAVERSAL, "threaded"),
+         ("wide", LANES_TRAVERSAL, "wide"))
 
 BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
 
@@ -58,9 +61,11 @@ def mitsuba_load_seconds(triangles: np.ndarray) -> float | None:
     return seconds
 
 
-def traversal_rate(triangles: np.ndarray, traversal: str, rays: int = 512 * 512) -> float | None:
+def traversal_rate(triangles: np.ndarray, traversal: str, layout: str = "threaded",
+                   rays: int = 512 * 512) -> float | None:
     """Closest-hit rays per second on the GPU for rays from random outside points toward the mesh,
-    walked with the traversal module ``traversal`` (None when the adapter cannot run it)."""
+    walked with the traversal module ``traversal`` over the BVH ``layout`` (None when the adapter cannot
+    run it)."""
     from wgpu_rt.errors import NoAdapterError
     from wgpu_rt.gpu import get_context
     from wgpu_rt.accel.geometry import GeometryBuffers, traversal_module
@@ -76,7 +81,7 @@ def traversal_rate(triangles: np.ndarray, traversal: str, rays: int = 512 * 512)
     faces = np.arange(3 * len(triangles), dtype=np.uint32).reshape(-1, 3)
     scene = Scene(Camera([0, 0, 3], [0, 0, 0]), [Mesh("m", triangles.reshape(-1, 3), faces, "grey")],
                   {"grey": Material()})
-    query = RayQuery(ctx, GeometryBuffers.build(scene), traversal=traversal)
+    query = RayQuery(ctx, GeometryBuffers.build(scene, layout=layout), traversal=traversal)
     points = triangles.reshape(-1, 3)
     center, radius = points.mean(axis=0), np.ptp(points, axis=0).max()
     rng = np.random.default_rng(1)
@@ -107,18 +112,17 @@ def main() -> None:
 
         bunny = trimesh.load(BUNNY, force="mesh", process=False)
         cases.append(("stanford bunny", np.asarray(bunny.vertices, np.float32)[bunny.faces]))
-    header = (f"{'mesh':>18} {'triangles':>10} {'build s':>8} {'nodes':>9} {'depth':>5} {'mean leaf':>9} "
-              f"{'lanes Mrays/s':>13} {'packet Mrays/s':>14} {'mitsuba s':>9} {'mitsuba/ours':>12}")
+    header = (f"{'mesh':>18} {'triangles':>10} {'build s':>8} {'nodes':>9} {'depth':>5} {'mean leaf':>9}"
+              + "".join(f" {name + ' Mrays/s':>14}" for name, _, _ in WALKS) + f" {'mitsuba s':>9} {'mitsuba/ours':>12}")
     print(header)
     for name, triangles in cases:
         seconds, bvh = best_of(2, lambda: build_bvh(triangles))
         traverse = not args.no_traversal and len(triangles) <= 200_000
-        lanes, packet = (traversal_rate(triangles, module) if traverse else None for module in MODULES)
+        rates = [traversal_rate(triangles, module, layout) if traverse else None for _, module, layout in WALKS]
         peer = mitsuba_load_seconds(triangles)
         print(f"{name:>18} {len(triangles):>10,} {seconds:>8.3f} {bvh.node_count:>9,} {bvh.depth():>5} "
-              f"{bvh.leaf_sizes.mean():>9.2f} {'-' if lanes is None else f'{lanes / 1e6:.2f}':>13} "
-              f"{'-' if packet is None else f'{packet / 1e6:.2f}':>14} "
-              f"{'-' if peer is None else f'{peer:.3f}':>9} {'-' if peer is None else f'{peer / seconds:.2f}×':>12}",
+              f"{bvh.leaf_sizes.mean():>9.2f}" + "".join(f" {'-' if r is None else f'{r / 1e6:.2f}':>14}" for r in rates)
+              + f" {'-' if peer is None else f'{peer:.3f}':>9} {'-' if peer is None else f'{peer / seconds:.2f}×':>12}",
               flush=True)
 
 

@@ -2,17 +2,21 @@
 fastest variant here (cuda_ad_rgb with a CUDA GPU, else llvm_ad_rgb when LLVM 19 is installed, else
 scalar_rgb: benchmarks/peers.py) measured in the same run, and their ratio; a faster variant that is
 absent prints one "skipped (why)" line. Compile time is excluded on both sides (one warm-up render
-each). ``--scene bunny`` is the `mesh` scene with ../shared/meshes' Stanford bunny.
+each). ``--scene bunny`` is the `mesh` scene with ../shared/meshes' Stanford bunny. ``--layouts``
+traces with each BVH node layout in turn (wgpu_rt.accel.geometry.BVH_LAYOUTS; default: the one
+WGPU_RT_BVH selects, else threaded).
 
-    python3 benchmarks/bench_trace.py [--spp 64] [--size 256] [--scene cornell]
+    python3 benchmarks/bench_trace.py [--spp 64] [--size 256] [--scene cornell] [--layouts threaded wide]
 """
 
 import argparse
+import os
 import sys
 
 from common import load_scenes, print_header
 from peers import mitsuba_peer, time_mitsuba
 
+from wgpu_rt.accel.geometry import BVH_LAYOUT_ENV, BVH_LAYOUTS, bvh_layout
 from wgpu_rt.renderer import render
 
 
@@ -22,6 +26,7 @@ def main() -> int:
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--scene", default="cornell")
     parser.add_argument("--max-depth", type=int, default=8)
+    parser.add_argument("--layouts", nargs="+", choices=list(BVH_LAYOUTS), default=None)
     args = parser.parse_args()
     print_header(args)
     size, samples = (args.size, args.size), args.spp * args.size * args.size
@@ -30,20 +35,23 @@ def main() -> int:
         return 1
     scene = scenes[0]
 
-    render(scene, spp=1, size=size, max_depth=args.max_depth, aovs=())
-    ours = render(scene, spp=args.spp, size=size, max_depth=args.max_depth, aovs=())
-    ours_rate = samples / ours.seconds
+    rates = {}
+    for layout in args.layouts or [bvh_layout()]:
+        os.environ[BVH_LAYOUT_ENV] = layout
+        render(scene, spp=1, size=size, max_depth=args.max_depth, aovs=())
+        ours = render(scene, spp=args.spp, size=size, max_depth=args.max_depth, aovs=())
+        rates[layout] = samples / ours.seconds
 
     mi, skipped = mitsuba_peer()
     for line in skipped:
         print(line)
-    line = (f"{args.scene} {size[0]}x{size[1]} {args.spp} spp max depth {args.max_depth}: "
-            f"wgpu-rt {ours_rate / 1e6:.3f} M samples/s")
+    line = (f"{args.scene} {size[0]}x{size[1]} {args.spp} spp max depth {args.max_depth}: wgpu-rt "
+            + ", ".join(f"{rate / 1e6:.3f} M samples/s ({layout} BVH)" for layout, rate in rates.items()))
     if mi is not None:
         _, seconds = time_mitsuba(mi, scene, size, args.spp, args.max_depth)
         mi_rate = samples / seconds
-        line += (f", Mitsuba {mi.variant()} {mi_rate / 1e6:.3f} M samples/s, "
-                 f"ratio {ours_rate / mi_rate:.3f}")
+        line += (f", Mitsuba {mi.variant()} {mi_rate / 1e6:.3f} M samples/s, ratio "
+                 + ", ".join(f"{rate / mi_rate:.3f} ({layout})" for layout, rate in rates.items()))
     print(line)
     return 0
 

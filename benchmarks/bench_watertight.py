@@ -1,7 +1,7 @@
 """What the watertight intersection costs: samples/s of the shipped box and triangle tests against the
 forms they replaced (issue 13 item 6), same scenes, same run.
 
-The shipped tests (wgsl/accel/bvh.wgsl): box slabs as (plane − origin) · (1/dir), ray-space x and y as
+The shipped tests (wgsl/accel/walk_tree.wgsl): box slabs as (plane − origin) · (1/dir), ray-space x and y as
 explicit fma chains, and an edge function that is exactly antisymmetric under any contraction. The
 pre-fix forms: slabs as one fma per plane (plane · (1/dir) − origin · (1/dir), which cancels when the
 origin is far from the box), ray-space coordinates as dot products and the edge function as
@@ -19,7 +19,7 @@ from common import load_scenes, print_header
 from wgpu_rt import shaders
 from wgpu_rt.renderer import render
 
-BVH_MODULE = "accel/bvh.wgsl"
+BVH_MODULE = "accel/walk_tree.wgsl"
 SHIPPED = {
     "slab": ("    let t0 = (lo - ray.origin) * ray.inv_dir;\n"
              "    let t1 = (hi - ray.origin) * ray.inv_dir;"),
@@ -39,7 +39,7 @@ VARIANTS = {"shipped": (), "pre-fix triangle": ("ray space", "edge"), "pre-fix s
 
 
 def reader_with(swapped: tuple[str, ...]):
-    """shaders.read_wgsl with the pre-fix forms of ``swapped`` in accel/bvh.wgsl."""
+    """shaders.read_wgsl with the pre-fix forms of ``swapped`` in accel/walk_tree.wgsl."""
     read = shaders.read_wgsl
 
     def read_swapped(name: str, package=shaders.PATH_TRACING) -> str:

@@ -18,7 +18,8 @@
 #
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p in
 # both precisions and with naga's bounds checks, engine steps against torch cuDNN and OIDN CUDA), trace
-# (samples/s against Mitsuba cuda_ad_rgb; cornell also with bounds checks; what the watertight tests
+# (samples/s against Mitsuba cuda_ad_rgb with the threaded and the wide BVH; closest-hit rays/s of each
+# walk on 100k random triangles and the bunny; cornell also with bounds checks; what the watertight tests
 # cost), frame (fused frame, adaptive targeted pass, moving vs static: the `moving` scene and the
 # bunny), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
 # ours "balanced"/"high" against OIDN balanced/high over 3 noise realizations, brute force up to 256
@@ -92,10 +93,12 @@ for what in "$@"; do
         part profile_fp16_canvas wgpu-rt profile models/denoiser.onnx --size ${W}x$(( (H + 15) / 16 * 16 )) --precision fp16
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged fp16 autotuned --repeats 5 ;;
     trace)
-        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP
+        # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
+        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide
+        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP --layouts threaded wide
+        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp $TRACE_SPP --layouts threaded wide
+        part bvh_rays python3 benchmarks/bench_bvh.py --sizes 100000
         part trace_cornell_checked env WGPU_RT_BOUNDS_CHECKS=1 python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP
-        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp $TRACE_SPP
-        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP
         part watertight python3 benchmarks/bench_watertight.py --size $SQUARE --spp $TRACE_SPP ;;
     frame)
         part pipeline python3 benchmarks/bench_pipeline.py --scene cornell --size ${W}x${H} --frames 32 --temporal

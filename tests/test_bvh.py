@@ -20,9 +20,14 @@ from wgpu_rt.accel.bvh import (
     LEAF_COUNT_BITS,
     MAX_DEPTH,
     MAX_LEAF_SIZE,
+    WIDE_EMPTY,
+    WIDE_LEAF,
+    WIDE_STACK_SIZE,
+    WIDTH,
     build_box_bvh,
     build_bvh,
     threaded_nodes,
+    wide_nodes,
     zero_area,
 )
 from wgpu_rt.accel.geometry import GeometryBuffers, compose_with_traversal
@@ -32,6 +37,7 @@ from wgpu_rt.shaders import compose, read_wgsl
 
 BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
 EDGE_MARGIN = 1e-4
+LAYOUTS = ("threaded", "wide")   # GeometryBuffers' node layouts, each with its walk
 
 
 def brute_force(triangles, origins, dirs, t_max=np.inf):
@@ -121,14 +127,16 @@ def compiled_as(code: str, contraction: str, edge_function: str | None = None) -
 def ray_query(gpu, geometry, contraction: str = "driver", edge_function: str | None = None) -> RayQuery:
     query = RayQuery(gpu, geometry)
     if contraction != "driver" or edge_function is not None:
-        code = compiled_as(compose_with_traversal(gpu, "accel/ray_query.wgsl"), contraction, edge_function)
+        code = compiled_as(compose_with_traversal(gpu, "accel/ray_query.wgsl", replacements=geometry.kernel_modules),
+                           contraction, edge_function)
         query.pipelines = {entry: gpu.compute_pipeline(code, entry, label=f"ray_query.{entry} ({contraction})")
                            for entry in query.pipelines}
     return query
 
 
-def check_against_brute_force(gpu, triangles, origins, dirs, t_max=np.inf, min_clear=0.9, contraction="driver"):
-    geometry = GeometryBuffers.build(triangle_scene(triangles))
+def check_against_brute_force(gpu, triangles, origins, dirs, t_max=np.inf, min_clear=0.9, contraction="driver",
+                              layout="threaded"):
+    geometry = GeometryBuffers.build(triangle_scene(triangles), layout=layout)
     query = ray_query(gpu, geometry, contraction)
     rays = query_rays(origins, dirs, t_max)
     hits, _ = query.intersect(rays)
@@ -287,6 +295,47 @@ def test_threaded_layout_matches_traversal():
     assert np.all(owned_count[~interior] >= 1), "lifting never empties a leaf"
 
 
+@pytest.mark.parametrize("count", [1, 5, 700])
+def test_wide_layout_collapses_the_binary_tree(count):
+    """wide_nodes keeps the binary tree's leaves (each referenced once, with its box) and opens its
+    interior nodes into wide nodes of 2 to 4 children, each reached once from a parent whose box for
+    it holds its children's; the walk's stack (wgsl/accel/walk_wide.wgsl) is sized as WIDE_STACK_SIZE."""
+    walk = read_wgsl("accel/walk_wide.wgsl")
+    assert int(re.search(r"const WIDE_STACK_SIZE: u32 = (\d+)u;", walk).group(1)) == WIDE_STACK_SIZE
+    assert int(re.search(r"const WIDE_NODE_WORDS: u32 = (\d+)u;", walk).group(1)) * 4 == wide_nodes(
+        build_bvh(np.eye(3, dtype=np.float32)[None])).itemsize
+    rng = np.random.default_rng(12)
+    triangles = rng.uniform(-1, 1, (count, 3, 3)).astype(np.float32)
+    bvh = build_bvh(triangles)
+    wide = wide_nodes(bvh)
+    binary_leaves = {(int(n["first"]), int(n["count"])): (n["lo"], n["hi"]) for n in bvh.nodes if n["count"] > 0}
+    seen_leaves, parents, levels = [], {0: None}, {0: 1}
+    for index, node in enumerate(wide):
+        children = node["children"]
+        used = children != WIDE_EMPTY
+        assert used.sum() >= min(2, len(binary_leaves)) and np.all(used[:used.sum()]), "children fill slots first"
+        assert np.all(np.isinf(node["lo"][:, ~used])) and np.all(np.isinf(node["hi"][:, ~used]))
+        for slot in np.flatnonzero(used):
+            ref = int(children[slot])
+            lo, hi = node["lo"][:, slot], node["hi"][:, slot]
+            if ref & WIDE_LEAF:
+                leaf = ((ref & ~WIDE_LEAF) >> LEAF_COUNT_BITS, ref & ((1 << LEAF_COUNT_BITS) - 1))
+                seen_leaves.append(leaf)
+                np.testing.assert_array_equal(binary_leaves[leaf][0], lo)
+                np.testing.assert_array_equal(binary_leaves[leaf][1], hi)
+            else:
+                assert ref > index and ref not in parents, "every wide node reached once, from above"
+                parents[ref], levels[ref] = (index, slot), levels[index] + 1
+                child = wide[ref]
+                used_below = child["children"] != WIDE_EMPTY
+                assert np.all(child["lo"][:, used_below] >= lo[:, None]) and np.all(child["hi"][:, used_below] <= hi[:, None])
+    assert sorted(seen_leaves) == sorted(binary_leaves), "the binary tree's leaves, each once"
+    assert sorted(parents) == list(range(len(wide)))
+    assert max(levels.values()) * (WIDTH - 1) <= WIDE_STACK_SIZE
+    interior = int(np.sum(bvh.nodes["count"] == 0))
+    assert len(wide) <= max(1, interior // 2 + 1)
+
+
 def test_depth_limit_is_enforced(monkeypatch):
     monkeypatch.setattr(bvh_module, "MAX_DEPTH", 4)
     rng = np.random.default_rng(2)
@@ -301,9 +350,10 @@ def test_zero_triangles_rejected():
 
 
 # -- traversal against brute force ------------------------------------------------------------------
+@pytest.mark.parametrize("layout", LAYOUTS)
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**31 - 1), triangle_count=st.integers(1, 300), spread=st.floats(0.05, 1.0))
-def test_random_soup_matches_brute_force(gpu, seed, triangle_count, spread):
+def test_random_soup_matches_brute_force(gpu, layout, seed, triangle_count, spread):
     rng = np.random.default_rng(seed)
     centers = rng.uniform(-1, 1, (triangle_count, 1, 3))
     triangles = centers + rng.normal(0, spread, (triangle_count, 3, 3))
@@ -311,7 +361,7 @@ def test_random_soup_matches_brute_force(gpu, seed, triangle_count, spread):
     targets = rng.uniform(-1, 1, (256, 3))
     dirs = targets - origins
     t_max = rng.choice([np.inf, 0.5, 1.0])
-    check_against_brute_force(gpu, triangles, origins, dirs, t_max, min_clear=0.8)
+    check_against_brute_force(gpu, triangles, origins, dirs, t_max, min_clear=0.8, layout=layout)
 
 
 def _grid(n=8, z=0.0):
@@ -346,12 +396,13 @@ def grid_edge_rays():
     return np.concatenate([origins, random_origins]), np.concatenate([targets, random_targets])
 
 
+@pytest.mark.parametrize("layout", LAYOUTS)
 @pytest.mark.parametrize("contraction", CONTRACTIONS)
-def test_watertight_at_shared_edges_and_vertices(gpu, contraction):
+def test_watertight_at_shared_edges_and_vertices(gpu, contraction, layout):
     """Rays aimed exactly at shared vertices and edges of a grid, from random directions, must not
     slip through, whether or not the driver fuses multiply-adds."""
     origins, targets = grid_edge_rays()
-    geometry = GeometryBuffers.build(triangle_scene(_grid()))
+    geometry = GeometryBuffers.build(triangle_scene(_grid()), layout=layout)
     hits, _ = ray_query(gpu, geometry, contraction).intersect(query_rays(origins, targets - origins))
     assert np.all(hits["prim"] != NO_HIT), f"{np.sum(hits['prim'] == NO_HIT)} rays leaked through the grid"
     np.testing.assert_allclose(hits["t"], 1.0, rtol=1e-5)
@@ -397,14 +448,19 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
     if (id.x >= arrayLength(&entered)) { return; }
     let k = 4u * id.x;
     let ray = traversal_ray(cases[k].xyz, cases[k + 1u].xyz);
-    entered[id.x] = u32(box_hit(cases[k + 2u].xyz, cases[k + 3u].xyz, ray, 3.0e38));
+    let lo = cases[k + 2u].xyz;
+    let hi = cases[k + 3u].xyz;
+    // the box in all four columns of a wide node (accel/walk_wide.wgsl)
+    let wide = wide_entries(vec4f(lo.x), vec4f(lo.y), vec4f(lo.z), vec4f(hi.x), vec4f(hi.y), vec4f(hi.z), ray, 3.0e38);
+    entered[id.x] = u32(box_hit(lo, hi, ray, 3.0e38)) | (u32(all(wide < vec4f(WIDE_MISS))) << 1u);
 }
 """
 
 
 def test_box_test_enters_boxes_touched_at_an_edge(gpu):
-    """box_hit enters every box that the ray meets (in exact arithmetic), here rays aimed at points on
-    box edges from near and far. (With t = plane · (1/dir) − origin · (1/dir), 3 % of them missed.)"""
+    """box_hit, and the wide walk's four-box form of it, enter every box that the ray meets (in exact
+    arithmetic), here rays aimed at points on box edges from near and far. (With t = plane · (1/dir) −
+    origin · (1/dir), 3 % of them missed.)"""
     rng = np.random.default_rng(15)
     count = 8192
     lo = rng.uniform(-8, 8, (count, 3)).astype(np.float32)
@@ -415,13 +471,14 @@ def test_box_test_enters_boxes_touched_at_an_edge(gpu):
     origins = (targets + rng.normal(0, 1, (count, 3)) * rng.choice([0.1, 1.0, 10.0], (count, 1))).astype(np.float32)
     dirs = (targets - origins).astype(np.float32)
     cases = np.stack([origins, dirs, lo, hi], axis=1)
-    entered = run_kernel(gpu, compose("accel/bvh.wgsl") + BOX_KERNEL,
+    entered = run_kernel(gpu, compose("accel/walk_wide.wgsl") + BOX_KERNEL,
                          np.concatenate([cases, np.zeros((count, 4, 1), np.float32)], axis=2), np.uint32, (count,))
     o, d = origins.astype(np.float64), dirs.astype(np.float64)
     t0, t1 = (lo - o) / d, (hi - o) / d
     meets = np.max(np.maximum(np.minimum(t0, t1), 0), axis=1) <= np.min(np.maximum(t0, t1), axis=1)
     assert meets.mean() > 0.5
-    assert np.all(entered[meets] == 1), f"{np.sum(entered[meets] == 0)} boxes missed"
+    assert np.all(entered[meets] == 3), f"{np.sum(entered[meets] != 3)} boxes missed"
+    assert np.all((entered[~meets] & 1) == entered[~meets] >> 1), "the two forms differ"
 
 
 EDGE_KERNEL = """
@@ -439,7 +496,7 @@ fn main(@builtin(global_invocation_id) id: vec3u) {
 
 @pytest.mark.parametrize("contraction", CONTRACTIONS)
 def test_edge_function_is_antisymmetric(gpu, contraction):
-    """accel/bvh.wgsl's edge_function(q, p) is exactly -edge_function(p, q), and 0 when p == q, for
+    """accel/walk_tree.wgsl's edge_function(q, p) is exactly -edge_function(p, q), and 0 when p == q, for
     edges that pass within rounding of the ray (the origin), fused or not; the fused emulation is exact
     there, and fusing the naive form a*b - c*d does break both properties."""
     rng = np.random.default_rng(13)
@@ -460,7 +517,8 @@ def test_edge_function_is_antisymmetric(gpu, contraction):
         assert np.sum(naive_backward != -naive_forward) > 100 and np.all(naive_forward[:256] != 0)
 
 
-def test_axis_aligned_rays(gpu):
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_axis_aligned_rays(gpu, layout):
     """Rays along ±x, ±y, ±z (zero direction components) through a closed cube and random triangles."""
     rng = np.random.default_rng(4)
     cube = trimesh.creation.box(extents=(1, 1, 1))
@@ -468,7 +526,7 @@ def test_axis_aligned_rays(gpu):
     axes = np.concatenate([np.eye(3), -np.eye(3)])
     dirs = axes[rng.integers(0, 6, 600)]
     origins = rng.uniform(-2, 2, (600, 3))
-    hits, _ = check_against_brute_force(gpu, triangles, origins, dirs)
+    hits, _ = check_against_brute_force(gpu, triangles, origins, dirs, layout=layout)
     # Rays starting inside the cube must always hit it (it is closed).
     inside = np.all(np.abs(origins) < 0.49, axis=1)
     assert np.all(hits["prim"][inside] != NO_HIT)
@@ -490,8 +548,9 @@ def test_grazing_rays(gpu):
     check_against_brute_force(gpu, triangles, origins, dirs)
 
 
+@pytest.mark.parametrize("layout", LAYOUTS)
 @pytest.mark.parametrize("contraction", CONTRACTIONS)
-def test_degenerate_triangles_never_hit(gpu, contraction):
+def test_degenerate_triangles_never_hit(gpu, contraction, layout):
     """Near-degenerate slivers, repeated vertices and exactly collinear ones (each aimed at by a ray
     through its line: before the fix, rounding into ray space gave 7 % of such rays a hit)."""
     rng = np.random.default_rng(6)
@@ -503,17 +562,18 @@ def test_degenerate_triangles_never_hit(gpu, contraction):
     origins = rng.uniform(-2, 2, (1024, 3))
     targets = np.concatenate([rng.uniform(-1, 1, (512, 3)), on_lines[rng.integers(0, 100, 512)]])
     hits, geometry = check_against_brute_force(gpu, triangles, origins, targets - origins, min_clear=0.85,
-                                               contraction=contraction)
+                                               contraction=contraction, layout=layout)
     hit_prims = hits["prim"][hits["prim"] != NO_HIT]
     area = np.linalg.norm(np.cross(geometry.triangles[:, 1] - geometry.triangles[:, 0],
                                    geometry.triangles[:, 2] - geometry.triangles[:, 0]), axis=1)
     assert len(hit_prims) > 50 and np.all(area[hit_prims] > 1e-6)
 
 
-def test_scene_of_only_zero_area_triangles_hits_nothing(gpu):
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_scene_of_only_zero_area_triangles_hits_nothing(gpu, layout):
     rng = np.random.default_rng(14)
     collinear, on_lines = collinear_triangles(rng, 50)
-    geometry = GeometryBuffers.build(triangle_scene(collinear))
+    geometry = GeometryBuffers.build(triangle_scene(collinear), layout=layout)
     origins = rng.uniform(-2, 2, (256, 3))
     rays = query_rays(origins, on_lines[rng.integers(0, 50, 256)] - origins)
     query = RayQuery(gpu, geometry)
@@ -521,7 +581,8 @@ def test_scene_of_only_zero_area_triangles_hits_nothing(gpu):
     assert np.all(hits["prim"] == NO_HIT) and not np.any(query.occluded(rays))
 
 
-def test_rays_leaving_surfaces(gpu):
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_rays_leaving_surfaces(gpu, layout):
     """Rays spawned on surfaces through offset_ray_origin (accel/bvh.wgsl) hit what brute force from the
     offset origin hits, never their own triangle at t ≈ 0."""
     sphere = trimesh.creation.icosphere(subdivisions=2)
@@ -535,7 +596,7 @@ def test_rays_leaving_surfaces(gpu):
     dirs = rng.normal(size=(500, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     dirs[np.abs(np.sum(dirs * normals, axis=1)) < 0.05] = normals[np.abs(np.sum(dirs * normals, axis=1)) < 0.05]
-    geometry = GeometryBuffers.build(triangle_scene(triangles))
+    geometry = GeometryBuffers.build(triangle_scene(triangles), layout=layout)
     hits, _ = RayQuery(gpu, geometry).intersect(query_rays(points, dirs, offset_normals=normals))
     side = np.where(np.sum(normals * dirs, axis=1, keepdims=True) >= 0, normals, -normals)
     offset = side * 1e-5 * np.maximum(np.abs(points).max(axis=1, keepdims=True), 1.0)   # accel/bvh.wgsl's rule
@@ -549,7 +610,8 @@ def test_rays_leaving_surfaces(gpu):
     np.testing.assert_allclose(hits["t"][both], t_ref[both], rtol=1e-4, atol=1e-5)
 
 
-def test_surface_attributes_at_hits(gpu):
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_surface_attributes_at_hits(gpu, layout):
     """Material/object ids, interpolated shading normals and object motion reported at GPU hits."""
     sphere = trimesh.creation.icosphere(subdivisions=2)
     smooth = Mesh("ball", np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32), "metal",
@@ -560,7 +622,7 @@ def test_surface_attributes_at_hits(gpu):
     flat.transform = flat.keyframes[1]
     scene = Scene(Camera([0, 0, 5], [0, 0, 0]), [smooth, flat],
                   {"chalk": Material(), "metal": Material("conductor", roughness=0.1)}, frame_count=2)
-    geometry = GeometryBuffers.build(scene, frame=1)
+    geometry = GeometryBuffers.build(scene, frame=1, layout=layout)
     rng = np.random.default_rng(8)
     targets = np.concatenate([rng.normal(0, 0.3, (100, 3)), rng.normal(0, 0.3, (100, 3)) + [3, 0, 0]])
     origins = targets + [0, 0, 5]
@@ -581,7 +643,8 @@ def test_surface_attributes_at_hits(gpu):
     np.testing.assert_allclose(surfaces["previous_position"][hit], previous, atol=1e-4)
 
 
-def test_bunny_traversal(gpu):
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_bunny_traversal(gpu, layout):
     if not BUNNY.exists():
         pytest.skip(f"{BUNNY} not present")
     mesh = trimesh.load(BUNNY, force="mesh", process=False)
@@ -591,4 +654,4 @@ def test_bunny_traversal(gpu):
     center, size = triangles.reshape(-1, 3).mean(0), np.ptp(triangles.reshape(-1, 3), 0).max()
     origins = center + rng.normal(0, size, (64, 3))
     dirs = center + rng.normal(0, size * 0.2, (64, 3)) - origins
-    check_against_brute_force(gpu, triangles, origins, dirs, min_clear=0.85)
+    check_against_brute_force(gpu, triangles, origins, dirs, min_clear=0.85, layout=layout)

@@ -1,12 +1,14 @@
-"""The two BVH traversal modules (wgsl/accel/traversal_lanes.wgsl: every invocation walks alone;
-wgsl/accel/traversal_subgroup.wgsl: a subgroup walks as one packet with shared fetches) against brute force
-and against each other, and the tracer's loop budget (wgsl/trace/trace.wgsl, LOOP_BUDGET) on paths long
+"""The BVH walks (wgsl/accel/traversal_lanes.wgsl: every invocation walks the threaded tree alone;
+wgsl/accel/traversal_subgroup.wgsl: a subgroup walks it as one packet with shared fetches;
+wgsl/accel/walk_wide.wgsl: every invocation walks the 4-wide tree with a stack) against brute force and
+against each other, and the tracer's loop budget (wgsl/trace/trace.wgsl, LOOP_BUDGET) on paths long
 enough to hit lavapipe's limit on loop passes per dispatch."""
 
 import numpy as np
 import pytest
 from test_bvh import brute_force, triangle_scene
 
+from wgpu_rt.accel.bvh import wide_nodes as bvh_wide_nodes
 from wgpu_rt.passes import FrameBuffers
 from wgpu_rt.scene import Camera, Material, Mesh, Scene, load_scene
 from wgpu_rt.accel.geometry import (LANES_TRAVERSAL, SUBGROUP_TRAVERSAL, GeometryBuffers, traversal_module)
@@ -15,6 +17,7 @@ from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
 from wgpu_rt.trace import SampleSchedule, SceneFeatures, TracePass
 
 MODULES = [LANES_TRAVERSAL, SUBGROUP_TRAVERSAL]
+WALKS = [(LANES_TRAVERSAL, "threaded"), (SUBGROUP_TRAVERSAL, "threaded"), (LANES_TRAVERSAL, "wide")]
 SIZE = (24, 16)
 
 
@@ -23,8 +26,8 @@ def _require(gpu, module):
         pytest.skip("this adapter does not use subgroup packets")
 
 
-@pytest.mark.parametrize("module", MODULES)
-def test_traversal_matches_brute_force(gpu, module):
+@pytest.mark.parametrize("module, layout", WALKS)
+def test_traversal_matches_brute_force(gpu, module, layout):
     """Closest hits and occlusion of rays through a clustered soup (deep tree, lifted triangles),
     with a ray count that leaves a partial workgroup."""
     _require(gpu, module)
@@ -33,7 +36,7 @@ def test_traversal_matches_brute_force(gpu, module):
     triangles = (centers + rng.normal(0, 0.15, (40, 30, 3, 3))).reshape(-1, 3, 3)
     origins = rng.uniform(-2, 2, (1000, 3))
     dirs = rng.uniform(-1, 1, (1000, 3)) - origins
-    geometry = GeometryBuffers.build(triangle_scene(triangles))
+    geometry = GeometryBuffers.build(triangle_scene(triangles), layout=layout)
     query = RayQuery(gpu, geometry, traversal=module)
     for t_max in (np.inf, 1.0):
         rays = query_rays(origins, dirs, t_max)
@@ -47,10 +50,10 @@ def test_traversal_matches_brute_force(gpu, module):
         np.testing.assert_array_equal(occluded[clear], hit[clear])
 
 
-def _render(gpu, scene, module, spp, max_depth=8, chunk_size=None, size=SIZE):
+def _render(gpu, scene, module, spp, max_depth=8, chunk_size=None, size=SIZE, layout="threaded"):
     features = SceneFeatures.of(scene)
-    trace = TracePass(gpu, scene, GeometryBuffers.build(scene), *size, max_depth=max_depth, features=features,
-                      chunk_size=chunk_size, traversal=module)
+    trace = TracePass(gpu, scene, GeometryBuffers.build(scene, layout=layout), *size, max_depth=max_depth,
+                      features=features, chunk_size=chunk_size, traversal=module)
     buffers = FrameBuffers(gpu, *size)
     encoder = gpu.device.create_command_encoder()
     trace.clear(encoder, buffers)
@@ -70,6 +73,24 @@ def test_packets_render_the_image_of_lone_walks(gpu, scene_name):
     assert np.all(lone["spp"] == 3)
     for name, plane in lone.items():
         assert plane.tobytes() == packet[name].tobytes(), name
+
+
+@pytest.mark.parametrize("scene_name", ["cornell", "cornell-glossy", "sun-room"])
+def test_wide_walk_renders_the_image_of_the_threaded_walk(gpu, scene_name):
+    """The 4-wide tree walked nearest child first finds the same closest hits and blockers as the
+    threaded one: the frames agree bit for bit."""
+    scene = load_scene(scene_name)
+    threaded = _render(gpu, scene, LANES_TRAVERSAL, spp=3)
+    wide = _render(gpu, scene, None, spp=3, layout="wide")
+    assert np.all(threaded["spp"] == 3)
+    for name, plane in threaded.items():
+        assert plane.tobytes() == wide[name].tobytes(), name
+
+
+def test_wide_walk_is_never_a_packet(gpu):
+    """The wide walk fetches per invocation: composing it with subgroup packets is refused."""
+    with pytest.raises(ValueError, match="per invocation"):
+        _render(gpu, load_scene("cornell"), SUBGROUP_TRAVERSAL, spp=1, layout="wide")
 
 
 def test_long_paths_in_big_chunks_stay_unbiased(gpu):
@@ -105,3 +126,24 @@ def test_single_node_ordering_renders_the_same_image(gpu):
     reference = render("cornell-glossy", ctx=gpu, **options).color
     fallback = render("cornell-glossy", ctx=small, **options).color
     np.testing.assert_allclose(fallback, reference, rtol=1e-5, atol=1e-6)
+
+
+def test_renderer_takes_the_layout_from_the_environment(gpu, monkeypatch):
+    """WGPU_RT_BVH=wide renders single-level scenes through the wide walk (the same image); an unknown
+    layout is refused by name."""
+    from wgpu_rt.accel import geometry
+    from wgpu_rt.errors import SceneError
+    from wgpu_rt.renderer import render
+
+    laid_out = []
+    monkeypatch.setattr(geometry, "wide_nodes", lambda bvh: laid_out.append(bvh) or bvh_wide_nodes(bvh))
+    options = dict(size=(16, 16), spp=2, max_depth=4, aovs=(), ctx=gpu)
+    monkeypatch.delenv(geometry.BVH_LAYOUT_ENV, raising=False)
+    threaded = render("cornell-glossy", **options).color
+    assert not laid_out
+    monkeypatch.setenv(geometry.BVH_LAYOUT_ENV, "wide")
+    np.testing.assert_array_equal(render("cornell-glossy", **options).color, threaded)
+    assert laid_out
+    monkeypatch.setenv(geometry.BVH_LAYOUT_ENV, "octree")
+    with pytest.raises(SceneError, match="WGPU_RT_BVH='octree'"):
+        render("cornell-glossy", **options)

@@ -171,7 +171,7 @@ class Renderer:
         places a shape several times (instances) gets the two-level geometry from its first frame on,
         which stores each shape's triangles once, unless it places at most FLATTEN_PLACED_TRIANGLES.
         Frame f is seeded seed + f (mod 2³²)."""
-        from .accel.geometry import GeometryBuffers, InstancedGeometry
+        from .accel.geometry import GeometryBuffers, InstancedGeometry, bvh_layout
         from .trace.trace_pass import TracePass
 
         traced: dict[bytes, TracePass] = {}   # by the frame's transforms, or follows_every_frame
@@ -180,6 +180,7 @@ class Renderer:
         can_instance = InstancedGeometry.suits(scene)
         placed_triangles = sum(len(mesh.faces) for mesh in scene.meshes)
         instanced_from_start = can_instance and scene.has_instances and placed_triangles > FLATTEN_PLACED_TRIANGLES
+        layout = bvh_layout()
 
         def trace_for(frame: int, seed_frame: int):
             seed = (self.seed + seed_frame) % 2 ** 32
@@ -191,7 +192,7 @@ class Renderer:
                 if instanced_from_start or (moved and can_instance):
                     geometry, key = InstancedGeometry(scene, frame), follows_every_frame
                 else:
-                    geometry = GeometryBuffers.build(scene, frame)
+                    geometry = GeometryBuffers.build(scene, frame, layout)
                 trace = traced[key] = TracePass(self.ctx, scene, geometry, self.width, self.height, frame=frame,
                                                 max_depth=self.max_depth, seed=seed)
             else:

@@ -329,3 +329,63 @@ def ordered_threaded_nodes(bvh: Bvh, orderings: int = ORDERINGS) -> np.ndarray:
     only octant 0's copy (for scenes whose copies would not all fit a storage binding)."""
     threading = _thread(bvh)
     return np.concatenate([_lay_out(bvh, threading, octant) for octant in range(orderings)])
+
+
+# The 4-wide layout (wide_nodes), 112 bytes a node: the boxes of its four children as six rows of four
+# (lo x, lo y, lo z, hi x, hi y, hi z; child k in column k), then the four child references: a wide
+# node's index, or WIDE_LEAF | (first << LEAF_COUNT_BITS) | count for a leaf's triangles, or WIDE_EMPTY.
+WIDTH = 4
+WIDE_NODE_DTYPE = np.dtype([("lo", "<f4", (3, WIDTH)), ("hi", "<f4", (3, WIDTH)), ("children", "<u4", WIDTH)])
+WIDE_LEAF = 1 << 31
+WIDE_EMPTY = 0xFFFFFFFF
+# The walk's stack (wgsl/accel/walk_wide.wgsl) holds at most WIDTH - 1 references per level it has
+# descended, and a wide tree is no deeper than the binary one it collapses (MAX_DEPTH levels).
+WIDE_STACK_SIZE = (WIDTH - 1) * MAX_DEPTH
+
+
+def wide_nodes(bvh: Bvh) -> np.ndarray:
+    """The binary ``bvh`` collapsed into a 4-wide tree as WIDE_NODE_DTYPE, root at 0, for a walk with a
+    stack that visits the children a ray enters nearest first (wgsl/accel/walk_wide.wgsl): a quarter of
+    the binary tree's nodes, each fetched once for four box tests. Each wide node starts from a binary
+    interior node's two children and, twice, opens the interior one with the largest surface area (the
+    one rays enter most often) into its own two children; interior children become the next level's
+    wide nodes. Leaves are the binary tree's. Level by level, vectorized over the level's nodes."""
+    nodes = bvh.nodes
+    if len(bvh.order) >= 1 << (31 - LEAF_COUNT_BITS):
+        raise ValueError(f"{len(bvh.order)} triangles do not fit the wide node layout")
+    count = nodes["count"].astype(np.int64)
+    left = nodes["first"].astype(np.int64)
+    interior = count == 0
+    if not interior[0]:   # a root leaf (a few triangles, or none with area: then its box is at +inf)
+        levels = [np.array([[0, -1, -1, -1]])]
+    else:
+        area = _surface_area(nodes["lo"].astype(np.float64), nodes["hi"].astype(np.float64))
+        levels, level = [], np.array([0])
+        while len(level):
+            slots = np.full((len(level), WIDTH), -1, np.int64)
+            slots[:, 0], slots[:, 1] = left[level], left[level] + 1
+            rows = np.arange(len(level))
+            for free in range(2, WIDTH):
+                opens = np.where((slots >= 0) & interior[np.maximum(slots, 0)], area[np.maximum(slots, 0)], -1.0)
+                pick = np.argmax(opens, axis=1)
+                chosen = slots[rows, pick]
+                ok = opens[rows, pick] >= 0
+                slots[ok, free] = left[chosen[ok]] + 1
+                slots[ok, pick[ok]] = left[chosen[ok]]
+            levels.append(slots)
+            level = slots[(slots >= 0) & interior[np.maximum(slots, 0)]]
+    if len(levels) > MAX_DEPTH:
+        raise ValueError(f"a wide tree of {len(levels)} levels overflows the walk's stack")
+    slots = np.concatenate(levels)
+    valid = slots >= 0
+    safe = np.maximum(slots, 0)
+    opens_node = valid & interior[safe]
+    # Wide nodes are numbered level by level in the order their binary nodes appear in `slots`, so an
+    # interior child's number is the root's 1 plus its rank among the interior children before it.
+    wide_index = np.cumsum(opens_node.ravel()).reshape(slots.shape)
+    leaf_ref = WIDE_LEAF | (left[safe] << LEAF_COUNT_BITS) | count[safe]
+    wide = np.zeros(len(slots), WIDE_NODE_DTYPE)
+    wide["children"] = np.where(valid, np.where(opens_node, wide_index, leaf_ref), WIDE_EMPTY).astype(np.uint32)
+    wide["lo"] = np.where(valid[:, None, :], np.transpose(nodes["lo"][safe], (0, 2, 1)), np.inf)
+    wide["hi"] = np.where(valid[:, None, :], np.transpose(nodes["hi"][safe], (0, 2, 1)), np.inf)
+    return wide

@@ -4,7 +4,8 @@ InstancedGeometry: a Scene with moving meshes or instanced shapes as two BVH lev
 See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/accel/geometry_bindings.wgsl:
 
 0. ``bvh_nodes``: the BVH's 32-byte threaded nodes, one depth-first copy per direction octant
-   (``wgpu_rt.accel.bvh.ordered_threaded_nodes``); two-level: see InstancedGeometry.
+   (``wgpu_rt.accel.bvh.ordered_threaded_nodes``), or with layout "wide" its 112-byte 4-wide nodes
+   (``wgpu_rt.accel.bvh.wide_nodes``); two-level: see InstancedGeometry.
 1. ``tri_positions``: three vec4f per triangle (xyz = world vertex, w = 0; two-level: in the space of
    the triangle's bottom level).
 2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, unused}`` (48 bytes): the three
@@ -19,6 +20,7 @@ See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/
 from __future__ import annotations
 
 import functools
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +34,7 @@ from .bvh import (
     build_box_bvh,
     build_bvh,
     ordered_threaded_nodes,
+    wide_nodes,
 )
 from ..errors import SceneError
 from ..scene.model import Scene
@@ -41,6 +44,26 @@ from ..scene.transforms import transform_normals, transform_points
 # accel/bvh.wgsl imports NO_INSTANCES; a two-level scene's kernels swap in InstancedGeometry.instances_module.
 NO_INSTANCES = "accel/instances_none.wgsl"
 LEAF_MASK = (1 << LEAF_COUNT_BITS) - 1
+# accel/bvh.wgsl imports THREADED_WALK; a geometry's walk_module names the one its node layout needs.
+THREADED_WALK = "accel/walk_threaded.wgsl"
+WIDE_WALK = "accel/walk_wide.wgsl"
+BVH_LAYOUTS = {"threaded": THREADED_WALK, "wide": WIDE_WALK}
+BVH_LAYOUT_ENV = "WGPU_RT_BVH"
+
+
+def geometry_modules(geometry) -> dict:
+    """The module swaps for kernels that trace ``geometry``: its instances and walk modules."""
+    return {NO_INSTANCES: geometry.instances_module, THREADED_WALK: geometry.walk_module}
+
+
+def bvh_layout() -> str:
+    """The node layout single-level scenes are built with: "threaded" (the stackless binary walk, fast
+    with lavapipe's subgroup packets), or "wide" (a 4-wide tree walked with a stack per invocation, for
+    GPUs; not yet measured on one) where the environment sets WGPU_RT_BVH=wide."""
+    layout = os.environ.get(BVH_LAYOUT_ENV, "threaded")
+    if layout not in BVH_LAYOUTS:
+        raise SceneError(f"{BVH_LAYOUT_ENV}={layout!r}: the BVH layout must be one of {', '.join(BVH_LAYOUTS)}")
+    return layout
 
 
 def scene_material_names(scene: Scene) -> list[str]:
@@ -103,12 +126,27 @@ class GeometryBuffers:
     object_ids: np.ndarray         # (T,) u32 index into scene.meshes
     object_motion: np.ndarray      # (O, 4, 4) f32 world at this frame → world at the previous frame
     bvh: Bvh
+    layout: str = "threaded"       # binding 0's node layout: a key of BVH_LAYOUTS
 
     # The kernels' instance module: none (see InstancedGeometry).
     instances_module = NO_INSTANCES
 
+    @property
+    def walk_module(self) -> str:
+        """The module that walks this geometry's node layout, in place of THREADED_WALK."""
+        return BVH_LAYOUTS[self.layout]
+
+    kernel_modules = property(geometry_modules)   # the module swaps its kernels need
+
+    @functools.cached_property
+    def wide_nodes(self) -> np.ndarray:
+        return wide_nodes(self.bvh)
+
     @classmethod
-    def build(cls, scene: Scene, frame: int = 0) -> "GeometryBuffers":
+    def build(cls, scene: Scene, frame: int = 0, layout: str = "threaded") -> "GeometryBuffers":
+        """``scene``'s triangles at ``frame`` and their BVH, to be uploaded in ``layout`` (BVH_LAYOUTS)."""
+        if layout not in BVH_LAYOUTS:
+            raise ValueError(f"unknown BVH layout {layout!r}")
         material_ids = _material_ids(scene)
         triangles, normals, materials, objects = [], [], [], []
         for object_id, mesh in enumerate(scene.meshes):
@@ -121,7 +159,7 @@ class GeometryBuffers:
         bvh = build_bvh(all_triangles)
         order = bvh.order
         return cls(all_triangles[order], np.concatenate(normals)[order], np.concatenate(materials)[order],
-                   np.concatenate(objects)[order], object_motion(scene, frame), bvh)
+                   np.concatenate(objects)[order], object_motion(scene, frame), bvh, layout)
 
     @property
     def triangle_count(self) -> int:
@@ -138,12 +176,15 @@ class GeometryBuffers:
         """The four arrays of bind group 0, laid out byte for byte as wgsl/accel/bvh.wgsl reads them."""
         positions, attributes = _pack_triangles(self.triangles, self.shading_normals, self.material_ids,
                                                 self.object_ids)
-        return [ordered_threaded_nodes(self.bvh, orderings), positions, attributes, _column_major(self.object_motion)]
+        nodes = self.wide_nodes if self.layout == "wide" else ordered_threaded_nodes(self.bvh, orderings)
+        return [nodes, positions, attributes, _column_major(self.object_motion)]
 
     @property
     def fits_uniform(self) -> bool:
         """Whether the nodes and positions fit UNIFORM_GEOMETRY_WORDS' buffers."""
-        return _fits_uniform(ORDERINGS * self.bvh.node_count, self.triangle_count)
+        node_bytes = (self.wide_nodes.nbytes if self.layout == "wide"
+                      else ORDERINGS * self.bvh.node_count * THREADED_NODE_DTYPE.itemsize)
+        return _fits_uniform(node_bytes, self.triangle_count)
 
     def upload(self, ctx, uniform_words: bool = False) -> list:
         """GPU buffers in binding order 0..3 of group 0 (DeviceLimitError if one is too big): all storage,
@@ -170,8 +211,8 @@ def _upload(ctx, arrays: list[np.ndarray], triangle_count: int, uniform_words: b
     return [ctx.uniform(data, label=label) for data, label in zip(words, labels[:2])] + buffers
 
 
-def _fits_uniform(node_count: int, triangle_count: int) -> bool:
-    return max(node_count * THREADED_NODE_DTYPE.itemsize, triangle_count * POSITION_BYTES) <= UNIFORM_GEOMETRY_BYTES
+def _fits_uniform(node_bytes: int, triangle_count: int) -> bool:
+    return max(node_bytes, triangle_count * POSITION_BYTES) <= UNIFORM_GEOMETRY_BYTES
 
 
 def _pack_triangles(triangles, shading_normals, material_ids, object_ids):
@@ -229,6 +270,8 @@ class InstancedGeometry:
     """
 
     instances_module = "accel/instances.wgsl"
+    walk_module = THREADED_WALK   # the top level and each bottom level are threaded
+    kernel_modules = property(geometry_modules)   # the module swaps its kernels need
 
     def __init__(self, scene: Scene, frame: int = 0):
         self.scene = scene
@@ -431,7 +474,7 @@ class InstancedGeometry:
     @property
     def fits_uniform(self) -> bool:
         """Whether the nodes and positions fit UNIFORM_GEOMETRY_WORDS' buffers."""
-        return _fits_uniform(self.node_count(), self.triangle_count)
+        return _fits_uniform(self.node_count() * THREADED_NODE_DTYPE.itemsize, self.triangle_count)
 
     def upload(self, ctx, uniform_words: bool = False) -> list:
         """GPU buffers in binding order 0..4 of group 0 (see GeometryBuffers.upload)."""
@@ -472,6 +515,11 @@ def traversal_module(ctx) -> str:
 
 def compose_with_traversal(ctx, kernel: str, module: str | None = None, replacements: dict | None = None) -> str:
     """WGSL of ``kernel`` (which imports accel/bvh.wgsl) with ``module`` (default: traversal_module(ctx)) and
-    any further module ``replacements`` (shaders.compose)."""
-    return shaders.compose(kernel, replacements={**(replacements or {}),
-                                                 LANES_TRAVERSAL: module or traversal_module(ctx)})
+    any further module ``replacements`` (shaders.compose). The wide walk (WIDE_WALK swapped in) fetches
+    per invocation: its default module is LANES_TRAVERSAL, and subgroup packets are refused."""
+    replacements = replacements or {}
+    if replacements.get(THREADED_WALK) == WIDE_WALK:
+        if module == SUBGROUP_TRAVERSAL:
+            raise ValueError("the wide BVH layout is walked per invocation, not in subgroup packets")
+        module = LANES_TRAVERSAL
+    return shaders.compose(kernel, replacements={**replacements, LANES_TRAVERSAL: module or traversal_module(ctx)})

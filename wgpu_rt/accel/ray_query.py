@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import NO_INSTANCES, compose_with_traversal
+from .geometry import compose_with_traversal
 
 WORKGROUP_SIZE = 64
 QUERY_RAY_DTYPE = np.dtype([("origin", "<f4", 3), ("t_max", "<f4"), ("dir", "<f4", 3), ("offset", "<u4"),
@@ -40,7 +40,7 @@ class RayQuery:
         self.ctx = ctx
         self.geometry_buffers = geometry.upload(ctx)
         code = compose_with_traversal(ctx, "accel/ray_query.wgsl", traversal,
-                                      replacements={NO_INSTANCES: geometry.instances_module})
+                                      replacements=geometry.kernel_modules)
         self.pipelines = {entry: ctx.compute_pipeline(code, entry, label=f"ray_query.{entry}")
                           for entry in ("intersect", "occluded")}
 

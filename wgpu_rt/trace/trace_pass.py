@@ -20,7 +20,6 @@ import numpy as np
 
 from ..accel.geometry import (
     GEOMETRY_WORDS,
-    NO_INSTANCES,
     UNIFORM_GEOMETRY_WORDS,
     InstancedGeometry,
     compose_with_traversal,
@@ -90,11 +89,11 @@ class BufferPlacement:
 
 
 def trace_kernel_source(ctx, traversal: str | None = None, placement: BufferPlacement = BufferPlacement(),
-                        instances: str = NO_INSTANCES, kernel: str = KERNEL) -> str:
+                        geometry_modules: dict | None = None, kernel: str = KERNEL) -> str:
     """The kernel with the traversal module ``traversal`` (default: the one that suits ``ctx``'s
-    adapter, wgpu_rt.accel.geometry.traversal_module), the buffer ``placement`` and the geometry's
-    ``instances`` module (its ``instances_module``)."""
-    replacements = {NO_INSTANCES: instances}
+    adapter, wgpu_rt.accel.geometry.traversal_module), the buffer ``placement`` and the modules the
+    geometry's layout needs (its ``kernel_modules``; default: a single level, threaded)."""
+    replacements = dict(geometry_modules or {})
     if placement.tables:
         replacements[STORAGE_TABLES] = UNIFORM_TABLES
     if placement.geometry:
@@ -141,9 +140,9 @@ _layouts: dict = {}
 
 
 def trace_pipeline(ctx, features: SceneFeatures, geometry_bindings: int, traversal: str | None = None,
-                   placement: BufferPlacement = BufferPlacement(), instances: str = NO_INSTANCES):
+                   placement: BufferPlacement = BufferPlacement(), geometry_modules: dict | None = None):
     """The kernel specialized to ``features`` (pipelines are cached by GpuContext)."""
-    return ctx.compute_pipeline(trace_kernel_source(ctx, traversal, placement, instances), "main",
+    return ctx.compute_pipeline(trace_kernel_source(ctx, traversal, placement, geometry_modules), "main",
                                 constants=features.constants(), label=f"trace {features}",
                                 layout=trace_layout(ctx, geometry_bindings, placement))
 
@@ -318,8 +317,8 @@ class TracePass(ComputePass):
             raise ValueError(f"{self.placement} asks for uniform buffers beyond their capacity ({fitting} fit)")
         geometry_buffers = geometry.upload(ctx, uniform_words=self.placement.geometry)
         self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement,
-                                       geometry.instances_module)
-        self._kernel_options = (traversal, self.placement, geometry.instances_module, len(geometry_buffers))
+                                       geometry.kernel_modules)
+        self._kernel_options = (traversal, self.placement, geometry.kernel_modules, len(geometry_buffers))
         self._aux_pipelines: dict[tuple[int, int], object] = {}
         # A two-level geometry (InstancedGeometry) follows the frame: set_frame rewrites its per-frame part.
         self._geometry, self._geometry_buffers = geometry, geometry_buffers
@@ -445,9 +444,9 @@ class TracePass(ComputePass):
         delta_samples = max(samples, AUX_DELTA_FACTOR * samples if delta_samples is None else delta_samples)
         pipeline = self._aux_pipelines.get((samples, delta_samples))
         if pipeline is None:
-            traversal, placement, instances, geometry_bindings = self._kernel_options
+            traversal, placement, geometry_modules, geometry_bindings = self._kernel_options
             pipeline = self._aux_pipelines[samples, delta_samples] = self.ctx.compute_pipeline(
-                trace_kernel_source(self.ctx, traversal, placement, instances, AUX_KERNEL), "aux",
+                trace_kernel_source(self.ctx, traversal, placement, geometry_modules, AUX_KERNEL), "aux",
                 constants={**self.features.constants(), "AUX_SAMPLES": samples, "AUX_DELTA_SAMPLES": delta_samples},
                 label=f"aux {self.features}", layout=trace_layout(self.ctx, geometry_bindings, placement))
         shading = self._bind_group(1, [self._params_buffer(SampleSchedule()), self._materials, self._emitters,
@@ -492,8 +491,8 @@ class TracePass(ComputePass):
         """The samples of ``schedule.sample_counts``, traced over the compacted work list, a batch at a time."""
         if self._work_list is None:
             self._work_list = WorkList(self.ctx, self.width, self.height, self.chunk_size, self._batch_items)
-            traversal, placement, instances, geometry_bindings = self._kernel_options
-            code = trace_kernel_source(self.ctx, traversal, placement, instances, TARGETED_KERNEL)
+            traversal, placement, geometry_modules, geometry_bindings = self._kernel_options
+            code = trace_kernel_source(self.ctx, traversal, placement, geometry_modules, TARGETED_KERNEL)
             layout = trace_layout(self.ctx, geometry_bindings, placement, work_list=True)
             self._targeted_pipelines = [self.ctx.compute_pipeline(code, entry, constants=self.features.constants(),
                                                                   label=f"{entry} {self.features}", layout=layout)

@@ -1,0 +1,12 @@
+// The walk of a single-level scene's tree in the threaded binary layout (wgpu_rt.accel.bvh.ordered_threaded_nodes),
+// imported by accel/bvh.wgsl; geometry laid out wide swaps in accel/walk_wide.wgsl.
+
+// #import accel/walk_tree.wgsl
+
+// Walks the node copy of the ray's octant (copy 0 when the buffer holds only one).
+fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
+              dir: vec3f) {
+    let node_count = bvh_node_count();
+    walk_tree(state, ray, shadow_ray, shadow_length, node_count * (packet_octant(dir) % bvh_orderings()),
+              node_count, NO_INSTANCE);
+}

@@ -1,0 +1,98 @@
+// The walk of a single-level scene's tree in the 4-wide layout (wgpu_rt.accel.bvh.wide_nodes), swapped in
+// for accel/walk_threaded.wgsl (wgpu_rt.accel.geometry.GeometryBuffers, layout "wide"). Each invocation
+// walks alone with a stack of its own: a node's fetch gives the boxes of its four children, which are
+// tested for both rays as vec4 rows; the children either ray enters are taken nearest first (by the
+// nearer of the two rays' entry distances): the nearest next, the others pushed farthest first.
+// Meant for GPUs, where the threaded walk's one box per loop pass and fixed, octant-chosen child order
+// are the cost (issue 13: the bunny); on lavapipe the subgroup packets of the threaded walk suit SIMD
+// lanes better.
+
+// #import accel/walk_tree.wgsl
+
+const WIDE_NODE_WORDS: u32 = 28u;                // wgpu_rt.accel.bvh.WIDE_NODE_DTYPE
+const WIDE_LEAF: u32 = 0x80000000u;              // wgpu_rt.accel.bvh.WIDE_LEAF
+const WIDE_EMPTY: u32 = 0xffffffffu;             // wgpu_rt.accel.bvh.WIDE_EMPTY
+const WIDE_STACK_SIZE: u32 = 96u;             // == wgpu_rt.accel.bvh.WIDE_STACK_SIZE
+const WIDE_MISS: f32 = 3.0e38;                   // the entry distance of a child no ray enters
+
+// Row `row` of wide node `node`: one coordinate of its four children's boxes, or its child references.
+fn wide_row(node: u32, row: u32) -> vec4u {
+    let at = WIDE_NODE_WORDS * node + 4u * row;
+    return vec4u(bvh_word(at), bvh_word(at + 1u), bvh_word(at + 2u), bvh_word(at + 3u));
+}
+
+// Where `ray` enters each of the four boxes within (0, t_max), WIDE_MISS where it does not: box_hit's
+// slab test (accel/walk_tree.wgsl) four boxes at a time.
+fn wide_entries(lo_x: vec4f, lo_y: vec4f, lo_z: vec4f, hi_x: vec4f, hi_y: vec4f, hi_z: vec4f, ray: TraversalRay,
+                t_max: f32) -> vec4f {
+    let t0x = (lo_x - ray.origin.x) * ray.inv_dir.x;
+    let t1x = (hi_x - ray.origin.x) * ray.inv_dir.x;
+    let t0y = (lo_y - ray.origin.y) * ray.inv_dir.y;
+    let t1y = (hi_y - ray.origin.y) * ray.inv_dir.y;
+    let t0z = (lo_z - ray.origin.z) * ray.inv_dir.z;
+    let t1z = (hi_z - ray.origin.z) * ray.inv_dir.z;
+    let near = max(max(min(t0x, t1x), min(t0y, t1y)), max(min(t0z, t1z), vec4f(0.0)));
+    let far = min(min(max(t0x, t1x), max(t0y, t1y)), min(max(t0z, t1z), vec4f(t_max))) * BVH_BOX_SLACK;
+    return select(vec4f(WIDE_MISS), near, near <= far & near < vec4f(t_max));
+}
+
+// One step of a sorting network on (distance, reference) pairs: slots i and j in ascending order.
+fn order_pair(keys: ptr<function, vec4f>, refs: ptr<function, vec4u>, i: u32, j: u32) {
+    let swap = (*keys)[j] < (*keys)[i];
+    let key_i = (*keys)[i];
+    let ref_i = (*refs)[i];
+    (*keys)[i] = select(key_i, (*keys)[j], swap);
+    (*keys)[j] = select((*keys)[j], key_i, swap);
+    (*refs)[i] = select(ref_i, (*refs)[j], swap);
+    (*refs)[j] = select((*refs)[j], ref_i, swap);
+}
+
+fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
+              dir: vec3f) {
+    var stack: array<u32, WIDE_STACK_SIZE>;
+    var depth = 0u;
+    var next = 0u;   // the root, a wide node
+    loop {
+        (*state).loop_passes += 1u;
+        if next >= WIDE_LEAF {
+            let first = (next & ~WIDE_LEAF) >> LEAF_COUNT_BITS;
+            test_triangles(state, ray, shadow_ray, shadow_length, first, first + (next & LEAF_COUNT_MASK),
+                           NO_INSTANCE);
+            // A shadow-only query (no closest-hit ray) is done at its first blocker.
+            if depth == 0u || ((*state).occluded && !((*state).hit.t > 0.0)) { break; }
+            depth -= 1u;
+            next = stack[depth];
+            continue;
+        }
+        let lo_x = bitcast<vec4f>(wide_row(next, 0u));
+        let lo_y = bitcast<vec4f>(wide_row(next, 1u));
+        let lo_z = bitcast<vec4f>(wide_row(next, 2u));
+        let hi_x = bitcast<vec4f>(wide_row(next, 3u));
+        let hi_y = bitcast<vec4f>(wide_row(next, 4u));
+        let hi_z = bitcast<vec4f>(wide_row(next, 5u));
+        var refs = wide_row(next, 6u);
+        let main = wide_entries(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, ray, (*state).hit.t);
+        let shadow = select(wide_entries(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, shadow_ray, shadow_length),
+                            vec4f(WIDE_MISS), (*state).occluded);
+        var keys = select(min(main, shadow), vec4f(WIDE_MISS), refs == vec4u(WIDE_EMPTY));
+        order_pair(&keys, &refs, 0u, 1u);
+        order_pair(&keys, &refs, 2u, 3u);
+        order_pair(&keys, &refs, 0u, 2u);
+        order_pair(&keys, &refs, 1u, 3u);
+        order_pair(&keys, &refs, 1u, 2u);
+        let entered = vec4u(keys < vec4f(WIDE_MISS));
+        let pushes = entered.y + entered.z + entered.w;
+        if entered.x == 0u {
+            if depth == 0u { break; }
+            depth -= 1u;
+            next = stack[depth];
+            continue;
+        }
+        next = refs.x;
+        // Farthest first, so the nearer ones come off the stack sooner; at most WIDTH - 1 per level.
+        if entered.w != 0u { stack[depth] = refs.w; }
+        if entered.z != 0u { stack[depth + entered.w] = refs.z; }
+        if entered.y != 0u { stack[depth + entered.w + entered.z] = refs.y; }
+        depth += pushes;
+    }
+}
