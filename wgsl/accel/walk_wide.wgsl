@@ -36,20 +36,27 @@ fn wide_entries(lo_x: vec4f, lo_y: vec4f, lo_z: vec4f, hi_x: vec4f, hi_y: vec4f,
     return select(vec4f(WIDE_MISS), near, near <= far & near < vec4f(t_max));
 }
 
-// One step of a sorting network on (distance, reference) pairs: slots i and j in ascending order.
-fn order_pair(keys: ptr<function, vec4f>, refs: ptr<function, vec4u>, i: u32, j: u32) {
+// One step of a sorting network on the children's (key, reference, closest-hit entry) triples: slots i
+// and j in ascending order of key.
+fn order_pair(keys: ptr<function, vec4f>, refs: ptr<function, vec4u>, entries: ptr<function, vec4f>, i: u32, j: u32) {
     let swap = (*keys)[j] < (*keys)[i];
     let key_i = (*keys)[i];
     let ref_i = (*refs)[i];
+    let entry_i = (*entries)[i];
     (*keys)[i] = select(key_i, (*keys)[j], swap);
     (*keys)[j] = select((*keys)[j], key_i, swap);
     (*refs)[i] = select(ref_i, (*refs)[j], swap);
     (*refs)[j] = select((*refs)[j], ref_i, swap);
+    (*entries)[i] = select(entry_i, (*entries)[j], swap);
+    (*entries)[j] = select((*entries)[j], entry_i, swap);
 }
 
+// Pushed children carry where the closest-hit ray enters them, so that one which a closer hit found
+// since then has culled is dropped when it comes off the stack, unfetched, once the shadow ray (if any)
+// is done with: it could only matter to that ray.
 fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
               dir: vec3f) {
-    var stack: array<u32, WIDE_STACK_SIZE>;
+    var stack: array<vec2u, WIDE_STACK_SIZE>;   // (reference, bits of the closest-hit ray's entry)
     var depth = 0u;
     var next = 0u;   // the root, a wide node
     loop {
@@ -59,40 +66,46 @@ fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: Tr
             test_triangles(state, ray, shadow_ray, shadow_length, first, first + (next & LEAF_COUNT_MASK),
                            NO_INSTANCE);
             // A shadow-only query (no closest-hit ray) is done at its first blocker.
-            if depth == 0u || ((*state).occluded && !((*state).hit.t > 0.0)) { break; }
-            depth -= 1u;
-            next = stack[depth];
-            continue;
+            if (*state).occluded && !((*state).hit.t > 0.0) { break; }
+            next = WIDE_EMPTY;
+        } else {
+            let lo_x = bitcast<vec4f>(wide_row(next, 0u));
+            let lo_y = bitcast<vec4f>(wide_row(next, 1u));
+            let lo_z = bitcast<vec4f>(wide_row(next, 2u));
+            let hi_x = bitcast<vec4f>(wide_row(next, 3u));
+            let hi_y = bitcast<vec4f>(wide_row(next, 4u));
+            let hi_z = bitcast<vec4f>(wide_row(next, 5u));
+            var refs = wide_row(next, 6u);
+            var entries = wide_entries(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, ray, (*state).hit.t);
+            let shadow = select(wide_entries(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, shadow_ray, shadow_length),
+                                vec4f(WIDE_MISS), (*state).occluded);
+            var keys = select(min(entries, shadow), vec4f(WIDE_MISS), refs == vec4u(WIDE_EMPTY));
+            order_pair(&keys, &refs, &entries, 0u, 1u);
+            order_pair(&keys, &refs, &entries, 2u, 3u);
+            order_pair(&keys, &refs, &entries, 0u, 2u);
+            order_pair(&keys, &refs, &entries, 1u, 3u);
+            order_pair(&keys, &refs, &entries, 1u, 2u);
+            let entered = vec4u(keys < vec4f(WIDE_MISS));
+            next = select(WIDE_EMPTY, refs.x, entered.x != 0u);
+            // Farthest first, so the nearer ones come off the stack sooner; at most WIDTH - 1 per level.
+            let bits = bitcast<vec4u>(entries);
+            if entered.w != 0u { stack[depth] = vec2u(refs.w, bits.w); }
+            if entered.z != 0u { stack[depth + entered.w] = vec2u(refs.z, bits.z); }
+            if entered.y != 0u { stack[depth + entered.w + entered.z] = vec2u(refs.y, bits.y); }
+            depth += entered.y + entered.z + entered.w;
         }
-        let lo_x = bitcast<vec4f>(wide_row(next, 0u));
-        let lo_y = bitcast<vec4f>(wide_row(next, 1u));
-        let lo_z = bitcast<vec4f>(wide_row(next, 2u));
-        let hi_x = bitcast<vec4f>(wide_row(next, 3u));
-        let hi_y = bitcast<vec4f>(wide_row(next, 4u));
-        let hi_z = bitcast<vec4f>(wide_row(next, 5u));
-        var refs = wide_row(next, 6u);
-        let main = wide_entries(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, ray, (*state).hit.t);
-        let shadow = select(wide_entries(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, shadow_ray, shadow_length),
-                            vec4f(WIDE_MISS), (*state).occluded);
-        var keys = select(min(main, shadow), vec4f(WIDE_MISS), refs == vec4u(WIDE_EMPTY));
-        order_pair(&keys, &refs, 0u, 1u);
-        order_pair(&keys, &refs, 2u, 3u);
-        order_pair(&keys, &refs, 0u, 2u);
-        order_pair(&keys, &refs, 1u, 3u);
-        order_pair(&keys, &refs, 1u, 2u);
-        let entered = vec4u(keys < vec4f(WIDE_MISS));
-        let pushes = entered.y + entered.z + entered.w;
-        if entered.x == 0u {
-            if depth == 0u { break; }
-            depth -= 1u;
-            next = stack[depth];
-            continue;
+        if next == WIDE_EMPTY {   // off the stack: the nearest pushed child that may still matter
+            loop {
+                (*state).loop_passes += 1u;
+                if depth == 0u { break; }
+                depth -= 1u;
+                let pushed = stack[depth];
+                if !((*state).occluded && bitcast<f32>(pushed.y) >= (*state).hit.t) {
+                    next = pushed.x;
+                    break;
+                }
+            }
+            if next == WIDE_EMPTY { break; }
         }
-        next = refs.x;
-        // Farthest first, so the nearer ones come off the stack sooner; at most WIDTH - 1 per level.
-        if entered.w != 0u { stack[depth] = refs.w; }
-        if entered.z != 0u { stack[depth + entered.w] = refs.z; }
-        if entered.y != 0u { stack[depth + entered.w + entered.z] = refs.y; }
-        depth += pushes;
     }
 }
