@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import argparse
 
-from common import (add_gold_arguments, add_model_arguments, errors, gold_render, load_scenes, denoiser_options, oidn,
-                    parse_with_quick_defaults, print_header, print_table, resolve_models)
+from common import (GOLD_TWIN_SEED, add_gold_arguments, add_model_arguments, errors, gold_render, load_scenes,
+                    denoiser_options, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models,
+                    twin_corrected_psnr)
 
 
 def main():
@@ -36,6 +37,7 @@ def main():
     rows = []
     for scene in load_scenes(args.scenes):
         gold = gold_render(scene, size, args)
+        twin = gold_render(scene, size, args, seed=GOLD_TWIN_SEED) if args.gold_twin else None
         for spp in args.spp:
             scores = {"brute": [], "ours": [], "oidn": []}
             for seed in range(7, 7 + args.seeds):
@@ -47,11 +49,14 @@ def main():
                                      **options).frames()).color
                 theirs = oidn(noisy.color, noisy.aovs["albedo"], noisy.aovs["normal"])
                 for name, image in (("brute", noisy.color), ("ours", ours), ("oidn", theirs)):
-                    scores[name].append(errors(gold, image)["PSNR"])
+                    scores[name].append(errors(gold, image)["PSNR"] if twin is None
+                                        else twin_corrected_psnr(gold, twin, image))
             psnr = {name: sum(values) / len(values) for name, values in scores.items()}
             rows.append([scene.name, spp, psnr["brute"], psnr["ours"], psnr["oidn"],
                          psnr["ours"] - psnr["brute"], psnr["ours"] - psnr["oidn"]])
-    print_table(f"PSNR (dB) against {args.gold_spp}-spp gold, {args.size}², same noisy input for all"
+    against = (f"the truth as two {args.gold_spp}-spp golds estimate it (--gold-twin)" if args.gold_twin
+               else f"{args.gold_spp}-spp gold")
+    print_table(f"PSNR (dB) against {against}, {args.size}², same noisy input for all"
                 + (f", mean of {args.seeds} noise seeds" if args.seeds > 1 else ""),
                 ["scene", "spp", "brute force", "ours", "OIDN", "ours − brute", "ours − OIDN"], rows)
 

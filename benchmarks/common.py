@@ -27,6 +27,7 @@ BUNNY = REPO.parent / "shared" / "meshes" / "stanford-bunny.obj"
 PLOTS = Path(__file__).resolve().parent / "plots"
 MESH_SCENE = "bunny"
 GOLD_SEED = 12345
+GOLD_TWIN_SEED = 54321   # the second gold of --gold-twin
 TRIM_QUANTILE = 0.999
 
 
@@ -103,20 +104,37 @@ def add_gold_arguments(parser, default_spp: int) -> None:
                         help="keep gold renders in DIR as .npy, keyed by scene name, size, spp and max depth, "
                              "and reuse them (the gold is most of a full-size run; benchmarks at the same "
                              "size share it). Stale if the scene or tracer changed: delete the folder then")
+    parser.add_argument("--gold-twin", action="store_true",
+                        help="render a second gold of independent noise (seed %d) and score against the "
+                             "truth as the two estimate it (twin_corrected_psnr): for golds of few spp, whose "
+                             "own noise otherwise caps every score and narrows the gaps between them"
+                             % GOLD_TWIN_SEED)
 
 
-def gold_render(scene, size, args) -> np.ndarray:
+def gold_render(scene, size, args, seed: int = GOLD_SEED) -> np.ndarray:
     """(H, W, 3) radiance of our own render at ``args.gold_spp`` with seed 12345 (no other run uses that
-    seed, so the gold's noise is independent of every image measured against it), from
-    ``args.gold_cache`` when it holds one."""
+    seed, so the gold's noise is independent of every image measured against it; the twin's: seed
+    GOLD_TWIN_SEED), from ``args.gold_cache`` when it holds one."""
     from wgpu_rt.renderer import render
 
     def compute():
-        return {"color": render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED,
+        return {"color": render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=seed,
                                 aovs=()).color}
 
-    key = f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}"
+    key = (f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}"
+           + ("" if seed == GOLD_SEED else f"_seed{seed}"))
     return _cached(args, key, compute, ["color"])["color"]
+
+
+def twin_corrected_psnr(gold, twin, image) -> float:
+    """PSNR (display space, as metrics.psnr) of ``image`` against the truth, estimated from two golds of
+    independent noise: its squared error against their mean, less that mean's own noise, a quarter of
+    the golds' squared difference (which holds twice one gold's variance). inf if nothing is left."""
+    display = metrics.to_display
+    mean = display(0.5 * (np.asarray(gold, np.float64) + np.asarray(twin, np.float64)))
+    own_noise = np.mean((display(gold) - display(twin)) ** 2) / 4.0
+    error = np.mean((display(np.nan_to_num(np.asarray(image, np.float64), nan=0.0, posinf=0.0)) - mean) ** 2)
+    return float("inf") if error <= own_noise else float(10.0 * np.log10(1.0 / (error - own_noise)))
 
 
 def gold_frame(scene, size, args, frame: int) -> tuple[np.ndarray, np.ndarray]:

@@ -140,6 +140,7 @@ class GeometryBuffers:
 
     @functools.cached_property
     def wide_nodes(self) -> np.ndarray:
+        """The BVH as 4-wide nodes (layout "wide"), collapsed on first use."""
         return wide_nodes(self.bvh)
 
     @classmethod
