@@ -12,7 +12,7 @@
 const WIDE_NODE_WORDS: u32 = 28u;                // wgpu_rt.accel.bvh.WIDE_NODE_DTYPE
 const WIDE_LEAF: u32 = 0x80000000u;              // wgpu_rt.accel.bvh.WIDE_LEAF
 const WIDE_EMPTY: u32 = 0xffffffffu;             // wgpu_rt.accel.bvh.WIDE_EMPTY
-const WIDE_STACK_SIZE: u32 = 96u;             // == wgpu_rt.accel.bvh.WIDE_STACK_SIZE
+const WIDE_STACK_SIZE: u32 = 96u;                // == wgpu_rt.accel.bvh.WIDE_STACK_SIZE
 const WIDE_MISS: f32 = 3.0e38;                   // the entry distance of a child no ray enters
 
 // Row `row` of wide node `node`: one coordinate of its four children's boxes, or its child references.
