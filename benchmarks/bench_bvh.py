@@ -1,8 +1,8 @@
 """BVH build time and size for 10k / 100k / 1M triangles and the Stanford bunny, plus GPU traversal
 throughput (closest-hit rays per second through wgsl/accel/ray_query.wgsl) with each traversal module:
 `lanes` (every invocation walks alone) and `packet` (a subgroup walks together, on CPU adapters with
-subgroups), both over the threaded binary layout, and `wide` (every invocation walks the 4-wide layout
-with a stack: wgsl/accel/walk_wide.wgsl). The rays start at random points all around the mesh, so neighbouring invocations share
+subgroups), both over the threaded binary layout, and `wide` and `wide packet`, the same two over the
+4-wide layout (wgsl/accel/walk_wide.wgsl). The rays start at random points all around the mesh, so neighbouring invocations share
 nothing: the worst case for packets, which the path tracer's neighbouring pixels are not.
 
 Peer: Mitsuba 3 (scalar_rgb) loading a scene that holds the same triangles, which includes building
@@ -23,7 +23,7 @@ from wgpu_rt.accel.geometry import LANES_TRAVERSAL, SUBGROUP_TRAVERSAL
 
 # Columns: name, traversal module, BVH layout.
 WALKS = (("lanes", LANES_TRAVERSAL, "threaded"), ("packet", SUBGROUP_TRAVERSAL, "threaded"),
-         ("wide", LANES_TRAVERSAL, "wide"))
+         ("wide", LANES_TRAVERSAL, "wide"), ("wide packet", SUBGROUP_TRAVERSAL, "wide"))
 
 BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
 
@@ -113,7 +113,7 @@ def main() -> None:
         bunny = trimesh.load(BUNNY, force="mesh", process=False)
         cases.append(("stanford bunny", np.asarray(bunny.vertices, np.float32)[bunny.faces]))
     header = (f"{'mesh':>18} {'triangles':>10} {'build s':>8} {'nodes':>9} {'depth':>5} {'mean leaf':>9}"
-              + "".join(f" {name + ' Mrays/s':>14}" for name, _, _ in WALKS) + f" {'mitsuba s':>9} {'mitsuba/ours':>12}")
+              + "".join(f" {name + ' Mrays/s':>19}" for name, _, _ in WALKS) + f" {'mitsuba s':>9} {'mitsuba/ours':>12}")
     print(header)
     for name, triangles in cases:
         seconds, bvh = best_of(2, lambda: build_bvh(triangles))
@@ -121,7 +121,7 @@ def main() -> None:
         rates = [traversal_rate(triangles, module, layout) if traverse else None for _, module, layout in WALKS]
         peer = mitsuba_load_seconds(triangles)
         print(f"{name:>18} {len(triangles):>10,} {seconds:>8.3f} {bvh.node_count:>9,} {bvh.depth():>5} "
-              f"{bvh.leaf_sizes.mean():>9.2f}" + "".join(f" {'-' if r is None else f'{r / 1e6:.2f}':>14}" for r in rates)
+              f"{bvh.leaf_sizes.mean():>9.2f}" + "".join(f" {'-' if r is None else f'{r / 1e6:.2f}':>19}" for r in rates)
               + f" {'-' if peer is None else f'{peer:.3f}':>9} {'-' if peer is None else f'{peer / seconds:.2f}×':>12}",
               flush=True)
 

@@ -17,7 +17,8 @@ from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
 from wgpu_rt.trace import SampleSchedule, SceneFeatures, TracePass
 
 MODULES = [LANES_TRAVERSAL, SUBGROUP_TRAVERSAL]
-WALKS = [(LANES_TRAVERSAL, "threaded"), (SUBGROUP_TRAVERSAL, "threaded"), (LANES_TRAVERSAL, "wide")]
+WALKS = [(LANES_TRAVERSAL, "threaded"), (SUBGROUP_TRAVERSAL, "threaded"), (LANES_TRAVERSAL, "wide"),
+         (SUBGROUP_TRAVERSAL, "wide")]
 SIZE = (24, 16)
 
 
@@ -75,22 +76,18 @@ def test_packets_render_the_image_of_lone_walks(gpu, scene_name):
         assert plane.tobytes() == packet[name].tobytes(), name
 
 
+@pytest.mark.parametrize("module", MODULES)
 @pytest.mark.parametrize("scene_name", ["cornell", "cornell-glossy", "sun-room"])
-def test_wide_walk_renders_the_image_of_the_threaded_walk(gpu, scene_name):
-    """The 4-wide tree walked nearest child first finds the same closest hits and blockers as the
-    threaded one: the frames agree bit for bit."""
+def test_wide_walk_renders_the_image_of_the_threaded_walk(gpu, scene_name, module):
+    """The 4-wide tree, walked nearest child first alone or as a packet, finds the same closest hits and
+    blockers as the threaded one: the frames agree bit for bit."""
+    _require(gpu, module)
     scene = load_scene(scene_name)
     threaded = _render(gpu, scene, LANES_TRAVERSAL, spp=3)
-    wide = _render(gpu, scene, None, spp=3, layout="wide")
+    wide = _render(gpu, scene, module, spp=3, layout="wide")
     assert np.all(threaded["spp"] == 3)
     for name, plane in threaded.items():
         assert plane.tobytes() == wide[name].tobytes(), name
-
-
-def test_wide_walk_is_never_a_packet(gpu):
-    """The wide walk fetches per invocation: composing it with subgroup packets is refused."""
-    with pytest.raises(ValueError, match="per invocation"):
-        _render(gpu, load_scene("cornell"), SUBGROUP_TRAVERSAL, spp=1, layout="wide")
 
 
 def test_long_paths_in_big_chunks_stay_unbiased(gpu):

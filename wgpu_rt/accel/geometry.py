@@ -58,8 +58,8 @@ def geometry_modules(geometry) -> dict:
 
 def bvh_layout() -> str:
     """The node layout single-level scenes are built with: "threaded" (the stackless binary walk, fast
-    with lavapipe's subgroup packets), or "wide" (a 4-wide tree walked with a stack per invocation, for
-    GPUs; not yet measured on one) where the environment sets WGPU_RT_BVH=wide."""
+    with lavapipe's subgroup packets), or "wide" (a 4-wide tree walked with a stack, nearest child first,
+    for GPUs; not yet measured on one) where the environment sets WGPU_RT_BVH=wide."""
     layout = os.environ.get(BVH_LAYOUT_ENV, "threaded")
     if layout not in BVH_LAYOUTS:
         raise SceneError(f"{BVH_LAYOUT_ENV}={layout!r}: the BVH layout must be one of {', '.join(BVH_LAYOUTS)}")
@@ -516,11 +516,6 @@ def traversal_module(ctx) -> str:
 
 def compose_with_traversal(ctx, kernel: str, module: str | None = None, replacements: dict | None = None) -> str:
     """WGSL of ``kernel`` (which imports accel/bvh.wgsl) with ``module`` (default: traversal_module(ctx)) and
-    any further module ``replacements`` (shaders.compose). The wide walk (WIDE_WALK swapped in) fetches
-    per invocation: its default module is LANES_TRAVERSAL, and subgroup packets are refused."""
-    replacements = replacements or {}
-    if replacements.get(THREADED_WALK) == WIDE_WALK:
-        if module == SUBGROUP_TRAVERSAL:
-            raise ValueError("the wide BVH layout is walked per invocation, not in subgroup packets")
-        module = LANES_TRAVERSAL
-    return shaders.compose(kernel, replacements={**replacements, LANES_TRAVERSAL: module or traversal_module(ctx)})
+    any further module ``replacements`` (shaders.compose)."""
+    return shaders.compose(kernel, replacements={**(replacements or {}),
+                                                 LANES_TRAVERSAL: module or traversal_module(ctx)})

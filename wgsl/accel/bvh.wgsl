@@ -12,7 +12,7 @@
 // accel/traversal_subgroup.wgsl (a subgroup as one packet). On lavapipe this replaced a per-lane
 // walk with a 32-entry private stack, ordered by child distance: 3.5× the path-tracing throughput.
 // The single-level walk is walk_scene, from accel/walk_threaded.wgsl; geometry laid out 4-wide swaps
-// in accel/walk_wide.wgsl (a stack per invocation, four boxes a fetch: for GPUs). What every walk
+// in accel/walk_wide.wgsl (a stack, four boxes a fetch: for GPUs). What every walk
 // shares (the box and triangle tests, the walk state, the threaded walk of one tree, which two-level
 // scenes use at both levels) is accel/walk_tree.wgsl.
 

@@ -15,6 +15,10 @@ const LEAF_COUNT_MASK: u32 = 15u;
 // child, or past a leaf), missing it to `skip`, the node after its subtree. `triangles` is
 // (first << LEAF_COUNT_BITS) | count of the triangles tested on entering it (interior nodes: 0 or 1).
 struct BvhNode { lo: vec3f, skip: u32, hi: vec3f, triangles: u32 }
+// A 4-wide node (wgpu_rt.accel.bvh.wide_nodes, WIDE_NODE_WORDS words): one coordinate of its four
+// children's boxes per row (child k in component k), then their references (accel/walk_wide.wgsl).
+struct WideNode { lo_x: vec4f, lo_y: vec4f, lo_z: vec4f, hi_x: vec4f, hi_y: vec4f, hi_z: vec4f, children: vec4u }
+const WIDE_NODE_WORDS: u32 = 28u;   // == wgpu_rt.accel.bvh.WIDE_NODE_DTYPE's size in words
 struct TrianglePositions { a: vec3f, b: vec3f, c: vec3f }
 // Per stored triangle: shading normals (in its bottom level's space) and ids. In a two-level scene a
 // stored triangle may be placed many times, and its instance's material and object override these.

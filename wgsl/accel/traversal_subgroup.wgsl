@@ -22,6 +22,15 @@ fn packet_any(x: bool) -> bool {
     return subgroupAny(x);
 }
 
+fn packet_all(x: bool) -> bool {
+    return subgroupAll(x);
+}
+
+// The wide walk's child order, the same for the whole packet: by the nearest entry of any of its rays.
+fn packet_min4(x: vec4f) -> vec4f {
+    return subgroupMin(x);
+}
+
 // The octant of the packet's summed direction (bit k: component k negative): the whole subgroup walks
 // one node order, the one that suits its rays on average.
 fn packet_octant(dir: vec3f) -> u32 {
@@ -35,6 +44,28 @@ fn bvh_node(index: u32) -> BvhNode {
         subgroupBroadcast(word, 3u),
         bitcast<vec3f>(vec3u(subgroupBroadcast(word, 4u), subgroupBroadcast(word, 5u), subgroupBroadcast(word, 6u))),
         subgroupBroadcast(word, 7u));
+}
+
+// Words 0..3 and 4..7 of the lanes' eight: the first and second half of a row of 8 fetched words.
+fn low_half(part: u32) -> vec4u {
+    return vec4u(subgroupBroadcast(part, 0u), subgroupBroadcast(part, 1u), subgroupBroadcast(part, 2u),
+                 subgroupBroadcast(part, 3u));
+}
+
+fn high_half(part: u32) -> vec4u {
+    return vec4u(subgroupBroadcast(part, 4u), subgroupBroadcast(part, 5u), subgroupBroadcast(part, 6u),
+                 subgroupBroadcast(part, 7u));
+}
+
+// Lane k fetches words k, 8 + k, 16 + k and 24 + k of the node (lanes 4..7 the node's last word again
+// for the fourth, past its 28), and the rows come out of the broadcasts.
+fn wide_node(index: u32) -> WideNode {
+    let first = WIDE_NODE_WORDS * index;
+    let at = first + traversal_lane;
+    let words = vec4u(bvh_word(at), bvh_word(at + 8u), bvh_word(at + 16u), bvh_word(min(at + 24u, first + 27u)));
+    return WideNode(bitcast<vec4f>(low_half(words.x)), bitcast<vec4f>(high_half(words.x)),
+                    bitcast<vec4f>(low_half(words.y)), bitcast<vec4f>(high_half(words.y)),
+                    bitcast<vec4f>(low_half(words.z)), bitcast<vec4f>(high_half(words.z)), low_half(words.w));
 }
 
 fn bvh_triangle(prim: u32) -> TrianglePositions {

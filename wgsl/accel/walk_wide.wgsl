@@ -1,25 +1,19 @@
 // The walk of a single-level scene's tree in the 4-wide layout (wgpu_rt.accel.bvh.wide_nodes), swapped in
-// for accel/walk_threaded.wgsl (wgpu_rt.accel.geometry.GeometryBuffers, layout "wide"). Each invocation
-// walks alone with a stack of its own: a node's fetch gives the boxes of its four children, which are
-// tested for both rays as vec4 rows; the children either ray enters are taken nearest first (by the
-// nearer of the two rays' entry distances): the nearest next, the others pushed farthest first.
-// Meant for GPUs, where the threaded walk's one box per loop pass and fixed, octant-chosen child order
-// are the cost (issue 13: the bunny); on lavapipe the subgroup packets of the threaded walk suit SIMD
-// lanes better.
+// for accel/walk_threaded.wgsl (wgpu_rt.accel.geometry.GeometryBuffers, layout "wide"). A node's fetch
+// (wide_node, from the traversal module) gives the boxes of its four children, tested for both rays as
+// vec4 rows; the children entered are taken nearest first (by the nearer of the two rays' entry
+// distances): the nearest next, the others pushed farthest first. With accel/traversal_lanes.wgsl each
+// invocation walks alone, ordered by its own distances; with accel/traversal_subgroup.wgsl the subgroup
+// walks as one packet (a child is entered when any ray enters it, ordered by the packet's nearest entry,
+// node and triangle fetched once for all its lanes), so the stack, the same in every lane, never
+// diverges.
 
 // #import accel/walk_tree.wgsl
 
-const WIDE_NODE_WORDS: u32 = 28u;                // wgpu_rt.accel.bvh.WIDE_NODE_DTYPE
 const WIDE_LEAF: u32 = 0x80000000u;              // wgpu_rt.accel.bvh.WIDE_LEAF
 const WIDE_EMPTY: u32 = 0xffffffffu;             // wgpu_rt.accel.bvh.WIDE_EMPTY
 const WIDE_STACK_SIZE: u32 = 96u;                // == wgpu_rt.accel.bvh.WIDE_STACK_SIZE
 const WIDE_MISS: f32 = 3.0e38;                   // the entry distance of a child no ray enters
-
-// Row `row` of wide node `node`: one coordinate of its four children's boxes, or its child references.
-fn wide_row(node: u32, row: u32) -> vec4u {
-    let at = WIDE_NODE_WORDS * node + 4u * row;
-    return vec4u(bvh_word(at), bvh_word(at + 1u), bvh_word(at + 2u), bvh_word(at + 3u));
-}
 
 // Where `ray` enters each of the four boxes within (0, t_max), WIDE_MISS where it does not: box_hit's
 // slab test (accel/walk_tree.wgsl) four boxes at a time.
@@ -53,7 +47,7 @@ fn order_pair(keys: ptr<function, vec4f>, refs: ptr<function, vec4u>, entries: p
 
 // Pushed children carry where the closest-hit ray enters them, so that one which a closer hit found
 // since then has culled is dropped when it comes off the stack, unfetched, once the shadow ray (if any)
-// is done with: it could only matter to that ray.
+// is done with (for every ray of a packet): it could only matter to that ray.
 fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
               dir: vec3f) {
     var stack: array<vec2u, WIDE_STACK_SIZE>;   // (reference, bits of the closest-hit ray's entry)
@@ -65,21 +59,17 @@ fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: Tr
             let first = (next & ~WIDE_LEAF) >> LEAF_COUNT_BITS;
             test_triangles(state, ray, shadow_ray, shadow_length, first, first + (next & LEAF_COUNT_MASK),
                            NO_INSTANCE);
-            // A shadow-only query (no closest-hit ray) is done at its first blocker.
-            if (*state).occluded && !((*state).hit.t > 0.0) { break; }
+            // Shadow-only queries (no closest-hit ray) are done at their first blockers.
+            if packet_all((*state).occluded && !((*state).hit.t > 0.0)) { break; }
             next = WIDE_EMPTY;
         } else {
-            let lo_x = bitcast<vec4f>(wide_row(next, 0u));
-            let lo_y = bitcast<vec4f>(wide_row(next, 1u));
-            let lo_z = bitcast<vec4f>(wide_row(next, 2u));
-            let hi_x = bitcast<vec4f>(wide_row(next, 3u));
-            let hi_y = bitcast<vec4f>(wide_row(next, 4u));
-            let hi_z = bitcast<vec4f>(wide_row(next, 5u));
-            var refs = wide_row(next, 6u);
-            var entries = wide_entries(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, ray, (*state).hit.t);
-            let shadow = select(wide_entries(lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, shadow_ray, shadow_length),
-                                vec4f(WIDE_MISS), (*state).occluded);
-            var keys = select(min(entries, shadow), vec4f(WIDE_MISS), refs == vec4u(WIDE_EMPTY));
+            let node = wide_node(next);
+            var refs = node.children;
+            var entries = wide_entries(node.lo_x, node.lo_y, node.lo_z, node.hi_x, node.hi_y, node.hi_z, ray,
+                                       (*state).hit.t);
+            let shadow = select(wide_entries(node.lo_x, node.lo_y, node.lo_z, node.hi_x, node.hi_y, node.hi_z,
+                                             shadow_ray, shadow_length), vec4f(WIDE_MISS), (*state).occluded);
+            var keys = select(packet_min4(min(entries, shadow)), vec4f(WIDE_MISS), refs == vec4u(WIDE_EMPTY));
             order_pair(&keys, &refs, &entries, 0u, 1u);
             order_pair(&keys, &refs, &entries, 2u, 3u);
             order_pair(&keys, &refs, &entries, 0u, 2u);
@@ -100,7 +90,7 @@ fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: Tr
                 if depth == 0u { break; }
                 depth -= 1u;
                 let pushed = stack[depth];
-                if !((*state).occluded && bitcast<f32>(pushed.y) >= (*state).hit.t) {
+                if !packet_all((*state).occluded && bitcast<f32>(pushed.y) >= (*state).hit.t) {
                     next = pushed.x;
                     break;
                 }
