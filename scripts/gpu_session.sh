@@ -12,9 +12,10 @@
 #        warm for 30 s), command ". .device/setup.sh; D=$OUT; OUT=/tmp/gs/r2 ARCHIVE=$D/r2.tgz
 #                 bash scripts/gpu_session.sh trace"
 #
-# Next (session 14's advice): first `train` alone (the 256² fine-tune, ~9 minutes: PART_LIMIT=300,
-# timeout_s 590, carry .device and the OIDN peer), then, if the machine is still warm, `frame nn` with
-# DEADLINE=150 to see what the readback change and the fp16 question come to.
+# Next (session 19's advice): call 1 with the OIDN peer, DEADLINE=300 PART_LIMIT=240, timeout_s 590:
+# `heldout` (issue 12's bar at 4096-spp gold), then `frame`; call 2 at once with the Mitsuba peer:
+# `trace` (~3 min: the 4-wide BVH against the threaded one and OptiX, BENCHMARKS.md §18). `train` alone
+# in a later session (~9 minutes: PART_LIMIT=300, timeout_s 590, the OIDN peer).
 #
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p in
 # both precisions and with naga's bounds checks, engine steps against torch cuDNN and OIDN CUDA), trace
