@@ -59,7 +59,7 @@ fn trace_ray_pair(origin: vec3f, dir: vec3f, t_max: f32, shadow_origin: vec3f, s
         walk_scene(&state, ray, shadow_ray, shadow_length, dir);
     } else {
         let node_count = bvh_node_count();
-        let ordering = node_count * (packet_octant(dir) % bvh_orderings());
+        let ordering = octant_copy_start(dir, node_count);
         var index = 0u;
         loop {
             state.loop_passes += 1u;

@@ -3,10 +3,9 @@
 
 // #import accel/walk_tree.wgsl
 
-// Walks the node copy of the ray's octant (copy 0 when the buffer holds only one).
+// Walks the node copy of the ray's octant.
 fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
               dir: vec3f) {
     let node_count = bvh_node_count();
-    walk_tree(state, ray, shadow_ray, shadow_length, node_count * (packet_octant(dir) % bvh_orderings()),
-              node_count, NO_INSTANCE);
+    walk_tree(state, ray, shadow_ray, shadow_length, octant_copy_start(dir, node_count), node_count, NO_INSTANCE);
 }

@@ -144,6 +144,12 @@ fn test_triangles(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray
     }
 }
 
+// Where the node copy of the top tree (the whole tree of a single-level scene) that suits rays along
+// `dir` starts: the copy of its octant, or copy 0 when the buffer holds only one.
+fn octant_copy_start(dir: vec3f, node_count: u32) -> u32 {
+    return node_count * (packet_octant(dir) % bvh_orderings());
+}
+
 // Walks the tree whose (direction-ordered) copy holds nodes ordering .. ordering + node_count with
 // `ray` and `shadow_ray` (in the space of its triangles; `instance` names it in hits), updating `state`.
 fn walk_tree(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
