@@ -2,7 +2,8 @@
 throughput (closest-hit rays per second through wgsl/accel/ray_query.wgsl) with each traversal module:
 `lanes` (every invocation walks alone) and `packet` (a subgroup walks together, on CPU adapters with
 subgroups), both over the threaded binary layout, and `wide` and `wide packet`, the same two over the
-4-wide layout (wgsl/accel/walk_wide.wgsl). The rays start at random points all around the mesh, so neighbouring invocations share
+4-wide layout (wgsl/accel/walk_wide.wgsl); `lanes rows` and `wide rows` are `lanes` and `wide` with
+nodes and vertices fetched as 16-byte rows (wgsl/accel/geometry_rows.wgsl). The rays start at random points all around the mesh, so neighbouring invocations share
 nothing: the worst case for packets, which the path tracer's neighbouring pixels are not.
 
 Peer: Mitsuba 3 (scalar_rgb) loading a scene that holds the same triangles, which includes building
@@ -21,9 +22,10 @@ import numpy as np
 from wgpu_rt.accel.bvh import build_bvh
 from wgpu_rt.accel.geometry import LANES_TRAVERSAL, SUBGROUP_TRAVERSAL
 
-# Columns: name, traversal module, BVH layout.
+# Columns: name, traversal module, BVH variant (accel.geometry.bvh_variants).
 WALKS = (("lanes", LANES_TRAVERSAL, "threaded"), ("packet", SUBGROUP_TRAVERSAL, "threaded"),
-         ("wide", LANES_TRAVERSAL, "wide"), ("wide packet", SUBGROUP_TRAVERSAL, "wide"))
+         ("wide", LANES_TRAVERSAL, "wide"), ("wide packet", SUBGROUP_TRAVERSAL, "wide"),
+         ("lanes rows", LANES_TRAVERSAL, "threaded+rows"), ("wide rows", LANES_TRAVERSAL, "wide+rows"))
 
 BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
 
@@ -64,7 +66,7 @@ def mitsuba_load_seconds(triangles: np.ndarray) -> float | None:
 def traversal_rate(triangles: np.ndarray, traversal: str, layout: str = "threaded",
                    rays: int = 512 * 512) -> float | None:
     """Closest-hit rays per second on the GPU for rays from random outside points toward the mesh,
-    walked with the traversal module ``traversal`` over the BVH ``layout`` (None when the adapter cannot
+    walked with the traversal module ``traversal`` over the BVH variant ``layout`` (None when the adapter cannot
     run it)."""
     from wgpu_rt.errors import NoAdapterError
     from wgpu_rt.gpu import get_context
@@ -81,7 +83,7 @@ def traversal_rate(triangles: np.ndarray, traversal: str, layout: str = "threade
     faces = np.arange(3 * len(triangles), dtype=np.uint32).reshape(-1, 3)
     scene = Scene(Camera([0, 0, 3], [0, 0, 0]), [Mesh("m", triangles.reshape(-1, 3), faces, "grey")],
                   {"grey": Material()})
-    query = RayQuery(ctx, GeometryBuffers.build(scene, layout=layout), traversal=traversal)
+    query = RayQuery(ctx, GeometryBuffers.build(scene).as_variant(layout), traversal=traversal)
     points = triangles.reshape(-1, 3)
     center, radius = points.mean(axis=0), np.ptp(points, axis=0).max()
     rng = np.random.default_rng(1)

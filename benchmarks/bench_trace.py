@@ -3,10 +3,11 @@ fastest variant here (cuda_ad_rgb with a CUDA GPU, else llvm_ad_rgb when LLVM 19
 scalar_rgb: benchmarks/peers.py) measured in the same run, and their ratio; a faster variant that is
 absent prints one "skipped (why)" line. Compile time is excluded on both sides (one warm-up render
 each). ``--scene bunny`` is the `mesh` scene with ../shared/meshes' Stanford bunny. ``--layouts``
-traces with each BVH node layout in turn (wgpu_rt.accel.geometry.BVH_LAYOUTS; default: the one
-WGPU_RT_BVH selects, else threaded).
+traces with each BVH variant in turn (wgpu_rt.accel.geometry.bvh_variants: a node layout, "+rows" for
+16-byte row loads; or ``auto``: the one measured fastest on this adapter, wgpu_rt.trace.bvh_choice,
+printed as "auto: VARIANT"; default: what WGPU_RT_BVH selects, else auto).
 
-    python3 benchmarks/bench_trace.py [--spp 64] [--size 256] [--scene cornell] [--layouts threaded wide]
+    python3 benchmarks/bench_trace.py [--spp 64] [--size 256] [--scene cornell] [--layouts threaded wide wide+rows auto]
 """
 
 import argparse
@@ -16,8 +17,18 @@ import sys
 from common import load_scenes, print_header
 from peers import mitsuba_peer, time_mitsuba
 
-from wgpu_rt.accel.geometry import BVH_LAYOUT_ENV, BVH_LAYOUTS, bvh_layout
+from wgpu_rt.accel.geometry import BVH_LAYOUT_ENV, LANES_TRAVERSAL, GeometryBuffers, bvh_layout, bvh_variants
 from wgpu_rt.renderer import render
+
+
+def layout_label(layout: str, scene, max_depth: int) -> str:
+    """``layout``, or for auto the layout it took (read from the choices cache its render filled)."""
+    if layout != "auto":
+        return layout
+    from wgpu_rt.gpu import get_context
+    from wgpu_rt.trace.bvh_choice import choose_layout
+
+    return f"auto: {choose_layout(get_context(), scene, GeometryBuffers.build(scene), max_depth).variant}"
 
 
 def main() -> int:
@@ -26,7 +37,7 @@ def main() -> int:
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--scene", default="cornell")
     parser.add_argument("--max-depth", type=int, default=8)
-    parser.add_argument("--layouts", nargs="+", choices=list(BVH_LAYOUTS), default=None)
+    parser.add_argument("--layouts", nargs="+", choices=["auto", *bvh_variants(LANES_TRAVERSAL)], default=None)
     args = parser.parse_args()
     print_header(args)
     size, samples = (args.size, args.size), args.spp * args.size * args.size
@@ -40,7 +51,7 @@ def main() -> int:
         os.environ[BVH_LAYOUT_ENV] = layout
         render(scene, spp=1, size=size, max_depth=args.max_depth, aovs=())
         ours = render(scene, spp=args.spp, size=size, max_depth=args.max_depth, aovs=())
-        rates[layout] = samples / ours.seconds
+        rates[layout_label(layout, scene, args.max_depth)] = samples / ours.seconds
 
     mi, skipped = mitsuba_peer()
     for line in skipped:

@@ -14,12 +14,13 @@
 #
 # Next (session 19's advice): call 1 with the OIDN peer, DEADLINE=300 PART_LIMIT=240, timeout_s 590:
 # `heldout` (issue 12's bar at 4096-spp gold), then `frame`; call 2 at once with the Mitsuba peer:
-# `trace` (~3 min: the 4-wide BVH against the threaded one and OptiX, BENCHMARKS.md §18). `train` alone
+# `trace` (~3 min: the 4-wide BVH against the threaded one and OptiX, and what the measured choice
+# takes there, BENCHMARKS.md §18, §19). `train` alone
 # in a later session (~9 minutes: PART_LIMIT=300, timeout_s 590, the OIDN peer).
 #
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p in
 # both precisions and with naga's bounds checks, engine steps against torch cuDNN and OIDN CUDA), trace
-# (samples/s against Mitsuba cuda_ad_rgb with the threaded and the wide BVH; closest-hit rays/s of each
+# (samples/s against Mitsuba cuda_ad_rgb with the threaded and the wide BVH and the measured choice; closest-hit rays/s of each
 # walk on 100k random triangles and the bunny; cornell also with bounds checks; what the watertight tests
 # cost), frame (fused frame, adaptive targeted pass, moving vs static: the `moving` scene and the
 # bunny), heldout (issue 12's evidence at its scale: 24 held-out worlds at 256² with 4096-spp gold,
@@ -95,9 +96,9 @@ for what in "$@"; do
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged fp16 autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
-        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide
-        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP --layouts threaded wide
-        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp $TRACE_SPP --layouts threaded wide
+        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto
+        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto
+        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto
         part bvh_rays python3 benchmarks/bench_bvh.py --sizes 100000
         part trace_cornell_checked env WGPU_RT_BOUNDS_CHECKS=1 python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP
         part watertight python3 benchmarks/bench_watertight.py --size $SQUARE --spp $TRACE_SPP ;;

@@ -2,10 +2,20 @@
 where a missing adapter fails the run: a green CI means the kernels really ran."""
 
 import os
+import tempfile
 
 import pytest
 
 from wgpu_rt.errors import NoAdapterError
+
+
+def pytest_configure(config):
+    """Choices measured per adapter (wgpu_rt.measured_choices) go to a cache of this test session's
+    own, so no test reads one a user's runs left behind (XDG_CACHE_HOME stays: Mesa keeps its compiled
+    shaders there)."""
+    from wgpu_rt.measured_choices import CACHE_DIR_ENV
+
+    os.environ[CACHE_DIR_ENV] = tempfile.mkdtemp(prefix="wgpu-rt-test-cache-")
 
 
 def _in_ci() -> bool:

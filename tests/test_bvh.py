@@ -30,14 +30,29 @@ from wgpu_rt.accel.bvh import (
     wide_nodes,
     zero_area,
 )
-from wgpu_rt.accel.geometry import GeometryBuffers, compose_with_traversal
+from wgpu_rt.accel.geometry import LANES_TRAVERSAL, GeometryBuffers, compose_with_traversal
 from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
 from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
 from wgpu_rt.shaders import compose, read_wgsl
 
 BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
 EDGE_MARGIN = 1e-4
-LAYOUTS = ("threaded", "wide")   # GeometryBuffers' node layouts, each with its walk
+# GeometryBuffers' variants (accel.geometry.bvh_variants): each node layout with its walk, and each
+# fetched as rows by the per-invocation traversal (the only one rows are chosen beside)
+LAYOUTS = ("threaded", "wide", "threaded+rows", "wide+rows")
+
+
+def variant_geometry(scene, variant: str, frame: int = 0) -> GeometryBuffers:
+    return GeometryBuffers.build(scene, frame).as_variant(variant)
+
+
+def traversal_for(geometry) -> str | None:
+    """Row loads run beside the per-invocation traversal; the rest with the adapter's own."""
+    return LANES_TRAVERSAL if geometry.row_loads else None
+
+
+def query_for(gpu, geometry) -> RayQuery:
+    return RayQuery(gpu, geometry, traversal=traversal_for(geometry))
 
 
 def brute_force(triangles, origins, dirs, t_max=np.inf):
@@ -125,9 +140,10 @@ def compiled_as(code: str, contraction: str, edge_function: str | None = None) -
 
 
 def ray_query(gpu, geometry, contraction: str = "driver", edge_function: str | None = None) -> RayQuery:
-    query = RayQuery(gpu, geometry)
+    query = query_for(gpu, geometry)
     if contraction != "driver" or edge_function is not None:
-        code = compiled_as(compose_with_traversal(gpu, "accel/ray_query.wgsl", replacements=geometry.kernel_modules),
+        code = compiled_as(compose_with_traversal(gpu, "accel/ray_query.wgsl", traversal_for(geometry),
+                                                  replacements=geometry.kernel_modules),
                            contraction, edge_function)
         query.pipelines = {entry: gpu.compute_pipeline(code, entry, label=f"ray_query.{entry} ({contraction})")
                            for entry in query.pipelines}
@@ -136,7 +152,7 @@ def ray_query(gpu, geometry, contraction: str = "driver", edge_function: str | N
 
 def check_against_brute_force(gpu, triangles, origins, dirs, t_max=np.inf, min_clear=0.9, contraction="driver",
                               layout="threaded"):
-    geometry = GeometryBuffers.build(triangle_scene(triangles), layout=layout)
+    geometry = variant_geometry(triangle_scene(triangles), layout)
     query = ray_query(gpu, geometry, contraction)
     rays = query_rays(origins, dirs, t_max)
     hits, _ = query.intersect(rays)
@@ -405,7 +421,7 @@ def test_watertight_at_shared_edges_and_vertices(gpu, contraction, layout):
     """Rays aimed exactly at shared vertices and edges of a grid, from random directions, must not
     slip through, whether or not the driver fuses multiply-adds."""
     origins, targets = grid_edge_rays()
-    geometry = GeometryBuffers.build(triangle_scene(_grid()), layout=layout)
+    geometry = variant_geometry(triangle_scene(_grid()), layout)
     hits, _ = ray_query(gpu, geometry, contraction).intersect(query_rays(origins, targets - origins))
     assert np.all(hits["prim"] != NO_HIT), f"{np.sum(hits['prim'] == NO_HIT)} rays leaked through the grid"
     np.testing.assert_allclose(hits["t"], 1.0, rtol=1e-5)
@@ -543,7 +559,7 @@ def test_grazing_rays(gpu):
     origins = np.column_stack([rng.uniform(-1, 0, 400), rng.uniform(0.5, 7.5, 400), np.zeros(400)])
     dirs = np.column_stack([np.ones(400), rng.uniform(-0.2, 0.2, 400), np.zeros(400)])
     geometry = GeometryBuffers.build(triangle_scene(triangles))
-    query = RayQuery(gpu, geometry)
+    query = query_for(gpu, geometry)
     hits, _ = query.intersect(query_rays(origins, dirs))
     assert np.all(hits["prim"] == NO_HIT), "a ray inside the plane of a triangle must not hit it"
     origins[:, 2] = 1e-3
@@ -576,10 +592,10 @@ def test_degenerate_triangles_never_hit(gpu, contraction, layout):
 def test_scene_of_only_zero_area_triangles_hits_nothing(gpu, layout):
     rng = np.random.default_rng(14)
     collinear, on_lines = collinear_triangles(rng, 50)
-    geometry = GeometryBuffers.build(triangle_scene(collinear), layout=layout)
+    geometry = variant_geometry(triangle_scene(collinear), layout)
     origins = rng.uniform(-2, 2, (256, 3))
     rays = query_rays(origins, on_lines[rng.integers(0, 50, 256)] - origins)
-    query = RayQuery(gpu, geometry)
+    query = query_for(gpu, geometry)
     hits, _ = query.intersect(rays)
     assert np.all(hits["prim"] == NO_HIT) and not np.any(query.occluded(rays))
 
@@ -599,8 +615,8 @@ def test_rays_leaving_surfaces(gpu, layout):
     dirs = rng.normal(size=(500, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     dirs[np.abs(np.sum(dirs * normals, axis=1)) < 0.05] = normals[np.abs(np.sum(dirs * normals, axis=1)) < 0.05]
-    geometry = GeometryBuffers.build(triangle_scene(triangles), layout=layout)
-    hits, _ = RayQuery(gpu, geometry).intersect(query_rays(points, dirs, offset_normals=normals))
+    geometry = variant_geometry(triangle_scene(triangles), layout)
+    hits, _ = query_for(gpu, geometry).intersect(query_rays(points, dirs, offset_normals=normals))
     side = np.where(np.sum(normals * dirs, axis=1, keepdims=True) >= 0, normals, -normals)
     offset = side * 1e-5 * np.maximum(np.abs(points).max(axis=1, keepdims=True), 1.0)   # accel/bvh.wgsl's rule
     t_ref, prim_ref, ambiguous = brute_force(geometry.triangles, points + offset, dirs)
@@ -625,11 +641,11 @@ def test_surface_attributes_at_hits(gpu, layout):
     flat.transform = flat.keyframes[1]
     scene = Scene(Camera([0, 0, 5], [0, 0, 0]), [smooth, flat],
                   {"chalk": Material(), "metal": Material("conductor", roughness=0.1)}, frame_count=2)
-    geometry = GeometryBuffers.build(scene, frame=1, layout=layout)
+    geometry = variant_geometry(scene, layout, frame=1)
     rng = np.random.default_rng(8)
     targets = np.concatenate([rng.normal(0, 0.3, (100, 3)), rng.normal(0, 0.3, (100, 3)) + [3, 0, 0]])
     origins = targets + [0, 0, 5]
-    hits, surfaces = RayQuery(gpu, geometry).intersect(query_rays(origins, targets - origins))
+    hits, surfaces = query_for(gpu, geometry).intersect(query_rays(origins, targets - origins))
     hit = hits["prim"] != NO_HIT
     assert hit.sum() > 150
     prim = hits["prim"][hit]

@@ -10,7 +10,7 @@ ROOT = Path(__file__).resolve().parents[1] / "wgpu_rt"
 # Lower first. Shared infrastructure (errors, GPU context, shaders, files, metrics, the pass contract,
 # the network registry) sits under every stage.
 STAGES = [
-    {"errors", "gpu", "shaders", "io", "metrics", "passes", "models"},
+    {"errors", "gpu", "shaders", "io", "measured_choices", "metrics", "passes", "models"},
     {"scene"},
     {"accel"},
     {"trace"},

@@ -128,8 +128,13 @@ def test_off_unless_asked(gpu, two_layers, tmp_path, monkeypatch):
     from wgpu_rt.nn import WgslModel
     from wgpu_rt.nn.autotune import ENV, cache_path
 
+    from wgpu_rt.measured_choices import CACHE_DIR_ENV
+
+    monkeypatch.delenv(CACHE_DIR_ENV, raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     assert cache_path() == tmp_path / "wgpu-rt" / "autotune.json"
+    monkeypatch.setenv(CACHE_DIR_ENV, str(tmp_path / "own"))
+    assert cache_path() == tmp_path / "own" / "autotune.json"
     monkeypatch.delenv(ENV, raising=False)
     assert WgslModel(two_layers, ctx=gpu).autotuner is None
     assert WgslModel(two_layers, ctx=gpu, autotune=True).autotuner.path == cache_path()

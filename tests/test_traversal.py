@@ -15,10 +15,11 @@ from wgpu_rt.accel.geometry import (LANES_TRAVERSAL, SUBGROUP_TRAVERSAL, Geometr
 from wgpu_rt.scene.primitives import primitive
 from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
 from wgpu_rt.trace import SampleSchedule, SceneFeatures, TracePass
+from wgpu_rt.trace.trace_pass import BufferPlacement
 
 MODULES = [LANES_TRAVERSAL, SUBGROUP_TRAVERSAL]
 WALKS = [(LANES_TRAVERSAL, "threaded"), (SUBGROUP_TRAVERSAL, "threaded"), (LANES_TRAVERSAL, "wide"),
-         (SUBGROUP_TRAVERSAL, "wide")]
+         (SUBGROUP_TRAVERSAL, "wide"), (LANES_TRAVERSAL, "threaded+rows"), (LANES_TRAVERSAL, "wide+rows")]
 SIZE = (24, 16)
 
 
@@ -37,7 +38,7 @@ def test_traversal_matches_brute_force(gpu, module, layout):
     triangles = (centers + rng.normal(0, 0.15, (40, 30, 3, 3))).reshape(-1, 3, 3)
     origins = rng.uniform(-2, 2, (1000, 3))
     dirs = rng.uniform(-1, 1, (1000, 3)) - origins
-    geometry = GeometryBuffers.build(triangle_scene(triangles), layout=layout)
+    geometry = GeometryBuffers.build(triangle_scene(triangles)).as_variant(layout)
     query = RayQuery(gpu, geometry, traversal=module)
     for t_max in (np.inf, 1.0):
         rays = query_rays(origins, dirs, t_max)
@@ -51,10 +52,10 @@ def test_traversal_matches_brute_force(gpu, module, layout):
         np.testing.assert_array_equal(occluded[clear], hit[clear])
 
 
-def _render(gpu, scene, module, spp, max_depth=8, chunk_size=None, size=SIZE, layout="threaded"):
+def _render(gpu, scene, module, spp, max_depth=8, chunk_size=None, size=SIZE, layout="threaded", placement=None):
     features = SceneFeatures.of(scene)
-    trace = TracePass(gpu, scene, GeometryBuffers.build(scene, layout=layout), *size, max_depth=max_depth,
-                      features=features, chunk_size=chunk_size, traversal=module)
+    trace = TracePass(gpu, scene, GeometryBuffers.build(scene).as_variant(layout), *size, max_depth=max_depth,
+                      features=features, chunk_size=chunk_size, traversal=module, placement=placement)
     buffers = FrameBuffers(gpu, *size)
     encoder = gpu.device.create_command_encoder()
     trace.clear(encoder, buffers)
@@ -88,6 +89,20 @@ def test_wide_walk_renders_the_image_of_the_threaded_walk(gpu, scene_name, modul
     assert np.all(threaded["spp"] == 3)
     for name, plane in threaded.items():
         assert plane.tobytes() == wide[name].tobytes(), name
+
+
+@pytest.mark.parametrize("layout", ["threaded", "wide"])
+@pytest.mark.parametrize("scene_name", ["cornell", "cornell-glossy", "sun-room"])
+def test_row_loads_render_the_image_of_word_loads(gpu, scene_name, layout):
+    """Nodes and vertices fetched as 16-byte rows (accel/geometry_rows.wgsl) are the same records: the
+    frames agree bit for bit. The geometry is kept in storage buffers, where rows apply."""
+    scene = load_scene(scene_name)
+    storage = BufferPlacement()
+    words = _render(gpu, scene, LANES_TRAVERSAL, spp=3, layout=layout, placement=storage)
+    rows = _render(gpu, scene, LANES_TRAVERSAL, spp=3, layout=f"{layout}+rows", placement=storage)
+    assert np.all(words["spp"] == 3)
+    for name, plane in words.items():
+        assert plane.tobytes() == rows[name].tobytes(), name
 
 
 def test_long_paths_in_big_chunks_stay_unbiased(gpu):

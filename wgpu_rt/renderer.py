@@ -172,6 +172,7 @@ class Renderer:
         which stores each shape's triangles once, unless it places at most FLATTEN_PLACED_TRIANGLES.
         Frame f is seeded seed + f (mod 2³²)."""
         from .accel.geometry import GeometryBuffers, InstancedGeometry, bvh_layout
+        from .trace.bvh_choice import choose_layout
         from .trace.trace_pass import TracePass
 
         traced: dict[bytes, TracePass] = {}   # by the frame's transforms, or follows_every_frame
@@ -191,8 +192,10 @@ class Renderer:
                 traced.clear()
                 if instanced_from_start or (moved and can_instance):
                     geometry, key = InstancedGeometry(scene, frame), follows_every_frame
+                elif layout == "auto":
+                    geometry = choose_layout(self.ctx, scene, GeometryBuffers.build(scene, frame), self.max_depth, frame)
                 else:
-                    geometry = GeometryBuffers.build(scene, frame, layout)
+                    geometry = GeometryBuffers.build(scene, frame).as_variant(layout)
                 trace = traced[key] = TracePass(self.ctx, scene, geometry, self.width, self.height, frame=frame,
                                                 max_depth=self.max_depth, seed=seed)
             else:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import os
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,18 +52,35 @@ BVH_LAYOUTS = {"threaded": THREADED_WALK, "wide": WIDE_WALK}
 BVH_LAYOUT_ENV = "WGPU_RT_BVH"
 
 
+# A variant's suffix: the nodes and triangle positions fetched as 16-byte rows, one vector load each
+# (accel/geometry_rows.wgsl), by the per-invocation traversal (accel/traversal_lanes.wgsl).
+ROW_LOADS = "+rows"
+
+
 def geometry_modules(geometry) -> dict:
-    """The module swaps for kernels that trace ``geometry``: its instances and walk modules."""
-    return {NO_INSTANCES: geometry.instances_module, THREADED_WALK: geometry.walk_module}
+    """The module swaps for kernels that trace ``geometry``: its instances and walk modules, and its
+    geometry words module where it is fetched as rows."""
+    modules = {NO_INSTANCES: geometry.instances_module, THREADED_WALK: geometry.walk_module}
+    if getattr(geometry, "row_loads", False):
+        modules[GEOMETRY_WORDS] = GEOMETRY_ROWS
+    return modules
+
+
+def bvh_variants(traversal: str) -> list[str]:
+    """The ways a single-level scene can be laid out and fetched for ``traversal``: each node layout, and
+    beside the per-invocation traversal each also fetched as rows (a subgroup packet fetches words)."""
+    return [*BVH_LAYOUTS, *(f"{layout}{ROW_LOADS}" for layout in BVH_LAYOUTS if traversal == LANES_TRAVERSAL)]
 
 
 def bvh_layout() -> str:
-    """The node layout single-level scenes are built with: "threaded" (the stackless binary walk, fast
-    with lavapipe's subgroup packets), or "wide" (a 4-wide tree walked with a stack, nearest child first,
-    for GPUs; not yet measured on one) where the environment sets WGPU_RT_BVH=wide."""
-    layout = os.environ.get(BVH_LAYOUT_ENV, "threaded")
-    if layout not in BVH_LAYOUTS:
-        raise SceneError(f"{BVH_LAYOUT_ENV}={layout!r}: the BVH layout must be one of {', '.join(BVH_LAYOUTS)}")
+    """The BVH variant single-level scenes are built with, from WGPU_RT_BVH: "auto" (the default: the
+    fastest on this adapter, measured once per scene size; wgpu_rt.trace.bvh_choice), "threaded" (the
+    stackless binary walk, fast with lavapipe's subgroup packets) or "wide" (a 4-wide tree walked with a
+    stack, nearest child first), either with ROW_LOADS ("wide+rows")."""
+    layout = os.environ.get(BVH_LAYOUT_ENV, "auto")
+    if layout != "auto" and layout not in bvh_variants(LANES_TRAVERSAL):
+        raise SceneError(f"{BVH_LAYOUT_ENV}={layout!r}: the BVH layout must be auto or one of "
+                         f"{', '.join(bvh_variants(LANES_TRAVERSAL))}")
     return layout
 
 
@@ -127,6 +145,7 @@ class GeometryBuffers:
     object_motion: np.ndarray      # (O, 4, 4) f32 world at this frame → world at the previous frame
     bvh: Bvh
     layout: str = "threaded"       # binding 0's node layout: a key of BVH_LAYOUTS
+    row_loads: bool = False        # kernels fetch nodes and positions as rows (ROW_LOADS)
 
     # The kernels' instance module: none (see InstancedGeometry).
     instances_module = NO_INSTANCES
@@ -161,6 +180,17 @@ class GeometryBuffers:
         order = bvh.order
         return cls(all_triangles[order], np.concatenate(normals)[order], np.concatenate(materials)[order],
                    np.concatenate(objects)[order], object_motion(scene, frame), bvh, layout)
+
+    def as_variant(self, variant: str) -> "GeometryBuffers":
+        """This geometry (the same BVH) laid out and fetched as ``variant`` (bvh_variants)."""
+        layout = variant.removesuffix(ROW_LOADS)
+        if layout not in BVH_LAYOUTS:
+            raise ValueError(f"unknown BVH variant {variant!r}")
+        return dataclasses.replace(self, layout=layout, row_loads=variant.endswith(ROW_LOADS))
+
+    @property
+    def variant(self) -> str:
+        return self.layout + ROW_LOADS * self.row_loads
 
     @property
     def triangle_count(self) -> int:
@@ -494,6 +524,7 @@ class InstancedGeometry:
 # UNIFORM_GEOMETRY_WORDS (uniform buffers of UNIFORM_GEOMETRY_BYTES each, its array sizes).
 GEOMETRY_WORDS = "accel/geometry_words.wgsl"
 UNIFORM_GEOMETRY_WORDS = "accel/geometry_words_uniform.wgsl"
+GEOMETRY_ROWS = "accel/geometry_rows.wgsl"   # storage, as rows (ROW_LOADS)
 UNIFORM_GEOMETRY_BYTES = 65536
 POSITION_BYTES = 48      # three vec4f per triangle
 

@@ -6,36 +6,30 @@ distinct kernel the conv tilings offer (``none``, ``loop``, ``register``, ``stag
 uniform bindings window by window, as one dispatch per group of uniform windows (variant suffix
 ``model.UNIFORM_WINDOWS``; see kernels.WindowLayout), is timed once on this adapter with timestamp
 queries, on scratch tensors of the layer's shape, and the fastest variant is remembered in a JSON cache
-keyed by (adapter, driver, layer shape, precision): ``$XDG_CACHE_HOME/wgpu-rt/autotune.json``
-(``~/.cache/wgpu-rt/autotune.json`` without it). Later models on the same adapter read the choice
-instead of measuring.
+keyed by (adapter, driver, layer shape, precision) (wgpu_rt.measured_choices: the cache and its file).
+Later models on the same adapter read the choice instead of measuring.
 
 Off by default: measuring compiles and runs every candidate kernel once per new shape (≈ 23 s for the
 shipped denoiser at 256² on lavapipe, where the test suite must not get slower), so it is asked for with
 ``autotune=True`` or ``WGPU_RT_AUTOTUNE=1``; ``WGPU_RT_AUTOTUNE=0`` turns it off whatever the code asks
 (the default tiling and window preference: ``model.default_conv_tiling``,
-``model.default_uniform_windows``). A cache file that cannot be read or parsed is ignored and rewritten;
-it is written atomically (``wgpu_rt.io.atomic_output``), so a crash never leaves a half file.
+``model.default_uniform_windows``).
 """
 
 from __future__ import annotations
 
-import json
 import os
-import warnings
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 import wgpu
 
 from ..errors import ModelError
-from ..io import atomic_output
+from ..measured_choices import MeasuredChoices, cache_path  # noqa: F401 (cache_path: the cache the choices share)
 from .graph import Layer
 from .kernels import Dispatch, TensorView, record_dispatches
 
 ENV = "WGPU_RT_AUTOTUNE"
-CACHE_VERSION = 1
 TIMED_RUNS = 3  # after one warm-up run; the median counts
 
 
@@ -47,11 +41,6 @@ def enabled(requested: bool | None) -> bool:
     if value == "0":
         return False
     return requested if requested is not None else value == "1"
-
-
-def cache_path() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or ""
-    return (Path(base) if os.path.isabs(base) else Path.home() / ".cache") / "wgpu-rt" / "autotune.json"
 
 
 def timestamp_timer(ctx) -> Callable[[list[Dispatch]], float]:
@@ -75,64 +64,15 @@ def timestamp_timer(ctx) -> Callable[[list[Dispatch]], float]:
     return seconds
 
 
-class Autotuner:
-    """The cache and the measurements. ``timer`` (dispatches -> seconds) defaults to timestamp queries;
-    tests pass a fake one. ``measured`` counts the timer's calls in this process."""
+class Autotuner(MeasuredChoices):
+    """The conv kernels' choices: timed with timestamp queries unless ``timer`` (dispatches -> seconds)
+    is given (tests pass a fake one)."""
 
     def __init__(self, ctx, path: str | os.PathLike | None = None, timer=None):
-        self.ctx = ctx
-        self.path = Path(path) if path is not None else cache_path()
-        self.timer = timer or (timestamp_timer(ctx) if ctx.has_timestamps else None)
-        info = ctx.adapter.info
-        self.adapter = " | ".join(str(info.get(k, "")) for k in ("device", "description", "backend_type"))
-        self.entries = self._load()
-        self.measured = 0
-
-    def _load(self) -> dict:
-        """The cache's entries; {} when the file is missing, unreadable or not a cache of this version
-        (it is rewritten on the next measurement)."""
-        try:
-            data = json.loads(self.path.read_text())
-            entries = data["entries"] if data.get("version") == CACHE_VERSION else {}
-            return {key: value for key, value in entries.items()
-                    if isinstance(value, dict) and isinstance(value.get("variant"), str)}
-        except (OSError, ValueError, AttributeError, KeyError, TypeError):
-            return {}
+        super().__init__(ctx, path, timer or (timestamp_timer(ctx) if ctx.has_timestamps else None))
 
     def key(self, layer: Layer, src: TensorView, precision: str, pooled: bool = False) -> str:
         """The cache key of ``layer`` reading ``src`` (``pooled``: with a max pool in its epilogue)."""
         cout, cin, kh, kw = layer.weight.shape
         return (f"{self.adapter} | {precision} | {layer.kind}{'+maxpool' * pooled} {cout}x{cin}x{kh}x{kw} "
                 f"stride {layer.stride} pads {','.join(map(str, layer.pads))} in {src.height}x{src.width}")
-
-    def choose(self, key: str, candidates: dict[str, Callable[[], list[Dispatch]]], default: str) -> str:
-        """The fastest of ``candidates`` (variant -> its dispatches on scratch tensors) for ``key``, from
-        the cache or measured now; ``default`` where nothing can be measured (no timestamp queries)."""
-        if len(candidates) == 1:
-            return next(iter(candidates))
-        cached = self.entries.get(key, {}).get("variant")
-        if cached in candidates:
-            return cached
-        if self.timer is None:
-            return default
-        seconds = {}
-        for variant, dispatches in candidates.items():
-            seconds[variant] = self.timer(dispatches())
-            self.measured += 1
-        best = min(seconds, key=seconds.get)
-        self.entries[key] = {"variant": best, "seconds": seconds}
-        self._save(key)
-        return best
-
-    def _save(self, key: str) -> None:
-        """Add ``key`` to what is on disk now (another process may have added entries) and replace the
-        file atomically."""
-        entries = self._load()
-        entries[key] = self.entries[key]
-        self.entries.update(entries)
-        try:
-            with atomic_output(self.path) as tmp:
-                tmp.write_text(json.dumps({"version": CACHE_VERSION, "entries": entries}, indent=1,
-                                          sort_keys=True))
-        except OSError as err:  # a cache that cannot be written costs a measurement next time, not the run
-            warnings.warn(f"autotune cache not saved: {err}", stacklevel=2)

@@ -12,6 +12,15 @@ fn position_word(i: u32) -> f32 {
     return tri_positions[i];
 }
 
+// Row r (words 4r..4r+3), for the per-invocation fetches of accel/traversal_lanes.wgsl.
+fn bvh_row(r: u32) -> vec4u {
+    return vec4u(bvh_word(4u * r), bvh_word(4u * r + 1u), bvh_word(4u * r + 2u), bvh_word(4u * r + 3u));
+}
+
+fn position_row(r: u32) -> vec4f {
+    return vec4f(position_word(4u * r), position_word(4u * r + 1u), position_word(4u * r + 2u), position_word(4u * r + 3u));
+}
+
 // The root's skip: the index past the whole tree.
 fn bvh_node_count() -> u32 {
     return bvh_word(3u);

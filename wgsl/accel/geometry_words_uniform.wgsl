@@ -16,6 +16,14 @@ fn position_word(i: u32) -> f32 {
     return tri_positions[i >> 2u][i & 3u];
 }
 
+fn bvh_row(r: u32) -> vec4u {
+    return bvh_nodes[r];
+}
+
+fn position_row(r: u32) -> vec4f {
+    return tri_positions[r];
+}
+
 // The root's skip: the index past the whole tree.
 fn bvh_node_count() -> u32 {
     return bvh_word(3u);

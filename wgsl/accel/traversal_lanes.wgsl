@@ -24,24 +24,22 @@ fn packet_octant(dir: vec3f) -> u32 {
     return direction_octant(dir);
 }
 
+// A node's and a vertex's records are whole rows of the geometry words module (bvh_row, position_row):
+// single vector loads where accel/geometry_rows.wgsl provides them.
 fn bvh_node(index: u32) -> BvhNode {
-    let at = NODE_WORDS * index;
-    return BvhNode(bitcast<vec3f>(vec3u(bvh_word(at), bvh_word(at + 1u), bvh_word(at + 2u))), bvh_word(at + 3u),
-                   bitcast<vec3f>(vec3u(bvh_word(at + 4u), bvh_word(at + 5u), bvh_word(at + 6u))),
-                   bvh_word(at + 7u));
-}
-
-fn wide_row(at: u32) -> vec4u {
-    return vec4u(bvh_word(at), bvh_word(at + 1u), bvh_word(at + 2u), bvh_word(at + 3u));
+    let head = bvh_row(2u * index);        // NODE_WORDS = 2 rows
+    let tail = bvh_row(2u * index + 1u);
+    return BvhNode(bitcast<vec3f>(head.xyz), head.w, bitcast<vec3f>(tail.xyz), tail.w);
 }
 
 fn wide_node(index: u32) -> WideNode {
-    let at = WIDE_NODE_WORDS * index;
-    return WideNode(bitcast<vec4f>(wide_row(at)), bitcast<vec4f>(wide_row(at + 4u)), bitcast<vec4f>(wide_row(at + 8u)),
-                    bitcast<vec4f>(wide_row(at + 12u)), bitcast<vec4f>(wide_row(at + 16u)),
-                    bitcast<vec4f>(wide_row(at + 20u)), wide_row(at + 24u));
+    let at = (WIDE_NODE_WORDS / 4u) * index;
+    return WideNode(bitcast<vec4f>(bvh_row(at)), bitcast<vec4f>(bvh_row(at + 1u)), bitcast<vec4f>(bvh_row(at + 2u)),
+                    bitcast<vec4f>(bvh_row(at + 3u)), bitcast<vec4f>(bvh_row(at + 4u)),
+                    bitcast<vec4f>(bvh_row(at + 5u)), bvh_row(at + 6u));
 }
 
 fn bvh_triangle(prim: u32) -> TrianglePositions {
-    return TrianglePositions(triangle_vertex(prim, 0u), triangle_vertex(prim, 1u), triangle_vertex(prim, 2u));
+    let at = (TRIANGLE_WORDS / 4u) * prim;   // one row (x, y, z, unused) a vertex
+    return TrianglePositions(position_row(at).xyz, position_row(at + 1u).xyz, position_row(at + 2u).xyz);
 }
