@@ -25,9 +25,10 @@ def test_same_seed_same_bits_other_seed_other_noise(gpu):
     assert np.mean(np.abs(a.color - c.color)) > 1e-3
 
 
-def _trace(gpu, scene_name, counts=None, passes=(4,), batch_items=None):
+def _trace(gpu, scene_name, counts=None, passes=(4,), batch_items=None, item_samples=3):
     scene = load_scene(scene_name)
-    trace = TracePass(gpu, scene, GeometryBuffers.build(scene), *SIZE, chunk_size=3, batch_items=batch_items)
+    trace = TracePass(gpu, scene, GeometryBuffers.build(scene), *SIZE, chunk_size=3, batch_items=batch_items,
+                      item_samples=item_samples)
     buffers = FrameBuffers(gpu, *SIZE)
     encoder = gpu.device.create_command_encoder()
     trace.clear(encoder, buffers)
@@ -48,16 +49,18 @@ def test_split_passes_equal_one_pass(gpu):
     assert np.all(split.read("spp") == 8)
 
 
-@pytest.mark.parametrize("batch_items", [None, 64])
-def test_extra_sample_counts_add_distinct_samples(gpu, batch_items):
+@pytest.mark.parametrize("batch_items, item_samples", [(None, 3), (64, 3), (None, None)])
+def test_extra_sample_counts_add_distinct_samples(gpu, batch_items, item_samples):
     """A targeted pass (a count per pixel) traces, per pixel, the very samples a uniform pass would add:
     a pixel with 2 + k samples holds a uniform render's mean of its first 2 + k samples in every plane
     that is a mean (the normal plane renormalizes at each fold, so it follows how the samples were
     grouped). Counts up to 10 over items of at most 3 samples split a pixel into up to 4 items; 64 items
-    per batch spread a pixel's items over two batches, and a frame over many."""
+    per batch spread a pixel's items over two batches, and a frame over many; the default items hold
+    MIN_ITEM_SAMPLES (more than the dispatches' chunk of 3)."""
     rng = np.random.default_rng(1)
     counts = rng.integers(0, 11, size=SIZE[0] * SIZE[1])
-    uniform_then_extra = _trace(gpu, "cornell", counts=counts, passes=(2,), batch_items=batch_items)
+    uniform_then_extra = _trace(gpu, "cornell", counts=counts, passes=(2,), batch_items=batch_items,
+                                item_samples=item_samples)
     spp = uniform_then_extra.read("spp").ravel()
     np.testing.assert_array_equal(spp, 2 + counts)
     for k in (0, 1, 3, 4, 7, 10):
@@ -68,6 +71,20 @@ def test_extra_sample_counts_add_distinct_samples(gpu, batch_items):
             np.testing.assert_allclose(uniform_then_extra.read(plane).reshape(channels, -1)[:, pick],
                                        reference.read(plane).reshape(channels, -1)[:, pick], rtol=1e-5, atol=1e-6,
                                        err_msg=f"{plane}, pixels with {k} extra samples")
+
+
+def test_work_items_hold_at_least_min_item_samples(gpu):
+    """Items of a targeted pass hold the dispatches' chunk of samples, at least MIN_ITEM_SAMPLES (an
+    item that takes several regenerates paths; each costs a list search and a slot), and a default batch
+    about one uniform dispatch's samples."""
+    from wgpu_rt.trace.trace_pass import MIN_ITEM_SAMPLES
+
+    scene = load_scene("cornell")
+    geometry = GeometryBuffers.build(scene)
+    small_chunks = TracePass(gpu, scene, geometry, *SIZE, chunk_size=1)
+    assert small_chunks.item_samples == MIN_ITEM_SAMPLES
+    assert small_chunks._batch_items == max(64, SIZE[0] * SIZE[1] // MIN_ITEM_SAMPLES)
+    assert TracePass(gpu, scene, geometry, *SIZE, chunk_size=16).item_samples == max(16, MIN_ITEM_SAMPLES)
 
 
 def test_targeted_pass_is_deterministic_and_skips_pixels_without_samples(gpu):

@@ -7,7 +7,8 @@ per pixel in the order taken (the spp plane holds how many a pixel has), so any 
 per-pixel (adaptive), adds new sample indices and the planes stay unbiased running means.
 
 A targeted pass (a sample count per pixel) does not run over the image: wgsl/trace/work_list_build.wgsl
-compacts the counts into a list of work items of at most ``chunk_size`` samples, ordered so that
+compacts the counts into a list of work items of at most ``item_samples`` samples (``chunk_size``, at
+least MIN_ITEM_SAMPLES), ordered so that
 neighbours hold nearly as many samples, and wgsl/trace/targeted.wgsl traces the list in batches sized
 on the device (indirect dispatches), so the pass costs what its samples cost whatever their spread.
 """
@@ -55,6 +56,11 @@ WORK_LIST_BUILD = "trace/work_list_build.wgsl"
 # dispatch's work (an item holds up to chunk_size samples), and its slots fill 128 MiB at most, the
 # smallest max-storage-buffer-binding-size WebGPU allows.
 MAX_BATCH_ITEMS = 1 << 21
+# A targeted pass's work items hold up to max(chunk_size, MIN_ITEM_SAMPLES) samples: an invocation that
+# takes several samples of its pixel starts the next path where the last one ended, and every item pays
+# a search of the list and a slot; at 1080p (chunk_size 1) items of 1 sample made the pass 1.59× a
+# uniform pass of the same samples on lavapipe, items of 8 1.11× (BENCHMARKS.md §19).
+MIN_ITEM_SAMPLES = 8
 SAMPLE_SUMS_BYTES = 64   # a SampleSums (wgsl/trace/trace.wgsl) in a storage array: one item's slot
 ENTRY_BYTES = 12         # an Entry (wgsl/trace/work_list.wgsl)
 BATCH_ARGS_BYTES = 24    # a batch's indirect dispatch arguments: trace_items', then resolve_items' (x, y, z)
@@ -297,11 +303,14 @@ class TracePass(ComputePass):
     def __init__(self, ctx, scene: Scene, geometry, width: int, height: int, frame: int = 0,
                  max_depth: int = 8, seed: int = 0, features: SceneFeatures | None = None,
                  chunk_size: int | None = None, traversal: str | None = None,
-                 placement: BufferPlacement | None = None, batch_items: int | None = None):
+                 placement: BufferPlacement | None = None, batch_items: int | None = None,
+                 item_samples: int | None = None):
         """``traversal``: the BVH traversal module (tests and benchmarks compare them; default: the
         adapter's, wgpu_rt.accel.geometry.traversal_module). ``placement``: which tables live in
-        uniform buffers (default: each that fits). ``batch_items``: work items per batch of a targeted
-        pass (default: one per pixel, at most MAX_BATCH_ITEMS)."""
+        uniform buffers (default: each that fits). ``item_samples``: the most samples a work item of a
+        targeted pass holds (default: chunk_size, at least MIN_ITEM_SAMPLES). ``batch_items``: work items
+        per batch of a targeted pass (default: about one uniform dispatch's samples, at most
+        MAX_BATCH_ITEMS)."""
         if max_depth < 1:
             raise ValueError(f"max_depth must be at least 1, got {max_depth}")
         self.ctx, self.width, self.height = ctx, width, height
@@ -333,7 +342,10 @@ class TracePass(ComputePass):
         # cornell); few enough to stay around a second on lavapipe and well within the kernel's
         # LOOP_BUDGET (wgsl/trace/trace.wgsl) on scenes with long paths.
         self.chunk_size = chunk_size or max(1, min(16, (1 << 20) // (width * height)))
-        self._batch_items = min(batch_items or width * height, MAX_BATCH_ITEMS)
+        self.item_samples = item_samples or max(self.chunk_size, MIN_ITEM_SAMPLES)
+        # a batch of the default size holds about one uniform dispatch's samples
+        default_items = max(64, width * height * self.chunk_size // self.item_samples)
+        self._batch_items = min(batch_items or default_items, MAX_BATCH_ITEMS)
         self._work_list: WorkList | None = None     # made by the first targeted pass
         self._targeted_pipelines: list | None = None   # trace_items and resolve_items, likewise
 
@@ -410,7 +422,7 @@ class TracePass(ComputePass):
         params = self._params.copy()
         params["sample_offset"] = schedule.sample_offset
         params["pass_samples"] = schedule.samples
-        params["chunk_size"] = self.chunk_size
+        params["chunk_size"] = self.item_samples if schedule.sample_counts is not None else self.chunk_size
         data = params.tobytes()
         key = (schedule.sample_offset, schedule.sample_counts is not None, schedule.samples)
         held = self._param_buffers.get(key)
@@ -490,7 +502,7 @@ class TracePass(ComputePass):
                           planes) -> None:
         """The samples of ``schedule.sample_counts``, traced over the compacted work list, a batch at a time."""
         if self._work_list is None:
-            self._work_list = WorkList(self.ctx, self.width, self.height, self.chunk_size, self._batch_items)
+            self._work_list = WorkList(self.ctx, self.width, self.height, self.item_samples, self._batch_items)
             traversal, placement, geometry_modules, geometry_bindings = self._kernel_options
             code = trace_kernel_source(self.ctx, traversal, placement, geometry_modules, TARGETED_KERNEL)
             layout = trace_layout(self.ctx, geometry_bindings, placement, work_list=True)

@@ -45,10 +45,21 @@ fn entry_of(item: u32) -> u32 {
     return low;
 }
 
+// The block of 64 items workgroup `w` of `n` takes: the list's blocks from both ends in turn (0, n − 1,
+// 1, n − 2, …). The list runs from its largest items to its smallest, and a CPU driver hands each of its
+// threads one contiguous range of workgroups: in list order the first thread would get all the large
+// items and the others would wait for it (a targeted pass of 1 and 13 samples in even shares took 1.77×
+// a uniform pass on lavapipe, in the same CPU time); alternating the ends gives every range a share of
+// both. A GPU schedules workgroups as they free up, where the order matters little.
+fn interleaved_block(w: u32, n: u32) -> u32 {
+    return select(n - 1u - w / 2u, w / 2u, (w & 1u) == 0u);
+}
+
 @compute @workgroup_size(64)
-fn trace_items(@builtin(workgroup_id) group: vec3u, @builtin(local_invocation_index) lane: u32) {
+fn trace_items(@builtin(workgroup_id) group: vec3u, @builtin(num_workgroups) groups: vec3u,
+               @builtin(local_invocation_index) lane: u32) {
     begin_traversal(lane);
-    let slot = group.x * 64u + lane;
+    let slot = interleaved_block(group.x, groups.x) * 64u + lane;
     let has_item = slot < batch_items();
     var entry = 0u;
     var owner = Entry(0u, 0u, 0u);
