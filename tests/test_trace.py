@@ -73,6 +73,41 @@ def test_extra_sample_counts_add_distinct_samples(gpu, batch_items, item_samples
                                        err_msg=f"{plane}, pixels with {k} extra samples")
 
 
+@pytest.mark.parametrize("rows", [1, 2, 3, 8, 17, 135, 2048])
+def test_tile_row_stride_visits_every_row_once(rows):
+    from wgpu_rt.trace.trace_pass import tile_row_stride
+
+    stride = tile_row_stride(rows)
+    assert sorted(y * stride % rows for y in range(rows)) == list(range(rows))
+    assert abs(stride - 0.618 * rows) <= max(2, 0.05 * rows)
+
+
+def test_tile_order_leaves_the_image_as_it_is(gpu, monkeypatch):
+    """Tracing tile rows in the scattered order (camera.wgsl's tile_pixel) gives the image of tracing them
+    top to bottom, bit for bit, the aux pass's albedo included."""
+    from wgpu_rt.trace import trace_pass
+
+    scene = load_scene("cornell-glossy")
+    size = (40, 56)   # 7 tile rows: stride 4
+
+    def planes():
+        trace = TracePass(gpu, scene, GeometryBuffers.build(scene), *size, max_depth=4)
+        buffers = FrameBuffers(gpu, *size)
+        encoder = gpu.device.create_command_encoder()
+        trace.clear(encoder, buffers)
+        trace.execute(encoder, buffers, SampleSchedule(samples=2))
+        trace.execute_aux(encoder, buffers)
+        gpu.device.queue.submit([encoder.finish()])
+        return {plane.name: buffers.read(plane.name) for plane in TracePass.outputs}
+
+    assert trace_pass.tile_row_stride(7) != 1
+    scattered = planes()
+    monkeypatch.setattr(trace_pass, "tile_row_stride", lambda rows: 1)
+    in_order = planes()
+    for name, plane in in_order.items():
+        assert plane.tobytes() == scattered[name].tobytes(), name
+
+
 def test_work_items_hold_at_least_min_item_samples(gpu):
     """Items of a targeted pass hold the dispatches' chunk of samples, at least MIN_ITEM_SAMPLES (an
     item that takes several regenerates paths; each costs a list search and a slot), and a default batch

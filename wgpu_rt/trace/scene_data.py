@@ -32,7 +32,7 @@ FRAME_PARAMS_DTYPE = np.dtype([
     ("camera_origin", "<f4", 3), ("width", "<u4"), ("camera_right", "<f4", 3), ("height", "<u4"),
     ("camera_up", "<f4", 3), ("seed", "<u4"), ("camera_forward", "<f4", 3), ("max_depth", "<u4"),
     ("previous_origin", "<f4", 3), ("sample_offset", "<u4"), ("previous_right", "<f4", 3),
-    ("emitter_count", "<u4"), ("previous_up", "<f4", 3), ("pad_up", "<u4"),
+    ("emitter_count", "<u4"), ("previous_up", "<f4", 3), ("tile_row_stride", "<u4"),
     ("previous_forward", "<f4", 3), ("background_pmf", "<f4"), ("background", "<f4", 3),
     ("chunk_start", "<u4"), ("chunk_size", "<u4"), ("pass_samples", "<u4"), ("pad", "<u4", 2)])
 

@@ -15,6 +15,7 @@ on the device (indirect dispatches), so the pass costs what its samples cost wha
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -151,6 +152,15 @@ def trace_pipeline(ctx, features: SceneFeatures, geometry_bindings: int, travers
     return ctx.compute_pipeline(trace_kernel_source(ctx, traversal, placement, geometry_modules), "main",
                                 constants=features.constants(), label=f"trace {features}",
                                 layout=trace_layout(ctx, geometry_bindings, placement))
+
+
+def tile_row_stride(rows: int) -> int:
+    """The stride wgsl/trace/camera.wgsl's tile_pixel steps through ``rows`` tile rows by: the integer
+    nearest 0.618·rows that is coprime to it (so row · stride mod rows visits every row once, and any run
+    of consecutive workgroup rows is spread over the whole height)."""
+    target = round(0.618 * rows)
+    return next(stride for distance in range(rows + 1) for stride in (target - distance, target + distance)
+                if 0 < stride and math.gcd(stride, rows) == 1)
 
 
 def tables_fit_uniform(material_count: int, emitter_count: int) -> bool:
@@ -410,6 +420,7 @@ class TracePass(ComputePass):
         params["previous_right"] = before["unit_right"] / tan_x
         params["previous_up"] = before["unit_up"] / tan_y
         params["width"], params["height"], params["seed"], params["max_depth"] = w, h, seed, max_depth
+        params["tile_row_stride"] = tile_row_stride(-(-h // TILE))
         params["emitter_count"], params["background_pmf"] = emitters.count, emitters.background_pmf
         params["background"] = scene.background
         return params

@@ -18,7 +18,7 @@ struct FrameParams {
     previous_right: vec3f,    // unit right vector / tan(horizontal half-fov) of the previous camera
     emitter_count: u32,
     previous_up: vec3f,       // unit up vector / tan(vertical half-fov) of the previous camera
-    pad_up: u32,
+    tile_row_stride: u32,     // tile rows are traced in the order row · stride mod rows (camera.wgsl)
     previous_forward: vec3f,
     background_pmf: f32,      // probability that emitter sampling picks the background
     background: vec3f,
