@@ -4,10 +4,9 @@ kernel, wgpu_rt.nn.autotune; a BVH node layout, wgpu_rt.trace.bvh_choice) runs f
 Each choice is timed once and kept in one JSON cache keyed by whatever the caller says decides it (the
 adapter and driver always: ``MeasuredChoices.adapter``), at ``$WGPU_RT_CACHE_DIR/autotune.json`` where
 that is set, else ``$XDG_CACHE_HOME/wgpu-rt/autotune.json`` (``~/.cache/wgpu-rt/autotune.json`` without
-it); later runs on the same adapter read the choice instead
-of measuring. A cache file that cannot be read or parsed is ignored and rewritten; it is written
-atomically (``wgpu_rt.io.atomic_output``), so a crash never leaves a half file, and an entry another
-process added meanwhile is kept.
+it); later runs on the same adapter read the choice instead of measuring. A cache file that cannot be
+read or parsed is ignored and rewritten; it is written atomically (``wgpu_rt.io.atomic_output``), so a
+crash never leaves a half file, and an entry another process added meanwhile is kept.
 """
 
 from __future__ import annotations

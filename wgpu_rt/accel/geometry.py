@@ -61,7 +61,7 @@ def geometry_modules(geometry) -> dict:
     """The module swaps for kernels that trace ``geometry``: its instances and walk modules, and its
     geometry words module where it is fetched as rows."""
     modules = {NO_INSTANCES: geometry.instances_module, THREADED_WALK: geometry.walk_module}
-    if getattr(geometry, "row_loads", False):
+    if geometry.row_loads:
         modules[GEOMETRY_WORDS] = GEOMETRY_ROWS
     return modules
 
@@ -302,6 +302,7 @@ class InstancedGeometry:
 
     instances_module = "accel/instances.wgsl"
     walk_module = THREADED_WALK   # the top level and each bottom level are threaded
+    row_loads = False             # fetched as words
     kernel_modules = property(geometry_modules)   # the module swaps its kernels need
 
     def __init__(self, scene: Scene, frame: int = 0):
