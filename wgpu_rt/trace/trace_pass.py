@@ -62,6 +62,7 @@ MAX_BATCH_ITEMS = 1 << 21
 # a search of the list and a slot; at 1080p (chunk_size 1) items of 1 sample made the pass 1.59× a
 # uniform pass of the same samples on lavapipe, items of 8 1.11× (BENCHMARKS.md §19).
 MIN_ITEM_SAMPLES = 8
+DISPATCH_SAMPLES = 1 << 22   # pixel samples a uniform dispatch takes at most (but at least one a pixel)
 SAMPLE_SUMS_BYTES = 64   # a SampleSums (wgsl/trace/trace.wgsl) in a storage array: one item's slot
 ENTRY_BYTES = 12         # an Entry (wgsl/trace/work_list.wgsl)
 BATCH_ARGS_BYTES = 24    # a batch's indirect dispatch arguments: trace_items', then resolve_items' (x, y, z)
@@ -349,9 +350,11 @@ class TracePass(ComputePass):
         self._shading = (materials, emissive, _scene_radius(geometry.triangles))
         # Enough samples per dispatch to keep the device busy and the tail short (a subgroup runs until
         # its last invocation has traced its last path: ~11% idle turns at 16 samples, 15% at 8 on
-        # cornell); few enough to stay around a second on lavapipe and well within the kernel's
-        # LOOP_BUDGET (wgsl/trace/trace.wgsl) on scenes with long paths.
-        self.chunk_size = chunk_size or max(1, min(16, (1 << 20) // (width * height)))
+        # cornell; an invocation that takes several samples starts the next path where one ended: at
+        # 1080p, 4 spp, chunks of 2 traced 8-17% faster than chunks of 1 on lavapipe, BENCHMARKS.md §19);
+        # few enough to stay within a few seconds a dispatch on lavapipe for simple scenes and well within
+        # the kernel's LOOP_BUDGET (wgsl/trace/trace.wgsl) on scenes with long paths.
+        self.chunk_size = chunk_size or max(1, min(16, DISPATCH_SAMPLES // (width * height)))
         self.item_samples = item_samples or max(self.chunk_size, MIN_ITEM_SAMPLES)
         # a batch of the default size holds about one uniform dispatch's samples
         default_items = max(64, width * height * self.chunk_size // self.item_samples)
