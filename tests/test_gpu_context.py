@@ -73,6 +73,24 @@ def test_info_command(gpu):
     assert "chosen:" in out.stdout and "shader-f16" in out.stdout
 
 
+def test_info_lists_the_choices_measured_on_this_adapter(gpu, tmp_path):
+    import json
+
+    from wgpu_rt.measured_choices import CACHE_DIR_ENV, CACHE_VERSION, MeasuredChoices
+
+    adapter = MeasuredChoices(gpu, tmp_path / "unused.json").adapter
+    entries = {f"{adapter} | BVH layout | accel/x.wgsl | ~2^16 triangles":
+               {"variant": "wide", "seconds": {"threaded": 0.09, "wide": 0.05}},
+               "another GPU | | Vulkan | BVH layout | accel/x.wgsl | ~2^12 triangles": {"variant": "threaded"}}
+    (tmp_path / "autotune.json").write_text(json.dumps({"version": CACHE_VERSION, "entries": entries}))
+    out = subprocess.run([sys.executable, "-m", "wgpu_rt", "info"], capture_output=True, text=True,
+                         env={**os.environ, CACHE_DIR_ENV: str(tmp_path)})
+    assert out.returncode == 0, out.stderr
+    assert f"1 choice(s) kept for this adapter in {tmp_path / 'autotune.json'}" in out.stdout
+    assert "BVH layout | accel/x.wgsl | ~2^16 triangles: wide (threaded 90 ms, wide 50 ms)" in out.stdout
+    assert "another GPU" not in out.stdout and "2^12" not in out.stdout
+
+
 def test_bad_adapter_flag_exits_nonzero(gpu):
     out = subprocess.run([sys.executable, "-m", "wgpu_rt", "--adapter", "nope", "info"],
                          capture_output=True, text=True)

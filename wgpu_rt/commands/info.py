@@ -1,6 +1,6 @@
 """``wgpu-rt info``: which adapter would be used and what it can do."""
 
-HELP = "print the adapters, the one chosen, its backend, features and limits"
+HELP = "print the adapters, the one chosen, its backend, features, limits and the choices measured on it"
 
 
 def add_arguments(parser) -> None:
@@ -23,4 +23,20 @@ def run(args) -> int:
                                           or "compute" in k or k == "max-buffer-size"}
     for name, value in sorted(shown.items()):
         print(f"limit:     {name:44s} {value}")
+    print_measured_choices(ctx)
     return 0
+
+
+def print_measured_choices(ctx) -> None:
+    """What this adapter measured and kept (wgpu_rt.measured_choices): BVH variants per scene size,
+    convolution kernels per layer shape where autotuning ran, each with its candidates' times."""
+    from ..measured_choices import MeasuredChoices
+
+    choices = MeasuredChoices(ctx)
+    prefix = choices.adapter + " | "
+    mine = sorted((key[len(prefix):], entry) for key, entry in choices.entries.items() if key.startswith(prefix))
+    print(f"measured:  {len(mine)} choice(s) kept for this adapter in {choices.path}")
+    for what, entry in mine:
+        seconds = entry.get("seconds") if isinstance(entry.get("seconds"), dict) else {}
+        times = ", ".join(f"{variant} {float(value) * 1e3:.3g} ms" for variant, value in seconds.items())
+        print(f"measured:  {what}: {entry['variant']}" + (f" ({times})" if times else ""))
