@@ -83,8 +83,8 @@ def test_tile_row_stride_visits_every_row_once(rows):
 
 
 def test_tile_order_leaves_the_image_as_it_is(gpu, monkeypatch):
-    """Tracing tile rows in the scattered order (camera.wgsl's tile_pixel) gives the image of tracing them
-    top to bottom, bit for bit, the aux pass's albedo included."""
+    """Tracing tile rows in the scattered order (camera.wgsl's tile_pixel; CPU drivers) gives the image of
+    tracing them top to bottom (GPUs), bit for bit, the aux pass's albedo included."""
     from wgpu_rt.trace import trace_pass
 
     scene = load_scene("cornell-glossy")
@@ -101,8 +101,9 @@ def test_tile_order_leaves_the_image_as_it_is(gpu, monkeypatch):
         return {plane.name: buffers.read(plane.name) for plane in TracePass.outputs}
 
     assert trace_pass.tile_row_stride(7) != 1
+    monkeypatch.setattr(trace_pass, "scatters_tile_rows", lambda ctx: True)
     scattered = planes()
-    monkeypatch.setattr(trace_pass, "tile_row_stride", lambda rows: 1)
+    monkeypatch.setattr(trace_pass, "scatters_tile_rows", lambda ctx: False)
     in_order = planes()
     for name, plane in in_order.items():
         assert plane.tobytes() == scattered[name].tobytes(), name

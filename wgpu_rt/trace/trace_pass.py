@@ -155,9 +155,15 @@ def trace_pipeline(ctx, features: SceneFeatures, geometry_bindings: int, travers
                                 layout=trace_layout(ctx, geometry_bindings, placement))
 
 
+def scatters_tile_rows(ctx) -> bool:
+    """Whether tile rows are traced in a scattered order (tile_row_stride) on ``ctx``'s adapter: on CPU
+    drivers, which hand each thread one contiguous range of workgroups (wgsl/trace/camera.wgsl)."""
+    return ctx.adapter.info.get("adapter_type") == "CPU"
+
+
 def tile_row_stride(rows: int) -> int:
-    """The stride wgsl/trace/camera.wgsl's tile_pixel steps through ``rows`` tile rows by: the integer
-    nearest 0.618·rows that is coprime to it (so row · stride mod rows visits every row once, and any run
+    """The stride wgsl/trace/camera.wgsl's tile_pixel steps through ``rows`` tile rows by on CPU drivers:
+    the integer nearest 0.618·rows that is coprime to it (so row · stride mod rows visits every row once, and any run
     of consecutive workgroup rows is spread over the whole height)."""
     target = round(0.618 * rows)
     return next(stride for distance in range(rows + 1) for stride in (target - distance, target + distance)
@@ -325,6 +331,7 @@ class TracePass(ComputePass):
         if max_depth < 1:
             raise ValueError(f"max_depth must be at least 1, got {max_depth}")
         self.ctx, self.width, self.height = ctx, width, height
+        self._scatters_rows = scatters_tile_rows(ctx)
         self.features = features or SceneFeatures.of(scene)
         materials = [scene.materials[n] for n in scene_material_names(scene)]
         emissive = emissive_triangles(geometry.material_ids, materials)
@@ -423,7 +430,7 @@ class TracePass(ComputePass):
         params["previous_right"] = before["unit_right"] / tan_x
         params["previous_up"] = before["unit_up"] / tan_y
         params["width"], params["height"], params["seed"], params["max_depth"] = w, h, seed, max_depth
-        params["tile_row_stride"] = tile_row_stride(-(-h // TILE))
+        params["tile_row_stride"] = tile_row_stride(-(-h // TILE)) if self._scatters_rows else 1
         params["emitter_count"], params["background_pmf"] = emitters.count, emitters.background_pmf
         params["background"] = scene.background
         return params

@@ -7,11 +7,12 @@
 const TILE: u32 = 8u;   // a workgroup is TILE × TILE pixels, == wgpu_rt.trace.trace_pass.TILE
 
 // The pixel of invocation `local_index` of workgroup `tile` (it may lie past the image's edge).
-// Workgroup row y traces tile row y · tile_row_stride mod rows (the stride is coprime to the rows and near 0.618 of them, a bijection):
-// a CPU driver hands each of its threads one contiguous range of a dispatch's workgroups, and in image
-// order one thread would get the rows where the costly geometry sits while the other waited (on
-// lavapipe the cores were busy 80 % of a `cornell-glossy` pass); scattered rows give every range a
-// share of the whole height. A GPU schedules workgroups as they free up, where the order matters little.
+// Workgroup row y traces tile row y · tile_row_stride mod rows (a stride coprime to the rows, so every
+// row once). On CPU drivers the stride is near 0.618 of the rows: such a driver hands each of its
+// threads one contiguous range of a dispatch's workgroups, and in image order one thread would get the
+// rows where the costly geometry sits while the other waited (on lavapipe the cores were busy 80 % of
+// a `cornell-glossy` pass); scattered rows give every range a share of the whole height. On GPUs it is
+// 1 (image order): they take workgroups as they free up, and neighbouring tiles share cached nodes.
 fn tile_pixel(tile: vec3u, local_index: u32) -> vec2u {
     let rows = (params.height + TILE - 1u) / TILE;
     let row = (tile.y * params.tile_row_stride) % rows;
