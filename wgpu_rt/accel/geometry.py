@@ -19,9 +19,9 @@ See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -163,10 +163,8 @@ class GeometryBuffers:
         return wide_nodes(self.bvh)
 
     @classmethod
-    def build(cls, scene: Scene, frame: int = 0, layout: str = "threaded") -> "GeometryBuffers":
-        """``scene``'s triangles at ``frame`` and their BVH, to be uploaded in ``layout`` (BVH_LAYOUTS)."""
-        if layout not in BVH_LAYOUTS:
-            raise ValueError(f"unknown BVH layout {layout!r}")
+    def build(cls, scene: Scene, frame: int = 0) -> "GeometryBuffers":
+        """``scene``'s triangles at ``frame`` and their BVH, laid out threaded (``as_variant`` for others)."""
         material_ids = _material_ids(scene)
         triangles, normals, materials, objects = [], [], [], []
         for object_id, mesh in enumerate(scene.meshes):
@@ -179,7 +177,7 @@ class GeometryBuffers:
         bvh = build_bvh(all_triangles)
         order = bvh.order
         return cls(all_triangles[order], np.concatenate(normals)[order], np.concatenate(materials)[order],
-                   np.concatenate(objects)[order], object_motion(scene, frame), bvh, layout)
+                   np.concatenate(objects)[order], object_motion(scene, frame), bvh)
 
     def as_variant(self, variant: str) -> "GeometryBuffers":
         """This geometry (the same BVH) laid out and fetched as ``variant`` (bvh_variants)."""

@@ -11,8 +11,8 @@ so each adapter measures a size once.
 
 The probe frame starts at PROBE_MIN_SIDE² pixels and doubles its side (up to PROBE_MAX_SIDE) until one
 trace takes PROBE_SECONDS, so that a GPU is timed with enough rays to fill it rather than by its
-latency; each variant is then traced PROBE_RUNS times after a warm-up (which compiles its kernel; the
-winner's stays compiled for the render) and its median counts. On lavapipe the measurement adds about a
+latency; each variant is then traced PROBE_RUNS times after its first trace (which compiles its kernel;
+the winner's stays compiled for the render) and its median counts. On lavapipe the measurement adds about a
 second to the first render of a scene size (BENCHMARKS.md §19). Smaller scenes keep the threaded walk
 unmeasured: on them the walks differ in milliseconds.
 """
@@ -39,8 +39,7 @@ PROBE_RUNS = 3
 
 
 def wall_timer(run: Callable[[], float]) -> float:
-    """Median seconds of PROBE_RUNS calls of ``run`` after one warm-up call."""
-    run()
+    """Median seconds of PROBE_RUNS calls of ``run`` (a probe has run once already: compiled, warm)."""
     return float(np.median([run() for _ in range(PROBE_RUNS)]))
 
 
@@ -51,8 +50,8 @@ def layout_key(choices: MeasuredChoices, traversal: str, triangles: int) -> str:
 
 def choose_layout(ctx, scene: Scene, geometry: GeometryBuffers, max_depth: int = 8, frame: int = 0,
                   choices: MeasuredChoices | None = None) -> GeometryBuffers:
-    """``geometry`` (``scene`` at ``frame``) as the variant that traces it fastest on this adapter (see the module's
-    docstring). ``choices``: the cache (default: the shared one, timed by the wall clock; tests pass a
+    """``geometry`` (``scene`` at ``frame``) as the variant that traces it fastest on this adapter (see the
+    module's docstring). ``choices``: the cache (default: the shared one, timed by the wall clock; tests pass a
     fake timer, which gets (variant, run) pairs)."""
     if geometry.triangle_count < AUTO_MIN_TRIANGLES:
         return geometry.as_variant(DEFAULT_LAYOUT)

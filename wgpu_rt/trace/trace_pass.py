@@ -163,8 +163,8 @@ def scatters_tile_rows(ctx) -> bool:
 
 def tile_row_stride(rows: int) -> int:
     """The stride wgsl/trace/camera.wgsl's tile_pixel steps through ``rows`` tile rows by on CPU drivers:
-    the integer nearest 0.618·rows that is coprime to it (so row · stride mod rows visits every row once, and any run
-    of consecutive workgroup rows is spread over the whole height)."""
+    the integer nearest 0.618·rows that is coprime to it (so row · stride mod rows visits every row once,
+    and any run of consecutive workgroup rows is spread over the whole height)."""
     target = round(0.618 * rows)
     return next(stride for distance in range(rows + 1) for stride in (target - distance, target + distance)
                 if 0 < stride and math.gcd(stride, rows) == 1)
@@ -331,7 +331,8 @@ class TracePass(ComputePass):
         if max_depth < 1:
             raise ValueError(f"max_depth must be at least 1, got {max_depth}")
         self.ctx, self.width, self.height = ctx, width, height
-        self._scatters_rows = scatters_tile_rows(ctx)
+        # tile rows traced in a scattered order on CPU drivers (wgsl/trace/camera.wgsl), else in order
+        self._tile_row_stride = tile_row_stride(-(-height // TILE)) if scatters_tile_rows(ctx) else 1
         self.features = features or SceneFeatures.of(scene)
         materials = [scene.materials[n] for n in scene_material_names(scene)]
         emissive = emissive_triangles(geometry.material_ids, materials)
@@ -430,7 +431,7 @@ class TracePass(ComputePass):
         params["previous_right"] = before["unit_right"] / tan_x
         params["previous_up"] = before["unit_up"] / tan_y
         params["width"], params["height"], params["seed"], params["max_depth"] = w, h, seed, max_depth
-        params["tile_row_stride"] = tile_row_stride(-(-h // TILE)) if self._scatters_rows else 1
+        params["tile_row_stride"] = self._tile_row_stride
         params["emitter_count"], params["background_pmf"] = emitters.count, emitters.background_pmf
         params["background"] = scene.background
         return params
