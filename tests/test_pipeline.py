@@ -304,6 +304,35 @@ def test_read_back_frames_own_their_arrays(gpu):
     assert interleaved(planar, 10, 12).dtype == np.float32
 
 
+
+def test_next_frame_runs_while_the_caller_holds_a_frame(gpu, scene, monkeypatch):
+    """Frames in flight: frame N+1 is recorded before frame N is waited for, submitted as soon as frame
+    N's readback is mapped (mapping waits for everything submitted so far, so N+1 submitted earlier
+    would finish before N could be copied out, and the device would idle while the host copies), and
+    frame N is copied out and handed over after that submit. Each frame equals the same frame rendered
+    alone."""
+    pipeline = make_pipeline(scene, gpu, tonemap="aces")
+    events = []
+    for name in ("record", "submit", "wait", "read"):
+        def logged(*args, _method=getattr(pipeline, name), _name=name):
+            result = _method(*args)
+            frame = result.frame if _name in ("record", "read") else args[-1].frame
+            events.append(f"{_name} {frame}")
+            return result
+
+        monkeypatch.setattr(pipeline, name, logged)
+    out = []
+    for result in pipeline.frames(scene, range(3)):
+        events.append(f"caller {result.frame}")
+        out.append(result)
+    assert events == ["record 0", "submit 0",
+                      "record 1", "wait 0", "submit 1", "read 0", "caller 0",
+                      "record 2", "wait 1", "submit 2", "read 1", "caller 1",
+                      "wait 2", "read 2", "caller 2"]
+    monkeypatch.undo()
+    for result in out:
+        np.testing.assert_array_equal(result.color, pipeline.render(scene, result.frame).color)
+
 def test_missing_model_is_named(tmp_path, scene, gpu):
     from wgpu_rt.errors import ModelError
 

@@ -216,8 +216,8 @@ class Renderer:
         return tqdm(total=total, unit=unit, desc=f"render {self.scene.name}", leave=False)
 
     def frames(self, frames=None) -> Iterator[RenderResult]:
-        """Render ``frames`` (a frame number or an iterable; default frame 0) in order, with one frame in
-        flight; the first result carries the setup time."""
+        """Render ``frames`` (a frame number or an iterable; default frame 0) in order, the next frame
+        running on the device while the caller holds this one; the first result carries the setup time."""
         listed = _frame_list(frames, self.scene.frame_count, self.scene.has_motion)
         single = len(listed) == 1
         self._bar = self._progress_bar(self.spp if single else len(listed), "spp" if single else "frame")

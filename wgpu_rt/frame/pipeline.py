@@ -2,8 +2,11 @@
 per frame, with exactly one readback (the frame's HDR colour unless ``hdr=False``, the AOVs asked for,
 the display image and the per-stage timestamps ride in one buffer).
 
-Frames in flight: ``frames()`` records and submits frame N+1 before it reads frame N back, into two
-readback buffers used in turn, so the device never waits for the host between frames.
+Frames in flight: ``frames()`` records frame N+1 while frame N runs, submits it the moment frame N's
+readback is mapped, and copies frame N out while N+1 runs, into two readback buffers used in turn. N+1
+is not submitted earlier because mapping a buffer waits for all work submitted so far (wgpu-py polls the
+device until its queue is idle): submitted first, frame N+1 would finish before frame N could be read,
+and the device would sit idle while the host copies frame N out.
 
 Networks are objects with ``record(encoder, input_buffer, height, width) -> output_buffer`` (the NN
 engine's ``wgpu_rt.nn.WgslModel``). Stage timings come from timestamp queries when the adapter has
@@ -144,10 +147,13 @@ class ReadbackLayout:
 
 @dataclass
 class PendingFrame:
+    """A frame recorded (``commands``, until it is submitted) whose results ``readback`` will hold."""
+
     frame: int
     readback: object
     stage_names: list[str]
     started: float
+    commands: object = None
 
 
 class FramePipeline:
@@ -232,7 +238,7 @@ class FramePipeline:
         self._readbacks = [ctx.device.create_buffer(size=self.layout.nbytes, label=f"readback {i}",
                                                     usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
                            for i in range(2)]
-        self._submitted = 0
+        self._recorded = 0
         self.previous_frame: int | None = None
         self.seed_frame = 0
         # Under a static camera (temporal mode) the planes accumulate: samples per pixel they hold, and
@@ -357,8 +363,9 @@ class FramePipeline:
         self._mark(encoder, "targeted trace")
         return encoder
 
-    def submit(self, scene, frame: int) -> PendingFrame:
-        """Record and submit one frame; ``finish`` reads it back. At most two frames may be pending."""
+    def record(self, scene, frame: int) -> PendingFrame:
+        """Record one frame (a large ``spp`` submits its first sample batches as it goes); ``submit``
+        sends the rest, ``finish`` reads it back. At most two frames may be pending."""
         ctx, buffers = self.ctx, self.buffers
         started = time.perf_counter()
         # Temporal mode under a static camera and scene converges in the tracer: the frame adds its
@@ -409,7 +416,7 @@ class FramePipeline:
         if self.tonemap is not None:
             self.tonemap.execute(encoder, buffers)
             self._mark(encoder, "tonemap")
-        readback = self._readbacks[self._submitted % 2]
+        readback = self._readbacks[self._recorded % 2]
         for plane, offset in self.layout.planes.values():
             encoder.copy_buffer_to_buffer(buffers.get(plane), 0, readback, offset, plane.nbytes(self.width, self.height))
         if self.tonemap is not None:
@@ -417,16 +424,31 @@ class FramePipeline:
                                           self.tonemap.display.nbytes(self.width, self.height))
         if self.timer:
             self.timer.resolve(encoder, readback, self.layout.timestamps_offset)
-        ctx.device.queue.submit([encoder.finish()])
-        self._submitted += 1
+        self._recorded += 1
         self.previous_frame = frame
-        return PendingFrame(frame, readback, list(self.timer.names) if self.timer else [], started)
+        return PendingFrame(frame, readback, list(self.timer.names) if self.timer else [], started, encoder.finish())
+
+    def submit(self, pending: PendingFrame) -> PendingFrame:
+        """Send a recorded frame to the device."""
+        self.ctx.device.queue.submit([pending.commands])
+        pending.commands = None
+        return pending
+
+    @staticmethod
+    def wait(pending: PendingFrame) -> None:
+        """Block until a submitted frame is done (and everything submitted after it: see the module's
+        docstring) and its readback buffer is mapped."""
+        pending.readback.map_sync(wgpu.MapMode.READ)
 
     def finish(self, pending: PendingFrame) -> RenderResult:
-        """Wait for a submitted frame and read it back: one mapping of its readback buffer, each plane
-        copied once from the mapped memory into the (H, W, C) array returned (a 1080p HDR frame is
-        25 MB, and the host's copies are what a frame costs beyond its GPU time)."""
-        pending.readback.map_sync(wgpu.MapMode.READ)
+        """Wait for a submitted frame and read it back."""
+        self.wait(pending)
+        return self.read(pending)
+
+    def read(self, pending: PendingFrame) -> RenderResult:
+        """A frame whose readback ``wait`` mapped: each plane copied once from the mapped memory into the
+        (H, W, C) array returned (a 1080p HDR frame is 25 MB, and the host's copies are what a frame
+        costs beyond its GPU time), then the buffer unmapped."""
         try:
             raw = pending.readback.read_mapped(copy=False)   # valid until unmap: nothing below keeps it
             planes = {name: interleaved(np.frombuffer(raw, NUMPY_DTYPE[plane.dtype],
@@ -449,15 +471,19 @@ class FramePipeline:
 
     def render(self, scene, frame: int) -> RenderResult:
         """Record, submit and read back one frame."""
-        return self.finish(self.submit(scene, frame))
+        return self.finish(self.submit(self.record(scene, frame)))
 
     def frames(self, scene, frames):
-        """Render ``frames`` in order, one frame in flight while the previous one is read back."""
+        """Render ``frames`` in order: frame N+1 recorded while frame N runs, and running while frame N
+        is copied out and handed to the caller."""
         pending = None
         for frame in frames:
-            submitted = self.submit(scene, frame)
+            recorded = self.record(scene, frame)
             if pending is not None:
-                yield self.finish(pending)
-            pending = submitted
+                self.wait(pending)
+            self.submit(recorded)
+            if pending is not None:
+                yield self.read(pending)
+            pending = recorded
         if pending is not None:
             yield self.finish(pending)
