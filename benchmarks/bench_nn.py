@@ -10,8 +10,10 @@ time (intra-op threads = CPU cores). Steps: ``naive`` = one output pixel per inv
 ``loop-tiled`` = 4-pixel tiles in loops, ``reg-tiled`` = plus conv3x3.wgsl's written-out 4-pixel ×
 32-channel tile (16 where the output is not 32k channels; the default on CPU and integrated adapters),
 ``staged`` = the 16-channel tile with its input staged in workgroup memory (conv3x3_staged.wgsl, the
-default on discrete GPUs), ``fp16`` = the adapter's default tiling with f16 activations, ``autotuned`` = the
-tiling of every layer measured on this adapter (wgpu_rt.nn.autotune: the first run on an adapter times the
+default on discrete GPUs), ``fp16`` = the adapter's default tiling with f16 activations, ``direct-weights``
+= the default tiling with every invocation loading its own weight blocks (instead of the lanes of a
+subgroup sharing the loads and broadcasting them, the default where the adapter has subgroups),
+``autotuned`` = the tiling and weight fetch of every layer measured on this adapter (wgpu_rt.nn.autotune: the first run on an adapter times the
 candidates, before the timed frames, and caches the choice in the user's cache folder). Every step runs
 the same 2×2 transposed-convolution kernel (conv_transpose.wgsl, 4 input pixels per invocation) and its
 dispatches count as conv dispatches.
@@ -49,6 +51,7 @@ STEPS = {"naive": {"precision": "fp32", "conv_tiling": "none"},
          "reg-tiled": {"precision": "fp32", "conv_tiling": "register"},
          "staged": {"precision": "fp32", "conv_tiling": "staged"},
          "fp16": {"precision": "fp16", "conv_tiling": None},
+         "direct-weights": {"precision": "fp32", "conv_tiling": None, "weight_fetch": "direct"},
          "autotuned": {"precision": "fp32", "conv_tiling": None, "autotune": True}}
 
 
@@ -188,7 +191,7 @@ def main(argv=None) -> int:
     models = {step: WgslModel(path, ctx=ctx, **STEPS[step]) for step in args.steps
               if STEPS[step]["precision"] == "fp32" or ctx.has_f16}
     rng = np.random.default_rng(args.seed)
-    header = (f"{'size':>10} {'engine':>12} {'ms/frame':>9} {'CPU s':>7} {'GFLOP/s':>8} {'conv GF/s':>9} "
+    header = (f"{'size':>10} {'engine':>14} {'ms/frame':>9} {'CPU s':>7} {'GFLOP/s':>8} {'conv GF/s':>9} "
               f"{'% FMA':>6} {'peak MiB':>9} {'CPU vs ORT':>10}")
     print(header)
     for size in args.sizes:
@@ -206,20 +209,20 @@ def main(argv=None) -> int:
             try:
                 seconds, cpu, conv_seconds, conv_flops = time_engine(model, x, args.repeats)
             except WgpuRtError as err:
-                rows.append((f"{label:>10} {step:>12} skipped: {err}", None))
+                rows.append((f"{label:>10} {step:>14} skipped: {err}", None))
                 continue
             ceilings.append(fma_ceiling(ctx))
             plan = model.plan(height, width)
             flops = plan.flops
             measured.append((step, seconds, cpu))
             conv_rate = conv_flops / conv_seconds / 1e9
-            rows.append((f"{label:>10} {step:>12} {seconds * 1e3:9.1f} {cpu:7.2f} {plan.flops / seconds / 1e9:8.1f} "
+            rows.append((f"{label:>10} {step:>14} {seconds * 1e3:9.1f} {cpu:7.2f} {plan.flops / seconds / 1e9:8.1f} "
                          f"{conv_rate:9.1f} {{percent:5.0f}}% {plan.peak_bytes / 2**20:9.1f} "
                          f"{cpu / reference_cpu:9.2f}x", conv_rate))
         ceiling = max(ceilings)
-        print(f"{label:>10} {'FMA ceiling':>12} {'':9} {'':7} {ceiling:8.1f}   (highest of {len(ceilings)} readings, "
+        print(f"{label:>10} {'FMA ceiling':>14} {'':9} {'':7} {ceiling:8.1f}   (highest of {len(ceilings)} readings, "
               f"lowest {min(ceilings):.1f})")
-        print(f"{label:>10} {'onnxruntime':>12} {reference * 1e3:9.1f} {reference_cpu:7.2f}")
+        print(f"{label:>10} {'onnxruntime':>14} {reference * 1e3:9.1f} {reference_cpu:7.2f}")
         for row, conv_rate in rows:
             print(row if conv_rate is None else row.format(percent=100 * conv_rate / ceiling))
         sys.stdout.flush()

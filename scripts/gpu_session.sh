@@ -93,7 +93,9 @@ for what in "$@"; do
         # §12: the profiler's fp16 figure (27.4 ms) disagrees with bench_nn's fp16 step (9.6 ms); bench_nn
         # feeds the padded canvas itself, so profile that size too
         part profile_fp16_canvas wgpu-rt profile models/denoiser.onnx --size ${W}x$(( (H + 15) / 16 * 16 )) --precision fp16
-        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged fp16 autotuned --repeats 5 ;;
+        # session 21: weights loaded by each invocation instead of 16 subgroup broadcasts per block
+        part profile_fp32_direct wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --weight-fetch direct
+        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged direct-weights fp16 autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
         part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto
@@ -104,6 +106,8 @@ for what in "$@"; do
         part watertight python3 benchmarks/bench_watertight.py --size $SQUARE --spp $TRACE_SPP ;;
     frame)
         part pipeline python3 benchmarks/bench_pipeline.py --scene cornell --size ${W}x${H} --frames 32 --temporal
+        # session 21: a caller's own 5 ms a frame should hide behind the next frame's device work
+        part pipeline_host python3 benchmarks/bench_pipeline.py --scene cornell --size ${W}x${H} --frames 32 --temporal --host-ms 5
         part adaptive_cost python3 benchmarks/bench_adaptive.py --pass-cost --size ${W}x${H} --budgets 4 --scenes cornell sun-room --repeats 5
         part moving python3 benchmarks/bench_moving.py --scene moving --size $SQUARE --frames 40 --denoise
         part moving_bunny python3 benchmarks/bench_moving.py --scene bunny --size $SQUARE --frames 40 --denoise ;;

@@ -1,5 +1,6 @@
-"""Autotuning (wgpu_rt.nn.autotune): the fastest tiling per layer shape wins and is cached per adapter,
-the cache is reused, a corrupt cache is rebuilt, and it stays off unless asked for."""
+"""Autotuning (wgpu_rt.nn.autotune): the fastest tiling (and weight fetch) per layer shape wins and is
+cached per adapter, the cache is reused unless it was made among fewer candidates, a corrupt cache is
+rebuilt, and it stays off unless asked for."""
 
 import json
 
@@ -23,18 +24,32 @@ def two_layers(tmp_path):
     return make_model(tmp_path, "two_layers", [*first, relu, *second], 9, [*first_inits, *second_inits])
 
 
-def fake_timer(calls):
+DIRECT = "+direct-weights"
+
+
+def fake_timer(calls, direct_seconds=10.0):
     """Staged fastest among the 3×3 kernels, one pixel per invocation ("none", most workgroups) fastest
-    among the 1×1 ones: neither is lavapipe's default, so a choice that ignored the timer shows."""
+    among the 1×1 ones: neither is lavapipe's default, so a choice that ignored the timer shows. Weights
+    read directly (on an adapter with subgroups) add ``direct_seconds`` (negative: they win)."""
     seconds_of_3x3 = {"conv3x3_staged.wgsl+tile16": 1.0, "conv3x3.wgsl+tile16": 2.0, "conv.wgsl": 3.0}
 
     def seconds(dispatches):
         dispatch = dispatches[0]
         calls.append(dispatch.kernel)
-        if dispatch.kernel == "gemm.wgsl":
-            return 1.0 / np.prod(dispatch.workgroups)
-        return seconds_of_3x3[dispatch.kernel]
+        kernel = dispatch.kernel.removesuffix(DIRECT)
+        extra = direct_seconds if dispatch.kernel.endswith(DIRECT) else 0.0
+        if kernel == "gemm.wgsl":
+            return 1.0 / np.prod(dispatch.workgroups) + extra
+        return seconds_of_3x3[kernel] + extra
     return seconds
+
+
+def candidate_kernels(gpu):
+    """What the autotuner times for the two layers: four 3×3 kernels and two 1×1 ones, each also with
+    weights read directly where the adapter has subgroups (else direct reads are all there is)."""
+    kernels = ["conv.wgsl", "conv.wgsl", "conv3x3.wgsl+tile16", "conv3x3_staged.wgsl+tile16", "gemm.wgsl",
+               "gemm.wgsl"]
+    return sorted(kernels + [kernel + DIRECT for kernel in kernels] if gpu.has_subgroups else kernels)
 
 
 def chosen(model):
@@ -57,8 +72,7 @@ def test_fastest_kernel_is_chosen_cached_and_reused(gpu, two_layers, tmp_path):
     calls = []
     model = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, cache, timer=fake_timer(calls)))
     assert chosen(model) == FAKE_CHOICE
-    assert sorted(calls) == sorted(["conv.wgsl", "conv.wgsl", "conv3x3.wgsl+tile16",
-                                    "conv3x3_staged.wgsl+tile16", "gemm.wgsl", "gemm.wgsl"])
+    assert sorted(calls) == candidate_kernels(gpu)
     check_parity([(1, 9, *SIZE)], onnxruntime_fn(two_layers), model, atol=FP32_ATOL)
     assert profile(model, *SIZE, repeat=1).conv_tiling == "autotuned"
     entries = json.loads(cache.read_text())["entries"]
@@ -74,6 +88,32 @@ def test_fastest_kernel_is_chosen_cached_and_reused(gpu, two_layers, tmp_path):
 
 
 @pytest.mark.gpu
+def test_weights_read_directly_win_where_faster(gpu, two_layers, tmp_path):
+    """With subgroups, reading weights directly is a candidate of its own: chosen where it times faster,
+    named in the cache, the same numbers as onnxruntime. A choice cached before that candidate existed
+    (its timings lack it) is measured again, not reused."""
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.autotune import Autotuner
+
+    if not gpu.has_subgroups:
+        pytest.skip(f"{gpu.label} has no subgroups: weights are always read directly")
+    cache = tmp_path / "autotune.json"
+    model = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, cache, timer=fake_timer([], -0.5)))
+    assert chosen(model) == [(kernel + DIRECT, groups) for kernel, groups in FAKE_CHOICE]
+    check_parity([(1, 9, *SIZE)], onnxruntime_fn(two_layers), model, atol=FP32_ATOL)
+    data = json.loads(cache.read_text())
+    assert sorted(entry["variant"] for entry in data["entries"].values()) == ["none" + DIRECT, "staged" + DIRECT]
+
+    for entry in data["entries"].values():   # as cached before direct reads were candidates
+        entry["seconds"] = {v: t for v, t in entry["seconds"].items() if not v.endswith(DIRECT)}
+        entry["variant"] = min(entry["seconds"], key=entry["seconds"].get)
+    cache.write_text(json.dumps(data))
+    calls = []
+    again = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, cache, timer=fake_timer(calls, -0.5)))
+    assert chosen(again) == chosen(model) and sorted(calls) == candidate_kernels(gpu)
+
+
+@pytest.mark.gpu
 @pytest.mark.parametrize("content", [b"{not json", b"\x00\xff", b"[1, 2]", b'{"version": 1, "entries": []}',
                                      b'{"version": 1, "entries": {"k": "staged"}}'],
                          ids=["truncated", "binary", "list", "entries_list", "entry_not_a_dict"])
@@ -85,7 +125,7 @@ def test_corrupt_cache_is_ignored_and_rebuilt(gpu, two_layers, tmp_path, content
     cache.write_bytes(content)
     calls = []
     model = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, cache, timer=fake_timer(calls)))
-    assert chosen(model) == FAKE_CHOICE and len(calls) == 6
+    assert chosen(model) == FAKE_CHOICE and sorted(calls) == candidate_kernels(gpu)
     assert len(json.loads(cache.read_text())["entries"]) == 2
 
 
@@ -165,12 +205,13 @@ def test_dispatch_per_layer_or_per_group_is_measured_too(gpu, tmp_path, per_grou
         calls.append(dispatches[0].kernel)
         per_group = len(dispatches) > 1
         register = dispatches[0].kernel.startswith("conv3x3.")
-        return (1.0 if per_group == per_group_faster else 2.0) * (1.0 if register else 3.0)
+        direct = 10.0 if dispatches[0].kernel.endswith(DIRECT) else 0.0
+        return (1.0 if per_group == per_group_faster else 2.0) * (1.0 if register else 3.0) + direct
 
     cache = tmp_path / "autotune.json"
     model = WgslModel(path, ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))
     dispatches = [d for d in every_dispatch(model, *SIZE) if d.flops]
-    assert len(calls) == 8  # none, loop, register, staged × both ways
+    assert len(calls) == 8 * (1 + gpu.has_subgroups)  # none, loop, register, staged × both ways (× fetches)
     expected = [1, 1, 1] if per_group_faster else [3]
     assert [(d.kernel, d.workgroups[2]) for d in dispatches] == [("conv3x3.wgsl+tile16+unpack", z)
                                                                  for z in expected]
@@ -195,7 +236,8 @@ def test_a_conv_pooling_in_its_epilogue_is_timed_with_the_pool(gpu, tmp_path):
 
     def seconds(dispatches):
         calls.append(dispatches[0].kernel)
-        return 1.0 if dispatches[0].kernel.startswith("conv3x3_staged") else 2.0
+        direct = 10.0 if dispatches[0].kernel.endswith(DIRECT) else 0.0
+        return (1.0 if dispatches[0].kernel.startswith("conv3x3_staged") else 2.0) + direct
 
     cache = tmp_path / "autotune.json"
     model = WgslModel(path, ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))

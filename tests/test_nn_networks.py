@@ -271,15 +271,17 @@ def test_frames_over_the_binding_limit_bind_windows_and_split_inputs(tmp_path, g
     assert whole.plan(403, 45).peak_bytes == plan.peak_bytes
 
 
-@pytest.mark.parametrize("tiling,precision", [("register", "fp32"), ("staged", "fp32"), ("loop", "fp32"),
-                                              ("register", "fp16")])
-def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precision):
+@pytest.mark.parametrize("tiling,precision,fetch", [("register", "fp32", None), ("staged", "fp32", None),
+                                                    ("loop", "fp32", None), ("register", "fp16", None),
+                                                    ("staged", "fp32", "direct")])
+def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precision, fetch):
     """With one dispatch per layer preferred (discrete GPUs), every weighted layer of the U-Net is one
     dispatch whose z dimension runs over its output-block groups, the big layers reading all their
     windows from one storage binding, and nothing else is dispatched: the first conv reads the input
     image, the pools run in the convs' epilogues, the concats are free and the head writes the output
     image (in the register tiling from the last 3×3 conv's epilogue, whose 32 outputs fit one tile):
-    the same output as onnxruntime."""
+    the same output as onnxruntime; also with weights read directly by every invocation (a choice of
+    its own where the adapter has subgroups)."""
     from wgpu_rt.nn import WgslModel
     from wgpu_rt.nn import model as nn_model
 
@@ -288,7 +290,7 @@ def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precisi
     monkeypatch.setattr(nn_model, "default_uniform_windows", lambda ctx: False)
     torch.manual_seed(0)
     path = export_onnx(UNet(), tmp_path / "unet.onnx")
-    model = WgslModel(path, precision, ctx=gpu, conv_tiling=tiling)
+    model = WgslModel(path, precision, ctx=gpu, conv_tiling=tiling, weight_fetch=fetch)
     weighted = [layer for layer in model.graph.layers if layer.weight is not None]
     packed = [model.prepared[layer.name] for layer in weighted]
     assert all(p.one_dispatch for p in packed) and any(p.weight_space == "storage, read" for p in packed)
@@ -298,7 +300,9 @@ def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precisi
     assert all(d.flops for d in dispatches) and len(dispatches) == len(weighted) - head_folded
     dispatched = packed[:-1] if head_folded else packed  # the head is the last weighted layer
     assert sorted(d.workgroups[2] for d in dispatches) == sorted(p.groups for p in dispatched)
-    assert dispatches[-1].kernel.endswith("+head+unpack" if head_folded else "gemm.wgsl+unpack")
+    assert dispatches[-1].kernel.removesuffix("+direct-weights").endswith(
+        "+head+unpack" if head_folded else "gemm.wgsl+unpack")
+    assert all(d.kernel.endswith("+direct-weights") == (fetch == "direct" and gpu.has_subgroups) for d in dispatches)
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     check_parity([(1, model.input_channels, 37, 53)], padded_reference(session, model.graph.multiple), model,
-                 atol=FP32_ATOL if precision == "fp32" else FP16_ATOL, name=f"unet {tiling} {precision}")
+                 atol=FP32_ATOL if precision == "fp32" else FP16_ATOL, name=f"unet {tiling} {precision} {fetch}")

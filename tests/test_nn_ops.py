@@ -306,6 +306,22 @@ def test_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, monkeypatch
     check_parity([(1, cin, 19, 23)], onnxruntime_fn(path), model, atol=FP32_ATOL)
 
 
+def test_weight_fetch_is_checked(tmp_path, gpu):
+    """An unknown weight fetch, or subgroup fetches on an adapter without subgroups, are refused by name."""
+    from wgpu_rt.errors import ModelError
+    from wgpu_rt.gpu import GpuContext
+    from wgpu_rt.nn import WgslModel
+
+    nodes, inits = conv("conv", "x", "y", 4, 16, 3)
+    path = make_model(tmp_path, "conv4", nodes, 4, inits)
+    with pytest.raises(ModelError, match="weight_fetch 'shared': choose one of subgroup, direct"):
+        WgslModel(path, ctx=gpu, weight_fetch="shared")
+    without = GpuContext(gpu.adapter, gpu.device, gpu.features - {"subgroup"})
+    with pytest.raises(ModelError, match="weight_fetch subgroup needs the subgroup feature"):
+        WgslModel(path, ctx=without, weight_fetch="subgroup")
+    assert WgslModel(path, ctx=without).weight_fetch == "direct"
+
+
 def test_subgroup_probe_sees_a_valid_width(gpu):
     from wgpu_rt.nn.kernels import subgroup_lanes
 

@@ -93,6 +93,19 @@ def test_conv_tiling_picks_the_kernels_timed(gpu, tiny_unet, tmp_path, capsys):
     assert "conv_tiling 'bogus': choose one of" in capsys.readouterr().err
 
 
+@pytest.mark.gpu
+def test_weight_fetch_is_profiled_as_asked(gpu, tiny_unet, tmp_path, capsys):
+    """``--weight-fetch direct`` times the kernels that read weights per invocation (labelled so where the
+    adapter has subgroups, whose shared loads are the default) and says so."""
+    out = tmp_path / "direct.json"
+    assert main(["profile", str(tiny_unet), "--size", "32x32", "--repeat", "1", "--weight-fetch", "direct",
+                 "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["weight_fetch"] == "direct" and "direct weight fetch" in capsys.readouterr().out
+    weighted = [row["kernel"] for row in data["rows"] if row["flops"]]
+    assert weighted and all(kernel.endswith("+direct-weights") == gpu.has_subgroups for kernel in weighted)
+
+
 def test_shipped_network_names_resolve():
     assert model_path("error-predictor") == network_named("error_predictor").path()
     assert str(model_path("no/such/model.onnx")) == "no/such/model.onnx"

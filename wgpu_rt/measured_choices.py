@@ -4,7 +4,8 @@ kernel, wgpu_rt.nn.autotune; a BVH node layout, wgpu_rt.trace.bvh_choice) runs f
 Each choice is timed once and kept in one JSON cache keyed by whatever the caller says decides it (the
 adapter and driver always: ``MeasuredChoices.adapter``), at ``$WGPU_RT_CACHE_DIR/autotune.json`` where
 that is set, else ``$XDG_CACHE_HOME/wgpu-rt/autotune.json`` (``~/.cache/wgpu-rt/autotune.json`` without
-it); later runs on the same adapter read the choice instead of measuring. A cache file that cannot be
+it); later runs on the same adapter read the choice instead of measuring, as long as it was made among
+the same candidates (a new candidate is measured against the old ones, not passed over). A cache file that cannot be
 read or parsed is ignored and rewritten; it is written atomically (``wgpu_rt.io.atomic_output``), so a
 crash never leaves a half file, and an entry another process added meanwhile is kept.
 """
@@ -56,16 +57,21 @@ class MeasuredChoices:
         except (OSError, ValueError, AttributeError, KeyError, TypeError):
             return {}
 
-    def cached(self, key: str) -> str | None:
-        """The variant remembered for ``key``, if any."""
-        return self.entries.get(key, {}).get("variant")
+    def cached(self, key: str, candidates=None) -> str | None:
+        """The variant remembered for ``key``, if any (with ``candidates``: only if it was chosen among
+        them all)."""
+        entry = self.entries.get(key, {})
+        timed = entry.get("seconds")
+        if candidates is not None and not (isinstance(timed, dict) and set(candidates) <= set(timed)):
+            return None
+        return entry.get("variant")
 
     def choose(self, key: str, candidates: dict[str, Callable[[], object]], default: str) -> str:
         """The fastest of ``candidates`` (variant -> a callable giving what ``timer`` measures) for
         ``key``, from the cache or measured now; ``default`` where nothing can be measured."""
         if len(candidates) == 1:
             return next(iter(candidates))
-        cached = self.cached(key)
+        cached = self.cached(key, candidates)
         if cached in candidates:
             return cached
         if self.timer is None:

@@ -25,6 +25,7 @@ import numpy as np
 import wgpu
 
 from .. import shaders
+from ..errors import DeviceLimitError
 from .graph import FLOAT_MAX, NO_ACTIVATION, Activation, Layer
 
 UNIFORM_WINDOW_LIMIT = 65536  # bytes; larger weight windows are bound as read-only storage
@@ -197,38 +198,6 @@ class NnKernel:
         code = shaders.compose(self.shader, shaders.NN_KERNELS, substitutions, replacements)
         return self.ctx.compute_pipeline(code, label=self.shader)
 
-    def weight_constants(self, packed: PackedWeights, names: tuple[str, ...] = ("weight",)) -> dict:
-        """Substitutions of layer_bindings.wgsl choosing how conv-family kernels read ``packed``'s weight
-        blocks (see weights_*.wgsl): window p of a group is read by ``{names[p]}_block(index, lane)``
-        (``lane: WeightLane`` is a parameter of the kernels' entry points). One dispatch per layer binds
-        every window as ``weights`` and each group starts at its ``weight_window``; one dispatch per group
-        binds the group's windows, one binding each (WINDOW_BINDINGS)."""
-        if self.ctx.has_subgroups:
-            fetch = "weights_subgroup.wgsl"
-            code = [shaders.compose("weight_lane_subgroup.wgsl", shaders.NN_KERNELS,
-                                    {"SUBGROUP_LANES": self.subgroup_lanes})]
-        else:
-            fetch = "weights_uniform.wgsl"
-            code = [shaders.compose("weight_lane_invocation.wgsl", shaders.NN_KERNELS)]
-
-        def binding(weights: str, index: int, mats: int) -> str:
-            return shaders.compose("weight_binding.wgsl", shaders.NN_KERNELS, {
-                "WEIGHT_SPACE": packed.weight_space, "WEIGHT_MATS": mats, "WEIGHTS": weights,
-                "WEIGHT_BINDING": self.bindings.index(WINDOW_BINDINGS[index])})
-
-        if packed.one_dispatch:
-            code.append(binding("weights", 0, packed.buffer_mats))
-        for split, name in enumerate(names):
-            if packed.one_dispatch:
-                weights, base = "weights", f"weight_window + {split * packed.window_mats}"
-            else:
-                weights, base = f"{name}s", "0"
-                code.append(binding(weights, split, packed.mats))
-            code.append(shaders.compose(fetch, shaders.NN_KERNELS,
-                                        {"WEIGHT": name, "WEIGHTS": weights, "WINDOW_BASE": base}))
-        return {"WEIGHT_FETCH": "\n".join(code), "GROUPS": packed.groups if packed.one_dispatch else 1,
-                "GROUP_MATS": packed.splits * packed.window_mats if packed.one_dispatch else 0}
-
     def bind(self, pipeline, resources: dict) -> object:
         """A bind group from ``resources`` (binding name -> buffer or (buffer, offset, size)); names the
         pipeline does not use (dropped by the auto layout) are skipped."""
@@ -348,9 +317,47 @@ class ConvFamilyKernel(NnKernel):
     tile_c_default = 1
     reads_through_load_blocks = False  # its shader reads the input via load_blocks.wgsl (can split it)
 
-    def __init__(self, ctx, precision: Precision, tile_x: int, uniform_windows: bool = False):
+    def __init__(self, ctx, precision: Precision, tile_x: int, uniform_windows: bool = False,
+                 subgroup_weights: bool | None = None):
         super().__init__(ctx, precision)
         self.tile_x, self.uniform_windows = tile_x, uniform_windows
+        self.subgroup_weights = ctx.has_subgroups if subgroup_weights is None else subgroup_weights
+        if self.subgroup_weights and not ctx.has_subgroups:
+            raise DeviceLimitError(f"weights fetched by subgroups need the subgroup feature, which {ctx.label} lacks")
+
+    def weight_constants(self, packed: PackedWeights, names: tuple[str, ...] = ("weight",)) -> dict:
+        """Substitutions of layer_bindings.wgsl choosing how conv-family kernels read ``packed``'s weight
+        blocks (see weights_*.wgsl): window p of a group is read by ``{names[p]}_block(index, lane)``
+        (``lane: WeightLane`` is a parameter of the kernels' entry points). One dispatch per layer binds
+        every window as ``weights`` and each group starts at its ``weight_window``; one dispatch per group
+        binds the group's windows, one binding each (WINDOW_BINDINGS). Each invocation reads a block
+        itself (weights_uniform.wgsl), or with ``subgroup_weights`` the lanes of a subgroup share its
+        loads (weights_subgroup.wgsl)."""
+        if self.subgroup_weights:
+            fetch = "weights_subgroup.wgsl"
+            code = [shaders.compose("weight_lane_subgroup.wgsl", shaders.NN_KERNELS,
+                                    {"SUBGROUP_LANES": self.subgroup_lanes})]
+        else:
+            fetch = "weights_uniform.wgsl"
+            code = [shaders.compose("weight_lane_invocation.wgsl", shaders.NN_KERNELS)]
+
+        def binding(weights: str, index: int, mats: int) -> str:
+            return shaders.compose("weight_binding.wgsl", shaders.NN_KERNELS, {
+                "WEIGHT_SPACE": packed.weight_space, "WEIGHT_MATS": mats, "WEIGHTS": weights,
+                "WEIGHT_BINDING": self.bindings.index(WINDOW_BINDINGS[index])})
+
+        if packed.one_dispatch:
+            code.append(binding("weights", 0, packed.buffer_mats))
+        for split, name in enumerate(names):
+            if packed.one_dispatch:
+                weights, base = "weights", f"weight_window + {split * packed.window_mats}"
+            else:
+                weights, base = f"{name}s", "0"
+                code.append(binding(weights, split, packed.mats))
+            code.append(shaders.compose(fetch, shaders.NN_KERNELS,
+                                        {"WEIGHT": name, "WEIGHTS": weights, "WINDOW_BASE": base}))
+        return {"WEIGHT_FETCH": "\n".join(code), "GROUPS": packed.groups if packed.one_dispatch else 1,
+                "GROUP_MATS": packed.splits * packed.window_mats if packed.one_dispatch else 0}
 
     def packing(self, layer: Layer) -> tuple[int, int]:
         """(output blocks per group, windows per group) of ``layer``'s weights for this kernel."""
@@ -401,10 +408,12 @@ class ConvFamilyKernel(NnKernel):
                 pooled: TensorView | None = None, head=None, residual: TensorView | None = None) -> list[Dispatch]:
         """The layer's dispatches over ``workgroups`` (x, y) per group: one with the groups in z, or one
         per group, each with the share of ``flops`` of the real (unpadded) channels it writes, so the
-        dispatches add up to the layer's FLOPs exactly. ``kernel``: the label (default: the shader);
+        dispatches add up to the layer's FLOPs exactly. ``kernel``: the label (default: the shader;
+        "+direct-weights" is added where weights are read directly on an adapter with subgroups);
         ``pooled``, ``head`` (kernels.Head) and ``residual``: bound where the epilogue writes or reads them."""
         channels = dst.channels
-        kernel = kernel or self.shader
+        kernel = (kernel or self.shader) + ("+direct-weights" if self.ctx.has_subgroups and not self.subgroup_weights
+                                            else "")
         tensors = {"src": src.buffer, "dst": dst.buffer, **({"pooled": pooled.buffer} if pooled else {}),
                    **({"head": head.buffer} if head else {}), **({"src_upper": src.upper} if src.upper else {}),
                    **({"residual": residual.buffer} if residual else {})}
@@ -561,8 +570,9 @@ class Conv3x3Kernel(ConvFamilyKernel):
     tile_x = 4
     reads_through_load_blocks = True
 
-    def __init__(self, ctx, precision: Precision, staged: bool = False, uniform_windows: bool = False):
-        super().__init__(ctx, precision, self.tile_x, uniform_windows)
+    def __init__(self, ctx, precision: Precision, staged: bool = False, uniform_windows: bool = False,
+                 subgroup_weights: bool | None = None):
+        super().__init__(ctx, precision, self.tile_x, uniform_windows, subgroup_weights)
         self.staged = staged
         self.shader = "conv3x3_staged.wgsl" if staged else "conv3x3.wgsl"
 
@@ -641,8 +651,9 @@ class ConvTransposeKernel(ConvFamilyKernel):
     shader = "conv_transpose.wgsl"
     tile_x = 4  # input pixels per invocation, written out in the shader
 
-    def __init__(self, ctx, precision: Precision, uniform_windows: bool = False):
-        super().__init__(ctx, precision, self.tile_x, uniform_windows)
+    def __init__(self, ctx, precision: Precision, uniform_windows: bool = False,
+                 subgroup_weights: bool | None = None):
+        super().__init__(ctx, precision, self.tile_x, uniform_windows, subgroup_weights)
 
     def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView, *,
                    output_image: ImageRows | None = None, residual: TensorView | None = None):

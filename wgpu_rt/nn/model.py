@@ -56,6 +56,11 @@ from .kernels import (PRECISIONS, Conv3x3Kernel, ConvKernel, ConvTransposeKernel
 CONV_TILINGS = {"none": 1, "loop": 4, "register": 4, "staged": 4}
 # suffix of an autotuned variant that prefers one dispatch per group of uniform windows (kernels.WindowLayout)
 UNIFORM_WINDOWS = "+uniform-windows"
+# How conv-family kernels read weight blocks: "subgroup" (the lanes of a subgroup split a block's loads
+# and broadcast them: weights_subgroup.wgsl) or "direct" (each invocation loads the block: weights_uniform.wgsl)
+WEIGHT_FETCHES = ("subgroup", "direct")
+# suffix of an autotuned variant whose weights are read directly on an adapter with subgroups
+DIRECT_WEIGHTS = "+direct-weights"
 # Passes of a self-ensemble: the image under the first k of the 8 dihedral transforms (the flips and
 # turns the networks are trained under), the outputs turned back and averaged.
 ENSEMBLES = (1, 2, 4, 8)
@@ -64,6 +69,14 @@ ENSEMBLES = (1, 2, 4, 8)
 def default_conv_tiling(ctx) -> str:
     """"staged" on discrete GPUs (on-chip workgroup memory), else "register" (see Conv3x3Kernel)."""
     return "staged" if ctx.adapter.info.get("adapter_type") == "DiscreteGPU" else "register"
+
+
+def default_weight_fetch(ctx) -> str:
+    """"subgroup" where the adapter has subgroups, else "direct". On lavapipe the shared loads take about
+    half the time of direct ones (the shipped denoiser at 256²: 124–129 against 239 ms with the register
+    tiling, 184 against 285–297 staged); on a GPU each shared block costs 16 subgroup broadcasts per
+    invocation, which the autotuner weighs against direct loads (WgslModel(autotune=True))."""
+    return "subgroup" if ctx.has_subgroups else "direct"
 
 
 def default_uniform_windows(ctx) -> bool:
@@ -157,7 +170,7 @@ class WgslModel:
     this adapter once and caching the choice (see ``wgpu_rt.nn.autotune``; True, or an ``Autotuner``).
     Off by default (the first run of a new shape pays for compiling and timing every candidate) unless
     $WGPU_RT_AUTOTUNE=1; $WGPU_RT_AUTOTUNE=0 turns it off everywhere. A ``conv_tiling`` given here wins
-    over autotuning.
+    over autotuning; so does a ``weight_fetch``.
 
     ``ensemble`` (1, 2, 4 or 8): run the network on the input as given and turned / flipped (dihedral
     transforms 0 .. k−1, see kernels.dihedral_strides) and average the outputs turned back, k times the
@@ -165,7 +178,8 @@ class WgslModel:
     the last layer writes and accumulates its output turned back, so a pass costs no extra dispatch."""
 
     def __init__(self, path: str | Path, precision: str = "fp32", ctx=None, conv_tiling: str | None = None,
-                 autotune: bool | autotuning.Autotuner | None = None, ensemble: int = 1):
+                 autotune: bool | autotuning.Autotuner | None = None, ensemble: int = 1,
+                 weight_fetch: str | None = None):
         from ..gpu import get_context
 
         if precision not in PRECISIONS:
@@ -176,17 +190,23 @@ class WgslModel:
         self.ctx = ctx or get_context()
         given = isinstance(autotune, autotuning.Autotuner)
         self.autotuner = None
-        if conv_tiling is None and autotuning.enabled(True if given else autotune):
+        if conv_tiling is None and weight_fetch is None and autotuning.enabled(True if given else autotune):
             self.autotuner = autotune if given else autotuning.Autotuner(self.ctx)
         conv_tiling = conv_tiling or default_conv_tiling(self.ctx)
         if conv_tiling not in CONV_TILINGS:
             raise ModelError(f"conv_tiling {conv_tiling!r}: choose one of {', '.join(CONV_TILINGS)}")
+        weight_fetch = weight_fetch or default_weight_fetch(self.ctx)
+        if weight_fetch not in WEIGHT_FETCHES:
+            raise ModelError(f"weight_fetch {weight_fetch!r}: choose one of {', '.join(WEIGHT_FETCHES)}")
+        if weight_fetch == "subgroup" and not self.ctx.has_subgroups:
+            raise ModelError(f"weight_fetch subgroup needs the subgroup feature, which {self.ctx.label} lacks; "
+                             "use direct")
         if precision == "fp16" and not self.ctx.has_f16:
             raise ModelError(f"precision fp16 needs the shader-f16 feature, which {self.ctx.label} lacks; "
                              "use fp32")
         self.path, self.precision = str(path), PRECISIONS[precision]
         self.graph: NetworkGraph = load_graph(path)
-        self.conv_tiling = conv_tiling
+        self.conv_tiling, self.weight_fetch = conv_tiling, weight_fetch
         kernel_args = (self.ctx, self.precision)
         self.uniform_windows = default_uniform_windows(self.ctx)
         self._tiled_kernels: dict[tuple, object] = {}
@@ -209,22 +229,25 @@ class WgslModel:
         self._networks: dict[tuple[int, int], NetworkPlan] = {}
         self._heads: dict[str, Head] = {}  # head layer name -> its weights, where one is folded (_exit_layers)
 
-    def kernel_for(self, layer, tiling: str | None = None, uniform_windows: bool | None = None):
-        """The kernel running ``layer`` under ``tiling`` and window preference (defaults: the model's
-        ``conv_tiling`` and ``uniform_windows``); tilings that run a layer the same way share one kernel
-        object."""
+    def kernel_for(self, layer, tiling: str | None = None, uniform_windows: bool | None = None,
+                   weight_fetch: str | None = None):
+        """The kernel running ``layer`` under ``tiling``, window preference and weight fetch (defaults: the
+        model's ``conv_tiling``, ``uniform_windows`` and ``weight_fetch``); tilings that run a layer the
+        same way share one kernel object."""
         tiling = tiling or self.conv_tiling
         windows = self.default_windows(layer) if uniform_windows is None else uniform_windows
+        subgroups = (weight_fetch or self.weight_fetch) == "subgroup"
         args = (self.ctx, self.precision)
         if tiling in ("register", "staged") and Conv3x3Kernel.handles(layer):
-            key, make = ("conv3x3", tiling, windows), lambda: Conv3x3Kernel(
-                *args, staged=tiling == "staged", uniform_windows=windows)
+            key, make = ("conv3x3", tiling, windows, subgroups), lambda: Conv3x3Kernel(
+                *args, staged=tiling == "staged", uniform_windows=windows, subgroup_weights=subgroups)
         elif layer.kind in ("conv", "gemm"):
             kernel_class = ConvKernel if layer.kind == "conv" else GemmKernel
-            key, make = (layer.kind, CONV_TILINGS[tiling], windows), lambda: kernel_class(
-                *args, CONV_TILINGS[tiling], windows)
+            key, make = (layer.kind, CONV_TILINGS[tiling], windows, subgroups), lambda: kernel_class(
+                *args, CONV_TILINGS[tiling], windows, subgroups)
         elif layer.kind == "conv_transpose":
-            key, make = (layer.kind, windows), lambda: ConvTransposeKernel(*args, uniform_windows=windows)
+            key, make = (layer.kind, windows, subgroups), lambda: ConvTransposeKernel(
+                *args, uniform_windows=windows, subgroup_weights=subgroups)
         else:
             return self.kernels[layer.kind]
         if key not in self._tiled_kernels:
@@ -250,25 +273,37 @@ class WgslModel:
 
     def tuned_kernel(self, layer, src: TensorView, dst: TensorView, pooled: TensorView | None = None):
         """The kernel for ``layer`` reading ``src`` (and max-pooling its output into ``pooled``, if given):
-        the model's tiling and window preference, or with autotuning the fastest pair measured on this
-        adapter (cached per layer shape; see wgpu_rt.nn.autotune). Variants are named by tiling, plus
-        UNIFORM_WINDOWS where uniform windows change how the layer is dispatched (kernels.WindowLayout)."""
+        the model's tiling, window preference and weight fetch, or with autotuning the fastest combination
+        measured on this adapter (cached per layer shape; see wgpu_rt.nn.autotune). Variants are named by
+        tiling, plus UNIFORM_WINDOWS where uniform windows change how the layer is dispatched
+        (kernels.WindowLayout), plus DIRECT_WEIGHTS where weights are read directly on an adapter with
+        subgroups."""
         if self.autotuner is None:
             return self.kernel_for(layer)
+        fetches = WEIGHT_FETCHES if self.ctx.has_subgroups else ("direct",)
         candidates, seen = {}, set()  # one variant per distinct kernel and dispatch layout
-        for tiling in CONV_TILINGS:
-            for windows in (False, True):
-                kernel = self.kernel_for(layer, tiling, windows)
-                layout = kernel.layout(layer)
-                distinct = (id(self.kernel_for(layer, tiling, False)), layout.one_dispatch, layout.weight_space)
-                if distinct not in seen:
-                    seen.add(distinct)
-                    candidates[tiling + UNIFORM_WINDOWS * windows] = self._trial(layer, kernel, src, dst, pooled)
-        default = self.conv_tiling + UNIFORM_WINDOWS * self.default_windows(layer)
+        for fetch in fetches:
+            for tiling in CONV_TILINGS:
+                for windows in (False, True):
+                    kernel = self.kernel_for(layer, tiling, windows, fetch)
+                    layout = kernel.layout(layer)
+                    distinct = (id(self.kernel_for(layer, tiling, False, fetch)), layout.one_dispatch,
+                                layout.weight_space)
+                    if distinct not in seen:
+                        seen.add(distinct)
+                        candidates[self._variant(tiling, windows, fetch)] = self._trial(layer, kernel, src, dst,
+                                                                                         pooled)
+        default = self._variant(self.conv_tiling, self.default_windows(layer), self.weight_fetch)
         key = self.autotuner.key(layer, src, self.precision.name, pooled is not None)
         variant = self.autotuner.choose(key, candidates, default)
-        tiling, windows = variant.removesuffix(UNIFORM_WINDOWS), variant.endswith(UNIFORM_WINDOWS)
-        return self.kernel_for(layer, tiling, windows)
+        tiling = variant.split("+")[0]
+        fetch = "direct" if variant.endswith(DIRECT_WEIGHTS) or not self.ctx.has_subgroups else "subgroup"
+        return self.kernel_for(layer, tiling, UNIFORM_WINDOWS in variant, fetch)
+
+    def _variant(self, tiling: str, uniform_windows: bool, weight_fetch: str) -> str:
+        """An autotuned variant's name (see tuned_kernel)."""
+        direct = weight_fetch == "direct" and self.ctx.has_subgroups
+        return tiling + UNIFORM_WINDOWS * uniform_windows + DIRECT_WEIGHTS * direct
 
     def _trial(self, layer, kernel, src: TensorView, dst: TensorView, pooled: TensorView | None):
         """The dispatches of ``kernel`` on scratch tensors shaped like ``src``, ``dst`` (and ``pooled``),
