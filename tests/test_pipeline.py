@@ -333,6 +333,51 @@ def test_next_frame_runs_while_the_caller_holds_a_frame(gpu, scene, monkeypatch)
     for result in out:
         np.testing.assert_array_equal(result.color, pipeline.render(scene, result.frame).color)
 
+def submits_while_recording(pipeline, scene, frame, monkeypatch) -> int:
+    """How many command buffers ``pipeline`` submits while recording ``frame`` (then it is submitted and
+    read back as usual)."""
+    queue_type, count = type(pipeline.ctx.device.queue), [0]
+    submit = queue_type.submit
+
+    def counted(self, buffers):
+        count[0] += 1
+        return submit(self, buffers)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(queue_type, "submit", counted)
+        pending = pipeline.record(scene, frame)
+    pipeline.finish(pipeline.submit(pending))
+    return count[0]
+
+
+def test_a_frame_is_split_into_submits_only_past_a_submits_worth(gpu, scene, monkeypatch):
+    """A frame's samples go into one command buffer until the next batch would take it past
+    SAMPLES_PER_SUBMIT pixel samples (here 16 spp): 40 spp are submitted as 16 + 16 while recording and
+    the last 8 with the rest of the frame, the same image as one batch; 8 spp handed over from a
+    denoiser (a copy of the mean after the first half, between the halves) stay one command buffer, so
+    its stage times hold no host gaps. Without a progress bar nothing waits mid-frame; with one, it is
+    told of the samples done when it waits (ProgressWaits)."""
+    from wgpu_rt.frame import pipeline as frame_pipeline
+
+    whole = make_pipeline(scene, gpu, spp=40).render(scene, 0).color
+    monkeypatch.setattr(frame_pipeline, "SAMPLES_PER_SUBMIT", 16 * W * H)
+    split = make_pipeline(scene, gpu, spp=40)
+    assert submits_while_recording(split, scene, 0, monkeypatch) == 2
+    np.testing.assert_array_equal(split.render(scene, 0).color, whole)
+
+    handed_over = make_pipeline(scene, gpu, spp=8, denoiser=IdentityDenoiser(gpu))
+    assert handed_over.copies_half
+    assert submits_while_recording(handed_over, scene, 0, monkeypatch) == 0
+
+    reads, told = [], []
+    monkeypatch.setattr(type(gpu), "read", lambda self, *args, **kwargs: reads.append(1) or np.zeros(1, np.uint32))
+    submits_while_recording(split, scene, 1, monkeypatch)
+    assert reads == [] and told == []
+    split.progress = told.append
+    submits_while_recording(split, scene, 2, monkeypatch)
+    assert told and told[0] == 16 and sum(told) <= 32 and len(reads) == len(told)
+
+
 def test_missing_model_is_named(tmp_path, scene, gpu):
     from wgpu_rt.errors import ModelError
 

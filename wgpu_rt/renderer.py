@@ -158,7 +158,7 @@ class Renderer:
             denoiser=networks.get("denoiser") if denoise else None, adaptive=adaptive,
             error_predictor=networks.get("error_predictor"), temporal=temporal,
             confidence=networks.get("confidence"), aovs=self.aovs, operator=tonemap, exposure=exposure,
-            srgb=srgb, output=display, timings=timings, progress=self._advance, aux_samples=aux_samples, hdr=hdr,
+            srgb=srgb, output=display, timings=timings, aux_samples=aux_samples, hdr=hdr,
             low_band=low_band, chroma=chroma, post_filter=post_filter)
         self.setup_seconds = time.perf_counter() - started
 
@@ -205,8 +205,7 @@ class Renderer:
         return trace_for
 
     def _advance(self, samples: int) -> None:
-        if self._bar is not None and self._bar.unit == "spp":
-            self._bar.update(samples)
+        self._bar.update(samples)
 
     def _progress_bar(self, total: int, unit: str):
         if not self.progress:
@@ -221,6 +220,8 @@ class Renderer:
         listed = _frame_list(frames, self.scene.frame_count, self.scene.has_motion)
         single = len(listed) == 1
         self._bar = self._progress_bar(self.spp if single else len(listed), "spp" if single else "frame")
+        # only a bar counting samples waits for the device mid-frame (see frame.pipeline.ProgressWaits)
+        self.pipeline.progress = self._advance if self._bar is not None and single else None
         try:
             for index, result in enumerate(self.pipeline.frames(self.scene, listed)):
                 if index == 0:

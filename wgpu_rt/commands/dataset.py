@@ -62,7 +62,7 @@ def add_arguments(parser) -> None:
                         "name: a fifth of the files appear only in held-out worlds")
     parser.add_argument("--seed", type=int, default=0, help="dataset seed (default: %(default)s)")
     parser.add_argument("--shard", type=_shard, default=(0, 1), help="render only shard i of n (i/n)")
-    parser.add_argument("--out", required=True, help="dataset folder (rerun to resume)")
+    parser.add_argument("-o", "--out", required=True, help="dataset folder (rerun to resume)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 

@@ -13,7 +13,7 @@ HALF_LAYERS = {"half_radiance": 3, "half_spp": 1}   # `wgpu-rt render --aov …,
 
 def add_arguments(parser) -> None:
     parser.add_argument("input", metavar="IN.exr", help="noisy render with albedo, normal and depth layers")
-    parser.add_argument("--out", required=True, metavar="OUT.exr", help="denoised EXR (other layers kept)")
+    parser.add_argument("-o", "--out", required=True, metavar="OUT.exr", help="denoised EXR (other layers kept)")
     parser.add_argument("--model", help="denoiser ONNX (default: the shipped denoiser.onnx)")
     add_denoiser_flags(parser, "image")
     parser.add_argument("--spp", type=int, metavar="N",

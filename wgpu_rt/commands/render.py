@@ -25,7 +25,7 @@ def add_arguments(parser) -> None:
                         "('' for none)")
     parser.add_argument("--frames", help="A:B renders frames A..B-1 (the output needs a {frame} field)")
     parser.add_argument("--mesh", help="mesh file for the built-in 'mesh' scene")
-    parser.add_argument("--out", default="render.exr",
+    parser.add_argument("-o", "--out", default="render.exr",
                         help="output .exr or .png; may hold {frame}, e.g. out/{frame:04d}.exr")
     parser.add_argument("--denoise", action="store_true",
                         help="denoise on the device with models/denoiser.onnx")

@@ -24,7 +24,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--data", required=True, help="dataset folder from `wgpu-rt dataset`")
     parser.add_argument("--extra-data", nargs="+", default=(), metavar="DIR",
                         help="more dataset folders whose train/val splits join training/validation")
-    parser.add_argument("--out", default="models", help="where the .onnx and .md go (default: %(default)s)")
+    parser.add_argument("-o", "--out", default="models", help="where the .onnx and .md go (default: %(default)s)")
     parser.add_argument("--epochs", type=int, default=20, help="default: %(default)s")
     parser.add_argument("--batch", type=int, default=4, help="default: %(default)s")
     parser.add_argument("--lr", type=float, default=1e-3, help="peak learning rate (default: %(default)s)")

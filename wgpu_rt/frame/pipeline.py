@@ -40,6 +40,7 @@ from .unpack import UnpackPass
 # so that `wgpu-rt denoise` can hand over to an EXR's own mean as a denoised render does.
 AOV_PLANES = {plane.name: plane for plane in (ALBEDO, NORMAL, DEPTH, MOTION, SPP, HALF_RADIANCE, HALF_SPP)}
 SAMPLES_PER_SUBMIT = 1 << 21   # pixel samples per command buffer (a fraction of a second on lavapipe)
+PROGRESS_SECONDS = 0.25        # how often a long frame waits for the device to tell its progress
 
 
 def interleaved(values: np.ndarray, height: int, width: int) -> np.ndarray:
@@ -156,6 +157,32 @@ class PendingFrame:
     commands: object = None
 
 
+class ProgressWaits:
+    """Tells ``progress`` (a callable taking a sample count, or None: then nothing waits) how many samples
+    per pixel of a long frame are done. Knowing that means waiting for the device, which then idles
+    until the next submit, so it waits only every few submits: as many as take about PROGRESS_SECONDS,
+    judged by the previous waits (the first submit is waited for alone)."""
+
+    def __init__(self, ctx, buffers, progress):
+        self.ctx, self.buffers, self.progress = ctx, buffers, progress
+        self.unwaited, self.submits, self.stride = 0, 0, 1
+        self.since = time.perf_counter()
+
+    def submitted(self, samples: int) -> None:
+        if self.progress is None:
+            return
+        self.unwaited += samples
+        self.submits += 1
+        if self.submits < self.stride:
+            return
+        self.ctx.read(self.buffers.get(SPP), np.uint32, nbytes=4)   # waits for everything submitted
+        now = time.perf_counter()
+        per_submit = (now - self.since) / self.submits
+        self.stride = max(1, min(64, int(PROGRESS_SECONDS / max(per_submit, 1e-6))))
+        self.progress(self.unwaited)
+        self.unwaited, self.submits, self.since = 0, 0, now
+
+
 class FramePipeline:
     """Everything between a scene and its rendered frames, for one size and one set of settings.
 
@@ -166,8 +193,8 @@ class FramePipeline:
     every frame left the mean 1.7 dB PSNR behind a brute-force 8-spp render: independent 1-spp sets lose
     the Sobol prefix's stratification).
 
-    ``spp`` samples per pixel are traced per frame (in several submits when they are many; ``progress``
-    is told after each); ``adaptive`` replaces them by a 1-spp probe plus targeted samples. With
+    ``spp`` samples per pixel are traced per frame (in several submits when they are many; ``progress``,
+    where given, is told every few, see ProgressWaits); ``adaptive`` replaces them by a 1-spp probe plus targeted samples. With
     ``aux_samples``, the albedo plane is then re-estimated noise-free from that many delta-chain paths
     per pixel (``TracePass.execute_aux``). ``low_band``: the denoiser's low band from passes at half
     (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE
@@ -305,15 +332,22 @@ class FramePipeline:
             self.timer.mark(encoder, name)
 
     def _uniform_batches(self, trace, samples: int) -> list[int]:
-        """``samples`` split into the batches of one submit each (whole dispatches of the trace's chunks)."""
-        chunk = trace.chunk_size
-        per_submit = max(chunk, SAMPLES_PER_SUBMIT // (self.width * self.height) // chunk * chunk)
+        """``samples`` split into batches of at most one submit's worth (whole dispatches of the trace's
+        chunks)."""
+        per_submit = self._samples_per_submit(trace)
         return [min(per_submit, samples - done) for done in range(0, samples, per_submit)]
 
+    def _samples_per_submit(self, trace) -> int:
+        """Samples per pixel one command buffer holds at most (SAMPLES_PER_SUBMIT pixel samples, whole chunks)."""
+        chunk = trace.chunk_size
+        return max(chunk, SAMPLES_PER_SUBMIT // (self.width * self.height) // chunk * chunk)
+
     def _trace(self, encoder, trace, keep_samples: bool):
-        """Record this frame's samples (submitting all but the last batch of a large ``spp`` on their
-        own); with ``keep_samples`` they join the previous frames' in the planes (the tracer numbers them
-        after each pixel's spp, so the planes stay unbiased running means). Returns the encoder to go on."""
+        """Record this frame's samples, submitting a command buffer whenever the next batch would take it
+        past one submit's worth (so a frame of few samples is one command buffer, its stage times free of
+        host gaps); with ``keep_samples`` they join the previous frames' in the planes (the tracer numbers
+        them after each pixel's spp, so the planes stay unbiased running means). Returns the encoder to
+        go on."""
         buffers, adaptive = self.buffers, self.adaptive
         if not keep_samples:
             trace.clear(encoder, buffers)
@@ -323,17 +357,18 @@ class FramePipeline:
             steps = self._uniform_batches(trace, first)
             if first < self.spp:
                 steps += [None, *self._uniform_batches(trace, self.spp - first)]
-            for step in steps[:-1]:
+            per_submit, recorded = self._samples_per_submit(trace), 0
+            waits = ProgressWaits(self.ctx, buffers, self.progress)
+            for step in steps:
                 if step is None:
                     copy_half(encoder, buffers)
                     continue
+                if recorded and recorded + step > per_submit:
+                    self.ctx.device.queue.submit([encoder.finish()])
+                    waits.submitted(recorded)
+                    encoder, recorded = self.ctx.device.create_command_encoder(label="trace batch"), 0
                 trace.execute(encoder, buffers, SampleSchedule(samples=step))
-                self.ctx.device.queue.submit([encoder.finish()])
-                if self.progress is not None:
-                    self.ctx.read(buffers.get(SPP), np.uint32, nbytes=4)   # waits, so the bar tells time
-                    self.progress(step)
-                encoder = self.ctx.device.create_command_encoder(label="trace batch")
-            trace.execute(encoder, buffers, SampleSchedule(samples=steps[-1]))
+                recorded += step
             self._mark(encoder, "trace")
             return encoder
         if adaptive.sampler == "variance":
