@@ -10,10 +10,12 @@ time (intra-op threads = CPU cores). Steps: ``naive`` = one output pixel per inv
 ``loop-tiled`` = 4-pixel tiles in loops, ``reg-tiled`` = plus conv3x3.wgsl's written-out 4-pixel ×
 32-channel tile (16 where the output is not 32k channels; the default on CPU and integrated adapters),
 ``staged`` = the 16-channel tile with its input staged in workgroup memory (conv3x3_staged.wgsl, the
-default on discrete GPUs), ``fp16`` = the adapter's default tiling with f16 activations, ``direct-weights``
-= the default tiling with every invocation loading its own weight blocks (instead of the lanes of a
-subgroup sharing the loads and broadcasting them, the default where the adapter has subgroups),
-``autotuned`` = the tiling and weight fetch of every layer measured on this adapter (wgpu_rt.nn.autotune: the first run on an adapter times the
+default on discrete GPUs), ``staged-weights`` = that kernel with each input block's weight blocks staged
+in workgroup memory too (loaded once per workgroup and read by every invocation from there, as tfjs and
+onnxruntime's WebGPU convolutions do), ``fp16`` = the adapter's default tiling with f16 activations,
+``direct-weights`` = the default tiling with every invocation loading its own weight blocks (instead of
+the lanes of a subgroup sharing the loads and broadcasting them, the default where the adapter has
+subgroups), ``autotuned`` = the tiling and weight fetch of every layer measured on this adapter (wgpu_rt.nn.autotune: the first run on an adapter times the
 candidates, before the timed frames, and caches the choice in the user's cache folder). Every step runs
 the same 2×2 transposed-convolution kernel (conv_transpose.wgsl, 4 input pixels per invocation) and its
 dispatches count as conv dispatches.
@@ -50,6 +52,7 @@ STEPS = {"naive": {"precision": "fp32", "conv_tiling": "none"},
          "loop-tiled": {"precision": "fp32", "conv_tiling": "loop"},
          "reg-tiled": {"precision": "fp32", "conv_tiling": "register"},
          "staged": {"precision": "fp32", "conv_tiling": "staged"},
+         "staged-weights": {"precision": "fp32", "conv_tiling": "staged-weights"},
          "fp16": {"precision": "fp16", "conv_tiling": None},
          "direct-weights": {"precision": "fp32", "conv_tiling": None, "weight_fetch": "direct"},
          "autotuned": {"precision": "fp32", "conv_tiling": None, "autotune": True}}

@@ -6,7 +6,9 @@
 // every input pixel is read from device memory ≈ 1.3 times instead of 4.5 times (the overlap of the
 // invocations' 6-pixel rows and 3-row windows), and the inner loop needs no bounds checks. Worth it
 // where workgroup memory is on-chip (discrete GPUs); on lavapipe it is ordinary memory read per lane,
-// so the staging and barriers only add work (see kernels.Conv3x3Kernel).
+// so the staging and barriers only add work (see kernels.Conv3x3Kernel). With weights_workgroup.wgsl
+// (conv tiling "staged-weights") each input block's weight blocks are staged beside its pixels
+// (a stage call per window, spliced in by kernels.Conv3x3Kernel; none with the other weight fetches).
 {{ENABLE_F16}}
 // #import conv3x3_tile.wgsl
 
@@ -43,6 +45,7 @@ fn main(@builtin(workgroup_id) wid: vec3u, @builtin(local_invocation_id) local_i
     for (var cb = 0; cb < IN_BLOCKS; cb++) {
         workgroupBarrier();  // every invocation is done reading the previous block
         stage_block(cb, halo_x0, halo_y0, invocation);
+{{STAGE_WEIGHTS}}
         workgroupBarrier();
         for (var ky = 0; ky < 3; ky++) {
             let row = (tile_y + ky) * HALO_W + tile_x;

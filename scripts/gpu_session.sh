@@ -93,9 +93,11 @@ for what in "$@"; do
         # §12: the profiler's fp16 figure (27.4 ms) disagrees with bench_nn's fp16 step (9.6 ms); bench_nn
         # feeds the padded canvas itself, so profile that size too
         part profile_fp16_canvas wgpu-rt profile models/denoiser.onnx --size ${W}x$(( (H + 15) / 16 * 16 )) --precision fp16
-        # session 21: weights loaded by each invocation instead of 16 subgroup broadcasts per block
+        # session 21: weights loaded by each invocation instead of 16 subgroup broadcasts per block, or
+        # staged in workgroup memory beside the input tile
         part profile_fp32_direct wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --weight-fetch direct
-        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged direct-weights fp16 autotuned --repeats 5 ;;
+        part profile_fp32_staged_weights wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --conv-tiling staged-weights
+        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged staged-weights direct-weights fp16 autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
         part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto

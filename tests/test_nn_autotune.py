@@ -16,8 +16,8 @@ SIZE = (19, 23)
 
 @pytest.fixture
 def two_layers(tmp_path):
-    """A 3×3 conv (9 → 48 channels, ReLU; four distinct kernels: none, loop, register, staged) and a
-    1×1 conv (48 → 5; two: none, loop)."""
+    """A 3×3 conv (9 → 48 channels, ReLU; five distinct kernels: none, loop, register, staged,
+    staged-weights) and a 1×1 conv (48 → 5; two: none, loop)."""
     first, first_inits = conv("conv3x3", "x", "t", 9, 48, 3)
     relu = helper.make_node("Relu", ["t"], ["r"], name="relu")
     second, second_inits = conv("conv1x1", "r", "y", 48, 5, 1, pads=[0, 0, 0, 0], seed=2)
@@ -31,7 +31,8 @@ def fake_timer(calls, direct_seconds=10.0):
     """Staged fastest among the 3×3 kernels, one pixel per invocation ("none", most workgroups) fastest
     among the 1×1 ones: neither is lavapipe's default, so a choice that ignored the timer shows. Weights
     read directly (on an adapter with subgroups) add ``direct_seconds`` (negative: they win)."""
-    seconds_of_3x3 = {"conv3x3_staged.wgsl+tile16": 1.0, "conv3x3.wgsl+tile16": 2.0, "conv.wgsl": 3.0}
+    seconds_of_3x3 = {"conv3x3_staged.wgsl+tile16": 1.0, "conv3x3.wgsl+tile16": 2.0, "conv.wgsl": 3.0,
+                      "conv3x3_staged.wgsl+tile16+staged-weights": 4.0}
 
     def seconds(dispatches):
         dispatch = dispatches[0]
@@ -46,10 +47,12 @@ def fake_timer(calls, direct_seconds=10.0):
 
 def candidate_kernels(gpu):
     """What the autotuner times for the two layers: four 3×3 kernels and two 1×1 ones, each also with
-    weights read directly where the adapter has subgroups (else direct reads are all there is)."""
+    weights read directly where the adapter has subgroups (else direct reads are all there is), and the
+    staged 3×3 kernel with its weights staged in workgroup memory."""
     kernels = ["conv.wgsl", "conv.wgsl", "conv3x3.wgsl+tile16", "conv3x3_staged.wgsl+tile16", "gemm.wgsl",
                "gemm.wgsl"]
-    return sorted(kernels + [kernel + DIRECT for kernel in kernels] if gpu.has_subgroups else kernels)
+    fetched = kernels + [kernel + DIRECT for kernel in kernels] if gpu.has_subgroups else kernels
+    return sorted(fetched + ["conv3x3_staged.wgsl+tile16+staged-weights"])
 
 
 def chosen(model):
@@ -211,7 +214,8 @@ def test_dispatch_per_layer_or_per_group_is_measured_too(gpu, tmp_path, per_grou
     cache = tmp_path / "autotune.json"
     model = WgslModel(path, ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))
     dispatches = [d for d in every_dispatch(model, *SIZE) if d.flops]
-    assert len(calls) == 8 * (1 + gpu.has_subgroups)  # none, loop, register, staged × both ways (× fetches)
+    # none, loop, register, staged × both ways (× fetches), staged-weights × both ways
+    assert len(calls) == 8 * (1 + gpu.has_subgroups) + 2
     expected = [1, 1, 1] if per_group_faster else [3]
     assert [(d.kernel, d.workgroups[2]) for d in dispatches] == [("conv3x3.wgsl+tile16+unpack", z)
                                                                  for z in expected]

@@ -273,7 +273,7 @@ def test_frames_over_the_binding_limit_bind_windows_and_split_inputs(tmp_path, g
 
 @pytest.mark.parametrize("tiling,precision,fetch", [("register", "fp32", None), ("staged", "fp32", None),
                                                     ("loop", "fp32", None), ("register", "fp16", None),
-                                                    ("staged", "fp32", "direct")])
+                                                    ("staged", "fp32", "direct"), ("staged-weights", "fp32", None)])
 def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precision, fetch):
     """With one dispatch per layer preferred (discrete GPUs), every weighted layer of the U-Net is one
     dispatch whose z dimension runs over its output-block groups, the big layers reading all their
@@ -303,6 +303,7 @@ def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precisi
     assert dispatches[-1].kernel.removesuffix("+direct-weights").endswith(
         "+head+unpack" if head_folded else "gemm.wgsl+unpack")
     assert all(d.kernel.endswith("+direct-weights") == (fetch == "direct" and gpu.has_subgroups) for d in dispatches)
+    assert any(d.kernel.endswith("+staged-weights") for d in dispatches) == (tiling == "staged-weights")
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     check_parity([(1, model.input_channels, 37, 53)], padded_reference(session, model.graph.multiple), model,
                  atol=FP32_ATOL if precision == "fp32" else FP16_ATOL, name=f"unet {tiling} {precision} {fetch}")

@@ -229,13 +229,14 @@ def test_benchmark_baseline_tilings_agree(tmp_path, gpu, tiling):
     check_parity([(1, channels, 37, 53)], onnxruntime_fn(path), model, atol=FP32_ATOL)
 
 
-@pytest.mark.parametrize("tiling", ["register", "staged"])
+@pytest.mark.parametrize("tiling", ["register", "staged", "staged-weights"])
 @pytest.mark.parametrize("pads", [[1, 1, 1, 1], [0, 1, 2, 0]], ids=["same", "asymmetric"])
 @pytest.mark.parametrize("precision", ["fp32", "fp16"])
 @pytest.mark.parametrize("outputs", [48, 64])
 def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision, outputs):
     """Both 3×3 tile kernels, whichever the adapter's default: conv3x3.wgsl and conv3x3_staged.wgsl
-    (workgroup-memory halo tiles), and both tile widths: 48 outputs = 12 blocks, three 16-channel groups;
+    (workgroup-memory halo tiles; with "staged-weights" each input block's weights staged beside them),
+    and both tile widths: 48 outputs = 12 blocks, three 16-channel groups;
     64 = two 32-channel groups in conv3x3.wgsl, four 16-channel groups in the staged kernel (which keeps
     16). 9 input channels = 3 blocks, one padded; 37×71 cuts the 8-row × 32-pixel workgroup tiles on both
     edges; asymmetric pads shift the halo."""
@@ -247,7 +248,8 @@ def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision, outputs):
     path = make_model(tmp_path, "conv3x3_tiles", nodes, 9, inits)
     model = WgslModel(path, precision, ctx=gpu, conv_tiling=tiling)
     kernel = model.kernel_for(model.graph.layers[0])
-    assert kernel.shader == ("conv3x3_staged.wgsl" if tiling == "staged" else "conv3x3.wgsl")
+    assert kernel.shader == ("conv3x3.wgsl" if tiling == "register" else "conv3x3_staged.wgsl")
+    assert (kernel.weight_fetch == "workgroup") == (tiling == "staged-weights")
     wide = outputs == 64 and tiling == "register"
     assert model.prepared["conv"].tile_c == (8 if wide else 4)   # output blocks per invocation
     check_parity([(1, 9, 37, 71)], onnxruntime_fn(path), model,

@@ -214,6 +214,10 @@ class NnKernel:
 
 # Binding names of a group's windows (see PackedWeights); conv3x3's pair windows use all four.
 WINDOW_BINDINGS = ("weights", "pair1_weights", "pair2_weights", "pair3_weights")
+# weight fetch -> (its weight-block function, the WeightLane it takes); see ConvFamilyKernel.weight_constants
+WEIGHT_FETCH_CODE = {"subgroup": ("weights_subgroup.wgsl", "weight_lane_subgroup.wgsl"),
+                     "direct": ("weights_uniform.wgsl", "weight_lane_invocation.wgsl"),
+                     "workgroup": ("weights_workgroup.wgsl", "weight_lane_invocation.wgsl")}
 
 
 class WindowLayout:
@@ -317,29 +321,31 @@ class ConvFamilyKernel(NnKernel):
     tile_c_default = 1
     reads_through_load_blocks = False  # its shader reads the input via load_blocks.wgsl (can split it)
 
+    stages_weights = False  # its shader can stage weight blocks in workgroup memory (weights_workgroup.wgsl)
+
     def __init__(self, ctx, precision: Precision, tile_x: int, uniform_windows: bool = False,
-                 subgroup_weights: bool | None = None):
+                 weight_fetch: str | None = None):
         super().__init__(ctx, precision)
         self.tile_x, self.uniform_windows = tile_x, uniform_windows
-        self.subgroup_weights = ctx.has_subgroups if subgroup_weights is None else subgroup_weights
-        if self.subgroup_weights and not ctx.has_subgroups:
+        self.weight_fetch = weight_fetch or ("subgroup" if ctx.has_subgroups else "direct")
+        if self.weight_fetch == "subgroup" and not ctx.has_subgroups:
             raise DeviceLimitError(f"weights fetched by subgroups need the subgroup feature, which {ctx.label} lacks")
+        if self.weight_fetch not in WEIGHT_FETCH_CODE or (self.weight_fetch == "workgroup" and not self.stages_weights):
+            raise ValueError(f"{self.shader} cannot fetch weights by {self.weight_fetch!r}")
 
     def weight_constants(self, packed: PackedWeights, names: tuple[str, ...] = ("weight",)) -> dict:
         """Substitutions of layer_bindings.wgsl choosing how conv-family kernels read ``packed``'s weight
         blocks (see weights_*.wgsl): window p of a group is read by ``{names[p]}_block(index, lane)``
         (``lane: WeightLane`` is a parameter of the kernels' entry points). One dispatch per layer binds
         every window as ``weights`` and each group starts at its ``weight_window``; one dispatch per group
-        binds the group's windows, one binding each (WINDOW_BINDINGS). Each invocation reads a block
-        itself (weights_uniform.wgsl), or with ``subgroup_weights`` the lanes of a subgroup share its
-        loads (weights_subgroup.wgsl)."""
-        if self.subgroup_weights:
-            fetch = "weights_subgroup.wgsl"
-            code = [shaders.compose("weight_lane_subgroup.wgsl", shaders.NN_KERNELS,
-                                    {"SUBGROUP_LANES": self.subgroup_lanes})]
-        else:
-            fetch = "weights_uniform.wgsl"
-            code = [shaders.compose("weight_lane_invocation.wgsl", shaders.NN_KERNELS)]
+        binds the group's windows, one binding each (WINDOW_BINDINGS). By ``weight_fetch``: each
+        invocation reads a block itself ("direct": weights_uniform.wgsl), the lanes of a subgroup share
+        its loads ("subgroup": weights_subgroup.wgsl), or the workgroup stages an input block's blocks
+        in workgroup memory ("workgroup": weights_workgroup.wgsl, STAGED_MATS blocks a window)."""
+        fetch, lane = WEIGHT_FETCH_CODE[self.weight_fetch]
+        code = [shaders.compose(lane, shaders.NN_KERNELS, {"SUBGROUP_LANES": self.subgroup_lanes})]
+        if self.weight_fetch == "workgroup":
+            code.append(f"const STAGED_MATS: i32 = {packed.taps * packed.tile_c // packed.splits};")
 
         def binding(weights: str, index: int, mats: int) -> str:
             return shaders.compose("weight_binding.wgsl", shaders.NN_KERNELS, {
@@ -409,11 +415,12 @@ class ConvFamilyKernel(NnKernel):
         """The layer's dispatches over ``workgroups`` (x, y) per group: one with the groups in z, or one
         per group, each with the share of ``flops`` of the real (unpadded) channels it writes, so the
         dispatches add up to the layer's FLOPs exactly. ``kernel``: the label (default: the shader;
-        "+direct-weights" is added where weights are read directly on an adapter with subgroups);
+        "+direct-weights" is added where weights are read directly on an adapter with subgroups,
+        "+staged-weights" where they are staged in workgroup memory);
         ``pooled``, ``head`` (kernels.Head) and ``residual``: bound where the epilogue writes or reads them."""
         channels = dst.channels
-        kernel = (kernel or self.shader) + ("+direct-weights" if self.ctx.has_subgroups and not self.subgroup_weights
-                                            else "")
+        kernel = (kernel or self.shader) + {"subgroup": "", "workgroup": "+staged-weights",
+                                            "direct": "+direct-weights" if self.ctx.has_subgroups else ""}[self.weight_fetch]
         tensors = {"src": src.buffer, "dst": dst.buffer, **({"pooled": pooled.buffer} if pooled else {}),
                    **({"head": head.buffer} if head else {}), **({"src_upper": src.upper} if src.upper else {}),
                    **({"residual": residual.buffer} if residual else {})}
@@ -533,6 +540,14 @@ class Conv3x3Kernel(ConvFamilyKernel):
     so do integrated GPUs (their workgroup memory is on-chip too, but the trade is unmeasured there).
     Both variants are tested for parity whatever the adapter (tests/test_nn_ops.py).
 
+    The staged variant can also stage each input block's weight blocks beside its pixels (``weight_fetch=
+    "workgroup"``, conv tiling "staged-weights": weights_workgroup.wgsl), loaded once per workgroup
+    instead of by (or shared between the lanes of) each subgroup, as tfjs and onnxruntime's WebGPU
+    convolutions keep a weight tile in workgroup memory: a candidate for GPUs, where 16 subgroup
+    broadcasts per weight block compete with the tile's 64 multiply-adds per lane for issue slots. On
+    lavapipe it takes 2.6× the staged kernel's time (the shipped denoiser at 256²: 657 against 249 ms,
+    `wgpu-rt profile --conv-tiling`).
+
     Tile width (``tile_blocks``, unrolled into conv3x3_tile_blocks.wgsl by ``tile_blocks_code``): 32
     channels in the direct variant wherever the output has a multiple of 32 channels, else 16. On
     lavapipe input loads are costly (a storage load is a scalar loop over the lanes; with them replaced by constants the
@@ -571,10 +586,10 @@ class Conv3x3Kernel(ConvFamilyKernel):
     reads_through_load_blocks = True
 
     def __init__(self, ctx, precision: Precision, staged: bool = False, uniform_windows: bool = False,
-                 subgroup_weights: bool | None = None):
-        super().__init__(ctx, precision, self.tile_x, uniform_windows, subgroup_weights)
-        self.staged = staged
+                 weight_fetch: str | None = None):
+        self.staged = self.stages_weights = staged
         self.shader = "conv3x3_staged.wgsl" if staged else "conv3x3.wgsl"
+        super().__init__(ctx, precision, self.tile_x, uniform_windows, weight_fetch)
 
     def tile_blocks(self, layer: Layer) -> int:
         """Output blocks per invocation: 8 (32 channels) in the direct variant where they divide the
@@ -618,6 +633,8 @@ class Conv3x3Kernel(ConvFamilyKernel):
             layer.activation, replacements, **tile_blocks_code(packed.tile_c, head is not None),
             IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
             OUT_H=dst.height, OUT_W=dst.width, PAD_TOP=top, PAD_LEFT=left, **modules,
+            STAGE_WEIGHTS="\n".join(f"        stage_pair{p}_weights(cb, invocation);" for p in range(packed.splits))
+            if self.weight_fetch == "workgroup" else "",
             **self.weight_constants(packed, tuple(f"pair{p}_weight" for p in range(packed.splits))))
         workgroups = (groups_of(groups_of(dst.width, self.tile_x), 8), groups_of(dst.height, 8))  # 8×8 tiles
         return self.grouped(layer, packed, pipeline, src, dst, workgroups, flops, label, pooled, head)
@@ -651,9 +668,8 @@ class ConvTransposeKernel(ConvFamilyKernel):
     shader = "conv_transpose.wgsl"
     tile_x = 4  # input pixels per invocation, written out in the shader
 
-    def __init__(self, ctx, precision: Precision, uniform_windows: bool = False,
-                 subgroup_weights: bool | None = None):
-        super().__init__(ctx, precision, self.tile_x, uniform_windows, subgroup_weights)
+    def __init__(self, ctx, precision: Precision, uniform_windows: bool = False, weight_fetch: str | None = None):
+        super().__init__(ctx, precision, self.tile_x, uniform_windows, weight_fetch)
 
     def dispatches(self, layer: Layer, packed: PackedWeights, src: TensorView, dst: TensorView, *,
                    output_image: ImageRows | None = None, residual: TensorView | None = None):

@@ -52,8 +52,9 @@ from .kernels import (PRECISIONS, Conv3x3Kernel, ConvKernel, ConvTransposeKernel
 
 # conv_tiling -> pixels per invocation of the loop kernels (conv.wgsl, gemm.wgsl); "register" also runs
 # 3×3 stride-1 convs with 16k output channels on conv3x3.wgsl's written-out 4×4 tile, "staged" on
-# conv3x3_staged.wgsl's (the same tile, input staged in workgroup memory; see Conv3x3Kernel).
-CONV_TILINGS = {"none": 1, "loop": 4, "register": 4, "staged": 4}
+# conv3x3_staged.wgsl's (the same tile, input staged in workgroup memory; see Conv3x3Kernel),
+# "staged-weights" there with each input block's weight blocks staged too (weights_workgroup.wgsl).
+CONV_TILINGS = {"none": 1, "loop": 4, "register": 4, "staged": 4, "staged-weights": 4}
 # suffix of an autotuned variant that prefers one dispatch per group of uniform windows (kernels.WindowLayout)
 UNIFORM_WINDOWS = "+uniform-windows"
 # How conv-family kernels read weight blocks: "subgroup" (the lanes of a subgroup split a block's loads
@@ -163,7 +164,8 @@ class WgslModel:
     """``WgslModel(path, precision="fp32"|"fp16")``: call on NCHW float32 numpy, or ``record`` on GPU
     buffers. ``conv_tiling`` exists for the benchmark's steps, the profiler and the tests: "none" (one
     output pixel per invocation), "loop" (4-pixel tiles in loops), "register" (plus the written-out 3×3
-    tile kernel), "staged" (that tile with its input staged in workgroup memory); default:
+    tile kernel), "staged" (that tile with its input staged in workgroup memory), "staged-weights" (and
+    its weights: the 3×3 layers then ignore ``weight_fetch``); default:
     ``default_conv_tiling``.
 
     ``autotune``: choose the tiling (and window preference) per layer shape by timing the candidates on
@@ -236,18 +238,19 @@ class WgslModel:
         same way share one kernel object."""
         tiling = tiling or self.conv_tiling
         windows = self.default_windows(layer) if uniform_windows is None else uniform_windows
-        subgroups = (weight_fetch or self.weight_fetch) == "subgroup"
+        fetch = weight_fetch or self.weight_fetch
         args = (self.ctx, self.precision)
-        if tiling in ("register", "staged") and Conv3x3Kernel.handles(layer):
-            key, make = ("conv3x3", tiling, windows, subgroups), lambda: Conv3x3Kernel(
-                *args, staged=tiling == "staged", uniform_windows=windows, subgroup_weights=subgroups)
+        if tiling in ("register", "staged", "staged-weights") and Conv3x3Kernel.handles(layer):
+            fetch = "workgroup" if tiling == "staged-weights" else fetch
+            key, make = ("conv3x3", tiling, windows, fetch), lambda: Conv3x3Kernel(
+                *args, staged=tiling != "register", uniform_windows=windows, weight_fetch=fetch)
         elif layer.kind in ("conv", "gemm"):
             kernel_class = ConvKernel if layer.kind == "conv" else GemmKernel
-            key, make = (layer.kind, CONV_TILINGS[tiling], windows, subgroups), lambda: kernel_class(
-                *args, CONV_TILINGS[tiling], windows, subgroups)
+            key, make = (layer.kind, CONV_TILINGS[tiling], windows, fetch), lambda: kernel_class(
+                *args, CONV_TILINGS[tiling], windows, fetch)
         elif layer.kind == "conv_transpose":
-            key, make = (layer.kind, windows, subgroups), lambda: ConvTransposeKernel(
-                *args, uniform_windows=windows, subgroup_weights=subgroups)
+            key, make = (layer.kind, windows, fetch), lambda: ConvTransposeKernel(
+                *args, uniform_windows=windows, weight_fetch=fetch)
         else:
             return self.kernels[layer.kind]
         if key not in self._tiled_kernels:
