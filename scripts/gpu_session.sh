@@ -97,6 +97,8 @@ for what in "$@"; do
         # staged in workgroup memory beside the input tile
         part profile_fp32_direct wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --weight-fetch direct
         part profile_fp32_staged_weights wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --conv-tiling staged-weights
+        # what the autotuner picks per layer among tilings, layouts and fetches (its cache is fresh here)
+        part profile_fp32_autotuned env WGPU_RT_AUTOTUNE=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged staged-weights direct-weights fp16 autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
