@@ -15,8 +15,9 @@ in workgroup memory too (loaded once per workgroup and read by every invocation 
 onnxruntime's WebGPU convolutions do), ``fp16`` = the adapter's default tiling with f16 activations,
 ``direct-weights`` = the default tiling with every invocation loading its own weight blocks (instead of
 the lanes of a subgroup sharing the loads and broadcasting them, the default where the adapter has
-subgroups), ``autotuned`` = the tiling and weight fetch of every layer measured on this adapter (wgpu_rt.nn.autotune: the first run on an adapter times the
-candidates, before the timed frames, and caches the choice in the user's cache folder). Every step runs
+subgroups), ``autotuned`` = the tiling and weight fetch of every layer measured on this adapter
+(wgpu_rt.nn.autotune: the first run on an adapter times the candidates, before the timed frames, and
+caches the choice in the user's cache folder). Every step runs
 the same 2×2 transposed-convolution kernel (conv_transpose.wgsl, 4 input pixels per invocation) and its
 dispatches count as conv dispatches.
 

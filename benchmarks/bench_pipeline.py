@@ -38,8 +38,8 @@ def timed(scene, frames, host_ms=0.0, **settings):
 
 
 def line(name, per_frame, stages, gpu):
-    return (f"{name:18s}: {per_frame * 1e3:8.1f} ms/frame  GPU {gpu * 1e3:.1f}  wall − GPU {(per_frame - gpu) * 1e3:.1f}"
-            f"  stages {stages}")
+    return (f"{name:18s}: {per_frame * 1e3:8.1f} ms/frame  GPU {gpu * 1e3:.1f}  "
+            f"wall − GPU {(per_frame - gpu) * 1e3:.1f}  stages {stages}")
 
 
 def main():

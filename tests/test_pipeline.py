@@ -370,7 +370,8 @@ def test_a_frame_is_split_into_submits_only_past_a_submits_worth(gpu, scene, mon
     assert submits_while_recording(handed_over, scene, 0, monkeypatch) == 0
 
     reads, told = [], []
-    monkeypatch.setattr(type(gpu), "read", lambda self, *args, **kwargs: reads.append(1) or np.zeros(1, np.uint32))
+    monkeypatch.setattr(type(gpu), "read",
+                        lambda self, *args, **kwargs: reads.append(1) or np.zeros(1, np.uint32))
     submits_while_recording(split, scene, 1, monkeypatch)
     assert reads == [] and told == []
     split.progress = told.append

@@ -10,8 +10,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--size", default="1920x1088", help="input WIDTHxHEIGHT (default 1920x1088)")
     parser.add_argument("--precision", choices=("fp32", "fp16"), default="fp32",
                         help="activation storage type (fp16 needs the shader-f16 feature)")
-    parser.add_argument("--conv-tiling", help="convolution kernels: none, loop, register, staged or staged-weights (default: "
-                        "the adapter's, as inference picks them; see wgpu_rt.nn.WgslModel)")
+    parser.add_argument("--conv-tiling", help="convolution kernels: none, loop, register, staged or "
+                        "staged-weights (default: the adapter's, as inference picks them; see wgpu_rt.nn.WgslModel)")
     parser.add_argument("--weight-fetch", choices=("subgroup", "direct"),
                         help="how convolutions read weights: the lanes of a subgroup sharing the loads, or each "
                         "invocation loading its own (default: subgroup where the adapter has subgroups)")

@@ -194,7 +194,8 @@ class FramePipeline:
     the Sobol prefix's stratification).
 
     ``spp`` samples per pixel are traced per frame (in several submits when they are many; ``progress``,
-    where given, is told every few, see ProgressWaits); ``adaptive`` replaces them by a 1-spp probe plus targeted samples. With
+    where given, is told every few, see ProgressWaits); ``adaptive`` replaces them by a 1-spp probe plus
+    targeted samples. With
     ``aux_samples``, the albedo plane is then re-estimated noise-free from that many delta-chain paths
     per pixel (``TracePass.execute_aux``). ``low_band``: the denoiser's low band from passes at half
     (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE
