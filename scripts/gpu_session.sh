@@ -12,14 +12,18 @@
 #        warm for 30 s), command ". .device/setup.sh; D=$OUT; OUT=/tmp/gs/r2 ARCHIVE=$D/r2.tgz
 #                 bash scripts/gpu_session.sh trace"
 #
-# Next (session 19's advice): call 1 with the OIDN peer, DEADLINE=300 PART_LIMIT=240, timeout_s 590:
-# `heldout` (issue 12's bar at 4096-spp gold), then `frame`; call 2 at once with the Mitsuba peer:
-# `trace` (~3 min: the 4-wide BVH against the threaded one and OptiX, and what the measured choice
-# takes there, BENCHMARKS.md §18, §19). `train` alone
-# in a later session (~9 minutes: PART_LIMIT=300, timeout_s 590, the OIDN peer).
+# Next (session 21's advice): call 1 with the OIDN peer, DEADLINE=330 PART_LIMIT=200, timeout_s 590:
+# `nn frame` (the weight-fetch verdict: direct and workgroup-staged weights against subgroup broadcasts,
+# profiled and as bench_nn steps, and the autotuner's picks; the frame loop's wall − GPU, also with 5 ms
+# of the caller's work a frame: BENCHMARKS.md §20), then `heldout` if time is left; call 2 at once with
+# the Mitsuba peer: `trace` (~3 min: the 4-wide BVH against the threaded one and OptiX, and what the
+# measured choice takes there, §18, §19). If a fetch wins, make it the discrete-GPU default
+# (wgpu_rt.nn.model.default_weight_fetch / default_conv_tiling). `train` alone in a later session (~9
+# minutes: PART_LIMIT=300, timeout_s 590, the OIDN peer).
 #
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p in
-# both precisions and with naga's bounds checks, engine steps against torch cuDNN and OIDN CUDA), trace
+# both precisions, with naga's bounds checks, with each weight fetch and as the autotuner picks, engine
+# steps against torch cuDNN and OIDN CUDA), trace
 # (samples/s against Mitsuba cuda_ad_rgb with the threaded and the wide BVH and the measured choice; closest-hit rays/s of each
 # walk on 100k random triangles and the bunny; cornell also with bounds checks; what the watertight tests
 # cost), frame (fused frame, adaptive targeted pass, moving vs static: the `moving` scene and the
