@@ -33,16 +33,26 @@ const OUT_PLANE: i32 = OUT_H * OUT_W;
 const TILE_W: i32 = 32;  // a workgroup's output tile: 8 × 8 invocations of 4 pixels each
 const TILE_H: i32 = 8;
 
+// The type a kernel row's multiply-adds run in: f32, or f16 (kernels.Conv3x3Kernel with half_math: the
+// row's 3 × 4 input channels summed in packed half precision, then added to the f32 tile).
+alias RowMat = mat4x4<{{MATH}}>;
+
 // The three 4-pixel input matrices of one kernel row (column p: input pixel p + kx of the row), from
 // its 6 input pixels r0..r5.
 struct KernelRow {
-    x0: mat4x4f,
-    x1: mat4x4f,
-    x2: mat4x4f,
+    x0: RowMat,
+    x1: RowMat,
+    x2: RowMat,
 }
 
 fn kernel_row(r0: vec4f, r1: vec4f, r2: vec4f, r3: vec4f, r4: vec4f, r5: vec4f) -> KernelRow {
-    return KernelRow(mat4x4f(r0, r1, r2, r3), mat4x4f(r1, r2, r3, r4), mat4x4f(r2, r3, r4, r5));
+    let p0 = vec4<{{MATH}}>(r0);
+    let p1 = vec4<{{MATH}}>(r1);
+    let p2 = vec4<{{MATH}}>(r2);
+    let p3 = vec4<{{MATH}}>(r3);
+    let p4 = vec4<{{MATH}}>(r4);
+    let p5 = vec4<{{MATH}}>(r5);
+    return KernelRow(RowMat(p0, p1, p2, p3), RowMat(p1, p2, p3, p4), RowMat(p2, p3, p4, p5));
 }
 
 // Index of the first weight block of row step (cb, ky) in every pair window: the window's blocks of

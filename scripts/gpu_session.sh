@@ -101,9 +101,10 @@ for what in "$@"; do
         # staged in workgroup memory beside the input tile
         part profile_fp32_direct wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --weight-fetch direct
         part profile_fp32_staged_weights wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --conv-tiling staged-weights
+        part profile_fp16_math wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp16 --math f16
         # what the autotuner picks per layer among tilings, layouts and fetches (its cache is fresh here)
         part profile_fp32_autotuned env WGPU_RT_AUTOTUNE=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
-        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged staged-weights direct-weights fp16 autotuned --repeats 5 ;;
+        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged staged-weights direct-weights fp16 fp16-math autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
         part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto

@@ -9,7 +9,7 @@ import pytest
 from onnx import helper
 
 from parity import check_parity
-from test_nn_ops import FP32_ATOL, conv, every_dispatch, make_model, onnxruntime_fn
+from test_nn_ops import FP16_ATOL, FP32_ATOL, conv, every_dispatch, make_model, onnxruntime_fn
 
 SIZE = (19, 23)
 
@@ -114,6 +114,31 @@ def test_weights_read_directly_win_where_faster(gpu, two_layers, tmp_path):
     calls = []
     again = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, cache, timer=fake_timer(calls, -0.5)))
     assert chosen(again) == chosen(model) and sorted(calls) == candidate_kernels(gpu)
+
+
+@pytest.mark.gpu
+def test_f16_multiply_adds_are_a_candidate_of_fp16_models(gpu, two_layers, tmp_path):
+    """An fp16 model's 3×3 kernels are also timed multiplying in f16: chosen where faster, named in the
+    cache, within the fp16 bound of onnxruntime (fp32 models never time them: see candidate_kernels)."""
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.autotune import Autotuner
+
+    if not gpu.has_f16:
+        pytest.skip(f"{gpu.label} has no shader-f16")
+    calls = []
+
+    def seconds(dispatches):
+        calls.append(dispatches[0].kernel)
+        return 0.5 if "+f16-math" in dispatches[0].kernel else 1.0
+
+    cache = tmp_path / "autotune.json"
+    model = WgslModel(two_layers, "fp16", ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))
+    first = [d.kernel for d in every_dispatch(model, *SIZE) if d.flops][0]
+    assert sum("+f16-math" in kernel for kernel in calls) == 2   # register and staged, weights read directly
+    assert first.startswith("pack+conv3x3") and "+f16-math" in first
+    variants = [entry["variant"] for entry in json.loads(cache.read_text())["entries"].values()]
+    assert sum("+f16-math" in variant for variant in variants) == 1
+    check_parity([(1, 9, *SIZE)], onnxruntime_fn(two_layers), model, atol=FP16_ATOL)
 
 
 @pytest.mark.gpu

@@ -271,17 +271,18 @@ def test_frames_over_the_binding_limit_bind_windows_and_split_inputs(tmp_path, g
     assert whole.plan(403, 45).peak_bytes == plan.peak_bytes
 
 
-@pytest.mark.parametrize("tiling,precision,fetch", [("register", "fp32", None), ("staged", "fp32", None),
-                                                    ("loop", "fp32", None), ("register", "fp16", None),
-                                                    ("staged", "fp32", "direct"), ("staged-weights", "fp32", None)])
-def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precision, fetch):
+@pytest.mark.parametrize("tiling,precision,fetch,math", [
+    ("register", "fp32", None, None), ("staged", "fp32", None, None), ("loop", "fp32", None, None),
+    ("register", "fp16", None, None), ("staged", "fp32", "direct", None), ("staged-weights", "fp32", None, None),
+    ("register", "fp16", None, "f16"), ("staged", "fp16", None, "f16")])
+def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precision, fetch, math):
     """With one dispatch per layer preferred (discrete GPUs), every weighted layer of the U-Net is one
     dispatch whose z dimension runs over its output-block groups, the big layers reading all their
     windows from one storage binding, and nothing else is dispatched: the first conv reads the input
     image, the pools run in the convs' epilogues, the concats are free and the head writes the output
     image (in the register tiling from the last 3×3 conv's epilogue, whose 32 outputs fit one tile):
     the same output as onnxruntime; also with weights read directly by every invocation (a choice of
-    its own where the adapter has subgroups)."""
+    its own where the adapter has subgroups), and with the 3×3 kernels' multiply-adds in f16."""
     from wgpu_rt.nn import WgslModel
     from wgpu_rt.nn import model as nn_model
 
@@ -290,7 +291,7 @@ def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precisi
     monkeypatch.setattr(nn_model, "default_uniform_windows", lambda ctx: False)
     torch.manual_seed(0)
     path = export_onnx(UNet(), tmp_path / "unet.onnx")
-    model = WgslModel(path, precision, ctx=gpu, conv_tiling=tiling, weight_fetch=fetch)
+    model = WgslModel(path, precision, ctx=gpu, conv_tiling=tiling, weight_fetch=fetch, math=math)
     weighted = [layer for layer in model.graph.layers if layer.weight is not None]
     packed = [model.prepared[layer.name] for layer in weighted]
     assert all(p.one_dispatch for p in packed) and any(p.weight_space == "storage, read" for p in packed)
@@ -300,10 +301,13 @@ def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precisi
     assert all(d.flops for d in dispatches) and len(dispatches) == len(weighted) - head_folded
     dispatched = packed[:-1] if head_folded else packed  # the head is the last weighted layer
     assert sorted(d.workgroups[2] for d in dispatches) == sorted(p.groups for p in dispatched)
-    assert dispatches[-1].kernel.removesuffix("+direct-weights").endswith(
-        "+head+unpack" if head_folded else "gemm.wgsl+unpack")
-    assert all(d.kernel.endswith("+direct-weights") == (fetch == "direct" and gpu.has_subgroups) for d in dispatches)
+    labels = [d.kernel.removesuffix("+f16-math") for d in dispatches]
+    assert labels[-1].removesuffix("+direct-weights").endswith("+head+unpack" if head_folded else "gemm.wgsl+unpack")
+    for label in labels:   # f16 multiply-adds read their weights directly
+        reads_directly = fetch == "direct" or (math == "f16" and "conv3x3" in label)
+        assert label.endswith("+direct-weights") == (reads_directly and gpu.has_subgroups), label
+    assert any(d.kernel.endswith("+f16-math") for d in dispatches) == (math == "f16")
     assert any(d.kernel.endswith("+staged-weights") for d in dispatches) == (tiling == "staged-weights")
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     check_parity([(1, model.input_channels, 37, 53)], padded_reference(session, model.graph.multiple), model,
-                 atol=FP32_ATOL if precision == "fp32" else FP16_ATOL, name=f"unet {tiling} {precision} {fetch}")
+                 atol=FP32_ATOL if precision == "fp32" else FP16_ATOL, name=f"unet {tiling} {precision} {fetch} {math}")

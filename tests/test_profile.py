@@ -106,6 +106,22 @@ def test_weight_fetch_is_profiled_as_asked(gpu, tiny_unet, tmp_path, capsys):
     assert weighted and all(kernel.endswith("+direct-weights") == gpu.has_subgroups for kernel in weighted)
 
 
+@pytest.mark.gpu
+def test_f16_math_is_profiled_as_asked(gpu, tiny_unet, tmp_path, capsys):
+    """``--precision fp16 --math f16`` times the 3×3 kernels that multiply in half precision (the shipped
+    denoiser's: 16k channels); f16 math without f16 activations is refused."""
+    if not gpu.has_f16:
+        pytest.skip(f"{gpu.label} has no shader-f16")
+    out = tmp_path / "half.json"
+    assert main(["profile", "denoiser", "--size", "32x32", "--repeat", "1", "--precision", "fp16",
+                 "--math", "f16", "--json", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["math"] == "f16" and "f16 math" in capsys.readouterr().out
+    assert any(row["kernel"].endswith("+f16-math") for row in data["rows"])
+    assert main(["profile", str(tiny_unet), "--size", "32x32", "--math", "f16"]) == 2
+    assert "math f16 needs precision fp16" in capsys.readouterr().err
+
+
 def test_shipped_network_names_resolve():
     assert model_path("error-predictor") == network_named("error_predictor").path()
     assert str(model_path("no/such/model.onnx")) == "no/such/model.onnx"

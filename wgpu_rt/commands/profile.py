@@ -15,6 +15,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--weight-fetch", choices=("subgroup", "direct"),
                         help="how convolutions read weights: the lanes of a subgroup sharing the loads, or each "
                         "invocation loading its own (default: subgroup where the adapter has subgroups)")
+    parser.add_argument("--math", choices=("f32", "f16"),
+                        help="what the 3×3 convolutions multiply in: f32 (default), or f16 with --precision fp16 "
+                        "(each kernel row's products summed in half precision)")
     parser.add_argument("--repeat", type=int, default=5,
                         help="timed runs after one warm-up; times are their median (default 5)")
     parser.add_argument("--sort", choices=("order", "time"), default="order",
@@ -78,7 +81,7 @@ def summary(profile) -> list[str]:
     short_ms = sum(row.seconds for row in short) * 1e3
     lines = [
         (f"{profile.model} at {width}x{height}{canvas}, {profile.precision}, {profile.conv_tiling} conv tiling, "
-         f"{profile.weight_fetch} weight fetch, on {profile.adapter}; median of {runs}"),
+         f"{profile.weight_fetch} weight fetch, {profile.math} math, on {profile.adapter}; median of {runs}"),
         (f"dispatches: {len(rows)}{per_band}; {len(short)} under {SHORT_DISPATCH_SECONDS * 1e6:.0f} µs "
          f"({short_ms:.3f} ms in all)"),
         (f"GPU time: {profile.dispatch_seconds * 1e3:.3f} ms summed over dispatches (each in its own timed "
@@ -106,7 +109,7 @@ def run(args) -> int:
         raise WgpuRtError(f"--repeat {args.repeat}: must be at least 1")
     output = check_output_path(args.json, "--json", (".json",)) if args.json else None
     model = WgslModel(model_path(args.model), precision=args.precision, conv_tiling=args.conv_tiling,
-                      weight_fetch=args.weight_fetch)
+                      weight_fetch=args.weight_fetch, math=args.math)
     result = profile(model, height, width, repeat=args.repeat)
     print("\n".join(table(result, args.sort) + [""] + summary(result)))
     if output is not None:

@@ -35,7 +35,9 @@ UNIFORM_WINDOW_LIMIT = 65536  # bytes; larger weight windows are bound as read-o
 class Precision:
     """Storage type of activations. Math and accumulation are f32 in both precisions: f16 storage halves
     activation memory and traffic, while f16 accumulation over up to 9·128 terms would break the 1e-2
-    bound (and lavapipe, on AVX2, has no f16 ALU to gain from). Max pooling, resizing and copies move
+    bound (and lavapipe, on AVX2, has no f16 ALU to gain from). The one exception is asked for: with f16
+    activations the 3×3 tile kernels can sum each kernel row's 12 products per output in f16 before
+    adding them to the f32 tile (Conv3x3Kernel's ``half_math``). Max pooling, resizing and copies move
     storage values without converting."""
 
     name: str
@@ -265,16 +267,25 @@ class WindowLayout:
 
 
 class PackedWeights(WindowLayout):
-    """A conv-family layer's weights, uploaded once, in the windows of its WindowLayout."""
+    """A conv-family layer's weights, uploaded once, in the windows of its WindowLayout; with ``half``
+    each block's 16 values as halves in the first 32 bytes of its 64-byte slot (the layout stays the f32
+    one; a half-precision kernel reads only what it multiplies)."""
 
-    def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1, uniform_windows: bool = False):
+    def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1, uniform_windows: bool = False,
+                 half: bool = False):
         super().__init__(ctx, layer, tile_c, splits, uniform_windows)
+        self.half = half
         cout, cin, kh, kw = layer.weight.shape
         padded = np.zeros((self.out_blocks * 4, self.in_blocks * 4, kh, kw), np.float32)
         padded[:cout, :cin] = layer.weight
         blocks = padded.reshape(self.groups, splits, self.tile_c // splits, 4, self.in_blocks, 4, kh, kw)
         windows = blocks.transpose(0, 1, 4, 6, 7, 2, 5, 3).reshape(self.groups * splits, -1)
         data = np.zeros((self.groups * splits, self.window_stride // 4), np.float32)
+        if half:   # slot = the block's 16 halves, then 32 bytes of padding
+            halves = windows.reshape(len(windows), -1, 16).astype(np.float16)
+            slots = np.zeros((len(windows), halves.shape[1], 32), np.float16)
+            slots[:, :, :16] = halves
+            windows = slots.reshape(len(windows), -1).view(np.float32)
         data[:, : windows.shape[1]] = windows
         self.buffer = ctx.upload(data, usage=wgpu.BufferUsage.UNIFORM, label=f"{layer.name} weights")
         bias = np.zeros(self.out_blocks * 4, np.float32)
@@ -322,16 +333,21 @@ class ConvFamilyKernel(NnKernel):
     reads_through_load_blocks = False  # its shader reads the input via load_blocks.wgsl (can split it)
 
     stages_weights = False  # its shader can stage weight blocks in workgroup memory (weights_workgroup.wgsl)
+    multiplies_in_half = False  # its shader can run its multiply-adds in f16 (conv3x3_tile.wgsl's MATH)
 
     def __init__(self, ctx, precision: Precision, tile_x: int, uniform_windows: bool = False,
-                 weight_fetch: str | None = None):
+                 weight_fetch: str | None = None, half_math: bool = False):
         super().__init__(ctx, precision)
-        self.tile_x, self.uniform_windows = tile_x, uniform_windows
+        self.tile_x, self.uniform_windows, self.half_math = tile_x, uniform_windows, half_math
+        if half_math and not (self.multiplies_in_half and precision.storage == "f16"):
+            raise ValueError(f"{self.shader} cannot multiply in f16 with {precision.storage} activations")
         self.weight_fetch = weight_fetch or ("subgroup" if ctx.has_subgroups else "direct")
         if self.weight_fetch == "subgroup" and not ctx.has_subgroups:
             raise DeviceLimitError(f"weights fetched by subgroups need the subgroup feature, which {ctx.label} lacks")
         if self.weight_fetch not in WEIGHT_FETCH_CODE or (self.weight_fetch == "workgroup" and not self.stages_weights):
             raise ValueError(f"{self.shader} cannot fetch weights by {self.weight_fetch!r}")
+        if half_math and self.weight_fetch != "direct":
+            raise ValueError(f"f16 multiply-adds read their weights directly, not by {self.weight_fetch!r}")
 
     def weight_constants(self, packed: PackedWeights, names: tuple[str, ...] = ("weight",)) -> dict:
         """Substitutions of layer_bindings.wgsl choosing how conv-family kernels read ``packed``'s weight
@@ -341,8 +357,11 @@ class ConvFamilyKernel(NnKernel):
         binds the group's windows, one binding each (WINDOW_BINDINGS). By ``weight_fetch``: each
         invocation reads a block itself ("direct": weights_uniform.wgsl), the lanes of a subgroup share
         its loads ("subgroup": weights_subgroup.wgsl), or the workgroup stages an input block's blocks
-        in workgroup memory ("workgroup": weights_workgroup.wgsl, STAGED_MATS blocks a window)."""
+        in workgroup memory ("workgroup": weights_workgroup.wgsl, STAGED_MATS blocks a window); with
+        ``half_math`` as halves, directly (weights_uniform_f16.wgsl: a mat4x4<f16> in each 64-byte slot)."""
         fetch, lane = WEIGHT_FETCH_CODE[self.weight_fetch]
+        if self.half_math:
+            fetch = fetch.replace(".wgsl", "_f16.wgsl")
         code = [shaders.compose(lane, shaders.NN_KERNELS, {"SUBGROUP_LANES": self.subgroup_lanes})]
         if self.weight_fetch == "workgroup":
             code.append(f"const STAGED_MATS: i32 = {packed.taps * packed.tile_c // packed.splits};")
@@ -350,6 +369,7 @@ class ConvFamilyKernel(NnKernel):
         def binding(weights: str, index: int, mats: int) -> str:
             return shaders.compose("weight_binding.wgsl", shaders.NN_KERNELS, {
                 "WEIGHT_SPACE": packed.weight_space, "WEIGHT_MATS": mats, "WEIGHTS": weights,
+                "WEIGHT_SLOT": "array<mat4x4<f16>, 2>" if packed.half else "mat4x4f",
                 "WEIGHT_BINDING": self.bindings.index(WINDOW_BINDINGS[index])})
 
         if packed.one_dispatch:
@@ -373,7 +393,8 @@ class ConvFamilyKernel(NnKernel):
         return WindowLayout(self.ctx, layer, *self.packing(layer), uniform_windows=self.uniform_windows)
 
     def prepare(self, layer: Layer) -> PackedWeights:
-        return PackedWeights(self.ctx, layer, *self.packing(layer), uniform_windows=self.uniform_windows)
+        return PackedWeights(self.ctx, layer, *self.packing(layer), uniform_windows=self.uniform_windows,
+                             half=self.half_math)
 
     def modules(self, src: TensorView, dst: TensorView, pooled: TensorView | None = None,
                 input_image: ImageRows | None = None, output_image: ImageRows | None = None) -> tuple[dict, dict]:
@@ -421,6 +442,7 @@ class ConvFamilyKernel(NnKernel):
         channels = dst.channels
         kernel = (kernel or self.shader) + {"subgroup": "", "workgroup": "+staged-weights",
                                             "direct": "+direct-weights" if self.ctx.has_subgroups else ""}[self.weight_fetch]
+        kernel += "+f16-math" if self.half_math else ""
         tensors = {"src": src.buffer, "dst": dst.buffer, **({"pooled": pooled.buffer} if pooled else {}),
                    **({"head": head.buffer} if head else {}), **({"src_upper": src.upper} if src.upper else {}),
                    **({"residual": residual.buffer} if residual else {})}
@@ -464,14 +486,17 @@ class ConvKernel(ConvFamilyKernel):
                             self.kernel_label(self.shader, pooled, input_image, output_image), pooled)
 
 
-def tile_blocks_code(blocks: int, head: bool = False) -> dict[str, str]:
+def tile_blocks_code(blocks: int, head: bool = False, half: bool = False) -> dict[str, str]:
     """conv3x3_tile_blocks.wgsl's placeholders for a tile of ``blocks`` output blocks, written out (one
     template instead of a hand-unrolled file per width; the code is the same as written out by hand).
-    ``head``: the tile's pixels go through head_epilogue.wgsl's 1×1 head instead of being stored."""
+    ``head``: the tile's pixels go through head_epilogue.wgsl's 1×1 head instead of being stored;
+    ``half``: a row's products are summed in f16 and the sum added to the f32 tile."""
     def accumulate(t: int) -> str:
         pair, odd = divmod(t, 2)
         taps = [f"pair{pair}_weight_block(tap{f' + {odd + 2 * kx}' if odd + 2 * kx else ''}, lane) * x.x{kx}"
                 for kx in range(3)]
+        if half:
+            return f"    (*tile).block{t} += mat4x4f({taps[0]} + {taps[1]}\n        + {taps[2]});"
         return f"    (*tile).block{t} += {taps[0]} + {taps[1]}\n        + {taps[2]};"
 
     return {"TILE_C": blocks,
@@ -548,6 +573,14 @@ class Conv3x3Kernel(ConvFamilyKernel):
     lavapipe it takes 2.6× the staged kernel's time (the shipped denoiser at 256²: 657 against 249 ms,
     `wgpu-rt profile --conv-tiling`).
 
+    With f16 activations either variant can multiply in half precision (``half_math``, model math "f16"):
+    a kernel row's three weight blocks (read directly as mat4x4<f16>, weights_uniform_f16.wgsl) times its
+    three 4-pixel matrices are summed in f16 — 12 products per output, where an adapter with packed f16
+    arithmetic does two per instruction — and the sum is added to the f32 tile, so accumulation over
+    input channels stays f32 (the shipped denoiser: max |error| 1.4e-3 against onnxruntime, f32 math
+    with f16 storage 0.7e-3, the bound 1e-2). On lavapipe (no f16 ALU on AVX2) it takes 4–5× the time
+    (751–794 against 147–197 ms at 256² with the register tiling); a candidate for GPUs.
+
     Tile width (``tile_blocks``, unrolled into conv3x3_tile_blocks.wgsl by ``tile_blocks_code``): 32
     channels in the direct variant wherever the output has a multiple of 32 channels, else 16. On
     lavapipe input loads are costly (a storage load is a scalar loop over the lanes; with them replaced by constants the
@@ -585,11 +618,13 @@ class Conv3x3Kernel(ConvFamilyKernel):
     tile_x = 4
     reads_through_load_blocks = True
 
+    multiplies_in_half = True
+
     def __init__(self, ctx, precision: Precision, staged: bool = False, uniform_windows: bool = False,
-                 weight_fetch: str | None = None):
+                 weight_fetch: str | None = None, half_math: bool = False):
         self.staged = self.stages_weights = staged
         self.shader = "conv3x3_staged.wgsl" if staged else "conv3x3.wgsl"
-        super().__init__(ctx, precision, self.tile_x, uniform_windows, weight_fetch)
+        super().__init__(ctx, precision, self.tile_x, uniform_windows, weight_fetch, half_math)
 
     def tile_blocks(self, layer: Layer) -> int:
         """Output blocks per invocation: 8 (32 channels) in the direct variant where they divide the
@@ -630,7 +665,8 @@ class Conv3x3Kernel(ConvFamilyKernel):
                            HEAD_BINDING=self.bindings.index("head"))
             flops += head.layer.flops_per_pixel * dst.height * dst.width
         pipeline = self.pipeline(
-            layer.activation, replacements, **tile_blocks_code(packed.tile_c, head is not None),
+            layer.activation, replacements, **tile_blocks_code(packed.tile_c, head is not None, self.half_math),
+            MATH="f16" if self.half_math else "f32",
             IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
             OUT_H=dst.height, OUT_W=dst.width, PAD_TOP=top, PAD_LEFT=left, **modules,
             STAGE_WEIGHTS="\n".join(f"        stage_pair{p}_weights(cb, invocation);" for p in range(packed.splits))

@@ -62,6 +62,11 @@ UNIFORM_WINDOWS = "+uniform-windows"
 WEIGHT_FETCHES = ("subgroup", "direct")
 # suffix of an autotuned variant whose weights are read directly on an adapter with subgroups
 DIRECT_WEIGHTS = "+direct-weights"
+# What the 3×3 tile kernels multiply in: "f32", or with fp16 activations "f16" (each kernel row's products
+# summed in packed half precision, then added to the f32 tile; see Conv3x3Kernel)
+MATHS = ("f32", "f16")
+# suffix of an autotuned variant whose 3×3 kernels multiply in f16
+HALF_MATH = "+f16-math"
 # Passes of a self-ensemble: the image under the first k of the 8 dihedral transforms (the flips and
 # turns the networks are trained under), the outputs turned back and averaged.
 ENSEMBLES = (1, 2, 4, 8)
@@ -166,13 +171,15 @@ class WgslModel:
     output pixel per invocation), "loop" (4-pixel tiles in loops), "register" (plus the written-out 3×3
     tile kernel), "staged" (that tile with its input staged in workgroup memory), "staged-weights" (and
     its weights: the 3×3 layers then ignore ``weight_fetch``); default:
-    ``default_conv_tiling``.
+    ``default_conv_tiling``. ``weight_fetch``: how those kernels read weights ("subgroup" or "direct",
+    see WEIGHT_FETCHES); default: ``default_weight_fetch``. ``math``: "f32", or with precision "fp16" also
+    "f16", the 3×3 tile kernels' multiply-adds in half precision (see MATHS).
 
     ``autotune``: choose the tiling (and window preference) per layer shape by timing the candidates on
     this adapter once and caching the choice (see ``wgpu_rt.nn.autotune``; True, or an ``Autotuner``).
     Off by default (the first run of a new shape pays for compiling and timing every candidate) unless
     $WGPU_RT_AUTOTUNE=1; $WGPU_RT_AUTOTUNE=0 turns it off everywhere. A ``conv_tiling`` given here wins
-    over autotuning; so does a ``weight_fetch``.
+    over autotuning; so do a ``weight_fetch`` and a ``math``.
 
     ``ensemble`` (1, 2, 4 or 8): run the network on the input as given and turned / flipped (dihedral
     transforms 0 .. k−1, see kernels.dihedral_strides) and average the outputs turned back, k times the
@@ -181,7 +188,7 @@ class WgslModel:
 
     def __init__(self, path: str | Path, precision: str = "fp32", ctx=None, conv_tiling: str | None = None,
                  autotune: bool | autotuning.Autotuner | None = None, ensemble: int = 1,
-                 weight_fetch: str | None = None):
+                 weight_fetch: str | None = None, math: str | None = None):
         from ..gpu import get_context
 
         if precision not in PRECISIONS:
@@ -192,7 +199,8 @@ class WgslModel:
         self.ctx = ctx or get_context()
         given = isinstance(autotune, autotuning.Autotuner)
         self.autotuner = None
-        if conv_tiling is None and weight_fetch is None and autotuning.enabled(True if given else autotune):
+        if (conv_tiling is None and weight_fetch is None and math is None
+                and autotuning.enabled(True if given else autotune)):
             self.autotuner = autotune if given else autotuning.Autotuner(self.ctx)
         conv_tiling = conv_tiling or default_conv_tiling(self.ctx)
         if conv_tiling not in CONV_TILINGS:
@@ -203,12 +211,17 @@ class WgslModel:
         if weight_fetch == "subgroup" and not self.ctx.has_subgroups:
             raise ModelError(f"weight_fetch subgroup needs the subgroup feature, which {self.ctx.label} lacks; "
                              "use direct")
+        math = math or "f32"
+        if math not in MATHS:
+            raise ModelError(f"math {math!r}: choose one of {', '.join(MATHS)}")
+        if math == "f16" and precision != "fp16":
+            raise ModelError(f"math f16 needs precision fp16 (f16 activations), not {precision}")
         if precision == "fp16" and not self.ctx.has_f16:
             raise ModelError(f"precision fp16 needs the shader-f16 feature, which {self.ctx.label} lacks; "
                              "use fp32")
         self.path, self.precision = str(path), PRECISIONS[precision]
         self.graph: NetworkGraph = load_graph(path)
-        self.conv_tiling, self.weight_fetch = conv_tiling, weight_fetch
+        self.conv_tiling, self.weight_fetch, self.math = conv_tiling, weight_fetch, math
         kernel_args = (self.ctx, self.precision)
         self.uniform_windows = default_uniform_windows(self.ctx)
         self._tiled_kernels: dict[tuple, object] = {}
@@ -232,18 +245,21 @@ class WgslModel:
         self._heads: dict[str, Head] = {}  # head layer name -> its weights, where one is folded (_exit_layers)
 
     def kernel_for(self, layer, tiling: str | None = None, uniform_windows: bool | None = None,
-                   weight_fetch: str | None = None):
-        """The kernel running ``layer`` under ``tiling``, window preference and weight fetch (defaults: the
-        model's ``conv_tiling``, ``uniform_windows`` and ``weight_fetch``); tilings that run a layer the
-        same way share one kernel object."""
+                   weight_fetch: str | None = None, math: str | None = None):
+        """The kernel running ``layer`` under ``tiling``, window preference, weight fetch and math
+        (defaults: the model's ``conv_tiling``, ``uniform_windows``, ``weight_fetch`` and ``math``);
+        tilings that run a layer the same way share one kernel object. Weights staged in workgroup memory
+        are multiplied in f32 whatever ``math`` says, and f16 multiply-adds read their weights directly."""
         tiling = tiling or self.conv_tiling
         windows = self.default_windows(layer) if uniform_windows is None else uniform_windows
         fetch = weight_fetch or self.weight_fetch
         args = (self.ctx, self.precision)
         if tiling in ("register", "staged", "staged-weights") and Conv3x3Kernel.handles(layer):
             fetch = "workgroup" if tiling == "staged-weights" else fetch
-            key, make = ("conv3x3", tiling, windows, fetch), lambda: Conv3x3Kernel(
-                *args, staged=tiling != "register", uniform_windows=windows, weight_fetch=fetch)
+            half = (math or self.math) == "f16" and tiling != "staged-weights"
+            fetch = "direct" if half else fetch   # see weights_uniform_f16.wgsl
+            key, make = ("conv3x3", tiling, windows, fetch, half), lambda: Conv3x3Kernel(
+                *args, staged=tiling != "register", uniform_windows=windows, weight_fetch=fetch, half_math=half)
         elif layer.kind in ("conv", "gemm"):
             kernel_class = ConvKernel if layer.kind == "conv" else GemmKernel
             key, make = (layer.kind, CONV_TILINGS[tiling], windows, fetch), lambda: kernel_class(
@@ -276,37 +292,41 @@ class WgslModel:
 
     def tuned_kernel(self, layer, src: TensorView, dst: TensorView, pooled: TensorView | None = None):
         """The kernel for ``layer`` reading ``src`` (and max-pooling its output into ``pooled``, if given):
-        the model's tiling, window preference and weight fetch, or with autotuning the fastest combination
-        measured on this adapter (cached per layer shape; see wgpu_rt.nn.autotune). Variants are named by
-        tiling, plus UNIFORM_WINDOWS where uniform windows change how the layer is dispatched
-        (kernels.WindowLayout), plus DIRECT_WEIGHTS where weights are read directly on an adapter with
-        subgroups."""
+        the model's tiling, window preference, weight fetch and math, or with autotuning the fastest
+        combination measured on this adapter (cached per layer shape; see wgpu_rt.nn.autotune). Variants
+        are named by tiling, plus UNIFORM_WINDOWS where uniform windows change how the layer is
+        dispatched (kernels.WindowLayout), plus DIRECT_WEIGHTS where weights are read directly on an
+        adapter with subgroups, plus HALF_MATH where a 3×3 kernel multiplies in f16 (fp16 models only)."""
         if self.autotuner is None:
             return self.kernel_for(layer)
         fetches = WEIGHT_FETCHES if self.ctx.has_subgroups else ("direct",)
+        maths = MATHS if self.precision.storage == "f16" else ("f32",)
         candidates, seen = {}, set()  # one variant per distinct kernel and dispatch layout
-        for fetch in fetches:
-            for tiling in CONV_TILINGS:
-                for windows in (False, True):
-                    kernel = self.kernel_for(layer, tiling, windows, fetch)
-                    layout = kernel.layout(layer)
-                    distinct = (id(self.kernel_for(layer, tiling, False, fetch)), layout.one_dispatch,
-                                layout.weight_space)
-                    if distinct not in seen:
-                        seen.add(distinct)
-                        candidates[self._variant(tiling, windows, fetch)] = self._trial(layer, kernel, src, dst,
-                                                                                         pooled)
-        default = self._variant(self.conv_tiling, self.default_windows(layer), self.weight_fetch)
+        for math in maths:
+            for fetch in fetches:
+                for tiling in CONV_TILINGS:
+                    for windows in (False, True):
+                        kernel = self.kernel_for(layer, tiling, windows, fetch, math)
+                        layout = kernel.layout(layer)
+                        distinct = (id(self.kernel_for(layer, tiling, False, fetch, math)), layout.one_dispatch,
+                                    layout.weight_space)
+                        if distinct not in seen:
+                            seen.add(distinct)
+                            candidates[self._variant(tiling, windows, kernel)] = self._trial(
+                                layer, kernel, src, dst, pooled)
+        default = self._variant(self.conv_tiling, self.default_windows(layer), self.kernel_for(layer))
         key = self.autotuner.key(layer, src, self.precision.name, pooled is not None)
         variant = self.autotuner.choose(key, candidates, default)
-        tiling = variant.split("+")[0]
         fetch = "direct" if variant.endswith(DIRECT_WEIGHTS) or not self.ctx.has_subgroups else "subgroup"
-        return self.kernel_for(layer, tiling, UNIFORM_WINDOWS in variant, fetch)
+        return self.kernel_for(layer, variant.split("+")[0], UNIFORM_WINDOWS in variant, fetch,
+                               "f16" if HALF_MATH in variant else "f32")
 
-    def _variant(self, tiling: str, uniform_windows: bool, weight_fetch: str) -> str:
-        """An autotuned variant's name (see tuned_kernel)."""
-        direct = weight_fetch == "direct" and self.ctx.has_subgroups
-        return tiling + UNIFORM_WINDOWS * uniform_windows + DIRECT_WEIGHTS * direct
+    def _variant(self, tiling: str, uniform_windows: bool, kernel) -> str:
+        """An autotuned variant's name (see tuned_kernel): the tiling, window preference and ``kernel``'s
+        weight fetch and math."""
+        direct = getattr(kernel, "weight_fetch", None) == "direct" and self.ctx.has_subgroups
+        half = getattr(kernel, "half_math", False)
+        return tiling + UNIFORM_WINDOWS * uniform_windows + HALF_MATH * half + DIRECT_WEIGHTS * direct
 
     def _trial(self, layer, kernel, src: TensorView, dst: TensorView, pooled: TensorView | None):
         """The dispatches of ``kernel`` on scratch tensors shaped like ``src``, ``dst`` (and ``pooled``),

@@ -47,6 +47,7 @@ class Profile:
     precision: str
     conv_tiling: str
     weight_fetch: str
+    math: str
     size: tuple[int, int]              # width, height of the input
     canvas: tuple[int, int]            # width, height of one pass of the network: padded to its pooling
     bands: int                         # multiple, and a band's rows when the frame runs in bands
@@ -63,7 +64,7 @@ class Profile:
         rows = [{**asdict(row), "workgroup_count": row.workgroup_count,
                  "flops_per_second": row.flops_per_second} for row in self.rows]
         return {"model": self.model, "adapter": self.adapter, "precision": self.precision,
-                "conv_tiling": self.conv_tiling, "weight_fetch": self.weight_fetch,
+                "conv_tiling": self.conv_tiling, "weight_fetch": self.weight_fetch, "math": self.math,
                 "size": list(self.size), "canvas": list(self.canvas), "bands": self.bands,
                 "repeat": self.repeat, "dispatch_count": len(self.rows), "network_flops": self.network_flops,
                 "dispatch_flops": sum(row.flops for row in self.rows),
@@ -108,6 +109,8 @@ def profile(model, height: int, width: int, repeat: int = 5, seed: int = 0) -> P
     per_band = len(dispatches) // len(plan.bands)
     rows = [DispatchTime(index, index // per_band, d.label, d.kernel, d.output, d.workgroups, d.flops,
                          float(seconds[index])) for index, d in enumerate(dispatches)]
-    tiling, fetch = ("autotuned", "autotuned") if model.autotuner else (model.conv_tiling, model.weight_fetch)
-    return Profile(model.path, ctx.label, model.precision.name, tiling, fetch, (width, height), plan.canvas[::-1],
+    tiling, fetch, math = (("autotuned",) * 3 if model.autotuner
+                           else (model.conv_tiling, model.weight_fetch, model.math))
+    return Profile(model.path, ctx.label, model.precision.name, tiling, fetch, math, (width, height),
+                   plan.canvas[::-1],
                    len(plan.bands), repeat, plan.flops, float(seconds[-1]), rows)
