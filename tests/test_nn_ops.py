@@ -333,6 +333,25 @@ def test_weights_come_from_uniform_or_storage_windows(tmp_path, gpu, monkeypatch
     check_parity([(1, cin, 19, 23)], onnxruntime_fn(path), model, atol=FP32_ATOL)
 
 
+@pytest.mark.parametrize("uniform_windows", [True, False], ids=["group_dispatches", "one_dispatch"])
+def test_staged_weights_from_every_kind_of_window(tmp_path, gpu, monkeypatch, uniform_windows):
+    """Weights staged in workgroup memory (conv tiling "staged-weights") from per-group uniform windows
+    (one dispatch per group) and from one storage binding for the whole layer (the groups in
+    workgroup_id.z): 128 input channels, 48 outputs, as onnxruntime."""
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn import model as nn_model
+
+    monkeypatch.setattr(nn_model, "default_uniform_windows", lambda ctx: uniform_windows)
+    nodes, inits = conv("conv", "x", "y", 128, 48, 3)
+    path = make_model(tmp_path, "conv128", nodes, 128, inits)
+    model = WgslModel(path, ctx=gpu, conv_tiling="staged-weights")
+    packed = model.prepared["conv"]
+    assert packed.one_dispatch != uniform_windows
+    assert packed.weight_space == ("uniform" if uniform_windows else "storage, read")
+    assert all(d.kernel.endswith("+staged-weights") for d in every_dispatch(model, 19, 23) if d.flops)
+    check_parity([(1, 128, 19, 23)], onnxruntime_fn(path), model, atol=FP32_ATOL)
+
+
 def test_weight_fetch_is_checked(tmp_path, gpu):
     """An unknown weight fetch, or subgroup fetches on an adapter without subgroups, are refused by name."""
     from wgpu_rt.errors import ModelError
