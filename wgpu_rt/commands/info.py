@@ -23,8 +23,20 @@ def run(args) -> int:
                                           or "compute" in k or k == "max-buffer-size"}
     for name, value in sorted(shown.items()):
         print(f"limit:     {name:44s} {value}")
+    print_engine_defaults(ctx)
     print_measured_choices(ctx)
     return 0
+
+
+def print_engine_defaults(ctx) -> None:
+    """How the NN engine runs convolutions here unless told otherwise (wgpu_rt.nn.model)."""
+    from ..nn import autotune
+    from ..nn.model import default_conv_tiling, default_uniform_windows, default_weight_fetch
+
+    tuned = "on" if autotune.enabled(None) else "off ($WGPU_RT_AUTOTUNE=1 measures per layer)"
+    print(f"nn engine: conv tiling {default_conv_tiling(ctx)}, weight fetch {default_weight_fetch(ctx)}, "
+          f"{'per-group uniform windows' if default_uniform_windows(ctx) else 'one dispatch per layer'}, "
+          f"autotuning {tuned}")
 
 
 def print_measured_choices(ctx) -> None:
