@@ -142,6 +142,40 @@ def test_f16_multiply_adds_are_a_candidate_of_fp16_models(gpu, two_layers, tmp_p
 
 
 @pytest.mark.gpu
+def test_a_candidate_the_device_refuses_is_left_out_and_remembered(gpu, two_layers, tmp_path):
+    """A candidate whose shader the driver rejects (here the fake timer raises the validation error
+    wgpu would) is not chosen, is kept in the cache as failed with the first line of why, and is not
+    tried again; if every candidate fails, the default stands."""
+    import wgpu
+
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.autotune import Autotuner
+
+    def refusing(dispatches):
+        if dispatches[0].kernel.startswith("conv3x3_staged"):
+            raise wgpu.GPUValidationError("Shader validation error: no\nmore detail")
+        return fake_timer([])(dispatches)
+
+    cache = tmp_path / "autotune.json"
+    model = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, cache, timer=refusing))
+    assert chosen(model)[0] == ("pack+conv3x3.wgsl+tile16", 1)   # the next fastest, not the staged one
+    entries = json.loads(cache.read_text())["entries"].values()
+    failed = [entry["failed"] for entry in entries if "failed" in entry]
+    assert len(failed) == 1 and set(failed[0].values()) == {"Shader validation error: no"}
+    assert all(variant.startswith("staged") for variant in failed[0])
+
+    def no_timer(dispatches):
+        raise AssertionError("a cached choice was measured again")
+    again = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, cache, timer=no_timer))
+    assert chosen(again) == chosen(model)
+
+    def refuse_all(dispatches):
+        raise wgpu.GPUValidationError("no")
+    fallback = WgslModel(two_layers, ctx=gpu, autotune=Autotuner(gpu, tmp_path / "other.json", timer=refuse_all))
+    assert chosen(fallback) == chosen(WgslModel(two_layers, ctx=gpu))
+
+
+@pytest.mark.gpu
 @pytest.mark.parametrize("content", [b"{not json", b"\x00\xff", b"[1, 2]", b'{"version": 1, "entries": []}',
                                      b'{"version": 1, "entries": {"k": "staged"}}'],
                          ids=["truncated", "binary", "list", "entries_list", "entry_not_a_dict"])

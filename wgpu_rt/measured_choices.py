@@ -5,7 +5,9 @@ Each choice is timed once and kept in one JSON cache keyed by whatever the calle
 adapter and driver always: ``MeasuredChoices.adapter``), at ``$WGPU_RT_CACHE_DIR/autotune.json`` where
 that is set, else ``$XDG_CACHE_HOME/wgpu-rt/autotune.json`` (``~/.cache/wgpu-rt/autotune.json`` without
 it); later runs on the same adapter read the choice instead of measuring, as long as it was made among
-the same candidates (a new candidate is measured against the old ones, not passed over). A cache file that cannot be
+the same candidates (a new candidate is measured against the old ones, not passed over). A candidate
+the device refuses (a shader its compiler rejects, a limit it exceeds) is left out and remembered as
+failed, with the first line of why. A cache file that cannot be
 read or parsed is ignored and rewritten; it is written atomically (``wgpu_rt.io.atomic_output``), so a
 crash never leaves a half file, and an entry another process added meanwhile is kept.
 """
@@ -18,6 +20,9 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
+import wgpu
+
+from .errors import DeviceLimitError
 from .io import atomic_output
 
 CACHE_VERSION = 1
@@ -61,14 +66,16 @@ class MeasuredChoices:
         """The variant remembered for ``key``, if any (with ``candidates``: only if it was chosen among
         them all)."""
         entry = self.entries.get(key, {})
-        timed = entry.get("seconds")
-        if candidates is not None and not (isinstance(timed, dict) and set(candidates) <= set(timed)):
+        timed, failed = entry.get("seconds"), entry.get("failed", {})
+        if candidates is not None and not (isinstance(timed, dict) and isinstance(failed, dict)
+                                           and set(candidates) <= set(timed) | set(failed)):
             return None
         return entry.get("variant")
 
     def choose(self, key: str, candidates: dict[str, Callable[[], object]], default: str) -> str:
         """The fastest of ``candidates`` (variant -> a callable giving what ``timer`` measures) for
-        ``key``, from the cache or measured now; ``default`` where nothing can be measured."""
+        ``key``, from the cache or measured now; ``default`` where nothing can be measured or the device
+        refused every candidate."""
         if len(candidates) == 1:
             return next(iter(candidates))
         cached = self.cached(key, candidates)
@@ -76,12 +83,17 @@ class MeasuredChoices:
             return cached
         if self.timer is None:
             return default
-        seconds = {}
+        seconds, failed = {}, {}
         for variant, candidate in candidates.items():
-            seconds[variant] = self.timer(candidate())
+            try:
+                seconds[variant] = self.timer(candidate())
+            except (wgpu.GPUError, DeviceLimitError) as err:
+                failed[variant] = (str(err).strip().splitlines() or [type(err).__name__])[0]
             self.measured += 1
+        if not seconds:
+            return default
         best = min(seconds, key=seconds.get)
-        self.entries[key] = {"variant": best, "seconds": seconds}
+        self.entries[key] = {"variant": best, "seconds": seconds, **({"failed": failed} if failed else {})}
         self._save(key)
         return best
 

@@ -51,4 +51,6 @@ def print_measured_choices(ctx) -> None:
     for what, entry in mine:
         seconds = entry.get("seconds") if isinstance(entry.get("seconds"), dict) else {}
         times = ", ".join(f"{variant} {float(value) * 1e3:.3g} ms" for variant, value in seconds.items())
+        failed = entry.get("failed") if isinstance(entry.get("failed"), dict) else {}
+        times += "".join(f", {variant} failed" for variant in failed)
         print(f"measured:  {what}: {entry['variant']}" + (f" ({times})" if times else ""))
