@@ -260,9 +260,9 @@ def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision, outputs):
 @pytest.mark.parametrize("cin,outputs", [(9, 48), (9, 64), (128, 48)], ids=["tile16", "tile32", "windows"])
 def test_conv3x3_multiplies_in_half(tmp_path, gpu, tiling, cin, outputs):
     """``math="f16"`` (fp16 activations): the 3×3 tile kernels sum each kernel row's products in packed
-    half precision and add them to the f32 tile, weights read directly as halves from their slots (both
-    tile widths; 128 input channels bind storage or per-group uniform windows): within the fp16 bound
-    of onnxruntime, and labelled so. f16 multiply-adds need f16 activations."""
+    half precision and add them to the f32 tile, weights read directly as halves from their slots in
+    storage, never uniform (both tile widths; 128 input channels too): within the fp16 bound of
+    onnxruntime, and labelled so. f16 multiply-adds need f16 activations."""
     from wgpu_rt.errors import ModelError
     from wgpu_rt.nn import WgslModel
 
@@ -273,6 +273,7 @@ def test_conv3x3_multiplies_in_half(tmp_path, gpu, tiling, cin, outputs):
     model = WgslModel(path, "fp16", ctx=gpu, conv_tiling=tiling, math="f16")
     kernel = model.kernel_for(model.graph.layers[0])
     assert kernel.half_math and kernel.weight_fetch == "direct" and model.prepared["conv"].half
+    assert model.prepared["conv"].weight_space == "storage, read"
     assert all(d.kernel.endswith("+f16-math") for d in every_dispatch(model, 37, 71) if d.flops)
     check_parity([(1, cin, 37, 71)], onnxruntime_fn(path), model, atol=FP16_ATOL)
     with pytest.raises(ModelError, match="math f16 needs precision fp16"):

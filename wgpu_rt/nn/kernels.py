@@ -240,9 +240,12 @@ class WindowLayout:
     (lavapipe: model.default_uniform_windows, or measured: wgpu_rt.nn.autotune); a layer too big for
     one storage binding always falls back to one dispatch per group, its windows bound one by one
     (uniform when each fits, else storage), and so does one with more groups' headers than one uniform
-    binding holds (over 2048 output blocks)."""
+    binding holds (over 2048 output blocks). ``half`` (blocks as mat4x4<f16>, see PackedWeights): always
+    storage, whose layout takes matrices of 8-byte columns on every Vulkan driver (a uniform block needs
+    16-byte columns unless the driver has the standard uniform layout)."""
 
-    def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1, uniform_windows: bool = False):
+    def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1, uniform_windows: bool = False,
+                 half: bool = False):
         cout, cin, kh, kw = layer.weight.shape
         self.out_blocks, self.in_blocks = groups_of(cout, 4), groups_of(cin, 4)
         self.tile_c = max(t for t in range(1, tile_c + 1) if self.out_blocks % t == 0)
@@ -252,9 +255,11 @@ class WindowLayout:
         self.mats = self.in_blocks * self.taps * self.tile_c // splits
         window_bytes, limits = self.mats * 64, ctx.limits
         uniform_limit = min(UNIFORM_WINDOW_LIMIT, limits.get("max-uniform-buffer-binding-size", UNIFORM_WINDOW_LIMIT))
+        header_limit = uniform_limit   # the group headers are f32: uniform either way
+        uniform_limit = 0 if half else uniform_limit
         storage_limit = limits.get("max-storage-buffer-binding-size", 2**27)
         layer_bytes = window_bytes * self.groups * splits  # windows back to back: one binding
-        headers_fit = self.groups * (16 * self.tile_c + 16) <= uniform_limit  # all GroupHeaders, one binding
+        headers_fit = self.groups * (16 * self.tile_c + 16) <= header_limit  # all GroupHeaders, one binding
         self.one_dispatch = headers_fit and (layer_bytes <= uniform_limit or (
             layer_bytes <= storage_limit and not (uniform_windows and window_bytes <= uniform_limit)))
         fits_uniform = (layer_bytes if self.one_dispatch else window_bytes) <= uniform_limit
@@ -273,7 +278,7 @@ class PackedWeights(WindowLayout):
 
     def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1, uniform_windows: bool = False,
                  half: bool = False):
-        super().__init__(ctx, layer, tile_c, splits, uniform_windows)
+        super().__init__(ctx, layer, tile_c, splits, uniform_windows, half)
         self.half = half
         cout, cin, kh, kw = layer.weight.shape
         padded = np.zeros((self.out_blocks * 4, self.in_blocks * 4, kh, kw), np.float32)
@@ -344,7 +349,8 @@ class ConvFamilyKernel(NnKernel):
         self.weight_fetch = weight_fetch or ("subgroup" if ctx.has_subgroups else "direct")
         if self.weight_fetch == "subgroup" and not ctx.has_subgroups:
             raise DeviceLimitError(f"weights fetched by subgroups need the subgroup feature, which {ctx.label} lacks")
-        if self.weight_fetch not in WEIGHT_FETCH_CODE or (self.weight_fetch == "workgroup" and not self.stages_weights):
+        if (self.weight_fetch not in WEIGHT_FETCH_CODE
+                or (self.weight_fetch == "workgroup" and not self.stages_weights)):
             raise ValueError(f"{self.shader} cannot fetch weights by {self.weight_fetch!r}")
         if half_math and self.weight_fetch != "direct":
             raise ValueError(f"f16 multiply-adds read their weights directly, not by {self.weight_fetch!r}")
@@ -390,7 +396,8 @@ class ConvFamilyKernel(NnKernel):
         return self.tile_c_default, 1
 
     def layout(self, layer: Layer) -> WindowLayout:
-        return WindowLayout(self.ctx, layer, *self.packing(layer), uniform_windows=self.uniform_windows)
+        return WindowLayout(self.ctx, layer, *self.packing(layer), uniform_windows=self.uniform_windows,
+                            half=self.half_math)
 
     def prepare(self, layer: Layer) -> PackedWeights:
         return PackedWeights(self.ctx, layer, *self.packing(layer), uniform_windows=self.uniform_windows,
@@ -440,8 +447,9 @@ class ConvFamilyKernel(NnKernel):
         "+staged-weights" where they are staged in workgroup memory);
         ``pooled``, ``head`` (kernels.Head) and ``residual``: bound where the epilogue writes or reads them."""
         channels = dst.channels
-        kernel = (kernel or self.shader) + {"subgroup": "", "workgroup": "+staged-weights",
-                                            "direct": "+direct-weights" if self.ctx.has_subgroups else ""}[self.weight_fetch]
+        fetch_label = {"subgroup": "", "workgroup": "+staged-weights",
+                       "direct": "+direct-weights" if self.ctx.has_subgroups else ""}[self.weight_fetch]
+        kernel = (kernel or self.shader) + fetch_label
         kernel += "+f16-math" if self.half_math else ""
         tensors = {"src": src.buffer, "dst": dst.buffer, **({"pooled": pooled.buffer} if pooled else {}),
                    **({"head": head.buffer} if head else {}), **({"src_upper": src.upper} if src.upper else {}),
@@ -574,8 +582,8 @@ class Conv3x3Kernel(ConvFamilyKernel):
     `wgpu-rt profile --conv-tiling`).
 
     With f16 activations either variant can multiply in half precision (``half_math``, model math "f16"):
-    a kernel row's three weight blocks (read directly as mat4x4<f16>, weights_uniform_f16.wgsl) times its
-    three 4-pixel matrices are summed in f16 — 12 products per output, where an adapter with packed f16
+    a kernel row's three weight blocks (read directly as mat4x4<f16> from storage, weights_uniform_f16.wgsl)
+    times its three 4-pixel matrices are summed in f16 — 12 products per output, where an adapter with packed f16
     arithmetic does two per instruction — and the sum is added to the f32 tile, so accumulation over
     input channels stays f32 (the shipped denoiser: max |error| 1.4e-3 against onnxruntime, f32 math
     with f16 storage 0.7e-3, the bound 1e-2). On lavapipe (no f16 ALU on AVX2) it takes 4–5× the time
