@@ -247,6 +247,7 @@ class WindowLayout:
     def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1, uniform_windows: bool = False,
                  half: bool = False):
         cout, cin, kh, kw = layer.weight.shape
+        self.half = half
         self.out_blocks, self.in_blocks = groups_of(cout, 4), groups_of(cin, 4)
         self.tile_c = max(t for t in range(1, tile_c + 1) if self.out_blocks % t == 0)
         self.groups = self.out_blocks // self.tile_c
@@ -279,7 +280,6 @@ class PackedWeights(WindowLayout):
     def __init__(self, ctx, layer: Layer, tile_c: int, splits: int = 1, uniform_windows: bool = False,
                  half: bool = False):
         super().__init__(ctx, layer, tile_c, splits, uniform_windows, half)
-        self.half = half
         cout, cin, kh, kw = layer.weight.shape
         padded = np.zeros((self.out_blocks * 4, self.in_blocks * 4, kh, kw), np.float32)
         padded[:cout, :cin] = layer.weight
@@ -366,8 +366,8 @@ class ConvFamilyKernel(NnKernel):
         in workgroup memory ("workgroup": weights_workgroup.wgsl, STAGED_MATS blocks a window); with
         ``half_math`` as halves, directly (weights_uniform_f16.wgsl: a mat4x4<f16> in each 64-byte slot)."""
         fetch, lane = WEIGHT_FETCH_CODE[self.weight_fetch]
-        if self.half_math:
-            fetch = fetch.replace(".wgsl", "_f16.wgsl")
+        if self.half_math:   # always a direct fetch (see __init__)
+            fetch = "weights_uniform_f16.wgsl"
         code = [shaders.compose(lane, shaders.NN_KERNELS, {"SUBGROUP_LANES": self.subgroup_lanes})]
         if self.weight_fetch == "workgroup":
             code.append(f"const STAGED_MATS: i32 = {packed.taps * packed.tile_c // packed.splits};")

@@ -324,9 +324,8 @@ class WgslModel:
     def _variant(self, tiling: str, uniform_windows: bool, kernel) -> str:
         """An autotuned variant's name (see tuned_kernel): the tiling, window preference and ``kernel``'s
         weight fetch and math."""
-        direct = getattr(kernel, "weight_fetch", None) == "direct" and self.ctx.has_subgroups
-        half = getattr(kernel, "half_math", False)
-        return tiling + UNIFORM_WINDOWS * uniform_windows + HALF_MATH * half + DIRECT_WEIGHTS * direct
+        direct = kernel.weight_fetch == "direct" and self.ctx.has_subgroups
+        return tiling + UNIFORM_WINDOWS * uniform_windows + HALF_MATH * kernel.half_math + DIRECT_WEIGHTS * direct
 
     def _trial(self, layer, kernel, src: TensorView, dst: TensorView, pooled: TensorView | None):
         """The dispatches of ``kernel`` on scratch tensors shaped like ``src``, ``dst`` (and ``pooled``),
