@@ -6,7 +6,8 @@ subgroups), both over the threaded binary layout, and `wide` and `wide packet`, 
 nodes and vertices fetched as 16-byte rows (wgsl/accel/geometry_rows.wgsl). The rays start at random points all around the mesh, so neighbouring invocations share
 nothing: the worst case for packets, which the path tracer's neighbouring pixels are not.
 
-Peer: Mitsuba 3 (scalar_rgb) loading a scene that holds the same triangles, which includes building
+Peer: Mitsuba 3 (scalar_rgb, or where the build has none, as on the lent GPUs, the fastest variant
+there: benchmarks/_mitsuba_setup.py) loading a scene that holds the same triangles, which includes building
 its own acceleration structure, timed in the same run; the last column is Mitsuba's time over ours
 (> 1: we build faster). Run: ``python3 benchmarks/bench_bvh.py [--sizes 10000,100000,1000000]``.
 """
@@ -51,7 +52,12 @@ def mitsuba_load_seconds(triangles: np.ndarray) -> float | None:
         import mitsuba as mi
     except ImportError:
         return None
-    mi.set_variant("scalar_rgb")
+    if "scalar_rgb" in mi.variants():
+        mi.set_variant("scalar_rgb")
+    else:   # a build with GPU variants alone (the lent machines' peer)
+        from _mitsuba_setup import mitsuba
+
+        mi = mitsuba()
     from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
     from wgpu_rt.scene.mitsuba import to_mitsuba
 

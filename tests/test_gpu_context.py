@@ -70,13 +70,15 @@ def test_buffer_limit_error_names_what(gpu):
 def test_info_command(gpu):
     """It names the adapter, its features and the NN engine's defaults there (autotuning as the
     environment says)."""
-    from wgpu_rt.nn.model import default_conv_tiling, default_weight_fetch
+    from wgpu_rt.nn.model import default_conv_tiling, default_math, default_precision, default_weight_fetch
 
     env = {k: v for k, v in os.environ.items() if k != "WGPU_RT_AUTOTUNE"}
     out = subprocess.run([sys.executable, "-m", "wgpu_rt", "info"], capture_output=True, text=True, env=env)
     assert out.returncode == 0, out.stderr
     assert "chosen:" in out.stdout and "shader-f16" in out.stdout
-    assert (f"nn engine: conv tiling {default_conv_tiling(gpu)}, weight fetch {default_weight_fetch(gpu)}, "
+    precision = default_precision(gpu)
+    assert (f"nn engine: precision {precision} ({default_math(gpu, precision)} math), "
+            f"conv tiling {default_conv_tiling(gpu)}, weight fetch {default_weight_fetch(gpu)}, "
             in out.stdout and "autotuning off" in out.stdout)
     tuned = subprocess.run([sys.executable, "-m", "wgpu_rt", "info"], capture_output=True, text=True,
                            env={**env, "WGPU_RT_AUTOTUNE": "1"})

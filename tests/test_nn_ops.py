@@ -293,6 +293,35 @@ def test_staged_tiles_are_the_default_on_discrete_gpus(gpu):
     assert [default_conv_tiling(adapter(k)) for k in ("IntegratedGPU", "CPU", "Unknown")] == ["register"] * 3
 
 
+@pytest.mark.parametrize("kind, has_f16, precision, math", [
+    ("DiscreteGPU", True, "fp16", "f16"), ("DiscreteGPU", False, "fp32", "f32"),
+    ("CPU", True, "fp32", "f32"), ("IntegratedGPU", True, "fp32", "f32")])
+def test_discrete_gpus_default_to_half_precision_and_half_math(kind, has_f16, precision, math):
+    """precision "auto" is fp16 with f16 multiply-adds on a discrete GPU with shader-f16 (8.5 against
+    10.3 ms on an H200, BENCHMARKS.md §21), fp32 elsewhere (lavapipe has no half ALU); an fp32 model
+    multiplies in f32 everywhere."""
+    from types import SimpleNamespace
+
+    from wgpu_rt.nn.model import default_math, default_precision
+
+    ctx = SimpleNamespace(adapter=SimpleNamespace(info={"adapter_type": kind}), has_f16=has_f16)
+    assert default_precision(ctx) == precision and default_math(ctx, precision) == math
+    assert default_math(ctx, "fp32") == "f32"
+
+
+def test_auto_precision_resolves_on_the_adapter(gpu, tmp_path):
+    from wgpu_rt.errors import ModelError
+    from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn.model import default_math, default_precision
+
+    nodes, inits = conv("conv", "x", "y", 4, 8, 3)
+    path = make_model(tmp_path, "conv_auto", nodes, 4, inits)
+    model = WgslModel(path, "auto", ctx=gpu)
+    assert model.precision.name == default_precision(gpu) and model.math == default_math(gpu, model.precision.name)
+    with pytest.raises(ModelError, match="precision 'fp8': choose one of auto, fp32, fp16"):
+        WgslModel(path, "fp8", ctx=gpu)
+
+
 @pytest.mark.parametrize("lanes", [8, 4, 0], ids=["subgroup8_fetch", "subgroup4_fetch", "direct_fetch"])
 @pytest.mark.parametrize("cin", [5, 128, 256], ids=["uniform_window", "uniform_pairs", "storage_window"])
 @pytest.mark.parametrize("outputs", [48, 64], ids=["tile16", "tile32"])

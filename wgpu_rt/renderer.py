@@ -26,7 +26,7 @@ DEFAULT_AOVS = ("albedo", "normal", "depth", "motion", "spp")
 # triangles exceed this; below it, copying them costs little memory and BVH build (80k: 11.5 MiB,
 # 0.6 s on lavapipe) and a single level traces up to 1.27× faster (BENCHMARKS.md §6, "Instancing").
 FLATTEN_PLACED_TRIANGLES = 100_000
-PRECISIONS = ("fp32", "fp16")
+PRECISION_CHOICES = ("auto", "fp32", "fp16")   # as wgpu_rt.nn.model.PRECISION_CHOICES (not imported here: onnx loads lazily)
 MAX_SIZE = 16384
 
 __all__ = ["DEFAULT_AOVS", "RenderResult", "Renderer", "render", "render_frames"]
@@ -97,7 +97,7 @@ class Renderer:
 
     def __init__(self, scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adaptive=None,
                  temporal=False, max_depth: int = 8, seed: int = 0, aovs=DEFAULT_AOVS, tonemap: str | None = None,
-                 exposure: float = 0.0, srgb: bool = True, display: str = "rgba8", precision: str = "fp32",
+                 exposure: float = 0.0, srgb: bool = True, display: str = "rgba8", precision: str = "auto",
                  models_dir=None, networks: dict | None = None, mesh=None, ctx=None, progress: bool = False,
                  timings: bool | None = None, aux_samples: int | None = None, hdr: bool = True,
                  quality: str = "balanced", low_band: bool | None = None, chroma: bool = True,
@@ -114,8 +114,8 @@ class Renderer:
         self.aovs = check_aovs(aovs)
         # The denoiser gets a noise-free albedo by default (OIDN's advice for auxiliary features).
         aux_samples = (AUX_SAMPLES if denoise else 0) if aux_samples is None else check_int("aux_samples", aux_samples, 0)
-        if precision not in PRECISIONS:
-            raise WgpuRtError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
+        if precision not in PRECISION_CHOICES:
+            raise WgpuRtError(f"precision {precision!r}: choose one of {', '.join(PRECISION_CHOICES)}")
         from .frame.denoise import QUALITIES
 
         if quality not in QUALITIES:
@@ -248,7 +248,7 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
     - ``frames``: None (frame 0) or a frame number → one ``RenderResult``; an iterable → a list.
     - options: ``max_depth`` (8; Mitsuba's convention), ``seed`` (0; frame f is seeded seed + f),
       ``aovs`` (names or "a,b"), ``tonemap`` (None, "aces", "reinhard" or "none": the display image),
-      ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks),
+      ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks, or "auto": fp16 on discrete GPUs with shader-f16),
       ``quality`` ("balanced", or "high": the denoiser averages 4 turned passes, 4× its work),
       ``low_band`` (the denoiser's band below quarter resolution from passes at half and, from 512² up,
       quarter resolution, 1.25–1.31× its work; None: on frames whose sides are all ≥ 256 while some

@@ -10,8 +10,9 @@ SWITCHES = {"on": True, "off": False}
 
 def add_denoiser_flags(parser, image: str) -> None:
     """--precision, --quality, --low-band, --chroma and --post-filter; ``image`` names what is denoised."""
-    parser.add_argument("--precision", choices=["fp32", "fp16"], default="fp32",
-                        help="network arithmetic (fp16 needs the shader-f16 feature)")
+    parser.add_argument("--precision", choices=["auto", "fp32", "fp16"], default="auto",
+                        help="network arithmetic (fp16 needs the shader-f16 feature; auto: fp16 on discrete "
+                             "GPUs that have it, else fp32)")
     parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
                         help=f"denoiser quality; high: average the {image} denoised as given and turned three "
                              "ways (4 network passes, ≈ 0.3 dB cleaner)")

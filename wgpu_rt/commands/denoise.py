@@ -47,7 +47,7 @@ def run(args) -> int:
         color = converge(color, images["color"], counts, images["half_radiance"], half)
     seconds = time.perf_counter() - started
     write_exr(args.out, color, {k: v for k, v in images.items() if k != "color"})
-    print(f"wrote {args.out} ({color.shape[1]}×{color.shape[0]}, {args.precision}, {args.quality}, {seconds:.2f} s)")
+    print(f"wrote {args.out} ({color.shape[1]}×{color.shape[0]}, {model.precision.name}, {args.quality}, {seconds:.2f} s)")
     return 0
 
 

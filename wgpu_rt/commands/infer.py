@@ -8,8 +8,9 @@ def add_arguments(parser) -> None:
                         "Add, Mul, Relu, LeakyRelu, Sigmoid, Clip)")
     parser.add_argument("--input", required=True, help=".npy array, (N, C, H, W) or (C, H, W)")
     parser.add_argument("--output", required=True, help=".npy file to write (same rank as the input)")
-    parser.add_argument("--precision", choices=("fp32", "fp16"), default="fp32",
-                        help="activation storage type (fp16 needs the shader-f16 feature)")
+    parser.add_argument("--precision", choices=("auto", "fp32", "fp16"), default="auto",
+                        help="activation storage type (fp16 needs the shader-f16 feature; auto: fp16 on "
+                             "discrete GPUs that have it, else fp32)")
 
 
 def run(args) -> int:
@@ -33,6 +34,6 @@ def run(args) -> int:
     with atomic_output(output) as tmp, open(tmp, "wb") as file:
         np.save(file, y)   # a file object, since np.save would add ".npy" to a path
     plan = model.plan(*x.shape[-2:])
-    print(f"{args.model} ({args.precision}): {x.shape} -> {y.shape}, peak activation memory "
+    print(f"{args.model} ({model.precision.name}): {x.shape} -> {y.shape}, peak activation memory "
           f"{plan.peak_bytes / 2**20:.2f} MiB -> {output}")
     return 0

@@ -31,10 +31,13 @@ def run(args) -> int:
 def print_engine_defaults(ctx) -> None:
     """How the NN engine runs convolutions here unless told otherwise (wgpu_rt.nn.model)."""
     from ..nn import autotune
-    from ..nn.model import default_conv_tiling, default_uniform_windows, default_weight_fetch
+    from ..nn.model import (default_conv_tiling, default_math, default_precision, default_uniform_windows,
+                            default_weight_fetch)
 
     tuned = "on" if autotune.enabled(None) else "off ($WGPU_RT_AUTOTUNE=1 measures per layer)"
-    print(f"nn engine: conv tiling {default_conv_tiling(ctx)}, weight fetch {default_weight_fetch(ctx)}, "
+    precision = default_precision(ctx)
+    print(f"nn engine: precision {precision} ({default_math(ctx, precision)} math), "
+          f"conv tiling {default_conv_tiling(ctx)}, weight fetch {default_weight_fetch(ctx)}, "
           f"{'per-group uniform windows' if default_uniform_windows(ctx) else 'one dispatch per layer'}, "
           f"autotuning {tuned}")
 

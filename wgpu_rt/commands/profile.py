@@ -8,16 +8,17 @@ SHORT_DISPATCH_SECONDS = 50e-6  # dispatches this short are mostly launch overhe
 def add_arguments(parser) -> None:
     parser.add_argument("model", help="ONNX file, or a shipped network: denoiser, error-predictor, confidence")
     parser.add_argument("--size", default="1920x1088", help="input WIDTHxHEIGHT (default 1920x1088)")
-    parser.add_argument("--precision", choices=("fp32", "fp16"), default="fp32",
-                        help="activation storage type (fp16 needs the shader-f16 feature)")
+    parser.add_argument("--precision", choices=("auto", "fp32", "fp16"), default="auto",
+                        help="activation storage type (fp16 needs the shader-f16 feature; auto: fp16 on "
+                             "discrete GPUs that have it, else fp32)")
     parser.add_argument("--conv-tiling", help="convolution kernels: none, loop, register, staged or "
                         "staged-weights (default: the adapter's, as inference picks them; see wgpu_rt.nn.WgslModel)")
     parser.add_argument("--weight-fetch", choices=("subgroup", "direct"),
                         help="how convolutions read weights: the lanes of a subgroup sharing the loads, or each "
                         "invocation loading its own (default: subgroup where the adapter has subgroups)")
     parser.add_argument("--math", choices=("f32", "f16"),
-                        help="what the 3×3 convolutions multiply in: f32 (default), or f16 with --precision fp16 "
-                        "(each kernel row's products summed in half precision)")
+                        help="what the 3×3 convolutions multiply in: f32, or f16 with fp16 activations (each "
+                        "kernel row's products summed in half precision; default: f16 on discrete GPUs in fp16)")
     parser.add_argument("--repeat", type=int, default=5,
                         help="timed runs after one warm-up; times are their median (default 5)")
     parser.add_argument("--sort", choices=("order", "time"), default="order",

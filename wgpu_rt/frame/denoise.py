@@ -28,7 +28,7 @@ from .unpack import unpack_denoiser_output
 QUALITIES = {"balanced": 1, "high": 4}
 
 
-def load_model(name: str, precision: str = "fp32", models_dir=None, path=None, ctx=None, required: bool = True,
+def load_model(name: str, precision: str = "auto", models_dir=None, path=None, ctx=None, required: bool = True,
                quality: str = "balanced"):
     """A ``WgslModel`` of network ``name`` from ``path``, else from ``models_dir`` (default: the shipped
     models), running ``quality``'s ensemble (QUALITIES). A missing file is a ModelError naming it, or None

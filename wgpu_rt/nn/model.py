@@ -67,6 +67,8 @@ DIRECT_WEIGHTS = "+direct-weights"
 MATHS = ("f32", "f16")
 # suffix of an autotuned variant whose 3×3 kernels multiply in f16
 HALF_MATH = "+f16-math"
+# What a precision argument may say: a storage type, or "auto" (``default_precision``)
+PRECISION_CHOICES = ("auto", *PRECISIONS)
 # Passes of a self-ensemble: the image under the first k of the 8 dihedral transforms (the flips and
 # turns the networks are trained under), the outputs turned back and averaged.
 ENSEMBLES = (1, 2, 4, 8)
@@ -75,6 +77,20 @@ ENSEMBLES = (1, 2, 4, 8)
 def default_conv_tiling(ctx) -> str:
     """"staged" on discrete GPUs (on-chip workgroup memory), else "register" (see Conv3x3Kernel)."""
     return "staged" if ctx.adapter.info.get("adapter_type") == "DiscreteGPU" else "register"
+
+
+def default_precision(ctx) -> str:
+    """"fp16" on discrete GPUs with the shader-f16 feature, else "fp32". The shipped denoiser at 1080p on an
+    H200 (BENCHMARKS.md §21): 8.5 ms in fp16 with f16 multiply-adds against 10.3 ms in fp32, outputs
+    within 1.4e-3 of onnxruntime's; on lavapipe fp16 is 4–5× slower (no half-precision ALU)."""
+    discrete = ctx.adapter.info.get("adapter_type") == "DiscreteGPU"
+    return "fp16" if discrete and ctx.has_f16 else "fp32"
+
+
+def default_math(ctx, precision: str) -> str:
+    """"f16" for fp16 activations on discrete GPUs (the H200 profile of the shipped denoiser: 7.5 against
+    8.8 ms with f32 math), else "f32"."""
+    return "f16" if precision == "fp16" and ctx.adapter.info.get("adapter_type") == "DiscreteGPU" else "f32"
 
 
 def default_weight_fetch(ctx) -> str:
@@ -166,14 +182,14 @@ class Plan:
 
 
 class WgslModel:
-    """``WgslModel(path, precision="fp32"|"fp16")``: call on NCHW float32 numpy, or ``record`` on GPU
+    """``WgslModel(path, precision="fp32"|"fp16"|"auto")`` (auto: ``default_precision``): call on NCHW float32 numpy, or ``record`` on GPU
     buffers. ``conv_tiling`` exists for the benchmark's steps, the profiler and the tests: "none" (one
     output pixel per invocation), "loop" (4-pixel tiles in loops), "register" (plus the written-out 3×3
     tile kernel), "staged" (that tile with its input staged in workgroup memory), "staged-weights" (and
     its weights: the 3×3 layers then ignore ``weight_fetch``); default:
     ``default_conv_tiling``. ``weight_fetch``: how those kernels read weights ("subgroup" or "direct",
     see WEIGHT_FETCHES); default: ``default_weight_fetch``. ``math``: "f32", or with precision "fp16" also
-    "f16", the 3×3 tile kernels' multiply-adds in half precision (see MATHS).
+    "f16", the 3×3 tile kernels' multiply-adds in half precision (see MATHS); default: ``default_math``.
 
     ``autotune``: choose the tiling (and window preference) per layer shape by timing the candidates on
     this adapter once and caching the choice (see ``wgpu_rt.nn.autotune``; True, or an ``Autotuner``).
@@ -191,8 +207,8 @@ class WgslModel:
                  weight_fetch: str | None = None, math: str | None = None):
         from ..gpu import get_context
 
-        if precision not in PRECISIONS:
-            raise ModelError(f"precision {precision!r}: choose one of {', '.join(PRECISIONS)}")
+        if precision not in PRECISION_CHOICES:
+            raise ModelError(f"precision {precision!r}: choose one of {', '.join(PRECISION_CHOICES)}")
         if ensemble not in ENSEMBLES:
             raise ModelError(f"ensemble {ensemble!r}: choose one of {', '.join(map(str, ENSEMBLES))}")
         self.ensemble = ensemble
@@ -211,7 +227,9 @@ class WgslModel:
         if weight_fetch == "subgroup" and not self.ctx.has_subgroups:
             raise ModelError(f"weight_fetch subgroup needs the subgroup feature, which {self.ctx.label} lacks; "
                              "use direct")
-        math = math or "f32"
+        if precision == "auto":
+            precision = default_precision(self.ctx)
+        math = math or default_math(self.ctx, precision)
         if math not in MATHS:
             raise ModelError(f"math {math!r}: choose one of {', '.join(MATHS)}")
         if math == "f16" and precision != "fp16":
