@@ -10,7 +10,7 @@ from wgpu_rt.frame.planes import DENOISER_INPUT
 from wgpu_rt.frame.temporal import TemporalSettings
 from wgpu_rt.frame.tonemap import tonemap
 from wgpu_rt.frame.converge import HALF_SPP, converge
-from wgpu_rt.passes import RADIANCE, SPP
+from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP
 from wgpu_rt.renderer import Renderer, render
 from wgpu_rt.scene.builtin import builtin_scene
 
@@ -290,7 +290,7 @@ def test_read_back_frames_own_their_arrays(gpu):
     """Planes are copied out of the mapped readback before it is unmapped: a frame's arrays stay as they
     were while the two readback buffers serve later frames, and match the planes on the device
     (channels interleaved, u32 sample counts as float32)."""
-    from wgpu_rt.frame.pipeline import interleaved
+    from wgpu_rt.frame.interleave import interleaved
 
     frames = render("moving", frames=range(4), size=(12, 10), max_depth=2, ctx=gpu, aovs=("albedo", "spp"))
     again = render("moving", frames=[0], size=(12, 10), max_depth=2, ctx=gpu, aovs=("albedo", "spp"))[0]
@@ -302,6 +302,23 @@ def test_read_back_frames_own_their_arrays(gpu):
     expected = planar.reshape(3, 10, 12).transpose(1, 2, 0).astype(np.float32)
     np.testing.assert_array_equal(interleaved(planar, 10, 12), expected)
     assert interleaved(planar, 10, 12).dtype == np.float32
+
+
+def test_planes_are_interleaved_on_the_device_as_numpy_would(gpu, scene):
+    """The HDR colour and three-channel AOVs come back through the device's interleave pass (one
+    contiguous copy on the host), equal to the planes on the device interleaved by the numpy reference;
+    single-channel and integer planes keep the host's way."""
+    from wgpu_rt.frame.interleave import interleaved
+
+    pipeline = make_pipeline(scene, gpu, aovs=("albedo", "normal", "depth", "spp"))
+    assert sorted(pipeline.interleave) == sorted([RADIANCE.name, ALBEDO.name, NORMAL.name])
+    result = pipeline.render(scene, 0)
+    planes = {RADIANCE.name: result.color, **result.aovs}
+    for plane in (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP):
+        on_device = pipeline.buffers.read(plane.name)
+        np.testing.assert_array_equal(planes[plane.name], interleaved(on_device.ravel(), H, W), err_msg=plane.name)
+        assert planes[plane.name].dtype == np.float32 and planes[plane.name].flags.owndata
+    assert "interleave" in result.stage_ms or not gpu.has_timestamps
 
 
 

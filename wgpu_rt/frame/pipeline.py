@@ -27,6 +27,7 @@ from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, 
 from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
 from .converge import CONVERGED, HALF_SPP, ConvergePass, copy_half, half_count
+from .interleave import InterleavePass, interleaved, interleaves
 from .atrous import AtrousPass
 from .chroma import ChromaPass
 from .lowband import LowBand, low_band_levels, uses_low_band
@@ -41,16 +42,6 @@ from .unpack import UnpackPass
 AOV_PLANES = {plane.name: plane for plane in (ALBEDO, NORMAL, DEPTH, MOTION, SPP, HALF_RADIANCE, HALF_SPP)}
 SAMPLES_PER_SUBMIT = 1 << 21   # pixel samples per command buffer (a fraction of a second on lavapipe)
 PROGRESS_SECONDS = 0.25        # how often a long frame waits for the device to tell its progress
-
-
-def interleaved(values: np.ndarray, height: int, width: int) -> np.ndarray:
-    """Planar channels (C·H·W values, any dtype) → a new (H, W, C) float32 array, one channel at a time
-    (a strided copy of the whole (C, H, W) view is about twice as slow)."""
-    channels = values.size // (height * width)
-    out = np.empty((height, width, channels), np.float32)
-    for channel in range(channels):
-        out[..., channel] = values[channel * height * width:(channel + 1) * height * width].reshape(height, width)
-    return out
 
 
 @dataclass
@@ -263,6 +254,8 @@ class FramePipeline:
         self.timer = StageTimer(ctx) if (ctx.has_timestamps if timings is None else timings) else None
         read_back = ([color] if hdr else []) + [AOV_PLANES[name] for name in aovs]
         self.layout = self._layout(read_back)
+        self.interleave = {plane.name: InterleavePass(ctx, width, height, plane)
+                           for plane in read_back if interleaves(plane)}
         self._readbacks = [ctx.device.create_buffer(size=self.layout.nbytes, label=f"readback {i}",
                                                     usage=wgpu.BufferUsage.COPY_DST | wgpu.BufferUsage.MAP_READ)
                            for i in range(2)]
@@ -453,8 +446,13 @@ class FramePipeline:
             self.tonemap.execute(encoder, buffers)
             self._mark(encoder, "tonemap")
         readback = self._readbacks[self._recorded % 2]
+        for interleave in self.interleave.values():
+            interleave.execute(encoder, buffers)
+        if self.interleave:
+            self._mark(encoder, "interleave")
         for plane, offset in self.layout.planes.values():
-            encoder.copy_buffer_to_buffer(buffers.get(plane), 0, readback, offset, plane.nbytes(self.width, self.height))
+            source = self.interleave[plane.name].result if plane.name in self.interleave else buffers.get(plane)
+            encoder.copy_buffer_to_buffer(source, 0, readback, offset, plane.nbytes(self.width, self.height))
         if self.tonemap is not None:
             encoder.copy_buffer_to_buffer(buffers.get(self.tonemap.display), 0, readback, self.layout.display_offset,
                                           self.tonemap.display.nbytes(self.width, self.height))
@@ -484,13 +482,16 @@ class FramePipeline:
     def read(self, pending: PendingFrame) -> RenderResult:
         """A frame whose readback ``wait`` mapped: each plane copied once from the mapped memory into the
         (H, W, C) array returned (a 1080p HDR frame is 25 MB, and the host's copies are what a frame
-        costs beyond its GPU time), then the buffer unmapped."""
+        costs beyond its GPU time: f32 planes of several channels arrive interleaved by the device, so
+        theirs is one contiguous copy), then the buffer unmapped."""
         try:
             raw = pending.readback.read_mapped(copy=False)   # valid until unmap: nothing below keeps it
-            planes = {name: interleaved(np.frombuffer(raw, NUMPY_DTYPE[plane.dtype],
-                                                      count=plane.channels * self.height * self.width,
-                                                      offset=offset), self.height, self.width)
-                      for name, (plane, offset) in self.layout.planes.items()}
+            planes = {}
+            for name, (plane, offset) in self.layout.planes.items():
+                values = np.frombuffer(raw, NUMPY_DTYPE[plane.dtype], count=plane.channels * self.height * self.width,
+                                       offset=offset)
+                planes[name] = (values.reshape(self.height, self.width, plane.channels).copy()
+                                if name in self.interleave else interleaved(values, self.height, self.width))
             image = None
             if self.tonemap is not None:
                 image = self.tonemap.image(raw[self.layout.display_offset:self.layout.timestamps_offset],
