@@ -12,14 +12,13 @@
 #        warm for 30 s), command ". .device/setup.sh; D=$OUT; OUT=/tmp/gs/r2 ARCHIVE=$D/r2.tgz
 #                 bash scripts/gpu_session.sh trace"
 #
-# Next (session 21's advice): call 1 with the OIDN peer, DEADLINE=330 PART_LIMIT=200, timeout_s 590:
-# `nn frame` (the weight-fetch verdict: direct and workgroup-staged weights against subgroup broadcasts,
-# profiled and as bench_nn steps, and the autotuner's picks; the frame loop's wall − GPU, also with 5 ms
-# of the caller's work a frame: BENCHMARKS.md §20), then `heldout` if time is left; call 2 at once with
-# the Mitsuba peer: `trace` (~3 min: the 4-wide BVH against the threaded one and OptiX, and what the
-# measured choice takes there, §18, §19). If a fetch wins, make it the discrete-GPU default
-# (wgpu_rt.nn.model.default_weight_fetch / default_conv_tiling). `train` alone in a later session (~9
-# minutes: PART_LIMIT=300, timeout_s 590, the OIDN peer).
+# Session 22 (H200, BENCHMARKS.md §21) took: nn + frame + heldout_render 390 s, trace 67 s, heldout 238 s
+# (heldout_denoise needs more than 120 s: give it PART_LIMIT=200). Next: call 1 with the OIDN peer,
+# DEADLINE=300 PART_LIMIT=200, timeout_s 560: `frame nn` (the new defaults: fp16 + f16 math, the wide
+# walk on small scenes, the device-side interleave of the readback; the autotuned profile twice), call 2
+# at once: `heldout` with PART_LIMIT=200 (the 4-realization means and the built-ins); `trace` only if a
+# BVH change needs it (~70 s). `train` alone in a later session (~9 minutes: PART_LIMIT=300, timeout_s
+# 590, the OIDN peer).
 #
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p in
 # both precisions, with naga's bounds checks, with each weight fetch and as the autotuner picks, engine
@@ -104,6 +103,9 @@ for what in "$@"; do
         part profile_fp16_math wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp16 --math f16
         # what the autotuner picks per layer among tilings, layouts and fetches (its cache is fresh here)
         part profile_fp32_autotuned env WGPU_RT_AUTOTUNE=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
+        # session 22: every layer of that profile ran ~3.7× slower than un-tuned, while bench_nn ran the
+        # same choices in 9.6 ms; the same again from the cache tells a slow GPU state from a profiler bug
+        part profile_fp32_autotuned_cached env WGPU_RT_AUTOTUNE=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged staged-weights direct-weights fp16 fp16-math autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
