@@ -17,8 +17,8 @@
 # DEADLINE=300 PART_LIMIT=200, timeout_s 560: `frame nn` (the new defaults: fp16 + f16 math, the wide
 # walk on small scenes, the device-side interleave of the readback; the autotuned profile twice), call 2
 # at once: `heldout` with PART_LIMIT=200 (the 4-realization means and the built-ins); `trace` only if a
-# BVH change needs it (~70 s). `train` alone in a later session (~9 minutes: PART_LIMIT=300, timeout_s
-# 590, the OIDN peer).
+# BVH change needs it (~70 s). `train` in a session of its own (~6 minutes: PART_LIMIT=300, timeout_s
+# 590, the OIDN peer), then at once `train_check` (~4 minutes; the same peer).
 #
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p in
 # both precisions, with naga's bounds checks, with each weight fetch and as the autotuner picks, engine
@@ -31,9 +31,11 @@
 # spp, ours again without the low band, chroma hold and post filter and without the post filter alone,
 # and the product path against spp at 256²), train (the shipped denoiser fine-tuned for
 # TRAIN_MINUTES on training worlds rendered at 256² with built-in views and 96² worlds mixed in, the
-# model in $OUT/model, scored on the held-out worlds against OIDN, then shipped and new on §14's checks
-# at 256² and 128²; renders the held-out worlds first unless heldout did; not yet run on a GPU: run it
-# alone, DEADLINE unset, PART_LIMIT=300, ARCHIVE set, timeout_s 590). SIZE (default 1080p) shrinks
+# model in $OUT/model; not yet run on a GPU: run it alone, DEADLINE unset, PART_LIMIT=300, ARCHIVE set,
+# timeout_s 590), train_check (that model, or TRAINED=DIR, scored on the held-out worlds against OIDN,
+# then shipped and new on §14's checks at 256² and 128²; in a second call at once, while the machine
+# is warm, or after carrying the model back in as TRAINED). Both render the held-out worlds first
+# unless they are there. SIZE (default 1080p) shrinks
 # everything for a dry run on lavapipe: SIZE=small. Each part stops after PART_LIMIT seconds (default
 # 300), and parts that would start after DEADLINE seconds (default: none) are skipped, so a call keeps
 # inside the device time it was given. A folder .meshes (ignored by git, named in `carry`) stands in for
@@ -51,9 +53,9 @@ SQUARE=$([ $small = 1 ] && echo 64 || echo 1024)   # the square-only benchmarks 
 NN=$([ $small = 1 ] && echo 256 || echo 1080p)
 WORLDS=$([ $small = 1 ] && echo 2 || echo 24); VIEW=$([ $small = 1 ] && echo 32 || echo 256)
 GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
-# part train in one call of ~9 minutes (estimates from §12's 4 s per held-out view, not yet measured):
-# held-out render 100 s, training worlds ~150 s (+ ~40 s of built-in and 96² views), training
-# TRAIN_MINUTES, scoring ~40 s, §14's checks (estimate) ~60 s
+# parts train and train_check, one call each (session 22 on an H200: the 24 held-out views with 4096-spp
+# gold in 76–85 s; the rest estimated): held-out render 80 s (once), training worlds ~150 s (+ ~40 s of
+# built-in and 96² views), training TRAIN_MINUTES; then scoring ~40 s, §14's checks ~60 s each
 TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 TRAIN_MINUTES=$([ $small = 1 ] && echo 0.5 || echo 2.5)   # with the estimates above, ~9 min in all
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
@@ -135,8 +137,7 @@ for what in "$@"; do
         part heldout_spp python3 benchmarks/bench_spp.py --size $VIEW --spp 1 2 4 16 64 256 --gold-spp $GOLD \
             --scenes cornell cornell-glossy sun-room world-2147483648 world-2147483649 world-2147483650 ;;
     train)   # §12 found the 96²-trained network 2.45 dB behind OIDN at 256², so this fine-tunes the shipped
-             # one on training worlds rendered at 256², on CUDA, and scores it on the held-out worlds
-        [ -d "$HELDOUT" ] || render_heldout
+             # one on training worlds rendered at 256², on CUDA (train_check scores it)
         # built-in views at the same size and worlds at 96² (SMALL_VIEW) join them: on lavapipe (§14) a fine-tune on
         # 192² worlds alone lost up to 0.4 dB on the built-ins and 0.2 at 128²
         data=data/worlds-train-$VIEW
@@ -153,17 +154,21 @@ for what in "$@"; do
             --bottom-merge add --epochs 400 --minutes $TRAIN_MINUTES --batch 8 --crop $((VIEW / 2)) $VIEW --lr 1e-4 \
             --curriculum any --ssim-space display --lowpass 2 --validate-every 50 --device auto \
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet
-        cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/"   # bench_denoise reads a whole set
-        part train_eval python3 benchmarks/bench_denoise.py --data $HELDOUT --models "$OUT/model" \
+        cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/" ;;  # bench_denoise reads a whole set
+    train_check)   # the model of part train (TRAINED, default: $OUT/model, the same call's) scored: a call of its own
+        trained=${TRAINED:-$OUT/model}
+        [ -f "$trained/denoiser.onnx" ] || { echo "train_check: no $trained/denoiser.onnx (run part train first, or set TRAINED)"; exit 2; }
+        [ -d "$HELDOUT" ] || render_heldout
+        part train_eval python3 benchmarks/bench_denoise.py --data $HELDOUT --models "$trained" \
             --per-view --noise-seeds 3 --oidn-quality balanced
         # §14's checks, where the CPU fine-tunes lost (built-ins, 128² at 4 spp, …660's pane): shipped and new
-        for set in models "$OUT/model"; do
+        for set in models "$trained"; do
             name=$([ "$set" = models ] && echo shipped || echo new)
             part check_${name}_$VIEW python3 benchmarks/bench_aux.py --size $VIEW --gold-spp $CHECK_GOLD \
                 --gold-cache /tmp/gold --aux 4 --delta-factor 2 --worlds 0 --models "$set" --scenes $CHECK_SCENES
             part check_${name}_$CHECK_VIEW python3 benchmarks/bench_spp.py --size $CHECK_VIEW --spp 1 4 \
                 --gold-spp $GOLD --gold-cache /tmp/gold --seeds 2 --models "$set" --scenes $CHECK_SCENES_SMALL
         done ;;
-    *) echo "unknown part $what (tests, nn, trace, frame, heldout, train)"; exit 2 ;;
+    *) echo "unknown part $what (tests, nn, trace, frame, heldout, train, train_check)"; exit 2 ;;
     esac
 done

@@ -85,6 +85,18 @@ def test_an_interrupted_run_resumes_without_losing_work(tmp_path):
     assert len(json.loads((tmp_path / "manifest.json").read_text())["views"]) == 4
 
 
+def test_every_noisy_render_gets_the_aux_pass_and_gold_none(tmp_path):
+    """A noisy render at the gold's sample count is still a noisy render: it takes the aux pass (it did
+    not when the pass was chosen by spp < gold, and a --gold 1 dataset's 1-spp inputs came out with noisy
+    albedo)."""
+    calls = []
+    recording = lambda *a, **k: calls.append((k["spp"], k["aux_samples"])) or fake_render(*a, **k)  # noqa: E731
+    config = DatasetConfig(scenes=("cornell",), views=1, size=8, spp=(1, 4), gold=4, aux_samples=3,
+                           sequence_fraction=0.0)
+    TruthEngine(config, tmp_path, renderer=recording).run(progress=False)
+    assert calls == [(1, 3), (4, 3), (4, 0)]
+
+
 def test_noisy_copies_extend_a_finished_dataset_with_new_noise_only(tmp_path):
     """Raising noisy_copies on a finished dataset renders just the copies (1-spp, fresh seeds), leaves
     every earlier file as it was, and the reader hands them out beside the frame's first render."""

@@ -272,9 +272,11 @@ class TruthEngine:
         for name, spp, salt in view.renders(cfg):
             path = folder / name
             if not path.exists():
+                # the noisy renders get the noise-free aux pass whatever their spp; gold needs none
+                gold = name == frame_file(salt[0], "gold")
                 result = self.render(scene, spp=spp, size=size, max_depth=cfg.max_depth,
                                      seed=_render_seed(cfg, view, *salt), frames=salt[0], aovs=GBUFFERS,
-                                     aux_samples=cfg.aux_samples if spp < cfg.gold else 0)
+                                     aux_samples=0 if gold else cfg.aux_samples)
                 write_exr(path, _finite(result.color), {k: _finite(result.aovs[k]) for k in GBUFFERS})
         previous = folder / "view.json"
         seconds = time.perf_counter() - started
