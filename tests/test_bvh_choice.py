@@ -1,6 +1,6 @@
 """The BVH layout chosen per adapter by measurement (wgpu_rt.trace.bvh_choice, WGPU_RT_BVH=auto): the
-faster layout wins and is remembered per scene size, small scenes are not measured (the adapter's kind picks), the renderer
-follows the cache, and the real timer measures real traces."""
+faster layout wins and is remembered per scene size, small scenes are not measured (the adapter's kind
+picks), the renderer follows the cache, and the real timer measures real traces."""
 
 import json
 from types import SimpleNamespace

@@ -182,12 +182,12 @@ class Plan:
 
 
 class WgslModel:
-    """``WgslModel(path, precision="fp32"|"fp16"|"auto")`` (auto: ``default_precision``): call on NCHW float32 numpy, or ``record`` on GPU
-    buffers. ``conv_tiling`` exists for the benchmark's steps, the profiler and the tests: "none" (one
-    output pixel per invocation), "loop" (4-pixel tiles in loops), "register" (plus the written-out 3×3
-    tile kernel), "staged" (that tile with its input staged in workgroup memory), "staged-weights" (and
-    its weights: the 3×3 layers then ignore ``weight_fetch``); default:
-    ``default_conv_tiling``. ``weight_fetch``: how those kernels read weights ("subgroup" or "direct",
+    """``WgslModel(path, precision="fp32"|"fp16"|"auto")`` (auto: ``default_precision``): call on NCHW
+    float32 numpy, or ``record`` on GPU buffers. ``conv_tiling`` exists for the benchmark's steps, the
+    profiler and the tests: "none" (one output pixel per invocation), "loop" (4-pixel tiles in loops),
+    "register" (plus the written-out 3×3 tile kernel), "staged" (that tile with its input staged in
+    workgroup memory), "staged-weights" (and its weights: the 3×3 layers then ignore ``weight_fetch``);
+    default: ``default_conv_tiling``. ``weight_fetch``: how those kernels read weights ("subgroup" or "direct",
     see WEIGHT_FETCHES); default: ``default_weight_fetch``. ``math``: "f32", or with precision "fp16" also
     "f16", the 3×3 tile kernels' multiply-adds in half precision (see MATHS); default: ``default_math``.
 
