@@ -5,7 +5,7 @@ threads, lavapipe's workers included: on a shared machine this is the stable num
 column compares it), GFLOP/s of the whole network (per wall second) and of the conv kernels alone
 (timestamp queries around every dispatch, best of the repeats), that rate as a percent of the adapter's
 FMA ceiling (measured here with benchmarks/fma_peak.wgsl before the steps and after each, the highest
-reading counting), the planned peak activation memory, and the ratio to onnxruntime's
+reading counting; where the adapter has shader-f16 the f16 ceiling is printed beside it), the planned peak activation memory, and the ratio to onnxruntime's
 time (intra-op threads = CPU cores). Steps: ``naive`` = one output pixel per invocation,
 ``loop-tiled`` = 4-pixel tiles in loops, ``reg-tiled`` = plus conv3x3.wgsl's written-out 4-pixel ×
 32-channel tile (16 where the output is not 32k channels; the default on CPU and integrated adapters),
@@ -61,16 +61,17 @@ STEPS = {"naive": {"precision": "fp32", "conv_tiling": "none"},
          "autotuned": {"precision": "fp32", "conv_tiling": None, "autotune": True}}
 
 
-def fma_ceiling(ctx, iterations: int = 4096, invocations: int | None = None) -> float:
-    """GFLOP/s of the FMA loop kernel (best of 4). Default invocations: 32,768 on a CPU adapter, 16× that
-    elsewhere (32,768 read 10–13 TFLOP/s on an H200, a fraction of what it does: BENCHMARKS.md §12)."""
+def fma_ceiling(ctx, half: bool = False) -> float:
+    """GFLOP/s of the FMA loop kernel (best of 4), in f32 or with ``half`` in f16. 32,768 invocations of
+    4096 steps on a CPU adapter; elsewhere 16× the invocations (32,768 read 10–13 TFLOP/s on an H200, a
+    fraction of what it does: BENCHMARKS.md §12) and 4× the steps (the ~1 ms a dispatch then took
+    carried the submit and the readback's wait in the wall time)."""
     from wgpu_rt import shaders
 
-    if invocations is None:
-        invocations = 64 * 512 * (1 if ctx.adapter.info.get("adapter_type") == "CPU" else 16)
-
-    pipeline = ctx.compute_pipeline(shaders.compose("fma_peak.wgsl", Path(__file__).parent,
-                                                    {"ITERATIONS": iterations}))
+    cpu = ctx.adapter.info.get("adapter_type") == "CPU"
+    invocations, iterations = 64 * 512 * (1 if cpu else 16), 4096 * (1 if cpu else 4)
+    pipeline = ctx.compute_pipeline(shaders.compose("fma_peak.wgsl", Path(__file__).parent, {
+        "ITERATIONS": iterations, "SCALAR": "f16" if half else "f32", "ENABLE": "enable f16;" if half else ""}))
     sink = ctx.storage(invocations * 16)
     bind_group = ctx.bind_group(pipeline, [sink])
     best = float("inf")
@@ -228,6 +229,9 @@ def main(argv=None) -> int:
         ceiling = max(ceilings)
         print(f"{label:>10} {'FMA ceiling':>14} {'':9} {'':7} {ceiling:8.1f}   (highest of {len(ceilings)} readings, "
               f"lowest {min(ceilings):.1f})")
+        if ctx.has_f16:   # what the f16 multiply-adds (fp16-math) could reach; % FMA stays against f32
+            half = max(fma_ceiling(ctx, half=True) for _ in range(2))
+            print(f"{label:>10} {'FMA ceiling f16':>15} {'':8} {'':7} {half:8.1f}   (highest of 2 readings)")
         print(f"{label:>10} {'onnxruntime':>14} {reference * 1e3:9.1f} {reference_cpu:7.2f}")
         for row, conv_rate in rows:
             print(row if conv_rate is None else row.format(percent=100 * conv_rate / ceiling))
