@@ -64,8 +64,8 @@ STEPS = {"naive": {"precision": "fp32", "conv_tiling": "none"},
 def fma_ceiling(ctx, half: bool = False) -> float:
     """GFLOP/s of the FMA loop kernel (best of 4), in f32 or with ``half`` in f16. 32,768 invocations of
     4096 steps on a CPU adapter; elsewhere 16× the invocations (32,768 read 10–13 TFLOP/s on an H200, a
-    fraction of what it does: BENCHMARKS.md §12) and 4× the steps (the ~1 ms a dispatch then took
-    carried the submit and the readback's wait in the wall time)."""
+    fraction of what it does: BENCHMARKS.md §12) and 4× the steps, so that the submit and the readback's
+    wait weigh less in the wall time (the H200's 29 TFLOP/s reading of §21 was 2.4 ms a dispatch)."""
     from wgpu_rt import shaders
 
     cpu = ctx.adapter.info.get("adapter_type") == "CPU"
