@@ -104,6 +104,41 @@ def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
     np.testing.assert_allclose(read_exr(tmp_path / "out.exr")["color"], expected, rtol=1e-3, atol=1e-4)
 
 
+class NumpyPath:
+    """The same network without ``record``: ``denoise`` then takes the numpy references of every pass."""
+
+    def __init__(self, model):
+        self.model, self.input_channels = model, model.input_channels
+
+    def __call__(self, x):
+        return self.model(x)
+
+
+def test_denoise_runs_on_the_device_as_the_numpy_references_do(gpu, tmp_path):
+    """A WGSL model denoises on the device (the frame loop's passes, the low band included at 256² and
+    up, a sample-count map), equal to the numpy references of those passes; counts the u32 plane
+    cannot hold exactly (fractional ones) take the numpy path."""
+    from wgpu_rt.frame import denoise as denoise_module
+    from wgpu_rt.frame.denoise import DenoiseOnDevice, denoise, device_sample_counts, load_model
+
+    torch.manual_seed(3)
+    model = load_model("denoiser", path=export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx"), ctx=gpu)
+    color, layers = _render_like(h=256, w=264, seed=5)
+    aux = (layers["albedo"], layers["normal"], layers["depth"])
+    counts = np.random.default_rng(1).integers(1, 9, (256, 264, 1))
+    on_device = denoise(model, color, *aux, counts)
+    made = DenoiseOnDevice._made[model]
+    assert [key[2] for key in made] == [1]   # one coarser level: the low band ran
+    np.testing.assert_allclose(on_device, denoise(NumpyPath(model), color, *aux, counts), rtol=1e-4, atol=1e-5)
+    assert device_sample_counts(2.5, (4, 4)) is None and device_sample_counts(np.nan, (4, 4)) is None
+    assert device_sample_counts(4, (2, 3)).tolist() == [[4] * 3] * 2
+    made.clear()
+    small = [image[:20, :28] for image in (color, *aux)]
+    np.testing.assert_allclose(denoise(model, *small, 2.5), denoise(NumpyPath(model), *small, 2.5),
+                               rtol=1e-4, atol=1e-5)
+    assert not denoise_module.DenoiseOnDevice._made[model]
+
+
 def test_the_sample_count_comes_from_the_spp_layer_or_the_flag(gpu, tmp_path, capsys):
     """The network is told the colour's spp: the input's 'spp' layer (what `wgpu-rt render` writes), which
     --spp overrides; a 10-input denoiser (trained before the plane existed) still runs. A malformed layer

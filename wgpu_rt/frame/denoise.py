@@ -1,6 +1,9 @@
 """Loading the networks, and ``denoise()``: one image through the denoiser off the frame loop
-(pack → run → unpack, and on large frames the low band of coarser passes: frame/lowband.py),
-for the ``denoise`` command, training's validation, benchmarks and tests.
+(pack → run → unpack, and on large frames the low band of coarser passes: frame/lowband.py, then the
+chroma hold and the post filter), for the ``denoise`` command, training's validation, benchmarks and
+tests. A model of the WGSL engine runs all of it on the device with the frame loop's own passes
+(``DenoiseOnDevice``: the image uploaded once, the result read back once); any other model (torch,
+onnxruntime) takes the numpy references of those passes.
 
 The padding rule is the engine's: a network whose pooling needs H and W to be multiples of some size
 runs on a canvas padded up to them by repeating the last row and column (``nn_kernels/pack.wgsl``),
@@ -10,17 +13,20 @@ elsewhere (torch, onnxruntime) on the same input.
 
 from __future__ import annotations
 
+import weakref
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ModelError
 from ..models import network_named
-from .atrous import atrous_filter
-from .chroma import match_sample_chroma
-from .lowband import fewest_samples, low_band_denoise, low_band_levels
-from .pack import pack_denoiser_input
-from .unpack import unpack_denoiser_output
+from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, FrameBuffers
+from .atrous import AtrousPass, atrous_filter
+from .chroma import ChromaPass, match_sample_chroma
+from .lowband import LowBand, fewest_samples, low_band_denoise, low_band_levels
+from .pack import DepthMaxPass, PackDenoiserPass, pack_denoiser_input
+from .planes import DENOISED, write_plane
+from .unpack import UnpackPass, unpack_denoiser_output
 
 
 # Denoiser quality → passes of its self-ensemble (nn.WgslModel's ``ensemble``): "high" averages the image
@@ -57,18 +63,75 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     whose pixels hold fewer than LOW_BAND_MAX_SPP samples somewhere).
     ``chroma``: hold the result's colour balance to the samples' block means (frame/chroma.py).
     ``post_filter``: then smooth it by the edge-aware à-trous filter (frame/atrous.py)."""
+    levels = low_band_levels(color.shape[1], color.shape[0], low_band, fewest_samples(spp))
+    counts = device_sample_counts(spp, color.shape[:2])
+    if hasattr(model, "record") and counts is not None:
+        return DenoiseOnDevice.for_model(model, color.shape[1], color.shape[0], levels, chroma, post_filter)(
+            color, albedo, normal, depth, counts)
     channels = getattr(model, "input_channels", None)
 
     def run(packed):
         return np.asarray(model(packed[None, :channels]), np.float32)[0]
 
     denoised = unpack_denoiser_output(run(pack_denoiser_input(color, albedo, normal, depth, spp)), albedo)
-    levels = low_band_levels(denoised.shape[1], denoised.shape[0], low_band, fewest_samples(spp))
     if levels:
         denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels)
     if chroma:
         denoised = match_sample_chroma(denoised, color)
     return atrous_filter(denoised, albedo, normal, depth, spp) if post_filter else denoised
+
+
+def device_sample_counts(spp, shape: tuple[int, int]) -> np.ndarray | None:
+    """``spp`` (one count or an (H, W[, 1]) map) as the (H, W) u32 counts of the device's SPP plane, or
+    None where the device plane cannot hold it exactly (a count that is not a whole number in u32's
+    range): the numpy path then takes it as given."""
+    counts = np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2] or ()), shape)
+    if not (np.isfinite(counts).all() and (counts >= 0).all() and (counts < 2 ** 32).all()
+            and (counts == np.round(counts)).all()):
+        return None
+    return counts.astype(np.uint32)
+
+
+class DenoiseOnDevice:
+    """``denoise`` for a model of the WGSL engine at one image size: the frame loop's passes (depth
+    maximum, pack, the network, unpack, the low band's ``levels``, the chroma hold, the post filter) in
+    one command buffer over uploaded planes, the denoised plane read back. ``for_model`` keeps one per
+    model and setting, so that a benchmark's or a validation's images of one size reuse the passes."""
+
+    _made: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # model -> {settings: DenoiseOnDevice}
+
+    @classmethod
+    def for_model(cls, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool):
+        made = cls._made.setdefault(model, {})
+        key = (width, height, levels, chroma, post_filter)
+        if key not in made:
+            made[key] = cls(model, width, height, levels, chroma, post_filter)
+        return made[key]
+
+    def __init__(self, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool):
+        ctx = model.ctx
+        self.model, self.ctx, self.width, self.height = model, ctx, width, height
+        self.buffers = FrameBuffers(ctx, width, height)
+        self.depth_max = DepthMaxPass(ctx, width, height)
+        self.pack = PackDenoiserPass(ctx, width, height, self.depth_max.result)
+        self.unpack = UnpackPass(ctx, width, height)
+        steps = (LowBand(ctx, width, height, self.depth_max.result, model, levels) if levels else None,
+                 ChromaPass(ctx, width, height) if chroma else None,
+                 AtrousPass(ctx, width, height) if post_filter else None)
+        self.steps = [step for step in steps if step is not None]
+
+    def __call__(self, color, albedo, normal, depth, counts: np.ndarray) -> np.ndarray:
+        for spec, image in ((RADIANCE, color), (ALBEDO, albedo), (NORMAL, normal), (DEPTH, depth), (SPP, counts)):
+            write_plane(self.buffers, spec, image)
+        encoder = self.ctx.device.create_command_encoder(label="wgpu-rt denoise")
+        self.depth_max.execute(encoder, self.buffers)
+        self.pack.execute(encoder, self.buffers)
+        network_output = self.model.record(encoder, self.buffers.get(self.pack.outputs[0]), self.height, self.width)
+        self.unpack.execute(encoder, self.buffers, network_output)
+        for step in self.steps:
+            step.execute(encoder, self.buffers)
+        self.ctx.device.queue.submit([encoder.finish()])
+        return np.ascontiguousarray(self.buffers.read(DENOISED.name).transpose(1, 2, 0))
 
 
 def pad_to_multiple(x: np.ndarray, multiple: int) -> np.ndarray:
