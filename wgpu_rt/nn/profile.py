@@ -4,17 +4,20 @@ Every run records the inference twice in one command buffer: once with each disp
 timestamped compute pass (``WgslModel.record(..., query_set=...)``: the per-dispatch times), then as an
 inference normally runs (one compute pass) between two empty passes that write a timestamp each (the
 end-to-end time, which the per-dispatch sum exceeds by the pass boundaries it adds). Times are the
-median over the runs that follow one untimed warm-up run.
+median over the runs that follow untimed warm-up runs (at least one, and WARM_UP_SECONDS of them).
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import asdict, dataclass
 
 import numpy as np
 import wgpu
 
 from ..errors import DeviceLimitError
+
+WARM_UP_SECONDS = 0.5
 
 
 @dataclass
@@ -104,7 +107,14 @@ def profile(model, height: int, width: int, repeat: int = 5, seed: int = 0) -> P
         # WebGPU does not promise monotonic timestamps across passes: a reversed pair counts as 0
         return np.maximum(stamps[:, 1] - stamps[:, 0], 0) * 1e-9
 
-    run()  # warm-up: first use of every pipeline and buffer
+    # warm-up: the first use of every pipeline and buffer, then runs for WARM_UP_SECONDS, so that a GPU
+    # whose clocks dropped while it waited (or through the autotuner's short bursts: on an H200 every layer
+    # of a profile right after autotuning ran ~3.7x slower than the same kernels otherwise, BENCHMARKS.md
+    # §21) is timed at speed
+    started = time.perf_counter()
+    run()
+    while time.perf_counter() - started < WARM_UP_SECONDS:
+        run()
     seconds = np.median([run() for _ in range(repeat)], axis=0)
     per_band = len(dispatches) // len(plan.bands)
     rows = [DispatchTime(index, index // per_band, d.label, d.kernel, d.output, d.workgroups, d.flops,
