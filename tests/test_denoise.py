@@ -132,6 +132,11 @@ def test_denoise_runs_on_the_device_as_the_numpy_references_do(gpu, tmp_path):
     np.testing.assert_allclose(on_device, denoise(NumpyPath(model), color, *aux, counts), rtol=1e-4, atol=1e-5)
     assert device_sample_counts(2.5, (4, 4)) is None and device_sample_counts(np.nan, (4, 4)) is None
     assert device_sample_counts(4, (2, 3)).tolist() == [[4] * 3] * 2
+    half = (color * 0.9, np.maximum(counts[..., 0] // 2, 1))   # a first part of the samples to hand over to
+    handed_over = denoise(model, color, *aux, counts, half=half)
+    np.testing.assert_allclose(handed_over, denoise(NumpyPath(model), color, *aux, counts, half=half),
+                               rtol=1e-4, atol=1e-5)
+    assert not np.allclose(handed_over, on_device, atol=1e-3)
     made.clear()
     small = [image[:20, :28] for image in (color, *aux)]
     np.testing.assert_allclose(denoise(model, *small, 2.5), denoise(NumpyPath(model), *small, 2.5),

@@ -26,8 +26,6 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     import time
 
-    import numpy as np
-
     from ..frame.denoise import denoise, load_model
     from ..io import check_output_path, read_exr, require_layers, write_exr
 
@@ -39,12 +37,8 @@ def run(args) -> int:
     model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
     images = finite_layers(images, args.input)
     started = time.perf_counter()
-    color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp, **denoiser_options(args))
-    if half is not None:
-        from ..frame.converge import converge
-
-        counts = np.broadcast_to(np.asarray(spp)[..., 0] if np.ndim(spp) == 3 else spp, color.shape[:2])
-        color = converge(color, images["color"], counts, images["half_radiance"], half)
+    color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp, **denoiser_options(args),
+                    half=None if half is None else (images["half_radiance"], half))
     seconds = time.perf_counter() - started
     write_exr(args.out, color, {k: v for k, v in images.items() if k != "color"})
     print(f"wrote {args.out} ({color.shape[1]}×{color.shape[0]}, {model.precision.name}, {args.quality}, {seconds:.2f} s)")

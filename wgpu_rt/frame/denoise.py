@@ -23,6 +23,8 @@ from ..models import network_named
 from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, FrameBuffers
 from .atrous import AtrousPass, atrous_filter
 from .chroma import ChromaPass, match_sample_chroma
+from .converge import CONVERGED, HALF_SPP, ConvergePass, converge
+from .adaptive import HALF_RADIANCE
 from .lowband import LowBand, fewest_samples, low_band_denoise, low_band_levels
 from .pack import DepthMaxPass, PackDenoiserPass, pack_denoiser_input
 from .planes import DENOISED, write_plane
@@ -54,7 +56,7 @@ def load_model(name: str, precision: str = "auto", models_dir=None, path=None, c
 
 
 def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: bool = True,
-            post_filter: bool = True) -> np.ndarray:
+            post_filter: bool = True, half=None) -> np.ndarray:
     """(H, W, 3) linear HDR colour of ``spp`` samples per pixel (one count, or an (H, W[, 1]) map) +
     G-buffers → the denoised (H, W, 3) colour (finite, ≥ 0). ``model`` runs (N, C, H, W) batches; one with
     fewer ``input_channels`` (10: trained before the sample-count plane existed) gets the first ones.
@@ -62,12 +64,17 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     quarter) resolution (frame/lowband.py; None: for frames whose sides are at least LOW_BAND_MIN_SIDE and
     whose pixels hold fewer than LOW_BAND_MAX_SPP samples somewhere).
     ``chroma``: hold the result's colour balance to the samples' block means (frame/chroma.py).
-    ``post_filter``: then smooth it by the edge-aware à-trous filter (frame/atrous.py)."""
-    levels = low_band_levels(color.shape[1], color.shape[0], low_band, fewest_samples(spp))
-    counts = device_sample_counts(spp, color.shape[:2])
-    if hasattr(model, "record") and counts is not None:
-        return DenoiseOnDevice.for_model(model, color.shape[1], color.shape[0], levels, chroma, post_filter)(
-            color, albedo, normal, depth, counts)
+    ``post_filter``: then smooth it by the edge-aware à-trous filter (frame/atrous.py).
+    ``half``: (the mean after the first part of the samples, its (H, W) counts): each pixel then hands over
+    to the samples' own mean where that has converged, as a denoised render of several samples does
+    (frame/converge.py)."""
+    height, width = color.shape[:2]
+    levels = low_band_levels(width, height, low_band, fewest_samples(spp))
+    counts = device_sample_counts(spp, (height, width))
+    half_counts = None if half is None else device_sample_counts(half[1], (height, width))
+    if hasattr(model, "record") and counts is not None and (half is None or half_counts is not None):
+        on_device = DenoiseOnDevice.for_model(model, width, height, levels, chroma, post_filter, half is not None)
+        return on_device(color, albedo, normal, depth, counts, None if half is None else (half[0], half_counts))
     channels = getattr(model, "input_channels", None)
 
     def run(packed):
@@ -78,12 +85,17 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
         denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels)
     if chroma:
         denoised = match_sample_chroma(denoised, color)
-    return atrous_filter(denoised, albedo, normal, depth, spp) if post_filter else denoised
+    if post_filter:
+        denoised = atrous_filter(denoised, albedo, normal, depth, spp)
+    if half is None:
+        return denoised
+    samples = np.broadcast_to(np.asarray(spp)[..., 0] if np.ndim(spp) == 3 else spp, (height, width))
+    return converge(denoised, color, samples, half[0], np.asarray(half[1]).reshape(height, width))
 
 
 def device_sample_counts(spp, shape: tuple[int, int]) -> np.ndarray | None:
-    """``spp`` (one count or an (H, W[, 1]) map) as the (H, W) u32 counts of the device's SPP plane, or
-    None where the device plane cannot hold it exactly (a count that is not a whole number in u32's
+    """``spp`` (one count or an (H, W[, 1]) map) as the (H, W) u32 counts of the device's sample-count
+    planes, or None where such a plane cannot hold it exactly (a count that is not a whole number in u32's
     range): the numpy path then takes it as given."""
     counts = np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2] or ()), shape)
     if not (np.isfinite(counts).all() and (counts >= 0).all() and (counts < 2 ** 32).all()
@@ -94,21 +106,24 @@ def device_sample_counts(spp, shape: tuple[int, int]) -> np.ndarray | None:
 
 class DenoiseOnDevice:
     """``denoise`` for a model of the WGSL engine at one image size: the frame loop's passes (depth
-    maximum, pack, the network, unpack, the low band's ``levels``, the chroma hold, the post filter) in
-    one command buffer over uploaded planes, the denoised plane read back. ``for_model`` keeps one per
-    model and setting, so that a benchmark's or a validation's images of one size reuse the passes."""
+    maximum, pack, the network, unpack, the low band's ``levels``, the chroma hold, the post filter, the
+    hand-over to converged samples where ``converging``) in one command buffer over uploaded planes, the
+    result read back. ``for_model`` keeps one per model and setting, so that a benchmark's or a
+    validation's images of one size reuse the passes."""
 
     _made: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # model -> {settings: DenoiseOnDevice}
 
     @classmethod
-    def for_model(cls, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool):
+    def for_model(cls, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool,
+                  converging: bool = False):
         made = cls._made.setdefault(model, {})
-        key = (width, height, levels, chroma, post_filter)
+        key = (width, height, levels, chroma, post_filter, converging)
         if key not in made:
-            made[key] = cls(model, width, height, levels, chroma, post_filter)
+            made[key] = cls(model, width, height, levels, chroma, post_filter, converging)
         return made[key]
 
-    def __init__(self, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool):
+    def __init__(self, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool,
+                 converging: bool = False):
         ctx = model.ctx
         self.model, self.ctx, self.width, self.height = model, ctx, width, height
         self.buffers = FrameBuffers(ctx, width, height)
@@ -117,11 +132,17 @@ class DenoiseOnDevice:
         self.unpack = UnpackPass(ctx, width, height)
         steps = (LowBand(ctx, width, height, self.depth_max.result, model, levels) if levels else None,
                  ChromaPass(ctx, width, height) if chroma else None,
-                 AtrousPass(ctx, width, height) if post_filter else None)
+                 AtrousPass(ctx, width, height) if post_filter else None,
+                 ConvergePass(ctx, width, height) if converging else None)
         self.steps = [step for step in steps if step is not None]
+        self.result = CONVERGED if converging else DENOISED
 
-    def __call__(self, color, albedo, normal, depth, counts: np.ndarray) -> np.ndarray:
-        for spec, image in ((RADIANCE, color), (ALBEDO, albedo), (NORMAL, normal), (DEPTH, depth), (SPP, counts)):
+    def __call__(self, color, albedo, normal, depth, counts: np.ndarray, half=None) -> np.ndarray:
+        """``half``: (mean, u32 counts) after the first part of the samples, when ``converging``."""
+        planes = [(RADIANCE, color), (ALBEDO, albedo), (NORMAL, normal), (DEPTH, depth), (SPP, counts)]
+        if half is not None:
+            planes += [(HALF_RADIANCE, half[0]), (HALF_SPP, half[1])]
+        for spec, image in planes:
             write_plane(self.buffers, spec, image)
         encoder = self.ctx.device.create_command_encoder(label="wgpu-rt denoise")
         self.depth_max.execute(encoder, self.buffers)
@@ -131,7 +152,7 @@ class DenoiseOnDevice:
         for step in self.steps:
             step.execute(encoder, self.buffers)
         self.ctx.device.queue.submit([encoder.finish()])
-        return np.ascontiguousarray(self.buffers.read(DENOISED.name).transpose(1, 2, 0))
+        return np.ascontiguousarray(self.buffers.read(self.result.name).transpose(1, 2, 0))
 
 
 def pad_to_multiple(x: np.ndarray, multiple: int) -> np.ndarray:
