@@ -1,6 +1,8 @@
 """``wgpu-rt denoise``: clear errors for bad input files; with the WGSL engine, output equal to the same
 model under onnxruntime; exported models in the WGSL engine match onnxruntime (parity)."""
 
+import gc
+
 import numpy as np
 import pytest
 import torch
@@ -122,7 +124,7 @@ def test_denoise_runs_on_the_device_as_the_numpy_references_do(gpu, tmp_path):
     from wgpu_rt.frame.denoise import DenoiseOnDevice, denoise, device_sample_counts, load_model
 
     torch.manual_seed(3)
-    model = load_model("denoiser", path=export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx"), ctx=gpu)
+    model = load_model("denoiser", path=export_onnx(UNet(widths=(4, 8)), tmp_path / "on_device.onnx"), ctx=gpu)
     color, layers = _render_like(h=256, w=264, seed=5)
     aux = (layers["albedo"], layers["normal"], layers["depth"])
     counts = np.random.default_rng(1).integers(1, 9, (256, 264, 1))
@@ -142,6 +144,11 @@ def test_denoise_runs_on_the_device_as_the_numpy_references_do(gpu, tmp_path):
     np.testing.assert_allclose(denoise(model, *small, 2.5), denoise(NumpyPath(model), *small, 2.5),
                                rtol=1e-4, atol=1e-5)
     assert not denoise_module.DenoiseOnDevice._made[model]
+    denoise(model, *small, 2)
+    assert len(DenoiseOnDevice._made[model]) == 1
+    del model, made
+    gc.collect()
+    assert not [m for m in DenoiseOnDevice._made if m.path.endswith("on_device.onnx")]   # the cache let it go
 
 
 def test_the_sample_count_comes_from_the_spp_layer_or_the_flag(gpu, tmp_path, capsys):

@@ -109,7 +109,8 @@ class DenoiseOnDevice:
     maximum, pack, the network, unpack, the low band's ``levels``, the chroma hold, the post filter, the
     hand-over to converged samples where ``converging``) in one command buffer over uploaded planes, the
     result read back. ``for_model`` keeps one per model and setting, so that a benchmark's or a
-    validation's images of one size reuse the passes."""
+    validation's images of one size reuse the passes; they hold the model by a weak proxy, so that the
+    cache does not keep a model alive (nor its device buffers) once its user lets it go."""
 
     _made: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # model -> {settings: DenoiseOnDevice}
 
@@ -119,7 +120,7 @@ class DenoiseOnDevice:
         made = cls._made.setdefault(model, {})
         key = (width, height, levels, chroma, post_filter, converging)
         if key not in made:
-            made[key] = cls(model, width, height, levels, chroma, post_filter, converging)
+            made[key] = cls(weakref.proxy(model), width, height, levels, chroma, post_filter, converging)
         return made[key]
 
     def __init__(self, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool,
