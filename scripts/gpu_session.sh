@@ -14,8 +14,9 @@
 #
 # Session 22 (H200, BENCHMARKS.md §21) took: nn + frame + heldout_render 390 s, trace 67 s, heldout 238 s
 # (heldout_denoise needs more than 120 s: give it PART_LIMIT=200). Next: call 1 with the OIDN peer,
-# DEADLINE=300 PART_LIMIT=200, timeout_s 560: `frame nn` (the new defaults: fp16 + f16 math, the wide
-# walk on small scenes, the device-side interleave of the readback; the autotuned profile twice), call 2
+# DEADLINE=330 PART_LIMIT=200, timeout_s 580: `tests frame nn` (the suite has not run on NVIDIA with the
+# new defaults: fp16 + f16 math, the wide walk on small scenes, the device-side interleave of the
+# readback, denoise() on the device; then their speed, and the autotuned profile twice), call 2
 # at once: `heldout` with PART_LIMIT=200 (the 4-realization means and the built-ins); `trace` only if a
 # BVH change needs it (~70 s). `train` in a session of its own (~6 minutes: PART_LIMIT=300, timeout_s
 # 590, the OIDN peer), then at once `train_check` (~4 minutes; the same peer).
