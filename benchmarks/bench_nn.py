@@ -5,8 +5,10 @@ threads, lavapipe's workers included: on a shared machine this is the stable num
 column compares it), GFLOP/s of the whole network (per wall second) and of the conv kernels alone
 (timestamp queries around every dispatch, best of the repeats), that rate as a percent of the adapter's
 FMA ceiling (measured here with benchmarks/fma_peak.wgsl before the steps and after each, the highest
-reading counting; where the adapter has shader-f16 the f16 ceiling is printed beside it), the planned peak activation memory, and the ratio to onnxruntime's
-time (intra-op threads = CPU cores). Steps: ``naive`` = one output pixel per invocation,
+reading counting; where the adapter has shader-f16 the f16 ceiling is printed beside it), the planned peak activation memory, the ratio to onnxruntime's
+time (intra-op threads = CPU cores), and the largest difference from onnxruntime's output over
+max(1, max |output|) (the parity tests' bound: 1e-4 in fp32, 1e-2 with fp16 activations), so a step that
+is fast because it is wrong shows it. Steps: ``naive`` = one output pixel per invocation,
 ``loop-tiled`` = 4-pixel tiles in loops, ``reg-tiled`` = plus conv3x3.wgsl's written-out 4-pixel ×
 32-channel tile (16 where the output is not 32k channels; the default on CPU and integrated adapters),
 ``staged`` = the 16-channel tile with its input staged in workgroup memory (conv3x3_staged.wgsl, the
@@ -89,24 +91,25 @@ def fma_ceiling(ctx, half: bool = False) -> float:
     return invocations * iterations * 4 * 4 * 2 / best / 1e9
 
 
-def time_onnxruntime(path: Path, x: np.ndarray, repeats: int) -> tuple[float, float]:
+def time_onnxruntime(path: Path, x: np.ndarray, repeats: int) -> tuple[float, float, np.ndarray]:
     import onnxruntime as ort
 
     options = ort.SessionOptions()
     options.intra_op_num_threads = os.cpu_count()
     session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
-    session.run(None, {"input": x})
-    return peers.best_seconds(lambda: session.run(None, {"input": x}), repeats)
+    output = session.run(None, {"input": x})[0]
+    return (*peers.best_seconds(lambda: session.run(None, {"input": x}), repeats), output)
 
 
-def time_engine(model, x: np.ndarray, repeats: int) -> tuple[float, float, float, int]:
-    """(best wall and CPU seconds per frame, seconds spent in conv-family dispatches, their FLOPs)."""
+def time_engine(model, x: np.ndarray, repeats: int) -> tuple[float, float, float, int, np.ndarray]:
+    """(best wall and CPU seconds per frame, seconds spent in conv-family dispatches, their FLOPs, the
+    output)."""
     import wgpu
 
     ctx = model.ctx
     _, _, height, width = x.shape
     input_buffer = ctx.upload(x, label="bench input")
-    model(x)  # builds the plan and compiles the pipelines
+    output = model(x)  # builds the plan and compiles the pipelines
 
     def frame():
         encoder = ctx.device.create_command_encoder()
@@ -127,7 +130,7 @@ def time_engine(model, x: np.ndarray, repeats: int) -> tuple[float, float, float
         ctx.device.queue.submit([encoder.finish()])
         stamps = ctx.read(resolved, np.uint64).reshape(-1, 2)
         conv_seconds = min(conv_seconds, float(sum(stamps[i, 1] - stamps[i, 0] for i in conv)) * 1e-9)
-    return wall, cpu, conv_seconds, sum(dispatches[i].flops for i in conv)
+    return wall, cpu, conv_seconds, sum(dispatches[i].flops for i in conv), output
 
 
 def print_peer_rows(label: str, x: np.ndarray, networks: list, oidn_devices: list[str], qualities: list[str],
@@ -199,14 +202,15 @@ def main(argv=None) -> int:
               if STEPS[step]["precision"] == "fp32" or ctx.has_f16}
     rng = np.random.default_rng(args.seed)
     header = (f"{'size':>10} {'engine':>14} {'ms/frame':>9} {'CPU s':>7} {'GFLOP/s':>8} {'conv GF/s':>9} "
-              f"{'% FMA':>6} {'peak MiB':>9} {'CPU vs ORT':>10}")
+              f"{'% FMA':>6} {'peak MiB':>9} {'CPU vs ORT':>10} {'|Δ| vs ORT':>10}")
     print(header)
     for size in args.sizes:
         # the canvas every runner sees: padded to the network's size multiple, as the engine pads 1080 to
         # 1088 for a five-level U-Net (onnxruntime and torch refuse sizes the skips cannot match)
         height, width = (-(-side // multiple) * multiple for side in SIZES[size])
         x = rng.uniform(0, 1, (1, channels, height, width)).astype(np.float32)
-        reference, reference_cpu = time_onnxruntime(path, x, args.repeats)
+        reference, reference_cpu, reference_output = time_onnxruntime(path, x, args.repeats)
+        scale = max(1.0, float(np.abs(reference_output).max()))
         # On a shared machine the ceiling moves too: it is measured before the steps and after each one,
         # and the highest reading is the one every step is held against.
         ceilings = [fma_ceiling(ctx)]
@@ -214,7 +218,7 @@ def main(argv=None) -> int:
         rows, measured, flops = [], [], None
         for step, model in models.items():
             try:
-                seconds, cpu, conv_seconds, conv_flops = time_engine(model, x, args.repeats)
+                seconds, cpu, conv_seconds, conv_flops, output = time_engine(model, x, args.repeats)
             except WgpuRtError as err:
                 rows.append((f"{label:>10} {step:>14} skipped: {err}", None))
                 continue
@@ -225,7 +229,8 @@ def main(argv=None) -> int:
             conv_rate = conv_flops / conv_seconds / 1e9
             rows.append((f"{label:>10} {step:>14} {seconds * 1e3:9.1f} {cpu:7.2f} {plan.flops / seconds / 1e9:8.1f} "
                          f"{conv_rate:9.1f} {{percent:5.0f}}% {plan.peak_bytes / 2**20:9.1f} "
-                         f"{cpu / reference_cpu:9.2f}x", conv_rate))
+                         f"{cpu / reference_cpu:9.2f}x {np.abs(output - reference_output).max() / scale:10.1e}",
+                         conv_rate))
         ceiling = max(ceilings)
         print(f"{label:>10} {'FMA ceiling':>14} {'':9} {'':7} {ceiling:8.1f}   (highest of {len(ceilings)} readings, "
               f"lowest {min(ceilings):.1f})")
