@@ -293,20 +293,36 @@ def test_staged_tiles_are_the_default_on_discrete_gpus(gpu):
     assert [default_conv_tiling(adapter(k)) for k in ("IntegratedGPU", "CPU", "Unknown")] == ["register"] * 3
 
 
-@pytest.mark.parametrize("kind, has_f16, precision, math", [
-    ("DiscreteGPU", True, "fp16", "f16"), ("DiscreteGPU", False, "fp32", "f32"),
-    ("CPU", True, "fp32", "f32"), ("IntegratedGPU", True, "fp32", "f32")])
-def test_discrete_gpus_default_to_half_precision_and_half_math(kind, has_f16, precision, math):
+@pytest.mark.parametrize("kind, has_f16, agrees, precision, math", [
+    ("DiscreteGPU", True, True, "fp16", "f16"), ("DiscreteGPU", True, False, "fp16", "f32"),
+    ("DiscreteGPU", False, True, "fp32", "f32"), ("CPU", True, True, "fp32", "f32"),
+    ("IntegratedGPU", True, True, "fp32", "f32")])
+def test_discrete_gpus_default_to_half_precision_and_half_math(monkeypatch, kind, has_f16, agrees, precision, math):
     """precision "auto" is fp16 with f16 multiply-adds on a discrete GPU with shader-f16 (8.5 against
-    10.3 ms on an H200, BENCHMARKS.md §21), fp32 elsewhere (lavapipe has no half ALU); an fp32 model
-    multiplies in f32 everywhere."""
+    10.3 ms on an H200, BENCHMARKS.md §21) whose f16 kernels agree with f32 math there, fp32 elsewhere
+    (lavapipe has no half ALU); an fp32 model multiplies in f32 everywhere."""
     from types import SimpleNamespace
 
-    from wgpu_rt.nn.model import default_math, default_precision
+    from wgpu_rt.nn import model as nn_model
 
+    monkeypatch.setattr(nn_model, "half_math_agrees", lambda ctx: agrees)
     ctx = SimpleNamespace(adapter=SimpleNamespace(info={"adapter_type": kind}), has_f16=has_f16)
-    assert default_precision(ctx) == precision and default_math(ctx, precision) == math
-    assert default_math(ctx, "fp32") == "f32"
+    assert nn_model.default_precision(ctx) == precision and nn_model.default_math(ctx, precision) == math
+    assert nn_model.default_math(ctx, "fp32") == "f32"
+
+
+def test_half_math_is_checked_against_f32_math_on_the_device(gpu, monkeypatch):
+    """The check behind the f16 default runs both kernels on the adapter and compares them: it holds on
+    lavapipe, once per device, and fails where the outputs differ by more than its tolerance."""
+    from wgpu_rt.nn import model as nn_model
+
+    if not gpu.has_f16:
+        pytest.skip(f"{gpu.label} has no shader-f16")
+    monkeypatch.setattr(nn_model, "_half_math_checked", nn_model.weakref.WeakKeyDictionary())
+    assert nn_model.half_math_agrees(gpu) and nn_model._half_math_checked[gpu.device]
+    monkeypatch.setattr(nn_model, "_half_math_checked", nn_model.weakref.WeakKeyDictionary())
+    monkeypatch.setattr(nn_model, "HALF_MATH_CHECK_TOLERANCE", -1.0)
+    assert not nn_model.half_math_agrees(gpu)
 
 
 def test_auto_precision_resolves_on_the_adapter(gpu, tmp_path):

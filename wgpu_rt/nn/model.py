@@ -37,11 +37,13 @@ fp16 stores activations as f16 (relative error ≲ 1e-2 on the seed networks, se
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import wgpu
 
 from ..errors import DeviceLimitError, ModelError
 from . import autotune as autotuning
@@ -89,8 +91,46 @@ def default_precision(ctx) -> str:
 
 def default_math(ctx, precision: str) -> str:
     """"f16" for fp16 activations on discrete GPUs (the H200 profile of the shipped denoiser: 7.5 against
-    8.8 ms with f32 math), else "f32"."""
-    return "f16" if precision == "fp16" and ctx.adapter.info.get("adapter_type") == "DiscreteGPU" else "f32"
+    8.8 ms with f32 math) whose compiler gets the f16 kernels right (``half_math_agrees``), else "f32"."""
+    discrete = ctx.adapter.info.get("adapter_type") == "DiscreteGPU"
+    return "f16" if precision == "fp16" and discrete and half_math_agrees(ctx) else "f32"
+
+
+_half_math_checked: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # a context's device -> bool
+HALF_MATH_CHECK_TOLERANCE = 1e-2   # the fp16 bound of the parity tests, over max(1, max |f32 math|)
+
+
+def half_math_agrees(ctx) -> bool:
+    """Whether the 3×3 tile kernels multiplying in f16 give what they give in f32 on ``ctx``'s adapter,
+    within the fp16 bound, on a random 32→32-channel convolution (fp16 activations both ways; checked
+    once per context, a fraction of a second). A default may not rest on a kernel no test has run on
+    that driver: where the two disagree (or the f16 kernel fails to compile), default_math keeps f32."""
+    if ctx.device not in _half_math_checked:
+        import tempfile
+
+        import onnx
+        from onnx import helper, numpy_helper
+
+        rng = np.random.default_rng(0)
+        weight = rng.normal(0, 0.1, (32, 32, 3, 3)).astype(np.float32)
+        node = helper.make_node("Conv", ["x", "w"], ["y"], pads=[1, 1, 1, 1])
+        graph = helper.make_graph([node], "half_math_check",
+                                  [helper.make_tensor_value_info("x", onnx.TensorProto.FLOAT, [1, 32, "H", "W"])],
+                                  [helper.make_tensor_value_info("y", onnx.TensorProto.FLOAT, [1, 32, "H", "W"])],
+                                  [numpy_helper.from_array(weight, "w")])
+        model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+        model.ir_version = 8
+        x = rng.uniform(0, 1, (1, 32, 24, 40)).astype(np.float32)
+        with tempfile.TemporaryDirectory() as folder:
+            path = Path(folder) / "half_math_check.onnx"
+            onnx.save(model, path)
+            try:
+                f32, f16 = (WgslModel(path, "fp16", ctx=ctx, math=math)(x) for math in ("f32", "f16"))
+                agrees = bool(np.abs(f16 - f32).max() <= HALF_MATH_CHECK_TOLERANCE * max(1.0, np.abs(f32).max()))
+            except (wgpu.GPUError, ModelError, DeviceLimitError):
+                agrees = False
+        _half_math_checked[ctx.device] = agrees
+    return _half_math_checked[ctx.device]
 
 
 def default_weight_fetch(ctx) -> str:
