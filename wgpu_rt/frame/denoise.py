@@ -21,10 +21,10 @@ import numpy as np
 from ..errors import ModelError
 from ..models import network_named
 from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, FrameBuffers
+from .adaptive import HALF_RADIANCE
 from .atrous import AtrousPass, atrous_filter
 from .chroma import ChromaPass, match_sample_chroma
 from .converge import CONVERGED, HALF_SPP, ConvergePass, converge
-from .adaptive import HALF_RADIANCE
 from .lowband import LowBand, fewest_samples, low_band_denoise, low_band_levels
 from .pack import DepthMaxPass, PackDenoiserPass, pack_denoiser_input
 from .planes import DENOISED, write_plane
