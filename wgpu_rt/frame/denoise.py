@@ -108,8 +108,8 @@ class DenoiseOnDevice:
     """``denoise`` for a model of the WGSL engine at one image size: the frame loop's passes (depth
     maximum, pack, the network, unpack, the low band's ``levels``, the chroma hold, the post filter, the
     hand-over to converged samples where ``converging``) in one command buffer over uploaded planes, the
-    result read back. ``for_model`` keeps one per model and setting, so that a benchmark's or a
-    validation's images of one size reuse the passes; they hold the model by a weak proxy, so that the
+    result read back. ``for_model`` keeps one per model and setting, so that a benchmark's images
+    of one size reuse the passes; they hold the model by a weak proxy, so that the
     cache does not keep a model alive (nor its device buffers) once its user lets it go."""
 
     _made: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # model -> {settings: DenoiseOnDevice}
