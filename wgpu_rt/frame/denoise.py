@@ -1,7 +1,7 @@
 """Loading the networks, and ``denoise()``: one image through the denoiser off the frame loop
 (pack → run → unpack, and on large frames the low band of coarser passes: frame/lowband.py, then the
-chroma hold and the post filter), for the ``denoise`` command, training's validation, benchmarks and
-tests. A model of the WGSL engine runs all of it on the device with the frame loop's own passes
+chroma hold and the post filter), for the ``denoise`` command, the confidence model's training data,
+benchmarks and tests. A model of the WGSL engine runs all of it on the device with the frame loop's own passes
 (``DenoiseOnDevice``: the image uploaded once, the result read back once); any other model (torch,
 onnxruntime) takes the numpy references of those passes.
 
