@@ -544,8 +544,8 @@ def test_low_band_frame_equals_the_numpy_path(gpu, monkeypatch, size, min_side, 
     np.testing.assert_allclose(frames[True], expected, rtol=1e-4, atol=1e-5)
     assert not np.allclose(frames[True], frames[False], rtol=1e-3, atol=1e-4)
     if min_side is None:
-        assert Renderer("cornell", size=(256, 300), denoise=True, ctx=gpu).pipeline.low_band is not None
-        assert Renderer("cornell", size=(255, 300), denoise=True, ctx=gpu).pipeline.low_band is None
+        assert Renderer("cornell", size=(256, 300), denoise=True, ctx=gpu).pipeline.chain.low_band is not None
+        assert Renderer("cornell", size=(255, 300), denoise=True, ctx=gpu).pipeline.chain.low_band is None
 
 
 def test_low_band_left_out_from_16_samples_a_pixel(gpu, monkeypatch):
@@ -556,8 +556,8 @@ def test_low_band_left_out_from_16_samples_a_pixel(gpu, monkeypatch):
 
     monkeypatch.setattr(lowband, "LOW_BAND_MIN_SIDE", 8)
     options = dict(size=(21, 13), denoise=True, aovs=(), ctx=gpu)
-    assert Renderer("cornell", spp=lowband.LOW_BAND_MAX_SPP, **options).pipeline.low_band is None
-    assert Renderer("cornell", spp=lowband.LOW_BAND_MAX_SPP - 1, **options).pipeline.low_band is not None
+    assert Renderer("cornell", spp=lowband.LOW_BAND_MAX_SPP, **options).pipeline.chain.low_band is None
+    assert Renderer("cornell", spp=lowband.LOW_BAND_MAX_SPP - 1, **options).pipeline.chain.low_band is not None
     runs = []
     monkeypatch.setattr(lowband.LowBand, "execute", lambda self, encoder, buffers: runs.append(1))
     for setting, expected in ((None, 3), (True, 5)):

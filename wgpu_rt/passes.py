@@ -41,6 +41,16 @@ MOTION = PlaneSpec("motion", 2)
 SPP = PlaneSpec("spp", 1, "u32")
 
 
+@dataclass(frozen=True)
+class Stage:
+    """A step of the frame that is not a ComputePass (a network, a copy), as far as wiring goes
+    (frame.pipeline.check_wiring)."""
+
+    name: str
+    inputs: tuple[PlaneSpec, ...]
+    outputs: tuple[PlaneSpec, ...]
+
+
 class ComputePass(ABC):
     """Base class: subclasses set ``inputs``/``outputs`` (the planes they read and write, by which a
     pipeline wires them) and implement ``execute``."""

@@ -26,7 +26,8 @@ DEFAULT_AOVS = ("albedo", "normal", "depth", "motion", "spp")
 # triangles exceed this; below it, copying them costs little memory and BVH build (80k: 11.5 MiB,
 # 0.6 s on lavapipe) and a single level traces up to 1.27× faster (BENCHMARKS.md §6, "Instancing").
 FLATTEN_PLACED_TRIANGLES = 100_000
-PRECISION_CHOICES = ("auto", "fp32", "fp16")   # as wgpu_rt.nn.model.PRECISION_CHOICES (not imported here: onnx loads lazily)
+# as wgpu_rt.nn.model.PRECISION_CHOICES (not imported here: the NN engine loads only with a network)
+PRECISION_CHOICES = ("auto", "fp32", "fp16")
 MAX_SIZE = 16384
 
 __all__ = ["DEFAULT_AOVS", "RenderResult", "Renderer", "render", "render_frames"]
@@ -248,7 +249,8 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
     - ``frames``: None (frame 0) or a frame number → one ``RenderResult``; an iterable → a list.
     - options: ``max_depth`` (8; Mitsuba's convention), ``seed`` (0; frame f is seeded seed + f),
       ``aovs`` (names or "a,b"), ``tonemap`` (None, "aces", "reinhard" or "none": the display image),
-      ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks, or "auto": fp16 on discrete GPUs with shader-f16),
+      ``exposure``, ``srgb``, ``display`` ("rgba8" or "f32"), ``precision`` ("fp32"/"fp16" networks, or
+      "auto": fp16 on discrete GPUs with shader-f16),
       ``quality`` ("balanced", or "high": the denoiser averages 4 turned passes, 4× its work),
       ``low_band`` (the denoiser's band below quarter resolution from passes at half and, from 512² up,
       quarter resolution, 1.25–1.31× its work; None: on frames whose sides are all ≥ 256 while some

@@ -22,13 +22,14 @@ from ..errors import ModelError
 from ..models import network_named
 from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, FrameBuffers
 from .adaptive import HALF_RADIANCE
-from .atrous import AtrousPass, atrous_filter
-from .chroma import ChromaPass, match_sample_chroma
-from .converge import CONVERGED, HALF_SPP, ConvergePass, converge
-from .lowband import LowBand, fewest_samples, low_band_denoise, low_band_levels
-from .pack import DepthMaxPass, PackDenoiserPass, pack_denoiser_input
-from .planes import DENOISED, write_plane
-from .unpack import UnpackPass, unpack_denoiser_output
+from .atrous import atrous_filter
+from .chroma import match_sample_chroma
+from .converge import HALF_SPP, converge
+from .denoise_chain import DenoiseChain
+from .lowband import fewest_samples, low_band_denoise, low_band_levels
+from .pack import DepthMaxPass, pack_denoiser_input
+from .planes import write_plane
+from .unpack import unpack_denoiser_output
 
 
 # Denoiser quality → passes of its self-ensemble (nn.WgslModel's ``ensemble``): "high" averages the image
@@ -105,12 +106,12 @@ def device_sample_counts(spp, shape: tuple[int, int]) -> np.ndarray | None:
 
 
 class DenoiseOnDevice:
-    """``denoise`` for a model of the WGSL engine at one image size: the frame loop's passes (depth
-    maximum, pack, the network, unpack, the low band's ``levels``, the chroma hold, the post filter, the
-    hand-over to converged samples where ``converging``) in one command buffer over uploaded planes, the
-    result read back. ``for_model`` keeps one per model and setting, so that a benchmark's images
-    of one size reuse the passes; they hold the model by a weak proxy, so that the
-    cache does not keep a model alive (nor its device buffers) once its user lets it go."""
+    """``denoise`` for a model of the WGSL engine at one image size: the frame loop's depth maximum and
+    denoise chain (frame/denoise_chain.py: the low band's ``levels``, the hand-over to converged samples
+    where ``converging``) in one command buffer over uploaded planes, the result read back. ``for_model``
+    keeps one per model and setting, so that a benchmark's images of one size reuse the passes; they hold
+    the model by a weak proxy, so that the cache does not keep a model alive (nor its device buffers)
+    once its user lets it go."""
 
     _made: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # model -> {settings: DenoiseOnDevice}
 
@@ -125,18 +126,11 @@ class DenoiseOnDevice:
 
     def __init__(self, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool,
                  converging: bool = False):
-        ctx = model.ctx
-        self.model, self.ctx, self.width, self.height = model, ctx, width, height
-        self.buffers = FrameBuffers(ctx, width, height)
-        self.depth_max = DepthMaxPass(ctx, width, height)
-        self.pack = PackDenoiserPass(ctx, width, height, self.depth_max.result)
-        self.unpack = UnpackPass(ctx, width, height)
-        steps = (LowBand(ctx, width, height, self.depth_max.result, model, levels) if levels else None,
-                 ChromaPass(ctx, width, height) if chroma else None,
-                 AtrousPass(ctx, width, height) if post_filter else None,
-                 ConvergePass(ctx, width, height) if converging else None)
-        self.steps = [step for step in steps if step is not None]
-        self.result = CONVERGED if converging else DENOISED
+        self.ctx = model.ctx
+        self.buffers = FrameBuffers(self.ctx, width, height)
+        self.depth_max = DepthMaxPass(self.ctx, width, height)
+        self.chain = DenoiseChain(self.ctx, width, height, model, self.depth_max.result, levels, chroma, post_filter,
+                                  converging)
 
     def __call__(self, color, albedo, normal, depth, counts: np.ndarray, half=None) -> np.ndarray:
         """``half``: (mean, u32 counts) after the first part of the samples, when ``converging``."""
@@ -147,13 +141,9 @@ class DenoiseOnDevice:
             write_plane(self.buffers, spec, image)
         encoder = self.ctx.device.create_command_encoder(label="wgpu-rt denoise")
         self.depth_max.execute(encoder, self.buffers)
-        self.pack.execute(encoder, self.buffers)
-        network_output = self.model.record(encoder, self.buffers.get(self.pack.outputs[0]), self.height, self.width)
-        self.unpack.execute(encoder, self.buffers, network_output)
-        for step in self.steps:
-            step.execute(encoder, self.buffers)
+        self.chain.record(encoder, self.buffers)
         self.ctx.device.queue.submit([encoder.finish()])
-        return np.ascontiguousarray(self.buffers.read(self.result.name).transpose(1, 2, 0))
+        return np.ascontiguousarray(self.buffers.read(self.chain.output.name).transpose(1, 2, 0))
 
 
 def pad_to_multiple(x: np.ndarray, multiple: int) -> np.ndarray:

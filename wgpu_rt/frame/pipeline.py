@@ -23,19 +23,17 @@ import numpy as np
 import wgpu
 
 from ..errors import ModelError, WgpuRtError
-from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, FrameBuffers, PlaneSpec
+from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, FrameBuffers, PlaneSpec, Stage
 from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
-from .converge import CONVERGED, HALF_SPP, ConvergePass, copy_half, half_count
+from .converge import HALF_SPP, copy_half, half_count
+from .denoise_chain import DenoiseChain
 from .interleave import InterleavePass, interleaved, interleaves
-from .atrous import AtrousPass
-from .chroma import ChromaPass
-from .lowband import LowBand, low_band_levels, uses_low_band
-from .pack import DepthMaxPass, PackDenoiserPass, PackErrorPass
-from .planes import DENOISED, DENOISER_INPUT, ERROR_INPUT
+from .lowband import low_band_levels, uses_low_band
+from .pack import DepthMaxPass, PackErrorPass
+from .planes import ERROR_INPUT
 from .temporal import TEMPORAL, TemporalPass, TemporalSettings, frame_change
 from .tonemap import TonemapPass
-from .unpack import UnpackPass
 
 # half_radiance and half_spp: the mean after the first half of the samples (see frame/converge.py),
 # so that `wgpu-rt denoise` can hand over to an EXR's own mean as a denoised render does.
@@ -93,15 +91,6 @@ class StageTimer:
     def stage_ms(self, names: list[str], raw: bytes) -> dict[str, float]:
         ticks = np.frombuffer(raw, np.uint64, count=len(names)).astype(np.float64)
         return {name: (ticks[i] - ticks[i - 1]) / 1e6 for i, name in enumerate(names) if i}
-
-
-@dataclass(frozen=True)
-class Stage:
-    """A step of the frame that is not a ComputePass (a network, a copy), as far as wiring goes."""
-
-    name: str
-    inputs: tuple[PlaneSpec, ...]
-    outputs: tuple[PlaneSpec, ...]
 
 
 def check_wiring(stages, written=()) -> None:
@@ -212,32 +201,23 @@ class FramePipeline:
         self.spp, self.adaptive, self.progress, self.aux_samples = spp, adaptive, progress, aux_samples
         self.buffers = FrameBuffers(ctx, width, height)
         self.depth_max = DepthMaxPass(ctx, width, height)
-        color = RADIANCE
+        color, self.chain, self.low_band_setting = RADIANCE, None, low_band
         if denoiser is not None:
-            self.pack = PackDenoiserPass(ctx, width, height, self.depth_max.result)
-            self.unpack = UnpackPass(ctx, width, height)
-            color = DENOISED
-        # The low band: built when some frame may take it (a single frame of many samples never does);
-        # each frame then asks again with the samples every pixel is sure to hold (``_runs_low_band``).
-        self.low_band, self.low_band_setting = None, low_band
-        fewest = spp if temporal is None and adaptive is None else 1
-        levels = low_band_levels(width, height, low_band, fewest) if denoiser is not None else 0
-        if levels:
-            self.low_band = LowBand(ctx, width, height, self.depth_max.result, denoiser, levels)
-        self.chroma = ChromaPass(ctx, width, height) if denoiser is not None and chroma else None
-        self.post_filter = AtrousPass(ctx, width, height) if denoiser is not None and post_filter else None
-        # A frame of several samples per pixel (uniform or an adaptive map) hands over from the denoiser to
-        # their mean where that has converged (frame/converge.py); temporal mode does that itself across
-        # frames (its converge step).
-        self.converge = None
-        if denoiser is not None and (spp > 1 or adaptive is not None) and temporal is None:
-            self.converge = ConvergePass(ctx, width, height)
-            color = CONVERGED
+            # The low band: built when some frame may take it (a single frame of many samples never
+            # does); each frame then asks again with the samples every pixel is sure to hold
+            # (``_runs_low_band``). A frame of several samples per pixel (uniform or an adaptive map) hands
+            # over from the denoiser to their mean where that has converged (frame/converge.py); temporal
+            # mode does that itself across frames (its converge step).
+            fewest = spp if temporal is None and adaptive is None else 1
+            self.chain = DenoiseChain(ctx, width, height, denoiser, self.depth_max.result,
+                                      low_band_levels(width, height, low_band, fewest), chroma, post_filter,
+                                      converge=(spp > 1 or adaptive is not None) and temporal is None)
+            color = self.chain.output
         half_aovs = {HALF_RADIANCE.name, HALF_SPP.name} & set(aovs)
         if half_aovs and temporal is not None:
             raise WgpuRtError(f"AOV {sorted(half_aovs)[0]!r} is the mean after the first half of one frame's samples; "
                               "temporal mode keeps its own copy across frames: leave it out")
-        self.copies_half = self.converge is not None or bool(half_aovs)
+        self.copies_half = self.chain is not None and self.chain.converge is not None or bool(half_aovs)
         self.temporal = None
         if temporal is not None:
             self.temporal = TemporalPass(ctx, width, height, color, temporal, confidence, self.depth_max.result)
@@ -281,10 +261,9 @@ class FramePipeline:
             elif self.adaptive.sampler == "heat":
                 stages += [self.pack_error, Stage("error predictor", (ERROR_INPUT,), (HEAT,))]
             stages.append(self.extra_samples)
-        if self.denoiser is not None:
-            stages += [self.pack, Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack]
-        optional = (self.low_band, self.chroma, self.post_filter, self.converge, self.temporal, self.tonemap)
-        return stages + [stage for stage in optional if stage is not None]
+        if self.chain is not None:
+            stages += self.chain.stages()
+        return stages + [stage for stage in (self.temporal, self.tonemap) if stage is not None]
 
     def _aux_albedo(self, encoder, trace, converging: bool) -> None:
         """The noise-free albedo plane. A converging static view (temporal mode) keeps its first frame's
@@ -305,8 +284,8 @@ class FramePipeline:
     def _runs_low_band(self) -> bool:
         """Whether this frame's denoiser takes the low band: the samples every pixel is sure to hold are
         those accumulated so far (uniform ones; an adaptive frame's probes, not its targeted samples)."""
-        return self.low_band is not None and uses_low_band(self.width, self.height, self.low_band_setting,
-                                                           self.accumulated)
+        return self.chain.low_band is not None and uses_low_band(self.width, self.height, self.low_band_setting,
+                                                                 self.accumulated)
 
     def _layout(self, planes: list[PlaneSpec]) -> ReadbackLayout:
         offsets, offset = {}, 0
@@ -421,24 +400,8 @@ class FramePipeline:
             self._aux_albedo(encoder, trace, converging)
             self._mark(encoder, "aux")
         self.depth_max.execute(encoder, buffers)
-        if self.denoiser is not None:
-            self.pack.execute(encoder, buffers)
-            self._mark(encoder, "pack")
-            network_output = self.denoiser.record(encoder, buffers.get(DENOISER_INPUT), self.height, self.width)
-            self._mark(encoder, "denoise")
-            self.unpack.execute(encoder, buffers, network_output)
-        if self._runs_low_band():
-            self.low_band.execute(encoder, buffers)
-            self._mark(encoder, "low band")
-        if self.chroma is not None:
-            self.chroma.execute(encoder, buffers)
-            self._mark(encoder, "chroma")
-        if self.post_filter is not None:
-            self.post_filter.execute(encoder, buffers)
-            self._mark(encoder, "post filter")
-        if self.converge is not None:
-            self.converge.execute(encoder, buffers)
-            self._mark(encoder, "converge")
+        if self.chain is not None:
+            self.chain.record(encoder, buffers, low_band=self._runs_low_band(), mark=self._mark)
         if self.temporal is not None:
             self.temporal.execute(encoder, buffers, "converge" if converging else change)
             self._mark(encoder, "temporal")

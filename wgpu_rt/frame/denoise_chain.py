@@ -1,0 +1,59 @@
+"""What follows the tracer when a frame is denoised, in order: pack, the network, unpack, the low band's
+coarser levels (frame/lowband.py), the chroma hold (frame/chroma.py), the post filter (frame/atrous.py)
+and the hand-over to converged samples (frame/converge.py). The frame loop records it between the
+tracer and the temporal pass (``FramePipeline``), ``denoise()`` over uploaded planes
+(``frame.denoise.DenoiseOnDevice``), so both run one chain in one order."""
+
+from __future__ import annotations
+
+from ..passes import Stage
+from .atrous import AtrousPass
+from .chroma import ChromaPass
+from .converge import CONVERGED, ConvergePass
+from .lowband import LowBand
+from .pack import PackDenoiserPass
+from .planes import DENOISED, DENOISER_INPUT
+from .unpack import UnpackPass
+
+
+def _no_mark(encoder, name: str) -> None:
+    """A stage boundary nobody times."""
+
+
+class DenoiseChain:
+    """The chain for ``denoiser`` at width×height; ``depth_max`` is a DepthMaxPass's result, recorded
+    earlier in the same encoder. ``levels``: the low band's coarser levels (0: none); ``chroma``,
+    ``post_filter``, ``converge``: whether those steps run. ``output`` is the plane the chain leaves its
+    result in."""
+
+    def __init__(self, ctx, width: int, height: int, denoiser, depth_max, levels: int = 0, chroma: bool = True,
+                 post_filter: bool = True, converge: bool = False):
+        self.width, self.height, self.denoiser = width, height, denoiser
+        self.pack = PackDenoiserPass(ctx, width, height, depth_max)
+        self.unpack = UnpackPass(ctx, width, height)
+        self.low_band = LowBand(ctx, width, height, depth_max, denoiser, levels) if levels else None
+        self.chroma = ChromaPass(ctx, width, height) if chroma else None
+        self.post_filter = AtrousPass(ctx, width, height) if post_filter else None
+        self.converge = ConvergePass(ctx, width, height) if converge else None
+        self.output = CONVERGED if converge else DENOISED
+
+    def stages(self) -> list:
+        """Its passes in order (a Stage stands in for the network), for frame.pipeline.check_wiring."""
+        steps = (self.low_band, self.chroma, self.post_filter, self.converge)
+        return [self.pack, Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack,
+                *(step for step in steps if step is not None)]
+
+    def record(self, encoder, buffers, low_band: bool = True, mark=_no_mark) -> None:
+        """Record the chain into ``encoder`` over ``buffers``' planes (the low band only where
+        ``low_band``), calling ``mark(encoder, name)`` at the end of each timed stage."""
+        self.pack.execute(encoder, buffers)
+        mark(encoder, "pack")
+        network_output = self.denoiser.record(encoder, buffers.get(DENOISER_INPUT), self.height, self.width)
+        mark(encoder, "denoise")
+        self.unpack.execute(encoder, buffers, network_output)
+        steps = (("low band", self.low_band if low_band else None), ("chroma", self.chroma),
+                 ("post filter", self.post_filter), ("converge", self.converge))
+        for name, step in steps:
+            if step is not None:
+                step.execute(encoder, buffers)
+                mark(encoder, name)
