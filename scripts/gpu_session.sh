@@ -21,9 +21,9 @@
 # BVH change needs it (~70 s). `train` in a session of its own (~6 minutes: PART_LIMIT=300, timeout_s
 # 590, the OIDN peer), then at once `train_check` (~4 minutes; the same peer).
 #
-# Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p in
-# both precisions, with naga's bounds checks, with each weight fetch and as the autotuner picks, engine
-# steps against torch cuDNN and OIDN CUDA), trace
+# Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p as
+# the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA), nn_variants (§21's: with
+# naga's bounds checks, with each weight fetch and as the autotuner picks), trace
 # (samples/s against Mitsuba cuda_ad_rgb with the threaded and the wide BVH and the measured choice; closest-hit rays/s of each
 # walk on 100k random triangles and the bunny; cornell also with bounds checks; what the watertight tests
 # cost), frame (fused frame, adaptive targeted pass, moving vs static: the `moving` scene and the
@@ -58,7 +58,7 @@ GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 # gold in 76–85 s; the rest estimated): held-out render 80 s (once), training worlds ~150 s (+ ~40 s of
 # built-in and 96² views), training TRAIN_MINUTES; then scoring ~40 s, §14's checks ~60 s each
 TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
-TRAIN_MINUTES=$([ $small = 1 ] && echo 0.5 || echo 2.5)   # with the estimates above, ~9 min in all
+TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}   # with the estimates above, ~9 min in all
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
 CHECK_VIEW=$([ $small = 1 ] && echo 48 || echo 128); CHECK_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 CHECK_SCENES="cornell cornell-glossy sun-room world-2147483661 world-2147483667 world-2147483660 world-2147483665
@@ -93,23 +93,21 @@ for what in "$@"; do
         workers=$(python3 -c "import xdist" 2>/dev/null && echo "-n 8" || echo "")
         part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -q -rs $workers -p no:cacheprovider" ;;
     nn)
-        part profile_fp32 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
-        part profile_fp16 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp16
-        part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
-        # §12: the profiler's fp16 figure (27.4 ms) disagrees with bench_nn's fp16 step (9.6 ms); bench_nn
-        # feeds the padded canvas itself, so profile that size too
+        # the default on a discrete GPU with shader-f16 (fp16 storage, f16 math: §21), then fp32 beside it
+        part profile_auto wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
+        part profile_fp32 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32
+        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged fp16-math --repeats 5 ;;
+    nn_variants)   # §21's comparisons: bounds checks, the padded canvas, each weight fetch, the autotuner
+        part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32
         part profile_fp16_canvas wgpu-rt profile models/denoiser.onnx --size ${W}x$(( (H + 15) / 16 * 16 )) --precision fp16
-        # session 21: weights loaded by each invocation instead of 16 subgroup broadcasts per block, or
-        # staged in workgroup memory beside the input tile
-        part profile_fp32_direct wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --weight-fetch direct
-        part profile_fp32_staged_weights wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --conv-tiling staged-weights
-        part profile_fp16_math wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp16 --math f16
+        part profile_fp32_direct wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32 --weight-fetch direct
+        part profile_fp32_staged_weights wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32 --conv-tiling staged-weights
         # what the autotuner picks per layer among tilings, layouts and fetches (its cache is fresh here)
-        part profile_fp32_autotuned env WGPU_RT_AUTOTUNE=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
+        part profile_fp32_autotuned env WGPU_RT_AUTOTUNE=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32
         # session 22: every layer of that profile ran ~3.7× slower than un-tuned, while bench_nn ran the
         # same choices in 9.6 ms; the same again from the cache tells a slow GPU state from a profiler bug
-        part profile_fp32_autotuned_cached env WGPU_RT_AUTOTUNE=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
-        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged staged-weights direct-weights fp16 fp16-math autotuned --repeats 5 ;;
+        part profile_fp32_autotuned_cached env WGPU_RT_AUTOTUNE=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32
+        part bench_nn_variants python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged staged-weights direct-weights fp16 fp16-math autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
         part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto
@@ -170,6 +168,6 @@ for what in "$@"; do
             part check_${name}_$CHECK_VIEW python3 benchmarks/bench_spp.py --size $CHECK_VIEW --spp 1 4 \
                 --gold-spp $GOLD --gold-cache /tmp/gold --seeds 2 --models "$set" --scenes $CHECK_SCENES_SMALL
         done ;;
-    *) echo "unknown part $what (tests, nn, trace, frame, heldout, train, train_check)"; exit 2 ;;
+    *) echo "unknown part $what (tests, nn, nn_variants, trace, frame, heldout, train, train_check)"; exit 2 ;;
     esac
 done
