@@ -113,7 +113,8 @@ def test_low_band_never_emits_non_finite(gpu):
     spp = np.ones((13, 21), np.uint32)
     out = low_band_on_gpu(gpu, 21, 13, denoised, coarse, spp)
     assert np.all(np.isfinite(out)) and out.min() >= 0
-    np.testing.assert_allclose(out, transfer_low_band(denoised, coarse, spp), rtol=1e-5)
+    np.testing.assert_allclose(out, transfer_low_band(denoised, coarse, spp), rtol=1e-5,
+                               atol=np.finfo(np.float32).tiny)   # NVIDIA flushes subnormal results to 0
 
 
 def test_transfer_low_band_by_hand():

@@ -98,7 +98,7 @@ def test_cli_infer_round_trip_and_errors(tmp_path, gpu, capsys):
     np.save(tmp_path / "x.npy", x)
     out = tmp_path / "out" / "y.npy"
     assert main(["infer", str(path), "--input", str(tmp_path / "x.npy"), "--output", str(out)]) == 0
-    np.testing.assert_array_equal(np.load(out), WgslModel(path, ctx=gpu)(x))
+    np.testing.assert_array_equal(np.load(out), WgslModel(path, "auto", ctx=gpu)(x))   # the CLI's default
     assert sorted(p.name for p in out.parent.iterdir()) == ["y.npy"]  # no temporary left behind
 
     assert main(["infer", str(tmp_path / "nope.onnx"), "--input", str(tmp_path / "x.npy"),

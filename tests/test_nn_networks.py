@@ -304,7 +304,7 @@ def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precisi
     labels = [d.kernel.removesuffix("+f16-math") for d in dispatches]
     assert labels[-1].removesuffix("+direct-weights").endswith("+head+unpack" if head_folded else "gemm.wgsl+unpack")
     for label in labels:   # f16 multiply-adds read their weights directly
-        reads_directly = fetch == "direct" or (math == "f16" and "conv3x3" in label)
+        reads_directly = fetch == "direct" or (model.math == "f16" and "conv3x3" in label)
         assert label.endswith("+direct-weights") == (reads_directly and gpu.has_subgroups), label
     assert any(d.kernel.endswith("+f16-math") for d in dispatches) == (math == "f16")
     assert any(d.kernel.endswith("+staged-weights") for d in dispatches) == (tiling == "staged-weights")

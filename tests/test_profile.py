@@ -118,7 +118,7 @@ def test_f16_math_is_profiled_as_asked(gpu, tiny_unet, tmp_path, capsys):
     data = json.loads(out.read_text())
     assert data["math"] == "f16" and "f16 math" in capsys.readouterr().out
     assert any(row["kernel"].endswith("+f16-math") for row in data["rows"])
-    assert main(["profile", str(tiny_unet), "--size", "32x32", "--math", "f16"]) == 2
+    assert main(["profile", str(tiny_unet), "--size", "32x32", "--precision", "fp32", "--math", "f16"]) == 2
     assert "math f16 needs precision fp16" in capsys.readouterr().err
 
 

@@ -141,8 +141,8 @@ def test_single_node_ordering_renders_the_same_image(gpu):
 
 
 def test_renderer_takes_the_layout_from_the_environment(gpu, monkeypatch):
-    """WGPU_RT_BVH=wide renders single-level scenes through the wide walk (the same image); an unknown
-    layout is refused by name."""
+    """WGPU_RT_BVH=threaded / wide renders single-level scenes through that walk (the same image); an
+    unknown layout is refused by name."""
     from wgpu_rt.accel import geometry
     from wgpu_rt.errors import SceneError
     from wgpu_rt.renderer import render
@@ -150,7 +150,7 @@ def test_renderer_takes_the_layout_from_the_environment(gpu, monkeypatch):
     laid_out = []
     monkeypatch.setattr(geometry, "wide_nodes", lambda bvh: laid_out.append(bvh) or bvh_wide_nodes(bvh))
     options = dict(size=(16, 16), spp=2, max_depth=4, aovs=(), ctx=gpu)
-    monkeypatch.delenv(geometry.BVH_LAYOUT_ENV, raising=False)
+    monkeypatch.setenv(geometry.BVH_LAYOUT_ENV, "threaded")   # unset, a GPU walks small scenes wide
     threaded = render("cornell-glossy", **options).color
     assert not laid_out
     monkeypatch.setenv(geometry.BVH_LAYOUT_ENV, "wide")

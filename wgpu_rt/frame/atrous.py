@@ -9,7 +9,8 @@ the two pixels are in albedo, normal, relative depth and display luminance of th
 (x/(1+x))^(1/2.2) of the channel mean, the metric's own display), so edges in any of them stop it.
 The luminance tolerance narrows as the centre pixel's samples grow past FADE_SPP, by sqrt(FADE_SPP / spp):
 what the denoiser leaves shrinks with the noise it was given. Indices are clamped at the frame's edges.
-Radiance is clamped to FILTER_LIMIT first, so the weighted sums stay finite.
+Radiance and depth are clamped to FILTER_LIMIT first, so the weighted sums stay finite and the reciprocal
+of a depth stays a normal float (NVIDIA flushes subnormal ones to 0).
 
 BENCHMARKS.md §17: +0.50 dB over 13 scenes at 256² and 1 spp, +0.74 over 6 at 512², every scene up.
 ``AtrousPass`` runs it on the device; ``atrous_filter`` is the numpy reference (``denoise()``'s path).
@@ -32,7 +33,7 @@ SIGMA_NORMAL = 0.1           # Euclidean distance of the normal planes
 SIGMA_DEPTH = 0.02           # depth difference relative to the centre's depth (floored at DEPTH_FLOOR)
 DEPTH_FLOOR = 1e-3
 DISPLAY_GAMMA = 2.2
-FILTER_LIMIT = 1e30          # radiance clamped to this before filtering
+FILTER_LIMIT = 1e30          # radiance and depth clamped to this before filtering
 
 
 def display_luminance(radiance: np.ndarray) -> np.ndarray:
@@ -59,7 +60,7 @@ def atrous_filter(denoised: np.ndarray, albedo: np.ndarray, normal: np.ndarray, 
     out = np.minimum(nonnegative_finite(denoised).astype(np.float64), FILTER_LIMIT)
     albedo = nonnegative_finite(albedo).astype(np.float64)
     normal = finite(normal).astype(np.float64)
-    depth = nonnegative_finite(np.reshape(depth, (height, width))).astype(np.float64)
+    depth = np.minimum(nonnegative_finite(np.reshape(depth, (height, width))).astype(np.float64), FILTER_LIMIT)
     depth_scale = np.maximum(depth, DEPTH_FLOOR)
     rows, cols = np.arange(height), np.arange(width)
     for step in STEPS:

@@ -43,7 +43,8 @@ fn atrous_prepare(@builtin(global_invocation_id) id: vec3u) {
                        vec3f(FILTER_LIMIT));
     work_out[i] = vec4f(radiance, display_luminance(radiance));
     let sigma = SIGMA_LUMINANCE * sqrt(FADE_SPP / max(f32(spp[i]), FADE_SPP));
-    guides[2u * i] = vec4f(sanitize(albedo[i]), sanitize(albedo[n + i]), sanitize(albedo[2u * n + i]), sanitize(depth[i]));
+    let depth_value = min(sanitize(depth[i]), FILTER_LIMIT);   // 1 / depth stays a normal float
+    guides[2u * i] = vec4f(sanitize(albedo[i]), sanitize(albedo[n + i]), sanitize(albedo[2u * n + i]), depth_value);
     guides[2u * i + 1u] = vec4f(finite_or_zero(normal[i]), finite_or_zero(normal[n + i]),
                                 finite_or_zero(normal[2u * n + i]), 1.0 / (2.0 * sigma * sigma));
 }

@@ -21,6 +21,14 @@ fn finite_or_zero(x: f32) -> f32 { return select(0.0, x, is_finite(x)); }
 // NaN/±Inf → 0, negatives → 0 (radiance, albedo, depth): a failed sample contributes nothing.
 fn sanitize(x: f32) -> f32 { return max(finite_or_zero(x), 0.0); }
 
+// a / b for any finite b: WGSL promises a quotient only for |b| up to 2^126, and NVIDIA divides by
+// multiplying with 1/b, which beyond that is subnormal and flushed to 0 (3e38 / 3e38 gave 0). Such a b
+// and its a are scaled by 2^-64 first.
+fn quotient(a: f32, b: f32) -> f32 {
+    let scale = select(1.0, 5.4210108624275222e-20, abs(b) > 8.5070591730234616e37);   // 2^-64, 2^126
+    return (a * scale) / (b * scale);
+}
+
 // log(1 + x) for x ≥ 0, accurate near 0 (Goldberg's trick: the rounding error of 1 + x cancels).
 fn log1p_accurate(x: f32) -> f32 {
     let u = 1.0 + x;

@@ -76,7 +76,7 @@ fn low_band_apply(@builtin(global_invocation_id) id: vec3u) {
     for (var c = 0u; c < 3u; c++) {
         let low_fine = bilinear(c, at);
         let low_coarse = bilinear(3u + c, at);
-        let ratio = min((w * low_coarse + (1.0 - w) * low_fine + EPSILON) / (low_fine + EPSILON), F32_MAX);
+        let ratio = min(quotient(w * low_coarse + (1.0 - w) * low_fine + EPSILON, low_fine + EPSILON), F32_MAX);
         fine[c * n + i] = min(fine[c * n + i] * ratio, F32_MAX);
     }
 }

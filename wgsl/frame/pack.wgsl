@@ -30,7 +30,7 @@ fn log_color(channel: u32, i: u32) -> f32 {
 fn normalized_depth(d: f32) -> f32 {
     let frame_max = bitcast<f32>(depth_max_bits);
     if (frame_max <= 0.0) { return 0.0; }
-    return sanitize(d) / frame_max;
+    return quotient(sanitize(d), frame_max);
 }
 
 // The denoiser's 11 input values of pixel i on a canvas of n pixels, from sanitised colour and albedo and
@@ -96,7 +96,9 @@ fn pack_denoiser_level(@builtin(global_invocation_id) id: vec3u) {
         }
     }
     let largest = max(max(abs(normal_value.x), abs(normal_value.y)), abs(normal_value.z));
-    normal_value = select(vec3f(0.0), normalize(normal_value / largest), largest > 1e-6);   // no overflow
+    let scaled = vec3f(quotient(normal_value.x, largest), quotient(normal_value.y, largest),
+                       quotient(normal_value.z, largest));   // no overflow in the length
+    normal_value = select(vec3f(0.0), normalize(scaled), largest > 1e-6);
     write_denoiser_input(id.y * level_size.x + id.x, level_size.x * level_size.y, min(rgb, vec3f(F32_MAX)),
                          albedo_value, normal_value, d, samples);
 }
