@@ -556,6 +556,42 @@ def test_kept_planes_give_the_same_batches_and_are_built_once(tiny_dataset):
     assert noise[10] == 0                                          # the sample count is exact
 
 
+def test_preloaded_planes_are_every_render_packed_once(tiny_dataset):
+    """``preload`` packs each noisy render of each view's sample counts up front (the CUDA path), so no
+    draw packs again, and draws the same batches as packing at every draw."""
+    from wgpu_rt.dataset import load_views
+    from wgpu_rt.train.samples import Augmentation, DenoiserSamples
+
+    views = load_views(tiny_dataset, "train")
+    packed, kept = DenoiserSamples(views), DenoiserSamples(views)
+    kept.keep_on(torch.device("cpu"))
+    kept.preload(every_spp=True, workers=2)
+    expected_keys = {(item, spp, copy) for item in kept.items for spp in views[item[0]].spp
+                     for copy in range(kept.copies(item, spp))}
+    assert set(kept._kept) == expected_keys
+    kept.planes = lambda *key: pytest.fail(f"{key} packed again")
+    for spp in (1, 16):
+        expected = packed.batch(kept.items[:4], np.random.default_rng(spp), Augmentation(8, 16, 2), spp)
+        for a, b in zip(expected, kept.batch(kept.items[:4], np.random.default_rng(spp), Augmentation(8, 16, 2), spp)):
+            assert torch.equal(a, b)
+
+
+def test_a_time_budget_follows_the_pace_after_the_first_epoch(tiny_dataset, tmp_path):
+    """The first epoch carries the warm-up: the epochs that fit are judged by the later ones' pace, and
+    raised again (up to those asked) when the pace improves."""
+    trainer = Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), epochs=100, widths=(4, 8), batch=2,
+                                  crop_min=12, crop_max=16, minutes=1.0, out=str(tmp_path / "m"),
+                                  checkpoints=str(tmp_path / "ck")))
+    trainer.epoch = 1
+    trainer._fit_epochs_to_minutes(20.0, np.array([20.0]))       # a slow first epoch: 40 s left, 2 more
+    assert trainer.config.epochs == 3 and trainer.epochs_asked == 100
+    trainer.epoch = 2
+    trainer._fit_epochs_to_minutes(21.0, np.array([20.0, 1.0]))  # at 1 s an epoch, 39 more
+    assert trainer.config.epochs == 41 and trainer.total_steps == 41 * trainer.steps_per_epoch
+    trainer._fit_epochs_to_minutes(21.0, np.array([20.0, 0.1]))  # more than asked would fit
+    assert trainer.config.epochs == 100 and trainer.epochs_asked is None
+
+
 def test_ranks_train_on_disjoint_equal_shares_of_each_epoch():
     from wgpu_rt.train.context import TrainContext
 

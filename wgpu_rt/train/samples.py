@@ -70,10 +70,28 @@ class TaskSamples(ABC):
         return [(v, f) for v, view in enumerate(self.views) for f in range(len(view.frames))]
 
     def keep_on(self, device: torch.device) -> None:
-        """Keep each frame's planes on ``device`` once packed (at their first draw), so a GPU does not wait
-        for the CPU to pack frames again; without this they are packed at every draw, which keeps a CPU
-        run's memory at the dataset's own size."""
+        """Keep each frame's planes on ``device`` once packed (``preload``, or at their first draw), so a GPU
+        does not wait for the CPU to pack frames again; without this they are packed at every draw, which
+        keeps a CPU run's memory at the dataset's own size."""
         self.device, self._kept = device, {}
+
+    def preload(self, every_spp: bool, progress: bool = False, workers: int = 8) -> None:
+        """Pack every frame's planes now, on ``workers`` threads, into the tensors ``keep_on`` keeps: each
+        noisy render at each of its view's sample counts (``every_spp``; else at 1 spp). Packed at their
+        first draws instead, they made the first epochs of a run on an H200 host-bound (5.9 steps/s over
+        its first 210 steps, nearly every draw a first one), and a time budget judged by them too short."""
+        from concurrent.futures import ThreadPoolExecutor
+
+        from tqdm import tqdm
+
+        keys = [(item, spp, copy) for item in self.items
+                for spp in (self.views[item[0]].spp if every_spp else (1,)) for copy in range(self.copies(item, spp))]
+        keys = [key for key in keys if key not in self._kept]
+        with ThreadPoolExecutor(workers) as pool:
+            packed = pool.map(lambda key: self.planes(*key), keys)
+            for key, planes in tqdm(zip(keys, packed), total=len(keys), desc="pack training frames", unit="frame",
+                                    disable=not progress):
+                self._kept[key] = tuple(torch.from_numpy(a).to(self.device) for a in planes)
 
     @abstractmethod
     def planes(self, item: tuple[int, int], spp: int, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:

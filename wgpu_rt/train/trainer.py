@@ -380,7 +380,9 @@ class Trainer:
         # a fixed stage must be rendered for every view; 'any' draws from each view's own counts
         available = sorted(set.intersection(*(set(view.spp) for view in self.train_set.views)))
         session_started = time.perf_counter()
-        epoch_at_start = self.epoch
+        if self.context.keep_data:
+            self.train_set.preload(every_spp=self.config.task == "denoiser", progress=self.progress)
+        epoch_ends = [time.perf_counter()]   # the training's start, then each epoch's end (checkpoint included)
         with tqdm(total=self.total_steps, initial=self.step, desc=f"train {self.config.task}", unit="step",
                   disable=not self.progress) as bar:
             while self.epoch < self.config.epochs:
@@ -400,7 +402,8 @@ class Trainer:
                 self.timed["steps"] += len(losses)
                 self.timed["seconds"] += time.perf_counter() - started
                 self.epoch += 1
-                self._fit_epochs_to_minutes(time.perf_counter() - session_started, self.epoch - epoch_at_start)
+                epoch_ends.append(time.perf_counter())
+                self._fit_epochs_to_minutes(epoch_ends[-1] - session_started, np.diff(epoch_ends))
                 bar.total = self.total_steps
                 due = self.epoch % self.config.validate_every == 0 or self.epoch == self.config.epochs
                 metrics = self.validate() if due and self.context.main else {}
@@ -413,18 +416,21 @@ class Trainer:
                 self._save_checkpoint()
         return self.history[-1] if self.history else {}
 
-    def _fit_epochs_to_minutes(self, seconds: float, epochs_done: int) -> None:
-        """With ``minutes``, cut the epochs to those that fit the budget at this session's pace so far
-        (validations and checkpoints included), so the learning-rate schedule still decays to its end
-        inside it; never below the epochs already done. Rank 0's clock decides for every process."""
+    def _fit_epochs_to_minutes(self, seconds: float, epoch_seconds) -> None:
+        """With ``minutes``, set the epochs to those that fit the budget (``seconds`` of it spent, data
+        preloading included) at this session's pace, so the learning-rate schedule still decays to its end
+        inside it: never below the epochs already done nor above those asked. The pace is that of the
+        epochs after the first (``epoch_seconds``: this session's, validations and checkpoints included),
+        which carries the warm-up; each epoch's end judges again. Rank 0's clock decides for every process."""
+        asked = self.epochs_asked or self.config.epochs
         if self.config.minutes is None or self.epoch >= self.config.epochs:
             return
-        pace = seconds / epochs_done
+        pace = float(np.mean(epoch_seconds[1:] if len(epoch_seconds) > 1 else epoch_seconds))
         fits = self.context.broadcast(self.epoch + int(max(self.config.minutes * 60 - seconds, 0.0) // pace))
-        if fits < self.config.epochs:
-            self.epochs_asked = self.epochs_asked or self.config.epochs
-            self.config.epochs = max(self.epoch, fits)
-            self.total_steps = self.steps_per_epoch * self.config.epochs
+        epochs = max(self.epoch, min(fits, asked))
+        self.epochs_asked = asked if epochs < asked else None
+        self.config.epochs = epochs
+        self.total_steps = self.steps_per_epoch * epochs
 
     def _synchronize(self) -> None:
         """Wait for the device's queued work, so the time measured is the work's."""
