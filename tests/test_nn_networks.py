@@ -306,7 +306,7 @@ def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precisi
     for label in labels:   # f16 multiply-adds read their weights directly
         reads_directly = fetch == "direct" or (model.math == "f16" and "conv3x3" in label)
         assert label.endswith("+direct-weights") == (reads_directly and gpu.has_subgroups), label
-    assert any(d.kernel.endswith("+f16-math") for d in dispatches) == (math == "f16")
+    assert any(d.kernel.endswith("+f16-math") for d in dispatches) == (model.math == "f16")
     assert any(d.kernel.endswith("+staged-weights") for d in dispatches) == (tiling == "staged-weights")
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     check_parity([(1, model.input_channels, 37, 53)], padded_reference(session, model.graph.multiple), model,
