@@ -22,8 +22,9 @@ from wgpu_rt.scene import load_scene
 
 
 def timed(scene, frames, host_ms=0.0, **settings):
-    """Wall time per frame after the set-up and one warm-up frame, the median GPU time per stage, and the
-    median GPU time of a whole frame."""
+    """Wall time per frame after the set-up and one warm-up frame, the GPU time per stage and of a whole
+    frame, each the mean over the frames, like the wall time: stages some frames leave out (the low band
+    once a static camera has accumulated LOW_BAND_MAX_SPP samples) count 0 in the others."""
     renderer = Renderer(scene, **settings)
     list(renderer.frames(0))                                            # compile and warm up
     stage_ms = []
@@ -32,8 +33,9 @@ def timed(scene, frames, host_ms=0.0, **settings):
         stage_ms.append(result.stage_ms)
         time.sleep(host_ms / 1e3)
     per_frame = (time.perf_counter() - start) / len(frames)
-    stages = {name: round(float(np.median([s.get(name, 0.0) for s in stage_ms])), 3) for name in stage_ms[-1]}
-    gpu = float(np.median([sum(s.values()) for s in stage_ms])) / 1e3
+    names = list(dict.fromkeys(name for s in stage_ms for name in s))   # in order, every frame's
+    stages = {name: round(float(np.mean([s.get(name, 0.0) for s in stage_ms])), 3) for name in names}
+    gpu = float(np.mean([sum(s.values()) for s in stage_ms])) / 1e3
     return per_frame, stages, gpu
 
 
