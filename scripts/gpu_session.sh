@@ -13,13 +13,15 @@
 #                 bash scripts/gpu_session.sh trace"
 #
 # Session 22 (H200, BENCHMARKS.md §21) took: nn + frame + heldout_render 390 s, trace 67 s, heldout 238 s
-# (heldout_denoise needs more than 120 s: give it PART_LIMIT=200). Next: call 1 with the OIDN peer,
-# DEADLINE=330 PART_LIMIT=200, timeout_s 580: `tests frame nn` (the suite has not run on NVIDIA with the
-# new defaults: fp16 + f16 math, the wide walk on small scenes, the device-side interleave of the
-# readback, denoise() on the device; then their speed, and the autotuned profile twice), call 2
-# at once: `heldout` with PART_LIMIT=200 (the 4-realization means and the built-ins); `trace` only if a
-# BVH change needs it (~70 s). `train` in a session of its own (~6 minutes: PART_LIMIT=300, timeout_s
-# 590, the OIDN peer), then at once `train_check` (~4 minutes; the same peer).
+# (heldout_denoise needs more than 120 s: give it PART_LIMIT=200). Session 23 (§22): tests + frame + nn
+# 278 s (tests 157 s), train 288 s (its renders 218 s; the fine-tune was cut to 0.7 of its 3 minutes,
+# since fixed). Next: call 1 with the OIDN peer, DEADLINE=250 PART_LIMIT=200, timeout_s 330: `tests
+# frame` (§22's NVIDIA fixes not yet run there: the low band's tiny ratios, one dispatch test; the frame
+# GPU column now a mean over frames, low band included); call 2 at once: `train` with TRAIN_MINUTES=4,
+# PART_LIMIT=300, timeout_s 540 (frames preloaded to the device, the pace judged after the first
+# epoch: how many steps/s once cuDNN has tuned each crop size). Score its model here on lavapipe
+# (data/worlds-heldout-256-local, §21) rather than with `train_check`. `heldout`, `trace`, `nn_variants`
+# when a change needs them.
 #
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p as
 # the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA), nn_variants (§21's: with
@@ -76,6 +78,10 @@ part() {   # part NAME COMMAND...: run, keep its output, go on after a failure
     local started=$SECONDS
     timeout "${PART_LIMIT:-300}" "$@" > "$OUT/$name.txt" 2>&1
     echo "   exit $? after $((SECONDS - started)) s" | tee -a "$OUT/summary.txt"
+    archive
+}
+
+archive() {   # with ARCHIVE set, the results so far packed into it
     if [ -n "${ARCHIVE:-}" ]; then tar -czf "$ARCHIVE" -C "$(dirname "$OUT")" "$(basename "$OUT")"; fi
 }
 
@@ -153,7 +159,8 @@ for what in "$@"; do
             --bottom-merge add --epochs 400 --minutes $TRAIN_MINUTES --batch 8 --crop $((VIEW / 2)) $VIEW --lr 1e-4 \
             --curriculum any --ssim-space display --lowpass 2 --validate-every 50 --device auto \
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet
-        cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/" ;;  # bench_denoise reads a whole set
+        cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/"   # bench_denoise reads a whole set
+        archive ;;
     train_check)   # the model of part train (TRAINED, default: $OUT/model, the same call's) scored: a call of its own
         trained=${TRAINED:-$OUT/model}
         [ -f "$trained/denoiser.onnx" ] || { echo "train_check: no $trained/denoiser.onnx (run part train first, or set TRAINED)"; exit 2; }
