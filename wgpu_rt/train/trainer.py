@@ -399,8 +399,9 @@ class Trainer:
                     bar.update(1)
                     bar.set_postfix(loss=f"{losses[-1]:.4f}", spp=spp)
                 self._synchronize()
+                steps_seconds = time.perf_counter() - started
                 self.timed["steps"] += len(losses)
-                self.timed["seconds"] += time.perf_counter() - started
+                self.timed["seconds"] += steps_seconds
                 self.epoch += 1
                 epoch_ends.append(time.perf_counter())
                 self._fit_epochs_to_minutes(epoch_ends[-1] - session_started, np.diff(epoch_ends))
@@ -409,7 +410,8 @@ class Trainer:
                 metrics = self.validate() if due and self.context.main else {}
                 self.seconds += time.perf_counter() - started
                 self.history.append({"epoch": self.epoch, "step": self.step, "spp": spp,
-                                     "train_loss": float(np.mean(losses)), **metrics, **self.throughput()})
+                                     "train_loss": float(np.mean(losses)), "steps_seconds": steps_seconds,
+                                     **metrics, **self.throughput()})
                 if self.progress:
                     bar.write(f"epoch {self.epoch}: " + ", ".join(
                         f"{k} {v:.4g}" for k, v in self.history[-1].items() if isinstance(v, float)))
@@ -600,11 +602,12 @@ class Trainer:
         lines += ["",
                   f"## Validation (last epoch, held-out views; every {cfg.validate_every} epoch(s) in the history)"]
         lines += [f"- {k[4:]}: {v:.4f}" for k, v in last.items() if k.startswith("val_")]
-        lines += ["", "## History", "", "| epoch | step | spp | train loss | "
+        lines += ["", "## History", "", "| epoch | step | spp | train loss | its steps, s | "
                   + " | ".join(k[4:] for k in last if k.startswith("val_")) + " |",
-                  "|" + " --- |" * (4 + sum(k.startswith("val_") for k in last))]
+                  "|" + " --- |" * (5 + sum(k.startswith("val_") for k in last))]
         for h in self.history:
-            lines.append(f"| {h['epoch']} | {h['step']} | {h['spp']} | {h['train_loss']:.4f} | "
+            seconds = f"{h['steps_seconds']:.1f}" if "steps_seconds" in h else "—"   # older runs lack it
+            lines.append(f"| {h['epoch']} | {h['step']} | {h['spp']} | {h['train_loss']:.4f} | {seconds} | "
                          + " | ".join(f"{h[k]:.4f}" if k in h else "—" for k in last if k.startswith("val_")) + " |")
         for base in base_runs:
             if base.get("card"):
