@@ -15,7 +15,7 @@ from wgpu_rt.accel.geometry import (LANES_TRAVERSAL, SUBGROUP_TRAVERSAL, Geometr
                                     traversal_module)
 from wgpu_rt.measured_choices import CACHE_DIR_ENV, MeasuredChoices
 from wgpu_rt.scene import load_scene
-from wgpu_rt.trace.bvh_choice import AUTO_MIN_TRIANGLES, choose_layout, layout_key, small_scene_layout
+from wgpu_rt.trace.bvh_choice import AUTO_MIN_TRIANGLES, choose_layout, layout_key, unmeasured_layout
 
 pytestmark = pytest.mark.gpu
 
@@ -65,7 +65,7 @@ def test_small_scenes_take_the_adapters_layout_unmeasured(gpu, tmp_path):
     scene = load_scene("cornell")
     choices = MeasuredChoices(gpu, tmp_path / "autotune.json", timer=fake_timer({"threaded": 2.0, "wide": 1.0}, []))
     chosen = choose_layout(gpu, scene, GeometryBuffers.build(scene), choices=choices)
-    assert chosen.variant == small_scene_layout(gpu, traversal_module(gpu))
+    assert chosen.variant == unmeasured_layout(gpu, traversal_module(gpu))
     assert choices.measured == 0 and not (tmp_path / "autotune.json").exists()
 
 
@@ -77,7 +77,7 @@ def test_small_scenes_walk_the_wide_tree_on_gpus(adapter_type, traversal, layout
     """Lavapipe keeps the stackless threaded walk; a GPU takes the 4-wide tree (1.6× on an H200), fetched
     as rows where its traversal takes them."""
     ctx = SimpleNamespace(adapter=SimpleNamespace(info={"adapter_type": adapter_type}))
-    assert small_scene_layout(ctx, traversal) == layout
+    assert unmeasured_layout(ctx, traversal) == layout
 
 
 def test_the_wall_timer_measures_both_walks(gpu, sphere_room, tmp_path):

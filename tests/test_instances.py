@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from test_bvh import brute_force
 from test_pipeline import TrafficCounter
-from test_traversal import MODULES, _require
+from test_traversal import MODULES, WALKS, _require
 
 from wgpu_rt.accel.bvh import build_bvh
 from wgpu_rt.accel.geometry import GeometryBuffers, InstancedGeometry
@@ -120,13 +120,14 @@ def _check_against_brute_force(query: RayQuery, world: np.ndarray, origins, dirs
             np.testing.assert_array_equal(surfaces["object"][found], geometry.object_ids[prim_ref[found]])
 
 
-@pytest.mark.parametrize("module", MODULES)
-def test_instanced_traversal_matches_brute_force(gpu, module):
+@pytest.mark.parametrize("module, variant", WALKS)
+def test_instanced_traversal_matches_brute_force(gpu, module, variant):
     """Closest hits, occlusion and world-space normals through static and moving instances, at the
-    frame the geometry was built for and after moving it to other frames (per-frame buffers only)."""
+    frame the geometry was built for and after moving it to other frames (per-frame buffers only), with
+    the bottom levels walked in each layout."""
     _require(gpu, module)
     scene = moving_scene()
-    geometry = InstancedGeometry(scene, frame=1)
+    geometry = InstancedGeometry(scene, frame=1).as_variant(variant)
     assert len(geometry.levels) == 4           # the static meshes share one bottom level
     query = RayQuery(gpu, geometry, traversal=module)
     rng = np.random.default_rng(3)
@@ -137,14 +138,14 @@ def test_instanced_traversal_matches_brute_force(gpu, module):
         _check_against_brute_force(query, geometry.world_triangles(frame), origins, dirs)
 
 
-@pytest.mark.parametrize("module", MODULES)
-def test_instances_of_a_shape_traverse_like_brute_force(gpu, module):
+@pytest.mark.parametrize("module, variant", WALKS)
+def test_instances_of_a_shape_traverse_like_brute_force(gpu, module, variant):
     """A shape placed 12 times (one bottom level) between a world-space level and a moving mesh: hits
     number the placed triangles, and each comes back with its instance's material and object, at the
-    frame built and after moving to others."""
+    frame built and after moving to others, with the bottom levels walked in each layout."""
     _require(gpu, module)
     scene = placed_scene()
-    geometry = InstancedGeometry(scene, frame=1)
+    geometry = InstancedGeometry(scene, frame=1).as_variant(variant)
     assert [len(meshes) for meshes, _ in geometry.levels] == [1, 1, 1]     # floor, the shape, the mover
     assert len(geometry.instance_meshes) == 1 + 12 + 1
     assert geometry.triangle_count == 120 + 60 + 60 and geometry.placed_triangle_count == 120 + 12 * 60 + 60
@@ -513,6 +514,22 @@ def test_a_render_switches_to_two_levels_when_objects_move(gpu):
     assert trace_for(2, 2) is moved and trace_for(0, 0) is moved
     still = Renderer(still_moving_scene(), size=(8, 8), ctx=gpu, aovs=())._trace_factory()
     assert isinstance(still(0, 0)._geometry, GeometryBuffers) and still(1, 1) is still(0, 0)
+
+
+def test_two_levels_walk_as_the_adapter_or_the_environment_says(gpu, monkeypatch):
+    """Two-level geometry is not measured (its top level changes every frame): its bottom levels take the
+    adapter's unmeasured pick (the 4-wide walk on GPUs, the threaded one on lavapipe), or the variant
+    WGPU_RT_BVH names."""
+    from wgpu_rt.accel.geometry import BVH_LAYOUT_ENV, traversal_module
+    from wgpu_rt.trace.bvh_choice import unmeasured_layout
+
+    def moved_variant():
+        return Renderer(load_scene("moving"), size=(8, 8), ctx=gpu, aovs=())._trace_factory()(1, 1)._geometry.variant
+
+    monkeypatch.delenv(BVH_LAYOUT_ENV, raising=False)
+    assert moved_variant() == unmeasured_layout(gpu, traversal_module(gpu))
+    monkeypatch.setenv(BVH_LAYOUT_ENV, "wide")
+    assert moved_variant() == "wide"
 
 
 def still_moving_scene():

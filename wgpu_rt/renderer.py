@@ -172,8 +172,8 @@ class Renderer:
         places a shape several times (instances) gets the two-level geometry from its first frame on,
         which stores each shape's triangles once, unless it places at most FLATTEN_PLACED_TRIANGLES.
         Frame f is seeded seed + f (mod 2³²)."""
-        from .accel.geometry import GeometryBuffers, InstancedGeometry, bvh_layout
-        from .trace.bvh_choice import choose_layout
+        from .accel.geometry import GeometryBuffers, InstancedGeometry, bvh_layout, traversal_module
+        from .trace.bvh_choice import choose_layout, unmeasured_layout
         from .trace.trace_pass import TracePass
 
         traced: dict[bytes, TracePass] = {}   # by the frame's transforms, or follows_every_frame
@@ -183,6 +183,8 @@ class Renderer:
         placed_triangles = sum(len(mesh.faces) for mesh in scene.meshes)
         instanced_from_start = can_instance and scene.has_instances and placed_triangles > FLATTEN_PLACED_TRIANGLES
         layout = bvh_layout()
+        # two-level scenes are not measured (their BVHs change with the frames): the adapter's pick
+        instanced_variant = unmeasured_layout(self.ctx, traversal_module(self.ctx)) if layout == "auto" else layout
 
         def trace_for(frame: int, seed_frame: int):
             seed = (self.seed + seed_frame) % 2 ** 32
@@ -192,7 +194,7 @@ class Renderer:
                 moved = bool(traced)
                 traced.clear()
                 if instanced_from_start or (moved and can_instance):
-                    geometry, key = InstancedGeometry(scene, frame), follows_every_frame
+                    geometry, key = InstancedGeometry(scene, frame).as_variant(instanced_variant), follows_every_frame
                 elif layout == "auto":
                     geometry = choose_layout(self.ctx, scene, GeometryBuffers.build(scene, frame), self.max_depth, frame)
                 else:

@@ -19,6 +19,7 @@ See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import os
@@ -31,6 +32,8 @@ from .bvh import (
     LEAF_COUNT_BITS,
     ORDERINGS,
     THREADED_NODE_DTYPE,
+    WIDE_EMPTY,
+    WIDE_LEAF,
     Bvh,
     build_box_bvh,
     build_bvh,
@@ -299,9 +302,29 @@ class InstancedGeometry:
     """
 
     instances_module = "accel/instances.wgsl"
-    walk_module = THREADED_WALK   # the top level and each bottom level are threaded
-    row_loads = False             # fetched as words
+    layout = "threaded"           # the bottom levels' node layout (BVH_LAYOUTS); the top level is threaded
+    row_loads = False             # kernels fetch nodes and positions as rows (ROW_LOADS)
     kernel_modules = property(geometry_modules)   # the module swaps its kernels need
+
+    @property
+    def walk_module(self) -> str:
+        """The module that walks the bottom levels' node layout, in place of THREADED_WALK."""
+        return BVH_LAYOUTS[self.layout]
+
+    @property
+    def variant(self) -> str:
+        return self.layout + ROW_LOADS * self.row_loads
+
+    def as_variant(self, variant: str) -> "InstancedGeometry":
+        """This geometry (the same BVHs) with bottom levels laid out and fetched as ``variant``
+        (bvh_variants): with "wide", each bottom level is one 4-wide tree (wgsl/accel/walk_wide.wgsl,
+        walk_bottom_level) instead of ORDERINGS threaded copies."""
+        layout = variant.removesuffix(ROW_LOADS)
+        if layout not in BVH_LAYOUTS:
+            raise ValueError(f"unknown BVH variant {variant!r}")
+        other = copy.copy(self)
+        other.layout, other.row_loads = layout, variant.endswith(ROW_LOADS)
+        return other
 
     def __init__(self, scene: Scene, frame: int = 0):
         self.scene = scene
@@ -426,18 +449,44 @@ class InstancedGeometry:
         return world.astype(np.float32)
 
     def node_count(self, orderings: int = ORDERINGS) -> int:
-        """Node slots in binding 0 with ``orderings`` copies of each bottom level (see top_level)."""
-        return (ORDERINGS * self.top_node_count + 2 * len(self.instance_meshes)
-                + orderings * int(self._node_counts.sum()))
+        """Node slots in binding 0 with ``orderings`` copies of each threaded bottom level (see top_level)."""
+        return ORDERINGS * self.top_node_count + 2 * len(self.instance_meshes) + int(self._level_slots(orderings).sum())
+
+    def _level_slots(self, orderings: int) -> np.ndarray:
+        """Node slots (THREADED_NODE_DTYPE's 32 bytes) of each bottom level: ``orderings`` threaded copies,
+        or its wide nodes (112 bytes each) rounded up to whole slots."""
+        if self.layout == "wide":
+            slot = THREADED_NODE_DTYPE.itemsize
+            return np.array([-(-wide.nbytes // slot) for wide in self._wide_levels], np.int64)
+        return orderings * self._node_counts
+
+    @functools.cached_property
+    def _wide_levels(self) -> list[np.ndarray]:
+        """Each bottom level as 4-wide nodes, its leaves naming triangles where the level's are stored."""
+        if self.triangle_count >= 1 << (31 - LEAF_COUNT_BITS):
+            raise SceneError(f"scene {self.scene.name!r}: {self.triangle_count} triangles do not fit the wide "
+                             f"node layout")
+        levels = [wide_nodes(bvh) for bvh in self._bvhs]
+        for wide, first_triangle in zip(levels, self._first_triangles):
+            children = wide["children"]
+            leaf = (children != WIDE_EMPTY) & ((children & WIDE_LEAF) != 0)
+            children[leaf] += np.uint32(first_triangle << LEAF_COUNT_BITS)
+        return levels
 
     def orderings(self, ctx) -> int:
-        """Direction-ordered copies of each bottom level to upload: ORDERINGS, or 1 where that many
-        exceed one storage binding (as GeometryBuffers.orderings)."""
+        """Direction-ordered copies of each threaded bottom level to upload: ORDERINGS, or 1 where that
+        many exceed one storage binding (as GeometryBuffers.orderings); wide ones have none."""
         limit = min(ctx.limits["max-storage-buffer-binding-size"], ctx.limits["max-buffer-size"])
-        return ORDERINGS if self.node_count() * THREADED_NODE_DTYPE.itemsize <= limit else 1
+        fits = self.node_count() * THREADED_NODE_DTYPE.itemsize <= limit
+        return ORDERINGS if fits and self.layout == "threaded" else 1
 
     def bottom_nodes(self, orderings: int = ORDERINGS) -> np.ndarray:
-        """Every bottom level's ``orderings`` threaded node copies, one level after another."""
+        """Every bottom level's nodes, one level after another, as 32-byte slots: ``orderings`` threaded
+        copies, or its wide nodes (zero-padded to whole slots)."""
+        if self.layout == "wide":
+            slot = THREADED_NODE_DTYPE.itemsize
+            return np.frombuffer(b"".join(wide.tobytes().ljust(-(-wide.nbytes // slot) * slot, b"\0")
+                                          for wide in self._wide_levels), THREADED_NODE_DTYPE)
         nodes = [ordered_threaded_nodes(bvh, orderings) for bvh in self._bvhs]
         for threaded, first_triangle in zip(nodes, self._first_triangles):
             threaded["triangles"] += np.uint32(first_triangle << LEAF_COUNT_BITS)
@@ -461,7 +510,7 @@ class InstancedGeometry:
         records["material"], records["object"] = self._instance_materials, self._instance_objects
         entries = np.zeros((len(self.instance_meshes), 4, 4), np.float32)
         entries[:, :, :3] = np.transpose(inverse[:, :3, :4], (0, 2, 1))
-        level_nodes = orderings * self._node_counts
+        level_nodes = self._level_slots(orderings)
         level_first_node = self.node_count(orderings) - level_nodes.sum() + np.cumsum(level_nodes) - level_nodes
         words = entries.view(np.uint32)
         words[:, 0, 3] = level_first_node[self.instance_levels]

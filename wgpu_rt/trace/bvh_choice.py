@@ -15,8 +15,10 @@ latency; each variant is then traced PROBE_RUNS times after its first trace (whi
 the winner's stays compiled for the render) and its median counts. On lavapipe the measurement adds about a
 second to the first render of a scene size (BENCHMARKS.md §19). Smaller scenes are not measured (the
 walks differ there by milliseconds a frame on lavapipe, less than the probe costs): they take
-``small_scene_layout``, the threaded walk on CPU adapters and the 4-wide one fetched as rows on GPUs,
-where it traced `cornell` 1.6× as fast as the threaded walk on an H200 (BENCHMARKS.md §21).
+``unmeasured_layout``, the threaded walk on CPU adapters and the 4-wide one fetched as rows on GPUs,
+where it traced `cornell` 1.6× as fast as the threaded walk on an H200 (BENCHMARKS.md §21). So do
+two-level scenes' bottom levels (the 4-wide walk beat the threaded one on every scene the H200 traced,
+the 70k-triangle bunny by 1.34×; a moving bunny walked threaded cost 1.18× the static one a frame, §22).
 """
 
 from __future__ import annotations
@@ -40,8 +42,9 @@ PROBE_SECONDS = 0.02
 PROBE_RUNS = 3
 
 
-def small_scene_layout(ctx, traversal: str) -> str:
-    """The variant of a scene under AUTO_MIN_TRIANGLES triangles: the threaded walk on CPU adapters (its
+def unmeasured_layout(ctx, traversal: str) -> str:
+    """The variant taken without measuring: that of a scene under AUTO_MIN_TRIANGLES triangles, and of a
+    two-level scene's bottom levels (moving meshes, instancing): the threaded walk on CPU adapters (its
     stackless loop suits lavapipe's subgroup packets), else the 4-wide walk (fetched as rows where
     ``traversal`` takes them). H200, 1024² at 64 spp: `cornell` 648 against 401 M samples/s threaded,
     `cornell-glossy` 179 against 140."""
@@ -68,7 +71,7 @@ def choose_layout(ctx, scene: Scene, geometry: GeometryBuffers, max_depth: int =
     fake timer, which gets (variant, run) pairs)."""
     traversal = traversal_module(ctx)
     if geometry.triangle_count < AUTO_MIN_TRIANGLES:
-        return geometry.as_variant(small_scene_layout(ctx, traversal))
+        return geometry.as_variant(unmeasured_layout(ctx, traversal))
     choices = choices or MeasuredChoices(ctx, timer=lambda candidate: wall_timer(candidate[1]))
     side = []   # the probe's side, found on the first measurement
 

@@ -11,10 +11,11 @@
 // from accel/traversal_lanes.wgsl (each invocation alone) or, swapped in on CPU drivers,
 // accel/traversal_subgroup.wgsl (a subgroup as one packet). On lavapipe this replaced a per-lane
 // walk with a 32-entry private stack, ordered by child distance: 3.5× the path-tracing throughput.
-// The single-level walk is walk_scene, from accel/walk_threaded.wgsl; geometry laid out 4-wide swaps
-// in accel/walk_wide.wgsl (a stack, four boxes a fetch: for GPUs). What every walk
-// shares (the box and triangle tests, the walk state, the threaded walk of one tree, which two-level
-// scenes use at both levels) is accel/walk_tree.wgsl.
+// The single-level walk is walk_scene, a two-level scene's walk of an instance's bottom level
+// walk_bottom_level, both from accel/walk_threaded.wgsl; geometry laid out 4-wide swaps in
+// accel/walk_wide.wgsl (a stack, four boxes a fetch: for GPUs). What every walk shares (the box and
+// triangle tests, the walk state, the threaded walk of one tree, which a two-level scene's top level
+// always takes) is accel/walk_tree.wgsl.
 
 // #import accel/geometry_bindings.wgsl
 // #import accel/traversal_lanes.wgsl
@@ -72,12 +73,10 @@ fn trace_ray_pair(origin: vec3f, dir: vec3f, t_max: f32, shadow_origin: vec3f, s
                 let instance = node.triangles >> LEAF_COUNT_BITS;
                 let entry = instance_entry(node_count, instance);
                 let object_dir = entry.to_object * vec4f(dir, 0.0);
-                walk_tree(&state, traversal_ray(entry.to_object * vec4f(origin, 1.0), object_dir),
-                          traversal_ray(entry.to_object * vec4f(shadow_origin, 1.0),
-                                        entry.to_object * vec4f(shadow_dir, 0.0)),
-                          shadow_length,
-                          entry.first_node + entry.node_count * (packet_octant(object_dir) % entry.orderings),
-                          entry.node_count, instance);
+                walk_bottom_level(&state, traversal_ray(entry.to_object * vec4f(origin, 1.0), object_dir),
+                                  traversal_ray(entry.to_object * vec4f(shadow_origin, 1.0),
+                                                entry.to_object * vec4f(shadow_dir, 0.0)),
+                                  shadow_length, entry, object_dir, instance);
             }
         }
         if state.hit_instance != NO_INSTANCE {   // the stored triangle hit → its placed number

@@ -32,8 +32,10 @@ fn bvh_node(index: u32) -> BvhNode {
     return BvhNode(bitcast<vec3f>(head.xyz), head.w, bitcast<vec3f>(tail.xyz), tail.w);
 }
 
-fn wide_node(index: u32) -> WideNode {
-    let at = (WIDE_NODE_WORDS / 4u) * index;
+// Wide node `index` of the tree that starts at node slot `base` (8-word slots: a two-level scene's bottom
+// level follows the top level's threaded nodes).
+fn wide_node(base: u32, index: u32) -> WideNode {
+    let at = (NODE_WORDS / 4u) * base + (WIDE_NODE_WORDS / 4u) * index;
     return WideNode(bitcast<vec4f>(bvh_row(at)), bitcast<vec4f>(bvh_row(at + 1u)), bitcast<vec4f>(bvh_row(at + 2u)),
                     bitcast<vec4f>(bvh_row(at + 3u)), bitcast<vec4f>(bvh_row(at + 4u)),
                     bitcast<vec4f>(bvh_row(at + 5u)), bvh_row(at + 6u));

@@ -59,8 +59,9 @@ fn high_half(part: u32) -> vec4u {
 
 // Lane k fetches words k, 8 + k, 16 + k and 24 + k of the node (lanes 4..7 the node's last word again
 // for the fourth, past its 28), and the rows come out of the broadcasts.
-fn wide_node(index: u32) -> WideNode {
-    let first = WIDE_NODE_WORDS * index;
+// Wide node `index` of the tree that starts at node slot `base` (as accel/traversal_lanes.wgsl's).
+fn wide_node(base: u32, index: u32) -> WideNode {
+    let first = NODE_WORDS * base + WIDE_NODE_WORDS * index;
     let at = first + traversal_lane;
     let words = vec4u(bvh_word(at), bvh_word(at + 8u), bvh_word(at + 16u), bvh_word(min(at + 24u, first + 27u)));
     return WideNode(bitcast<vec4f>(low_half(words.x)), bitcast<vec4f>(high_half(words.x)),

@@ -1,5 +1,6 @@
-// The walk of a single-level scene's tree in the 4-wide layout (wgpu_rt.accel.bvh.wide_nodes), swapped in
-// for accel/walk_threaded.wgsl (wgpu_rt.accel.geometry.GeometryBuffers, layout "wide"). A node's fetch
+// The walk of a tree in the 4-wide layout (wgpu_rt.accel.bvh.wide_nodes), swapped in for
+// accel/walk_threaded.wgsl (layout "wide"): a single-level scene's tree (walk_scene), or each bottom level
+// of a two-level one (walk_bottom_level; its top level stays threaded). A node's fetch
 // (wide_node, from the traversal module) gives the boxes of its four children, tested for both rays as
 // vec4 rows; the children entered are taken nearest first (by the nearer of the two rays' entry
 // distances): the nearest next, the others pushed farthest first. With accel/traversal_lanes.wgsl each
@@ -48,9 +49,10 @@ fn order_pair(keys: ptr<function, vec4f>, refs: ptr<function, vec4u>, entries: p
 // Pushed children carry where the closest-hit ray enters them, so that one which a closer hit found
 // since then has culled is dropped when it comes off the stack, unfetched, once the shadow ray (if any)
 // is done with (for every ray of a packet): it could only matter to that ray.
-fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
-              dir: vec3f) {
-    var stack: array<vec2u, WIDE_STACK_SIZE>;   // (reference, bits of the closest-hit ray's entry)
+// The tree starts at node slot `base`; `instance` names it in hits.
+fn walk_wide_tree(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
+                  base: u32, instance: u32) {
+    var wide_stack: array<vec2u, WIDE_STACK_SIZE>;   // (reference, bits of the closest-hit ray's entry)
     var depth = 0u;
     var next = 0u;   // the root, a wide node
     loop {
@@ -58,12 +60,12 @@ fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: Tr
         if next >= WIDE_LEAF {
             let first = (next & ~WIDE_LEAF) >> LEAF_COUNT_BITS;
             test_triangles(state, ray, shadow_ray, shadow_length, first, first + (next & LEAF_COUNT_MASK),
-                           NO_INSTANCE);
+                           instance);
             // Shadow-only queries (no closest-hit ray) are done at their first blockers.
             if packet_all((*state).occluded && !((*state).hit.t > 0.0)) { break; }
             next = WIDE_EMPTY;
         } else {
-            let node = wide_node(next);
+            let node = wide_node(base, next);
             var refs = node.children;
             var entries = wide_entries(node.lo_x, node.lo_y, node.lo_z, node.hi_x, node.hi_y, node.hi_z, ray,
                                        (*state).hit.t);
@@ -79,9 +81,9 @@ fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: Tr
             next = select(WIDE_EMPTY, refs.x, entered.x != 0u);
             // Farthest first, so the nearer ones come off the stack sooner; at most WIDTH - 1 per level.
             let bits = bitcast<vec4u>(entries);
-            if entered.w != 0u { stack[depth] = vec2u(refs.w, bits.w); }
-            if entered.z != 0u { stack[depth + entered.w] = vec2u(refs.z, bits.z); }
-            if entered.y != 0u { stack[depth + entered.w + entered.z] = vec2u(refs.y, bits.y); }
+            if entered.w != 0u { wide_stack[depth] = vec2u(refs.w, bits.w); }
+            if entered.z != 0u { wide_stack[depth + entered.w] = vec2u(refs.z, bits.z); }
+            if entered.y != 0u { wide_stack[depth + entered.w + entered.z] = vec2u(refs.y, bits.y); }
             depth += entered.y + entered.z + entered.w;
         }
         if next == WIDE_EMPTY {   // off the stack: the nearest pushed child that may still matter
@@ -89,7 +91,7 @@ fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: Tr
                 (*state).loop_passes += 1u;
                 if depth == 0u { break; }
                 depth -= 1u;
-                let pushed = stack[depth];
+                let pushed = wide_stack[depth];
                 if !packet_all((*state).occluded && bitcast<f32>(pushed.y) >= (*state).hit.t) {
                     next = pushed.x;
                     break;
@@ -98,4 +100,16 @@ fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: Tr
             if next == WIDE_EMPTY { break; }
         }
     }
+}
+
+fn walk_scene(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
+              dir: vec3f) {
+    walk_wide_tree(state, ray, shadow_ray, shadow_length, 0u, NO_INSTANCE);
+}
+
+// An instance's bottom level (accel/bvh.wgsl, trace_ray_pair): one wide tree at the entry's first node
+// (no direction-ordered copies: the walk orders the children by distance).
+fn walk_bottom_level(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay,
+                     shadow_length: f32, entry: InstanceEntry, object_dir: vec3f, instance: u32) {
+    walk_wide_tree(state, ray, shadow_ray, shadow_length, entry.first_node, instance);
 }
