@@ -27,18 +27,6 @@
 // loop_passes: how many times the walk's loops went round (see LOOP_BUDGET in trace/trace.wgsl).
 struct RayPairHit { hit: Hit, occluded: bool, geometric_normal: vec3f, loop_passes: u32 }
 
-// How the walk enters an instance: world → object, and where its bottom level's node copies are (copy
-// k at first_node + node_count · k, `orderings` copies). Stored as two node slots after the top level's
-// 8 copies (wgpu_rt.accel.geometry.InstancedGeometry.top_level) and fetched as nodes are, so a packet
-// reads them once (a per-lane read of a storage record costs a loop over the lanes on SIMD drivers).
-struct InstanceEntry { to_object: mat4x3f, first_node: u32, node_count: u32, orderings: u32 }
-
-fn instance_entry(top_count: u32, instance: u32) -> InstanceEntry {
-    let a = bvh_node(8u * top_count + 2u * instance);
-    let b = bvh_node(8u * top_count + 2u * instance + 1u);
-    return InstanceEntry(mat4x3f(a.lo, a.hi, b.lo, b.hi), a.skip, a.triangles, b.skip);
-}
-
 // The closest hit of (origin, dir) in (0, t_max) (t_max = 0: no such ray) and whether anything lies
 // in (0, shadow_length) along (shadow_origin, shadow_dir) (only when trace_shadow).
 //

@@ -1,6 +1,7 @@
 // What every walk of the scene's trees shares (imported by accel/bvh.wgsl and the walk_scene modules,
 // accel/walk_threaded.wgsl and accel/walk_wide.wgsl): a ray prepared for box and triangle tests, the
-// tests, the state a walk carries, and the stackless walk of one threaded tree (walk_tree).
+// tests, the state a walk carries, an instance's entry and the stackless walk of one threaded tree
+// (walk_tree).
 //
 // Boxes: slab test with precomputed 1/dir, each plane's t as (plane − origin) · (1/dir): three
 // roundings, which a far-plane slack after Ize ("Robust BVH Ray Traversal", JCGT 2013) covers, so a ray
@@ -142,6 +143,18 @@ fn test_triangles(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray
         }
         (*state).occluded = (*state).occluded || triangle_hit(shadow_ray, p, shadow_length).x < shadow_length;
     }
+}
+
+// How the walk enters an instance: world → object, and where its bottom level's node copies are (copy
+// k at first_node + node_count · k, `orderings` copies; a wide bottom level is one tree at first_node). Stored as two node slots after the top level's
+// 8 copies (wgpu_rt.accel.geometry.InstancedGeometry.top_level) and fetched as nodes are, so a packet
+// reads them once (a per-lane read of a storage record costs a loop over the lanes on SIMD drivers).
+struct InstanceEntry { to_object: mat4x3f, first_node: u32, node_count: u32, orderings: u32 }
+
+fn instance_entry(top_count: u32, instance: u32) -> InstanceEntry {
+    let a = bvh_node(8u * top_count + 2u * instance);
+    let b = bvh_node(8u * top_count + 2u * instance + 1u);
+    return InstanceEntry(mat4x3f(a.lo, a.hi, b.lo, b.hi), a.skip, a.triangles, b.skip);
 }
 
 // Where the node copy of the top tree (the whole tree of a single-level scene) that suits rays along

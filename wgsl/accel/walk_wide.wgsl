@@ -49,10 +49,16 @@ fn order_pair(keys: ptr<function, vec4f>, refs: ptr<function, vec4u>, entries: p
 // Pushed children carry where the closest-hit ray enters them, so that one which a closer hit found
 // since then has culled is dropped when it comes off the stack, unfetched, once the shadow ray (if any)
 // is done with (for every ray of a packet): it could only matter to that ray.
+
+// The walk's stack of (reference, bits of the closest-hit ray's entry), one per invocation rather than one
+// per walk: a function's array is zeroed at every call, and a path walks once per ray query, a two-level
+// scene once per instance entered (lavapipe, the bunny walked wide at 96²: static 12 %, moving 28 % less
+// time a frame, §22).
+var<private> wide_stack: array<vec2u, WIDE_STACK_SIZE>;
+
 // The tree starts at node slot `base`; `instance` names it in hits.
 fn walk_wide_tree(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay, shadow_length: f32,
                   base: u32, instance: u32) {
-    var wide_stack: array<vec2u, WIDE_STACK_SIZE>;   // (reference, bits of the closest-hit ray's entry)
     var depth = 0u;
     var next = 0u;   // the root, a wide node
     loop {
