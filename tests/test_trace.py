@@ -155,7 +155,8 @@ def test_work_list_matches_reference(gpu, size, item_samples):
     work.record_build(encoder, gpu.upload(counts), gpu.upload(spp), batches=2)
     gpu.device.queue.submit([encoder.finish()])
     expected_pixels, expected_first = work_list_entries(counts, item_samples)
-    items, entries, batch_items = (int(value) for value in gpu.read(work.totals, np.uint32)[:3])
+    items, entries, batch_items, waiting_items, waiting_entries = (
+        int(value) for value in gpu.read(work.totals, np.uint32)[:5])
     assert entries == len(expected_pixels) and batch_items == work.batch_items
     assert items == int(item_counts(counts, item_samples).sum())
     listed = gpu.read(work.entries, np.uint32)[:3 * entries].reshape(-1, 3)
@@ -163,7 +164,9 @@ def test_work_list_matches_reference(gpu, size, item_samples):
     np.testing.assert_array_equal(listed[:, 1], expected_first)
     np.testing.assert_array_equal(listed[:, 2], spp[expected_pixels])
     groups = gpu.read(work.batch_args(2), np.uint32)[:12].reshape(2, 2, 3)   # batch, trace/resolve, xyz
-    waiting = int(item_counts(counts, item_samples)[item_counts(counts, item_samples) > 1].sum())
+    several = item_counts(counts, item_samples) > 1
+    waiting = int(item_counts(counts, item_samples)[several].sum())
+    assert (waiting_items, waiting_entries) == (waiting, int(several.sum()))   # the entries of one item follow
     for batch, (trace_groups, resolve_groups) in enumerate(groups):
         first = batch * work.batch_items
         assert trace_groups.tolist() == [-(-min(max(items - first, 0), work.batch_items) // 64), 1, 1]

@@ -264,7 +264,7 @@ class WorkList:
         self.local_offsets = ctx.storage(8 * pixels, label="work item offsets in their blocks")
         self.run_sums = ctx.storage(4 * 2 * runs, label="work item run sums")
         self.entries = ctx.storage(ENTRY_BYTES * pixels, label="work list entries")
-        self.totals = ctx.storage(16, label="work list totals")
+        self.totals = ctx.storage(32, label="work list totals")   # wgsl/trace/work_list.wgsl, Totals
         self.slots = ctx.storage(SAMPLE_SUMS_BYTES * self.batch_items, label="work item sums")
         self.slot_entries = ctx.storage(4 * self.batch_items, label="work item entries")
         self._batch_args = None

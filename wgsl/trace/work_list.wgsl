@@ -12,7 +12,9 @@ struct Entry {
 struct Totals {
     items: u32,
     entries: u32,
-    batch_items: u32,  // items per batch (the last one may hold fewer)
+    batch_items: u32,     // items per batch (the last one may hold fewer)
+    waiting_items: u32,   // the items of pixels of several items, which come first (their sums wait for
+    waiting_entries: u32, // resolve_items), and those pixels' entries: after them, one item per entry
 }
 
 fn items_of(count: u32, item_samples: u32) -> u32 {

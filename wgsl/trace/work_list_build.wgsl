@@ -139,11 +139,12 @@ fn scan_run_sums(@builtin(local_invocation_index) lane: u32) {
         }
         grand[part] = running;
     }
-    if lane == 0u { totals = Totals(grand.x, grand.y, BATCH_ITEMS); }
     // where the groups of single items start: items before them wait for resolve_items
     storageBarrier();
     let singles = ITEM_SAMPLES * pixel_blocks();
     let waiting = run_sums[singles / 64u] + counts[singles].x;
+    let waiting_entries = run_sums[runs() + singles / 64u] + counts[singles].y;
+    if lane == 0u { totals = Totals(grand.x, grand.y, BATCH_ITEMS, waiting, waiting_entries); }
     for (var batch = lane; batch < BATCHES; batch += 64u) {
         let first = batch * BATCH_ITEMS;
         let items = min(select(0u, grand.x - first, grand.x > first), BATCH_ITEMS);
