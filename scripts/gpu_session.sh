@@ -17,7 +17,8 @@
 # 278 s (tests 157 s), train 288 s (its renders 218 s; the fine-tune was cut to 0.7 of its 3 minutes,
 # since fixed). Next: call 1 with the OIDN peer, DEADLINE=250 PART_LIMIT=200, timeout_s 330: `tests
 # frame` (§22's NVIDIA fixes not yet run there: the low band's tiny ratios, one dispatch test; the frame
-# GPU column now a mean over frames, low band included); call 2 at once: `train` with TRAIN_MINUTES=4,
+# GPU column now a mean over frames, low band included; the moving bunny with wide bottom levels; the
+# targeted pass's entry lookup by subtraction); call 2 at once: `train` with TRAIN_MINUTES=4,
 # PART_LIMIT=300, timeout_s 540 (frames preloaded to the device, the pace judged after the first
 # epoch: how many steps/s once cuDNN has tuned each crop size). Score its model here on lavapipe
 # (data/worlds-heldout-256-local, §21) rather than with `train_check`. `heldout`, `trace`, `nn_variants`
