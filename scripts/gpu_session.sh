@@ -15,14 +15,15 @@
 # Session 22 (H200, BENCHMARKS.md §21) took: nn + frame + heldout_render 390 s, trace 67 s, heldout 238 s
 # (heldout_denoise needs more than 120 s: give it PART_LIMIT=200). Session 23 (§22): tests + frame + nn
 # 278 s (tests 157 s), train 288 s (its renders 218 s; the fine-tune was cut to 0.7 of its 3 minutes,
-# since fixed). Next: call 1 with the OIDN peer, DEADLINE=250 PART_LIMIT=200, timeout_s 330: `tests
-# frame` (§22's NVIDIA fixes not yet run there: the low band's tiny ratios, one dispatch test; the frame
-# GPU column now a mean over frames, low band included; the moving bunny with wide bottom levels; the
-# targeted pass's entry lookup by subtraction); call 2 at once: `train` with TRAIN_MINUTES=4,
-# PART_LIMIT=300, timeout_s 540 (frames preloaded to the device, the pace judged after the first
-# epoch: how many steps/s once cuDNN has tuned each crop size). Score its model here on lavapipe
-# (data/worlds-heldout-256-local, §21) rather than with `train_check`. `heldout`, `trace`, `nn_variants`
-# when a change needs them.
+# since fixed). Next: call 1 with the OIDN peer, DEADLINE=330 PART_LIMIT=200, timeout_s 420: `tests
+# frame trace` (§22's NVIDIA fixes not yet run there: the low band's tiny ratios, one dispatch test; the
+# frame GPU column now a mean over frames, low band included; the moving bunny with wide bottom levels;
+# the targeted pass's entry lookup by subtraction; the wide walk's stack per invocation, for which
+# `trace` compares the walks with §21's figures: without the Mitsuba peer it skips the OptiX column);
+# call 2 at once: `train` with TRAIN_MINUTES=3.5, PART_LIMIT=300, timeout_s 480 (frames preloaded to
+# the device, the pace judged after the first epoch: how many steps/s once cuDNN has tuned each crop
+# size, in the card's history). Score its model here on lavapipe (data/worlds-heldout-256-local, §21)
+# rather than with `train_check`. `heldout` and `nn_variants` when a change needs them.
 #
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p as
 # the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA), nn_variants (§21's: with
