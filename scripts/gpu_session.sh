@@ -101,21 +101,26 @@ for what in "$@"; do
         workers=$(python3 -c "import xdist" 2>/dev/null && echo "-n 8" || echo "")
         part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -q -rs $workers -p no:cacheprovider" ;;
     nn)
+        profile="wgpu-rt profile models/denoiser.onnx --size ${W}x${H}"   # word-split on purpose
         # the default on a discrete GPU with shader-f16 (fp16 storage, f16 math: §21), then fp32 beside it
-        part profile_auto wgpu-rt profile models/denoiser.onnx --size ${W}x${H}
-        part profile_fp32 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32
-        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged fp16-math --repeats 5 ;;
+        part profile_auto $profile
+        part profile_fp32 $profile --precision fp32
+        part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN \
+            --steps staged fp16-math --repeats 5 ;;
     nn_variants)   # §21's comparisons: bounds checks, the padded canvas, each weight fetch, the autotuner
-        part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32
-        part profile_fp16_canvas wgpu-rt profile models/denoiser.onnx --size ${W}x$(( (H + 15) / 16 * 16 )) --precision fp16
-        part profile_fp32_direct wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32 --weight-fetch direct
-        part profile_fp32_staged_weights wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32 --conv-tiling staged-weights
+        profile="wgpu-rt profile models/denoiser.onnx --size ${W}x${H}"
+        part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 $profile --precision fp32
+        part profile_fp16_canvas wgpu-rt profile models/denoiser.onnx --size ${W}x$(( (H + 15) / 16 * 16 )) \
+            --precision fp16
+        part profile_fp32_direct $profile --precision fp32 --weight-fetch direct
+        part profile_fp32_staged_weights $profile --precision fp32 --conv-tiling staged-weights
         # what the autotuner picks per layer among tilings, layouts and fetches (its cache is fresh here)
-        part profile_fp32_autotuned env WGPU_RT_AUTOTUNE=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32
+        part profile_fp32_autotuned env WGPU_RT_AUTOTUNE=1 $profile --precision fp32
         # session 22: every layer of that profile ran ~3.7× slower than un-tuned, while bench_nn ran the
         # same choices in 9.6 ms; the same again from the cache tells a slow GPU state from a profiler bug
-        part profile_fp32_autotuned_cached env WGPU_RT_AUTOTUNE=1 wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp32
-        part bench_nn_variants python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN --steps staged staged-weights direct-weights fp16 fp16-math autotuned --repeats 5 ;;
+        part profile_fp32_autotuned_cached env WGPU_RT_AUTOTUNE=1 $profile --precision fp32
+        part bench_nn_variants python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN \
+            --steps staged staged-weights direct-weights fp16 fp16-math autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
         part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto
