@@ -630,18 +630,29 @@ def test_a_resumed_run_ends_where_the_uninterrupted_one_does(tiny_dataset, tmp_p
 
 @pytest.mark.parametrize("amp_dtype", [torch.bfloat16, torch.float16])
 def test_the_gpu_recipe_trains_and_resumes_a_cpu_checkpoint(amp_dtype, tiny_dataset, tmp_path):
-    """The CUDA path's recipe (planes kept on the device, autocast, a GradScaler for float16) run on the
-    CPU, which torch allows: it resumes a plain CPU run's checkpoint and its own, with finite losses."""
+    """The CUDA path's recipe (planes kept on the device, autocast, a GradScaler for float16, channels-last
+    weights and batches) run on the CPU, which torch allows: it resumes a plain CPU run's checkpoint and
+    its own, with finite losses, and exports the same network as ONNX."""
     from wgpu_rt.train.context import TrainContext
 
     base = dict(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), batch=2, crop_min=12, crop_max=16,
                 widths=(4, 8))
     Trainer(TrainConfig(epochs=1, device="cpu", **base), progress=False).run()
-    gpu_like = TrainContext(torch.device("cpu"), amp_dtype=amp_dtype, keep_data=True)
+    gpu_like = TrainContext(torch.device("cpu"), amp_dtype=amp_dtype, keep_data=True,
+                            memory_format=torch.channels_last)
     resumed = Trainer(TrainConfig(epochs=2, resume=True, **base), progress=False, context=gpu_like)
     assert resumed.epoch == 1 and resumed.train_set._kept == {}
     resumed.run()
     assert resumed.epoch == 2 and np.isfinite(resumed.history[-1]["train_loss"]) and resumed.train_set._kept
+    assert resumed.model.down[0][0].weight.is_contiguous(memory_format=torch.channels_last)
+    import onnxruntime as ort
+
+    onnx_path, _ = resumed.export()
+    x = np.random.default_rng(0).uniform(0, 1, (1, 11, 16, 16)).astype(np.float32)
+    session = ort.InferenceSession(str(onnx_path), providers=["CPUExecutionProvider"])
+    with torch.no_grad():
+        expected = resumed.model.float()(torch.from_numpy(x)).numpy()
+    np.testing.assert_allclose(session.run(None, {session.get_inputs()[0].name: x})[0], expected, atol=1e-4)
     saved = torch.load(resumed.checkpoint_path, weights_only=False)
     assert bool(saved["scaler"]) == (amp_dtype == torch.float16)
     again = TrainContext(torch.device("cpu"), amp_dtype=amp_dtype, keep_data=True)

@@ -34,6 +34,9 @@ class TrainContext:
     world_size: int = 1
     amp_dtype: torch.dtype | None = None     # autocast dtype; None: float32 throughout
     keep_data: bool = False                  # keep the packed training frames on the device (a GPU's memory)
+    # how the weights and batches are laid out: channels last on CUDA, the layout of cuDNN's tensor-core
+    # convolutions in half precision (NCHW makes it transpose around every conv)
+    memory_format: torch.memory_format = torch.contiguous_format
 
     def __post_init__(self):
         self.scaler = torch.amp.GradScaler(self.device.type, enabled=self.amp_dtype == torch.float16)
@@ -52,8 +55,9 @@ class TrainContext:
         return torch.autocast(self.device.type, dtype=self.amp_dtype)
 
     def wrap(self, model: torch.nn.Module) -> torch.nn.Module:
-        """``model`` as trained: replicated across the group under DDP (which copies rank 0's initial
-        weights to every process), else itself."""
+        """``model`` as trained, in ``memory_format`` (in place): replicated across the group under DDP
+        (which copies rank 0's initial weights to every process), else itself."""
+        model.to(memory_format=self.memory_format)
         if not self.distributed:
             return model
         from torch.nn.parallel import DistributedDataParallel
@@ -143,4 +147,6 @@ def training_context(device: str = "auto") -> TrainContext:
     if world_size > 1 and not torch.distributed.is_initialized():
         torch.distributed.init_process_group("nccl" if device_type == "cuda" else "gloo",
                                              rank=rank, world_size=world_size)
-    return TrainContext(torch_device, rank, world_size, amp_dtype, keep_data=device_type == "cuda")
+    on_cuda = device_type == "cuda"
+    return TrainContext(torch_device, rank, world_size, amp_dtype, keep_data=on_cuda,
+                        memory_format=torch.channels_last if on_cuda else torch.contiguous_format)

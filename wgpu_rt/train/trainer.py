@@ -353,6 +353,7 @@ class Trainer:
         import torch
 
         x, y = self.train_set.batch(items, self.rng, self.augmentation, spp)
+        x = x.contiguous(memory_format=self.context.memory_format)
         self.network.train()
         with self.context.autocast():
             prediction = self.network(x)
