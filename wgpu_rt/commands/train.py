@@ -65,8 +65,9 @@ def add_arguments(parser) -> None:
                              "CUDA when torch sees it. Under `torchrun --nproc_per_node=N -m wgpu_rt train ...` "
                              "N processes train one model data-parallel (default: %(default)s)")
     parser.add_argument("--minutes", type=float,
-                        help="time budget: once the first epochs show the pace, cut --epochs to what fits "
-                             "(the learning-rate schedule then decays inside the budget; the card says so)")
+                        help="time budget: after every epoch, --epochs is set to what fits at the pace of the "
+                             "epochs after the first (never more than asked; the learning-rate schedule then "
+                             "decays inside the budget; the card says so)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
