@@ -133,6 +133,10 @@ for what in "$@"; do
         part pipeline python3 benchmarks/bench_pipeline.py --scene cornell --size ${W}x${H} --frames 32 --temporal
         # session 21: a caller's own 5 ms a frame should hide behind the next frame's device work
         part pipeline_host python3 benchmarks/bench_pipeline.py --scene cornell --size ${W}x${H} --frames 32 --temporal --host-ms 5
+        # session 23: the low band's frames cost ~14 ms more wall than the others; its two networks
+        # run on the half- and quarter-resolution canvases, profiled here on their own
+        part profile_half wgpu-rt profile models/denoiser.onnx --size $((W / 2))x$((H / 2))
+        part profile_quarter wgpu-rt profile models/denoiser.onnx --size $((W / 4))x$((H / 4))
         part adaptive_cost python3 benchmarks/bench_adaptive.py --pass-cost --size ${W}x${H} --budgets 4 --scenes cornell sun-room --repeats 5
         part moving python3 benchmarks/bench_moving.py --scene moving --size $SQUARE --frames 40 --denoise
         part moving_bunny python3 benchmarks/bench_moving.py --scene bunny --size $SQUARE --frames 40 --denoise ;;
