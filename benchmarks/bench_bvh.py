@@ -3,7 +3,8 @@ throughput (closest-hit rays per second through wgsl/accel/ray_query.wgsl) with 
 `lanes` (every invocation walks alone) and `packet` (a subgroup walks together, on CPU adapters with
 subgroups), both over the threaded binary layout, and `wide` and `wide packet`, the same two over the
 4-wide layout (wgsl/accel/walk_wide.wgsl); `lanes rows` and `wide rows` are `lanes` and `wide` with
-nodes and vertices fetched as 16-byte rows (wgsl/accel/geometry_rows.wgsl). The rays start at random points all around the mesh, so neighbouring invocations share
+nodes and vertices fetched as 16-byte rows (wgsl/accel/geometry_rows.wgsl); `wide8` and `wide8 rows`
+the wide ones with child boxes quantized to 8 bits (64-byte nodes). The rays start at random points all around the mesh, so neighbouring invocations share
 nothing: the worst case for packets, which the path tracer's neighbouring pixels are not.
 
 Peer: Mitsuba 3 (scalar_rgb, or where the build has none, as on the lent GPUs, the fastest variant
@@ -26,7 +27,8 @@ from wgpu_rt.accel.geometry import LANES_TRAVERSAL, SUBGROUP_TRAVERSAL
 # Columns: name, traversal module, BVH variant (accel.geometry.bvh_variants).
 WALKS = (("lanes", LANES_TRAVERSAL, "threaded"), ("packet", SUBGROUP_TRAVERSAL, "threaded"),
          ("wide", LANES_TRAVERSAL, "wide"), ("wide packet", SUBGROUP_TRAVERSAL, "wide"),
-         ("lanes rows", LANES_TRAVERSAL, "threaded+rows"), ("wide rows", LANES_TRAVERSAL, "wide+rows"))
+         ("lanes rows", LANES_TRAVERSAL, "threaded+rows"), ("wide rows", LANES_TRAVERSAL, "wide+rows"),
+         ("wide8", LANES_TRAVERSAL, "wide8"), ("wide8 rows", LANES_TRAVERSAL, "wide8+rows"))
 
 BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
 

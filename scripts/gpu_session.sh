@@ -123,9 +123,9 @@ for what in "$@"; do
             --steps staged staged-weights direct-weights fp16 fp16-math autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
-        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto
-        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto
-        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp $TRACE_SPP --layouts threaded wide threaded+rows wide+rows auto
+        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows auto
+        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows auto
+        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows auto
         part bvh_rays python3 benchmarks/bench_bvh.py --sizes 100000
         part trace_cornell_checked env WGPU_RT_BOUNDS_CHECKS=1 python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP
         part watertight python3 benchmarks/bench_watertight.py --size $SQUARE --spp $TRACE_SPP ;;

@@ -26,6 +26,8 @@ from wgpu_rt.accel.bvh import (
     WIDTH,
     build_box_bvh,
     build_bvh,
+    dequantized_boxes,
+    quantized_wide_nodes,
     threaded_nodes,
     wide_nodes,
     zero_area,
@@ -39,7 +41,7 @@ BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stan
 EDGE_MARGIN = 1e-4
 # GeometryBuffers' variants (accel.geometry.bvh_variants): each node layout with its walk, and each
 # fetched as rows by the per-invocation traversal (the only one rows are chosen beside)
-LAYOUTS = ("threaded", "wide", "threaded+rows", "wide+rows")
+LAYOUTS = ("threaded", "wide", "wide8", "threaded+rows", "wide+rows", "wide8+rows")
 
 
 def variant_geometry(scene, variant: str, frame: int = 0) -> GeometryBuffers:
@@ -353,6 +355,28 @@ def test_wide_layout_collapses_the_binary_tree(count):
     assert max(levels.values()) * (WIDTH - 1) <= WIDE_STACK_SIZE
     interior = int(np.sum(bvh.nodes["count"] == 0))
     assert len(wide) <= max(1, interior // 2 + 1)
+
+
+@pytest.mark.parametrize("offset, spread", [(0.0, 1.0), (1e5, 1.0), (-3e3, 1e-3), (0.0, 1e4)])
+def test_quantized_wide_boxes_contain_the_boxes(offset, spread):
+    """Layout "wide8": each child's box decoded as the GPU decodes it (f32, origin + q · 2^e) contains the
+    box it stands for, tightly (a few hundredths of its size at most on a grid of 254 steps), far from
+    the origin and for boxes small against their coordinates too; the references are the wide node's,
+    empty slots decode inverted, and a tree of no triangle with area decodes to boxes no ray enters."""
+    rng = np.random.default_rng(7)
+    triangles = (offset + spread * (rng.normal(0, 1, (4000, 1, 3)) + rng.normal(0, 0.02, (4000, 3, 3))))
+    wide = wide_nodes(build_bvh(triangles.astype(np.float32)))
+    words = quantized_wide_nodes(wide)
+    lo, hi = dequantized_boxes(words)
+    used = (wide["children"] != WIDE_EMPTY)[:, None, :]
+    assert np.all(np.where(used, lo <= wide["lo"], True)) and np.all(np.where(used, hi >= wide["hi"], True))
+    union = np.where(used, wide["hi"], -np.inf).max(2) - np.where(used, wide["lo"], np.inf).min(2)   # (N, 3)
+    slack = np.where(used, np.maximum(wide["lo"] - lo, hi - wide["hi"]), 0.0)
+    assert np.all(slack <= 2.5 * union[:, :, None] / 254 + 1e-6 * (abs(offset) + spread))
+    np.testing.assert_array_equal(words[:, 10:14], wide["children"])
+    assert np.all(np.where(used, True, lo > hi))
+    flat = wide_nodes(build_bvh(np.zeros((3, 3, 3), np.float32)))   # no area: a root at +inf
+    assert np.all(np.isinf(dequantized_boxes(quantized_wide_nodes(flat))[0][:, :, 0]))
 
 
 def test_depth_limit_is_enforced(monkeypatch):

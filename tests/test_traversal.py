@@ -19,7 +19,8 @@ from wgpu_rt.trace.trace_pass import BufferPlacement
 
 MODULES = [LANES_TRAVERSAL, SUBGROUP_TRAVERSAL]
 WALKS = [(LANES_TRAVERSAL, "threaded"), (SUBGROUP_TRAVERSAL, "threaded"), (LANES_TRAVERSAL, "wide"),
-         (SUBGROUP_TRAVERSAL, "wide"), (LANES_TRAVERSAL, "threaded+rows"), (LANES_TRAVERSAL, "wide+rows")]
+         (SUBGROUP_TRAVERSAL, "wide"), (LANES_TRAVERSAL, "threaded+rows"), (LANES_TRAVERSAL, "wide+rows"),
+         (LANES_TRAVERSAL, "wide8"), (SUBGROUP_TRAVERSAL, "wide8"), (LANES_TRAVERSAL, "wide8+rows")]
 SIZE = (24, 16)
 
 

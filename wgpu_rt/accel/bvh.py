@@ -389,3 +389,64 @@ def wide_nodes(bvh: Bvh) -> np.ndarray:
     wide["lo"] = np.where(valid[:, None, :], np.transpose(nodes["lo"][safe], (0, 2, 1)), np.inf)
     wide["hi"] = np.where(valid[:, None, :], np.transpose(nodes["hi"][safe], (0, 2, 1)), np.inf)
     return wide
+
+
+# The 4-wide layout with its child boxes quantized to 8 bits a coordinate ("wide8"), 64 bytes a node
+# instead of 112: row 0 the origin (the union of the children's boxes' low corner, f32 x, y, z) and the
+# three axes' biased f32 exponents of the grid step (bytes 0, 1, 2 of word 3); rows 1 and 2 the
+# children's quantized lo x, lo y, lo z, hi x, hi y, hi z (one word each, child k in byte k), then the
+# four child references as in WIDE_NODE_DTYPE; two words of padding. The GPU decodes a coordinate as
+# origin + q · 2^e in f32 (wgsl/accel/wide_node_quantized.wgsl), one rounding, which contains the child's
+# box by construction (quantized_wide_nodes).
+QUANTIZED_WIDE_NODE_WORDS = 16
+QUANTIZED_GRID = 254   # steps across the union's extent: the top step (255) is headroom for rounding
+
+
+def dequantized_boxes(words: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 16) quantized wide node words → their children's (N, 3, 4) lo and hi boxes, decoded in f32
+    exactly as the GPU does (origin + q · 2^e, one rounding: q · 2^e is exact)."""
+    words = np.asarray(words, np.uint32)
+    origin = words[:, :3].view(np.float32)                                            # (N, 3)
+    exponents = (words[:, 3:4] >> np.array([0, 8, 16], np.uint32)) & np.uint32(255)   # (N, 3)
+    step = (exponents << np.uint32(23)).view(np.float32)
+    quantized = ((words[:, 4:10, None] >> np.array([0, 8, 16, 24], np.uint32)) & np.uint32(255)).astype(np.float32)
+    decoded = origin[:, [0, 1, 2, 0, 1, 2], None] + quantized * step[:, [0, 1, 2, 0, 1, 2], None]   # (N, 6, 4)
+    return decoded[:, :3], decoded[:, 3:]
+
+
+def quantized_wide_nodes(wide: np.ndarray) -> np.ndarray:
+    """``wide`` (WIDE_NODE_DTYPE) as (N, QUANTIZED_WIDE_NODE_WORDS) u32 words, each child's box on a grid of
+    QUANTIZED_GRID steps over the union of its node's child boxes, lo rounded down and hi up, then moved
+    a step further wherever the f32 decoding would not contain the box. A step is never below the f32
+    spacing at the node's coordinates, so the last one always reaches past the union. Empty slots decode
+    to an inverted box (the walk skips them by their reference); a node whose boxes are not finite (the
+    root of a tree of no triangle with area) decodes to boxes at +inf, which no ray enters."""
+    lo, hi = wide["lo"].astype(np.float64), wide["hi"].astype(np.float64)            # (N, 3, 4)
+    valid = (wide["children"] != WIDE_EMPTY)[:, None, :]                              # (N, 1, 4)
+    union_lo = np.where(valid, lo, np.inf).min(axis=2)                                # (N, 3)
+    union_hi = np.where(valid, hi, -np.inf).max(axis=2)
+    finite = np.all(np.isfinite(union_lo) & np.isfinite(union_hi), axis=1)           # (N,)
+    union_lo = np.where(finite[:, None], union_lo, 0.0).astype(np.float32)           # the origin, exact in f32
+    union_hi = np.where(finite[:, None], union_hi, 0.0)
+    magnitude = np.maximum(np.abs(union_lo.astype(np.float64)), np.abs(union_hi))
+    spacing = np.floor(np.log2(np.maximum(magnitude, 2.0 ** -100))) - 23             # f32's step there
+    wanted = np.ceil(np.log2(np.maximum((union_hi - union_lo) / QUANTIZED_GRID, 2.0 ** -126)))
+    exponent = np.clip(np.maximum(wanted, spacing), -126, 127).astype(np.int64)      # (N, 3)
+    step = np.ldexp(1.0, exponent)[:, :, None]
+    origin = union_lo.astype(np.float64)[:, :, None]
+    q_lo = np.clip(np.floor((lo - origin) / step), 0, 255)
+    q_hi = np.clip(np.ceil((hi - origin) / step), 0, 255)
+    decode = lambda q: (origin.astype(np.float32) + (q * step).astype(np.float32)).astype(np.float32)  # noqa: E731
+    for _ in range(2):   # one rounding can put a decoded corner just inside the box: a step further out
+        q_lo = np.where((decode(q_lo) > lo.astype(np.float32)) & (q_lo > 0), q_lo - 1, q_lo)
+        q_hi = np.where((decode(q_hi) < hi.astype(np.float32)) & (q_hi < 255), q_hi + 1, q_hi)
+    q_lo = np.where(valid, q_lo, 255).astype(np.uint32)
+    q_hi = np.where(valid, q_hi, 0).astype(np.uint32)
+    words = np.zeros((len(wide), QUANTIZED_WIDE_NODE_WORDS), np.uint32)
+    words[:, :3] = np.where(finite[:, None], union_lo, np.float32(np.inf)).view(np.uint32)
+    biased = np.where(finite[:, None], exponent + 127, 127).astype(np.uint32)
+    words[:, 3] = biased[:, 0] | biased[:, 1] << 8 | biased[:, 2] << 16
+    packed = np.concatenate([q_lo, q_hi], axis=1)                                     # (N, 6, 4)
+    words[:, 4:10] = packed[:, :, 0] | packed[:, :, 1] << 8 | packed[:, :, 2] << 16 | packed[:, :, 3] << 24
+    words[:, 10:14] = wide["children"]
+    return words

@@ -31,13 +31,16 @@ from .. import shaders
 from .bvh import (
     LEAF_COUNT_BITS,
     ORDERINGS,
+    QUANTIZED_WIDE_NODE_WORDS,
     THREADED_NODE_DTYPE,
     WIDE_EMPTY,
     WIDE_LEAF,
+    WIDE_NODE_DTYPE,
     Bvh,
     build_box_bvh,
     build_bvh,
     ordered_threaded_nodes,
+    quantized_wide_nodes,
     wide_nodes,
 )
 from ..errors import SceneError
@@ -51,7 +54,11 @@ LEAF_MASK = (1 << LEAF_COUNT_BITS) - 1
 # accel/bvh.wgsl imports THREADED_WALK; a geometry's walk_module names the one its node layout needs.
 THREADED_WALK = "accel/walk_threaded.wgsl"
 WIDE_WALK = "accel/walk_wide.wgsl"
-BVH_LAYOUTS = {"threaded": THREADED_WALK, "wide": WIDE_WALK}
+# layout -> the module that walks it; "wide8" is "wide" with its boxes quantized to 8 bits (64-byte nodes)
+BVH_LAYOUTS = {"threaded": THREADED_WALK, "wide": WIDE_WALK, "wide8": WIDE_WALK}
+# accel/walk_wide.wgsl imports WIDE_NODE_FULL; layout "wide8" swaps in QUANTIZED_WIDE_NODE
+WIDE_NODE_FULL = "accel/wide_node_full.wgsl"
+QUANTIZED_WIDE_NODE = "accel/wide_node_quantized.wgsl"
 BVH_LAYOUT_ENV = "WGPU_RT_BVH"
 
 
@@ -66,13 +73,19 @@ def geometry_modules(geometry) -> dict:
     modules = {NO_INSTANCES: geometry.instances_module, THREADED_WALK: geometry.walk_module}
     if geometry.row_loads:
         modules[GEOMETRY_WORDS] = GEOMETRY_ROWS
+    if geometry.layout == "wide8":
+        modules[WIDE_NODE_FULL] = QUANTIZED_WIDE_NODE
     return modules
 
 
 def bvh_variants(traversal: str) -> list[str]:
-    """The ways a single-level scene can be laid out and fetched for ``traversal``: each node layout, and
-    beside the per-invocation traversal each also fetched as rows (a subgroup packet fetches words)."""
-    return [*BVH_LAYOUTS, *(f"{layout}{ROW_LOADS}" for layout in BVH_LAYOUTS if traversal == LANES_TRAVERSAL)]
+    """The ways a single-level scene can be laid out and fetched for ``traversal`` (what bvh_choice
+    measures): the threaded and the wide layout, and beside the per-invocation traversal also "wide8"
+    (whose nodes each invocation decodes for itself, where a subgroup packet would fetch them together)
+    and each layout fetched as rows (a subgroup packet fetches words). Any of them traces correctly with
+    either traversal."""
+    layouts = [layout for layout in BVH_LAYOUTS if layout != "wide8" or traversal == LANES_TRAVERSAL]
+    return [*layouts, *(f"{layout}{ROW_LOADS}" for layout in layouts if traversal == LANES_TRAVERSAL)]
 
 
 def bvh_layout() -> str:
@@ -165,6 +178,12 @@ class GeometryBuffers:
         """The BVH as 4-wide nodes (layout "wide"), collapsed on first use."""
         return wide_nodes(self.bvh)
 
+    def _nodes(self, orderings: int) -> np.ndarray:
+        """Binding 0 in this layout: ``orderings`` threaded copies, the wide nodes, or them quantized."""
+        if self.layout == "threaded":
+            return ordered_threaded_nodes(self.bvh, orderings)
+        return quantized_wide_nodes(self.wide_nodes) if self.layout == "wide8" else self.wide_nodes
+
     @classmethod
     def build(cls, scene: Scene, frame: int = 0) -> "GeometryBuffers":
         """``scene``'s triangles at ``frame`` and their BVH, laid out threaded (``as_variant`` for others)."""
@@ -208,14 +227,13 @@ class GeometryBuffers:
         """The four arrays of bind group 0, laid out byte for byte as wgsl/accel/bvh.wgsl reads them."""
         positions, attributes = _pack_triangles(self.triangles, self.shading_normals, self.material_ids,
                                                 self.object_ids)
-        nodes = self.wide_nodes if self.layout == "wide" else ordered_threaded_nodes(self.bvh, orderings)
-        return [nodes, positions, attributes, _column_major(self.object_motion)]
+        return [self._nodes(orderings), positions, attributes, _column_major(self.object_motion)]
 
     @property
     def fits_uniform(self) -> bool:
         """Whether the nodes and positions fit UNIFORM_GEOMETRY_WORDS' buffers."""
-        node_bytes = (self.wide_nodes.nbytes if self.layout == "wide"
-                      else ORDERINGS * self.bvh.node_count * THREADED_NODE_DTYPE.itemsize)
+        node_bytes = (ORDERINGS * self.bvh.node_count * THREADED_NODE_DTYPE.itemsize if self.layout == "threaded"
+                      else self._nodes(ORDERINGS).nbytes)
         return _fits_uniform(node_bytes, self.triangle_count)
 
     def upload(self, ctx, uniform_words: bool = False) -> list:
@@ -455,9 +473,10 @@ class InstancedGeometry:
     def _level_slots(self, orderings: int) -> np.ndarray:
         """Node slots (THREADED_NODE_DTYPE's 32 bytes) of each bottom level: ``orderings`` threaded copies,
         or its wide nodes (112 bytes each) rounded up to whole slots."""
-        if self.layout == "wide":
-            slot = THREADED_NODE_DTYPE.itemsize
-            return np.array([-(-wide.nbytes // slot) for wide in self._wide_levels], np.int64)
+        if self.layout != "threaded":
+            node_bytes = 4 * QUANTIZED_WIDE_NODE_WORDS if self.layout == "wide8" else WIDE_NODE_DTYPE.itemsize
+            return np.array([-(-len(wide) * node_bytes // THREADED_NODE_DTYPE.itemsize) for wide in self._wide_levels],
+                            np.int64)
         return orderings * self._node_counts
 
     @functools.cached_property
@@ -473,6 +492,12 @@ class InstancedGeometry:
             children[leaf] += np.uint32(first_triangle << LEAF_COUNT_BITS)
         return levels
 
+    def _wide_level_nodes(self) -> list[np.ndarray]:
+        """The bottom levels' wide nodes as binding 0 holds them: as they are, or quantized ("wide8")."""
+        if self.layout == "wide8":
+            return [quantized_wide_nodes(wide) for wide in self._wide_levels]
+        return self._wide_levels
+
     def orderings(self, ctx) -> int:
         """Direction-ordered copies of each threaded bottom level to upload: ORDERINGS, or 1 where that
         many exceed one storage binding (as GeometryBuffers.orderings); wide ones have none."""
@@ -483,10 +508,10 @@ class InstancedGeometry:
     def bottom_nodes(self, orderings: int = ORDERINGS) -> np.ndarray:
         """Every bottom level's nodes, one level after another, as 32-byte slots: ``orderings`` threaded
         copies, or its wide nodes (zero-padded to whole slots)."""
-        if self.layout == "wide":
+        if self.layout != "threaded":
             slot = THREADED_NODE_DTYPE.itemsize
             return np.frombuffer(b"".join(wide.tobytes().ljust(-(-wide.nbytes // slot) * slot, b"\0")
-                                          for wide in self._wide_levels), THREADED_NODE_DTYPE)
+                                          for wide in self._wide_level_nodes()), THREADED_NODE_DTYPE)
         nodes = [ordered_threaded_nodes(bvh, orderings) for bvh in self._bvhs]
         for threaded, first_triangle in zip(nodes, self._first_triangles):
             threaded["triangles"] += np.uint32(first_triangle << LEAF_COUNT_BITS)

@@ -1,7 +1,8 @@
 // The walk of a tree in the 4-wide layout (wgpu_rt.accel.bvh.wide_nodes), swapped in for
 // accel/walk_threaded.wgsl (layout "wide"): a single-level scene's tree (walk_scene), or each bottom level
-// of a two-level one (walk_bottom_level; its top level stays threaded). A node's fetch
-// (wide_node, from the traversal module) gives the boxes of its four children, tested for both rays as
+// of a two-level one (walk_bottom_level; its top level stays threaded). A node's fetch (fetch_wide:
+// accel/wide_node_full.wgsl, or with layout "wide8" accel/wide_node_quantized.wgsl, its boxes stored
+// in 8 bits a coordinate) gives the boxes of its four children, tested for both rays as
 // vec4 rows; the children entered are taken nearest first (by the nearer of the two rays' entry
 // distances): the nearest next, the others pushed farthest first. With accel/traversal_lanes.wgsl each
 // invocation walks alone, ordered by its own distances; with accel/traversal_subgroup.wgsl the subgroup
@@ -10,6 +11,7 @@
 // diverges.
 
 // #import accel/walk_tree.wgsl
+// #import accel/wide_node_full.wgsl
 
 const WIDE_LEAF: u32 = 0x80000000u;              // wgpu_rt.accel.bvh.WIDE_LEAF
 const WIDE_EMPTY: u32 = 0xffffffffu;             // wgpu_rt.accel.bvh.WIDE_EMPTY
@@ -71,7 +73,7 @@ fn walk_wide_tree(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray
             if packet_all((*state).occluded && !((*state).hit.t > 0.0)) { break; }
             next = WIDE_EMPTY;
         } else {
-            let node = wide_node(base, next);
+            let node = fetch_wide(base, next);
             var refs = node.children;
             var entries = wide_entries(node.lo_x, node.lo_y, node.lo_z, node.hi_x, node.hi_y, node.hi_z, ray,
                                        (*state).hit.t);
