@@ -18,8 +18,9 @@
 # since fixed). Next: call 1 with the OIDN peer, DEADLINE=330 PART_LIMIT=200, timeout_s 420: `tests
 # frame trace` (§22's NVIDIA fixes not yet run there: the low band's tiny ratios, one dispatch test; the
 # frame GPU column now a mean over frames, low band included; the moving bunny with wide bottom levels;
-# the targeted pass's entry lookup by subtraction; the wide walk's stack per invocation, for which
-# `trace` compares the walks with §21's figures: without the Mitsuba peer it skips the OptiX column);
+# the targeted pass's entry lookup by subtraction; the wide walk's stack per invocation and the
+# quantized wide layout wide8, for which `trace` compares the walks with §21's figures: without the
+# Mitsuba peer it skips the OptiX column);
 # call 2 at once: `train` with TRAIN_MINUTES=3.5, PART_LIMIT=300, timeout_s 480 (frames preloaded to
 # the device, the pace judged after the first epoch: how many steps/s once cuDNN has tuned each crop
 # size, in the card's history). Score its model here on lavapipe (data/worlds-heldout-256-local, §21)
