@@ -4,6 +4,8 @@
 // byte k), then the four references. A coordinate decodes as origin + q · 2^e (one rounding: q · 2^e is
 // exact), which contains the child's box by construction. Each invocation fetches its own rows.
 
+// #import accel/geometry_bindings.wgsl
+
 fn wide_bytes(word: u32) -> vec4f {
     return vec4f((vec4u(word) >> vec4u(0u, 8u, 16u, 24u)) & vec4u(255u));
 }
