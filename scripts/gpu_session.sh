@@ -15,7 +15,7 @@
 # Session 22 (H200, BENCHMARKS.md §21) took: nn + frame + heldout_render 390 s, trace 67 s, heldout 238 s
 # (heldout_denoise needs more than 120 s: give it PART_LIMIT=200). Session 23 (§22): tests + frame + nn
 # 278 s (tests 157 s), train 288 s (its renders 218 s; the fine-tune was cut to 0.7 of its 3 minutes,
-# since fixed). Next: call 1 with the OIDN peer, DEADLINE=330 PART_LIMIT=200, timeout_s 420: `tests
+# since fixed). Next: call 1 with the OIDN peer, DEADLINE=300 PART_LIMIT=200, timeout_s 450: `tests
 # frame trace` (§22's NVIDIA fixes not yet run there: the low band's tiny ratios, one dispatch test; the
 # frame GPU column now a mean over frames, low band included; the moving bunny with wide bottom levels;
 # the targeted pass's entry lookup by subtraction; the wide walk's stack per invocation and the
