@@ -21,7 +21,7 @@
 # the targeted pass's entry lookup by subtraction; the wide walk's stack per invocation and the
 # quantized wide layout wide8, for which `trace` compares the walks with §21's figures: without the
 # Mitsuba peer it skips the OptiX column);
-# call 2 at once: `train` with TRAIN_MINUTES=3.5, PART_LIMIT=300, timeout_s 480 (frames preloaded to
+# call 2 at once: `train` with TRAIN_MINUTES=3, PART_LIMIT=300, timeout_s 450 (frames preloaded to
 # the device, the pace judged after the first epoch: how many steps/s once cuDNN has tuned each crop
 # size, in the card's history). Score its model here on lavapipe (data/worlds-heldout-256-local, §21)
 # rather than with `train_check`. `heldout` and `nn_variants` when a change needs them.
