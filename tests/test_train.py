@@ -336,6 +336,47 @@ def test_a_fine_tune_one_level_deeper_starts_as_the_shallower_model_and_trains_t
                 progress=False)
 
 
+def _embedded(narrow: UNet, wide: UNet) -> UNet:
+    """``wide`` holding ``narrow``'s weights in its leading channels (a concat merge's skip half at its
+    own offset) and zeros elsewhere: the same function in more channels."""
+    state = {}
+    for name, target in wide.state_dict().items():
+        source, value = narrow.state_dict()[name], torch.zeros_like(target)
+        if name.startswith("merge.") and name.endswith(".0.weight"):   # cat([from below, skip])
+            half, narrow_half = target.shape[1] // 2, source.shape[1] // 2
+            value[:source.shape[0], :narrow_half] = source[:, :narrow_half]
+            value[:source.shape[0], half:half + narrow_half] = source[:, narrow_half:]
+        else:
+            value[tuple(slice(0, size) for size in source.shape)] = source
+        state[name] = value
+    wide.load_state_dict(state)
+    return wide
+
+
+@pytest.mark.parametrize("bottom_merge", ["concat", "add"])
+def test_a_fine_tune_into_narrower_widths_keeps_the_channels_that_matter(tiny_dataset, tmp_path, bottom_merge):
+    """--widths narrower than the base model's at every level: each activation keeps the channels whose
+    filters weigh most, and each layer reads the channels its producers kept, so a wide network whose
+    extra channels are all zero starts the fine-tune as exactly the narrow one it holds."""
+    torch.manual_seed(8)
+    narrow = UNet(widths=(4, 6, 8), bottom_merge=bottom_merge).eval()
+    wide = _embedded(narrow, UNet(widths=(6, 8, 12), bottom_merge=bottom_merge)).eval()
+    x = torch.rand(2, DENOISER.input_channels, 16, 16)
+    with torch.no_grad():
+        np.testing.assert_allclose(wide(x).numpy(), narrow(x).numpy(), atol=1e-6)
+    onnx_path = export_onnx(wide, tmp_path / "wide.onnx")
+    tuned = Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out"), epochs=1,
+                                batch=2, crop_min=12, crop_max=16, widths=(4, 6, 8), bottom_merge=bottom_merge,
+                                init_from=str(onnx_path)),
+                    progress=False)
+    with torch.no_grad():
+        np.testing.assert_allclose(tuned.model.eval().cpu()(x).numpy(), narrow(x).numpy(), atol=1e-6)
+    with pytest.raises(TrainingError, match="not a denoiser with these --widths"):   # wider than the base
+        Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out2"), epochs=1,
+                            batch=2, crop_min=12, crop_max=16, widths=(8, 8, 12), bottom_merge=bottom_merge,
+                            init_from=str(onnx_path)), progress=False)
+
+
 def test_a_fine_tune_of_an_exported_model_carries_its_card(tiny_dataset, tmp_path):
     """The card of a model fine-tuned from an .onnx names the file by digest and appends the base's own card
     (an exported model keeps no history, so its card is the only record of how it was made)."""

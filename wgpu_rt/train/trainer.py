@@ -301,7 +301,7 @@ class Trainer:
         except Exception as err:  # onnx raises several types for missing or corrupt files
             raise TrainingError(f"{path}: cannot read this ONNX model ({err})") from None
         expected = self.model.state_dict()
-        weights = _deepened(_with_new_input_channels(weights, expected), expected)
+        weights = _narrowed(_deepened(_with_new_input_channels(weights, expected), expected), expected)
         wrong = [name for name, tensor in expected.items()
                  if name not in weights or tuple(weights[name].shape) != tuple(tensor.shape)]
         if wrong:
@@ -667,6 +667,72 @@ def _deepened(weights: dict, expected: dict) -> dict:
     zeros = np.zeros(bottom_width, np.float32)
     return moved | {"merge.0.0.weight": first, "merge.0.0.bias": zeros,
                     "merge.0.2.weight": second, "merge.0.2.bias": zeros}
+
+
+def _narrowed(weights: dict, expected: dict) -> dict:
+    """``weights`` of a U-Net with the levels of ``expected``'s but wider ones, cut down to its widths by
+    keeping at each activation the channels whose filters weigh most (L1 norm; pruning to start a
+    fine-tune of a cheaper network from a trained one). Every layer keeps the input channels its producer
+    kept: a level's output feeds its skip, the next level down and, under an add merge, the sum with what
+    comes up (whose channels are chosen by both producers' filters together); a concat merge reads the
+    transposed conv's kept channels, then the skip's. A network whose dropped channels were all zero
+    computes what it did. Anything else is returned as it is, for the shape check to report."""
+    def width(name: str, axis: int = 0) -> int | None:
+        return weights[name].shape[axis] if name in weights else None
+
+    levels = len({name.split(".")[1] for name in expected if name.startswith("down.")})
+    names = [f"down.{level}.2.weight" for level in range(levels)]
+    if any(name not in weights or weights[name].ndim != 4 for name in names):
+        return weights
+    old = [width(name) for name in names]
+    new = [expected[name].shape[0] for name in names]
+    if old == new or any(n > o for n, o in zip(new, old)) or width("down.0.0.weight", 1) != expected[
+            "down.0.0.weight"].shape[1]:
+        return weights
+
+    def strongest(norms: np.ndarray, count: int) -> np.ndarray:
+        return np.sort(np.argsort(-norms, kind="stable")[:count])
+
+    def out_norms(name: str, transposed: bool = False) -> np.ndarray:
+        value = np.abs(weights[name])
+        return value.sum(axis=(0, 2, 3)) if transposed else value.sum(axis=(1, 2, 3))
+
+    out = {}   # layer → its kept output channels
+    kept_in = {}
+    add_merge = "merge.0.0.weight" not in weights
+    summed = levels - 2   # the level an add merge sums into
+    for level in range(levels):
+        out[f"down.{level}.0"] = strongest(out_norms(f"down.{level}.0.weight"), new[level])
+        norms = out_norms(f"down.{level}.2.weight")
+        if add_merge and level == summed:
+            norms = norms + out_norms("up.0.weight", transposed=True)
+        out[f"down.{level}.2"] = strongest(norms, new[level])
+        kept_in[f"down.{level}.0"] = (np.arange(width("down.0.0.weight", 1)) if level == 0
+                                      else out[f"down.{level - 1}.2"])
+        kept_in[f"down.{level}.2"] = out[f"down.{level}.0"]
+    below = out[f"down.{levels - 1}.2"]
+    for j in range(levels - 1):
+        level = levels - 2 - j
+        kept_in[f"up.{j}"] = below
+        if add_merge and j == 0:
+            out["up.0"] = below = out[f"down.{level}.2"]
+            continue
+        out[f"up.{j}"] = strongest(out_norms(f"up.{j}.weight", transposed=True), new[level])
+        kept_in[f"merge.{j}.0"] = np.concatenate([out[f"up.{j}"], old[level] + out[f"down.{level}.2"]])
+        out[f"merge.{j}.0"] = strongest(out_norms(f"merge.{j}.0.weight"), new[level])
+        kept_in[f"merge.{j}.2"] = out[f"merge.{j}.0"]
+        out[f"merge.{j}.2"] = below = strongest(out_norms(f"merge.{j}.2.weight"), new[level])
+    kept_in["head"] = below
+    narrowed = dict(weights)
+    for layer, inputs in kept_in.items():
+        weight, bias = weights[f"{layer}.weight"], weights[f"{layer}.bias"]
+        outputs = out.get(layer, np.arange(weight.shape[1 if layer.startswith("up.") else 0]))
+        if layer.startswith("up."):   # ConvTranspose2d: (in, out, kh, kw)
+            narrowed[f"{layer}.weight"] = weight[inputs][:, outputs]
+        else:
+            narrowed[f"{layer}.weight"] = weight[outputs][:, inputs]
+        narrowed[f"{layer}.bias"] = bias[outputs]
+    return narrowed
 
 
 def train(config: TrainConfig, progress: bool = True) -> dict | None:
