@@ -63,7 +63,9 @@ GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 # gold in 76–85 s; the rest estimated): held-out render 80 s (once), training worlds ~150 s (+ ~40 s of
 # built-in and 96² views), training TRAIN_MINUTES; then scoring ~40 s, §14's checks ~60 s each
 TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
-TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}   # with the estimates above, ~9 min in all
+TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}
+# TRAIN_WIDTHS: the fine-tune's U-Net widths; narrower ones start from the shipped model's heaviest
+# channels (§22: "12 24 48 96 96", 0.57× its FLOPs)   # with the estimates above, ~9 min in all
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
 CHECK_VIEW=$([ $small = 1 ] && echo 48 || echo 128); CHECK_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 CHECK_SCENES="cornell cornell-glossy sun-room world-2147483661 world-2147483667 world-2147483660 world-2147483665
@@ -167,7 +169,7 @@ for what in "$@"; do
             --spp 1,2,4,16,64 --noisy-copies 2 --gold $TRAIN_GOLD --sequence-fraction 0 --seed 19 \
             --out data/worlds-train-small --quiet
         part train wgpu-rt train denoiser --data $data --extra-data data/builtin-$VIEW data/worlds-train-small \
-            --init-from models/denoiser.onnx --widths 16 32 64 128 128 \
+            --init-from models/denoiser.onnx --widths ${TRAIN_WIDTHS:-16 32 64 128 128} \
             --bottom-merge add --epochs 400 --minutes $TRAIN_MINUTES --batch 8 --crop $((VIEW / 2)) $VIEW --lr 1e-4 \
             --curriculum any --ssim-space display --lowpass 2 --validate-every 50 --device auto \
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet
