@@ -436,7 +436,9 @@ def quantized_wide_nodes(wide: np.ndarray) -> np.ndarray:
     origin = union_lo.astype(np.float64)[:, :, None]
     q_lo = np.clip(np.floor((lo - origin) / step), 0, 255)
     q_hi = np.clip(np.ceil((hi - origin) / step), 0, 255)
-    decode = lambda q: (origin.astype(np.float32) + (q * step).astype(np.float32)).astype(np.float32)  # noqa: E731
+    def decode(q):   # as the GPU does: q · step is exact, the sum rounds once
+        return (origin.astype(np.float32) + (q * step).astype(np.float32)).astype(np.float32)
+
     for _ in range(2):   # one rounding can put a decoded corner just inside the box: a step further out
         q_lo = np.where((decode(q_lo) > lo.astype(np.float32)) & (q_lo > 0), q_lo - 1, q_lo)
         q_hi = np.where((decode(q_hi) < hi.astype(np.float32)) & (q_hi < 255), q_hi + 1, q_hi)
