@@ -78,6 +78,11 @@ def geometry_modules(geometry) -> dict:
     return modules
 
 
+def wide_node_bytes(layout: str) -> int:
+    """Bytes of one node of a wide ``layout`` in binding 0: 112 ("wide"), or 64 quantized ("wide8")."""
+    return 4 * QUANTIZED_WIDE_NODE_WORDS if layout == "wide8" else WIDE_NODE_DTYPE.itemsize
+
+
 def bvh_variants(traversal: str) -> list[str]:
     """The ways a single-level scene can be laid out and fetched for ``traversal`` (what bvh_choice
     measures): the threaded and the wide layout, and beside the per-invocation traversal also "wide8"
@@ -233,7 +238,7 @@ class GeometryBuffers:
     def fits_uniform(self) -> bool:
         """Whether the nodes and positions fit UNIFORM_GEOMETRY_WORDS' buffers."""
         node_bytes = (ORDERINGS * self.bvh.node_count * THREADED_NODE_DTYPE.itemsize if self.layout == "threaded"
-                      else self._nodes(ORDERINGS).nbytes)
+                      else len(self.wide_nodes) * wide_node_bytes(self.layout))   # sized, not packed
         return _fits_uniform(node_bytes, self.triangle_count)
 
     def upload(self, ctx, uniform_words: bool = False) -> list:
@@ -474,7 +479,7 @@ class InstancedGeometry:
         """Node slots (THREADED_NODE_DTYPE's 32 bytes) of each bottom level: ``orderings`` threaded copies,
         or its wide nodes (112 bytes each) rounded up to whole slots."""
         if self.layout != "threaded":
-            node_bytes = 4 * QUANTIZED_WIDE_NODE_WORDS if self.layout == "wide8" else WIDE_NODE_DTYPE.itemsize
+            node_bytes = wide_node_bytes(self.layout)
             return np.array([-(-len(wide) * node_bytes // THREADED_NODE_DTYPE.itemsize) for wide in self._wide_levels],
                             np.int64)
         return orderings * self._node_counts
