@@ -55,13 +55,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, gold_render, hdr_pipeline, linear_frame, denoiser_options,
+from common import (image_size, add_gold_arguments, add_model_arguments, gold_render, hdr_pipeline, linear_frame, denoiser_options,
                     load_scenes, parse_with_quick_defaults, print_header, print_table, resolve_models,
                     save_array, save_figure, trimmed_rel_mse)
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.adaptive import EXTRA_SAMPLES, MAX_HEAT_SAMPLES, AdaptiveSettings
-from wgpu_rt.renderer import parse_size, render
+from wgpu_rt.renderer import render
 
 UNIFORM_SPP = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64]
 QUICK = {"size": "32x32", "budgets": [2, 4, 8], "seeds": 1, "gold_spp": 2048, "uniform": [1, 2, 4, 8, 16, 32]}
@@ -75,7 +75,7 @@ ORACLE_SEED = 1000   # the oracle's 1-spp renders use seeds ORACLE_SEED..; the r
 def parse_args():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=["cornell", "cornell-glossy", "sun-room", "bunny"])
-    parser.add_argument("--size", default="96x96")
+    parser.add_argument("--size", type=image_size, default="96x96")
     parser.add_argument("--budgets", type=float, nargs="+", default=[2, 4, 8, 16])
     parser.add_argument("--uniform", type=int, nargs="+", default=UNIFORM_SPP,
                         help="spp of the brute-force uniform reference curve")
@@ -360,7 +360,7 @@ def main() -> None:
     args = parse_args()
     resolve_models(args)
     print_header(args)
-    size = parse_size(args.size)
+    size = args.size
     if args.pass_cost:
         pass_cost(args, size)
         return

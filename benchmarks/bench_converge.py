@@ -24,19 +24,19 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, gold_render, load_scenes, denoiser_options, print_header,
+from common import (image_size, add_gold_arguments, add_model_arguments, gold_render, load_scenes, denoiser_options, print_header,
                     print_table, resolve_models)
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.converge import CONVERGE_CAP_SCALE, CONVERGE_RADIUS, converge, half_count
 from wgpu_rt.frame.denoise import denoise, load_model
-from wgpu_rt.renderer import parse_size, render
+from wgpu_rt.renderer import render
 
 
 def parse_args():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=["cornell", "cornell-glossy", "sun-room"])
-    parser.add_argument("--size", default="64x64")
+    parser.add_argument("--size", type=image_size, default="64x64")
     parser.add_argument("--spp", type=int, nargs="+", default=[2, 4, 8, 16, 64, 256])
     parser.add_argument("--k", type=float, nargs="+", default=[8, 32, 128, 512, 2048])
     parser.add_argument("--radius", type=int, default=CONVERGE_RADIUS)
@@ -55,7 +55,7 @@ def main() -> None:
     args = parse_args()
     resolve_models(args)
     print_header(args)
-    size = parse_size(args.size)
+    size = args.size
     model = load_model("denoiser", args.precision, args.models)
     names = [*(f"k={k:g}" for k in args.k), "n-only", "linear", "per-pixel"]
     losses, above_raw, falls, psnrs = [], [], [], []

@@ -1,6 +1,8 @@
 """Fused frame pipeline cost: per-stage GPU time (timestamp queries) and wall time per frame of
-denoise (+ adaptive, + temporal) against the plain 1-spp trace measured in the same run; on frames that
-take the denoiser's half-resolution low band (256 pixels a side and up), the fused pipeline without it too.
+denoise (+ adaptive, + temporal) against the plain 1-spp trace measured in the same run; the fused
+pipeline again reading back only the display image (``hdr=False``: what a viewer needs; the other rows also
+read back the linear HDR colour, 12 bytes a pixel); on frames that take the denoiser's half-resolution low
+band (256 pixels a side and up), the fused pipeline without it too.
 
 Frames are consumed as a real-time caller would (each dropped before the next arrives; keeping them all
 would time the operating system handing out fresh pages); ``--host-ms`` adds a caller's own work per
@@ -16,8 +18,9 @@ import time
 
 import numpy as np
 
+from common import image_size
 from wgpu_rt.frame.lowband import uses_low_band
-from wgpu_rt.renderer import Renderer, parse_size
+from wgpu_rt.renderer import Renderer
 from wgpu_rt.scene import load_scene
 
 
@@ -40,20 +43,20 @@ def timed(scene, frames, host_ms=0.0, **settings):
 
 
 def line(name, per_frame, stages, gpu):
-    return (f"{name:18s}: {per_frame * 1e3:8.1f} ms/frame  GPU {gpu * 1e3:.1f}  "
+    return (f"{name:19s}: {per_frame * 1e3:8.1f} ms/frame  GPU {gpu * 1e3:.1f}  "
             f"wall − GPU {(per_frame - gpu) * 1e3:.1f}  stages {stages}")
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="moving")
-    parser.add_argument("--size", default="128x128")
+    parser.add_argument("--size", type=image_size, default="128x128")
     parser.add_argument("--frames", type=int, default=8)
     parser.add_argument("--adaptive", type=float)
     parser.add_argument("--temporal", action="store_true")
     parser.add_argument("--host-ms", type=float, default=0.0, help="the caller's own work per frame (a sleep)")
     args = parser.parse_args()
-    width, height = parse_size(args.size)
+    width, height = args.size
     scene = load_scene(args.scene)
     common = dict(size=(width, height), frames=range(args.frames), host_ms=args.host_ms, max_depth=8, aovs=(),
                   tonemap="aces")
@@ -63,6 +66,9 @@ def main():
     print(line("plain 1-spp trace", *plain))
     print(line("fused pipeline", *fused))
     print(f"ratio fused/plain : {fused[0] / plain[0]:.2f}")
+    display_only = timed(scene, denoise=True, adaptive=args.adaptive, temporal=args.temporal, hdr=False, **common)
+    print(line("fused, display only", *display_only) + "  (hdr=False: no linear HDR colour read back, as a "
+          "viewer needs)")
     if uses_low_band(width, height):
         bare = timed(scene, denoise=True, adaptive=args.adaptive, temporal=args.temporal, low_band=False, **common)
         print(line("fused, no low band", *bare))

@@ -23,12 +23,12 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, gold_frame, gold_render, hdr_pipeline, linear_frame,
+from common import (image_size, add_gold_arguments, add_model_arguments, gold_frame, gold_render, hdr_pipeline, linear_frame,
                     load_scenes, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models)
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.temporal import CLAMP_MODES, TemporalSettings
-from wgpu_rt.renderer import parse_size, render
+from wgpu_rt.renderer import render
 from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 from wgpu_rt.train.targets import disocclusion_mask
 
@@ -40,7 +40,7 @@ def parse_args():
     parser.add_argument("--scene", default="moving")
     parser.add_argument("--static-scene", default="cornell",
                         help="a built-in scene, a scene file or world-SEED (a generated world); so is --scene")
-    parser.add_argument("--size", default="96x96")
+    parser.add_argument("--size", type=image_size, default="96x96")
     parser.add_argument("--frames", type=int, default=16)
     parser.add_argument("--static-frames", type=int, default=16)
     add_gold_arguments(parser, default_spp=4096)
@@ -71,7 +71,7 @@ def main() -> None:
     args = parse_args()
     resolve_models(args)
     print_header(args)
-    size = parse_size(args.size)
+    size = args.size
     (scene,) = load_scenes([args.scene])
     frames = range(min(args.frames, scene.frame_count))
     print(f"{scene.name}: {len(frames)} frames at {size[0]}x{size[1]}, gold {args.gold_spp} spp, "

@@ -21,11 +21,11 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, crossing, errors, gold_render, hdr_pipeline,
+from common import (image_size, add_gold_arguments, add_model_arguments, crossing, errors, gold_render, hdr_pipeline,
                     linear_frame, load_scenes, mitsuba, mitsuba_render, oidn, parse_with_quick_defaults,
                     print_header, print_table, resolve_models, save_figure, steady)
 
-from wgpu_rt.renderer import parse_size, render
+from wgpu_rt.renderer import render
 from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 
 TARGET_SPP = (64, 256, 1024)
@@ -35,7 +35,7 @@ QUICK = {"size": "32x32", "spp": [1, 4, 16, 64, 256, 1024], "gold_spp": 2048, "b
 def parse_args():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=["cornell", "cornell-glossy", "sun-room", "bunny"])
-    parser.add_argument("--size", default="96x96")
+    parser.add_argument("--size", type=image_size, default="96x96")
     parser.add_argument("--spp", type=int, nargs="+", default=[1, 4, 16, 64, 256, 1024],
                         help="brute-force sample counts (ours and Mitsuba); include 64, 256 and 1024")
     parser.add_argument("--budgets", type=float, nargs="+", default=[2, 4, 8, 16],
@@ -111,7 +111,7 @@ def main() -> None:
     args = parse_args()
     resolve_models(args)
     print_header(args)
-    size = parse_size(args.size)
+    size = args.size
     mi = None
     if not args.no_mitsuba:
         mi, variant = mitsuba()

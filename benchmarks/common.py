@@ -31,6 +31,19 @@ GOLD_TWIN_SEED = 54321   # the second gold of --gold-twin
 TRIM_QUANTILE = 0.999
 
 
+def image_size(text: str) -> tuple[int, int]:
+    """An argparse type for --size WIDTHxHEIGHT: (width, height), or a usage error naming what is wrong."""
+    import argparse
+
+    from wgpu_rt.errors import WgpuRtError
+    from wgpu_rt.renderer import parse_size
+
+    try:
+        return parse_size(text)
+    except WgpuRtError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
 def print_header(args) -> None:
     """The command line, the adapter and the model folder: the first lines of every benchmark."""
     from wgpu_rt.gpu import get_context

@@ -64,7 +64,8 @@ GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 # built-in and 96² views), training TRAIN_MINUTES; then scoring ~40 s, §14's checks ~60 s each
 TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}
-# TRAIN_WIDTHS: the fine-tune's U-Net widths; narrower ones start from the shipped model's heaviest
+# TRAIN_INIT: the ONNX the fine-tune starts from (default the shipped denoiser; an earlier session's
+# $OUT/model/denoiser.onnx, carried in, continues its training). TRAIN_WIDTHS: the fine-tune's U-Net widths; narrower ones start from the shipped model's heaviest
 # channels (§22: "12 24 48 96 96", 0.57× its FLOPs)   # with the estimates above, ~9 min in all
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
 CHECK_VIEW=$([ $small = 1 ] && echo 48 || echo 128); CHECK_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
@@ -90,9 +91,17 @@ archive() {   # with ARCHIVE set, the results so far packed into it
     if [ -n "${ARCHIVE:-}" ]; then tar -czf "$ARCHIVE" -C "$(dirname "$OUT")" "$(basename "$OUT")"; fi
 }
 
+# render_dataset NAME DATASET-ARGS...: one part rendering a dataset in SHARDS processes at once (default
+# 4: scripts/render_sharded.sh)
+SHARDS=${SHARDS:-4}
+render_dataset() {
+    local name=$1; shift
+    part "$name" bash scripts/render_sharded.sh "$SHARDS" "$@"
+}
+
 HELDOUT=data/worlds-heldout-$VIEW
 render_heldout() {   # the held-out worlds, the test set of parts heldout and train
-    part heldout_render wgpu-rt dataset --worlds $WORLDS --family held_out --size $VIEW --spp 1,4,16,64 \
+    render_dataset heldout_render --worlds $WORLDS --family held_out --size $VIEW --spp 1,4,16,64 \
         --gold $GOLD --sequence-fraction 0 --out $HELDOUT --quiet
 }
 
@@ -160,16 +169,16 @@ for what in "$@"; do
         # built-in views at the same size and worlds at 96² (SMALL_VIEW) join them: on lavapipe (§14) a fine-tune on
         # 192² worlds alone lost up to 0.4 dB on the built-ins and 0.2 at 128²
         data=data/worlds-train-$VIEW
-        part train_render wgpu-rt dataset --worlds $TRAIN_WORLDS --family training --size $VIEW \
+        render_dataset train_render --worlds $TRAIN_WORLDS --family training --size $VIEW \
             --spp 1,2,4,16,64 --noisy-copies 2 --gold $TRAIN_GOLD --sequence-fraction 0 --seed 14 --out $data --quiet
-        part train_render_builtin wgpu-rt dataset --scenes cornell cornell-glossy sun-room moving --views 8 \
+        render_dataset train_render_builtin --scenes cornell cornell-glossy sun-room moving --views 8 \
             --size $VIEW --spp 1,2,4,16,64 --noisy-copies 2 --gold $TRAIN_GOLD --sequence-fraction 0 --seed 18 \
             --out data/builtin-$VIEW --quiet
-        part train_render_small wgpu-rt dataset --worlds $TRAIN_WORLDS --family training --size $SMALL_VIEW \
+        render_dataset train_render_small --worlds $TRAIN_WORLDS --family training --size $SMALL_VIEW \
             --spp 1,2,4,16,64 --noisy-copies 2 --gold $TRAIN_GOLD --sequence-fraction 0 --seed 19 \
             --out data/worlds-train-small --quiet
         part train wgpu-rt train denoiser --data $data --extra-data data/builtin-$VIEW data/worlds-train-small \
-            --init-from models/denoiser.onnx --widths ${TRAIN_WIDTHS:-16 32 64 128 128} \
+            --init-from ${TRAIN_INIT:-models/denoiser.onnx} --widths ${TRAIN_WIDTHS:-16 32 64 128 128} \
             --bottom-merge add --epochs 400 --minutes $TRAIN_MINUTES --batch 8 --crop $((VIEW / 2)) $VIEW --lr 1e-4 \
             --curriculum any --ssim-space display --lowpass 2 --validate-every 50 --device auto \
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet
