@@ -5,7 +5,6 @@ import hashlib
 import json
 
 import itertools
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -376,50 +375,6 @@ def test_a_fine_tune_into_narrower_widths_keeps_the_channels_that_matter(tiny_da
         Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out2"), epochs=1,
                             batch=2, crop_min=12, crop_max=16, widths=(8, 8, 12), bottom_merge=bottom_merge,
                             init_from=str(onnx_path)), progress=False)
-
-
-@pytest.mark.parametrize("bottom_merge", ["concat", "add"])
-def test_a_teacher_is_its_exported_unet_and_its_output_a_second_target(tiny_dataset, tmp_path, bottom_merge):
-    """--teacher: the exported denoiser comes back as the same U-Net (widths, levels and merge read from its
-    weights); with the whole loss on it, a student started from the teacher's own weights has nothing to
-    learn (loss 0), one started elsewhere has; the card says how the loss was split."""
-    torch.manual_seed(9)
-    source = UNet(widths=(4, 6, 8), bottom_merge=bottom_merge).eval()
-    teacher_path = export_onnx(source, tmp_path / "teacher.onnx")
-    base = dict(task="denoiser", data=str(tiny_dataset), epochs=1, batch=2, crop_min=16, crop_max=16,
-                bottom_merge=bottom_merge, teacher=str(teacher_path))
-    copy = Trainer(TrainConfig(out=str(tmp_path / "copy"), widths=(4, 6, 8), init_from=str(teacher_path),
-                               teacher_weight=1.0, **base), progress=False)
-    x = torch.rand(2, DENOISER.input_channels, 16, 16)
-    with torch.no_grad():
-        np.testing.assert_allclose(copy.teacher.cpu()(x).numpy(), source(x).numpy(), atol=1e-6)
-    items = copy.train_set.items[:2]
-    assert copy.train_step(items, 1) < 1e-6
-    student = Trainer(TrainConfig(out=str(tmp_path / "student"), widths=(4, 4, 4), teacher_weight=1.0, **base),
-                      progress=False)
-    assert student.train_step(items, 1) > 1e-3
-    summary = train(TrainConfig(out=str(tmp_path / "mixed"), widths=(4, 4, 4), teacher_weight=0.25, **base),
-                    progress=False)
-    assert "- distilled: 0.25 of the loss against the output of" in Path(summary["card"]).read_text()
-
-
-def test_a_teacher_must_be_a_denoiser_reading_the_same_inputs(tiny_dataset, tmp_path):
-    base = dict(data=str(tiny_dataset), out=str(tmp_path / "out"), epochs=1, batch=2, crop_min=12, crop_max=16,
-                widths=(4, 8))
-    denoiser_path = export_onnx(UNet(widths=(4, 8)), tmp_path / "denoiser.onnx")
-    with pytest.raises(TrainingError, match="--teacher is for the denoiser"):
-        Trainer(TrainConfig(task="error-predictor", teacher=str(denoiser_path), **base), progress=False)
-    with pytest.raises(TrainingError, match="no such ONNX file"):
-        Trainer(TrainConfig(task="denoiser", teacher=str(tmp_path / "missing.onnx"), **base), progress=False)
-    with pytest.raises(TrainingError, match="--teacher-weight must be in"):
-        Trainer(TrainConfig(task="denoiser", teacher=str(denoiser_path), teacher_weight=0.0, **base), progress=False)
-    from wgpu_rt.train.networks import ErrorPredictor
-    not_unet = export_onnx(ErrorPredictor(), tmp_path / "heat.onnx")
-    with pytest.raises(TrainingError, match="heat.onnx: not a denoiser U-Net"):
-        Trainer(TrainConfig(task="denoiser", teacher=str(not_unet), **base), progress=False)
-    fewer = export_onnx(UNet(in_channels=DENOISER.input_channels - 1, widths=(4, 8)), tmp_path / "fewer.onnx")
-    with pytest.raises(TrainingError, match="reads 10 input channels, this run's denoiser 11"):
-        Trainer(TrainConfig(task="denoiser", teacher=str(fewer), **base), progress=False)
 
 
 def test_a_fine_tune_of_an_exported_model_carries_its_card(tiny_dataset, tmp_path):

@@ -59,11 +59,6 @@ def add_arguments(parser) -> None:
                              "one level more: it starts as the shallower model; or narrower at every level: each "
                              "layer keeps its heaviest channels), with a fresh optimizer and "
                              "schedule; give this run its own --checkpoints folder")
-    parser.add_argument("--teacher", metavar="ONNX",
-                        help="denoiser: distil from this exported denoiser (e.g. the shipped one into narrower "
-                             "--widths): its output on each crop is a second target beside the gold")
-    parser.add_argument("--teacher-weight", type=float, default=0.5, metavar="W",
-                        help="the teacher's share of the loss, the gold's being 1 − W (default: %(default)s)")
     parser.add_argument("--validate-every", type=int, default=1, metavar="N",
                         help="validate every N epochs and after the last (validation is slow on a CPU)")
     parser.add_argument("--device", choices=["auto", "cuda", "cpu"], default="auto",
@@ -89,7 +84,7 @@ def run(args) -> int:
                          extra_data=tuple(args.extra_data), max_views=args.max_views,
                          checkpoints=args.checkpoints, init_from=args.init_from,
                          validate_every=args.validate_every, device=args.device,
-                         minutes=args.minutes, teacher=args.teacher, teacher_weight=args.teacher_weight)
+                         minutes=args.minutes)
     summary = train(config, progress=not args.quiet)
     if summary is None:   # a data-parallel rank other than 0: rank 0 reports
         return 0

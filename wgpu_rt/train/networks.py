@@ -74,21 +74,6 @@ class UNet(nn.Module):
             nn.init.zeros_(self.head.weight)     # start exactly at the identity
             nn.init.zeros_(self.head.bias)
 
-    @classmethod
-    def from_weights(cls, weights: dict) -> "UNet":
-        """The U-Net whose parameters ``weights`` (name → array, as torch's ONNX export names them) are,
-        its shape read from them, with those weights loaded; a KeyError names a parameter a U-Net needs
-        and ``weights`` lacks, a RuntimeError one of a shape the rest does not fit."""
-        levels = len({name.split(".")[1] for name in weights if name.startswith("down.")})
-        widths = tuple(int(weights[f"down.{level}.0.weight"].shape[0]) for level in range(levels))
-        first = weights["down.0.0.weight"]
-        model = cls(in_channels=int(first.shape[1]), out_channels=int(weights["head.weight"].shape[0]),
-                    widths=widths, residual="input_selector" in weights,
-                    bottom_merge="concat" if "merge.0.0.weight" in weights or levels < 2 else "add")
-        expected = model.state_dict()
-        model.load_state_dict({name: torch.from_numpy(weights[name].copy()) for name in expected})
-        return model
-
     @property
     def multiple(self) -> int:
         """H and W must be multiples of this."""

@@ -69,8 +69,6 @@ class TrainConfig:
     validate_every: int = 1              # epochs between validations (the last epoch is always validated)
     device: str = "auto"                 # cuda, cpu, or auto: CUDA when torch sees it
     minutes: float | None = None         # a time budget: fewer epochs when the first ones show they won't fit
-    teacher: str | None = None           # denoiser: an exported denoiser whose output on each crop is a second target
-    teacher_weight: float = 0.5          # that target's share of the loss (the gold's: 1 − it)
 
     @property
     def network(self) -> Network:
@@ -103,13 +101,6 @@ class TrainConfig:
             raise TrainingError(f"--minutes must be a positive number, got {self.minutes}")
         if self.init_from is not None and not Path(self.init_from).is_file():
             raise TrainingError(f"--init-from {self.init_from}: no such checkpoint or ONNX file")
-        if self.teacher is not None:
-            if self.task != "denoiser":
-                raise TrainingError(f"--teacher is for the denoiser, not the {self.task}")
-            if not Path(self.teacher).is_file():
-                raise TrainingError(f"--teacher {self.teacher}: no such ONNX file")
-            if not (math.isfinite(self.teacher_weight) and 0 < self.teacher_weight <= 1):
-                raise TrainingError(f"--teacher-weight must be in (0, 1], got {self.teacher_weight}")
         checkpoint, *exported = self.outputs()
         for path in exported:
             check_output_path(path, "--out")
@@ -220,7 +211,6 @@ class Trainer:
             self._load_checkpoint()
         elif config.init_from:
             self._load_initial_weights(Path(config.init_from))
-        self.teacher = self._load_teacher(Path(config.teacher)) if config.teacher else None
 
     def _smallest_crop(self) -> int:
         """The smallest crop that trains: a multiple of the network's size multiple, and for the denoiser
@@ -302,9 +292,14 @@ class Trainer:
     def _load_onnx_weights(self, path: Path) -> dict:
         """The weights of an exported model (e.g. the shipped ``models/denoiser.onnx``: torch's export keeps
         the parameter names) loaded into the model; a checkpoint-like record without history."""
+        import onnx
         import torch
+        from onnx import numpy_helper
 
-        weights = onnx_weights(path)
+        try:
+            weights = {i.name: numpy_helper.to_array(i) for i in onnx.load(str(path)).graph.initializer}
+        except Exception as err:  # onnx raises several types for missing or corrupt files
+            raise TrainingError(f"{path}: cannot read this ONNX model ({err})") from None
         expected = self.model.state_dict()
         weights = _narrowed(_deepened(_with_new_input_channels(weights, expected), expected), expected)
         wrong = [name for name, tensor in expected.items()
@@ -329,21 +324,6 @@ class Trainer:
         self.base = {"path": str(path), "epochs": state.get("epoch", 0), "seconds": state.get("seconds", 0.0),
                      "base": state.get("base"), "onnx": state.get("onnx"), "card": state.get("card"),
                      "metrics": {k: v for k, v in (validated[-1] if validated else {}).items() if k.startswith("val_")}}
-
-    def _load_teacher(self, path: Path):
-        """The exported denoiser at ``path`` as a frozen torch U-Net on this run's device (any widths and
-        levels; the inputs this run's data gives)."""
-        from .networks import UNet, input_channels
-
-        try:
-            teacher = UNet.from_weights(onnx_weights(path))
-        except (KeyError, RuntimeError) as err:
-            raise TrainingError(f"--teacher {path}: not a denoiser U-Net ({err})") from None
-        if input_channels(teacher) != input_channels(self.model):
-            raise TrainingError(f"--teacher {path}: reads {input_channels(teacher)} input channels, this run's "
-                                f"denoiser {input_channels(self.model)}")
-        teacher.requires_grad_(False)
-        return teacher.eval().to(self.context.device, memory_format=self.context.memory_format)
 
     def _changed_settings(self, saved: dict) -> list[str]:
         """Names of the settings (beyond RESUMABLE_CHANGES) where ``saved`` differs from this run's; a
@@ -378,11 +358,6 @@ class Trainer:
         with self.context.autocast():
             prediction = self.network(x)
         loss = self.loss(prediction.float(), y)   # the loss in float32 whatever the network ran in
-        if self.teacher is not None:   # distillation: the teacher's output, remodulated by the gold's factor
-            with torch.no_grad(), self.context.autocast():
-                taught = self.teacher(x).float()
-            weight = self.config.teacher_weight
-            loss = (1 - weight) * loss + weight * self.loss(prediction.float(), torch.cat([taught, y[:, 3:]], 1))
         value = self.context.mean(loss)
         if not math.isfinite(value):
             raise TrainingError(f"{self.config.task}: loss became {value} at step {self.step} (epoch "
@@ -603,10 +578,6 @@ class Trainer:
                          "screen; class-balanced BCE; ROC AUC scores the mask against 1 − output over all pixels, "
                          "over those passing the temporal tests (tested) and for the temporal stage (failed tests "
                          "= disocclusion)")
-        if cfg.teacher:
-            lines.append(f"- distilled: {cfg.teacher_weight:g} of the loss against the output of `{cfg.teacher}` "
-                         f"(sha256 {hashlib.sha256(Path(cfg.teacher).read_bytes()).hexdigest()[:12]}…) on the same "
-                         f"crops, {1 - cfg.teacher_weight:g} against the gold")
         base_runs = self._base_runs()
         for base in base_runs:
             if base.get("onnx"):   # an exported model: its own card (when beside it) tells how it was made
@@ -645,17 +616,6 @@ class Trainer:
                           "one level down)", ""]
                 lines += ["#" + line if line.startswith("#") else line for line in base["card"].splitlines()]
         return "\n".join(lines) + "\n"
-
-
-def onnx_weights(path: Path) -> dict:
-    """Name → array of every initializer of the ONNX model at ``path``; a TrainingError if it cannot be read."""
-    import onnx
-    from onnx import numpy_helper
-
-    try:
-        return {i.name: numpy_helper.to_array(i) for i in onnx.load(str(path)).graph.initializer}
-    except Exception as err:  # onnx raises several types for missing or corrupt files
-        raise TrainingError(f"{path}: cannot read this ONNX model ({err})") from None
 
 
 def _with_new_input_channels(weights: dict, expected: dict) -> dict:
