@@ -15,19 +15,23 @@
 # Session 22 (H200, BENCHMARKS.md §21) took: nn + frame + heldout_render 390 s, trace 67 s, heldout 238 s
 # (heldout_denoise needs more than 120 s: give it PART_LIMIT=200). Session 23 (§22): tests + frame + nn
 # 278 s (tests 157 s), train 288 s (its renders 218 s; the fine-tune was cut to 0.7 of its 3 minutes,
-# since fixed). Next: call 1 with the OIDN peer, DEADLINE=300 PART_LIMIT=200, timeout_s 450: `tests
-# frame trace` (§22's NVIDIA fixes not yet run there: the low band's tiny ratios, one dispatch test; the
-# frame GPU column now a mean over frames, low band included; the moving bunny with wide bottom levels;
-# the targeted pass's entry lookup by subtraction; the wide walk's stack per invocation and the
-# quantized wide layout wide8, for which `trace` compares the walks with §21's figures: without the
-# Mitsuba peer it skips the OptiX column);
+# since fixed). Session 24 had no GPU. Next: call 1 with the OIDN peer, DEADLINE=300 PART_LIMIT=200,
+# timeout_s 450: `tests frame trace nn_widths` (§22's NVIDIA fixes not yet run there: the low band's tiny
+# ratios, one dispatch test; the frame GPU column now a mean over frames, low band included, and a
+# display-only row (hdr=False) for the wall − GPU gap; the moving bunny with wide bottom levels; the
+# targeted pass's entry lookup by subtraction; the wide walk's stack per invocation and the quantized wide
+# layout wide8, for which `trace` compares the walks with §21's figures: without the Mitsuba peer it skips
+# the OptiX column; nn_widths: the denoiser's time at 0.57× and 0.26× its FLOPs);
 # call 2 at once: `train` with TRAIN_MINUTES=3, PART_LIMIT=300, timeout_s 450 (frames preloaded to
 # the device, the pace judged after the first epoch: how many steps/s once cuDNN has tuned each crop
-# size, in the card's history). Score its model here on lavapipe (data/worlds-heldout-256-local, §21)
+# size, in the card's history; the datasets now render in SHARDS=4 processes: compare the parts' times
+# with §22's 113 / 34 / 71 s). Carry its $OUT/model/denoiser.onnx back in and pass TRAIN_INIT to continue
+# it in a later session. Score its model here on lavapipe (data/worlds-heldout-256-local, §21)
 # rather than with `train_check`. `heldout` and `nn_variants` when a change needs them.
 #
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p as
-# the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA), nn_variants (§21's: with
+# the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA), nn_widths (the same architecture at narrower
+# widths, untrained, profiled at 1080p), nn_variants (§21's: with
 # naga's bounds checks, with each weight fetch and as the autotuner picks), trace
 # (samples/s against Mitsuba cuda_ad_rgb with the threaded and the wide BVH and the measured choice; closest-hit rays/s of each
 # walk on 100k random triangles and the bunny; cornell also with bounds checks; what the watertight tests
@@ -119,6 +123,14 @@ for what in "$@"; do
         part profile_fp32 $profile --precision fp32
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN \
             --steps staged fp16-math --repeats 5 ;;
+    nn_widths)   # issue 12 item 5 / issue 13's denoiser target: the shipped architecture at narrower widths
+                 # (untrained: the speed is the architecture's), profiled as the default picks
+        for widths in "16 32 64 128 128" "12 24 48 96 96" "8 16 32 64 64"; do
+            name=unet_$(echo $widths | tr ' ' _)
+            python3 -c "import sys; from wgpu_rt.train.networks import UNet, export_onnx
+export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.argv[1])" "$OUT/$name.onnx" $widths
+            part profile_$name wgpu-rt profile "$OUT/$name.onnx" --size ${W}x${H}
+        done ;;
     nn_variants)   # §21's comparisons: bounds checks, the padded canvas, each weight fetch, the autotuner
         profile="wgpu-rt profile models/denoiser.onnx --size ${W}x${H}"
         part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 $profile --precision fp32
@@ -198,6 +210,6 @@ for what in "$@"; do
             part check_${name}_$CHECK_VIEW python3 benchmarks/bench_spp.py --size $CHECK_VIEW --spp 1 4 \
                 --gold-spp $GOLD --gold-cache /tmp/gold --seeds 2 --models "$set" --scenes $CHECK_SCENES_SMALL
         done ;;
-    *) echo "unknown part $what (tests, nn, nn_variants, trace, frame, heldout, train, train_check)"; exit 2 ;;
+    *) echo "unknown part $what (tests, nn, nn_widths, nn_variants, trace, frame, heldout, train, train_check)"; exit 2 ;;
     esac
 done
