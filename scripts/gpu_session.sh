@@ -69,7 +69,8 @@ GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}
 # TRAIN_INIT: the ONNX the fine-tune starts from (default the shipped denoiser; an earlier session's
-# $OUT/model/denoiser.onnx, carried in, continues its training). TRAIN_WIDTHS: the fine-tune's U-Net widths; narrower ones start from the shipped model's heaviest
+# $OUT/model/denoiser.onnx, carried in, continues its training). TRAIN_FLAGS: more `wgpu-rt train` flags
+# (e.g. --permute-colours, §23). TRAIN_WIDTHS: the fine-tune's U-Net widths; narrower ones start from the shipped model's heaviest
 # channels (§22: "12 24 48 96 96", 0.57× its FLOPs)   # with the estimates above, ~9 min in all
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
 CHECK_VIEW=$([ $small = 1 ] && echo 48 || echo 128); CHECK_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
@@ -193,7 +194,7 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
             --init-from ${TRAIN_INIT:-models/denoiser.onnx} --widths ${TRAIN_WIDTHS:-16 32 64 128 128} \
             --bottom-merge add --epochs 400 --minutes $TRAIN_MINUTES --batch 8 --crop $((VIEW / 2)) $VIEW --lr 1e-4 \
             --curriculum any --ssim-space display --lowpass 2 --validate-every 50 --device auto \
-            --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet
+            --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet ${TRAIN_FLAGS:-}
         cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/"   # bench_denoise reads a whole set
         archive ;;
     train_check)   # the model of part train (TRAINED, default: $OUT/model, the same call's) scored: a call of its own
