@@ -30,9 +30,9 @@
 # rather than with `train_check`. `heldout` and `nn_variants` when a change needs them.
 #
 # Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p as
-# the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA), nn_widths (the same architecture at narrower
-# widths, untrained, profiled at 1080p), nn_variants (§21's: with
-# naga's bounds checks, with each weight fetch and as the autotuner picks), trace
+# the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA), nn_widths (the same
+# architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's: with naga's bounds
+# checks, with each weight fetch and as the autotuner picks), trace
 # (samples/s against Mitsuba cuda_ad_rgb with the threaded and the wide BVH and the measured choice; closest-hit rays/s of each
 # walk on 100k random triangles and the bunny; cornell also with bounds checks; what the watertight tests
 # cost), frame (fused frame, adaptive targeted pass, moving vs static: the `moving` scene and the
@@ -70,8 +70,9 @@ TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ]
 TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}
 # TRAIN_INIT: the ONNX the fine-tune starts from (default the shipped denoiser; an earlier session's
 # $OUT/model/denoiser.onnx, carried in, continues its training). TRAIN_FLAGS: more `wgpu-rt train` flags
-# (e.g. --permute-colours, §23). TRAIN_WIDTHS: the fine-tune's U-Net widths; narrower ones start from the shipped model's heaviest
-# channels (§22: "12 24 48 96 96", 0.57× its FLOPs)   # with the estimates above, ~9 min in all
+# (e.g. --permute-colours, §23). TRAIN_WIDTHS: the fine-tune's U-Net widths; narrower ones start from
+# the shipped model's heaviest channels (§22: "12 24 48 96 96", 0.57× its FLOPs). With the estimates
+# above, ~9 min in all
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
 CHECK_VIEW=$([ $small = 1 ] && echo 48 || echo 128); CHECK_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 CHECK_SCENES="cornell cornell-glossy sun-room world-2147483661 world-2147483667 world-2147483660 world-2147483665
@@ -128,7 +129,7 @@ for what in "$@"; do
                  # (untrained: the speed is the architecture's), profiled as the default picks
         for widths in "16 32 64 128 128" "12 24 48 96 96" "8 16 32 64 64"; do
             name=unet_$(echo $widths | tr ' ' _)
-            python3 -c "import sys; from wgpu_rt.train.networks import UNet, export_onnx
+            part export_$name python3 -c "import sys; from wgpu_rt.train.networks import UNet, export_onnx
 export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.argv[1])" "$OUT/$name.onnx" $widths
             part profile_$name wgpu-rt profile "$OUT/$name.onnx" --size ${W}x${H}
         done ;;
@@ -211,6 +212,7 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
             part check_${name}_$CHECK_VIEW python3 benchmarks/bench_spp.py --size $CHECK_VIEW --spp 1 4 \
                 --gold-spp $GOLD --gold-cache /tmp/gold --seeds 2 --models "$set" --scenes $CHECK_SCENES_SMALL
         done ;;
-    *) echo "unknown part $what (tests, nn, nn_widths, nn_variants, trace, frame, heldout, train, train_check)"; exit 2 ;;
+    *) echo "unknown part $what (tests, nn, nn_widths, nn_variants, trace, frame, heldout, train," \
+            "train_check)"; exit 2 ;;
     esac
 done
