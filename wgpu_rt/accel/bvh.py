@@ -402,6 +402,12 @@ QUANTIZED_WIDE_NODE_WORDS = 16
 QUANTIZED_GRID = 254   # steps across the union's extent: the top step (255) is headroom for rounding
 
 
+def _decoded(origin, quantized, step) -> np.ndarray:
+    """Grid coordinates back to f32 as the GPU decodes them: q · step is exact (8 bits times a power of
+    two), so origin + q · step rounds once."""
+    return np.asarray(origin, np.float32) + np.asarray(quantized * step, np.float32)
+
+
 def dequantized_boxes(words: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(N, 16) quantized wide node words → their children's (N, 3, 4) lo and hi boxes, decoded in f32
     exactly as the GPU does (origin + q · 2^e, one rounding: q · 2^e is exact)."""
@@ -410,7 +416,7 @@ def dequantized_boxes(words: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     exponents = (words[:, 3:4] >> np.array([0, 8, 16], np.uint32)) & np.uint32(255)   # (N, 3)
     step = (exponents << np.uint32(23)).view(np.float32)
     quantized = ((words[:, 4:10, None] >> np.array([0, 8, 16, 24], np.uint32)) & np.uint32(255)).astype(np.float32)
-    decoded = origin[:, [0, 1, 2, 0, 1, 2], None] + quantized * step[:, [0, 1, 2, 0, 1, 2], None]   # (N, 6, 4)
+    decoded = _decoded(origin[:, [0, 1, 2, 0, 1, 2], None], quantized, step[:, [0, 1, 2, 0, 1, 2], None])   # (N, 6, 4)
     return decoded[:, :3], decoded[:, 3:]
 
 
@@ -436,12 +442,9 @@ def quantized_wide_nodes(wide: np.ndarray) -> np.ndarray:
     origin = union_lo.astype(np.float64)[:, :, None]
     q_lo = np.clip(np.floor((lo - origin) / step), 0, 255)
     q_hi = np.clip(np.ceil((hi - origin) / step), 0, 255)
-    def decode(q):   # as the GPU does: q · step is exact, the sum rounds once
-        return (origin.astype(np.float32) + (q * step).astype(np.float32)).astype(np.float32)
-
     for _ in range(2):   # one rounding can put a decoded corner just inside the box: a step further out
-        q_lo = np.where((decode(q_lo) > lo.astype(np.float32)) & (q_lo > 0), q_lo - 1, q_lo)
-        q_hi = np.where((decode(q_hi) < hi.astype(np.float32)) & (q_hi < 255), q_hi + 1, q_hi)
+        q_lo = np.where((_decoded(origin, q_lo, step) > lo.astype(np.float32)) & (q_lo > 0), q_lo - 1, q_lo)
+        q_hi = np.where((_decoded(origin, q_hi, step) < hi.astype(np.float32)) & (q_hi < 255), q_hi + 1, q_hi)
     q_lo = np.where(valid, q_lo, 255).astype(np.uint32)
     q_hi = np.where(valid, q_hi, 0).astype(np.uint32)
     words = np.zeros((len(wide), QUANTIZED_WIDE_NODE_WORDS), np.uint32)
