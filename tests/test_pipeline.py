@@ -2,6 +2,8 @@
 equal to the numpy references applied to the traced planes. Networks are stand-ins recorded on the
 device (an identity denoiser, a fixed heatmap), so the test checks the wiring, not a trained model."""
 
+import time
+
 import numpy as np
 import pytest
 
@@ -406,6 +408,22 @@ def test_missing_model_is_named(tmp_path, scene, gpu):
 def test_render_takes_a_builtin_name_and_a_frame_list(gpu):
     frames = render("cornell", frames=[0], size=(8, 8), max_depth=2, ctx=gpu)
     assert len(frames) == 1 and frames[0].color.shape == (8, 8, 3)
+
+
+def test_the_first_frames_bvh_is_set_up_time_not_frame_time(gpu, monkeypatch):
+    """A frame's ``seconds`` (what samples/s divide by) leaves out its tracer's set-up, as a peer's timed
+    render leaves out its scene load: a BVH build that takes a second shows in ``setup_seconds``."""
+    from wgpu_rt.accel import geometry as geometry_module
+
+    build = geometry_module.build_bvh
+
+    def slow_build(*args):
+        time.sleep(1.0)
+        return build(*args)
+
+    monkeypatch.setattr(geometry_module, "build_bvh", slow_build)
+    first = render("cornell", frames=[0], size=(8, 8), max_depth=2, ctx=gpu)[0]
+    assert first.setup_seconds >= 1.0 and first.seconds < 1.0, (first.setup_seconds, first.seconds)
 
 
 def test_unchanged_geometry_is_not_uploaded_again(gpu, scene, monkeypatch):

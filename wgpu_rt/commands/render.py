@@ -119,6 +119,7 @@ def run(args) -> int:
         else:
             write_exr(path, result.color, result.aovs)
         stages = ", ".join(f"{name} {ms:.1f} ms" for name, ms in result.stage_ms.items())
-        print(f"{path}: {size[0]}x{size[1]}, {mean_spp:g} spp, {result.seconds:.2f} s "
+        setup = f" after {result.setup_seconds:.2f} s of set-up" if result.setup_seconds else ""
+        print(f"{path}: {size[0]}x{size[1]}, {mean_spp:g} spp, {result.seconds:.2f} s{setup} "
               f"({result.samples_per_second / 1e6:.2f} M samples/s)" + (f"; GPU {stages}" if stages else ""))
     return 0

@@ -52,7 +52,7 @@ class RenderResult:
     aovs: dict[str, np.ndarray] = field(default_factory=dict)   # name → (H, W, C) float32
     image: np.ndarray | None = None                     # (H, W, 4) display image when tone-mapped
     stage_ms: dict[str, float] = field(default_factory=dict)    # GPU time per stage (timestamp queries)
-    seconds: float = 0.0                                # this frame: first submit to readback
+    seconds: float = 0.0                                # this frame: recording to readback
     setup_seconds: float = 0.0                          # scene, BVH, kernels, networks (first frame only)
     samples: int = 0                                    # pixel samples taken (planned, for adaptive)
 
