@@ -1,8 +1,9 @@
 """The work each BVH walk does per ray, counted by replaying the walks in Python (no GPU): loop passes,
 nodes fetched, box and triangle tests and the bytes read, for the threaded binary walk
 (wgsl/accel/walk_tree.wgsl, one invocation alone, the node copy of the ray's octant) and the 4-wide walk
-(wgsl/accel/walk_wide.wgsl). What the wide layout saves in work, independent of any device, before a
-GPU says what it is worth in time. Closest-hit rays of two kinds: from a camera through a grid
+(wgsl/accel/walk_wide.wgsl), the latter also over the tree built with small leaves (the "+small-leaves"
+variants, bvh.SMALL_LEAF_TRAVERSAL_COST). What the wide layout and small leaves save in work, independent
+of any device, before a GPU says what it is worth in time. Closest-hit rays of two kinds: from a camera through a grid
 (coherent) and leaving the mesh's surface in cosine-distributed directions (a path's bounces).
 
     python3 benchmarks/bench_walk_work.py [--rays 4096] [--mesh bunny|random]
@@ -18,6 +19,7 @@ from common import BUNNY, print_header, print_table
 
 from wgpu_rt.accel.bvh import (
     LEAF_COUNT_BITS,
+    SMALL_LEAF_TRAVERSAL_COST,
     THREADED_NODE_DTYPE,
     WIDE_EMPTY,
     WIDE_LEAF,
@@ -169,22 +171,28 @@ def main() -> int:
     count = bvh.node_count
     threaded = [[(tuple(n["lo"]), tuple(n["hi"]), int(n["skip"]), int(n["triangles"]))
                  for n in copies[k * count:(k + 1) * count]] for k in range(8)]
-    wide = [(list(zip(node["lo"].T.tolist(), node["hi"].T.tolist())), node["children"].tolist())
-            for node in wide_nodes(bvh)]
+
+    def wide_tree(tree):
+        return ([(list(zip(node["lo"].T.tolist(), node["hi"].T.tolist())), node["children"].tolist())
+                 for node in wide_nodes(tree)], triangles[tree.order].astype(np.float64).tolist())
+
+    small_leaves = build_bvh(triangles, SMALL_LEAF_TRAVERSAL_COST)
+    wide_trees = {"wide": wide_tree(bvh), "wide, small leaves": wide_tree(small_leaves)}
     points = triangles.reshape(-1, 3).astype(np.float64)
     center, radius = points.mean(axis=0), np.ptp(points, axis=0).max()
     rows = []
     for kind, (origins, dirs) in (("camera", camera_rays(center, radius, args.rays, rng)),
                                   ("bounce", bounce_rays(triangles, args.rays, rng))):
         work = {}
-        for walk in ("threaded", "wide"):
+        for walk in ("threaded", *wide_trees):
             counts = dict.fromkeys(("passes", "nodes", "boxes", "triangles", "bytes"), 0)
             hits = []
             for origin, direction in zip(origins.tolist(), dirs.tolist()):
                 hits.append(threaded_walk(threaded, count, ordered, origin, direction, counts) if walk == "threaded"
-                            else wide_walk(wide, ordered, origin, direction, counts))
+                            else wide_walk(*wide_trees[walk], origin, direction, counts))
             work[walk] = ({k: v / len(origins) for k, v in counts.items()}, np.array(hits))
-        assert np.array_equal(work["threaded"][1], work["wide"][1]), "the walks found different hits"
+        for walk in wide_trees:
+            assert np.array_equal(work["threaded"][1], work[walk][1]), f"the {walk} walk found different hits"
         for walk, (per_ray, _) in work.items():
             rows.append([kind, walk, per_ray["passes"], per_ray["nodes"], per_ray["boxes"], per_ray["triangles"],
                          per_ray["bytes"] / 1024])

@@ -6,6 +6,7 @@ either way in f32, so agreement is required on all other rays and at least 90% o
 unambiguous, which keeps the check meaningful.
 """
 
+import dataclasses
 import re
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from wgpu_rt.accel.bvh import (
     LEAF_COUNT_BITS,
     MAX_DEPTH,
     MAX_LEAF_SIZE,
+    SMALL_LEAF_TRAVERSAL_COST,
     WIDE_EMPTY,
     WIDE_LEAF,
     WIDE_STACK_SIZE,
@@ -40,8 +42,10 @@ from wgpu_rt.shaders import compose, read_wgsl
 BUNNY = Path(__file__).resolve().parents[1].parent / "shared" / "meshes" / "stanford-bunny.obj"
 EDGE_MARGIN = 1e-4
 # GeometryBuffers' variants (accel.geometry.bvh_variants): each node layout with its walk, and each
-# fetched as rows by the per-invocation traversal (the only one rows are chosen beside)
-LAYOUTS = ("threaded", "wide", "wide8", "threaded+rows", "wide+rows", "wide8+rows")
+# fetched as rows by the per-invocation traversal (the only one rows are chosen beside); the wide layouts
+# also over a BVH built with small leaves
+LAYOUTS = ("threaded", "wide", "wide8", "threaded+rows", "wide+rows", "wide8+rows", "wide+small-leaves",
+           "wide8+small-leaves+rows")
 
 
 def variant_geometry(scene, variant: str, frame: int = 0) -> GeometryBuffers:
@@ -208,6 +212,32 @@ def test_structure_random_soup():
     check_structure(triangles, bvh)
     sizes = bvh.leaf_sizes
     assert sizes.max() <= MAX_LEAF_SIZE and 1.5 <= sizes.mean() <= MAX_LEAF_SIZE, sizes.mean()
+
+
+def test_small_leaves_split_further_and_reorder_the_geometry():
+    """A tree built with SMALL_LEAF_TRAVERSAL_COST is as sound and has smaller leaves; a geometry asked for
+    such a variant carries each triangle's attributes along into the new order, once per geometry."""
+    rng = np.random.default_rng(2)
+    centers = rng.uniform(-5, 5, (3000, 1, 3))
+    triangles = (centers + rng.normal(0, 0.2, (3000, 3, 3))).astype(np.float32)
+    default, small = build_bvh(triangles), build_bvh(triangles, SMALL_LEAF_TRAVERSAL_COST)
+    check_structure(triangles, small)
+    assert small.leaf_sizes.mean() < 0.6 * default.leaf_sizes.mean(), (small.leaf_sizes.mean(),
+                                                                       default.leaf_sizes.mean())
+    geometry = GeometryBuffers.build(triangle_scene(triangles))
+    geometry = dataclasses.replace(geometry, object_ids=np.arange(len(triangles), dtype=np.uint32))
+    rebuilt = geometry.as_variant("wide8+small-leaves+rows")
+    assert (rebuilt.layout, rebuilt.small_leaves, rebuilt.row_loads) == ("wide8", True, True)
+    assert rebuilt.variant == "wide8+small-leaves+rows"
+    assert rebuilt.bvh.leaf_sizes.mean() < 0.6 * geometry.bvh.leaf_sizes.mean()
+    moved = rebuilt.object_ids           # where each of geometry's triangles went
+    np.testing.assert_array_equal(rebuilt.triangles, geometry.triangles[moved])
+    np.testing.assert_array_equal(rebuilt.shading_normals, geometry.shading_normals[moved])
+    assert sorted(moved) == list(range(len(triangles)))
+    assert geometry.as_variant("wide+small-leaves").bvh is rebuilt.bvh
+    assert rebuilt.as_variant("wide").bvh is not geometry.bvh and not rebuilt.as_variant("wide").small_leaves
+    with pytest.raises(ValueError, match="unknown BVH variant"):
+        geometry.as_variant("threaded+rows+small-leaves")
 
 
 @pytest.mark.parametrize("count", [1, 2, 7, 40])

@@ -314,7 +314,7 @@ def test_a_shape_placed_many_times_is_stored_once(monkeypatch):
     scene = Scene(Camera([0, 0, 5], [0, 0, 0]), [floor, *placements], {"grey": Material()})
     built = []
     monkeypatch.setattr(geometry_module, "build_bvh",
-                        lambda triangles: built.append(len(triangles)) or build_bvh(triangles))
+                        lambda triangles, *cost: built.append(len(triangles)) or build_bvh(triangles, *cost))
     geometry = InstancedGeometry(scene)
     assert sorted(built) == [60, 120]
     nodes, positions, attributes, motion, records = geometry.packed_arrays()

@@ -20,7 +20,8 @@ from wgpu_rt.trace.trace_pass import BufferPlacement
 MODULES = [LANES_TRAVERSAL, SUBGROUP_TRAVERSAL]
 WALKS = [(LANES_TRAVERSAL, "threaded"), (SUBGROUP_TRAVERSAL, "threaded"), (LANES_TRAVERSAL, "wide"),
          (SUBGROUP_TRAVERSAL, "wide"), (LANES_TRAVERSAL, "threaded+rows"), (LANES_TRAVERSAL, "wide+rows"),
-         (LANES_TRAVERSAL, "wide8"), (SUBGROUP_TRAVERSAL, "wide8"), (LANES_TRAVERSAL, "wide8+rows")]
+         (LANES_TRAVERSAL, "wide8"), (SUBGROUP_TRAVERSAL, "wide8"), (LANES_TRAVERSAL, "wide8+rows"),
+         (LANES_TRAVERSAL, "wide+small-leaves+rows"), (SUBGROUP_TRAVERSAL, "wide8+small-leaves")]
 SIZE = (24, 16)
 
 

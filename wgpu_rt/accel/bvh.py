@@ -39,6 +39,12 @@ MAX_DEPTH = 32
 # least once, so it costs several triangle tests (measured: 8 with leaves up to 15 beat 2 with leaves
 # up to 8 by ~11% in samples/s on cornell and sun-room, and tied on the bunny and mesh scenes).
 TRAVERSAL_COST = 8.0
+# The same for trees built with small leaves (GeometryBuffers' "+small-leaves" variants, for a walk in
+# which each invocation tests its own triangles, as GPUs run the wide walk): a node visit costing two
+# triangle tests. On the bunny that quarters the triangles a bouncing ray tests in the 4-wide walk (28 to
+# 8) for a fifth more node visits and a quarter fewer bytes read (benchmarks/bench_walk_work.py,
+# BENCHMARKS.md §24); whether that is faster is the adapter's to say (wgpu_rt.trace.bvh_choice).
+SMALL_LEAF_TRAVERSAL_COST = 2.0
 NODE_DTYPE = np.dtype([("lo", "<f4", 3), ("first", "<u4"), ("hi", "<f4", 3), ("count", "<u4")])
 LEAF_COUNT_BITS = 4       # a threaded node packs its triangles as (first << LEAF_COUNT_BITS) | count
 THREADED_NODE_DTYPE = np.dtype([("lo", "<f4", 3), ("skip", "<u4"), ("hi", "<f4", 3), ("triangles", "<u4")])
@@ -83,10 +89,13 @@ def _segment_index(starts: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, 
     return starts[segment] + (np.arange(int(counts.sum())) - offsets[segment]), segment
 
 
-# Bins per node by triangle count: (more than, at most, bins). Small nodes need few bins, and most nodes
-# are small, so this keeps the per-level tables near the triangle count in size. Nodes with at most
-# TRAVERSAL_COST triangles are never binned: no split can beat their leaf cost.
-BIN_COUNTS = ((32, np.iinfo(np.int64).max, BINS), (8, 32, 8), (int(TRAVERSAL_COST), 8, 4))
+
+
+def bin_counts(traversal_cost: float) -> tuple:
+    """Bins per node by triangle count: (more than, at most, bins). Small nodes need few bins, and most
+    nodes are small, so this keeps the per-level tables near the triangle count in size. Nodes with at most
+    ``traversal_cost`` triangles are never binned: no split can beat their leaf cost."""
+    return ((32, np.iinfo(np.int64).max, BINS), (8, 32, 8), (int(traversal_cost), 8, 4))
 
 
 def _sah_costs(bounds, segment, counts, c_lo, c_hi, bins):
@@ -119,8 +128,9 @@ def _sah_costs(bounds, segment, counts, c_lo, c_hi, bins):
     return costs, prim_bins
 
 
-def build_bvh(triangles: np.ndarray) -> Bvh:
-    """The BVH of ``triangles`` (T, 3, 3) float32 world-space vertices (T ≥ 1)."""
+def build_bvh(triangles: np.ndarray, traversal_cost: float = TRAVERSAL_COST) -> Bvh:
+    """The BVH of ``triangles`` (T, 3, 3) float32 world-space vertices (T ≥ 1), split while the SAH with
+    a node visit costing ``traversal_cost`` triangle tests says a split is cheaper than a leaf."""
     triangles = np.asarray(triangles, np.float32)
     if len(triangles) == 0:
         raise ValueError("cannot build a BVH over zero triangles")
@@ -131,7 +141,7 @@ def build_bvh(triangles: np.ndarray) -> Bvh:
         root = np.zeros(1, NODE_DTYPE)
         root["lo"], root["hi"], root["count"] = np.inf, np.inf, 1
         return Bvh(root, order)
-    return _build(triangles.min(axis=1), triangles.max(axis=1), order, count, MAX_LEAF_SIZE)
+    return _build(triangles.min(axis=1), triangles.max(axis=1), order, count, MAX_LEAF_SIZE, traversal_cost)
 
 
 def build_box_bvh(lo: np.ndarray, hi: np.ndarray) -> Bvh:
@@ -141,7 +151,8 @@ def build_box_bvh(lo: np.ndarray, hi: np.ndarray) -> Bvh:
     return _build(lo, hi, np.arange(len(lo)), len(lo), 1)
 
 
-def _build(tri_lo: np.ndarray, tri_hi: np.ndarray, order: np.ndarray, count: int, max_leaf_size: int) -> Bvh:
+def _build(tri_lo: np.ndarray, tri_hi: np.ndarray, order: np.ndarray, count: int, max_leaf_size: int,
+           traversal_cost: float = TRAVERSAL_COST) -> Bvh:
     """build_bvh over the bounds of items ``order[:count]``, leaves of at most ``max_leaf_size``."""
     # Per item lo, hi, centroid as rows: one gather per level fetches everything binning needs.
     tri_bounds = np.concatenate([tri_lo.T, tri_hi.T, ((tri_lo + tri_hi) * 0.5).T])
@@ -169,7 +180,7 @@ def _build(tri_lo: np.ndarray, tri_hi: np.ndarray, order: np.ndarray, count: int
         best_axis = np.zeros(nodes_here, np.int64)
         best_split = np.zeros(nodes_here, np.int64)       # triangles in bins >= best_split go right
         prim_bin = np.zeros(len(prims), np.int64)          # each triangle's bin along its node's best axis
-        for above, at_most, bins in BIN_COUNTS:
+        for above, at_most, bins in bin_counts(traversal_cost):
             group = (counts > above) & (counts <= at_most)
             if not np.any(group):
                 continue
@@ -183,7 +194,7 @@ def _build(tri_lo: np.ndarray, tri_hi: np.ndarray, order: np.ndarray, count: int
             best_axis[group], best_split[group] = best // (bins - 1), best % (bins - 1) + 1
             prim_bin[in_group] = chosen_bins[best_axis[group][local_segment], np.arange(len(local_segment))]
         node_area = _surface_area(lo.astype(np.float64), hi.astype(np.float64))
-        split_cost = TRAVERSAL_COST + best_cost / np.where(node_area > 0, node_area, 1.0)
+        split_cost = traversal_cost + best_cost / np.where(node_area > 0, node_area, 1.0)
         has_split = np.isfinite(best_cost)
         must_split = counts > max_leaf_size
         split = (must_split | (has_split & (split_cost < counts))) & (counts > 1) & (depth < MAX_DEPTH - 1)

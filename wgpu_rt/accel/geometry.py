@@ -32,7 +32,9 @@ from .bvh import (
     LEAF_COUNT_BITS,
     ORDERINGS,
     QUANTIZED_WIDE_NODE_WORDS,
+    SMALL_LEAF_TRAVERSAL_COST,
     THREADED_NODE_DTYPE,
+    TRAVERSAL_COST,
     WIDE_EMPTY,
     WIDE_LEAF,
     WIDE_NODE_DTYPE,
@@ -65,6 +67,27 @@ BVH_LAYOUT_ENV = "WGPU_RT_BVH"
 # A variant's suffix: the nodes and triangle positions fetched as 16-byte rows, one vector load each
 # (accel/geometry_rows.wgsl), by the per-invocation traversal (accel/traversal_lanes.wgsl).
 ROW_LOADS = "+rows"
+# A variant's infix (before ROW_LOADS): the BVH built with small leaves (bvh.SMALL_LEAF_TRAVERSAL_COST),
+# offered beside the per-invocation traversal for the wide layouts.
+SMALL_LEAVES = "+small-leaves"
+
+
+def split_variant(variant: str) -> tuple[str, bool, bool]:
+    """A BVH variant's (node layout, small leaves, row loads); ValueError for one that names no layout."""
+    rest = variant.removesuffix(ROW_LOADS)
+    layout = rest.removesuffix(SMALL_LEAVES)
+    if layout not in BVH_LAYOUTS:
+        raise ValueError(f"unknown BVH variant {variant!r}")
+    return layout, rest != layout, rest != variant
+
+
+def variant_name(layout: str, small_leaves: bool, row_loads: bool) -> str:
+    return layout + SMALL_LEAVES * small_leaves + ROW_LOADS * row_loads
+
+
+def leaf_traversal_cost(small_leaves: bool) -> float:
+    """The SAH's node visit cost a tree is built with."""
+    return SMALL_LEAF_TRAVERSAL_COST if small_leaves else TRAVERSAL_COST
 
 
 def geometry_modules(geometry) -> dict:
@@ -87,17 +110,21 @@ def bvh_variants(traversal: str) -> list[str]:
     """The ways a single-level scene can be laid out and fetched for ``traversal`` (what bvh_choice
     measures): the threaded and the wide layout, and beside the per-invocation traversal also "wide8"
     (whose nodes each invocation decodes for itself, where a subgroup packet would fetch them together)
-    and each layout fetched as rows (a subgroup packet fetches words). Any of them traces correctly with
-    either traversal."""
-    layouts = [layout for layout in BVH_LAYOUTS if layout != "wide8" or traversal == LANES_TRAVERSAL]
-    return [*layouts, *(f"{layout}{ROW_LOADS}" for layout in layouts if traversal == LANES_TRAVERSAL)]
+    and each layout fetched as rows (a subgroup packet fetches words), and the wide layouts built with
+    small leaves (SMALL_LEAVES: each invocation tests its own triangles, where a packet shares them). Any
+    of them traces correctly with either traversal."""
+    if traversal != LANES_TRAVERSAL:
+        return [layout for layout in BVH_LAYOUTS if layout != "wide8"]
+    return [variant_name(layout, small_leaves, rows) for rows in (False, True) for small_leaves in (False, True)
+            for layout in BVH_LAYOUTS if layout != "threaded" or not small_leaves]
 
 
 def bvh_layout() -> str:
     """The BVH variant single-level scenes are built with, from WGPU_RT_BVH: "auto" (the default: the
     fastest on this adapter, measured once per scene size; wgpu_rt.trace.bvh_choice), "threaded" (the
     stackless binary walk, fast with lavapipe's subgroup packets) or "wide" (a 4-wide tree walked with a
-    stack, nearest child first), either with ROW_LOADS ("wide+rows")."""
+    stack, nearest child first), "wide8" (its boxes quantized), the wide ones also built with SMALL_LEAVES,
+    any with ROW_LOADS ("wide+small-leaves+rows")."""
     layout = os.environ.get(BVH_LAYOUT_ENV, "auto")
     if layout != "auto" and layout not in bvh_variants(LANES_TRAVERSAL):
         raise SceneError(f"{BVH_LAYOUT_ENV}={layout!r}: the BVH layout must be auto or one of "
@@ -167,6 +194,7 @@ class GeometryBuffers:
     bvh: Bvh
     layout: str = "threaded"       # binding 0's node layout: a key of BVH_LAYOUTS
     row_loads: bool = False        # kernels fetch nodes and positions as rows (ROW_LOADS)
+    small_leaves: bool = False     # ``bvh`` was built with small leaves (SMALL_LEAVES)
 
     # The kernels' instance module: none (see InstancedGeometry).
     instances_module = NO_INSTANCES
@@ -207,15 +235,30 @@ class GeometryBuffers:
                    np.concatenate(objects)[order], object_motion(scene, frame), bvh)
 
     def as_variant(self, variant: str) -> "GeometryBuffers":
-        """This geometry (the same BVH) laid out and fetched as ``variant`` (bvh_variants)."""
-        layout = variant.removesuffix(ROW_LOADS)
-        if layout not in BVH_LAYOUTS:
-            raise ValueError(f"unknown BVH variant {variant!r}")
-        return dataclasses.replace(self, layout=layout, row_loads=variant.endswith(ROW_LOADS))
+        """This geometry laid out and fetched as ``variant`` (bvh_variants): the same BVH, or where the
+        variant's leaves are not this BVH's, one rebuilt with them (``with_leaves``)."""
+        layout, small_leaves, row_loads = split_variant(variant)
+        return dataclasses.replace(self.with_leaves(small_leaves), layout=layout, row_loads=row_loads)
+
+    def with_leaves(self, small_leaves: bool) -> "GeometryBuffers":
+        """This geometry with its BVH built with small leaves or without: itself where it is, else the
+        triangles reordered for a BVH rebuilt so (once per geometry; a layout choice asks for it per
+        variant)."""
+        if small_leaves == self.small_leaves:
+            return self
+        rebuilt = self.__dict__.setdefault("_rebuilt", {})
+        if small_leaves not in rebuilt:
+            bvh = build_bvh(self.triangles, leaf_traversal_cost(small_leaves))
+            order = bvh.order
+            rebuilt[small_leaves] = dataclasses.replace(
+                self, triangles=self.triangles[order], shading_normals=self.shading_normals[order],
+                material_ids=self.material_ids[order], object_ids=self.object_ids[order], bvh=bvh,
+                small_leaves=small_leaves)
+        return rebuilt[small_leaves]
 
     @property
     def variant(self) -> str:
-        return self.layout + ROW_LOADS * self.row_loads
+        return variant_name(self.layout, self.small_leaves, self.row_loads)
 
     @property
     def triangle_count(self) -> int:
@@ -336,21 +379,21 @@ class InstancedGeometry:
 
     @property
     def variant(self) -> str:
-        return self.layout + ROW_LOADS * self.row_loads
+        return variant_name(self.layout, self.small_leaves, self.row_loads)
 
     def as_variant(self, variant: str) -> "InstancedGeometry":
-        """This geometry (the same BVHs) with bottom levels laid out and fetched as ``variant``
-        (bvh_variants): with "wide", each bottom level is one 4-wide tree (wgsl/accel/walk_wide.wgsl,
-        walk_bottom_level) instead of ORDERINGS threaded copies."""
-        layout = variant.removesuffix(ROW_LOADS)
-        if layout not in BVH_LAYOUTS:
-            raise ValueError(f"unknown BVH variant {variant!r}")
-        other = copy.copy(self)
-        other.layout, other.row_loads = layout, variant.endswith(ROW_LOADS)
+        """This geometry with bottom levels laid out and fetched as ``variant`` (bvh_variants): with "wide",
+        each bottom level is one 4-wide tree (wgsl/accel/walk_wide.wgsl, walk_bottom_level) instead of
+        ORDERINGS threaded copies. The same BVHs, or where the variant's leaves are not theirs, the
+        geometry built again with them."""
+        layout, small_leaves, row_loads = split_variant(variant)
+        other = copy.copy(self) if small_leaves == self.small_leaves else InstancedGeometry(self.scene, self.frame,
+                                                                                          small_leaves)
+        other.layout, other.row_loads = layout, row_loads
         return other
 
-    def __init__(self, scene: Scene, frame: int = 0):
-        self.scene = scene
+    def __init__(self, scene: Scene, frame: int = 0, small_leaves: bool = False):
+        self.scene, self.small_leaves = scene, small_leaves
         material_ids = _material_ids(scene)
         shapes = [group for group in scene.shapes() if len(scene.meshes[group[0]].faces)]
         if not shapes:
@@ -368,7 +411,7 @@ class InstancedGeometry:
             level = [_mesh_triangles(scene.meshes[i], scene.meshes[i].transform_at(frame) if world_space
                                      else np.eye(4), face_normals=False) for i in meshes]
             triangles = _check_triangles(scene, [t for t, _ in level])
-            bvh = build_bvh(triangles)
+            bvh = build_bvh(triangles, leaf_traversal_cost(small_leaves))
             order = bvh.order
             stored.append(triangles[order])
             normals.append(np.concatenate([n for _, n in level])[order])
