@@ -108,3 +108,25 @@ def test_the_renderer_follows_the_remembered_choice(gpu, sphere_room, tmp_path, 
     assert laid_out
     monkeypatch.setenv(geometry_module.BVH_LAYOUT_ENV, "threaded")
     np.testing.assert_array_equal(auto, render(sphere_room, **options).color)
+
+
+def test_a_remembered_small_leaf_choice_costs_one_bvh_build(gpu, sphere_room, tmp_path, monkeypatch):
+    """Where the cache names a variant built with small leaves, the renderer builds that tree alone (not
+    the default one first and then the other); before any measurement, or for a scene too small to be
+    measured, it builds the default tree."""
+    from wgpu_rt.accel.bvh import SMALL_LEAF_TRAVERSAL_COST, build_bvh
+    from wgpu_rt.renderer import render
+    from wgpu_rt.trace.bvh_choice import remembers_small_leaves
+
+    monkeypatch.setenv(CACHE_DIR_ENV, str(tmp_path))
+    assert not remembers_small_leaves(gpu, sphere_room)
+    small = "wide+small-leaves"
+    choices = MeasuredChoices(gpu, timer=fake_timer({"threaded": 2.0, "wide": 1.5, small: 1.0}, []))
+    assert choose_layout(gpu, sphere_room, GeometryBuffers.build(sphere_room), choices=choices).variant == small
+    assert remembers_small_leaves(gpu, sphere_room) and not remembers_small_leaves(gpu, load_scene("cornell"))
+    costs = []
+    monkeypatch.setattr(geometry_module, "build_bvh",
+                        lambda triangles, *cost: costs.append(cost) or build_bvh(triangles, *cost))
+    monkeypatch.delenv(geometry_module.BVH_LAYOUT_ENV, raising=False)
+    render(sphere_room, size=(16, 16), spp=1, max_depth=2, aovs=(), ctx=gpu)
+    assert costs == [(SMALL_LEAF_TRAVERSAL_COST,)]

@@ -517,9 +517,9 @@ def test_a_render_switches_to_two_levels_when_objects_move(gpu):
 
 
 def test_two_levels_walk_as_the_adapter_or_the_environment_says(gpu, monkeypatch):
-    """Two-level geometry is not measured (its top level changes every frame): its bottom levels take the
-    adapter's unmeasured pick (the 4-wide walk on GPUs, the threaded one on lavapipe), or the variant
-    WGPU_RT_BVH names."""
+    """Two-level geometry is not measured (its top level changes every frame): the bottom levels of a
+    scene too small to be measured take the adapter's unmeasured pick (the 4-wide walk on GPUs, the
+    threaded one on lavapipe), or the variant WGPU_RT_BVH names."""
     from wgpu_rt.accel.geometry import BVH_LAYOUT_ENV, traversal_module
     from wgpu_rt.trace.bvh_choice import unmeasured_layout
 
@@ -530,6 +530,35 @@ def test_two_levels_walk_as_the_adapter_or_the_environment_says(gpu, monkeypatch
     assert moved_variant() == unmeasured_layout(gpu, traversal_module(gpu))
     monkeypatch.setenv(BVH_LAYOUT_ENV, "wide")
     assert moved_variant() == "wide"
+
+
+def test_a_mesh_that_starts_to_move_keeps_the_measured_walk(gpu, monkeypatch, tmp_path):
+    """A scene big enough to be measured traces its first frame single-level with the measured variant
+    (here the cache's: small leaves); once its mesh moves, the bottom levels keep that variant, small
+    leaves included."""
+    import trimesh
+
+    from test_bvh_choice import fake_timer
+
+    from wgpu_rt.accel.geometry import BVH_LAYOUT_ENV
+    from wgpu_rt.measured_choices import CACHE_DIR_ENV, MeasuredChoices
+    from wgpu_rt.trace.bvh_choice import choose_layout
+
+    path = tmp_path / "sphere.obj"
+    trimesh.creation.icosphere(subdivisions=4).export(path)
+    scene = load_scene("mesh", mesh=path)
+    monkeypatch.setenv(CACHE_DIR_ENV, str(tmp_path))
+    monkeypatch.delenv(BVH_LAYOUT_ENV, raising=False)
+    small = "wide+small-leaves"
+    choices = MeasuredChoices(gpu, timer=fake_timer({"threaded": 2.0, "wide": 1.5, small: 1.0}, []))
+    assert choose_layout(gpu, scene, GeometryBuffers.build(scene), choices=choices).variant == small
+    sphere = scene.meshes[-1]
+    scene.frame_count = 2
+    sphere.keyframes = {0: sphere.transform, 1: compose(translate([0.1, 0, 0]), sphere.transform)}
+    trace_for = Renderer(scene, size=(8, 8), ctx=gpu, aovs=())._trace_factory()
+    assert trace_for(0, 0)._geometry.variant == small
+    moved = trace_for(1, 1)._geometry
+    assert isinstance(moved, InstancedGeometry) and moved.variant == small and moved.small_leaves
 
 
 def still_moving_scene():

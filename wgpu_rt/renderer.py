@@ -172,8 +172,8 @@ class Renderer:
         places a shape several times (instances) gets the two-level geometry from its first frame on,
         which stores each shape's triangles once, unless it places at most FLATTEN_PLACED_TRIANGLES.
         Frame f is seeded seed + f (mod 2³²)."""
-        from .accel.geometry import GeometryBuffers, InstancedGeometry, bvh_layout, traversal_module
-        from .trace.bvh_choice import choose_layout, unmeasured_layout
+        from .accel.geometry import GeometryBuffers, InstancedGeometry, bvh_layout, split_variant, traversal_module
+        from .trace.bvh_choice import AUTO_MIN_TRIANGLES, choose_layout, remembers_small_leaves, unmeasured_layout
         from .trace.trace_pass import TracePass
 
         traced: dict[bytes, TracePass] = {}   # by the frame's transforms, or follows_every_frame
@@ -183,8 +183,10 @@ class Renderer:
         placed_triangles = sum(len(mesh.faces) for mesh in scene.meshes)
         instanced_from_start = can_instance and scene.has_instances and placed_triangles > FLATTEN_PLACED_TRIANGLES
         layout = bvh_layout()
-        # two-level scenes are not measured (their BVHs change with the frames): the adapter's pick
-        instanced_variant = unmeasured_layout(self.ctx, traversal_module(self.ctx)) if layout == "auto" else layout
+        # Two-level scenes are not measured (their BVHs change with the frames). Their bottom levels take
+        # the variant measured for the scene's single-level first frame where there was one (a mesh that
+        # starts to move keeps the walk it was traced with standing still), else the adapter's pick.
+        instanced_variant = [unmeasured_layout(self.ctx, traversal_module(self.ctx)) if layout == "auto" else layout]
 
         def trace_for(frame: int, seed_frame: int):
             seed = (self.seed + seed_frame) % 2 ** 32
@@ -194,11 +196,16 @@ class Renderer:
                 moved = bool(traced)
                 traced.clear()
                 if instanced_from_start or (moved and can_instance):
-                    geometry, key = InstancedGeometry(scene, frame).as_variant(instanced_variant), follows_every_frame
+                    variant = instanced_variant[0]
+                    geometry = InstancedGeometry(scene, frame, split_variant(variant)[1]).as_variant(variant)
+                    key = follows_every_frame
                 elif layout == "auto":
-                    geometry = choose_layout(self.ctx, scene, GeometryBuffers.build(scene, frame), self.max_depth, frame)
+                    built = GeometryBuffers.build(scene, frame, remembers_small_leaves(self.ctx, scene))
+                    geometry = choose_layout(self.ctx, scene, built, self.max_depth, frame)
+                    if built.triangle_count >= AUTO_MIN_TRIANGLES:
+                        instanced_variant[0] = geometry.variant
                 else:
-                    geometry = GeometryBuffers.build(scene, frame).as_variant(layout)
+                    geometry = GeometryBuffers.build(scene, frame, split_variant(layout)[1]).as_variant(layout)
                 trace = traced[key] = TracePass(self.ctx, scene, geometry, self.width, self.height, frame=frame,
                                                 max_depth=self.max_depth, seed=seed)
             else:

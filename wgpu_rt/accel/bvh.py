@@ -39,10 +39,10 @@ MAX_DEPTH = 32
 # least once, so it costs several triangle tests (measured: 8 with leaves up to 15 beat 2 with leaves
 # up to 8 by ~11% in samples/s on cornell and sun-room, and tied on the bunny and mesh scenes).
 TRAVERSAL_COST = 8.0
-# The same for trees built with small leaves (GeometryBuffers' "+small-leaves" variants, for a walk in
-# which each invocation tests its own triangles, as GPUs run the wide walk): a node visit costing two
-# triangle tests. On the bunny that quarters the triangles a bouncing ray tests in the 4-wide walk (28 to
-# 8) for a fifth more node visits and a quarter fewer bytes read (benchmarks/bench_walk_work.py,
+# The same for trees built with small leaves (the "+small-leaves" variants of the wide layouts, for
+# walks in which each invocation tests its own triangles, as GPUs run them): a node visit costing two
+# triangle tests. On the bunny that cuts the triangles a bouncing ray tests in the 4-wide walk from 29 to 8
+# for a fifth more node visits and a quarter fewer bytes read (benchmarks/bench_walk_work.py,
 # BENCHMARKS.md §24); whether that is faster is the adapter's to say (wgpu_rt.trace.bvh_choice).
 SMALL_LEAF_TRAVERSAL_COST = 2.0
 NODE_DTYPE = np.dtype([("lo", "<f4", 3), ("first", "<u4"), ("hi", "<f4", 3), ("count", "<u4")])

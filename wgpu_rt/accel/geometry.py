@@ -108,13 +108,13 @@ def wide_node_bytes(layout: str) -> int:
 
 def bvh_variants(traversal: str) -> list[str]:
     """The ways a single-level scene can be laid out and fetched for ``traversal`` (what bvh_choice
-    measures): the threaded and the wide layout, and beside the per-invocation traversal also "wide8"
-    (whose nodes each invocation decodes for itself, where a subgroup packet would fetch them together)
-    and each layout fetched as rows (a subgroup packet fetches words), and the wide layouts built with
-    small leaves (SMALL_LEAVES: each invocation tests its own triangles, where a packet shares them). Any
-    of them traces correctly with either traversal."""
+    measures): the threaded and the wide layout, the wide one also built with small leaves (SMALL_LEAVES),
+    and beside the per-invocation traversal also "wide8" (whose nodes each invocation decodes for itself,
+    where a subgroup packet would fetch them together), with and without small leaves, and each variant
+    fetched as rows (a subgroup packet fetches words). Any of them traces correctly with either
+    traversal."""
     if traversal != LANES_TRAVERSAL:
-        return [layout for layout in BVH_LAYOUTS if layout != "wide8"]
+        return ["threaded", "wide", variant_name("wide", True, False)]
     return [variant_name(layout, small_leaves, rows) for rows in (False, True) for small_leaves in (False, True)
             for layout in BVH_LAYOUTS if layout != "threaded" or not small_leaves]
 
@@ -218,8 +218,9 @@ class GeometryBuffers:
         return quantized_wide_nodes(self.wide_nodes) if self.layout == "wide8" else self.wide_nodes
 
     @classmethod
-    def build(cls, scene: Scene, frame: int = 0) -> "GeometryBuffers":
-        """``scene``'s triangles at ``frame`` and their BVH, laid out threaded (``as_variant`` for others)."""
+    def build(cls, scene: Scene, frame: int = 0, small_leaves: bool = False) -> "GeometryBuffers":
+        """``scene``'s triangles at ``frame`` and their BVH (built with small leaves or not), laid out
+        threaded (``as_variant`` for others)."""
         material_ids = _material_ids(scene)
         triangles, normals, materials, objects = [], [], [], []
         for object_id, mesh in enumerate(scene.meshes):
@@ -229,10 +230,10 @@ class GeometryBuffers:
             materials.append(np.full(len(world), material_ids[object_id], np.uint32))
             objects.append(np.full(len(world), object_id, np.uint32))
         all_triangles = _check_triangles(scene, triangles)
-        bvh = build_bvh(all_triangles)
+        bvh = build_bvh(all_triangles, leaf_traversal_cost(small_leaves))
         order = bvh.order
         return cls(all_triangles[order], np.concatenate(normals)[order], np.concatenate(materials)[order],
-                   np.concatenate(objects)[order], object_motion(scene, frame), bvh)
+                   np.concatenate(objects)[order], object_motion(scene, frame), bvh, small_leaves=small_leaves)
 
     def as_variant(self, variant: str) -> "GeometryBuffers":
         """This geometry laid out and fetched as ``variant`` (bvh_variants): the same BVH, or where the

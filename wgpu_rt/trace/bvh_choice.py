@@ -3,8 +3,9 @@
 ``WGPU_RT_BVH`` (wgpu_rt.accel.geometry.bvh_layout) names a variant, or is ``auto`` (the default): a
 scene of at least AUTO_MIN_TRIANGLES triangles is traced one sample per pixel with each variant
 ``bvh_variants`` offers for the adapter's traversal module (the threaded binary walk and the 4-wide
-stack walk; beside the per-invocation traversal each also with its nodes and vertices fetched as 16-byte
-rows; the images are the same), by the kernel the renderer will run, and the fastest is taken. The
+stack walk, the latter also over a tree built with small leaves; beside the per-invocation traversal also
+the quantized wide layout, and each with its nodes and vertices fetched as 16-byte rows; the images are
+the same), by the kernel the renderer will run, and the fastest is taken. The
 choice is remembered per adapter, driver, traversal module (lanes alone or subgroup packets) and scene
 size (triangles to the nearest power of two) in the measured-choices cache (wgpu_rt.measured_choices),
 so each adapter measures a size once.
@@ -29,7 +30,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..accel.geometry import GeometryBuffers, bvh_variants, traversal_module
+from ..accel.geometry import GeometryBuffers, bvh_variants, split_variant, traversal_module
 from ..measured_choices import MeasuredChoices
 from ..passes import RADIANCE, FrameBuffers
 from ..scene.model import Scene
@@ -52,6 +53,19 @@ def unmeasured_layout(ctx, traversal: str) -> str:
         return DEFAULT_LAYOUT
     variants = bvh_variants(traversal)
     return "wide+rows" if "wide+rows" in variants else "wide"
+
+
+def remembers_small_leaves(ctx, scene: Scene, choices: MeasuredChoices | None = None) -> bool:
+    """Whether the variant this adapter measured fastest for ``scene``'s size (``choose_layout``) is built
+    with small leaves; False where it has not measured that size yet. The renderer builds that tree
+    first, so a remembered choice costs one BVH build, not two."""
+    triangles = sum(len(mesh.faces) for mesh in scene.meshes)
+    if triangles < AUTO_MIN_TRIANGLES:
+        return False
+    choices = choices or MeasuredChoices(ctx)
+    traversal = traversal_module(ctx)
+    variant = choices.cached(layout_key(choices, traversal, triangles), bvh_variants(traversal))
+    return variant is not None and split_variant(variant)[1]
 
 
 def wall_timer(run: Callable[[], float]) -> float:
