@@ -15,13 +15,14 @@
 # Session 22 (H200, BENCHMARKS.md §21) took: nn + frame + heldout_render 390 s, trace 67 s, heldout 238 s
 # (heldout_denoise needs more than 120 s: give it PART_LIMIT=200). Session 23 (§22): tests + frame + nn
 # 278 s (tests 157 s), train 288 s (its renders 218 s; the fine-tune was cut to 0.7 of its 3 minutes,
-# since fixed). Session 24 had no GPU. Next: call 1 with the OIDN peer, DEADLINE=300 PART_LIMIT=200,
+# since fixed). Sessions 24 and 25 had no GPU. Next: call 1 with the OIDN peer, DEADLINE=300 PART_LIMIT=200,
 # timeout_s 450: `tests frame trace nn_widths` (§22's NVIDIA fixes not yet run there: the low band's tiny
 # ratios, one dispatch test; the frame GPU column now a mean over frames, low band included, and a
 # display-only row (hdr=False) for the wall − GPU gap; the moving bunny with wide bottom levels; the
 # targeted pass's entry lookup by subtraction; the wide walk's stack per invocation and the quantized wide
 # layout wide8, for which `trace` compares the walks with §21's figures: without the Mitsuba peer it skips
-# the OptiX column; nn_widths: the denoiser's time at 0.57× and 0.26× its FLOPs);
+# the OptiX column; session 25's small-leaf trees, and samples/s without the BVH build, which §21's bunny
+# 0.52× had counted; nn_widths: the denoiser's time at 0.57× and 0.26× its FLOPs);
 # call 2 at once: `train` with TRAIN_MINUTES=3, PART_LIMIT=300, timeout_s 450 (frames preloaded to
 # the device, the pace judged after the first epoch: how many steps/s once cuDNN has tuned each crop
 # size, in the card's history; the datasets now render in SHARDS=4 processes: compare the parts' times
@@ -149,9 +150,11 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
             --steps staged staged-weights direct-weights fp16 fp16-math autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
-        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows auto
-        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows auto
-        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows auto
+        # session 25: each wide layout also over the tree with small leaves; samples/s no longer count the BVH build
+        small_leaves="wide+small-leaves wide8+small-leaves wide+small-leaves+rows wide8+small-leaves+rows"
+        part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows $small_leaves auto
+        part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows wide+small-leaves+rows auto
+        part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows $small_leaves auto
         part bvh_rays python3 benchmarks/bench_bvh.py --sizes 100000
         part trace_cornell_checked env WGPU_RT_BOUNDS_CHECKS=1 python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP
         part watertight python3 benchmarks/bench_watertight.py --size $SQUARE --spp $TRACE_SPP ;;
