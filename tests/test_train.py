@@ -617,6 +617,43 @@ def test_preloaded_planes_are_every_render_packed_once(tiny_dataset):
             assert torch.equal(a, b)
 
 
+def test_a_kept_budget_keeps_the_first_frames_drawn_and_packs_the_rest_each_time(tiny_dataset):
+    """A CPU run keeps packed frames up to its budget in bytes (the first drawn); frames past it are
+    packed again at each draw, and the batches are the same either way."""
+    from wgpu_rt.dataset import load_views
+    from wgpu_rt.train.samples import Augmentation, DenoiserSamples
+
+    views = load_views(tiny_dataset, "train")
+    packed, kept = DenoiserSamples(views), DenoiserSamples(views)
+    one_frame = sum(a.nbytes for a in packed.planes(packed.items[0], 1))
+    kept.keep_on(torch.device("cpu"), budget=2 * one_frame)
+    packs = []
+    planes = kept.planes
+    kept.planes = lambda *key: packs.append(key) or planes(*key)
+    for _ in range(2):
+        expected = packed.batch(kept.items[:4], np.random.default_rng(3), Augmentation(8, 16, 2), 1)
+        for a, b in zip(expected, kept.batch(kept.items[:4], np.random.default_rng(3), Augmentation(8, 16, 2), 1)):
+            assert torch.equal(a, b)
+    assert len(kept._kept) == 2 and kept._kept_bytes <= 2 * one_frame
+    assert len(packs) == 4 + 2, packs     # the first pass packs all four, the second the two not kept
+
+
+@pytest.mark.parametrize("task", ["denoiser", "error_predictor"])
+def test_a_crop_is_exposed_as_the_frame_would_be(tiny_dataset, task):
+    """Exposing only the crop (targets made pixel by pixel) gives the crop of the exposed frame; the error
+    predictor's target, scaled by a percentile of the whole frame, is cropped after it is made."""
+    from wgpu_rt.dataset import load_views
+    from wgpu_rt.train.samples import samples_for
+
+    samples = samples_for(task, load_views(tiny_dataset, "train"))
+    item = samples.items[0]
+    whole = samples.exposed(item, 1, 1.7)
+    window = (3, 5, 8)
+    for a, b in zip(whole, samples.exposed(item, 1, 1.7, window=window)):
+        assert torch.allclose(a[:, 3:11, 5:13], b, rtol=1e-6, atol=1e-6)
+    assert samples.pixelwise_target == (task == "denoiser")
+
+
 def test_a_time_budget_follows_the_pace_after_the_first_epoch(tiny_dataset, tmp_path):
     """The first epoch carries the warm-up: the epochs that fit are judged by the later ones' pace, and
     raised again (up to those asked) when the pace improves."""

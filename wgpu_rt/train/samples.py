@@ -2,7 +2,7 @@
 
 Inputs are packed by ``wgpu_rt.frame.pack``'s numpy references on the *full* frame (so the depth
 normalisation sees the frame's true max depth, as at runtime), then, as torch tensors on the training
-device, exposed, cropped and augmented:
+device, cropped and exposed (the crop alone, where the target is made pixel by pixel) and augmented:
 
 - exposure jitter: colour and gold scaled by 2^U(−1, 1), applied to the packed log1p planes as
   log1p(e · expm1(p)), the same as packing the scaled render (the log1p compression makes this a
@@ -59,21 +59,26 @@ class TaskSamples(ABC):
     exposed_target: slice = slice(0, 0)
     colour_inputs: tuple[slice, ...] = ()    # RGB triples a colour permutation reorders
     colour_targets: tuple[slice, ...] = ()
+    # ``target`` and the exposure act pixel by pixel, so a crop may be taken before them (exposing the
+    # crop alone: the same values for less work); a target built from the whole frame needs it after
+    pixelwise_target: bool = True
 
     def __init__(self, views: list[View]):
         self.views = views
         self.items = self._items()
         self.device = torch.device("cpu")
         self._kept: dict | None = None
+        self._budget, self._kept_bytes = None, 0
 
     def _items(self) -> list[tuple[int, int]]:
         return [(v, f) for v, view in enumerate(self.views) for f in range(len(view.frames))]
 
-    def keep_on(self, device: torch.device) -> None:
+    def keep_on(self, device: torch.device, budget: int | None = None) -> None:
         """Keep each frame's planes on ``device`` once packed (``preload``, or at their first draw), so a GPU
         does not wait for the CPU to pack frames again; without this they are packed at every draw, which
-        keeps a CPU run's memory at the dataset's own size."""
-        self.device, self._kept = device, {}
+        keeps a CPU run's memory at the dataset's own size. ``budget``: keep at most this many bytes of
+        them (the first drawn), packing the others at each draw; None: all."""
+        self.device, self._kept, self._budget, self._kept_bytes = device, {}, budget, 0
 
     def preload(self, every_spp: bool, progress: bool = False, workers: int = 8) -> None:
         """Pack every frame's planes now, on ``workers`` threads, into the tensors ``keep_on`` keeps: each
@@ -108,17 +113,26 @@ class TaskSamples(ABC):
         if self._kept is not None and key in self._kept:
             return self._kept[key]
         tensors = tuple(torch.from_numpy(a).to(self.device) for a in self.planes(item, spp, copy))
-        if self._kept is not None:
+        size = sum(t.numel() * t.element_size() for t in tensors)
+        if self._kept is not None and (self._budget is None or self._kept_bytes + size <= self._budget):
             self._kept[key] = tensors
+            self._kept_bytes += size
         return tensors
 
-    def exposed(self, item, spp: int, exposure: float, copy: int = 0) -> tuple[torch.Tensor, torch.Tensor]:
+    def exposed(self, item, spp: int, exposure: float, copy: int = 0, window=None) -> tuple[torch.Tensor, torch.Tensor]:
         """The full-frame input and target of ``item`` (tensors on ``device``) with the radiance scaled by
-        ``exposure``: log1p(v) becomes log1p(exposure · v), the same as packing the scaled render."""
+        ``exposure``: log1p(v) becomes log1p(exposure · v), the same as packing the scaled render.
+        ``window``: (top, left, side) of a square crop, taken before the exposure where the target is
+        ``pixelwise_target`` (else after it)."""
         x, y = self._tensors(item, spp, copy)
+        if window is not None and self.pixelwise_target:
+            x, y = _cropped(x, window), _cropped(y, window)
         if exposure != 1.0:
             x, y = _expose(x, self.exposed_input, exposure), _expose(y, self.exposed_target, exposure)
-        return x, self.target(x, y)
+        y = self.target(x, y)
+        if window is not None and not self.pixelwise_target:
+            x, y = _cropped(x, window), _cropped(y, window)
+        return x, y
 
     def full(self, item, spp: int, exposure: float, copy: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """``exposed`` as numpy arrays (validation, tests)."""
@@ -141,10 +155,10 @@ class TaskSamples(ABC):
         for item in items:
             exposure = float(2.0 ** rng.uniform(-aug.exposure_stops, aug.exposure_stops))
             drawn = int(rng.choice(self.views[item[0]].spp)) if spp == ANY_SPP else spp
-            x, y = self.exposed(item, drawn, exposure, int(rng.integers(self.copies(item, drawn))))
-            top = int(rng.integers(0, x.shape[1] - crop + 1))
-            left = int(rng.integers(0, x.shape[2] - crop + 1))
-            x, y = x[:, top:top + crop, left:left + crop], y[:, top:top + crop, left:left + crop]
+            copy = int(rng.integers(self.copies(item, drawn)))
+            height, width = self.views[item[0]].frames[item[1]].gold["color"].shape[:2]
+            window = (int(rng.integers(0, height - crop + 1)), int(rng.integers(0, width - crop + 1)), crop)
+            x, y = self.exposed(item, drawn, exposure, copy, window)
             turns, flip = int(rng.integers(4)), bool(rng.integers(2))
             x, y = (torch.rot90(a, turns, dims=(1, 2)) for a in (x, y))
             if flip:
@@ -160,6 +174,12 @@ class TaskSamples(ABC):
             aux = x[:, self.aux_channels]
             aux += aug.aux_noise * torch.randn(aux.shape, generator=generator, device=x.device)
         return x, y
+
+
+def _cropped(planes: torch.Tensor, window: tuple[int, int, int]) -> torch.Tensor:
+    """``planes`` (C, H, W) inside the square ``window`` (top, left, side): a view."""
+    top, left, side = window
+    return planes[:, top:top + side, left:left + side]
 
 
 def _reorder(planes: torch.Tensor, triples: tuple[slice, ...], order: torch.Tensor) -> torch.Tensor:
@@ -202,6 +222,7 @@ class ErrorSamples(TaskSamples):
     torch on the full exposed frame: its percentile depends on the exposure)."""
 
     exposed_target = slice(0, 3)
+    pixelwise_target = False
 
     def planes(self, item, spp, copy=0):
         frame = self.views[item[0]].frames[item[1]]

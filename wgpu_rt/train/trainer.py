@@ -188,8 +188,8 @@ class Trainer:
         if frame // self.multiple * self.multiple < self.smallest_crop:
             raise TrainingError(f"{', '.join(folders)}: {frame}-px frames are too small to train the {config.task} "
                                 f"on ({self._crop_reason()}: at least {self.smallest_crop} px)")
-        if self.context.keep_data:
-            self.train_set.keep_on(self.context.device)
+        if self.context.keep_data or self.context.host_budget:
+            self.train_set.keep_on(self.context.device, self.context.host_budget)
         self.network = self.context.wrap(self.model)
         self.steps_per_epoch = math.ceil(len(self.context.shard(np.arange(len(self.train_set.items))))
                                          / config.batch)
