@@ -104,3 +104,20 @@ def test_an_os_error_naming_no_path_keeps_its_traceback(monkeypatch):
     monkeypatch.setattr(info, "run", bug)
     with pytest.raises(OSError, match="a bug"):
         main(["info"])
+
+
+
+@pytest.mark.parametrize("printed", [10, 100_000], ids=["at the last flush", "mid-run"])
+def test_a_reader_that_leaves_early_ends_the_command_quietly(printed):
+    """`wgpu-rt info | head -1`: once the pipe's reader has gone, the command stops with status 141 (as
+    a tool killed by SIGPIPE) and no traceback, whether a write fails mid-run or at the last flush."""
+    import subprocess
+    import sys
+
+    script = ("import sys\nimport wgpu_rt.commands.info as info\nfrom wgpu_rt.cli import main\n"
+              f"info.run = lambda args: print('x' * {printed}) or 0\nsys.exit(main(['info']))\n")
+    read_end, write_end = os.pipe()
+    os.close(read_end)   # nobody reads: the first write that reaches the pipe fails
+    done = subprocess.run([sys.executable, "-c", script], stdout=write_end, stderr=subprocess.PIPE, text=True)
+    os.close(write_end)
+    assert done.returncode == 141 and done.stderr == "", done.stderr

@@ -2,14 +2,16 @@
 
 Each subcommand is a module of ``wgpu_rt.commands`` with ``HELP`` (one line), ``add_arguments(parser)``
 and ``run(args) -> int``; modules import their heavy dependencies inside ``run`` so that ``--help``
-stays fast. Modules whose name starts with ``_`` are helpers the subcommands share. Errors a user can cause (``WgpuRtError``, or an ``OSError`` about a named path) print one
-line and exit 2.
+stays fast. Modules whose name starts with ``_`` are helpers the subcommands share. Errors a user can
+cause (``WgpuRtError``, or an ``OSError`` about a named path) print one line and exit 2; a reader of
+stdout that leaves early (``| head``) ends the command quietly with status 141.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 
@@ -37,12 +39,17 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.adapter:
-        import os
-
         from .gpu import ADAPTER_ENV
         os.environ[ADAPTER_ENV] = args.adapter
     try:
-        return int(args.run(args) or 0)
+        status = int(args.run(args) or 0)
+        sys.stdout.flush()   # inside the try: a reader gone shows here, not at the interpreter's exit
+        return status
+    except BrokenPipeError:
+        # the reader of stdout left (`wgpu-rt info | head`): stop quietly, as other command-line tools do;
+        # stdout goes to /dev/null so that the interpreter's own flush at exit does not fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except WgpuRtError as err:
         print(f"wgpu-rt {args.command}: error: {err}", file=sys.stderr)
         return 2
