@@ -89,8 +89,6 @@ def _segment_index(starts: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, 
     return starts[segment] + (np.arange(int(counts.sum())) - offsets[segment]), segment
 
 
-
-
 def bin_counts(traversal_cost: float) -> tuple:
     """Bins per node by triangle count: (more than, at most, bins). Small nodes need few bins, and most
     nodes are small, so this keeps the per-level tables near the triangle count in size. Nodes with at most
