@@ -2,7 +2,8 @@
 fastest variant here (cuda_ad_rgb with a CUDA GPU, else llvm_ad_rgb when LLVM 19 is installed, else
 scalar_rgb: benchmarks/peers.py) measured in the same run, and their ratio; a faster variant that is
 absent prints one "skipped (why)" line. Compile time is excluded on both sides (one warm-up render
-each). ``--scene bunny`` is the `mesh` scene with ../shared/meshes' Stanford bunny. ``--layouts``
+each), and so is the scene set-up (our BVH build and uploads, printed on a line of their own; Mitsuba's
+scene load). ``--scene bunny`` is the `mesh` scene with ../shared/meshes' Stanford bunny. ``--layouts``
 traces with each BVH variant in turn (wgpu_rt.accel.geometry.bvh_variants: a node layout, "+rows" for
 16-byte row loads; or ``auto``: the one measured fastest on this adapter, wgpu_rt.trace.bvh_choice,
 printed as "auto: VARIANT"; default: what WGPU_RT_BVH selects, else auto).
@@ -46,12 +47,13 @@ def main() -> int:
         return 1
     scene = scenes[0]
 
-    rates = {}
+    rates, setups = {}, {}
     for layout in args.layouts or [bvh_layout()]:
         os.environ[BVH_LAYOUT_ENV] = layout
         render(scene, spp=1, size=size, max_depth=args.max_depth, aovs=())
         ours = render(scene, spp=args.spp, size=size, max_depth=args.max_depth, aovs=())
-        rates[layout_label(layout, scene, args.max_depth)] = samples / ours.seconds
+        label = layout_label(layout, scene, args.max_depth)
+        rates[label], setups[label] = samples / ours.seconds, ours.setup_seconds
 
     mi, skipped = mitsuba_peer()
     for line in skipped:
@@ -64,6 +66,9 @@ def main() -> int:
         line += (f", Mitsuba {mi.variant()} {mi_rate / 1e6:.3f} M samples/s, ratio "
                  + ", ".join(f"{rate / mi_rate:.3f} ({layout})" for layout, rate in rates.items()))
     print(line)
+    # set-up is not in the rates above (nor in Mitsuba's: its scene load is not timed); for reference
+    print("set-up (renderer, BVH, uploads; kernels compiled by the warm-up): "
+          + ", ".join(f"{seconds:.3f} s ({layout})" for layout, seconds in setups.items()))
     return 0
 
 
