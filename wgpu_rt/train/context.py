@@ -36,11 +36,11 @@ class TrainContext:
     amp_dtype: torch.dtype | None = None     # autocast dtype; None: float32 throughout
     keep_data: bool = False                  # keep the packed training frames on the device (a GPU's memory)
     # how the weights and batches are laid out: channels last, the layout of cuDNN's tensor-core
-    # convolutions in half precision (NCHW makes it transpose around every conv) and of oneDNN's fastest
-    # on the CPU (a fifth less time a step for the denoiser at 64–96 px crops on two cores)
+    # convolutions in half precision (NCHW makes it transpose around every conv) and of oneDNN's faster
+    # CPU convolutions
     memory_format: torch.memory_format = torch.channels_last
     # bytes of packed training frames a CPU run keeps in memory as they are first drawn (None: none; the
-    # others are packed again at every draw, about a fifth of a CPU step's time at 192² frames)
+    # others are packed again at every draw). With the two above, 1.5× the CPU's steps/s (BENCHMARKS.md §24)
     host_budget: int | None = None
 
     def __post_init__(self):
