@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import time
 
 import numpy as np
 from common import BUNNY, print_header, print_table
@@ -21,6 +22,7 @@ from wgpu_rt.accel.bvh import (
     LEAF_COUNT_BITS,
     SMALL_LEAF_TRAVERSAL_COST,
     THREADED_NODE_DTYPE,
+    TRAVERSAL_COST,
     WIDE_EMPTY,
     WIDE_LEAF,
     WIDE_NODE_DTYPE,
@@ -165,7 +167,16 @@ def main() -> int:
         triangles = np.asarray(mesh.vertices, np.float32)[mesh.faces]
     else:
         triangles = (rng.uniform(-1, 1, (100_000, 1, 3)) + rng.normal(0, 0.02, (100_000, 3, 3))).astype(np.float32)
-    bvh = build_bvh(triangles)
+    trees, build_seconds = {}, {}
+    for name, cost in (("default", TRAVERSAL_COST), ("small leaves", SMALL_LEAF_TRAVERSAL_COST)):
+        started = time.perf_counter()
+        trees[name] = build_bvh(triangles, cost)
+        build_seconds[name] = time.perf_counter() - started
+    print_table(f"the two trees of {len(triangles):,} triangles", ["tree", "node visit cost", "binary nodes",
+                "wide nodes", "triangles a leaf", "build s"],
+                [[name, cost, tree.node_count, len(wide_nodes(tree)), tree.leaf_sizes.mean(), build_seconds[name]]
+                 for (name, tree), cost in zip(trees.items(), (TRAVERSAL_COST, SMALL_LEAF_TRAVERSAL_COST))])
+    bvh = trees["default"]
     ordered = triangles[bvh.order].astype(np.float64).tolist()
     copies = ordered_threaded_nodes(bvh)
     count = bvh.node_count
@@ -176,8 +187,7 @@ def main() -> int:
         return ([(list(zip(node["lo"].T.tolist(), node["hi"].T.tolist())), node["children"].tolist())
                  for node in wide_nodes(tree)], triangles[tree.order].astype(np.float64).tolist())
 
-    small_leaves = build_bvh(triangles, SMALL_LEAF_TRAVERSAL_COST)
-    wide_trees = {"wide": wide_tree(bvh), "wide, small leaves": wide_tree(small_leaves)}
+    wide_trees = {"wide": wide_tree(bvh), "wide, small leaves": wide_tree(trees["small leaves"])}
     points = triangles.reshape(-1, 3).astype(np.float64)
     center, radius = points.mean(axis=0), np.ptp(points, axis=0).max()
     rows = []
