@@ -410,19 +410,23 @@ def test_render_takes_a_builtin_name_and_a_frame_list(gpu):
     assert len(frames) == 1 and frames[0].color.shape == (8, 8, 3)
 
 
-def test_the_first_frames_bvh_is_set_up_time_not_frame_time(gpu, monkeypatch):
-    """A frame's ``seconds`` (what samples/s divide by) leaves out its tracer's set-up, as a peer's timed
-    render leaves out its scene load: a BVH build that takes a second shows in ``setup_seconds``."""
+@pytest.mark.parametrize("slow", ["BVH build", "network plan"])
+def test_what_the_first_frame_builds_is_set_up_time_not_frame_time(gpu, monkeypatch, slow):
+    """A frame's ``seconds`` (what samples/s divide by) leave out what its first frame would build on its
+    way, as a peer's timed render leaves out its scene load: a BVH build, or a denoiser plan (kernels,
+    activations), that takes a second shows in ``setup_seconds``."""
     from wgpu_rt.accel import geometry as geometry_module
+    from wgpu_rt.nn.model import WgslModel
 
-    build = geometry_module.build_bvh
+    module, name = (geometry_module, "build_bvh") if slow == "BVH build" else (WgslModel, "_build_plan")
+    original = getattr(module, name)
 
-    def slow_build(*args):
+    def slowly(*args):
         time.sleep(1.0)
-        return build(*args)
+        return original(*args)
 
-    monkeypatch.setattr(geometry_module, "build_bvh", slow_build)
-    first = render("cornell", frames=[0], size=(8, 8), max_depth=2, ctx=gpu)[0]
+    monkeypatch.setattr(module, name, slowly)
+    first = render("cornell", frames=[0], size=(8, 8), max_depth=2, ctx=gpu, denoise=slow == "network plan")[0]
     assert first.setup_seconds >= 1.0 and first.seconds < 1.0, (first.setup_seconds, first.seconds)
 
 

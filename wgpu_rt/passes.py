@@ -94,3 +94,11 @@ class FrameBuffers:
         spec, buffer = self._buffers[name]
         shape = (spec.channels, self.height, self.width)
         return self.ctx.read(buffer, NUMPY_DTYPE[spec.dtype], shape)
+
+
+def prepare_network(network, input_buffer, height: int, width: int) -> None:
+    """Have ``network`` build ahead what its first ``record`` from ``input_buffer`` at height×width would
+    (``WgslModel.prepare``); a network without ``prepare`` (a test's stand-in) builds nothing ahead."""
+    prepare = getattr(network, "prepare", None)
+    if prepare is not None:
+        prepare(input_buffer, height, width)

@@ -227,12 +227,11 @@ class Renderer:
     def frames(self, frames=None) -> Iterator[RenderResult]:
         """Render ``frames`` (a frame number or an iterable; default frame 0) in order, the next frame
         running on the device while the caller holds this one; the first result carries the setup time
-        (the renderer's, and the tracer pass of the first frame: its BVH is built here, before any frame's
-        clock starts, as a peer's scene load is)."""
+        (the renderer's, and what the first frame would build on its way: its BVH and the networks' plans
+        are built here, before any frame's clock starts, as a peer's scene load is)."""
         listed = _frame_list(frames, self.scene.frame_count, self.scene.has_motion)
         started = time.perf_counter()
-        # the first frame's tracer pass (BVH, geometry uploads, kernels) is set-up, not that frame's time
-        self.pipeline.trace_factory(listed[0], listed[0])
+        self.pipeline.prepare(listed[0])   # the first frame's BVH, uploads and network plans: set-up
         setup_seconds = self.setup_seconds + time.perf_counter() - started
         single = len(listed) == 1
         self._bar = self._progress_bar(self.spp if single else len(listed), "spp" if single else "frame")

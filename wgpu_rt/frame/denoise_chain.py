@@ -6,7 +6,7 @@ tracer and the temporal pass (``FramePipeline``), ``denoise()`` over uploaded pl
 
 from __future__ import annotations
 
-from ..passes import Stage
+from ..passes import Stage, prepare_network
 from .atrous import AtrousPass
 from .chroma import ChromaPass
 from .converge import CONVERGED, ConvergePass
@@ -42,6 +42,13 @@ class DenoiseChain:
         steps = (self.low_band, self.chroma, self.post_filter, self.converge)
         return [self.pack, Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack,
                 *(step for step in steps if step is not None)]
+
+    def prepare(self, buffers) -> None:
+        """Build ahead what the chain's first ``record`` would for its networks (frame.pipeline's
+        ``prepare``): the denoiser at the frame's size and at each coarser level's."""
+        prepare_network(self.denoiser, buffers.get(DENOISER_INPUT), self.height, self.width)
+        if self.low_band is not None:
+            self.low_band.prepare()
 
     def record(self, encoder, buffers, low_band: bool = True, mark=_no_mark) -> None:
         """Record the chain into ``encoder`` over ``buffers``' planes (the low band only where

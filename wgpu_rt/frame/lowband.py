@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import WgpuRtError
-from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, ComputePass
+from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, ComputePass, prepare_network
 from .kernel import TILE, FrameKernel, ceil_div, nonnegative_finite
 from .pack import PackLevelPass, block_mean, level_sample_counts, pack_level_input
 from .planes import DENOISED, DENOISER_INPUT
@@ -156,6 +156,12 @@ class LowBand(ComputePass):
                          for level, pack in enumerate(self.packs, 1)]
         sizes = [(width, height)] + [pack.size for pack in self.packs[:-1]]
         self.steps = [LowBandPass(ctx, *size) for size in sizes]
+
+    def prepare(self) -> None:
+        """Build ahead the denoiser's plans for the coarser levels (see DenoiseChain.prepare)."""
+        for pack in self.packs:
+            width, height = pack.size
+            prepare_network(self.denoiser, pack.result, height, width)
 
     def execute(self, encoder, buffers) -> None:
         for pack, unpack, radiance in zip(self.packs, self.unpacks, self.radiance):

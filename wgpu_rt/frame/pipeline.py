@@ -9,7 +9,8 @@ device until its queue is idle): submitted first, frame N+1 would finish before 
 and the device would sit idle while the host copies frame N out.
 
 Networks are objects with ``record(encoder, input_buffer, height, width) -> output_buffer`` (the NN
-engine's ``wgpu_rt.nn.WgslModel``). Stage timings come from timestamp queries when the adapter has
+engine's ``wgpu_rt.nn.WgslModel``), and may have ``prepare(input_buffer, height, width)``, which builds
+ahead what their first ``record`` would (``FramePipeline.prepare``). Stage timings come from timestamp queries when the adapter has
 them: an empty compute pass with a timestamp write marks each stage boundary, so stages recorded by
 other packages are timed too.
 """
@@ -23,7 +24,8 @@ import numpy as np
 import wgpu
 
 from ..errors import ModelError, WgpuRtError
-from ..passes import ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, FrameBuffers, PlaneSpec, Stage
+from ..passes import (ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP, FrameBuffers, PlaneSpec, Stage,
+                      prepare_network)
 from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
 from .converge import HALF_SPP, copy_half, half_count
@@ -247,6 +249,18 @@ class FramePipeline:
         # copy reach those before it, so the copy holds a quarter to a half of them).
         self.accumulated = self.half_copied = 0
         self._aux_kept = None   # a static view's aux albedo (_aux_albedo)
+
+    def prepare(self, frame: int) -> None:
+        """Build what the first frame would build on its way: the tracer pass of ``frame`` (BVH, uploads,
+        kernels) and each network's plan, kernels and bind groups at this size, so that a frame's
+        ``seconds`` count its own work, as a peer's timed render leaves its scene load out."""
+        self.trace_factory(frame, frame)
+        if self.chain is not None:
+            self.chain.prepare(self.buffers)
+        if self.adaptive is not None and self.adaptive.sampler == "heat":
+            prepare_network(self.error_predictor, self.buffers.get(ERROR_INPUT), self.height, self.width)
+        if self.temporal is not None:
+            self.temporal.prepare(self.buffers)
 
     def _stages(self) -> list:
         """What a frame runs after the tracer, in order, each with the planes it declares it reads and

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import WgpuRtError
-from ..passes import DEPTH, MOTION, NORMAL, RADIANCE, ComputePass, PlaneSpec
+from ..passes import DEPTH, MOTION, NORMAL, RADIANCE, ComputePass, PlaneSpec, prepare_network
 from .converge import CONVERGED, ConvergePass
 from .kernel import FrameKernel, finite, nonnegative_finite
 from .pack import PackConfidencePass
@@ -212,6 +212,11 @@ class TemporalPass(ComputePass):
                         for entry, bindings in ENTRY_BINDINGS.items()}
         self.pack_confidence = (PackConfidencePass(ctx, width, height, source, REPROJECTED, depth_max)
                                 if confidence is not None else None)
+
+    def prepare(self, buffers) -> None:
+        """Build ahead the confidence network's plan (frame.pipeline's ``prepare``)."""
+        if self.confidence is not None:
+            prepare_network(self.confidence, buffers.get(CONFIDENCE_INPUT), self.height, self.width)
 
     def execute(self, encoder, buffers, change: str) -> None:
         planes = {"color": buffers.get(self.source), "depth": buffers.get(DEPTH),

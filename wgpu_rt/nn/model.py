@@ -661,6 +661,11 @@ class WgslModel:
         record_dispatches(encoder, self.dispatches(height, width, input_buffer), query_set)
         return self.plan(height, width).output_buffer
 
+    def prepare(self, input_buffer, height: int, width: int) -> None:
+        """Build what the first ``record`` at height×width from ``input_buffer`` would build on its way (the
+        plan, its kernels and bind groups), so that recording is all that is left for a frame to do."""
+        self.dispatches(height, width, input_buffer)
+
     def dispatches(self, height: int, width: int, input_buffer) -> list[Dispatch]:
         """Every dispatch of one inference: per pass of the ensemble and per band, entry conversion, the
         network, exit conversion."""
