@@ -55,8 +55,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from common import (image_size, add_gold_arguments, add_model_arguments, gold_render, hdr_pipeline, linear_frame, denoiser_options,
-                    load_scenes, parse_with_quick_defaults, print_header, print_table, resolve_models,
+from common import (add_gold_arguments, add_model_arguments, denoiser_options, gold_render, hdr_pipeline, image_size,
+                    linear_frame, load_scenes, parse_with_quick_defaults, print_header, print_table, resolve_models,
                     save_array, save_figure, trimmed_rel_mse)
 
 from wgpu_rt import metrics

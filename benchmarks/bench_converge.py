@@ -24,8 +24,8 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (image_size, add_gold_arguments, add_model_arguments, gold_render, load_scenes, denoiser_options, print_header,
-                    print_table, resolve_models)
+from common import (add_gold_arguments, add_model_arguments, denoiser_options, gold_render, image_size, load_scenes,
+                    print_header, print_table, resolve_models)
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.converge import CONVERGE_CAP_SCALE, CONVERGE_RADIUS, converge, half_count

@@ -23,8 +23,9 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (image_size, add_gold_arguments, add_model_arguments, gold_frame, gold_render, hdr_pipeline, linear_frame,
-                    load_scenes, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models)
+from common import (add_gold_arguments, add_model_arguments, gold_frame, gold_render, hdr_pipeline, image_size,
+                    linear_frame, load_scenes, oidn, parse_with_quick_defaults, print_header, print_table,
+                    resolve_models)
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.temporal import CLAMP_MODES, TemporalSettings

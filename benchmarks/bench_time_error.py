@@ -21,9 +21,9 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (image_size, add_gold_arguments, add_model_arguments, crossing, errors, gold_render, hdr_pipeline,
-                    linear_frame, load_scenes, mitsuba, mitsuba_render, oidn, parse_with_quick_defaults,
-                    print_header, print_table, resolve_models, save_figure, steady)
+from common import (add_gold_arguments, add_model_arguments, crossing, errors, gold_render, hdr_pipeline, image_size,
+                    linear_frame, load_scenes, mitsuba, mitsuba_render, oidn, parse_with_quick_defaults, print_header,
+                    print_table, resolve_models, save_figure, steady)
 
 from wgpu_rt.renderer import render
 from wgpu_rt.trace.trace_pass import AUX_SAMPLES

@@ -10,9 +10,9 @@ and the device would sit idle while the host copies frame N out.
 
 Networks are objects with ``record(encoder, input_buffer, height, width) -> output_buffer`` (the NN
 engine's ``wgpu_rt.nn.WgslModel``), and may have ``prepare(input_buffer, height, width)``, which builds
-ahead what their first ``record`` would (``FramePipeline.prepare``). Stage timings come from timestamp queries when the adapter has
-them: an empty compute pass with a timestamp write marks each stage boundary, so stages recorded by
-other packages are timed too.
+ahead what their first ``record`` would (``FramePipeline.prepare``). Stage timings come from timestamp
+queries when the adapter has them: an empty compute pass with a timestamp write marks each stage
+boundary, so stages recorded by other packages are timed too.
 """
 
 from __future__ import annotations
