@@ -117,7 +117,7 @@ for what in "$@"; do
     case $what in
     tests)
         root=$PWD
-        workers=$(python3 -c "import xdist" 2>/dev/null && echo "-n 8" || echo "")
+        workers=$(python3 -c "import xdist" 2>/dev/null && echo "-n ${TEST_WORKERS:-8}" || echo "")
         part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -q -rs $workers -p no:cacheprovider" ;;
     nn)
         profile="wgpu-rt profile models/denoiser.onnx --size ${W}x${H}"   # word-split on purpose
@@ -201,12 +201,14 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet ${TRAIN_FLAGS:-}
         cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/"   # bench_denoise reads a whole set
         archive ;;
-    train_check)   # the model of part train (TRAINED, default: $OUT/model, the same call's) scored: a call of its own
+    train_eval|train_check)   # the model of part train (TRAINED, default: $OUT/model, the same call's) scored on
+                              # the held-out worlds; train_check adds §14's checks: a call of its own
         trained=${TRAINED:-$OUT/model}
-        [ -f "$trained/denoiser.onnx" ] || { echo "train_check: no $trained/denoiser.onnx (run part train first, or set TRAINED)"; exit 2; }
+        [ -f "$trained/denoiser.onnx" ] || { echo "$what: no $trained/denoiser.onnx (run part train first, or set TRAINED)"; exit 2; }
         [ -d "$HELDOUT" ] || render_heldout
         part train_eval python3 benchmarks/bench_denoise.py --data $HELDOUT --models "$trained" \
             --per-view --noise-seeds 3 --oidn-quality balanced
+        [ $what = train_check ] || continue
         # §14's checks, where the CPU fine-tunes lost (built-ins, 128² at 4 spp, …660's pane): shipped and new
         for set in models "$trained"; do
             name=$([ "$set" = models ] && echo shipped || echo new)
@@ -216,6 +218,6 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
                 --gold-spp $GOLD --gold-cache /tmp/gold --seeds 2 --models "$set" --scenes $CHECK_SCENES_SMALL
         done ;;
     *) echo "unknown part $what (tests, nn, nn_widths, nn_variants, trace, frame, heldout, train," \
-            "train_check)"; exit 2 ;;
+            "train_eval, train_check)"; exit 2 ;;
     esac
 done
