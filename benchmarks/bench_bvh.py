@@ -7,8 +7,8 @@ nodes and vertices fetched as 16-byte rows (wgsl/accel/geometry_rows.wgsl); `wid
 the wide ones with child boxes quantized to 8 bits (64-byte nodes). The rays start at random points all around the mesh, so neighbouring invocations share
 nothing: the worst case for packets, which the path tracer's neighbouring pixels are not.
 
-Peer: Mitsuba 3 (scalar_rgb, or where the build has none, as on the lent GPUs, the fastest variant
-there: benchmarks/_mitsuba_setup.py) loading a scene that holds the same triangles, which includes building
+Peer: Mitsuba 3 (scalar_rgb, or where the build has none, as on the lent GPUs, cuda_ad_rgb:
+wgpu_rt.scene.mitsuba.use_variant) loading a scene that holds the same triangles, which includes building
 its own acceleration structure, timed in the same run; the last column is Mitsuba's time over ours
 (> 1: we build faster). Run: ``python3 benchmarks/bench_bvh.py [--sizes 10000,100000,1000000]``.
 """
@@ -54,14 +54,11 @@ def mitsuba_load_seconds(triangles: np.ndarray) -> float | None:
         import mitsuba as mi
     except ImportError:
         return None
-    if "scalar_rgb" in mi.variants():
-        mi.set_variant("scalar_rgb")
-    else:   # a build with GPU variants alone (the lent machines' peer)
-        from _mitsuba_setup import mitsuba
-
-        mi = mitsuba()
     from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
-    from wgpu_rt.scene.mitsuba import to_mitsuba
+    from wgpu_rt.scene.mitsuba import to_mitsuba, use_variant
+
+    if use_variant(mi) is None:
+        return None
 
     faces = np.arange(3 * len(triangles), dtype=np.uint32).reshape(-1, 3)
     scene = Scene(Camera([0, 0, 3], [0, 0, 0]), [Mesh("m", triangles.reshape(-1, 3), faces, "grey")],

@@ -130,7 +130,7 @@ for what in "$@"; do
                  # (untrained: the speed is the architecture's), profiled as the default picks
         for widths in "16 32 64 128 128" "12 24 48 96 96" "8 16 32 64 64"; do
             name=unet_$(echo $widths | tr ' ' _)
-            part export_$name python3 -c "import sys; from wgpu_rt.train.networks import UNet, export_onnx
+            part export_$name env PYTHONSAFEPATH=1 python3 -c "import sys; from wgpu_rt.train.networks import UNet, export_onnx
 export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.argv[1])" "$OUT/$name.onnx" $widths
             part profile_$name wgpu-rt profile "$OUT/$name.onnx" --size ${W}x${H}
         done ;;

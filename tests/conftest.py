@@ -49,3 +49,15 @@ def moving():
     from wgpu_rt.scene.builtin import builtin_scene
 
     return builtin_scene("moving")
+
+
+@pytest.fixture(scope="session")
+def mi():
+    """Mitsuba 3 set to a variant that loads here (``wgpu_rt.scene.mitsuba.use_variant``: scalar_rgb, or
+    on the lent GPUs' trimmed build cuda_ad_rgb); skipped without Mitsuba or without such a variant."""
+    mitsuba = pytest.importorskip("mitsuba")
+    from wgpu_rt.scene.mitsuba import use_variant
+
+    if use_variant(mitsuba) is None:
+        pytest.skip("no Mitsuba variant loads in this build")
+    return mitsuba

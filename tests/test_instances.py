@@ -569,13 +569,6 @@ def still_moving_scene():
     return scene
 
 
-@pytest.fixture
-def mi():
-    mitsuba = pytest.importorskip("mitsuba")
-    mitsuba.set_variant("scalar_rgb")
-    return mitsuba
-
-
 def test_mitsuba_export_places_every_instance(gpu, mi):
     """to_mitsuba writes each instance out as a mesh of its own, exactly as for the copied scene, and
     Mitsuba renders the instanced scene (lamps, gold and coloured cubes) as our two-level tracer does."""

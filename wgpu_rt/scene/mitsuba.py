@@ -68,16 +68,38 @@ def _mitsuba_mesh(mi, name: str, vertices, faces, normals, bsdf: dict, emission)
     return mesh
 
 
+# The variants the cross-validation can use, the CPU's scalar one first: the Mitsuba staged for the lent
+# GPUs is built with cuda_ad_rgb and llvm_ad_rgb alone, and llvm_ad_rgb needs an LLVM that loads
+CROSS_CHECK_VARIANTS = ("scalar_rgb", "cuda_ad_rgb", "llvm_ad_rgb")
+
+
+def use_variant(mi, variants=CROSS_CHECK_VARIANTS) -> str | None:
+    """Keep ``mi``'s variant if one is set, else set the first of ``variants`` that this Mitsuba build can
+    load (``mi.variants()`` lists those it was configured with, which a trimmed install may lack).
+    Returns the variant in use, or None where none loads."""
+    if mi.variant() is not None:
+        return mi.variant()
+    for variant in variants:
+        if variant not in mi.variants():
+            continue
+        try:
+            mi.set_variant(variant)
+        except (ImportError, RuntimeError):
+            continue
+        return variant
+    return None
+
+
 def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, frame: int = 0,
                seed: int = 0) -> dict:
     """A dict for ``mi.load_dict`` that renders ``scene`` at ``frame`` like our tracer should.
 
-    Uses the current Mitsuba variant (``scalar_rgb`` is selected if none is set yet).
+    Uses the current Mitsuba variant (``use_variant`` picks one if none is set yet).
     """
     import mitsuba as mi
 
-    if mi.variant() is None:
-        mi.set_variant("scalar_rgb")
+    if use_variant(mi) is None:
+        raise RuntimeError(f"no Mitsuba variant of {CROSS_CHECK_VARIANTS} loads in this build")
     camera = scene.camera_at(frame)
     result = {
         "type": "scene",
