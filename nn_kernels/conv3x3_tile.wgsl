@@ -1,7 +1,8 @@
 // The register tile shared by the 3×3 stride-1 kernels (conv3x3.wgsl, conv3x3_staged.wgsl): the layer's
 // constants and bindings, and a tile of 4 adjacent output pixels × TILE_C output channel blocks per
 // invocation. Its width, TILE_C (4 blocks, 16 channels; 8 blocks, 32 channels in conv3x3.wgsl on layers
-// whose output has a multiple of 32 channels), is unrolled in conv3x3_tile_blocks.wgsl. One row step takes the 6 input pixels (vec4 = 4
+// whose output has a multiple of 32 channels; 2 blocks where 16 channels do not divide the output), is
+// unrolled in conv3x3_tile_blocks.wgsl. One row step takes the 6 input pixels (vec4 = 4
 // input channels) of one kernel row and views them as three 4-pixel matrices (one per kx), so one
 // mat4x4 weight block × mat4x4 pixels product is 64 multiply-adds, and every weight block of a row
 // step is fetched once per invocation and serves all 4 pixels. The tile is named matrices, not an

@@ -1,4 +1,4 @@
-// The register tile's width: TILE_C output blocks (4: 16 channels, 8: 32 channels) of 4 pixels each,
+// The register tile's width: TILE_C output blocks (2: 8 channels, 4: 16, 8: 32) of 4 pixels each,
 // written out by kernels.tile_blocks_code, which unrolls the fields, the bias, the accumulation (blocks
 // 2p and 2p + 1 from pair window p) and the stores below for the width a layer takes. The 32-channel
 // tile serves twice the multiply-adds per input pixel loaded, and input loads are lavapipe's bottleneck

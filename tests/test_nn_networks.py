@@ -215,13 +215,17 @@ def test_ensemble_in_bands_and_bad_sizes(tmp_path, gpu):
         WgslModel(path, ctx=gpu, ensemble=3)
 
 
-@pytest.mark.parametrize("widths,limit,bands", [((8, 16, 32), 820_000, 3), ((16, 32), 1_000_000, 3)],
-                         ids=["conv", "conv3x3_head"])
-def test_frames_over_the_buffer_limit_run_in_bands_with_identical_results(tmp_path, gpu, widths, limit, bands):
+@pytest.mark.parametrize("widths,limit,tiling,first,last", [
+    ((8, 16, 32), 820_000, "loop", "pack+conv.wgsl", "gemm.wgsl+unpack"),
+    ((8, 16, 32), 820_000, "register", "pack+conv3x3.wgsl+tile8", "conv3x3.wgsl+tile8+head+unpack"),
+    ((16, 32), 1_000_000, "register", "pack+conv3x3.wgsl+tile16", "conv3x3.wgsl+tile16+head+unpack")],
+    ids=["conv", "conv3x3_tile8_head", "conv3x3_head"])
+def test_frames_over_the_buffer_limit_run_in_bands_with_identical_results(tmp_path, gpu, widths, limit, tiling,
+                                                                          first, last):
     """A frame whose activations exceed max-buffer-size runs as bands of rows with receptive-field
     context; shrink the limits to force that at a small size. Each band's first conv reads its rows of
     the input image and its last layer writes its kept rows of the output image: conv.wgsl and the 1×1
-    head (8 channels), conv3x3 with the head in its epilogue (16)."""
+    head (the loop plan), conv3x3 with the head in its epilogue (8 and 16 channels)."""
     from wgpu_rt.gpu import GpuContext
     from wgpu_rt.nn import WgslModel
 
@@ -230,12 +234,12 @@ def test_frames_over_the_buffer_limit_run_in_bands_with_identical_results(tmp_pa
     small = GpuContext(gpu.adapter, gpu.device, gpu.features)
     small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": limit, "max-buffer-size": limit}
     x = np.random.default_rng(7).uniform(0, 1, (1, DENOISER.input_channels, 403, 45)).astype(np.float32)
-    banded = WgslModel(path, ctx=small, conv_tiling="register")
-    assert len(banded.plan(403, 45).bands) == bands
+    banded = WgslModel(path, ctx=small, conv_tiling=tiling)
+    bands = len(banded.plan(403, 45).bands)
+    assert bands == 3
     kernels = [d.kernel for d in every_dispatch(banded, 403, 45)]
-    assert kernels.count("pack+conv.wgsl" if widths[0] == 8 else "pack+conv3x3.wgsl+tile16") == bands
-    assert kernels.count("gemm.wgsl+unpack" if widths[0] == 8 else "conv3x3.wgsl+tile16+head+unpack") == bands
-    np.testing.assert_array_equal(banded(x), WgslModel(path, ctx=gpu, conv_tiling="register")(x))
+    assert kernels.count(first) == bands and kernels.count(last) == bands, kernels
+    np.testing.assert_array_equal(banded(x), WgslModel(path, ctx=gpu, conv_tiling=tiling)(x))
 
 
 @pytest.mark.parametrize("tiling", ["register", "staged", "loop"])

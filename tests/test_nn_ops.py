@@ -62,8 +62,8 @@ def conv(name, x, y, cin, cout, k, pads=None, stride=1, bias=True, seed=1):
 
 
 GRAPHS = {
-    "conv3x3": (5, lambda: conv("conv", "x", "y", 5, 6, 3)),
-    "conv3x3_register_tile": (5, lambda: conv("conv", "x", "y", 5, 16, 3)),  # conv3x3.wgsl (16k outputs)
+    "conv3x3": (5, lambda: conv("conv", "x", "y", 5, 10, 3)),  # 3 output blocks: conv.wgsl
+    "conv3x3_register_tile": (5, lambda: conv("conv", "x", "y", 5, 16, 3)),  # conv3x3.wgsl (8k outputs)
     "conv3x3_stride2": (5, lambda: conv("conv", "x", "y", 5, 7, 3, stride=2)),
     "conv5x5_asymmetric_pads_no_bias": (3, lambda: conv("conv", "x", "y", 3, 4, 5, pads=[2, 1, 0, 2],
                                                         bias=False)),
@@ -195,7 +195,9 @@ def test_activation_is_fused_into_conv(models):
         assert [layer.kind for layer in model.graph.layers] == ["conv"]
         assert model.graph.layers[0].activation.kind in (1, 3)
         dispatches = every_dispatch(model, 8, 8)
-        assert [(d.label, d.kernel) for d in dispatches] == [("pack", "pack.wgsl"), ("conv", "conv.wgsl+unpack")]
+        # 6 outputs: two blocks, the 3×3 tile kernel's 8-channel tile
+        assert [(d.label, d.kernel) for d in dispatches] == [("pack", "pack.wgsl"),
+                                                             ("conv", "conv3x3.wgsl+tile8+unpack")]
 
 
 def test_aligned_concat_is_free(models):
@@ -210,7 +212,7 @@ def test_misaligned_concat_copies(models):
     assert model.graph.concat_copies["concat"] == ["x", "t0"]
 
 
-def test_register_tile_kernel_is_used_for_3x3_with_16k_outputs(models):
+def test_register_tile_kernel_is_used_for_3x3_with_8k_outputs(models):
     _, _, tiled = models("conv3x3_register_tile", GRAPHS["conv3x3_register_tile"], "fp32")
     _, _, plain = models("conv3x3", GRAPHS["conv3x3"], "fp32")
     assert type(tiled.kernel_for(tiled.graph.layers[0])).__name__ == "Conv3x3Kernel"
@@ -232,14 +234,15 @@ def test_benchmark_baseline_tilings_agree(tmp_path, gpu, tiling):
 @pytest.mark.parametrize("tiling", ["register", "staged", "staged-weights"])
 @pytest.mark.parametrize("pads", [[1, 1, 1, 1], [0, 1, 2, 0]], ids=["same", "asymmetric"])
 @pytest.mark.parametrize("precision", ["fp32", "fp16"])
-@pytest.mark.parametrize("outputs", [48, 64])
+@pytest.mark.parametrize("outputs", [8, 24, 48, 64])
 def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision, outputs):
     """Both 3×3 tile kernels, whichever the adapter's default: conv3x3.wgsl and conv3x3_staged.wgsl
     (workgroup-memory halo tiles; with "staged-weights" each input block's weights staged beside them),
-    and both tile widths: 48 outputs = 12 blocks, three 16-channel groups;
+    and every tile width: 48 outputs = 12 blocks, three 16-channel groups;
     64 = two 32-channel groups in conv3x3.wgsl, four 16-channel groups in the staged kernel (which keeps
-    16). 9 input channels = 3 blocks, one padded; 37×71 cuts the 8-row × 32-pixel workgroup tiles on both
-    edges; asymmetric pads shift the halo."""
+    16); 8 and 24, which 16 does not divide, one and three 8-channel groups. 9 input channels = 3 blocks,
+    one padded; 37×71 cuts the 8-row × 32-pixel workgroup tiles on both edges; asymmetric pads shift the
+    halo."""
     from wgpu_rt.nn import WgslModel
 
     if precision == "fp16" and not gpu.has_f16:
@@ -251,7 +254,8 @@ def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision, outputs):
     assert kernel.shader == ("conv3x3.wgsl" if tiling == "register" else "conv3x3_staged.wgsl")
     assert (kernel.weight_fetch == "workgroup") == (tiling == "staged-weights")
     wide = outputs == 64 and tiling == "register"
-    assert model.prepared["conv"].tile_c == (8 if wide else 4)   # output blocks per invocation
+    # output blocks per invocation
+    assert model.prepared["conv"].tile_c == (8 if wide else 4 if outputs % 16 == 0 else 2)
     check_parity([(1, 9, 37, 71)], onnxruntime_fn(path), model,
                  atol=FP32_ATOL if precision == "fp32" else FP16_ATOL)
 
@@ -451,7 +455,7 @@ def pool_skip_graph(width):
     """A U-Net level: conv (the pooled layer, and the input's only reader) → max pool → conv → ×2
     resize, concatenated with the pre-pool output (a skip: the pooled tensor is not its only
     consumer) → conv to 6 channels. ``width`` picks the pooling kernel: 16 conv3x3's 16-channel tile,
-    32 its 32-channel one (register tiling), 6 conv.wgsl."""
+    32 its 32-channel one (register tiling), 6 its 8-channel one."""
     def build():
         first, w1 = conv("c1", "x", "t1", 5, width, 3)
         second, w2 = conv("c2", "p", "t2", width, width, 3, seed=2)
@@ -501,7 +505,8 @@ def head_graph(width, head_activation=False):
 
 FOLDS = {"pool_skip16": pool_skip_graph(16), "pool_skip32": pool_skip_graph(32), "pool_skip6": pool_skip_graph(6),
          "pool_into_concat": pool_into_concat_graph(), "two_pools": two_pools_graph(),
-         "head16": head_graph(16), "head32": head_graph(32), "head_with_sigmoid": head_graph(16, True)}
+         "head8": head_graph(8), "head16": head_graph(16), "head32": head_graph(32),
+         "head_with_sigmoid": head_graph(16, True)}
 # plan variant -> (conv tiling, uniform windows preferred): lavapipe's plan, the staged kernels, the GPU
 # plan (staged, one dispatch per layer) and the loop kernels (conv.wgsl everywhere)
 PLANS = {"register": ("register", True), "staged": ("staged", True), "gpu": ("staged", False),
@@ -562,7 +567,8 @@ def test_pool_runs_in_the_conv_epilogue(tmp_path, gpu, monkeypatch, plan):
     kernels = kernels_of(model)
     assert not any(k.startswith(("maxpool", "pack.wgsl", "unpack.wgsl")) for k in kernels), kernels
     assert kernels[0].startswith("pack+conv") and kernels[0].endswith("+maxpool")
-    assert kernels[-1] == "conv.wgsl+unpack"
+    # the last conv (6 outputs) in the 3×3 kernels' 8-channel tile, or the loop plan's conv.wgsl
+    assert kernels[-1] == "conv.wgsl+unpack" if plan == "loop" else kernels[-1].endswith("+tile8+unpack")
 
 
 def test_second_pool_of_one_output_is_dispatched(tmp_path, gpu, monkeypatch):
@@ -573,7 +579,7 @@ def test_second_pool_of_one_output_is_dispatched(tmp_path, gpu, monkeypatch):
 
 
 @pytest.mark.parametrize("name,plan,folded", [
-    ("head16", "register", True), ("head16", "gpu", True), ("head32", "register", True),
+    ("head16", "register", True), ("head16", "gpu", True), ("head32", "register", True), ("head8", "gpu", True),
     ("head32", "staged", False),  # the staged kernel's 16-channel tile holds half of the 32 outputs
     ("head16", "loop", False),  # conv.wgsl takes no head
     ("head_with_sigmoid", "register", False)])

@@ -555,9 +555,10 @@ class Head:
 
 
 class Conv3x3Kernel(ConvFamilyKernel):
-    """The hot path — 3×3 stride-1 convolutions whose output has a multiple of 16 channels, with a
-    written-out register tile of 4 pixels × 16 or 32 channels per invocation (conv3x3_tile.wgsl), in
-    one of two variants that differ only in where the input pixels come from:
+    """The hot path — 3×3 stride-1 convolutions whose output has a multiple of 8 channels, with a
+    written-out register tile of 4 pixels × 16 or 32 channels per invocation (conv3x3_tile.wgsl), or 8
+    where 16 do not divide the output (a narrow network's 8, 24 or 40 channels), in one of two variants
+    that differ only in where the input pixels come from:
 
     * conv3x3.wgsl (``staged=False``) reads each invocation's 3 × 6 input pixels from device memory;
     * conv3x3_staged.wgsl (``staged=True``) first copies the workgroup's input tile and halo into
@@ -619,7 +620,7 @@ class Conv3x3Kernel(ConvFamilyKernel):
 
     With a ``head`` (a 1×1 conv without activation reading this layer's output, the network's last
     layer), the epilogue runs the head on the tile and stores its output instead (head_epilogue.wgsl),
-    where one tile holds all the layer's output channels (``takes_head``: 16, or 32 in the direct
+    where one tile holds all the layer's output channels (``takes_head``: 8 or 16, or 32 in the direct
     variant): the denoiser's last 3×3 conv and its head are one dispatch."""
 
     bindings = ConvFamilyKernel.bindings + WINDOW_BINDINGS[1:] + ("head",)
@@ -636,8 +637,14 @@ class Conv3x3Kernel(ConvFamilyKernel):
 
     def tile_blocks(self, layer: Layer) -> int:
         """Output blocks per invocation: 8 (32 channels) in the direct variant where they divide the
-        output's blocks, else 4."""
-        return 8 if not self.staged and groups_of(layer.weight.shape[0], 4) % 8 == 0 else 4
+        output's blocks, else 4 where they do, else 2. The 8-channel tile does half the multiply-adds per
+        input pixel loaded, yet on an H200 the loop kernel (conv.wgsl), which took 8-, 12- and 24-channel
+        layers before, ran them at 5.6 TFLOP/s against the 16-channel staged tile's 22–25 (BENCHMARKS.md
+        §25)."""
+        blocks = groups_of(layer.weight.shape[0], 4)
+        if not self.staged and blocks % 8 == 0:
+            return 8
+        return 4 if blocks % 4 == 0 else 2
 
     def packing(self, layer: Layer) -> tuple[int, int]:
         """One window per pair of output blocks of a group (``pair{p}_weights`` in the shader)."""
@@ -647,7 +654,7 @@ class Conv3x3Kernel(ConvFamilyKernel):
     @staticmethod
     def handles(layer: Layer) -> bool:
         return (layer.kind == "conv" and layer.weight.shape[2:] == (3, 3) and layer.stride == 1
-                and groups_of(layer.weight.shape[0], 4) % 4 == 0)
+                and groups_of(layer.weight.shape[0], 4) % 2 == 0)
 
     def takes_head(self, layer: Layer, head: Layer) -> bool:
         """Whether ``head`` (a 1×1 conv reading ``layer``'s output) can run in ``layer``'s epilogue: one
