@@ -35,10 +35,10 @@ spp), so the spp uniform would need to match it is undefined.
 Plots: benchmarks/plots/adaptive_savings_<scene>.png.
 
 --pass-cost measures only the targeted pass's cost instead: per scene, sampler and budget, the device
-time (timestamp queries) of the targeted pass on that sampler's own sample map, after the 1-spp probe,
-against a uniform pass of the same total samples (budget − probe spp; whole budgets), --repeats pairs
-timed in alternation, printed as the median of their ratios (1: the targeted pass costs what its samples
-cost). On a CPU adapter the ratio of this process's CPU time is printed too: the cores are shared, and
+time (timestamp queries) of the targeted pass on that sampler's own sample map, after the 1-spp probe
+(and of its work list's build alone, the part before its batches), against a uniform pass of the same
+total samples (budget − probe spp; whole budgets), --repeats pairs timed in alternation, printed as the
+median of their ratios (1: the targeted pass costs what its samples cost). On a CPU adapter the ratio of this process's CPU time is printed too: the cores are shared, and
 timestamps count the time other programs took them.
 
     python3 benchmarks/bench_adaptive.py --pass-cost [--size 128x128] [--budgets 4] [--repeats 5]
@@ -301,10 +301,26 @@ def timed_pass(trace, buffers, timer, schedule) -> tuple[float, float]:
     return timer.stage_ms(timer.names, raw)["pass"], (time.process_time() - cpu) * 1e3
 
 
+def timed_list_build(trace, buffers, timer, schedule) -> float:
+    """Device ms of building the targeted pass's work list alone (the part of the pass before its batches)."""
+    from wgpu_rt.passes import SPP
+
+    work = trace.work_list
+    encoder = trace.ctx.device.create_command_encoder()
+    timer.start()
+    timer.mark(encoder, "start")
+    work.record_build(encoder, schedule.sample_counts, buffers.get(SPP),
+                      work.batches(schedule.samples, schedule.total_samples))
+    timer.mark(encoder, "build")
+    encoder.resolve_query_set(timer.query_set, 0, 2, timer.resolved, 0)
+    trace.ctx.device.queue.submit([encoder.finish()])
+    return timer.stage_ms(timer.names, trace.ctx.device.queue.read_buffer(timer.resolved, 0, 16))["build"]
+
+
 def pass_cost_row(trace, counts, settings: AdaptiveSettings, extra: int, repeats: int) -> list[float]:
-    """Median device ms of the targeted pass and of a uniform pass of ``extra`` spp, timed in alternation,
-    the median of their pairwise ratios, and that ratio in process CPU time (what a CPU adapter spends,
-    whatever else shares its cores; None on a GPU)."""
+    """Median device ms of the targeted pass, of its work list's build alone and of a uniform pass of
+    ``extra`` spp, timed in alternation, the median of the passes' pairwise ratios, and that ratio in
+    process CPU time (what a CPU adapter spends, whatever else shares its cores; None on a GPU)."""
     from wgpu_rt.frame.pipeline import StageTimer
     from wgpu_rt.passes import FrameBuffers
     from wgpu_rt.trace.trace_pass import SampleSchedule
@@ -317,9 +333,10 @@ def pass_cost_row(trace, counts, settings: AdaptiveSettings, extra: int, repeats
     pairs = np.array([[timed_pass(trace, buffers, timer, schedule) for schedule in (targeted, uniform)]
                       for _ in range(repeats)])   # (repeat, targeted/uniform, device/cpu)
     ratios = pairs[:, 0] / pairs[:, 1]
+    build = np.median([timed_list_build(trace, buffers, timer, targeted) for _ in range(repeats)])
     on_cpu = trace.ctx.adapter.info.get("adapter_type") == "CPU"
-    return [float(np.median(pairs[:, 0, 0])), float(np.median(pairs[:, 1, 0])), float(np.median(ratios[:, 0])),
-            float(np.median(ratios[:, 1])) if on_cpu else None]
+    return [float(np.median(pairs[:, 0, 0])), float(build), float(np.median(pairs[:, 1, 0])),
+            float(np.median(ratios[:, 0])), float(np.median(ratios[:, 1])) if on_cpu else None]
 
 
 def pass_cost(args, size) -> None:
@@ -353,7 +370,7 @@ def pass_cost(args, size) -> None:
     print_table(f"targeted pass against a uniform pass of the same samples ({args.repeats} pairs timed in "
                 f"alternation: device ms by timestamps, medians; ratio: median of the pairs' ratios)",
                 ["scene", "sampler", "budget", "mean extra", "max extra", "share with none", "targeted ms",
-                 "uniform ms", "ratio", "CPU-time ratio"], rows)
+                 "list build ms", "uniform ms", "ratio", "CPU-time ratio"], rows)
 
 
 def main() -> None:

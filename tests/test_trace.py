@@ -154,7 +154,7 @@ def test_work_list_matches_reference(gpu, size, item_samples):
     encoder = gpu.device.create_command_encoder()
     work.record_build(encoder, gpu.upload(counts), gpu.upload(spp), batches=2)
     gpu.device.queue.submit([encoder.finish()])
-    expected_pixels, expected_first = work_list_entries(counts, item_samples)
+    expected_pixels, expected_first = work_list_entries(counts, item_samples, size[0])
     items, entries, batch_items, waiting_items, waiting_entries = (
         int(value) for value in gpu.read(work.totals, np.uint32)[:5])
     assert entries == len(expected_pixels) and batch_items == work.batch_items
@@ -176,8 +176,8 @@ def test_work_list_matches_reference(gpu, size, item_samples):
 def test_work_list_order_balances_items():
     """The list's order: pixels of several items (whose sums wait for resolve_items) first, then those of
     one; each group by size class (a pixel's items differ by at most one sample) from the largest down,
-    then by pixel. Neighbouring invocations so take nearly as many samples, and the resolve pass covers
-    only the front of the list."""
+    then by place in the film's 8 × 8 tiles. Neighbouring invocations so take nearly as many samples on
+    neighbouring pixels, and the resolve pass covers only the front of the list."""
     counts = np.array([5, 0, 1, 7, 3, 3, 12, 2])
     pixels, first_items = work_list_entries(counts, 4)
     # items: 5 → 3+2 (class 3), 7 → 4+3 (4), 12 → 4+4+4 (4); single: 1, 3, 3, 2 (classes 1, 3, 3, 2)
@@ -187,6 +187,10 @@ def test_work_list_order_balances_items():
     # 9 → 3+3+3 and 5 → 3+2 (class 3) come before 4 (class 4), a single item
     pixels, _ = work_list_entries(np.array([2, 9, 4, 5, 1]), 4)
     assert pixels.tolist() == [1, 3, 2, 0, 4]
+    # a 20 × 3 film, one sample each: tile by tile (the last one cut at column 20), row by row in each
+    pixels, _ = work_list_entries(np.ones(60), 4, width=20)
+    rows = [[20 * y + x for x in range(*columns)] for columns in ((0, 8), (8, 16), (16, 20)) for y in range(3)]
+    assert pixels.tolist() == sum(rows, [])
 
 
 def test_batches_cover_every_item():

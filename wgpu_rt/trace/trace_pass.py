@@ -218,16 +218,27 @@ def item_counts(counts: np.ndarray, item_samples: int) -> np.ndarray:
     return -(-np.asarray(counts, np.int64) // item_samples)
 
 
-def work_list_entries(counts: np.ndarray, item_samples: int) -> tuple[np.ndarray, np.ndarray]:
+def tile_order(width: int, height: int) -> np.ndarray:
+    """Each pixel's place when the film is read 8 × 8 tile by tile (tiles in raster order, the pixels of a
+    tile in raster order), the order of a uniform pass's workgroups (wgsl/trace/camera.wgsl on GPUs)."""
+    y, x = np.divmod(np.arange(width * height, dtype=np.int64), width)
+    tile = (y // TILE) * -(-width // TILE) + x // TILE
+    return tile * TILE * TILE + (y % TILE) * TILE + x % TILE
+
+
+def work_list_entries(counts: np.ndarray, item_samples: int, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """numpy reference of wgsl/trace/work_list_build.wgsl: the entries of a targeted pass's work list,
-    as (pixels, first items). Pixels with samples: those of several items first, then those of one;
-    each group by size class (the size of their largest item) from largest to smallest, then by pixel
-    index. Each entry's items follow the previous one's."""
+    as (pixels, first items), for ``counts`` of a film ``width`` pixels wide (default: one row). Pixels
+    with samples: those of several items first, then those of one; each group by size class (the size of
+    their largest item) from largest to smallest, then by place in the film's 8 × 8 tiles (tile_order).
+    Each entry's items follow the previous one's."""
     counts = np.asarray(counts, np.int64).ravel()
+    width = width or len(counts)
     items = item_counts(counts, item_samples)
     size_class = -(-counts // np.maximum(items, 1))
     pixels = np.flatnonzero(counts > 0)
-    pixels = pixels[np.lexsort((pixels, -size_class[pixels], items[pixels] == 1))]
+    place = tile_order(width, len(counts) // width)[pixels]
+    pixels = pixels[np.lexsort((place, -size_class[pixels], items[pixels] == 1))]
     first_items = np.concatenate([[0], np.cumsum(items[pixels])[:-1]]).astype(np.int64)
     return pixels, first_items[:len(pixels)]
 
@@ -255,7 +266,7 @@ class WorkList:
             raise ValueError(f"work items hold 1 to 64 samples, not {item_samples}")
         pixels = width * height
         self.batch_items = -(-batch_items // 64) * 64
-        blocks = -(-pixels // 64)
+        blocks = -(-width // TILE) * -(-height // TILE)   # one per 8 × 8 tile
         runs = -(-2 * item_samples * blocks // 64)
         self.grids = {"count_items": (min(blocks, MAX_GRID), -(-blocks // MAX_GRID)),
                       "scan_runs": (-(-runs // 64), 1), "scan_run_sums": (1, 1)}
@@ -519,6 +530,11 @@ class TracePass(ComputePass):
             compute.set_bind_group(2, planes)
             compute.dispatch_workgroups(*groups)
             compute.end()
+
+    @property
+    def work_list(self) -> WorkList | None:
+        """The targeted passes' work list (None before the first targeted pass)."""
+        return self._work_list
 
     def _execute_targeted(self, encoder, buffers: FrameBuffers, schedule: SampleSchedule, uniform, shading,
                           planes) -> None:

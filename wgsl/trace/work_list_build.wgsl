@@ -1,13 +1,16 @@
 // Builds the work list of a targeted tracer pass (trace/work_list.wgsl) from the per-pixel sample counts.
 // Entries are ordered by group (list_group: pixels of several items first, then by size class, the
-// size of their largest item, largest first), then by pixel index: neighbouring items hold nearly the
-// same number of samples, so the invocations of a subgroup finish together, neighbours in the list are
-// mostly neighbours on the film (coherent rays for a subgroup packet), pixels without samples take no
-// invocation, and the items whose sums wait for resolve_items come first, so that pass covers only
-// them. Only integer prefix sums decide where anything goes: the same counts give the same list.
+// size of their largest item, largest first), then by place in the film's 8 × 8 tiles (tiles in raster
+// order, pixels in raster order inside each): neighbouring items hold nearly the same number of samples,
+// so the invocations of a subgroup finish together, neighbours in the list are mostly neighbours on the
+// film in both directions, as in a uniform pass's 8 × 8 workgroups (coherent rays and node fetches),
+// pixels without samples take no invocation, and the items whose sums wait for resolve_items come
+// first, so that pass covers only them. Only integer prefix sums decide where anything goes: the same
+// counts give the same list.
 //
-// A block is 64 consecutive pixels; its counts per group sit group-major in `counts` (group · blocks +
-// block) as (items, entries) pairs, and a list position is the sum of the pairs before it in that order.
+// A block is one 8 × 8 tile (lane l: its pixel (l mod 8, l / 8), none past the film's edge); its counts
+// per group sit group-major in `counts` (group · blocks + block) as (items, entries) pairs, and a list
+// position is the sum of the pairs before it in that order.
 //   count_items:   per block: the (items, entries) of each group present → counts (cleared before, so
 //                  absent groups count 0), and of each pixel, those of its group before it in the
 //                  block → local_offsets.
@@ -41,7 +44,16 @@ var<workgroup> lane_items: array<u32, 64>;
 
 fn pixel_count() -> u32 { return WIDTH * HEIGHT; }
 
-fn pixel_blocks() -> u32 { return (pixel_count() + 63u) / 64u; }
+fn tile_columns() -> u32 { return (WIDTH + 7u) / 8u; }
+
+fn pixel_blocks() -> u32 { return tile_columns() * ((HEIGHT + 7u) / 8u); }
+
+// Lane `lane`'s pixel of block (tile) `block`, or pixel_count() past the film's edge.
+fn block_pixel(block: u32, lane: u32) -> u32 {
+    let x = (block % tile_columns()) * 8u + lane % 8u;
+    let y = (block / tile_columns()) * 8u + lane / 8u;
+    return select(pixel_count(), y * WIDTH + x, x < WIDTH && y < HEIGHT);
+}
 
 // (group, block) cells of `counts`
 fn count_cells() -> u32 { return 2u * ITEM_SAMPLES * pixel_blocks(); }
@@ -74,7 +86,7 @@ fn count_items(@builtin(workgroup_id) workgroup: vec3u, @builtin(num_workgroups)
                @builtin(local_invocation_index) lane: u32) {
     let block = group_index(workgroup, workgroups);
     if block >= pixel_blocks() { return; }
-    let pixel = block * 64u + lane;
+    let pixel = block_pixel(block, lane);
     var count = 0u;
     if pixel < pixel_count() { count = sample_counts[pixel]; }
     let items = items_of(count, ITEM_SAMPLES);
@@ -161,11 +173,13 @@ fn scan_run_sums(@builtin(local_invocation_index) lane: u32) {
 @compute @workgroup_size(64)
 fn place_entries(@builtin(workgroup_id) workgroup: vec3u, @builtin(num_workgroups) workgroups: vec3u,
                  @builtin(local_invocation_index) lane: u32) {
-    let pixel = group_index(workgroup, workgroups) * 64u + lane;
+    let block = group_index(workgroup, workgroups);
+    if block >= pixel_blocks() { return; }
+    let pixel = block_pixel(block, lane);
     if pixel >= pixel_count() { return; }
     let count = sample_counts[pixel];
     if count == 0u { return; }
-    let cell = list_group(count, ITEM_SAMPLES) * pixel_blocks() + pixel / 64u;
+    let cell = list_group(count, ITEM_SAMPLES) * pixel_blocks() + block;
     let before = counts[cell] + local_offsets[pixel];
     let first_item = run_sums[cell / 64u] + before.x;
     let entry = run_sums[runs() + cell / 64u] + before.y;
