@@ -38,10 +38,12 @@ Plots: benchmarks/plots/adaptive_savings_<scene>.png.
 time (timestamp queries) of the targeted pass on that sampler's own sample map, after the 1-spp probe
 (and of its work list's build alone, the part before its batches), against a uniform pass of the same
 total samples (budget − probe spp; whole budgets), --repeats pairs timed in alternation, printed as the
-median of their ratios (1: the targeted pass costs what its samples cost). On a CPU adapter the ratio of this process's CPU time is printed too: the cores are shared, and
-timestamps count the time other programs took them.
+median of their ratios (1: the targeted pass costs what its samples cost). On a CPU adapter the ratio of
+this process's CPU time is printed too: the cores are shared, and timestamps count the time other
+programs took them.
 
     python3 benchmarks/bench_adaptive.py --pass-cost [--size 128x128] [--budgets 4] [--repeats 5]
+        [--batch-items N ...]
     python3 benchmarks/bench_adaptive.py [--quick] [--size 96x96] [--budgets 2 4 8 16] [--seeds 3]
         [--k 1 3] [--variance-k 1] [--uniform-share 0 0.5] [--pool-sigma 0 2] [--oracle [--oracle-renders 64]]
         [--gold-spp 8192] [--gold-cache DIR] [--denoised]
@@ -51,6 +53,7 @@ timestamps count the time other programs took them.
 from __future__ import annotations
 
 import argparse
+import itertools
 import time
 from pathlib import Path
 
@@ -97,6 +100,9 @@ def parse_args():
     parser.add_argument("--pass-cost", action="store_true",
                         help="only time the targeted pass against a uniform pass of the same samples")
     parser.add_argument("--repeats", type=int, default=5, help="timed pairs of passes with --pass-cost")
+    parser.add_argument("--batch-items", type=int, nargs="+", default=[0], metavar="N",
+                        help="with --pass-cost: work items per batch of the targeted pass, one set of rows each "
+                             "(0, the default: the tracer's, about one uniform dispatch's samples)")
     add_gold_arguments(parser, default_spp=8192)
     add_model_arguments(parser)
     return parse_with_quick_defaults(parser, QUICK)
@@ -351,8 +357,9 @@ def pass_cost(args, size) -> None:
     if not get_context().has_timestamps:
         raise SystemExit("--pass-cost needs timestamp queries, which this adapter lacks")
     rows = []
-    for scene in load_scenes(args.scenes):
-        trace = TracePass(get_context(), scene, GeometryBuffers.build(scene), *size, max_depth=args.max_depth)
+    for scene, batch_items in itertools.product(load_scenes(args.scenes), args.batch_items):
+        trace = TracePass(get_context(), scene, GeometryBuffers.build(scene), *size, max_depth=args.max_depth,
+                          batch_items=batch_items or None)
         for sampler in ("heat", "variance", "uniform"):
             for budget in sorted(args.budgets):
                 settings = AdaptiveSettings(sampler=sampler, budget=budget)
@@ -363,14 +370,14 @@ def pass_cost(args, size) -> None:
                 renderer = hdr_pipeline(scene, size, args, seed=0, adaptive=settings)
                 linear_frame(renderer)
                 plane = renderer.pipeline.buffers.read(EXTRA_SAMPLES.name)
-                rows.append([scene.name, sampler, budget, float(plane.mean()), int(plane.max()),
+                rows.append([scene.name, sampler, budget, trace.batch_items, float(plane.mean()), int(plane.max()),
                              float(np.mean(plane == 0)),
                              *pass_cost_row(trace, renderer.pipeline.buffers.get(EXTRA_SAMPLES), settings,
                                             int(extra), args.repeats)])
     print_table(f"targeted pass against a uniform pass of the same samples ({args.repeats} pairs timed in "
                 f"alternation: device ms by timestamps, medians; ratio: median of the pairs' ratios)",
-                ["scene", "sampler", "budget", "mean extra", "max extra", "share with none", "targeted ms",
-                 "list build ms", "uniform ms", "ratio", "CPU-time ratio"], rows)
+                ["scene", "sampler", "budget", "batch items", "mean extra", "max extra", "share with none",
+                 "targeted ms", "list build ms", "uniform ms", "ratio", "CPU-time ratio"], rows)
 
 
 def main() -> None:

@@ -166,7 +166,9 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
         # run on the half- and quarter-resolution canvases, profiled here on their own
         part profile_half wgpu-rt profile models/denoiser.onnx --size $((W / 2))x$((H / 2))
         part profile_quarter wgpu-rt profile models/denoiser.onnx --size $((W / 4))x$((H / 4))
-        part adaptive_cost python3 benchmarks/bench_adaptive.py --pass-cost --size ${W}x${H} --budgets 4 --scenes cornell sun-room --repeats 5
+        # session 26: the list's build timed alone, and batches of the default size beside 2^21 items
+        part adaptive_cost python3 benchmarks/bench_adaptive.py --pass-cost --size ${W}x${H} --budgets 4 \
+            --scenes cornell sun-room --repeats 5 --batch-items 0 2097152
         part moving python3 benchmarks/bench_moving.py --scene moving --size $SQUARE --frames 40 --denoise
         part moving_bunny python3 benchmarks/bench_moving.py --scene bunny --size $SQUARE --frames 40 --denoise ;;
     heldout)

@@ -532,6 +532,11 @@ class TracePass(ComputePass):
             compute.end()
 
     @property
+    def batch_items(self) -> int:
+        """Work items per batch of a targeted pass."""
+        return self._batch_items
+
+    @property
     def work_list(self) -> WorkList | None:
         """The targeted passes' work list (None before the first targeted pass)."""
         return self._work_list
