@@ -15,22 +15,16 @@
 # Session 22 (H200, BENCHMARKS.md §21) took: nn + frame + heldout_render 390 s, trace 67 s, heldout 238 s
 # (heldout_denoise needs more than 120 s: give it PART_LIMIT=200). Session 23 (§22): tests + frame + nn
 # 278 s (tests 157 s), train 288 s (its renders 218 s; the fine-tune was cut to 0.7 of its 3 minutes,
-# since fixed). Sessions 24 and 25 had no GPU. Next: call 1 with the OIDN peer, DEADLINE=300 PART_LIMIT=200,
-# timeout_s 450: `tests frame trace nn_widths` (§22's NVIDIA fixes not yet run there: the low band's tiny
-# ratios, one dispatch test; the frame GPU column now a mean over frames, low band included, and a
-# display-only row (hdr=False) for the wall − GPU gap; the moving bunny with wide bottom levels; the
-# targeted pass's entry lookup by subtraction; the wide walk's stack per invocation and the quantized wide
-# layout wide8, for which `trace` compares the walks with §21's figures: without the Mitsuba peer it skips
-# the OptiX column; session 25's small-leaf trees, and samples/s without the BVH build, which §21's bunny
-# 0.52× had counted; nn_widths: the denoiser's time at 0.57× and 0.26× its FLOPs);
-# call 2 at once: `train` with TRAIN_MINUTES=3, PART_LIMIT=300, timeout_s 450 (frames preloaded to
-# the device, the pace judged after the first epoch: how many steps/s once cuDNN has tuned each crop
-# size, in the card's history; the datasets now render in SHARDS=4 processes: compare the parts' times
-# with §22's 113 / 34 / 71 s). Carry its $OUT/model/denoiser.onnx back in and pass TRAIN_INIT to continue
-# it in a later session. Score its model here on lavapipe (data/worlds-heldout-256-local, §21)
-# rather than with `train_check`. `heldout` and `nn_variants` when a change needs them.
-#
-# Parts: tests (the whole suite, CI=true, on 8 workers), nn (profile of the shipped denoiser at 1080p as
+# since fixed). Sessions 24 and 25 had no GPU. Session 26 (§25, H200): call 1 with the Mitsuba peer,
+# DEADLINE=270 PART_LIMIT=160 TEST_WORKERS=12 `tests trace frame nn_widths` 277 s (tests 126 s, trace 72,
+# frame 62); call 2 with the OIDN peer `train` (renders 108 s, fine-tune 201 s) then `train_eval` (held-out
+# render 49 s, scoring 43 s) 411 s; the device time ran out after that. Next: call 1 with the Mitsuba peer,
+# DEADLINE=240 PART_LIMIT=160 TEST_WORKERS=12, timeout_s 400: `tests nn_widths frame` (the Mitsuba
+# cross-checks on the CUDA variant; the 8-channel tile on the narrowed networks; the targeted pass with
+# the tile-ordered work list, its build timed alone and batches of 2^21 items); call 2 at once: `train`
+# with TRAIN_MINUTES=4 (widths that are multiples of 8, e.g. TRAIN_WIDTHS="8 24 48 96 96", or the
+# shipped ones) then `train_eval` as in §25;
+# Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped denoiser at 1080p as
 # the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA), nn_widths (the same
 # architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's: with naga's bounds
 # checks, with each weight fetch and as the autotuner picks), trace
@@ -42,8 +36,8 @@
 # spp, ours again without the low band, chroma hold and post filter and without the post filter alone,
 # and the product path against spp at 256²), train (the shipped denoiser fine-tuned for
 # TRAIN_MINUTES on training worlds rendered at 256² with built-in views and 96² worlds mixed in, the
-# model in $OUT/model; not yet run on a GPU: run it alone, DEADLINE unset, PART_LIMIT=300, ARCHIVE set,
-# timeout_s 590), train_check (that model, or TRAINED=DIR, scored on the held-out worlds against OIDN,
+# model in $OUT/model; DEADLINE unset, PART_LIMIT=280, ARCHIVE set), train_eval (that model, or TRAINED=DIR,
+# scored on the held-out worlds against OIDN), train_check (train_eval,
 # then shipped and new on §14's checks at 256² and 128²; in a second call at once, while the machine
 # is warm, or after carrying the model back in as TRAINED). Both render the held-out worlds first
 # unless they are there. SIZE (default 1080p) shrinks
