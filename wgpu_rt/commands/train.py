@@ -31,7 +31,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--crop", type=int, nargs=2, default=(128, 256), metavar=("MIN", "MAX"),
                         help="random crop size range in pixels (default: 128 256)")
     parser.add_argument("--widths", type=int, nargs="+", default=(32, 64, 128),
-                        help="denoiser UNet level widths (default: 32 64 128)")
+                        help="denoiser UNet level widths (default: 32 64 128); the engine's fast 3×3 kernels take "
+                             "multiples of 8 channels, other widths run on its loop kernel, several times slower "
+                             "on a GPU")
     parser.add_argument("--bottom-merge", choices=["concat", "add"], default="concat",
                         help="denoiser: the deepest level's upsampled output is concatenated with the skip above "
                              "it and merged by two 3×3 convs, or added to it (cheaper; default: %(default)s)")
