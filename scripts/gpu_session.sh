@@ -20,7 +20,8 @@
 # frame 62); call 2 with the OIDN peer `train` (renders 108 s, fine-tune 201 s) then `train_eval` (held-out
 # render 49 s, scoring 43 s) 411 s; the device time ran out after that. Next: call 1 with the Mitsuba peer,
 # DEADLINE=240 PART_LIMIT=160 TEST_WORKERS=12, timeout_s 400: `tests nn_widths frame` (the Mitsuba
-# cross-checks on the CUDA variant; the 8-channel tile on the narrowed networks; the targeted pass with
+# cross-checks on the CUDA variant; the 8-channel tile on the narrowed networks, and everywhere in the
+# shipped one (conv tiling staged-narrow); the targeted pass with
 # the tile-ordered work list, its build timed alone and batches of 2^21 items); call 2 at once: `train`
 # with TRAIN_MINUTES=4 (widths that are multiples of 8, e.g. TRAIN_WIDTHS="8 24 48 96 96", or the
 # shipped ones) then `train_eval` as in §25;
@@ -127,7 +128,12 @@ for what in "$@"; do
             part export_$name env PYTHONSAFEPATH=1 python3 -c "import sys; from wgpu_rt.train.networks import UNet, export_onnx
 export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.argv[1])" "$OUT/$name.onnx" $widths
             part profile_$name wgpu-rt profile "$OUT/$name.onnx" --size ${W}x${H}
-        done ;;
+        done
+        # session 26: the shipped denoiser with 8-channel tiles everywhere (twice the invocations: the
+        # low-resolution layers that fill less than a wave), at 1080p and on the low band's quarter canvas
+        part profile_narrow wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --conv-tiling staged-narrow
+        part profile_narrow_quarter wgpu-rt profile models/denoiser.onnx --size $((W / 4))x$((H / 4)) \
+            --conv-tiling staged-narrow ;;
     nn_variants)   # §21's comparisons: bounds checks, the padded canvas, each weight fetch, the autotuner
         profile="wgpu-rt profile models/denoiser.onnx --size ${W}x${H}"
         part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 $profile --precision fp32

@@ -16,8 +16,8 @@ SIZE = (19, 23)
 
 @pytest.fixture
 def two_layers(tmp_path):
-    """A 3×3 conv (9 → 48 channels, ReLU; five distinct kernels: none, loop, register, staged,
-    staged-weights) and a 1×1 conv (48 → 5; two: none, loop)."""
+    """A 3×3 conv (9 → 48 channels, ReLU; six distinct kernels: none, loop, register, staged,
+    staged-weights, staged-narrow) and a 1×1 conv (48 → 5; two: none, loop)."""
     first, first_inits = conv("conv3x3", "x", "t", 9, 48, 3)
     relu = helper.make_node("Relu", ["t"], ["r"], name="relu")
     second, second_inits = conv("conv1x1", "r", "y", 48, 5, 1, pads=[0, 0, 0, 0], seed=2)
@@ -32,7 +32,7 @@ def fake_timer(calls, direct_seconds=10.0):
     among the 1×1 ones: neither is lavapipe's default, so a choice that ignored the timer shows. Weights
     read directly (on an adapter with subgroups) add ``direct_seconds`` (negative: they win)."""
     seconds_of_3x3 = {"conv3x3_staged.wgsl+tile16": 1.0, "conv3x3.wgsl+tile16": 2.0, "conv.wgsl": 3.0,
-                      "conv3x3_staged.wgsl+tile16+staged-weights": 4.0}
+                      "conv3x3_staged.wgsl+tile16+staged-weights": 4.0, "conv3x3_staged.wgsl+tile8": 5.0}
 
     def seconds(dispatches):
         dispatch = dispatches[0]
@@ -46,11 +46,11 @@ def fake_timer(calls, direct_seconds=10.0):
 
 
 def candidate_kernels(gpu):
-    """What the autotuner times for the two layers: four 3×3 kernels and two 1×1 ones, each also with
-    weights read directly where the adapter has subgroups (else direct reads are all there is), and the
-    staged 3×3 kernel with its weights staged in workgroup memory."""
-    kernels = ["conv.wgsl", "conv.wgsl", "conv3x3.wgsl+tile16", "conv3x3_staged.wgsl+tile16", "gemm.wgsl",
-               "gemm.wgsl"]
+    """What the autotuner times for the two layers: five 3×3 kernels (the staged one also with 8-channel
+    tiles) and two 1×1 ones, each also with weights read directly where the adapter has subgroups (else
+    direct reads are all there is), and the staged 3×3 kernel with its weights staged in workgroup memory."""
+    kernels = ["conv.wgsl", "conv.wgsl", "conv3x3.wgsl+tile16", "conv3x3_staged.wgsl+tile16",
+               "conv3x3_staged.wgsl+tile8", "gemm.wgsl", "gemm.wgsl"]
     fetched = kernels + [kernel + DIRECT for kernel in kernels] if gpu.has_subgroups else kernels
     return sorted(fetched + ["conv3x3_staged.wgsl+tile16+staged-weights"])
 
@@ -134,7 +134,8 @@ def test_f16_multiply_adds_are_a_candidate_of_fp16_models(gpu, two_layers, tmp_p
     cache = tmp_path / "autotune.json"
     model = WgslModel(two_layers, "fp16", ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))
     first = [d.kernel for d in every_dispatch(model, *SIZE) if d.flops][0]
-    assert sum("+f16-math" in kernel for kernel in calls) == 2   # register and staged, weights read directly
+    # register, staged and staged-narrow, weights read directly
+    assert sum("+f16-math" in kernel for kernel in calls) == 3
     assert first.startswith("pack+conv3x3") and "+f16-math" in first
     variants = [entry["variant"] for entry in json.loads(cache.read_text())["entries"].values()]
     assert sum("+f16-math" in variant for variant in variants) == 1
@@ -273,8 +274,8 @@ def test_dispatch_per_layer_or_per_group_is_measured_too(gpu, tmp_path, per_grou
     cache = tmp_path / "autotune.json"
     model = WgslModel(path, ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))
     dispatches = [d for d in every_dispatch(model, *SIZE) if d.flops]
-    # none, loop, register, staged × both ways (× fetches), staged-weights × both ways
-    assert len(calls) == 8 * (1 + gpu.has_subgroups) + 2
+    # none, loop, register, staged, staged-narrow × both ways (× fetches), staged-weights × both ways
+    assert len(calls) == 10 * (1 + gpu.has_subgroups) + 2
     expected = [1, 1, 1] if per_group_faster else [3]
     assert [(d.kernel, d.workgroups[2]) for d in dispatches] == [("conv3x3.wgsl+tile16+unpack", z)
                                                                  for z in expected]
@@ -300,14 +301,15 @@ def test_a_conv_pooling_in_its_epilogue_is_timed_with_the_pool(gpu, tmp_path):
     def seconds(dispatches):
         calls.append(dispatches[0].kernel)
         direct = 10.0 if dispatches[0].kernel.endswith(DIRECT) else 0.0
-        return (1.0 if dispatches[0].kernel.startswith("conv3x3_staged") else 2.0) + direct
+        staged = dispatches[0].kernel.startswith("conv3x3_staged")
+        return (1.0 if staged and "+tile16" in dispatches[0].kernel else 1.5 if staged else 2.0) + direct
 
     cache = tmp_path / "autotune.json"
     model = WgslModel(path, ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))
     check_parity([(1, channels, 37, 53)], canvas_onnxruntime_fn(path, model), model, atol=FP32_ATOL)
     pooled = sorted(kernel for kernel in calls if kernel.endswith("+maxpool"))  # the pooled conv's candidates
     assert pooled == ["conv.wgsl+maxpool", "conv.wgsl+maxpool", "conv3x3.wgsl+tile16+maxpool",
-                      "conv3x3_staged.wgsl+tile16+maxpool"]
+                      "conv3x3_staged.wgsl+tile16+maxpool", "conv3x3_staged.wgsl+tile8+maxpool"]
     keys = json.loads(cache.read_text())["entries"]
     assert sum(" conv+maxpool 16x5x3x3 " in key for key in keys) == 1
     assert every_dispatch(model, 37, 53)[0].kernel == "pack+conv3x3_staged.wgsl+tile16+maxpool"

@@ -231,7 +231,7 @@ def test_benchmark_baseline_tilings_agree(tmp_path, gpu, tiling):
     check_parity([(1, channels, 37, 53)], onnxruntime_fn(path), model, atol=FP32_ATOL)
 
 
-@pytest.mark.parametrize("tiling", ["register", "staged", "staged-weights"])
+@pytest.mark.parametrize("tiling", ["register", "staged", "staged-weights", "staged-narrow"])
 @pytest.mark.parametrize("pads", [[1, 1, 1, 1], [0, 1, 2, 0]], ids=["same", "asymmetric"])
 @pytest.mark.parametrize("precision", ["fp32", "fp16"])
 @pytest.mark.parametrize("outputs", [8, 24, 48, 64])
@@ -240,9 +240,9 @@ def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision, outputs):
     (workgroup-memory halo tiles; with "staged-weights" each input block's weights staged beside them),
     and every tile width: 48 outputs = 12 blocks, three 16-channel groups;
     64 = two 32-channel groups in conv3x3.wgsl, four 16-channel groups in the staged kernel (which keeps
-    16); 8 and 24, which 16 does not divide, one and three 8-channel groups. 9 input channels = 3 blocks,
-    one padded; 37×71 cuts the 8-row × 32-pixel workgroup tiles on both edges; asymmetric pads shift the
-    halo."""
+    16); 8 and 24, which 16 does not divide, one and three 8-channel groups, as every width in
+    "staged-narrow". 9 input channels = 3 blocks, one padded; 37×71 cuts the 8-row × 32-pixel workgroup
+    tiles on both edges; asymmetric pads shift the halo."""
     from wgpu_rt.nn import WgslModel
 
     if precision == "fp16" and not gpu.has_f16:
@@ -254,8 +254,8 @@ def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision, outputs):
     assert kernel.shader == ("conv3x3.wgsl" if tiling == "register" else "conv3x3_staged.wgsl")
     assert (kernel.weight_fetch == "workgroup") == (tiling == "staged-weights")
     wide = outputs == 64 and tiling == "register"
-    # output blocks per invocation
-    assert model.prepared["conv"].tile_c == (8 if wide else 4 if outputs % 16 == 0 else 2)
+    narrow = outputs % 16 or tiling == "staged-narrow"
+    assert model.prepared["conv"].tile_c == (8 if wide else 2 if narrow else 4)   # output blocks per invocation
     check_parity([(1, 9, 37, 71)], onnxruntime_fn(path), model,
                  atol=FP32_ATOL if precision == "fp32" else FP16_ATOL)
 

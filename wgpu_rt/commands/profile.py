@@ -11,8 +11,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--precision", choices=("auto", "fp32", "fp16"), default="auto",
                         help="activation storage type (fp16 needs the shader-f16 feature; auto: fp16 on "
                              "discrete GPUs that have it, else fp32)")
-    parser.add_argument("--conv-tiling", help="convolution kernels: none, loop, register, staged or "
-                        "staged-weights (default: the adapter's, as inference picks them; see wgpu_rt.nn.WgslModel)")
+    parser.add_argument("--conv-tiling", help="convolution kernels: none, loop, register, staged, staged-weights "
+                        "or staged-narrow (default: the adapter's, as inference picks them; see wgpu_rt.nn.WgslModel)")
     parser.add_argument("--weight-fetch", choices=("subgroup", "direct"),
                         help="how convolutions read weights: the lanes of a subgroup sharing the loads, or each "
                         "invocation loading its own (default: subgroup where the adapter has subgroups)")

@@ -630,8 +630,10 @@ class Conv3x3Kernel(ConvFamilyKernel):
     multiplies_in_half = True
 
     def __init__(self, ctx, precision: Precision, staged: bool = False, uniform_windows: bool = False,
-                 weight_fetch: str | None = None, half_math: bool = False):
+                 weight_fetch: str | None = None, half_math: bool = False, narrow_tile: bool = False):
+        """``narrow_tile``: 8 channels a tile on every layer (conv tiling "staged-narrow", see tile_blocks)."""
         self.staged = self.stages_weights = staged
+        self.narrow_tile = narrow_tile
         self.shader = "conv3x3_staged.wgsl" if staged else "conv3x3.wgsl"
         super().__init__(ctx, precision, self.tile_x, uniform_windows, weight_fetch, half_math)
 
@@ -640,8 +642,11 @@ class Conv3x3Kernel(ConvFamilyKernel):
         output's blocks, else 4 where they do, else 2. The 8-channel tile does half the multiply-adds per
         input pixel loaded, yet on an H200 the loop kernel (conv.wgsl), which took 8-, 12- and 24-channel
         layers before, ran them at 5.6 TFLOP/s against the 16-channel staged tile's 22–25 (BENCHMARKS.md
-        §25)."""
+        §25). With ``narrow_tile`` always 2: twice the invocations of the 16-channel tile, for layers too
+        small to fill a GPU (the autotuner's candidate "staged-narrow")."""
         blocks = groups_of(layer.weight.shape[0], 4)
+        if self.narrow_tile:
+            return 2
         if not self.staged and blocks % 8 == 0:
             return 8
         return 4 if blocks % 4 == 0 else 2

@@ -53,10 +53,14 @@ from .kernels import (PRECISIONS, Conv3x3Kernel, ConvKernel, ConvTransposeKernel
                       ResizeKernel, TensorView, UnpackKernel, groups_of, record_dispatches)
 
 # conv_tiling -> pixels per invocation of the loop kernels (conv.wgsl, gemm.wgsl); "register" also runs
-# 3×3 stride-1 convs with 16k output channels on conv3x3.wgsl's written-out 4×4 tile, "staged" on
+# 3×3 stride-1 convs with 8k output channels on conv3x3.wgsl's written-out tile of 4 pixels, "staged" on
 # conv3x3_staged.wgsl's (the same tile, input staged in workgroup memory; see Conv3x3Kernel),
-# "staged-weights" there with each input block's weight blocks staged too (weights_workgroup.wgsl).
-CONV_TILINGS = {"none": 1, "loop": 4, "register": 4, "staged": 4, "staged-weights": 4}
+# "staged-weights" there with each input block's weight blocks staged too (weights_workgroup.wgsl),
+# "staged-narrow" there with 8 channels a tile wherever the layer has more: twice the invocations for
+# the same work, for the low-resolution layers whose 16-channel tiles fill a GPU with less than one wave
+# (the denoiser's deepest level at 1080p: 288 workgroups on an H200's 132 SMs, BENCHMARKS.md §21); the
+# autotuner weighs it per layer.
+CONV_TILINGS = {"none": 1, "loop": 4, "register": 4, "staged": 4, "staged-weights": 4, "staged-narrow": 4}
 # suffix of an autotuned variant that prefers one dispatch per group of uniform windows (kernels.WindowLayout)
 UNIFORM_WINDOWS = "+uniform-windows"
 # How conv-family kernels read weight blocks: "subgroup" (the lanes of a subgroup split a block's loads
@@ -226,9 +230,10 @@ class WgslModel:
     float32 numpy, or ``record`` on GPU buffers. ``conv_tiling`` exists for the benchmark's steps, the
     profiler and the tests: "none" (one output pixel per invocation), "loop" (4-pixel tiles in loops),
     "register" (plus the written-out 3×3 tile kernel), "staged" (that tile with its input staged in
-    workgroup memory), "staged-weights" (and its weights: the 3×3 layers then ignore ``weight_fetch``);
-    default: ``default_conv_tiling``. ``weight_fetch``: how those kernels read weights ("subgroup" or "direct",
-    see WEIGHT_FETCHES); default: ``default_weight_fetch``. ``math``: "f32", or with precision "fp16" also
+    workgroup memory), "staged-weights" (and its weights: the 3×3 layers then ignore ``weight_fetch``),
+    "staged-narrow" (the staged tile 8 channels wide everywhere); default: ``default_conv_tiling``.
+    ``weight_fetch``: how those kernels read weights ("subgroup" or "direct", see WEIGHT_FETCHES);
+    default: ``default_weight_fetch``. ``math``: "f32", or with precision "fp16" also
     "f16", the 3×3 tile kernels' multiply-adds in half precision (see MATHS); default: ``default_math``.
 
     ``autotune``: choose the tiling (and window preference) per layer shape by timing the candidates on
@@ -312,12 +317,13 @@ class WgslModel:
         windows = self.default_windows(layer) if uniform_windows is None else uniform_windows
         fetch = weight_fetch or self.weight_fetch
         args = (self.ctx, self.precision)
-        if tiling in ("register", "staged", "staged-weights") and Conv3x3Kernel.handles(layer):
+        if tiling in ("register", "staged", "staged-weights", "staged-narrow") and Conv3x3Kernel.handles(layer):
             fetch = "workgroup" if tiling == "staged-weights" else fetch
             half = (math or self.math) == "f16" and tiling != "staged-weights"
             fetch = "direct" if half else fetch   # see weights_uniform_f16.wgsl
             key, make = ("conv3x3", tiling, windows, fetch, half), lambda: Conv3x3Kernel(
-                *args, staged=tiling != "register", uniform_windows=windows, weight_fetch=fetch, half_math=half)
+                *args, staged=tiling != "register", uniform_windows=windows, weight_fetch=fetch, half_math=half,
+                narrow_tile=tiling == "staged-narrow")
         elif layer.kind in ("conv", "gemm"):
             kernel_class = ConvKernel if layer.kind == "conv" else GemmKernel
             key, make = (layer.kind, CONV_TILINGS[tiling], windows, fetch), lambda: kernel_class(
