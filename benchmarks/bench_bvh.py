@@ -4,8 +4,9 @@ throughput (closest-hit rays per second through wgsl/accel/ray_query.wgsl) with 
 subgroups), both over the threaded binary layout, and `wide` and `wide packet`, the same two over the
 4-wide layout (wgsl/accel/walk_wide.wgsl); `lanes rows` and `wide rows` are `lanes` and `wide` with
 nodes and vertices fetched as 16-byte rows (wgsl/accel/geometry_rows.wgsl); `wide8` and `wide8 rows`
-the wide ones with child boxes quantized to 8 bits (64-byte nodes). The rays start at random points all around the mesh, so neighbouring invocations share
-nothing: the worst case for packets, which the path tracer's neighbouring pixels are not.
+the wide ones with child boxes quantized to 8 bits (64-byte nodes). The rays start at random points all
+around the mesh, so neighbouring invocations share nothing: the worst case for packets, which the path
+tracer's neighbouring pixels are not.
 
 Peer: Mitsuba 3 (scalar_rgb, or where the build has none, as on the lent GPUs, cuda_ad_rgb:
 wgpu_rt.scene.mitsuba.use_variant) loading a scene that holds the same triangles, which includes building
@@ -120,17 +121,18 @@ def main() -> None:
         bunny = trimesh.load(BUNNY, force="mesh", process=False)
         cases.append(("stanford bunny", np.asarray(bunny.vertices, np.float32)[bunny.faces]))
     header = (f"{'mesh':>18} {'triangles':>10} {'build s':>8} {'nodes':>9} {'depth':>5} {'mean leaf':>9}"
-              + "".join(f" {name + ' Mrays/s':>19}" for name, _, _ in WALKS) + f" {'mitsuba s':>9} {'mitsuba/ours':>12}")
+              + "".join(f" {name + ' Mrays/s':>19}" for name, _, _ in WALKS)
+              + f" {'mitsuba s':>9} {'mitsuba/ours':>12}")
     print(header)
     for name, triangles in cases:
         seconds, bvh = best_of(2, lambda: build_bvh(triangles))
         traverse = not args.no_traversal and len(triangles) <= 200_000
         rates = [traversal_rate(triangles, module, layout) if traverse else None for _, module, layout in WALKS]
         peer = mitsuba_load_seconds(triangles)
+        walks = "".join(f" {'-' if r is None else f'{r / 1e6:.2f}':>19}" for r in rates)
+        mitsuba = f" {'-':>9} {'-':>12}" if peer is None else f" {peer:>9.3f} {f'{peer / seconds:.2f}×':>12}"
         print(f"{name:>18} {len(triangles):>10,} {seconds:>8.3f} {bvh.node_count:>9,} {bvh.depth():>5} "
-              f"{bvh.leaf_sizes.mean():>9.2f}" + "".join(f" {'-' if r is None else f'{r / 1e6:.2f}':>19}" for r in rates)
-              + f" {'-' if peer is None else f'{peer:.3f}':>9} {'-' if peer is None else f'{peer / seconds:.2f}×':>12}",
-              flush=True)
+              f"{bvh.leaf_sizes.mean():>9.2f}{walks}{mitsuba}", flush=True)
 
 
 if __name__ == "__main__":
