@@ -58,7 +58,7 @@ from .kernels import (PRECISIONS, Conv3x3Kernel, ConvKernel, ConvTransposeKernel
 # "staged-weights" there with each input block's weight blocks staged too (weights_workgroup.wgsl),
 # "staged-narrow" there with 8 channels a tile wherever the layer has more: twice the invocations for
 # the same work, for the low-resolution layers whose 16-channel tiles fill a GPU with less than one wave
-# (the denoiser's deepest level at 1080p: 288 workgroups on an H200's 132 SMs, BENCHMARKS.md §21); the
+# (the denoiser's deepest level at 1080p: 288 workgroups on an H200's 132 SMs, BENCHMARKS.md §25); the
 # autotuner weighs it per layer.
 CONV_TILINGS = {"none": 1, "loop": 4, "register": 4, "staged": 4, "staged-weights": 4, "staged-narrow": 4}
 # suffix of an autotuned variant that prefers one dispatch per group of uniform windows (kernels.WindowLayout)

@@ -226,7 +226,8 @@ def tile_order(width: int, height: int) -> np.ndarray:
     return tile * TILE * TILE + (y % TILE) * TILE + x % TILE
 
 
-def work_list_entries(counts: np.ndarray, item_samples: int, width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def work_list_entries(counts: np.ndarray, item_samples: int,
+                      width: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """numpy reference of wgsl/trace/work_list_build.wgsl: the entries of a targeted pass's work list,
     as (pixels, first items), for ``counts`` of a film ``width`` pixels wide (default: one row). Pixels
     with samples: those of several items first, then those of one; each group by size class (the size of

@@ -44,14 +44,16 @@ var<workgroup> lane_items: array<u32, 64>;
 
 fn pixel_count() -> u32 { return WIDTH * HEIGHT; }
 
-fn tile_columns() -> u32 { return (WIDTH + 7u) / 8u; }
+const BLOCK_SIDE: u32 = 8u;   // a block is BLOCK_SIDE² = 64 pixels, == wgpu_rt.trace.trace_pass.TILE
 
-fn pixel_blocks() -> u32 { return tile_columns() * ((HEIGHT + 7u) / 8u); }
+fn tile_columns() -> u32 { return (WIDTH + BLOCK_SIDE - 1u) / BLOCK_SIDE; }
+
+fn pixel_blocks() -> u32 { return tile_columns() * ((HEIGHT + BLOCK_SIDE - 1u) / BLOCK_SIDE); }
 
 // Lane `lane`'s pixel of block (tile) `block`, or pixel_count() past the film's edge.
 fn block_pixel(block: u32, lane: u32) -> u32 {
-    let x = (block % tile_columns()) * 8u + lane % 8u;
-    let y = (block / tile_columns()) * 8u + lane / 8u;
+    let x = (block % tile_columns()) * BLOCK_SIDE + lane % BLOCK_SIDE;
+    let y = (block / tile_columns()) * BLOCK_SIDE + lane / BLOCK_SIDE;
     return select(pixel_count(), y * WIDTH + x, x < WIDTH && y < HEIGHT);
 }
 
