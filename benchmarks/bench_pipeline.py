@@ -10,7 +10,8 @@ frame (sleeping, e.g. for a display or an encoder), which the next frame's devic
 − GPU" is the wall time per frame beyond the frame's GPU stages (the issue's real-time target: ≤ 1 ms).
 
 Each row's renderer renders one untimed frame first; before the first row, ``--warm-up`` fused frames
-are rendered and thrown away, so that no row meets a device fresh from its idle clocks.
+are rendered and thrown away: on an H200 the first row of a process had measured the denoiser at 9.9 ms
+a frame and every later row at 7.5 (BENCHMARKS.md §25).
 
 Needs the trained models in models/ (denoiser.onnx; error_predictor.onnx for --adaptive).
     python3 benchmarks/bench_pipeline.py --size 128x128 --frames 8 [--adaptive 4] [--temporal] [--host-ms 5]
@@ -60,9 +61,7 @@ def main():
     parser.add_argument("--temporal", action="store_true")
     parser.add_argument("--host-ms", type=float, default=0.0, help="the caller's own work per frame (a sleep)")
     parser.add_argument("--warm-up", type=int, default=8, metavar="FRAMES",
-                        help="fused frames rendered and thrown away before the first timed row (default 8): on an "
-                             "H200 the first row of a process measured the denoiser at 9.9 ms a frame, every later "
-                             "row at 7.5 (BENCHMARKS.md §25)")
+                        help="fused frames rendered and thrown away before the first timed row (default 8)")
     args = parser.parse_args()
     width, height = args.size
     scene = load_scene(args.scene)
