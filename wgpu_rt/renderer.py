@@ -14,6 +14,7 @@ is a ``WgpuRtError`` naming it. The command line (``wgpu-rt render``) is a shell
 from __future__ import annotations
 
 import numbers
+import sys
 import time
 from typing import Iterable, Iterator
 
@@ -218,7 +219,9 @@ class Renderer:
         self._bar.update(samples)
 
     def _progress_bar(self, total: int, unit: str):
-        if not self.progress:
+        """A bar on a terminal only: piped into a log it would be noise, and counting samples makes a long
+        frame wait for the device to report."""
+        if not self.progress or not sys.stderr.isatty():
             return None
         from tqdm import tqdm
 
@@ -273,7 +276,7 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       means there support; False: the network's as it comes), ``post_filter`` (True: the denoised frame
       smoothed by an edge-aware à-trous filter guided by albedo, normal and depth; False: not),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
-      ``progress`` (a progress bar), ``timings`` (per-stage GPU times; default: when the adapter has them),
+      ``progress`` (a progress bar, on a terminal), ``timings`` (per-stage GPU times; default: when the adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a
       pixel of readback, for callers that need only ``image`` or the AOVs; one of the three is required).
     """
