@@ -96,6 +96,19 @@ def bin_counts(traversal_cost: float) -> tuple:
     return ((32, np.iinfo(np.int64).max, BINS), (8, 32, 8), (int(traversal_cost), 8, 4))
 
 
+def _running(op, bins: np.ndarray, reverse: bool = False) -> np.ndarray:
+    """``op`` (np.minimum or np.maximum) run along axis 1 of (3, bins, nodes) tables, from the last bin
+    down with ``reverse``: one vector operation per bin, where ``op.accumulate`` along that axis took
+    30–70× the time."""
+    out = np.empty_like(bins)
+    steps = range(bins.shape[1] - 2, -1, -1) if reverse else range(1, bins.shape[1])
+    first = -1 if reverse else 0
+    out[:, first] = bins[:, first]
+    for b in steps:
+        op(out[:, b + 1 if reverse else b - 1], bins[:, b], out=out[:, b])
+    return out
+
+
 def _sah_costs(bounds, segment, counts, c_lo, c_hi, bins):
     """SAH cost (3, bins - 1, nodes) of every bin boundary of every axis, and each triangle's bin
     (n, 3). ``bounds`` is (9, n): lo, hi and centroid rows of the nodes' triangles. Tables are
@@ -103,7 +116,8 @@ def _sah_costs(bounds, segment, counts, c_lo, c_hi, bins):
     nodes_here = len(counts)
     extent = c_hi - c_lo
     bin_scale = np.where(extent > 0, bins * (1 - 1e-6) / np.where(extent > 0, extent, 1), 0.0).astype(np.float32)
-    prim_bins = ((bounds[6:9] - c_lo.T[:, segment]) * bin_scale.T[:, segment]).astype(np.int32)
+    prim_bins = ((bounds[6:9] - np.take(c_lo.T, segment, axis=1))
+                 * np.take(bin_scale.T, segment, axis=1)).astype(np.int32)
     np.clip(prim_bins, 0, bins - 1, out=prim_bins)
     costs = np.empty((3, bins - 1, nodes_here), np.float32)
     prim_lo, prim_hi = bounds[0:3], bounds[3:6]
@@ -118,9 +132,9 @@ def _sah_costs(bounds, segment, counts, c_lo, c_hi, bins):
         bin_lo, bin_hi = bin_lo.reshape(3, bins, nodes_here), bin_hi.reshape(3, bins, nodes_here)
         n_left = np.cumsum(bin_count, axis=0)[:-1]
         n_right = counts[None, :] - n_left
-        area_left = _surface_area(np.minimum.accumulate(bin_lo, axis=1), np.maximum.accumulate(bin_hi, axis=1), 0)[:-1]
-        area_right = _surface_area(np.minimum.accumulate(bin_lo[:, ::-1], axis=1),
-                                   np.maximum.accumulate(bin_hi[:, ::-1], axis=1), 0)[::-1][1:]
+        area_left = _surface_area(_running(np.minimum, bin_lo), _running(np.maximum, bin_hi), 0)[:-1]
+        area_right = _surface_area(_running(np.minimum, bin_lo, reverse=True),
+                                   _running(np.maximum, bin_hi, reverse=True), 0)[1:]
         cost = area_left * n_left + area_right * n_right      # empty sides give 0 · 0
         costs[axis] = np.where((n_left > 0) & (n_right > 0), cost, np.inf)
     return costs, prim_bins
@@ -152,8 +166,9 @@ def build_box_bvh(lo: np.ndarray, hi: np.ndarray) -> Bvh:
 def _build(tri_lo: np.ndarray, tri_hi: np.ndarray, order: np.ndarray, count: int, max_leaf_size: int,
            traversal_cost: float = TRAVERSAL_COST) -> Bvh:
     """build_bvh over the bounds of items ``order[:count]``, leaves of at most ``max_leaf_size``."""
-    # Per item lo, hi, centroid as rows: one gather per level fetches everything binning needs.
-    tri_bounds = np.concatenate([tri_lo.T, tri_hi.T, ((tri_lo + tri_hi) * 0.5).T])
+    # Per item lo, hi, centroid as rows, kept in the order of ``order`` (partitioned with it): each level
+    # reads its nodes' ranges nearly in sequence instead of gathering items from all over.
+    ordered_bounds = np.take(np.concatenate([tri_lo.T, tri_hi.T, ((tri_lo + tri_hi) * 0.5).T]), order, axis=1)
     capacity = 2 * count
     node_lo = np.zeros((capacity, 3), np.float32)
     node_hi = np.zeros((capacity, 3), np.float32)
@@ -164,8 +179,8 @@ def _build(tri_lo: np.ndarray, tri_hi: np.ndarray, order: np.ndarray, count: int
     node_total, depth = 1, 0
     while len(nodes):
         positions, segment = _segment_index(starts, counts)
-        prims = order[positions]
-        bounds = tri_bounds[:, prims]
+        prims = np.take(order, positions)
+        bounds = np.take(ordered_bounds, positions, axis=1)   # np.take: ~4× the speed of fancy indexing
         offsets = np.cumsum(counts) - counts
         lo = np.minimum.reduceat(bounds[0:3], offsets, axis=1).T
         hi = np.maximum.reduceat(bounds[3:6], offsets, axis=1).T
@@ -184,8 +199,9 @@ def _build(tri_lo: np.ndarray, tri_hi: np.ndarray, order: np.ndarray, count: int
                 continue
             in_group = group[segment]
             local_segment = (np.cumsum(group) - 1)[segment[in_group]]
-            costs, chosen_bins = _sah_costs(bounds[:, in_group], local_segment, counts[group], c_lo[group],
-                                            c_hi[group], bins)
+            group_bounds = bounds if len(local_segment) == len(segment) else np.compress(in_group, bounds, axis=1)
+            costs, chosen_bins = _sah_costs(group_bounds, local_segment, counts[group], c_lo[group], c_hi[group],
+                                            bins)
             flat = costs.reshape(-1, int(group.sum()))
             best = np.argmin(flat, axis=0)
             best_cost[group] = flat[best, np.arange(flat.shape[1])]
@@ -214,7 +230,9 @@ def _build(tri_lo: np.ndarray, tri_hi: np.ndarray, order: np.ndarray, count: int
         right_rank = right_before - right_before[first_of_segment]
         left_rank = (pos - starts[seg]) - right_rank
         n_left_all = np.bincount(seg, weights=~goes_right, minlength=nodes_here).astype(np.int64)
-        order[np.where(goes_right, starts[seg] + n_left_all[seg] + right_rank, starts[seg] + left_rank)] = prim
+        placed = np.where(goes_right, starts[seg] + n_left_all[seg] + right_rank, starts[seg] + left_rank)
+        order[placed] = prim
+        ordered_bounds[:, placed] = np.compress(in_split, bounds, axis=1)
 
         parents = nodes[split]
         children = node_total + 2 * np.arange(len(parents))
