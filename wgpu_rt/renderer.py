@@ -276,7 +276,8 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       means there support; False: the network's as it comes), ``post_filter`` (True: the denoised frame
       smoothed by an edge-aware à-trous filter guided by albedo, normal and depth; False: not),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
-      ``progress`` (a progress bar, on a terminal), ``timings`` (per-stage GPU times; default: when the adapter has them),
+      ``progress`` (a progress bar, on a terminal), ``timings`` (per-stage GPU times; default: when the
+      adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a
       pixel of readback, for callers that need only ``image`` or the AOVs; one of the three is required).
     """
