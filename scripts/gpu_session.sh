@@ -27,8 +27,8 @@
 # shipped ones) then `train_eval` as in §25;
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
-# nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's: with naga's bounds
-# checks, with each weight fetch and as the autotuner picks), trace
+# nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:
+# with naga's bounds checks, with each weight fetch and as the autotuner picks), trace
 # (samples/s against Mitsuba cuda_ad_rgb with the threaded and the wide BVH and the measured choice; closest-hit rays/s of each
 # walk on 100k random triangles and the bunny; cornell also with bounds checks; what the watertight tests
 # cost), frame (fused frame, adaptive targeted pass, moving vs static: the `moving` scene and the
