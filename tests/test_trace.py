@@ -140,7 +140,8 @@ def test_targeted_pass_is_deterministic_and_skips_pixels_without_samples(gpu):
                                   probe.read("radiance").reshape(3, -1)[:, untouched])
 
 
-@pytest.mark.parametrize("size, item_samples", [((24, 24), 3), ((37, 29), 16), ((40, 8), 1)])
+@pytest.mark.parametrize("size, item_samples", [((24, 24), 3), ((37, 29), 16), ((40, 8), 1), ((3, 17), 3),
+                                                ((65, 1), 2)])
 def test_work_list_matches_reference(gpu, size, item_samples):
     """The device's compacted list (wgsl/trace/work_list_build.wgsl) is the numpy reference's: the pixels
     with samples in the reference's order, each entry's first item after the items of those before it,
