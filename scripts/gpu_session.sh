@@ -22,9 +22,9 @@
 # DEADLINE=240 PART_LIMIT=160 TEST_WORKERS=12, timeout_s 400: `tests nn_widths frame` (the Mitsuba
 # cross-checks on the CUDA variant; the 8-channel tile on the narrowed networks, and everywhere in the
 # shipped one (conv tiling staged-narrow); the targeted pass with
-# the tile-ordered work list, its build timed alone and batches of 2^21 items); call 2 at once: `train`
-# with TRAIN_MINUTES=4 (widths that are multiples of 8, e.g. TRAIN_WIDTHS="8 24 48 96 96", or the
-# shipped ones) then `train_eval` as in §25;
+# the tile-ordered work list, its build timed alone and batches of 2^21 items; ~260 s); call 2 at once,
+# timeout_s 480: `train` with TRAIN_MINUTES=3 (widths that are multiples of 8, e.g. TRAIN_WIDTHS="8 24 48
+# 96 96", or the shipped ones) then `train_eval` as in §25 (~420 s);
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:
