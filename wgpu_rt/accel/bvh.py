@@ -100,12 +100,9 @@ def _running(op, bins: np.ndarray, reverse: bool = False) -> np.ndarray:
     """``op`` (np.minimum or np.maximum) run along axis 1 of (3, bins, nodes) tables, from the last bin
     down with ``reverse``: one vector operation per bin, where ``op.accumulate`` along that axis took
     30–70× the time."""
-    out = np.empty_like(bins)
-    steps = range(bins.shape[1] - 2, -1, -1) if reverse else range(1, bins.shape[1])
-    first = -1 if reverse else 0
-    out[:, first] = bins[:, first]
-    for b in steps:
-        op(out[:, b + 1 if reverse else b - 1], bins[:, b], out=out[:, b])
+    out, step = bins.copy(), 1 if reverse else -1   # bin b takes op(bin b, its neighbour b + step)
+    for b in (range(bins.shape[1] - 2, -1, -1) if reverse else range(1, bins.shape[1])):
+        op(out[:, b + step], out[:, b], out=out[:, b])
     return out
 
 
