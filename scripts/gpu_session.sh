@@ -23,8 +23,9 @@
 # cross-checks on the CUDA variant; the 8-channel tile on the narrowed networks, and everywhere in the
 # shipped one (conv tiling staged-narrow); the targeted pass with
 # the tile-ordered work list, its build timed alone and batches of 2^21 items; ~260 s); call 2 at once,
-# timeout_s 480: `train` with TRAIN_MINUTES=3 (widths that are multiples of 8, e.g. TRAIN_WIDTHS="8 24 48
-# 96 96", or the shipped ones) then `train_eval` as in §25 (~420 s);
+# timeout_s 540, the shipped widths at scale (issue 12's per-scene bar; session 27, §26): SHARDS=12
+# TRAIN_WORLDS=240 TRAIN_BATCH=32 TRAIN_LR=2e-4 TRAIN_MINUTES=3.5 TRAIN_FLAGS=--permute-colours `train`,
+# then `train_eval` with DEADLINE and PART_LIMIT=120 as in §25 (~500 s; the renders are estimates);
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:
@@ -62,13 +63,18 @@ GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 # parts train and train_check, one call each (session 22 on an H200: the 24 held-out views with 4096-spp
 # gold in 76–85 s; the rest estimated): held-out render 80 s (once), training worlds ~150 s (+ ~40 s of
 # built-in and 96² views), training TRAIN_MINUTES; then scoring ~40 s, §14's checks ~60 s each
-TRAIN_WORLDS=$([ $small = 1 ] && echo 4 || echo 80); TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
+TRAIN_WORLDS=${TRAIN_WORLDS:-$([ $small = 1 ] && echo 4 || echo 80)}; TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
+TRAIN_BATCH=${TRAIN_BATCH:-8}; TRAIN_LR=${TRAIN_LR:-1e-4}
 TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}
 # TRAIN_INIT: the ONNX the fine-tune starts from (default the shipped denoiser; an earlier session's
 # $OUT/model/denoiser.onnx, carried in, continues its training). TRAIN_FLAGS: more `wgpu-rt train` flags
 # (e.g. --permute-colours, §23). TRAIN_WIDTHS: the fine-tune's U-Net widths; narrower ones start from
-# the shipped model's heaviest channels (§22: "12 24 48 96 96", 0.57× its FLOPs). With the estimates
-# above, ~9 min in all
+# the shipped model's heaviest channels (§22: "12 24 48 96 96", 0.57× its FLOPs). TRAIN_WORLDS: training
+# worlds at 256² (and as many at 96²). TRAIN_BATCH, TRAIN_LR: §25's CUDA steps took 21 ms at batch 8
+# (48 steps/s), while the U-Net's work in a step (~67 GFLOP forward and backward, crops of ~192²) is a
+# few percent of that on an H200: the step's time is the host launching kernels, so a larger batch
+# should train on more crops in about the same time (not yet measured). With the estimates above,
+# ~9 min in all
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
 CHECK_VIEW=$([ $small = 1 ] && echo 48 || echo 128); CHECK_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 CHECK_SCENES="cornell cornell-glossy sun-room world-2147483661 world-2147483667 world-2147483660 world-2147483665
@@ -198,7 +204,7 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
             --out data/worlds-train-small --quiet
         part train wgpu-rt train denoiser --data $data --extra-data data/builtin-$VIEW data/worlds-train-small \
             --init-from ${TRAIN_INIT:-models/denoiser.onnx} --widths ${TRAIN_WIDTHS:-16 32 64 128 128} \
-            --bottom-merge add --epochs 400 --minutes $TRAIN_MINUTES --batch 8 --crop $((VIEW / 2)) $VIEW --lr 1e-4 \
+            --bottom-merge add --epochs 400 --minutes $TRAIN_MINUTES --batch $TRAIN_BATCH --crop $((VIEW / 2)) $VIEW --lr $TRAIN_LR \
             --curriculum any --ssim-space display --lowpass 2 --validate-every 50 --device auto \
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet ${TRAIN_FLAGS:-}
         cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/"   # bench_denoise reads a whole set

@@ -403,6 +403,28 @@ def test_a_nan_loss_stops_training_with_a_clear_message(tiny_dataset, tmp_path, 
         trainer.run()
 
 
+def test_a_loss_that_turns_nan_mid_epoch_is_named_by_its_step_and_never_checkpointed(tiny_dataset, tmp_path,
+                                                                                     monkeypatch):
+    # Losses are read once an epoch (reading each would make the host wait for every step on a GPU), so
+    # the message must still name the first bad step, and the epoch's checkpoint must not be written.
+    config = TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), epochs=2, batch=2,
+                         crop_min=12, crop_max=16, widths=(4, 8))
+    trainer = Trainer(config, progress=False)
+    real_loss, calls = trainer.loss, []
+
+    def loss_then_nan(prediction, target):
+        calls.append(1)
+        value = real_loss(prediction, target)
+        return value * float("nan") if len(calls) > trainer.steps_per_epoch + 1 else value
+
+    monkeypatch.setattr(trainer, "loss", loss_then_nan)
+    assert trainer.steps_per_epoch >= 3
+    with pytest.raises(TrainingError, match=f"loss became nan at step {trainer.steps_per_epoch + 1} \\(epoch 1\\)"):
+        trainer.run()
+    saved = torch.load(trainer.checkpoint_path, weights_only=False)
+    assert saved["epoch"] == 1 and all(torch.isfinite(t).all() for t in saved["model"].values())
+
+
 def test_confidence_needs_sequences(tmp_path):
     config = DatasetConfig(scenes=("cornell",), views=5, size=8, spp=(1,), gold=4,
                            sequence_fraction=0.0)

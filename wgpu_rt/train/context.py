@@ -95,14 +95,14 @@ class TrainContext:
         torch.distributed.all_gather_object(values, value)
         return values
 
-    def mean(self, value: torch.Tensor) -> float:
-        """The mean of a scalar over the processes (each process's loss differs; all must agree on it,
-        e.g. to stop together when it is NaN)."""
-        value = value.detach().float()
+    def mean_each(self, values: torch.Tensor) -> np.ndarray:
+        """The mean over the processes of each element of ``values`` (each process's losses differ; all
+        must agree on them, e.g. to stop together when one is NaN), on the host."""
+        values = values.detach().float()
         if self.distributed:
-            torch.distributed.all_reduce(value)
-            value = value / self.world_size
-        return float(value)
+            torch.distributed.all_reduce(values)
+            values = values / self.world_size
+        return values.cpu().numpy()
 
     def describe(self) -> str:
         """The hardware for the model card."""

@@ -348,8 +348,9 @@ class Trainer:
             return F.binary_cross_entropy(prediction.clamp(1e-6, 1 - 1e-6), target, weight=weight)
         return F.binary_cross_entropy(prediction.clamp(1e-6, 1 - 1e-6), target)
 
-    def train_step(self, items, spp: int) -> float:
-        """One optimizer step on ``items``; returns the loss (averaged over the data-parallel ranks)."""
+    def train_step(self, items, spp: int):
+        """One optimizer step on ``items``; returns this process's loss as a tensor on the device: reading
+        it would make the host wait for the step, so run() reads an epoch's losses at its end."""
         import torch
 
         x, y = self.train_set.batch(items, self.rng, self.augmentation, spp)
@@ -358,10 +359,6 @@ class Trainer:
         with self.context.autocast():
             prediction = self.network(x)
         loss = self.loss(prediction.float(), y)   # the loss in float32 whatever the network ran in
-        value = self.context.mean(loss)
-        if not math.isfinite(value):
-            raise TrainingError(f"{self.config.task}: loss became {value} at step {self.step} (epoch "
-                                f"{self.epoch}); lower --lr, or check {self.config.data} for bad images")
         scaler = self.context.scaler   # float16 only: scales the loss so small gradients survive
         self.optimizer.zero_grad(set_to_none=True)
         scaler.scale(loss).backward()
@@ -371,7 +368,20 @@ class Trainer:
         scaler.update()
         self.schedule.step()
         self.step += 1
-        return value
+        return loss.detach()
+
+    def _epoch_losses(self, losses: list, first_step: int) -> np.ndarray:
+        """The epoch's per-step losses, each averaged over the data-parallel ranks, read from the device
+        once (all ranks see the same values, so they stop together); a step whose loss was not finite
+        stops training here, before the epoch's checkpoint, so the last checkpoint holds finite weights."""
+        import torch
+
+        values = self.context.mean_each(torch.stack(losses)) if losses else np.zeros(0)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            raise TrainingError(f"{self.config.task}: loss became {values[bad[0]]} at step {first_step + bad[0]} "
+                                f"(epoch {self.epoch}); lower --lr, or check {self.config.data} for bad images")
+        return values
 
     def run(self) -> dict:
         """Train the remaining epochs (all, or those after a resumed checkpoint); returns the last
@@ -393,12 +403,13 @@ class Trainer:
                 order = self.context.shard(order)
                 spp = (curriculum_spp(self.epoch / self.config.epochs, available, tuple(self.config.curriculum))
                        if self.config.task == "denoiser" else 1)
-                losses = []
+                losses, first_step = [], self.step
                 for first in range(0, len(order), self.config.batch):
                     items = [self.train_set.items[i] for i in order[first:first + self.config.batch]]
                     losses.append(self.train_step(items, spp))
                     bar.update(1)
-                    bar.set_postfix(loss=f"{losses[-1]:.4f}", spp=spp)
+                losses = self._epoch_losses(losses, first_step)
+                bar.set_postfix(loss=f"{np.mean(losses):.4f}", spp=spp)
                 self._synchronize()
                 steps_seconds = time.perf_counter() - started
                 self.timed["steps"] += len(losses)
