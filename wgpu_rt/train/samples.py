@@ -25,6 +25,7 @@ device, cropped and exposed (the crop alone, where the target is made pixel by p
 
 from __future__ import annotations
 
+import itertools
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +39,7 @@ from ..frame.pack import (albedo_factor, demodulated_log_color, log_color, pack_
 from .targets import HEATMAP_PERCENTILE, confidence_pair
 
 ANY_SPP = "any"   # a curriculum stage: each crop draws one of its view's rendered sample counts
+RGB_ORDERS = list(itertools.permutations(range(3)))   # the orders a colour permutation draws from
 
 
 @dataclass(frozen=True)
@@ -69,6 +71,14 @@ class TaskSamples(ABC):
         self.device = torch.device("cpu")
         self._kept: dict | None = None
         self._budget, self._kept_bytes = None, 0
+        self._orders = None
+
+    def _colour_orders(self, device: torch.device) -> torch.Tensor:
+        """RGB_ORDERS as a (6, 3) tensor on ``device``, made once: a crop's order is a row of it, since
+        copying each order to a GPU would make the host wait for the device's queued work every crop."""
+        if self._orders is None or self._orders.device != device:
+            self._orders = torch.tensor(RGB_ORDERS, device=device)
+        return self._orders
 
     def _items(self) -> list[tuple[int, int]]:
         return [(v, f) for v, view in enumerate(self.views) for f in range(len(view.frames))]
@@ -164,7 +174,7 @@ class TaskSamples(ABC):
             if flip:
                 x, y = x.flip(2), y.flip(2)
             if aug.permute_colours and self.colour_inputs:
-                order = torch.from_numpy(rng.permutation(3)).to(x.device)
+                order = self._colour_orders(x.device)[RGB_ORDERS.index(tuple(rng.permutation(3)))]
                 x, y = _reorder(x, self.colour_inputs, order), _reorder(y, self.colour_targets, order)
             inputs.append(x)
             targets.append(y)
