@@ -16,6 +16,7 @@ default on discrete GPUs), ``staged-weights`` = that kernel with each input bloc
 in workgroup memory too (loaded once per workgroup and read by every invocation from there, as tfjs and
 onnxruntime's WebGPU convolutions do), ``fp16`` = the adapter's default tiling with f16 activations, ``fp16-math`` = that with the 3×3
 convolutions' multiply-adds in half precision too (each kernel row's products summed in f16),
+``fp16-acc`` = that with the sums over input channels in f16 as well (an f16 register tile),
 ``direct-weights`` = the default tiling with every invocation loading its own weight blocks (instead of
 the lanes of a subgroup sharing the loads and broadcasting them, the default where the adapter has
 subgroups), ``autotuned`` = the tiling and weight fetch of every layer measured on this adapter
@@ -59,6 +60,7 @@ STEPS = {"naive": {"precision": "fp32", "conv_tiling": "none"},
          "staged-weights": {"precision": "fp32", "conv_tiling": "staged-weights"},
          "fp16": {"precision": "fp16", "conv_tiling": None},
          "fp16-math": {"precision": "fp16", "conv_tiling": None, "math": "f16"},
+         "fp16-acc": {"precision": "fp16", "conv_tiling": None, "math": "f16-acc"},
          "direct-weights": {"precision": "fp32", "conv_tiling": None, "weight_fetch": "direct"},
          "autotuned": {"precision": "fp32", "conv_tiling": None, "autotune": True}}
 

@@ -126,7 +126,7 @@ for what in "$@"; do
         part profile_auto $profile
         part profile_fp32 $profile --precision fp32
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN \
-            --steps staged fp16-math --repeats 5 ;;
+            --steps staged fp16-math fp16-acc --repeats 5 ;;
     nn_widths)   # issue 12 item 5 / issue 13's denoiser target: the shipped architecture at narrower widths
                  # (untrained: the speed is the architecture's), profiled as the default picks
         for widths in "16 32 64 128 128" "12 24 48 96 96" "8 16 32 64 64"; do
@@ -139,7 +139,11 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
         # low-resolution layers that fill less than a wave), at 1080p and on the low band's quarter canvas
         part profile_narrow wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --conv-tiling staged-narrow
         part profile_narrow_quarter wgpu-rt profile models/denoiser.onnx --size $((W / 4))x$((H / 4)) \
-            --conv-tiling staged-narrow ;;
+            --conv-tiling staged-narrow
+        # session 27: the 3×3 tiles summed in f16 as well (half the accumulator registers, no conversions;
+        # on lavapipe the shipped denoiser's images stay within 76–83 dB of onnxruntime's, §26)
+        part profile_f16acc wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --math f16-acc
+        part profile_f16acc_8 wgpu-rt profile "$OUT/unet_8_16_32_64_64.onnx" --size ${W}x${H} --math f16-acc ;;
     nn_variants)   # §21's comparisons: bounds checks, the padded canvas, each weight fetch, the autotuner
         profile="wgpu-rt profile models/denoiser.onnx --size ${W}x${H}"
         part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 $profile --precision fp32
@@ -153,7 +157,7 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
         # same choices in 9.6 ms; the same again from the cache tells a slow GPU state from a profiler bug
         part profile_fp32_autotuned_cached env WGPU_RT_AUTOTUNE=1 $profile --precision fp32
         part bench_nn_variants python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN \
-            --steps staged staged-weights direct-weights fp16 fp16-math autotuned --repeats 5 ;;
+            --steps staged staged-weights direct-weights fp16 fp16-math fp16-acc autotuned --repeats 5 ;;
     trace)
         # session 19: each scene with the threaded binary BVH and the 4-wide one (wgsl/accel/walk_wide.wgsl)
         # session 25: each wide layout also over the tree with small leaves; samples/s no longer count the BVH build

@@ -117,10 +117,13 @@ def test_weights_read_directly_win_where_faster(gpu, two_layers, tmp_path):
 
 
 @pytest.mark.gpu
-def test_f16_multiply_adds_are_a_candidate_of_fp16_models(gpu, two_layers, tmp_path):
-    """An fp16 model's 3×3 kernels are also timed multiplying in f16: chosen where faster, named in the
-    cache, within the fp16 bound of onnxruntime (fp32 models never time them: see candidate_kernels)."""
+@pytest.mark.parametrize("fastest", ["+f16-math", "+f16-acc"])
+def test_f16_multiply_adds_are_a_candidate_of_fp16_models(gpu, two_layers, tmp_path, monkeypatch, fastest):
+    """An fp16 model's 3×3 kernels are also timed multiplying in f16, and summing their tile in f16 too:
+    chosen where faster, named in the cache, within the fp16 bound of onnxruntime (fp32 models never time
+    them: see candidate_kernels). A half math that fails the device check is never a candidate."""
     from wgpu_rt.nn import WgslModel
+    from wgpu_rt.nn import model as nn_model
     from wgpu_rt.nn.autotune import Autotuner
 
     if not gpu.has_f16:
@@ -129,17 +132,22 @@ def test_f16_multiply_adds_are_a_candidate_of_fp16_models(gpu, two_layers, tmp_p
 
     def seconds(dispatches):
         calls.append(dispatches[0].kernel)
-        return 0.5 if "+f16-math" in dispatches[0].kernel else 1.0
+        return 0.5 if fastest in dispatches[0].kernel else 0.7 if "+f16" in dispatches[0].kernel else 1.0
 
     cache = tmp_path / "autotune.json"
     model = WgslModel(two_layers, "fp16", ctx=gpu, autotune=Autotuner(gpu, cache, timer=seconds))
     first = [d.kernel for d in every_dispatch(model, *SIZE) if d.flops][0]
-    # register, staged and staged-narrow, weights read directly
-    assert sum("+f16-math" in kernel for kernel in calls) == 3
-    assert first.startswith("pack+conv3x3") and "+f16-math" in first
+    # register, staged and staged-narrow, weights read directly, for each half math
+    assert sum("+f16-math" in kernel for kernel in calls) == sum("+f16-acc" in kernel for kernel in calls) == 3
+    assert first.startswith("pack+conv3x3") and first.endswith(fastest)
     variants = [entry["variant"] for entry in json.loads(cache.read_text())["entries"].values()]
-    assert sum("+f16-math" in variant for variant in variants) == 1
+    assert sum(fastest in variant for variant in variants) == 1
     check_parity([(1, 9, *SIZE)], onnxruntime_fn(two_layers), model, atol=FP16_ATOL)
+
+    monkeypatch.setattr(nn_model, "half_math_agrees", lambda ctx, math="f16": math != "f16-acc")
+    calls.clear()
+    WgslModel(two_layers, "fp16", ctx=gpu, autotune=Autotuner(gpu, tmp_path / "other.json", timer=seconds)).plan(*SIZE)
+    assert sum("+f16-math" in kernel for kernel in calls) == 3 and not any("+f16-acc" in k for k in calls)
 
 
 @pytest.mark.gpu

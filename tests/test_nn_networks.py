@@ -278,7 +278,7 @@ def test_frames_over_the_binding_limit_bind_windows_and_split_inputs(tmp_path, g
 @pytest.mark.parametrize("tiling,precision,fetch,math", [
     ("register", "fp32", None, None), ("staged", "fp32", None, None), ("loop", "fp32", None, None),
     ("register", "fp16", None, None), ("staged", "fp32", "direct", None), ("staged-weights", "fp32", None, None),
-    ("register", "fp16", None, "f16"), ("staged", "fp16", None, "f16")])
+    ("register", "fp16", None, "f16"), ("staged", "fp16", None, "f16"), ("register", "fp16", None, "f16-acc")])
 def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precision, fetch, math):
     """With one dispatch per layer preferred (discrete GPUs), every weighted layer of the U-Net is one
     dispatch whose z dimension runs over its output-block groups, the big layers reading all their
@@ -286,7 +286,8 @@ def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precisi
     image, the pools run in the convs' epilogues, the concats are free and the head writes the output
     image (in the register tiling from the last 3×3 conv's epilogue, whose 32 outputs fit one tile):
     the same output as onnxruntime; also with weights read directly by every invocation (a choice of
-    its own where the adapter has subgroups), and with the 3×3 kernels' multiply-adds in f16."""
+    its own where the adapter has subgroups), and with the 3×3 kernels' multiply-adds in f16 (their sums
+    too, the head folded into an f16 tile)."""
     from wgpu_rt.nn import WgslModel
     from wgpu_rt.nn import model as nn_model
 
@@ -305,12 +306,13 @@ def test_unet_one_dispatch_per_layer(tmp_path, gpu, monkeypatch, tiling, precisi
     assert all(d.flops for d in dispatches) and len(dispatches) == len(weighted) - head_folded
     dispatched = packed[:-1] if head_folded else packed  # the head is the last weighted layer
     assert sorted(d.workgroups[2] for d in dispatches) == sorted(p.groups for p in dispatched)
-    labels = [d.kernel.removesuffix("+f16-math") for d in dispatches]
+    math_label = {"f16": "+f16-math", "f16-acc": "+f16-acc"}.get(model.math, "")
+    labels = [d.kernel.removesuffix(math_label) if math_label else d.kernel for d in dispatches]
     assert labels[-1].removesuffix("+direct-weights").endswith("+head+unpack" if head_folded else "gemm.wgsl+unpack")
     for label in labels:   # f16 multiply-adds read their weights directly
-        reads_directly = fetch == "direct" or (model.math == "f16" and "conv3x3" in label)
+        reads_directly = fetch == "direct" or (model.math != "f32" and "conv3x3" in label)
         assert label.endswith("+direct-weights") == (reads_directly and gpu.has_subgroups), label
-    assert any(d.kernel.endswith("+f16-math") for d in dispatches) == (model.math == "f16")
+    assert any(bool(math_label) and d.kernel.endswith(math_label) for d in dispatches) == (model.math != "f32")
     assert any(d.kernel.endswith("+staged-weights") for d in dispatches) == (tiling == "staged-weights")
     session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
     check_parity([(1, model.input_channels, 37, 53)], padded_reference(session, model.graph.multiple), model,

@@ -260,13 +260,15 @@ def test_conv3x3_tile_variants(tmp_path, gpu, tiling, pads, precision, outputs):
                  atol=FP32_ATOL if precision == "fp32" else FP16_ATOL)
 
 
+@pytest.mark.parametrize("math", ["f16", "f16-acc"])
 @pytest.mark.parametrize("tiling", ["register", "staged"])
 @pytest.mark.parametrize("cin,outputs", [(9, 48), (9, 64), (128, 48)], ids=["tile16", "tile32", "windows"])
-def test_conv3x3_multiplies_in_half(tmp_path, gpu, tiling, cin, outputs):
+def test_conv3x3_multiplies_in_half(tmp_path, gpu, tiling, cin, outputs, math):
     """``math="f16"`` (fp16 activations): the 3×3 tile kernels sum each kernel row's products in packed
     half precision and add them to the f32 tile, weights read directly as halves from their slots in
-    storage, never uniform (both tile widths; 128 input channels too): within the fp16 bound of
-    onnxruntime, and labelled so. f16 multiply-adds need f16 activations."""
+    storage, never uniform (both tile widths; 128 input channels too); ``math="f16-acc"``: the tile is
+    summed in f16 as well (over 9 · 128 products here). Within the fp16 bound of onnxruntime, and
+    labelled so. f16 multiply-adds need f16 activations."""
     from wgpu_rt.errors import ModelError
     from wgpu_rt.nn import WgslModel
 
@@ -274,15 +276,17 @@ def test_conv3x3_multiplies_in_half(tmp_path, gpu, tiling, cin, outputs):
         pytest.skip(f"{gpu.label} has no shader-f16")
     nodes, inits = conv("conv", "x", "y", cin, outputs, 3)
     path = make_model(tmp_path, "conv3x3_half", nodes, cin, inits)
-    model = WgslModel(path, "fp16", ctx=gpu, conv_tiling=tiling, math="f16")
+    model = WgslModel(path, "fp16", ctx=gpu, conv_tiling=tiling, math=math)
     kernel = model.kernel_for(model.graph.layers[0])
     assert kernel.half_math and kernel.weight_fetch == "direct" and model.prepared["conv"].half
+    assert kernel.half_accumulate == (math == "f16-acc")
     assert model.prepared["conv"].weight_space == "storage, read"
-    assert all(d.kernel.endswith("+f16-math") for d in every_dispatch(model, 37, 71) if d.flops)
+    label = "+f16-acc" if math == "f16-acc" else "+f16-math"
+    assert all(d.kernel.endswith(label) for d in every_dispatch(model, 37, 71) if d.flops)
     check_parity([(1, cin, 37, 71)], onnxruntime_fn(path), model, atol=FP16_ATOL)
-    with pytest.raises(ModelError, match="math f16 needs precision fp16"):
-        WgslModel(path, ctx=gpu, math="f16")
-    with pytest.raises(ModelError, match="math 'f8': choose one of f32, f16"):
+    with pytest.raises(ModelError, match=f"math {math} needs precision fp16"):
+        WgslModel(path, ctx=gpu, math=math)
+    with pytest.raises(ModelError, match="math 'f8': choose one of f32, f16, f16-acc"):
         WgslModel(path, "fp16", ctx=gpu, math="f8")
 
 
@@ -315,18 +319,20 @@ def test_discrete_gpus_default_to_half_precision_and_half_math(monkeypatch, kind
     assert nn_model.default_math(ctx, "fp32") == "f32"
 
 
-def test_half_math_is_checked_against_f32_math_on_the_device(gpu, monkeypatch):
-    """The check behind the f16 default runs both kernels on the adapter and compares them: it holds on
-    lavapipe, once per device, and fails where the outputs differ by more than its tolerance."""
+@pytest.mark.parametrize("math", ["f16", "f16-acc"])
+def test_half_math_is_checked_against_f32_math_on_the_device(gpu, monkeypatch, math):
+    """The check behind the f16 default (and the autotuner's f16 candidates) runs both kernels on the
+    adapter and compares them: it holds on lavapipe, once per device and math, and fails where the
+    outputs differ by more than its tolerance, leaving that math out of the autotuner's candidates."""
     from wgpu_rt.nn import model as nn_model
 
     if not gpu.has_f16:
         pytest.skip(f"{gpu.label} has no shader-f16")
     monkeypatch.setattr(nn_model, "_half_math_checked", nn_model.weakref.WeakKeyDictionary())
-    assert nn_model.half_math_agrees(gpu) and nn_model._half_math_checked[gpu.device]
+    assert nn_model.half_math_agrees(gpu, math) and nn_model._half_math_checked[gpu.device] == {math: True}
     monkeypatch.setattr(nn_model, "_half_math_checked", nn_model.weakref.WeakKeyDictionary())
     monkeypatch.setattr(nn_model, "HALF_MATH_CHECK_TOLERANCE", -1.0)
-    assert not nn_model.half_math_agrees(gpu)
+    assert not nn_model.half_math_agrees(gpu, math)
 
 
 def test_auto_precision_resolves_on_the_adapter(gpu, tmp_path):

@@ -16,9 +16,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--weight-fetch", choices=("subgroup", "direct"),
                         help="how convolutions read weights: the lanes of a subgroup sharing the loads, or each "
                         "invocation loading its own (default: subgroup where the adapter has subgroups)")
-    parser.add_argument("--math", choices=("f32", "f16"),
-                        help="what the 3×3 convolutions multiply in: f32, or f16 with fp16 activations (each "
-                        "kernel row's products summed in half precision; default: f16 on discrete GPUs in fp16)")
+    parser.add_argument("--math", choices=("f32", "f16", "f16-acc"),
+                        help="what the 3×3 convolutions multiply in: f32, or with fp16 activations f16 (each "
+                        "kernel row's products summed in half precision) or f16-acc (the sums over input "
+                        "channels too); default: f16 on discrete GPUs in fp16")
     parser.add_argument("--repeat", type=int, default=5,
                         help="timed runs after one warm-up; times are their median (default 5)")
     parser.add_argument("--sort", choices=("order", "time"), default="order",

@@ -339,6 +339,7 @@ class ConvFamilyKernel(NnKernel):
 
     stages_weights = False  # its shader can stage weight blocks in workgroup memory (weights_workgroup.wgsl)
     multiplies_in_half = False  # its shader can run its multiply-adds in f16 (conv3x3_tile.wgsl's MATH)
+    half_accumulate = False     # its tile sums in f16 too (Conv3x3Kernel)
 
     def __init__(self, ctx, precision: Precision, tile_x: int, uniform_windows: bool = False,
                  weight_fetch: str | None = None, half_math: bool = False):
@@ -354,6 +355,11 @@ class ConvFamilyKernel(NnKernel):
             raise ValueError(f"{self.shader} cannot fetch weights by {self.weight_fetch!r}")
         if half_math and self.weight_fetch != "direct":
             raise ValueError(f"f16 multiply-adds read their weights directly, not by {self.weight_fetch!r}")
+
+    @property
+    def math_label(self) -> str:
+        """The dispatch label's suffix for what its multiply-adds run in: none for f32."""
+        return "+f16-acc" if self.half_accumulate else "+f16-math" if self.half_math else ""
 
     def weight_constants(self, packed: PackedWeights, names: tuple[str, ...] = ("weight",)) -> dict:
         """Substitutions of layer_bindings.wgsl choosing how conv-family kernels read ``packed``'s weight
@@ -450,7 +456,7 @@ class ConvFamilyKernel(NnKernel):
         fetch_label = {"subgroup": "", "workgroup": "+staged-weights",
                        "direct": "+direct-weights" if self.ctx.has_subgroups else ""}[self.weight_fetch]
         kernel = (kernel or self.shader) + fetch_label
-        kernel += "+f16-math" if self.half_math else ""
+        kernel += self.math_label
         tensors = {"src": src.buffer, "dst": dst.buffer, **({"pooled": pooled.buffer} if pooled else {}),
                    **({"head": head.buffer} if head else {}), **({"src_upper": src.upper} if src.upper else {}),
                    **({"residual": residual.buffer} if residual else {})}
@@ -494,34 +500,42 @@ class ConvKernel(ConvFamilyKernel):
                             self.kernel_label(self.shader, pooled, input_image, output_image), pooled)
 
 
-def tile_blocks_code(blocks: int, head: bool = False, half: bool = False) -> dict[str, str]:
+def tile_blocks_code(blocks: int, head: bool = False, half: bool = False,
+                     half_accumulate: bool = False) -> dict[str, str]:
     """conv3x3_tile_blocks.wgsl's placeholders for a tile of ``blocks`` output blocks, written out (one
     template instead of a hand-unrolled file per width; the code is the same as written out by hand).
     ``head``: the tile's pixels go through head_epilogue.wgsl's 1×1 head instead of being stored;
-    ``half``: a row's products are summed in f16 and the sum added to the f32 tile."""
+    ``half``: a row's products are summed in f16 and the sum added to the f32 tile; with
+    ``half_accumulate`` too, the tile itself is f16 (bias, sums and all), converted to f32 only to store."""
     def accumulate(t: int) -> str:
         pair, odd = divmod(t, 2)
         taps = [f"pair{pair}_weight_block(tap{f' + {odd + 2 * kx}' if odd + 2 * kx else ''}, lane) * x.x{kx}"
                 for kx in range(3)]
-        if half:
+        if half and not half_accumulate:
             return f"    (*tile).block{t} += mat4x4f({taps[0]} + {taps[1]}\n        + {taps[2]});"
         return f"    (*tile).block{t} += {taps[0]} + {taps[1]}\n        + {taps[2]};"
 
+    def block(t: int) -> str:   # block t of the tile as f32
+        return f"mat4x4f(tile.block{t})" if half_accumulate else f"tile.block{t}"
+
     return {"TILE_C": blocks,
-            "TILE_FIELDS": "\n".join(f"    block{t}: mat4x4f," for t in range(blocks)),
-            "TILE_BIAS": ", ".join(f"bias_pixels({t})" for t in range(blocks)),
+            "TILE_FIELDS": "\n".join(f"    block{t}: {'mat4x4<f16>' if half_accumulate else 'mat4x4f'},"
+                                     for t in range(blocks)),
+            "TILE_BIAS": ", ".join(f"mat4x4<f16>(bias_pixels({t}))" if half_accumulate else f"bias_pixels({t})"
+                                   for t in range(blocks)),
             "TILE_ACCUMULATE": "\n".join(accumulate(t) for t in range(blocks)),
-            "TILE_STORE": head_store_code(blocks) if head
-            else "\n".join(f"    store_pixels({t}, oy, ox0, tile.block{t});" for t in range(blocks))}
+            "TILE_STORE": head_store_code(blocks, block) if head
+            else "\n".join(f"    store_pixels({t}, oy, ox0, {block(t)});" for t in range(blocks))}
 
 
-def head_store_code(blocks: int) -> str:
+def head_store_code(blocks: int, block=lambda t: f"tile.block{t}") -> str:
     """The tile's store with a head (head_epilogue.wgsl): its blocks' activations as named 4-pixel
-    matrices, then per head block the bias plus one matrix product per tile block, written out.
+    matrices (``block(t)``: tile block t as an f32 matrix in WGSL), then per head block the bias plus one
+    matrix product per tile block, written out.
     Written out, the denoiser with its head folded takes the CPU time it takes with the head's own
     dispatch on lavapipe (256², median of 30 runs: 232.2 vs 231.6 ms); a per-pixel loop over an array of
     the tile's blocks instead took 1.3% more (loop-indexed arrays go to scratch memory)."""
-    inputs = "\n".join(f"    let a{t} = head_input(tile.block{t});" for t in range(blocks))
+    inputs = "\n".join(f"    let a{t} = head_input({block(t)});" for t in range(blocks))
     terms = " + ".join(f"head.blocks[w + {t}] * a{t}" if t else "head.blocks[w] * a0" for t in range(blocks))
     return (f"{inputs}\n    for (var k = 0; k < HEAD_BLOCKS; k++) {{\n        let w = k * TILE_C;\n"
             f"        store_head_pixels(k, oy, ox0, head_bias(k) + {terms});\n    }}")
@@ -589,6 +603,14 @@ class Conv3x3Kernel(ConvFamilyKernel):
     input channels stays f32 (the shipped denoiser: max |error| 1.4e-3 against onnxruntime, f32 math
     with f16 storage 0.7e-3, the bound 1e-2). On lavapipe (no f16 ALU on AVX2) it takes 4–5× the time
     (751–794 against 147–197 ms at 256² with the register tiling); a candidate for GPUs.
+    With ``half_accumulate`` as well (model math "f16-acc") the tile itself is f16: the bias, every row's
+    sum and the sum over input channels (up to 9 · 128 products) stay in half precision, converted to f32
+    only for the epilogue. It needs half the tile's registers (a 16-channel tile: 64 halves, 32 registers
+    of packed pairs instead of 64) and no conversion per row step. What it costs the denoiser's images
+    (`benchmarks/bench_half_math.py --size 256x256`, ten scenes, lavapipe): 70.7–83.6 dB from
+    onnxruntime's (f16 math 75.4–87.7, f32 math 85.1–98.4), three orders of magnitude below the
+    denoising error itself; random-input parity holds within the fp16 bound. A GPU candidate, not timed on
+    one yet (the autotuner weighs it where ``half_math_agrees(ctx, "f16-acc")``).
 
     Tile width (``tile_blocks``, unrolled into conv3x3_tile_blocks.wgsl by ``tile_blocks_code``): 32
     channels in the direct variant wherever the output has a multiple of 32 channels, else 16. On
@@ -630,10 +652,14 @@ class Conv3x3Kernel(ConvFamilyKernel):
     multiplies_in_half = True
 
     def __init__(self, ctx, precision: Precision, staged: bool = False, uniform_windows: bool = False,
-                 weight_fetch: str | None = None, half_math: bool = False, narrow_tile: bool = False):
-        """``narrow_tile``: 8 channels a tile on every layer (conv tiling "staged-narrow", see tile_blocks)."""
+                 weight_fetch: str | None = None, half_math: bool = False, narrow_tile: bool = False,
+                 half_accumulate: bool = False):
+        """``narrow_tile``: 8 channels a tile on every layer (conv tiling "staged-narrow", see tile_blocks);
+        ``half_accumulate`` (with ``half_math``): the tile is f16 as well (model math "f16-acc")."""
+        if half_accumulate and not half_math:
+            raise ValueError("an f16 tile needs f16 multiply-adds (half_math)")
         self.staged = self.stages_weights = staged
-        self.narrow_tile = narrow_tile
+        self.narrow_tile, self.half_accumulate = narrow_tile, half_accumulate
         self.shader = "conv3x3_staged.wgsl" if staged else "conv3x3.wgsl"
         super().__init__(ctx, precision, self.tile_x, uniform_windows, weight_fetch, half_math)
 
@@ -685,7 +711,8 @@ class Conv3x3Kernel(ConvFamilyKernel):
                            HEAD_BINDING=self.bindings.index("head"))
             flops += head.layer.flops_per_pixel * dst.height * dst.width
         pipeline = self.pipeline(
-            layer.activation, replacements, **tile_blocks_code(packed.tile_c, head is not None, self.half_math),
+            layer.activation, replacements,
+            **tile_blocks_code(packed.tile_c, head is not None, self.half_math, self.half_accumulate),
             MATH="f16" if self.half_math else "f32",
             IN_H=src.height, IN_W=src.width, IN_BLOCK=src.block, IN_BLOCKS=packed.in_blocks,
             OUT_H=dst.height, OUT_W=dst.width, PAD_TOP=top, PAD_LEFT=left, **modules,

@@ -69,10 +69,12 @@ WEIGHT_FETCHES = ("subgroup", "direct")
 # suffix of an autotuned variant whose weights are read directly on an adapter with subgroups
 DIRECT_WEIGHTS = "+direct-weights"
 # What the 3×3 tile kernels multiply in: "f32", or with fp16 activations "f16" (each kernel row's products
-# summed in packed half precision, then added to the f32 tile; see Conv3x3Kernel)
-MATHS = ("f32", "f16")
-# suffix of an autotuned variant whose 3×3 kernels multiply in f16
+# summed in packed half precision, then added to the f32 tile) or "f16-acc" (the tile summed in f16 too,
+# converted to f32 only to store); see Conv3x3Kernel
+MATHS = ("f32", "f16", "f16-acc")
+# suffixes of an autotuned variant whose 3×3 kernels multiply in f16, and sum their tile in f16 as well
 HALF_MATH = "+f16-math"
+HALF_ACCUMULATE = "+f16-acc"
 # What a precision argument may say: a storage type, or "auto" (``default_precision``)
 PRECISION_CHOICES = ("auto", *PRECISIONS)
 # Passes of a self-ensemble: the image under the first k of the 8 dihedral transforms (the flips and
@@ -100,16 +102,19 @@ def default_math(ctx, precision: str) -> str:
     return "f16" if precision == "fp16" and discrete and half_math_agrees(ctx) else "f32"
 
 
-_half_math_checked: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # a context's device -> bool
+# a context's device -> {math: bool}
+_half_math_checked: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 HALF_MATH_CHECK_TOLERANCE = 1e-2   # the fp16 bound of the parity tests, over max(1, max |f32 math|)
 
 
-def half_math_agrees(ctx) -> bool:
-    """Whether the 3×3 tile kernels multiplying in f16 give what they give in f32 on ``ctx``'s adapter,
-    within the fp16 bound, on a random 32→32-channel convolution (fp16 activations both ways; checked
-    once per context, a fraction of a second). A default may not rest on a kernel no test has run on
-    that driver: where the two disagree (or the f16 kernel fails to compile), default_math keeps f32."""
-    if ctx.device not in _half_math_checked:
+def half_math_agrees(ctx, math: str = "f16") -> bool:
+    """Whether the 3×3 tile kernels multiplying in f16 (``math``: "f16", or "f16-acc") give what they give
+    in f32 on ``ctx``'s adapter, within the fp16 bound, on a random 32→32-channel convolution (fp16
+    activations both ways; checked once per context and math, a fraction of a second). A default, or an
+    autotuner's candidate, may not rest on a kernel no test has run on that driver: where the two
+    disagree (or the f16 kernel fails to compile), default_math keeps f32 and the autotuner leaves it out."""
+    checked = _half_math_checked.setdefault(ctx.device, {})
+    if math not in checked:
         import tempfile
 
         import onnx
@@ -129,12 +134,12 @@ def half_math_agrees(ctx) -> bool:
             path = Path(folder) / "half_math_check.onnx"
             onnx.save(model, path)
             try:
-                f32, f16 = (WgslModel(path, "fp16", ctx=ctx, math=math)(x) for math in ("f32", "f16"))
+                f32, f16 = (WgslModel(path, "fp16", ctx=ctx, math=m)(x) for m in ("f32", math))
                 agrees = bool(np.abs(f16 - f32).max() <= HALF_MATH_CHECK_TOLERANCE * max(1.0, np.abs(f32).max()))
             except (wgpu.GPUError, ModelError, DeviceLimitError):
                 agrees = False
-        _half_math_checked[ctx.device] = agrees
-    return _half_math_checked[ctx.device]
+        checked[math] = agrees
+    return checked[math]
 
 
 def default_weight_fetch(ctx) -> str:
@@ -234,7 +239,8 @@ class WgslModel:
     "staged-narrow" (the staged tile 8 channels wide everywhere); default: ``default_conv_tiling``.
     ``weight_fetch``: how those kernels read weights ("subgroup" or "direct", see WEIGHT_FETCHES);
     default: ``default_weight_fetch``. ``math``: "f32", or with precision "fp16" also
-    "f16", the 3×3 tile kernels' multiply-adds in half precision (see MATHS); default: ``default_math``.
+    "f16", the 3×3 tile kernels' multiply-adds in half precision, or "f16-acc", their sums too (see
+    MATHS); default: ``default_math``.
 
     ``autotune``: choose the tiling (and window preference) per layer shape by timing the candidates on
     this adapter once and caching the choice (see ``wgpu_rt.nn.autotune``; True, or an ``Autotuner``).
@@ -277,8 +283,8 @@ class WgslModel:
         math = math or default_math(self.ctx, precision)
         if math not in MATHS:
             raise ModelError(f"math {math!r}: choose one of {', '.join(MATHS)}")
-        if math == "f16" and precision != "fp16":
-            raise ModelError(f"math f16 needs precision fp16 (f16 activations), not {precision}")
+        if math != "f32" and precision != "fp16":
+            raise ModelError(f"math {math} needs precision fp16 (f16 activations), not {precision}")
         if precision == "fp16" and not self.ctx.has_f16:
             raise ModelError(f"precision fp16 needs the shader-f16 feature, which {self.ctx.label} lacks; "
                              "use fp32")
@@ -319,11 +325,12 @@ class WgslModel:
         args = (self.ctx, self.precision)
         if tiling in ("register", "staged", "staged-weights", "staged-narrow") and Conv3x3Kernel.handles(layer):
             fetch = "workgroup" if tiling == "staged-weights" else fetch
-            half = (math or self.math) == "f16" and tiling != "staged-weights"
+            half = (math or self.math) != "f32" and tiling != "staged-weights"
+            accumulate = half and (math or self.math) == "f16-acc"
             fetch = "direct" if half else fetch   # see weights_uniform_f16.wgsl
-            key, make = ("conv3x3", tiling, windows, fetch, half), lambda: Conv3x3Kernel(
+            key, make = ("conv3x3", tiling, windows, fetch, half, accumulate), lambda: Conv3x3Kernel(
                 *args, staged=tiling != "register", uniform_windows=windows, weight_fetch=fetch, half_math=half,
-                narrow_tile=tiling == "staged-narrow")
+                narrow_tile=tiling == "staged-narrow", half_accumulate=accumulate)
         elif layer.kind in ("conv", "gemm"):
             kernel_class = ConvKernel if layer.kind == "conv" else GemmKernel
             key, make = (layer.kind, CONV_TILINGS[tiling], windows, fetch), lambda: kernel_class(
@@ -364,7 +371,7 @@ class WgslModel:
         if self.autotuner is None:
             return self.kernel_for(layer)
         fetches = WEIGHT_FETCHES if self.ctx.has_subgroups else ("direct",)
-        maths = MATHS if self.precision.storage == "f16" else ("f32",)
+        maths = ["f32"] + [m for m in MATHS[1:] if self.precision.storage == "f16" and half_math_agrees(self.ctx, m)]
         candidates, seen = {}, set()  # one variant per distinct kernel and dispatch layout
         for math in maths:
             for fetch in fetches:
@@ -382,14 +389,14 @@ class WgslModel:
         key = self.autotuner.key(layer, src, self.precision.name, pooled is not None)
         variant = self.autotuner.choose(key, candidates, default)
         fetch = "direct" if variant.endswith(DIRECT_WEIGHTS) or not self.ctx.has_subgroups else "subgroup"
-        return self.kernel_for(layer, variant.split("+")[0], UNIFORM_WINDOWS in variant, fetch,
-                               "f16" if HALF_MATH in variant else "f32")
+        math = "f16-acc" if HALF_ACCUMULATE in variant else "f16" if HALF_MATH in variant else "f32"
+        return self.kernel_for(layer, variant.split("+")[0], UNIFORM_WINDOWS in variant, fetch, math)
 
     def _variant(self, tiling: str, uniform_windows: bool, kernel) -> str:
         """An autotuned variant's name (see tuned_kernel): the tiling, window preference and ``kernel``'s
         weight fetch and math."""
         direct = kernel.weight_fetch == "direct" and self.ctx.has_subgroups
-        return tiling + UNIFORM_WINDOWS * uniform_windows + HALF_MATH * kernel.half_math + DIRECT_WEIGHTS * direct
+        return tiling + UNIFORM_WINDOWS * uniform_windows + kernel.math_label + DIRECT_WEIGHTS * direct
 
     def _trial(self, layer, kernel, src: TensorView, dst: TensorView, pooled: TensorView | None):
         """The dispatches of ``kernel`` on scratch tensors shaped like ``src``, ``dst`` (and ``pooled``),

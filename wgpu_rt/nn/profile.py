@@ -121,7 +121,7 @@ def profile(model, height: int, width: int, repeat: int = 5, seed: int = 0) -> P
                          float(seconds[index])) for index, d in enumerate(dispatches)]
     tiling, fetch, math = (("autotuned",) * 3 if model.autotuner
                            else (model.conv_tiling, model.weight_fetch, model.math))
-    if math == "f16" and fetch != "direct":
+    if math != "f32" and fetch != "direct":
         fetch += " (direct in the f16 3×3 kernels)"
     return Profile(model.path, ctx.label, model.precision.name, tiling, fetch, math, (width, height),
                    plan.canvas[::-1],
