@@ -43,7 +43,7 @@ this process's CPU time is printed too: the cores are shared, and timestamps cou
 programs took them.
 
     python3 benchmarks/bench_adaptive.py --pass-cost [--size 128x128] [--budgets 4] [--repeats 5]
-        [--batch-items N ...]
+        [--batch-items N ...] [--item-samples N ...]
     python3 benchmarks/bench_adaptive.py [--quick] [--size 96x96] [--budgets 2 4 8 16] [--seeds 3]
         [--k 1 3] [--variance-k 1] [--uniform-share 0 0.5] [--pool-sigma 0 2] [--oracle [--oracle-renders 64]]
         [--gold-spp 8192] [--gold-cache DIR] [--denoised]
@@ -103,6 +103,10 @@ def parse_args():
     parser.add_argument("--batch-items", type=int, nargs="+", default=[0], metavar="N",
                         help="with --pass-cost: work items per batch of the targeted pass, one set of rows each "
                              "(0, the default: the tracer's, about one uniform dispatch's samples)")
+    parser.add_argument("--item-samples", type=int, nargs="+", default=[0], metavar="N",
+                        help="with --pass-cost: the most samples a work item holds, one set of rows each (0, the "
+                             "default: the tracer's; 1: a pixel's samples on neighbouring invocations, each its "
+                             "own item, instead of one invocation's loop)")
     add_gold_arguments(parser, default_spp=8192)
     add_model_arguments(parser)
     return parse_with_quick_defaults(parser, QUICK)
@@ -357,9 +361,10 @@ def pass_cost(args, size) -> None:
     if not get_context().has_timestamps:
         raise SystemExit("--pass-cost needs timestamp queries, which this adapter lacks")
     rows = []
-    for scene, batch_items in itertools.product(load_scenes(args.scenes), args.batch_items):
+    for scene, batch_items, item_samples in itertools.product(load_scenes(args.scenes), args.batch_items,
+                                                              args.item_samples):
         trace = TracePass(get_context(), scene, GeometryBuffers.build(scene), *size, max_depth=args.max_depth,
-                          batch_items=batch_items or None)
+                          batch_items=batch_items or None, item_samples=item_samples or None)
         for sampler in ("heat", "variance", "uniform"):
             for budget in sorted(args.budgets):
                 settings = AdaptiveSettings(sampler=sampler, budget=budget)
@@ -370,13 +375,15 @@ def pass_cost(args, size) -> None:
                 renderer = hdr_pipeline(scene, size, args, seed=0, adaptive=settings)
                 linear_frame(renderer)
                 plane = renderer.pipeline.buffers.read(EXTRA_SAMPLES.name)
-                rows.append([scene.name, sampler, budget, trace.batch_items, float(plane.mean()), int(plane.max()),
+                rows.append([scene.name, sampler, budget, trace.batch_items, trace.item_samples,
+                             float(plane.mean()), int(plane.max()),
                              float(np.mean(plane == 0)),
                              *pass_cost_row(trace, renderer.pipeline.buffers.get(EXTRA_SAMPLES), settings,
                                             int(extra), args.repeats)])
     print_table(f"targeted pass against a uniform pass of the same samples ({args.repeats} pairs timed in "
                 f"alternation: device ms by timestamps, medians; ratio: median of the pairs' ratios)",
-                ["scene", "sampler", "budget", "batch items", "mean extra", "max extra", "share with none",
+                ["scene", "sampler", "budget", "batch items", "item samples", "mean extra", "max extra",
+                 "share with none",
                  "targeted ms", "list build ms", "uniform ms", "ratio", "CPU-time ratio"], rows)
 
 

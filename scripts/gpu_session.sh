@@ -176,9 +176,11 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
         # run on the half- and quarter-resolution canvases, profiled here on their own
         part profile_half wgpu-rt profile models/denoiser.onnx --size $((W / 2))x$((H / 2))
         part profile_quarter wgpu-rt profile models/denoiser.onnx --size $((W / 4))x$((H / 4))
-        # session 26: the list's build timed alone, and batches of the default size beside 2^21 items
+        # session 26: the list's build timed alone, and batches of the default size beside 2^21 items;
+        # session 27: items of one sample each beside the default 8 (a pixel's samples on neighbouring
+        # invocations instead of one invocation's loop)
         part adaptive_cost python3 benchmarks/bench_adaptive.py --pass-cost --size ${W}x${H} --budgets 4 \
-            --scenes cornell sun-room --repeats 5 --batch-items 0 2097152
+            --scenes cornell sun-room --repeats 5 --batch-items 0 2097152 --item-samples 0 1
         part moving python3 benchmarks/bench_moving.py --scene moving --size $SQUARE --frames 40 --denoise
         part moving_bunny python3 benchmarks/bench_moving.py --scene bunny --size $SQUARE --frames 40 --denoise ;;
     heldout)
