@@ -142,6 +142,34 @@ def test_a_fixed_stage_needs_every_view_to_have_it(tmp_path):
     assert [h["spp"] for h in trainer.history] == [1, 1]
 
 
+def test_batches_hold_frames_of_one_crop_limit(tmp_path, monkeypatch):
+    """Datasets of two frame sizes train together with each batch drawn from frames of one crop limit
+    (a batch's crop fits its smallest frame, so mixed batches would train the large frames at the small
+    ones' crops, as the H200 fine-tunes of sessions 23 and 26 did): only the epoch's last batch may mix
+    the part-full runs, and every item is still drawn once an epoch."""
+    from wgpu_rt.train.samples import grouped_by_crop
+
+    for name, size in (("small", 16), ("large", 32)):
+        config = DatasetConfig(scenes=("cornell",), views=8, size=size, spp=(1,), gold=8, sequence_fraction=0.0)
+        TruthEngine(config, tmp_path / name, renderer=fake_render).run(progress=False)
+    trainer = Trainer(TrainConfig(task="denoiser", data=str(tmp_path / "small"), extra_data=(str(tmp_path / "large"),),
+                                  out=str(tmp_path / "m"), epochs=3, batch=2, crop_min=12, crop_max=32,
+                                  widths=(4, 8)), progress=False)
+    batches, step = [], trainer.train_step
+    monkeypatch.setattr(trainer, "train_step", lambda items, spp: batches.append(items) or step(items, spp))
+    trainer.run()
+    items = trainer.train_set.items
+    limits = [{trainer.train_set.crop_limit(item, trainer.augmentation) for item in batch} for batch in batches]
+    assert set.union(*limits) == {16, 32}
+    per_epoch = len(batches) // 3
+    for epoch in range(3):
+        drawn = batches[epoch * per_epoch:(epoch + 1) * per_epoch]
+        assert sorted(item for batch in drawn for item in batch) == sorted(items)
+        assert all(len(limit) == 1 for limit in limits[epoch * per_epoch:(epoch + 1) * per_epoch - 1])
+    order = np.arange(len(items))
+    assert np.array_equal(grouped_by_crop(order, np.full(len(items), 32), 2), order)   # one limit: as it was
+
+
 def test_validation_every_n_epochs_and_after_the_last(tiny_dataset, tmp_path):
     trainer = Trainer(TrainConfig(task="error-predictor", data=str(tiny_dataset), out=str(tmp_path), epochs=5,
                                   batch=2, crop_min=8, crop_max=16, validate_every=2), progress=False)

@@ -152,14 +152,19 @@ class TaskSamples(ABC):
         """How many independent noisy renders of ``item`` at ``spp`` ``full`` can draw from."""
         return len(self.views[item[0]].frames[item[1]].renders_at(spp))
 
+    def crop_limit(self, item, aug: Augmentation) -> int:
+        """The largest crop ``item``'s frame allows under ``aug``; a batch's crop fits the least of its items'."""
+        side = min(self.views[item[0]].frames[0].gold["color"].shape[:2])
+        return min(aug.crop_max, side) // aug.multiple * aug.multiple
+
     def batch(self, items, rng: np.random.Generator, aug: Augmentation, spp: int = 1):
         """A (B, C, S, S) input batch and its targets on ``device``, augmented as the module docstring
         says: ``rng`` draws every choice, the crops, turns, flips and noise are tensor ops on the device.
         ``spp`` ANY_SPP: each item's sample count is drawn from its view's."""
         inputs, targets = [], []
-        # one crop size for the batch, so it fits the smallest frame in it (datasets of several sizes mix)
-        smallest_side = min(min(self.views[view].frames[0].gold["color"].shape[:2]) for view, _ in items)
-        largest = min(aug.crop_max, smallest_side) // aug.multiple * aug.multiple
+        # one crop size for the batch, so it fits the smallest frame in it (datasets of several sizes mix;
+        # the trainer batches frames of one crop limit together: grouped_by_crop)
+        largest = min(self.crop_limit(item, aug) for item in items)
         smallest = min(aug.crop_min, largest) // aug.multiple
         crop = int(rng.integers(smallest, largest // aug.multiple + 1)) * aug.multiple
         for item in items:
@@ -184,6 +189,26 @@ class TaskSamples(ABC):
             aux = x[:, self.aux_channels]
             aux += aug.aux_noise * torch.randn(aux.shape, generator=generator, device=x.device)
         return x, y
+
+
+def grouped_by_crop(order: np.ndarray, limits: np.ndarray, group: int) -> np.ndarray:
+    """``order`` rearranged so that each run of ``group`` items (a batch; under data parallelism, one
+    batch per process) shares one crop limit (``limits[i]``: item i's, TaskSamples.crop_limit), as far as
+    the counts allow. A batch's crop fits its smallest frame, so a dataset of 96² frames mixed with 256²
+    ones would otherwise train nearly every batch at 96². Items are dealt, in ``order``'s sequence, into a
+    run per limit, each run appended when full; the runs left part-full close the order. With one
+    limit, ``order`` is returned as it is."""
+    if len(np.unique(limits)) <= 1:
+        return order
+    runs, filling = [], {}
+    for index in order:
+        run = filling.setdefault(int(limits[index]), [])
+        run.append(int(index))
+        if len(run) == group:
+            runs.extend(run)
+            run.clear()
+    tail = [index for run in filling.values() for index in run]
+    return np.array(runs + tail, dtype=order.dtype)
 
 
 def _cropped(planes: torch.Tensor, window: tuple[int, int, int]) -> torch.Tensor:

@@ -31,7 +31,7 @@ from ..frame.denoise import pad_to_multiple
 from ..models import Network, network_named
 from ..io import atomic_output, check_output_path
 from .context import TrainContext, training_context
-from .samples import ANY_SPP, Augmentation, curriculum_spp, samples_for
+from .samples import ANY_SPP, Augmentation, curriculum_spp, grouped_by_crop, samples_for
 
 # Settings a resumed run may change: more epochs stretch the schedule; the rest is bookkeeping.
 RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every", "device", "minutes"}
@@ -198,6 +198,8 @@ class Trainer:
         self.schedule = torch.optim.lr_scheduler.LambdaLR(self.optimizer, self.learning_rate_factor)
         self.augmentation = Augmentation(config.crop_min, config.crop_max, self.multiple,
                                          permute_colours=config.permute_colours)
+        self.crop_limits = np.array([self.train_set.crop_limit(item, self.augmentation)
+                                     for item in self.train_set.items])
         # Rank 0 draws each epoch's order (shared with the others) and its own augmentations, as a single
         # process does; the other ranks draw their augmentations from streams of their own.
         rank = self.context.rank
@@ -400,7 +402,8 @@ class Trainer:
                 started = time.perf_counter()
                 order = self.context.broadcast(self.rng.permutation(len(self.train_set.items))
                                                if self.context.main else None)
-                order = self.context.shard(order)
+                order = self.context.shard(grouped_by_crop(order, self.crop_limits,
+                                                           self.config.batch * self.context.world_size))
                 spp = (curriculum_spp(self.epoch / self.config.epochs, available, tuple(self.config.curriculum))
                        if self.config.task == "denoiser" else 1)
                 losses, first_step = [], self.step
