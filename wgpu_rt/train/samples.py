@@ -8,7 +8,8 @@ device, cropped and exposed (the crop alone, where the target is made pixel by p
   log1p(e · expm1(p)), the same as packing the scaled render (the log1p compression makes this a
   non-trivial change of the input, which is the point);
 - a random square crop of ``crop`` ∈ [crop_min, crop_max] (a multiple of ``multiple``, at most the
-  frame), the same for a whole batch;
+  frame), the same for a whole batch, whose frames the trainer draws from one crop limit
+  (``grouped_by_crop``: datasets of several frame sizes mix);
 - one of the 8 flips/90° rotations;
 - small Gaussian noise on the auxiliary channels (albedo, normal, depth), so the network does not
   trust G-buffers blindly;
