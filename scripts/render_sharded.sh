@@ -6,6 +6,9 @@
 set -uo pipefail
 shards=$1; shift
 pids=()
+# stopped (gpu_session.sh's part limit sends SIGTERM): stop the shards too, each of which lists the views it
+# finished in the manifest as it exits, rather than leave them rendering into the next part's time
+trap 'kill -TERM "${pids[@]}" 2>/dev/null; wait; exit 143' TERM
 for ((i = 0; i < shards; i++)); do
     wgpu-rt dataset "$@" --shard "$i/$shards" & pids+=($!)
 done

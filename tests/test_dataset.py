@@ -440,3 +440,57 @@ def test_a_malformed_manifest_record_is_named_by_the_reader(tmp_path, change, fi
     (tmp_path / "manifest.json").write_text(json.dumps({"config": {}, "views": [{**record, **change}]}))
     with pytest.raises(DatasetError, match=f"manifest.json: views\\[0\\].*{field}"):
         read_manifest(tmp_path)
+
+
+def test_an_interrupted_run_lists_the_views_it_finished(tmp_path):
+    """Stopped between views (Ctrl-C, or SIGTERM, which wgpu_rt.cli turns into an exit with cleanup), a run
+    still writes the manifest of every finished view, so a time-limited render leaves a usable dataset."""
+    config = DatasetConfig(scenes=("cornell",), views=6, size=8, spp=(1,), gold=2, sequence_fraction=0.0)
+    calls = []
+
+    def render_then_stop(*args, **kwargs):
+        calls.append(1)
+        if len(calls) > 4:   # two renders a view (noisy, gold): stopped while rendering the third view
+            raise SystemExit(143)
+        return fake_render(*args, **kwargs)
+
+    with pytest.raises(SystemExit):
+        TruthEngine(config, tmp_path, renderer=render_then_stop).run(progress=False)
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert len(manifest["views"]) == 2 and len(load_views(tmp_path)) == 2
+
+
+@pytest.mark.gpu
+def test_sigterm_stops_the_command_and_its_shards_with_the_manifest_written(tmp_path, gpu):
+    """`wgpu-rt dataset` under SIGTERM exits 143 after writing the manifest, and scripts/render_sharded.sh
+    (gpu_session.sh's renders, stopped at a part's time limit) passes the signal on to its shards instead
+    of leaving them rendering."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "scripts" / "render_sharded.sh"
+    args = ["--scenes", "cornell", "--views", "200", "--size", "8", "--spp", "1", "--gold", "2",
+            "--sequence-fraction", "0", "--quiet"]
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+    for command, out in (([sys.executable, "-m", "wgpu_rt", "dataset", *args, "-o", str(tmp_path / "one")],
+                          tmp_path / "one"),
+                         (["bash", str(script), "2", *args, "-o", str(tmp_path / "two")], tmp_path / "two")):
+        process = subprocess.Popen(command, env=env, start_new_session=True, stdout=subprocess.DEVNULL,
+                                   stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 120
+        while not list(out.glob("views/*/view.json")) and time.monotonic() < deadline and process.poll() is None:
+            time.sleep(0.2)
+        process.send_signal(signal.SIGTERM)
+        try:
+            assert process.wait(timeout=60) == 143, process.stderr.read()
+        finally:
+            os.killpg(process.pid, signal.SIGKILL) if process.poll() is None else None
+        time.sleep(0.5)
+        with pytest.raises(ProcessLookupError):   # no shard left running in the session
+            os.killpg(process.pid, 0)
+        views = json.loads((out / "manifest.json").read_text())["views"]
+        assert 1 <= len(views) < 200 and len(load_views(out)) == len(views)

@@ -4,7 +4,8 @@ Each subcommand is a module of ``wgpu_rt.commands`` with ``HELP`` (one line), ``
 and ``run(args) -> int``; modules import their heavy dependencies inside ``run`` so that ``--help``
 stays fast. Modules whose name starts with ``_`` are helpers the subcommands share. Errors a user can
 cause (``WgpuRtError``, or an ``OSError`` about a named path) print one line and exit 2; a reader of
-stdout that leaves early (``| head``) ends the command quietly with status 141.
+stdout that leaves early (``| head``) ends the command quietly with status 141; SIGTERM ends it as Ctrl-C
+does, its cleanup run, with status 143.
 """
 
 from __future__ import annotations
@@ -13,7 +14,9 @@ import argparse
 import importlib
 import os
 import pkgutil
+import signal
 import sys
+import threading
 
 from . import commands
 from .errors import WgpuRtError
@@ -36,11 +39,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _terminated(signum, frame):
+    """SIGTERM (a `timeout`, a job scheduler) ends a command as Ctrl-C does: its cleanup runs (no half-written
+    output; `wgpu-rt dataset` lists the views it finished), then exit status 143."""
+    raise SystemExit(128 + signum)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.adapter:
         from .gpu import ADAPTER_ENV
         os.environ[ADAPTER_ENV] = args.adapter
+    on_main_thread = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGTERM, _terminated) if on_main_thread else None
     try:
         status = int(args.run(args) or 0)
         sys.stdout.flush()   # inside the try: a reader gone shows here, not at the interpreter's exit
@@ -63,6 +74,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"wgpu-rt {args.command}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if on_main_thread:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -295,11 +295,13 @@ class TruthEngine:
         check_config(self.out, self.config)
         todo = [v for v in plan_views(self.config, shard) if not is_finished(self.out, v, self.config)]
         done = []
-        with tqdm(todo, desc=f"views (shard {shard[0]}/{shard[1]})", unit="view", disable=not progress) as bar:
-            for view in bar:
-                bar.set_postfix_str(f"{view.view_id} {view.scene} {view.split} ×{view.frames}")
-                done.append(self.render_view(view))
-        write_manifest(self.out)
+        try:
+            with tqdm(todo, desc=f"views (shard {shard[0]}/{shard[1]})", unit="view", disable=not progress) as bar:
+                for view in bar:
+                    bar.set_postfix_str(f"{view.view_id} {view.scene} {view.split} ×{view.frames}")
+                    done.append(self.render_view(view))
+        finally:   # interrupted too (Ctrl-C, SIGTERM: wgpu_rt.cli), the manifest lists every view finished
+            write_manifest(self.out)
         return done
 
 
