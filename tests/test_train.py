@@ -519,6 +519,23 @@ def test_a_batch_mixing_frame_sizes_crops_to_fit_the_smallest(tmp_path):
     assert x.shape[-1] == 32   # alone, the large frame still gives whole-frame crops
 
 
+def test_batch_wide_turns_flips_and_colour_orders_are_each_crops_own():
+    """The batch's gathers do to each crop what its own draw says: transform 2·turns + flip is torch.rot90
+    by ``turns`` in the (H, W) plane, then W flipped; a colour order reorders each RGB triple alone."""
+    from wgpu_rt.train.samples import RGB_ORDERS, DenoiserSamples, _dihedral, _gather_channels
+
+    batch = torch.randn(8, 7, 6, 6)
+    samples = DenoiserSamples([])
+    turned = _dihedral(batch, samples._dihedral_maps(6, batch.device), list(range(8)))
+    for t in range(8):
+        expected = torch.rot90(batch[t], t // 2, dims=(1, 2))
+        assert torch.equal(turned[t], expected.flip(2) if t % 2 else expected)
+    triples = (slice(0, 3), slice(3, 6))
+    reordered = _gather_channels(batch[:6], samples._colour_tables(7, triples, batch.device), list(range(6)))
+    for k, order in enumerate(RGB_ORDERS):
+        assert torch.equal(reordered[k], batch[k][[*order, *(3 + np.array(order)), 6]])
+
+
 def test_colour_permutation_reorders_colour_and_albedo_alike(tiny_dataset):
     """With permute_colours a denoiser crop's colour and albedo planes (input) and gold and albedo factor
     (target) are the unpermuted crop's channels in one shared order; normals, depth and spp are kept; the

@@ -72,14 +72,7 @@ class TaskSamples(ABC):
         self.device = torch.device("cpu")
         self._kept: dict | None = None
         self._budget, self._kept_bytes = None, 0
-        self._orders = None
-
-    def _colour_orders(self, device: torch.device) -> torch.Tensor:
-        """RGB_ORDERS as a (6, 3) tensor on ``device``, made once: a crop's order is a row of it, since
-        copying each order to a GPU would make the host wait for the device's queued work every crop."""
-        if self._orders is None or self._orders.device != device:
-            self._orders = torch.tensor(RGB_ORDERS, device=device)
-        return self._orders
+        self._tables: dict = {}   # index tables of the batch's gathers, by size or layout and device
 
     def _items(self) -> list[tuple[int, int]]:
         return [(v, f) for v, view in enumerate(self.views) for f in range(len(view.frames))]
@@ -160,9 +153,12 @@ class TaskSamples(ABC):
 
     def batch(self, items, rng: np.random.Generator, aug: Augmentation, spp: int = 1):
         """A (B, C, S, S) input batch and its targets on ``device``, augmented as the module docstring
-        says: ``rng`` draws every choice, the crops, turns, flips and noise are tensor ops on the device.
+        says: ``rng`` draws every choice, item by item; the crops are views, and the exposure, turns,
+        flips, colour orders and noise are a few tensor ops on the whole batch (one gather per kind),
+        however many items it holds, rather than several small ones per item: on a GPU each is a kernel
+        launch, and launches, not the network's work, bound a step (BENCHMARKS.md §26).
         ``spp`` ANY_SPP: each item's sample count is drawn from its view's."""
-        inputs, targets = [], []
+        inputs, targets, exposures, transforms, orders = [], [], [], [], []
         # one crop size for the batch, so it fits the smallest frame in it (datasets of several sizes mix;
         # the trainer batches frames of one crop limit together: grouped_by_crop)
         largest = min(self.crop_limit(item, aug) for item in items)
@@ -174,23 +170,52 @@ class TaskSamples(ABC):
             copy = int(rng.integers(self.copies(item, drawn)))
             height, width = self.views[item[0]].frames[item[1]].gold["color"].shape[:2]
             window = (int(rng.integers(0, height - crop + 1)), int(rng.integers(0, width - crop + 1)), crop)
-            x, y = self.exposed(item, drawn, exposure, copy, window)
-            turns, flip = int(rng.integers(4)), bool(rng.integers(2))
-            x, y = (torch.rot90(a, turns, dims=(1, 2)) for a in (x, y))
-            if flip:
-                x, y = x.flip(2), y.flip(2)
-            if aug.permute_colours and self.colour_inputs:
-                order = self._colour_orders(x.device)[RGB_ORDERS.index(tuple(rng.permutation(3)))]
-                x, y = _reorder(x, self.colour_inputs, order), _reorder(y, self.colour_targets, order)
+            # a target made pixel by pixel is exposed with the whole batch below; one made from the
+            # whole frame (ErrorSamples) needs the frame exposed first
+            x, y = self.exposed(item, drawn, 1.0 if self.pixelwise_target else exposure, copy, window)
             inputs.append(x)
             targets.append(y)
+            exposures.append(exposure)
+            transforms.append(2 * int(rng.integers(4)) + int(rng.integers(2)))   # turns, flip
+            if aug.permute_colours and self.colour_inputs:
+                orders.append(RGB_ORDERS.index(tuple(rng.permutation(3))))
         x, y = torch.stack(inputs), torch.stack(targets)   # copies: the kept planes stay untouched
+        if self.pixelwise_target:
+            scale = _on_device(exposures, x.device).view(-1, 1, 1, 1)
+            x, y = _expose_batch(x, self.exposed_input, scale), _expose_batch(y, self.exposed_target, scale)
+        x, y = (_dihedral(a, self._dihedral_maps(crop, a.device), transforms) for a in (x, y))
+        if orders:
+            x = _gather_channels(x, self._colour_tables(x.shape[1], self.colour_inputs, x.device), orders)
+            y = _gather_channels(y, self._colour_tables(y.shape[1], self.colour_targets, y.device), orders)
         if aug.aux_noise > 0 and self.aux_channels.stop > self.aux_channels.start:
             generator = torch.Generator(x.device).manual_seed(int(rng.integers(2 ** 63)))
             aux = x[:, self.aux_channels]
             aux += aug.aux_noise * torch.randn(aux.shape, generator=generator, device=x.device)
         return x, y
 
+    def _dihedral_maps(self, side: int, device: torch.device) -> torch.Tensor:
+        """(8, side²) source index of each pixel of a side × side crop under transform 2·turns + flip
+        (torch.rot90 by ``turns`` quarter turns in the (H, W) plane, then W flipped), made once per size."""
+        key = (side, device)
+        if key not in self._tables:
+            grid = torch.arange(side * side).view(1, side, side)
+            maps = [torch.rot90(grid, turns, dims=(1, 2)) for turns in range(4)]
+            self._tables[key] = torch.stack([m.flip(2) if flip else m for m in maps for flip in (0, 1)]).view(
+                8, -1).to(device)
+        return self._tables[key]
+
+    def _colour_tables(self, channels: int, triples: tuple[slice, ...], device: torch.device) -> torch.Tensor:
+        """(len(RGB_ORDERS), channels): the channel order of each colour permutation (every RGB triple
+        of ``triples`` reordered, the other channels kept), made once per layout; a crop's order is a
+        row of it (copying each order to a GPU would make the host wait for the device every crop)."""
+        key = (channels, tuple((t.start, t.stop) for t in triples), device)
+        if key not in self._tables:
+            rows = np.tile(np.arange(channels), (len(RGB_ORDERS), 1))
+            for row, order in zip(rows, RGB_ORDERS):
+                for triple in triples:
+                    row[triple] = np.arange(channels)[triple][list(order)]
+            self._tables[key] = torch.from_numpy(rows).to(device)
+        return self._tables[key]
 
 def grouped_by_crop(order: np.ndarray, limits: np.ndarray, group: int) -> np.ndarray:
     """``order`` rearranged so that each run of ``group`` items (a batch; under data parallelism, one
@@ -218,12 +243,33 @@ def _cropped(planes: torch.Tensor, window: tuple[int, int, int]) -> torch.Tensor
     return planes[:, top:top + side, left:left + side]
 
 
-def _reorder(planes: torch.Tensor, triples: tuple[slice, ...], order: torch.Tensor) -> torch.Tensor:
-    """``planes`` (C, H, W) with each RGB triple's channels taken in ``order`` (a copy)."""
-    reordered = planes.clone()
-    for triple in triples:
-        reordered[triple] = planes[triple][order]
-    return reordered
+def _on_device(values: list[float], device: torch.device) -> torch.Tensor:
+    """``values`` as float32 on ``device``, copied without making the host wait for the device's queued
+    work (a plain copy to a GPU would: pinned memory and a non-blocking copy do not)."""
+    tensor = torch.tensor(values, dtype=torch.float32)
+    return tensor.pin_memory().to(device, non_blocking=True) if device.type == "cuda" else tensor.to(device)
+
+
+def _dihedral(batch: torch.Tensor, maps: torch.Tensor, transforms: list[int]) -> torch.Tensor:
+    """Each crop of ``batch`` (B, C, S, S) turned and flipped by its transform (a row of ``maps``): one gather."""
+    b, c, side, _ = batch.shape
+    index = torch.stack([maps[t] for t in transforms])[:, None, :].expand(b, c, side * side)
+    return batch.flatten(2).gather(2, index).view(b, c, side, side)
+
+
+def _gather_channels(batch: torch.Tensor, tables: torch.Tensor, orders: list[int]) -> torch.Tensor:
+    """Each crop of ``batch`` (B, C, S, S) with its channels in its order (a row of ``tables``): one gather."""
+    b, c, h, w = batch.shape
+    index = torch.stack([tables[k] for k in orders])[:, :, None, None].expand(b, c, h, w)
+    return batch.gather(1, index)
+
+
+def _expose_batch(batch: torch.Tensor, channels: slice, scale: torch.Tensor) -> torch.Tensor:
+    """``batch`` (B, C, S, S) with its log1p radiance ``channels`` rescaled to each crop's ``scale``
+    (B, 1, 1, 1) times the radiance, in place: _expose on every crop at once."""
+    if channels.stop > channels.start:
+        batch[:, channels] = torch.log1p(scale * torch.expm1(batch[:, channels]))
+    return batch
 
 
 def _expose(planes: torch.Tensor, channels: slice, exposure: float) -> torch.Tensor:
