@@ -182,7 +182,7 @@ class TaskSamples(ABC):
         x, y = torch.stack(inputs), torch.stack(targets)   # copies: the kept planes stay untouched
         if self.pixelwise_target:
             scale = _on_device(exposures, x.device).view(-1, 1, 1, 1)
-            x, y = _expose_batch(x, self.exposed_input, scale), _expose_batch(y, self.exposed_target, scale)
+            x, y = _expose(x, self.exposed_input, scale), _expose(y, self.exposed_target, scale)
         x, y = (_dihedral(a, self._dihedral_maps(crop, a.device), transforms) for a in (x, y))
         if orders:
             x = _gather_channels(x, self._colour_tables(x.shape[1], self.colour_inputs, x.device), orders)
@@ -264,20 +264,13 @@ def _gather_channels(batch: torch.Tensor, tables: torch.Tensor, orders: list[int
     return batch.gather(1, index)
 
 
-def _expose_batch(batch: torch.Tensor, channels: slice, scale: torch.Tensor) -> torch.Tensor:
-    """``batch`` (B, C, S, S) with its log1p radiance ``channels`` rescaled to each crop's ``scale``
-    (B, 1, 1, 1) times the radiance, in place: _expose on every crop at once."""
-    if channels.stop > channels.start:
-        batch[:, channels] = torch.log1p(scale * torch.expm1(batch[:, channels]))
-    return batch
-
-
-def _expose(planes: torch.Tensor, channels: slice, exposure: float) -> torch.Tensor:
-    """``planes`` with log1p radiance ``channels`` rescaled to ``exposure`` times the radiance."""
+def _expose(planes: torch.Tensor, channels: slice, exposure) -> torch.Tensor:
+    """``planes`` (C, H, W), or a batch of them, with log1p radiance ``channels`` rescaled to ``exposure``
+    times the radiance (a number, or a (B, 1, 1, 1) tensor: each crop's own); a copy."""
     if channels.stop <= channels.start:
         return planes
     exposed = planes.clone()
-    exposed[channels] = torch.log1p(exposure * torch.expm1(planes[channels]))
+    exposed[..., channels, :, :] = torch.log1p(exposure * torch.expm1(planes[..., channels, :, :]))
     return exposed
 
 
