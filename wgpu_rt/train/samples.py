@@ -62,8 +62,10 @@ class TaskSamples(ABC):
     exposed_target: slice = slice(0, 0)
     colour_inputs: tuple[slice, ...] = ()    # RGB triples a colour permutation reorders
     colour_targets: tuple[slice, ...] = ()
-    # ``target`` and the exposure act pixel by pixel, so a crop may be taken before them (exposing the
-    # crop alone: the same values for less work); a target built from the whole frame needs it after
+    # The target is the target planes themselves (``target`` as here) and the exposure acts pixel by
+    # pixel, so a crop may be taken before it (exposing the crop alone: the same values for less work) and
+    # the exposure applied to the whole batch; a target built from the whole frame (ErrorSamples) sets
+    # this False and is exposed and made frame by frame, then cropped
     pixelwise_target: bool = True
 
     def __init__(self, views: list[View]):
