@@ -747,6 +747,24 @@ def test_ranks_train_on_disjoint_equal_shares_of_each_epoch():
     assert TrainContext(torch.device("cpu")).shard(order) is order
 
 
+@pytest.mark.parametrize("seconds, saved_after", [(1e9, [1, 4]), (0.0, [1, 2, 3, 4])])
+def test_checkpoints_after_the_first_epoch_the_last_and_once_a_while(tiny_dataset, tmp_path, monkeypatch,
+                                                                     seconds, saved_after):
+    """A checkpoint at the end of a session's first epoch, of the run's last, and between them once
+    CHECKPOINT_SECONDS have passed since the last (short CUDA epochs spent a share of the run writing one
+    at each end)."""
+    from wgpu_rt.train import trainer as trainer_module
+
+    monkeypatch.setattr(trainer_module, "CHECKPOINT_SECONDS", seconds)
+    trainer = Trainer(TrainConfig(task="error-predictor", data=str(tiny_dataset), out=str(tmp_path), epochs=4,
+                                  batch=2, crop_min=8, crop_max=16), progress=False)
+    saved, save = [], trainer._save_checkpoint
+    monkeypatch.setattr(trainer, "_save_checkpoint", lambda: saved.append(trainer.epoch) or save())
+    trainer.run()
+    assert saved == saved_after
+    assert torch.load(trainer.checkpoint_path, weights_only=False)["epoch"] == 4
+
+
 def test_a_resumed_run_ends_where_the_uninterrupted_one_does(tiny_dataset, tmp_path):
     base = dict(task="denoiser", data=str(tiny_dataset), batch=2, crop_min=12, crop_max=16, widths=(4, 8),
                 device="cpu")

@@ -1,6 +1,7 @@
 """The training loop shared by the three networks: Adam with warm-up + cosine decay, gradient-norm clipping,
-checkpoints every epoch (resumable), validation on held-out views every epoch (or every N: on a CPU it can
-cost more than the epoch's training), then ONNX export with a model card.
+checkpoints at epoch ends (resumable: after a session's first epoch, then once CHECKPOINT_SECONDS have
+passed, and after the last), validation on held-out views every epoch (or every N: on a CPU it can cost
+more than the epoch's training), then ONNX export with a model card.
 
 An epoch is one pass over the training items (view frames, or frame pairs for the confidence model) in
 a shuffled order, in batches. Validation uses the ``val`` split, which no training batch ever touches:
@@ -34,6 +35,10 @@ from .context import TrainContext, training_context
 from .samples import ANY_SPP, Augmentation, curriculum_spp, grouped_by_crop, samples_for
 
 # Settings a resumed run may change: more epochs stretch the schedule; the rest is bookkeeping.
+# Checkpoints wait this long after the last one (a crash loses at most this much training): a CUDA epoch
+# of a large batch over a few hundred views is a handful of steps, and writing the model and Adam's
+# state at each of its ends took a share of the run
+CHECKPOINT_SECONDS = 60.0
 RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every", "device", "minutes"}
 
 
@@ -208,6 +213,7 @@ class Trainer:
         self.epochs_asked: int | None = None   # set when --minutes cut the epochs
         self.timed = {"steps": 0, "seconds": 0.0}   # this session's training steps and their time
         self.checkpoint_path = config.checkpoint_path
+        self._saved_at: float | None = None   # this session's last checkpoint (perf_counter)
         self.base: dict | None = None     # the run a fine-tune starts from: its path, epochs, time, metrics
         if config.resume and self.checkpoint_path.exists():
             self._load_checkpoint()
@@ -430,8 +436,20 @@ class Trainer:
                 if self.progress:
                     bar.write(f"epoch {self.epoch}: " + ", ".join(
                         f"{k} {v:.4g}" for k, v in self.history[-1].items() if isinstance(v, float)))
-                self._save_checkpoint()
+                if self._checkpoint_due():
+                    self._save_checkpoint()
         return self.history[-1] if self.history else {}
+
+    def _checkpoint_due(self) -> bool:
+        """Whether this epoch's end writes a checkpoint: the session's first, the run's last, or one
+        CHECKPOINT_SECONDS after the last written. Rank 0's clock decides for every process (the
+        checkpoint gathers every rank's random state)."""
+        now = time.perf_counter()
+        due = self.context.broadcast((self._saved_at is None or self.epoch >= self.config.epochs
+                                      or now - self._saved_at >= CHECKPOINT_SECONDS) if self.context.main else None)
+        if due:
+            self._saved_at = now
+        return due
 
     def _fit_epochs_to_minutes(self, seconds: float, epoch_seconds) -> None:
         """With ``minutes``, set the epochs to those that fit the budget (``seconds`` of it spent, data
