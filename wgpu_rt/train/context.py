@@ -147,7 +147,10 @@ def training_context(device: str = "auto") -> TrainContext:
     amp_dtype = None
     if device_type == "cuda":
         torch.cuda.set_device(torch_device)
-        torch.backends.cudnn.benchmark = True     # crops vary in size: cuDNN re-tunes once per size
+        # cuDNN's heuristics, not its benchmark mode: crops vary in size and batch, and on the H200 each new
+        # shape spent 2-4 s re-tuning (BENCHMARKS.md §25, ~10 shapes a run), while the U-Net's own work
+        # was a few percent of a step; tuning pays back only over runs of tens of minutes (§26)
+        torch.backends.cudnn.benchmark = False
         amp_dtype = torch.bfloat16 if torch.cuda.is_bf16_supported() else torch.float16
     if world_size > 1 and not torch.distributed.is_initialized():
         torch.distributed.init_process_group("nccl" if device_type == "cuda" else "gloo",
