@@ -36,7 +36,7 @@ from .samples import ANY_SPP, Augmentation, curriculum_spp, grouped_by_crop, sam
 
 # Checkpoints wait this long after the last one (a crash loses at most this much training): a CUDA epoch
 # of a large batch over a few hundred views is a handful of steps, and writing the model and Adam's
-# state at each of its ends took a share of the run
+# state at each of its ends would take a share of the run (an estimate, BENCHMARKS.md §26)
 CHECKPOINT_SECONDS = 60.0
 # Settings a resumed run may change: more epochs stretch the schedule; the rest is bookkeeping.
 RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every", "device", "minutes"}
