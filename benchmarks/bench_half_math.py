@@ -1,6 +1,8 @@
 """What half precision costs the denoiser's images: each scene rendered at 1 spp (colour, albedo, normal,
-depth), denoised as `wgpu-rt denoise` does it by onnxruntime (fp32, the reference) and by the WGSL engine
-with fp16 activations in each math of the 3×3 convolutions (wgpu_rt.nn.model.MATHS: "f32", "f16" with each
+depth), denoised by the chain `wgpu-rt denoise` runs (wgpu_rt.frame.denoise.denoise with its defaults: low
+band, chroma hold, post filter, here through their numpy references for every network) around
+onnxruntime (fp32, the reference) and around the WGSL engine with fp16 activations in each math of the 3×3
+convolutions (wgpu_rt.nn.model.MATHS: "f32", "f16" with each
 kernel row's products summed in half precision, "f16-acc" with the sums over input channels in half
 precision as well). Per scene and math: the largest |difference| of the network's output (log1p
 irradiance) from onnxruntime's, and the PSNR of the denoised image against onnxruntime's denoised image
