@@ -168,6 +168,9 @@ def test_batches_hold_frames_of_one_crop_limit(tmp_path, monkeypatch):
         assert all(len(limit) == 1 for limit in limits[epoch * per_epoch:(epoch + 1) * per_epoch - 1])
     order = np.arange(len(items))
     assert np.array_equal(grouped_by_crop(order, np.full(len(items), 32), 2), order)   # one limit: as it was
+    small = sum(1 for item in items if trainer.train_set.crop_limit(item, trainer.augmentation) == 16)
+    assert (f"each batch from frames of one crop limit: {small} frames up to 16 px, {len(items) - small} frames up "
+            f"to 32 px" in trainer.model_card())
 
 
 def test_validation_every_n_epochs_and_after_the_last(tiny_dataset, tmp_path):

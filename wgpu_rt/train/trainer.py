@@ -583,7 +583,11 @@ class Trainer:
             + (f" (of {self.epochs_asked} asked: cut to fit --minutes {cfg.minutes:g})" if self.epochs_asked else "")
             + f", steps {self.step}, batch {cfg.batch}, Adam, LR {cfg.lr} with warm-up + cosine decay, "
             f"grad-norm clip {cfg.grad_clip}, seed {cfg.seed}",
-            f"- crops {cfg.crop_min}–{cfg.crop_max} px (clamped to the frame), flips + 90° rotations, "
+            f"- crops {cfg.crop_min}–{cfg.crop_max} px (clamped to the frame"
+            + ("; each batch from frames of one crop limit: " + ", ".join(
+                f"{np.count_nonzero(self.crop_limits == limit)} frames up to {limit} px"
+                for limit in np.unique(self.crop_limits)) if len(np.unique(self.crop_limits)) > 1 else "")
+            + "), flips + 90° rotations, "
             "exposure jitter ±1 stop, aux-channel noise σ 0.01"
             + (", a random RGB order per crop" if cfg.permute_colours else "")
             + ("; each draw takes a random one of a frame's independent 1-spp renders" if copied else ""),
