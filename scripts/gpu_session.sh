@@ -65,7 +65,8 @@ GOLD=$([ $small = 1 ] && echo 64 || echo 4096)
 # parts train and train_check, one call each (session 22 on an H200: the 24 held-out views with 4096-spp
 # gold in 76–85 s; the rest estimated): held-out render 80 s (once), training worlds ~150 s (+ ~40 s of
 # built-in and 96² views), training TRAIN_MINUTES; then scoring ~40 s, §14's checks ~60 s each
-TRAIN_WORLDS=${TRAIN_WORLDS:-$([ $small = 1 ] && echo 4 || echo 80)}; TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
+TRAIN_WORLDS=${TRAIN_WORLDS:-$([ $small = 1 ] && echo 4 || echo 80)}
+TRAIN_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
 TRAIN_BATCH=${TRAIN_BATCH:-8}; TRAIN_LR=${TRAIN_LR:-1e-4}
 TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}
 # TRAIN_INIT: the ONNX the fine-tune starts from (default the shipped denoiser; an earlier session's
@@ -212,7 +213,8 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
             --out data/worlds-train-small --quiet
         part train wgpu-rt train denoiser --data $data --extra-data data/builtin-$VIEW data/worlds-train-small \
             --init-from ${TRAIN_INIT:-models/denoiser.onnx} --widths ${TRAIN_WIDTHS:-16 32 64 128 128} \
-            --bottom-merge add --epochs 400 --minutes $TRAIN_MINUTES --batch $TRAIN_BATCH --crop $((VIEW / 2)) $VIEW --lr $TRAIN_LR \
+            --bottom-merge add --epochs 400 --minutes $TRAIN_MINUTES --batch $TRAIN_BATCH --crop $((VIEW / 2)) $VIEW \
+            --lr $TRAIN_LR \
             --curriculum any --ssim-space display --lowpass 2 --validate-every 50 --device auto \
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet ${TRAIN_FLAGS:-}
         cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/"   # bench_denoise reads a whole set
