@@ -77,7 +77,7 @@ TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}
 # (48 steps/s), while the U-Net's work in a step (~67 GFLOP forward and backward, crops of ~192²) is a
 # few percent of that on an H200: the step's time is the host launching kernels, so a larger batch
 # should train on more crops in about the same time (not yet measured); --epochs 4000 leaves the length to
-# TRAIN_MINUTES (§25's run of batch 8 already reached 326 of its 400 epochs). With the estimates above,
+# TRAIN_MINUTES (§25's run of batch 8 already reached 373 of its 400 epochs). With the estimates above,
 # ~9 min in all
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
 CHECK_VIEW=$([ $small = 1 ] && echo 48 || echo 128); CHECK_GOLD=$([ $small = 1 ] && echo 32 || echo 1024)
