@@ -488,7 +488,8 @@ def test_sigterm_stops_the_command_and_its_shards_with_the_manifest_written(tmp_
         try:
             assert process.wait(timeout=60) == 143, process.stderr.read()
         finally:
-            os.killpg(process.pid, signal.SIGKILL) if process.poll() is None else None
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGKILL)
         time.sleep(0.5)
         with pytest.raises(ProcessLookupError):   # no shard left running in the session
             os.killpg(process.pid, 0)
