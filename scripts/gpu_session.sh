@@ -18,11 +18,12 @@
 # since fixed). Sessions 24 and 25 had no GPU. Session 26 (§25, H200): call 1 with the Mitsuba peer,
 # DEADLINE=270 PART_LIMIT=160 TEST_WORKERS=12 `tests trace frame nn_widths` 277 s (tests 126 s, trace 72,
 # frame 62); call 2 with the OIDN peer `train` (renders 108 s, fine-tune 201 s) then `train_eval` (held-out
-# render 49 s, scoring 43 s) 411 s; the device time ran out after that. Next: call 1 with the Mitsuba peer,
-# DEADLINE=240 PART_LIMIT=160 TEST_WORKERS=12, timeout_s 400: `tests nn_widths frame` (the Mitsuba
-# cross-checks on the CUDA variant; the 8-channel tile on the narrowed networks, and everywhere in the
-# shipped one (conv tiling staged-narrow); the targeted pass with
-# the tile-ordered work list, its build timed alone and batches of 2^21 items; ~260 s); call 2 at once,
+# render 49 s, scoring 43 s) 411 s; the device time ran out after that. Session 27 had no GPU. Next: call 1
+# with the Mitsuba peer, DEADLINE=240 PART_LIMIT=160 TEST_WORKERS=12, timeout_s 400: `tests nn_widths
+# frame` (the Mitsuba cross-checks on the CUDA variant; the 8-channel tile on the narrowed networks, and
+# everywhere in the shipped one (conv tiling staged-narrow); the f16 tile, math f16-acc; the targeted pass
+# with the tile-ordered work list, its build timed alone, batches of 2^21 items and items of one sample;
+# ~270 s); call 2 at once,
 # timeout_s 540, the shipped widths at scale (issue 12's per-scene bar; session 27, §26): SHARDS=12
 # TRAIN_WORLDS=160 TRAIN_BATCH=32 TRAIN_LR=2e-4 TRAIN_MINUTES=3.5 TRAIN_FLAGS=--permute-colours `train`,
 # then `train_eval` with DEADLINE and PART_LIMIT=120 as in §25 (~480 s; the renders are estimates: a
