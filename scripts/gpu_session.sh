@@ -147,8 +147,9 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
             --conv-tiling staged-narrow
         # session 27: the 3×3 tiles summed in f16 as well (half the accumulator registers, no conversions;
         # on lavapipe the shipped denoiser's images stay within 76–83 dB of onnxruntime's, §26)
-        part profile_f16acc wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --math f16-acc
-        part profile_f16acc_8 wgpu-rt profile "$OUT/unet_8_16_32_64_64.onnx" --size ${W}x${H} --math f16-acc ;;
+        part profile_f16acc wgpu-rt profile models/denoiser.onnx --size ${W}x${H} --precision fp16 --math f16-acc
+        part profile_f16acc_8 wgpu-rt profile "$OUT/unet_8_16_32_64_64.onnx" --size ${W}x${H} --precision fp16 \
+            --math f16-acc ;;
     nn_variants)   # §21's comparisons: bounds checks, the padded canvas, each weight fetch, the autotuner
         profile="wgpu-rt profile models/denoiser.onnx --size ${W}x${H}"
         part profile_fp32_checked env WGPU_RT_BOUNDS_CHECKS=1 $profile --precision fp32
