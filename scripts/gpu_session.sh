@@ -24,11 +24,13 @@
 # everywhere in the shipped one (conv tiling staged-narrow); the f16 tile, math f16-acc; the targeted pass
 # with the tile-ordered work list, its build timed alone, batches of 2^21 items and items of one sample;
 # ~270 s); call 2 at once,
-# timeout_s 540, the shipped widths at scale (issue 12's per-scene bar; session 27, §26): SHARDS=12
-# TRAIN_WORLDS=160 TRAIN_BATCH=32 TRAIN_LR=2e-4 TRAIN_MINUTES=3.5 TRAIN_FLAGS=--permute-colours `train`,
-# then `train_eval` with DEADLINE and PART_LIMIT=120 as in §25 (~480 s; the renders are estimates: a
-# render part stopped at PART_LIMIT leaves the views it finished, listed, for the training). Until
-# session 27 the fine-tunes' 256² views trained at 96-px crops (batches mixed with the 96² worlds, §26);
+# timeout_s 540, the shipped widths at scale (issue 12's per-scene bar; session 27, §26), OIDN peer carried:
+#   . .device/setup.sh; D=$OUT; export OUT=/tmp/gs/r2 ARCHIVE=$D/r2.tgz; SHARDS=12 TRAIN_WORLDS=160
+#   TRAIN_BATCH=32 TRAIN_LR=2e-4 TRAIN_MINUTES=3.5 TRAIN_FLAGS=--permute-colours PART_LIMIT=270 bash
+#   scripts/gpu_session.sh train; DEADLINE=$((SECONDS + 150)) PART_LIMIT=120 bash scripts/gpu_session.sh train_eval
+# (~480 s; the renders are estimates: a render part stopped at PART_LIMIT leaves the views it finished,
+# listed, for the training). Until session 27 the fine-tunes' 256² views trained at 96-px crops
+# (batches mixed with the 96² worlds, §26);
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:
