@@ -27,7 +27,7 @@
 # timeout_s 540, the shipped widths at scale (issue 12's per-scene bar; session 27, §26), OIDN peer carried:
 #   . .device/setup.sh; D=$OUT; export OUT=/tmp/gs/r2 ARCHIVE=$D/r2.tgz; SHARDS=12 TRAIN_WORLDS=160
 #   TRAIN_BATCH=32 TRAIN_LR=2e-4 TRAIN_MINUTES=3.5 TRAIN_FLAGS=--permute-colours PART_LIMIT=270 bash
-#   scripts/gpu_session.sh train; DEADLINE=$((SECONDS + 150)) PART_LIMIT=120 bash scripts/gpu_session.sh train_eval
+#   scripts/gpu_session.sh train; DEADLINE=100 PART_LIMIT=120 bash scripts/gpu_session.sh train_eval
 # (~480 s; the renders are estimates: a render part stopped at PART_LIMIT leaves the views it finished,
 # listed, for the training). Until session 27 the fine-tunes' 256² views trained at 96-px crops
 # (batches mixed with the 96² worlds, §26);
