@@ -173,6 +173,23 @@ def test_batches_hold_frames_of_one_crop_limit(tmp_path, monkeypatch):
             f"to 32 px" in trainer.model_card())
 
 
+def test_the_progress_bar_shows_the_loss_every_so_many_steps(tiny_dataset, tmp_path, monkeypatch):
+    """The bar shows a step's loss once every PROGRESS_LOSS_STEPS steps within an epoch (reading it waits
+    for the device), then the epoch's mean; nothing is read for a bar that is off."""
+    import tqdm
+
+    from wgpu_rt.train import trainer as trainer_module
+
+    shown = []
+    monkeypatch.setattr(tqdm.tqdm, "set_postfix", lambda bar, **values: shown.append(values))
+    monkeypatch.setattr(trainer_module, "PROGRESS_LOSS_STEPS", 2)
+    config = dict(task="error-predictor", data=str(tiny_dataset), epochs=1, batch=2, crop_min=8, crop_max=16)
+    trainer = Trainer(TrainConfig(out=str(tmp_path / "a"), **config), progress=True)
+    trainer.run()
+    assert trainer.steps_per_epoch >= 4 and len(shown) == trainer.steps_per_epoch // 2 + 1
+    assert all(set(values) == {"loss", "spp"} for values in shown)
+
+
 def test_validation_every_n_epochs_and_after_the_last(tiny_dataset, tmp_path):
     trainer = Trainer(TrainConfig(task="error-predictor", data=str(tiny_dataset), out=str(tmp_path), epochs=5,
                                   batch=2, crop_min=8, crop_max=16, validate_every=2), progress=False)

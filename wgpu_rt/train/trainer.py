@@ -38,6 +38,8 @@ from .samples import ANY_SPP, Augmentation, curriculum_spp, grouped_by_crop, sam
 # of a large batch over a few hundred views is a handful of steps, and writing the model and Adam's
 # state at each of its ends would take a share of the run (an estimate, BENCHMARKS.md §26)
 CHECKPOINT_SECONDS = 60.0
+# The progress bar shows a step's loss once in this many steps (reading it waits for the step on a GPU)
+PROGRESS_LOSS_STEPS = 50
 # Settings a resumed run may change: more epochs stretch the schedule; the rest is bookkeeping.
 RESUMABLE_CHANGES = {"epochs", "resume", "out", "checkpoints", "validate_every", "device", "minutes"}
 
@@ -417,6 +419,8 @@ class Trainer:
                     items = [self.train_set.items[i] for i in order[first:first + self.config.batch]]
                     losses.append(self.train_step(items, spp))
                     bar.update(1)
+                    if self.progress and len(losses) % PROGRESS_LOSS_STEPS == 0:   # one wait per that many steps
+                        bar.set_postfix(loss=f"{float(losses[-1]):.4f}", spp=spp)
                 losses = self._epoch_losses(losses, first_step)
                 bar.set_postfix(loss=f"{np.mean(losses):.4f}", spp=spp)
                 self._synchronize()
