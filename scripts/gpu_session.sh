@@ -79,7 +79,9 @@ TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}
 # worlds at 256² (and as many at 96²). TRAIN_BATCH, TRAIN_LR: §25's CUDA steps took 21 ms at batch 8
 # (48 steps/s), while the U-Net's work in a step (~67 GFLOP forward and backward, crops of ~192²) is a
 # few percent of that on an H200: the step's time is the host launching kernels, so a larger batch
-# should train on more crops in about the same time (not yet measured); --epochs 4000 leaves the length to
+# should train on more crops in about the same time (not yet measured); --validate-every 250, since a
+# validation scores every held-out view's metrics on the host (~0.1 s a 256² view here, §26) and a large
+# batch's epoch is a handful of steps; --epochs 4000 leaves the length to
 # TRAIN_MINUTES (§25's run of batch 8 already reached 373 of its 400 epochs). With the estimates above,
 # ~9 min in all
 SMALL_VIEW=$([ $small = 1 ] && echo 32 || echo 96)   # worlds at the old training size, mixed into the fine-tune
@@ -220,7 +222,7 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
             --init-from ${TRAIN_INIT:-models/denoiser.onnx} --widths ${TRAIN_WIDTHS:-16 32 64 128 128} \
             --bottom-merge add --epochs 4000 --minutes $TRAIN_MINUTES --batch $TRAIN_BATCH --crop $((VIEW / 2)) $VIEW \
             --lr $TRAIN_LR \
-            --curriculum any --ssim-space display --lowpass 2 --validate-every 50 --device auto \
+            --curriculum any --ssim-space display --lowpass 2 --validate-every 250 --device auto \
             --out "$OUT/model" --checkpoints "/tmp/train-checkpoints-$$" --quiet ${TRAIN_FLAGS:-}
         cp models/error_predictor.onnx models/confidence.onnx "$OUT/model/"   # bench_denoise reads a whole set
         archive ;;
