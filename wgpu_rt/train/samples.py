@@ -201,9 +201,9 @@ class TaskSamples(ABC):
         key = (side, device)
         if key not in self._tables:
             grid = torch.arange(side * side).view(1, side, side)
-            maps = [torch.rot90(grid, turns, dims=(1, 2)) for turns in range(4)]
-            self._tables[key] = torch.stack([m.flip(2) if flip else m for m in maps for flip in (0, 1)]).view(
-                8, -1).to(device)
+            turned = [torch.rot90(grid, turns, dims=(1, 2)) for turns in range(4)]
+            maps = [m.flip(2) if flip else m for m in turned for flip in (0, 1)]
+            self._tables[key] = torch.stack(maps).view(8, -1).to(device)
         return self._tables[key]
 
     def _colour_tables(self, channels: int, triples: tuple[slice, ...], device: torch.device) -> torch.Tensor:
@@ -218,6 +218,7 @@ class TaskSamples(ABC):
                     row[triple] = np.arange(channels)[triple][list(order)]
             self._tables[key] = torch.from_numpy(rows).to(device)
         return self._tables[key]
+
 
 def grouped_by_crop(order: np.ndarray, limits: np.ndarray, group: int) -> np.ndarray:
     """``order`` rearranged so that each run of ``group`` items (a batch; under data parallelism, one
