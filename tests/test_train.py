@@ -190,6 +190,16 @@ def test_the_progress_bar_shows_the_loss_every_so_many_steps(tiny_dataset, tmp_p
     assert all(set(values) == {"loss", "spp"} for values in shown)
 
 
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA torch (a lent GPU's test run)")
+def test_cuda_training_fuses_adam_and_leaves_cudnn_untuned(tiny_dataset, tmp_path):
+    """On CUDA one fused kernel updates the parameters, and cuDNN picks kernels by its heuristics instead of
+    re-tuning for every crop shape (BENCHMARKS.md §26); a run trains."""
+    trainer = Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), epochs=1, batch=2,
+                                  crop_min=12, crop_max=16, widths=(4, 8), device="cuda"), progress=False)
+    assert trainer.optimizer.defaults["fused"] and not torch.backends.cudnn.benchmark
+    assert np.isfinite(trainer.run()["train_loss"])
+
+
 def test_validation_every_n_epochs_and_after_the_last(tiny_dataset, tmp_path):
     trainer = Trainer(TrainConfig(task="error-predictor", data=str(tiny_dataset), out=str(tmp_path), epochs=5,
                                   batch=2, crop_min=8, crop_max=16, validate_every=2), progress=False)

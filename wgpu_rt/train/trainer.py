@@ -201,7 +201,9 @@ class Trainer:
         self.steps_per_epoch = math.ceil(len(self.context.shard(np.arange(len(self.train_set.items))))
                                          / config.batch)
         self.total_steps = self.steps_per_epoch * config.epochs
-        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr)
+        # on CUDA one fused kernel updates every parameter (a step's launches bound it, BENCHMARKS.md §26)
+        self.optimizer = torch.optim.Adam(self.model.parameters(), lr=config.lr,
+                                          fused=self.context.device.type == "cuda")
         self.schedule = torch.optim.lr_scheduler.LambdaLR(self.optimizer, self.learning_rate_factor)
         self.augmentation = Augmentation(config.crop_min, config.crop_max, self.multiple,
                                          permute_colours=config.permute_colours)
