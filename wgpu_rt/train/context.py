@@ -3,7 +3,7 @@
 ``training_context(device)`` picks ``cuda`` or ``cpu`` (``auto``: CUDA when torch sees it). On CUDA the
 packed training frames are kept in GPU memory (built once; crops and augmentation are tensor ops there),
 the model runs under ``torch.autocast`` in bfloat16 (float16 with a GradScaler where the GPU lacks bf16)
-and cuDNN picks its fastest kernels; on the CPU everything stays float32 and frames are kept packed as
+and cuDNN picks kernels by its heuristics; on the CPU everything stays float32 and frames are kept packed as
 they are first drawn, up to a quarter of the machine's memory (the rest are packed at each draw).
 
 Launched by ``torchrun`` (WORLD_SIZE, RANK, LOCAL_RANK in the environment), every process joins one
