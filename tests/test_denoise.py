@@ -62,7 +62,7 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
 
     from wgpu_rt.frame.atrous import atrous_filter
     from wgpu_rt.frame.chroma import match_sample_chroma
-    from wgpu_rt.frame.pack import pack_denoiser_input
+    from wgpu_rt.frame.pack import pack_denoiser_input, white_balance_gains
     from wgpu_rt.frame.unpack import unpack_denoiser_output
 
     torch.manual_seed(0)
@@ -75,7 +75,8 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
     np.testing.assert_allclose(written["depth"], layers["depth"], rtol=1e-6)
     x = pack_denoiser_input(color, layers["albedo"], layers["normal"], layers["depth"])[None]
     session = onnxruntime.InferenceSession(str(model), providers=["CPUExecutionProvider"])
-    network = unpack_denoiser_output(session.run(None, {"input": x})[0][0, :, :20, :28], layers["albedo"])
+    network = unpack_denoiser_output(session.run(None, {"input": x})[0][0, :, :20, :28], layers["albedo"],
+                                     white_balance_gains(color, layers["albedo"]))
     # the colour balance and the post filter (frame/chroma.py, frame/atrous.py), on by default
     expected = atrous_filter(match_sample_chroma(network, color), layers["albedo"], layers["normal"], layers["depth"])
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
@@ -87,7 +88,7 @@ def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
 
     from wgpu_rt.frame.atrous import atrous_filter
     from wgpu_rt.frame.chroma import match_sample_chroma
-    from wgpu_rt.frame.pack import pack_denoiser_input
+    from wgpu_rt.frame.pack import pack_denoiser_input, white_balance_gains
     from wgpu_rt.frame.unpack import unpack_denoiser_output
 
     torch.manual_seed(0)
@@ -101,8 +102,9 @@ def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
     session = onnxruntime.InferenceSession(str(model), providers=["CPUExecutionProvider"])
     turned = [np.rot90(session.run(None, {"input": np.ascontiguousarray(np.rot90(x, k, axes=(2, 3)))})[0], -k,
                        axes=(2, 3)) for k in range(4)]
-    expected = atrous_filter(match_sample_chroma(unpack_denoiser_output(np.mean(turned, axis=0)[0], layers["albedo"]),
-                                                 color), layers["albedo"], layers["normal"], layers["depth"])
+    network = unpack_denoiser_output(np.mean(turned, axis=0)[0], layers["albedo"],
+                                     white_balance_gains(color, layers["albedo"]))
+    expected = atrous_filter(match_sample_chroma(network, color), layers["albedo"], layers["normal"], layers["depth"])
     np.testing.assert_allclose(read_exr(tmp_path / "out.exr")["color"], expected, rtol=1e-3, atol=1e-4)
 
 
@@ -114,6 +116,32 @@ class NumpyPath:
 
     def __call__(self, x):
         return self.model(x)
+
+
+def test_white_balance_setting_on_the_device_and_the_command(gpu, tmp_path):
+    """``wgpu-rt denoise --white-balance on|off`` writes what ``denoise()`` gives with that setting, on the
+    device as by the numpy references; on a frame with a colour cast the two differ. ``render`` refuses the
+    flag without --denoise, before writing anything."""
+    from wgpu_rt.frame.denoise import denoise, load_model
+
+    color, layers = _render_like(h=17, w=22, seed=8)
+    color *= np.array([0.2, 1.5, 0.5], np.float32)                      # a green cast
+    write_exr(tmp_path / "in.exr", color, layers)
+    aux = (layers["albedo"], layers["normal"], layers["depth"])
+    model = load_model("denoiser", "fp32", ctx=gpu)
+    written = {}
+    for setting in ("on", "off"):
+        out = tmp_path / f"{setting}.exr"
+        assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(out), "--white-balance", setting,
+                     "--precision", "fp32"]) == 0
+        written[setting] = read_exr(out)["color"]
+        expected = denoise(model, color, *aux, white_balance=setting == "on")
+        np.testing.assert_allclose(written[setting], expected, rtol=1e-4, atol=1e-5)
+        np.testing.assert_allclose(expected, denoise(NumpyPath(model), color, *aux, white_balance=setting == "on"),
+                                   rtol=1e-4, atol=1e-5)
+    assert not np.allclose(written["on"], written["off"], rtol=1e-3, atol=1e-4)
+    assert main(["render", "cornell", "--size", "8x8", "--white-balance", "off", "--out", str(tmp_path / "x.exr")]) == 2
+    assert not (tmp_path / "x.exr").exists()
 
 
 def test_denoise_runs_on_the_device_as_the_numpy_references_do(gpu, tmp_path):

@@ -1,4 +1,5 @@
-"""Unpack (expm1, remodulated by albedo) and tonemap passes against their numpy references, with non-finite stress."""
+"""Unpack (expm1, remodulated by albedo and the white balance) and tonemap passes against their numpy
+references, with non-finite stress."""
 
 import re
 
@@ -24,12 +25,15 @@ def submit(gpu, passes, buffers):
     gpu.device.queue.submit([encoder.finish()])
 
 
-def unpack_on_gpu(gpu, tensor, albedo):
+BALANCE = np.array([0.5, 1.25, 3.0], np.float32)   # white-balance gains, the last the largest there can be
+
+
+def unpack_on_gpu(gpu, tensor, albedo, balance=BALANCE):
     buffers = FrameBuffers(gpu, W, H)
     write_plane(buffers, NETWORK_OUTPUT, tensor.transpose(1, 2, 0))
     write_plane(buffers, ALBEDO, albedo)
     encoder = gpu.device.create_command_encoder()
-    UnpackPass(gpu, W, H).execute(encoder, buffers, NETWORK_OUTPUT)
+    UnpackPass(gpu, W, H, gpu.upload(balance)).execute(encoder, buffers, NETWORK_OUTPUT)
     gpu.device.queue.submit([encoder.finish()])
     return buffers.read(DENOISED.name).transpose(1, 2, 0)
 
@@ -40,25 +44,27 @@ def random_albedo(seed):
 
 def test_unpack_matches_reference(gpu):
     tensor = np.random.default_rng(0).uniform(-1, 3, (3, H, W)).astype(np.float32)
-    check_parity(None, unpack_denoiser_output, lambda t, a: unpack_on_gpu(gpu, t, a), atol=1e-6, rtol=3e-5,
-                 inputs=[tensor, random_albedo(10)], name="unpack")
+    check_parity(None, unpack_denoiser_output, lambda t, a, b: unpack_on_gpu(gpu, t, a, b), atol=1e-6, rtol=3e-5,
+                 inputs=[tensor, random_albedo(10), BALANCE], name="unpack")
 
 
 def test_unpack_matches_reference_over_fp16_range(gpu):
     """Up to log1p(65504) ≈ 11.1: relative accuracy over the whole range the FP16 network emits."""
     tensor = np.random.default_rng(0).uniform(0, np.log1p(65504.0), (3, H, W)).astype(np.float32)
     albedo = random_albedo(11)
-    np.testing.assert_allclose(unpack_on_gpu(gpu, tensor, albedo), unpack_denoiser_output(tensor, albedo),
+    np.testing.assert_allclose(unpack_on_gpu(gpu, tensor, albedo), unpack_denoiser_output(tensor, albedo, BALANCE),
                                rtol=3e-5, atol=1e-6)
 
 
 def test_unpack_reference_by_hand():
-    """expm1 of the clamped log value times the albedo factor (albedo clamped to [0, 1], + 0.01)."""
+    """expm1 of the clamped log value times the albedo factor (albedo clamped to [0, 1], + 0.01) times the
+    channel's white-balance gain; the largest log value times the largest factor and gain stays finite."""
     tensor = np.array([np.log1p(3.0), -2.0, np.nan, np.inf, 1e-9, 200.0], np.float32).reshape(3, 2, 1)
     albedo = np.array([0.5, 2.0, np.nan, -1.0, 0.0, 1.0], np.float32).reshape(3, 2, 1).transpose(1, 2, 0)
-    out = unpack_denoiser_output(tensor, albedo)
+    out = unpack_denoiser_output(tensor, albedo, np.array([2.0, 1.0, 3.0], np.float32))
     np.testing.assert_allclose(out.transpose(2, 0, 1).ravel(),
-                               [3.0 * 0.51, 0.0, 0.0, 0.0, 1e-9 * 0.01, np.expm1(88.0) * 1.01], rtol=1e-6)
+                               [3.0 * 0.51 * 2, 0.0, 0.0, 0.0, 1e-9 * 0.01 * 3, np.expm1(87.0) * 1.01 * 3], rtol=1e-6)
+    assert np.all(np.isfinite(out))
 
 
 @pytest.mark.parametrize("poison", [np.nan, np.inf, -np.inf, 1e30])
@@ -70,7 +76,7 @@ def test_unpack_output_is_finite_and_non_negative(gpu, poison):
     albedo[rng.uniform(size=albedo.shape) < 0.2] = poison
     out = unpack_on_gpu(gpu, tensor, albedo)
     assert np.all(np.isfinite(out)) and out.min() >= 0
-    np.testing.assert_allclose(out, unpack_denoiser_output(tensor, albedo), rtol=3e-5, atol=1e-6)
+    np.testing.assert_allclose(out, unpack_denoiser_output(tensor, albedo, BALANCE), rtol=3e-5, atol=1e-6)
 
 
 def tonemap_on_gpu(gpu, image, **settings):

@@ -9,7 +9,8 @@ from parity import check_parity
 from wgpu_rt.errors import WgpuRtError
 from wgpu_rt.frame.lowband import (LOW_BAND_MAX_SPP, LOW_BAND_MIN_SIDE, LowBandPass, bilinear_up, fewest_samples,
                                    low_band_levels, transfer_low_band, uses_low_band)
-from wgpu_rt.frame.pack import DepthMaxPass, PackLevelPass, block_mean, pack_denoiser_input, pack_level_input
+from wgpu_rt.frame.pack import (NO_BALANCE, DepthMaxPass, PackLevelPass, WhiteBalancePass, block_mean,
+                                pack_denoiser_input, pack_level_input, white_balance_gains)
 from wgpu_rt.frame.planes import write_plane
 from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, FrameBuffers
 
@@ -30,11 +31,11 @@ def pack_level_on_gpu(gpu, width, height, factor, color, albedo, normal, depth, 
     buffers = FrameBuffers(gpu, width, height)
     for spec, image in ((RADIANCE, color), (ALBEDO, albedo), (NORMAL, normal), (DEPTH, depth), (SPP, spp)):
         write_plane(buffers, spec, image)
-    depth_max = DepthMaxPass(gpu, width, height)
-    pack = PackLevelPass(gpu, width, height, depth_max.result, factor)
+    depth_max, balance = DepthMaxPass(gpu, width, height), WhiteBalancePass(gpu, width, height)
+    pack = PackLevelPass(gpu, width, height, depth_max.result, balance.result, factor)
     encoder = gpu.device.create_command_encoder()
-    depth_max.execute(encoder, buffers)
-    pack.execute(encoder, buffers)
+    for step in (depth_max, balance, pack):
+        step.execute(encoder, buffers)
     gpu.device.queue.submit([encoder.finish()])
     level_width, level_height = pack.size
     return gpu.read(pack.result, np.float32, (11, level_height, level_width))
@@ -66,9 +67,12 @@ def test_pack_level_reference_by_hand():
     albedo = np.ones((1, 3, 3), np.float32)
     normal = np.array([[[1, 0, 0], [-1, 0, 0], [0, 1, 0]]], np.float32)   # the first two cancel
     depth = np.array([[2.0, 4.0, 8.0]], np.float32)
-    x = pack_level_input(color, albedo, normal, depth, np.array([[1, 3, 4]]))
+    x = pack_level_input(color, albedo, normal, depth, np.array([[1, 3, 4]]), balance=NO_BALANCE)
     assert x.shape == (11, 1, 2)
     np.testing.assert_allclose(np.expm1(x[:3, 0, 0]) * 1.01, [2.0, 2.0, 0.0], rtol=1e-6)
+    gains = white_balance_gains(color, albedo)                                 # the full frame's, by default
+    np.testing.assert_allclose(np.expm1(pack_level_input(color, albedo, normal, depth)[:3, 0, 0]) * 1.01 * gains,
+                               [2.0, 2.0, 0.0], rtol=1e-6)
     np.testing.assert_allclose(x[6:9, 0, 0], [0.5, 0.5, 0.5])            # cancelled normals pack as 0
     np.testing.assert_allclose(x[6:9, 0, 1], [0.5, 1.0, 0.5])
     np.testing.assert_allclose(x[9, 0], [3 / 8, 1.0])                    # divided by the frame's max depth
@@ -170,7 +174,7 @@ def test_denoise_leaves_the_low_band_out_from_16_samples_everywhere(monkeypatch)
     from wgpu_rt.frame import denoise as denoise_module
 
     levels_run = []
-    monkeypatch.setattr(denoise_module, "low_band_denoise", lambda *a: levels_run.append(a[-1]) or a[1])
+    monkeypatch.setattr(denoise_module, "low_band_denoise", lambda *a: levels_run.append(a[-2]) or a[1])
     from wgpu_rt.frame import lowband
     monkeypatch.setattr(lowband, "LOW_BAND_MIN_SIDE", 8)
     rng = np.random.default_rng(2)

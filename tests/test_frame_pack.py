@@ -5,13 +5,17 @@ import pytest
 from parity import check_parity
 
 from wgpu_rt.frame.pack import (
+    NO_BALANCE,
+    WHITE_BALANCE_FLOOR,
     DepthMaxPass,
     PackConfidencePass,
     PackDenoiserPass,
     PackErrorPass,
+    WhiteBalancePass,
     pack_confidence_input,
     pack_denoiser_input,
     pack_error_input,
+    white_balance_gains,
 )
 from wgpu_rt.frame.planes import (
     CONFIDENCE_INPUT,
@@ -21,11 +25,11 @@ from wgpu_rt.frame.planes import (
 )
 from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, FrameBuffers, PlaneSpec
 
-H, W = 24, 40   # not multiples of the 8×8 tile, so edge guards are exercised
+H, W = 21, 37   # not multiples of the 8×8 tile, so edge guards are exercised
 
 
-def run(gpu, passes, planes):
-    buffers = FrameBuffers(gpu, W, H)
+def run(gpu, passes, planes, width=W, height=H):
+    buffers = FrameBuffers(gpu, width, height)
     for spec, image in planes.items():
         write_plane(buffers, spec, image)
     encoder = gpu.device.create_command_encoder()
@@ -37,12 +41,19 @@ def run(gpu, passes, planes):
 
 def denoiser_on_gpu(gpu, color, albedo, normal, depth, spp=None):
     """The pack pass's output; ``spp`` None leaves the trace's sample-count plane at 0 (counts as 1)."""
-    depth_max = DepthMaxPass(gpu, W, H)
+    depth_max, balance = DepthMaxPass(gpu, W, H), WhiteBalancePass(gpu, W, H)
     planes = {RADIANCE: color, ALBEDO: albedo, NORMAL: normal, DEPTH: depth}
     if spp is not None:
         planes[SPP] = np.asarray(spp, np.uint32)
-    buffers = run(gpu, [depth_max, PackDenoiserPass(gpu, W, H, depth_max.result)], planes)
+    buffers = run(gpu, [depth_max, balance, PackDenoiserPass(gpu, W, H, depth_max.result, balance.result)], planes)
     return buffers.read(DENOISER_INPUT.name)
+
+
+def balance_on_gpu(gpu, color, albedo):
+    height, width = color.shape[:2]
+    balance = WhiteBalancePass(gpu, width, height)
+    run(gpu, [balance], {RADIANCE: color, ALBEDO: albedo}, width, height)
+    return gpu.read(balance.result, shape=(3,))
 
 
 def random_planes(rng):
@@ -74,7 +85,7 @@ def test_pack_denoiser_reference_layout():
     albedo = np.array([[[2.0, 2.0, 2.0], [np.nan, -1.0, 0.0]]], np.float32)   # factors 1 + 0.01, 0 + 0.01
     normal = np.array([[[0, 0, 1], [np.nan, -1, 0]]], np.float32)
     depth = np.array([[2.0, 8.0]], np.float32)
-    x = pack_denoiser_input(color, albedo, normal, depth)
+    x = pack_denoiser_input(color, albedo, normal, depth, balance=NO_BALANCE)
     np.testing.assert_allclose(x[:3, 0, 0], [1, 0, 0], atol=1e-6)      # colour / albedo factor
     np.testing.assert_allclose(x[:3, 0, 1], [0, 0, 1e-6], rtol=1e-5)
     np.testing.assert_array_equal(x[3:6, 0, 0], 1.0)
@@ -83,6 +94,9 @@ def test_pack_denoiser_reference_layout():
     np.testing.assert_allclose(x[6:9, 0, 1], [0.5, 0.0, 0.5])
     np.testing.assert_allclose(x[9, 0], [0.25, 1.0])
     np.testing.assert_array_equal(x[10], 1.0)                         # one sample unless told
+    balanced = pack_denoiser_input(color, albedo, normal, depth, balance=np.array([0.5, 1.0, 4.0], np.float32))
+    np.testing.assert_allclose(balanced[:3, 0, 0], [np.log1p((np.e - 1) * 2), 0, 0], atol=1e-6)   # ÷ factor·gain
+    np.testing.assert_allclose(balanced[:3, 0, 1], [0, 0, 0.25e-6], rtol=1e-5)
     np.testing.assert_array_equal(pack_denoiser_input(color, albedo, normal, depth, 16)[10], 0.25)
     np.testing.assert_array_equal(pack_denoiser_input(color, albedo, normal, depth, [[4, 0]])[10], [[0.5, 1]])
 
@@ -113,8 +127,37 @@ def test_pack_keeps_fp16_range(gpu):
     _, albedo, normal, depth = random_planes(np.random.default_rng(4))
     albedo[1, 1] = 0.0
     out = denoiser_on_gpu(gpu, color, albedo, normal, depth)
-    assert out[:3].max() == pytest.approx(np.log1p(65504.0 / 0.01), rel=1e-6)
+    np.testing.assert_allclose(out, pack_denoiser_input(color, albedo, normal, depth), rtol=1e-6, atol=1e-6)
+    assert out[:3].max() <= np.log1p(65504.0 / 0.01 / WHITE_BALANCE_FLOOR) < 65504.0
     assert np.all(np.isfinite(out.astype(np.float16)))
+
+
+def test_white_balance_reference_by_hand():
+    """The gains are the square roots of the irradiance's channel means over their mean, at least the
+    floor; a black frame is left alone; scaling the frame changes nothing."""
+    albedo = np.full((2, 2, 3), 0.99, np.float32)                  # factor 1
+    color = np.zeros((2, 2, 3), np.float32)
+    color[0, 0] = [16.0, 4.0, 0.0]                                 # means 4, 1, 0: roots 2, 1, 0; their mean 1
+    np.testing.assert_allclose(white_balance_gains(color, albedo), [2.0, 1.0, WHITE_BALANCE_FLOOR], rtol=1e-6)
+    np.testing.assert_array_equal(white_balance_gains(np.zeros_like(color), albedo), [1.0, 1.0, 1.0])
+    np.testing.assert_allclose(white_balance_gains(1e-6 * color, albedo), white_balance_gains(color, albedo), rtol=1e-6)
+    color[1, 1] = [np.nan, -3.0, np.inf]                           # sanitised away
+    np.testing.assert_allclose(white_balance_gains(color, albedo), [2.0, 1.0, WHITE_BALANCE_FLOOR], rtol=1e-6)
+
+
+@pytest.mark.parametrize("size", [(21, 37), (157, 203)])   # one tile row; more tiles than the reduction's 256 lanes
+def test_white_balance_pass_matches_reference(gpu, size):
+    rng = np.random.default_rng(7)
+    color = (rng.exponential(1.0, size + (3,)) * [0.2, 1.5, 0.6]).astype(np.float32)   # a green cast
+    albedo = rng.uniform(-0.1, 1.1, size + (3,)).astype(np.float32)
+    color[rng.uniform(size=color.shape) < 0.01] = np.inf
+    ours, reference = check_parity(None, white_balance_gains, lambda c, a: balance_on_gpu(gpu, c, a), atol=0.0,
+                                   rtol=2e-5, inputs=[color, albedo], name="white balance")
+    assert reference[1] > 1.2 > 0.8 > reference[0]                # the cast is seen
+    np.testing.assert_array_equal(balance_on_gpu(gpu, np.zeros_like(color), albedo), [1.0, 1.0, 1.0])
+    color[0, 0, 1], albedo[0, 0] = 3e38, 0.0                       # green irradiance past f32's range
+    check_parity(None, white_balance_gains, lambda c, a: balance_on_gpu(gpu, c, a), atol=0.0, rtol=2e-5,
+                 inputs=[color, albedo], name="white_balance_gains, clamped irradiance")
 
 
 def test_pack_error_matches_reference(gpu):

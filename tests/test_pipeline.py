@@ -502,7 +502,7 @@ def test_wiring_is_checked_from_the_declared_planes(gpu):
     tonemap = TonemapPass(gpu, W, H, DENOISED)
     with pytest.raises(ValueError, match="TonemapPass reads denoised"):
         check_wiring([tonemap], written=TracePass.outputs)
-    check_wiring([UnpackPass(gpu, W, H), tonemap], written=TracePass.outputs)
+    check_wiring([UnpackPass(gpu, W, H, gpu.storage(12)), tonemap], written=TracePass.outputs)
     with pytest.raises(ValueError, match="denoiser reads denoiser_input"):
         check_wiring([Stage("denoiser", (DENOISER_INPUT,), ())], written=TracePass.outputs)
 

@@ -649,19 +649,21 @@ def test_exposure_on_the_packed_planes_equals_packing_the_scaled_render(tiny_dat
     by e, as the numpy references do; the error predictor's target is ``targets.error_heatmap`` of the
     scaled renders (its percentile depends on the exposure)."""
     from wgpu_rt.dataset import load_views
-    from wgpu_rt.frame.pack import albedo_factor, demodulated_log_color, pack_denoiser_input, pack_error_input
+    from wgpu_rt.frame.pack import (albedo_factor, demodulated_log_color, pack_denoiser_input, pack_error_input,
+                                    white_balance_gains)
     from wgpu_rt.train.samples import DenoiserSamples, ErrorSamples
     from wgpu_rt.train.targets import error_heatmap
 
     views = load_views(tiny_dataset, "train")
     frame = views[0].frames[0]
     noisy, gold = frame.noisy[4], frame.gold["color"]
+    balance = white_balance_gains(noisy["color"], noisy["albedo"])   # the same for the scaled render
     x, y = DenoiserSamples(views).full((0, 0), 4, 2.5)
     np.testing.assert_allclose(x, pack_denoiser_input(2.5 * noisy["color"], noisy["albedo"], noisy["normal"],
                                                       noisy["depth"], 4), rtol=2e-6, atol=1e-6)
     np.testing.assert_array_equal(x[-1], 0.5)    # the sample-count plane: 1/sqrt(4)
-    np.testing.assert_allclose(y, np.concatenate([demodulated_log_color(2.5 * gold, noisy["albedo"]),
-                                                  albedo_factor(noisy["albedo"])]), rtol=2e-6, atol=1e-6)
+    np.testing.assert_allclose(y, np.concatenate([demodulated_log_color(2.5 * gold, noisy["albedo"], balance),
+                                                  albedo_factor(noisy["albedo"], balance)]), rtol=2e-6, atol=1e-6)
     x, y = ErrorSamples(views).full((0, 0), 1, 0.6)
     np.testing.assert_allclose(x, pack_error_input(0.6 * frame.noisy[1]["color"]), rtol=2e-6, atol=1e-6)
     np.testing.assert_allclose(y[0], error_heatmap(0.6 * frame.noisy[1]["color"], 0.6 * gold), atol=1e-5)

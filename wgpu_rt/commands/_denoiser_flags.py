@@ -9,7 +9,8 @@ SWITCHES = {"on": True, "off": False}
 
 
 def add_denoiser_flags(parser, image: str) -> None:
-    """--precision, --quality, --low-band, --chroma and --post-filter; ``image`` names what is denoised."""
+    """--precision, --quality and the step flags (``add_denoiser_step_flags``); ``image`` names what is
+    denoised."""
     parser.add_argument("--precision", choices=["auto", "fp32", "fp16"], default="auto",
                         help="network arithmetic (fp16 needs the shader-f16 feature; auto: fp16 on discrete "
                              "GPUs that have it, else fp32)")
@@ -20,7 +21,12 @@ def add_denoiser_flags(parser, image: str) -> None:
 
 
 def add_denoiser_step_flags(parser, image: str = "frame") -> None:
-    """--low-band, --chroma and --post-filter: the steps around the network (also the benchmarks')."""
+    """--white-balance, --low-band, --chroma and --post-filter: the steps around the network (also the
+    benchmarks')."""
+    parser.add_argument("--white-balance", choices=list(SWITCHES), default="on",
+                        help="divide the irradiance the network reads by the frame's per-channel gains (the "
+                             "square roots of its channels' means over their mean) and multiply them back "
+                             "after: the network turns strongly coloured light grey (default on)")
     parser.add_argument("--low-band", choices=list(LOW_BAND_SETTINGS), default="auto",
                         help="the denoiser's band below quarter resolution from passes at half (and, from "
                              "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
@@ -37,12 +43,13 @@ def add_denoiser_step_flags(parser, image: str = "frame") -> None:
 def denoiser_options(args) -> dict:
     """The renderer's / ``denoise()``'s options from the flags (quality and precision left to the caller)."""
     return {"low_band": LOW_BAND_SETTINGS[args.low_band], "chroma": SWITCHES[args.chroma],
-            "post_filter": SWITCHES[args.post_filter]}
+            "post_filter": SWITCHES[args.post_filter], "white_balance": SWITCHES[args.white_balance]}
 
 
 def check_denoiser_flags(args) -> None:
     """Without --denoise the denoiser's flags must be left at their defaults (``render``)."""
     for flag, value, default in (("--quality", args.quality, "balanced"), ("--low-band", args.low_band, "auto"),
-                                 ("--chroma", args.chroma, "on"), ("--post-filter", args.post_filter, "on")):
+                                 ("--chroma", args.chroma, "on"), ("--post-filter", args.post_filter, "on"),
+                                 ("--white-balance", args.white_balance, "on")):
         if value != default:
             raise WgpuRtError(f"{flag} {value} is the denoiser's: add --denoise")

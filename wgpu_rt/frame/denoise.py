@@ -1,6 +1,6 @@
 """Loading the networks, and ``denoise()``: one image through the denoiser off the frame loop
-(pack → run → unpack, and on large frames the low band of coarser passes: frame/lowband.py, then the
-chroma hold and the post filter), for the ``denoise`` command, the confidence model's training data,
+(white balance → pack → run → unpack, and on large frames the low band of coarser passes: frame/lowband.py,
+then the chroma hold and the post filter), for the ``denoise`` command, the confidence model's training data,
 benchmarks and tests. A model of the WGSL engine runs all of it on the device with the frame loop's own passes
 (``DenoiseOnDevice``: the image uploaded once, the result read back once); any other model (torch,
 onnxruntime) takes the numpy references of those passes.
@@ -27,7 +27,7 @@ from .chroma import match_sample_chroma
 from .converge import HALF_SPP, converge
 from .denoise_chain import DenoiseChain
 from .lowband import fewest_samples, low_band_denoise, low_band_levels
-from .pack import DepthMaxPass, pack_denoiser_input
+from .pack import NO_BALANCE, DepthMaxPass, pack_denoiser_input, white_balance_gains
 from .planes import write_plane
 from .unpack import unpack_denoiser_output
 
@@ -57,7 +57,7 @@ def load_model(name: str, precision: str = "auto", models_dir=None, path=None, c
 
 
 def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: bool = True,
-            post_filter: bool = True, half=None) -> np.ndarray:
+            post_filter: bool = True, half=None, white_balance: bool = True) -> np.ndarray:
     """(H, W, 3) linear HDR colour of ``spp`` samples per pixel (one count, or an (H, W[, 1]) map) +
     G-buffers → the denoised (H, W, 3) colour (finite, ≥ 0). ``model`` runs (N, C, H, W) batches; one with
     fewer ``input_channels`` (10: trained before the sample-count plane existed) gets the first ones.
@@ -66,6 +66,8 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     whose pixels hold fewer than LOW_BAND_MAX_SPP samples somewhere).
     ``chroma``: hold the result's colour balance to the samples' block means (frame/chroma.py).
     ``post_filter``: then smooth it by the edge-aware à-trous filter (frame/atrous.py).
+    ``white_balance``: the network reads the irradiance divided by the frame's gains, and its output is
+    multiplied back (frame/pack.py's ``white_balance_gains``); False: gains of 1.
     ``half``: (the mean after the first part of the samples, its (H, W) counts): each pixel then hands over
     to the samples' own mean where that has converged, as a denoised render of several samples does
     (frame/converge.py)."""
@@ -74,16 +76,19 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     counts = device_sample_counts(spp, (height, width))
     half_counts = None if half is None else device_sample_counts(half[1], (height, width))
     if hasattr(model, "record") and counts is not None and (half is None or half_counts is not None):
-        on_device = DenoiseOnDevice.for_model(model, width, height, levels, chroma, post_filter, half is not None)
+        on_device = DenoiseOnDevice.for_model(model, width, height, levels, chroma, post_filter, half is not None,
+                                              white_balance)
         return on_device(color, albedo, normal, depth, counts, None if half is None else (half[0], half_counts))
     channels = getattr(model, "input_channels", None)
 
     def run(packed):
         return np.asarray(model(packed[None, :channels]), np.float32)[0]
 
-    denoised = unpack_denoiser_output(run(pack_denoiser_input(color, albedo, normal, depth, spp)), albedo)
+    balance = white_balance_gains(color, albedo) if white_balance else NO_BALANCE
+    denoised = unpack_denoiser_output(run(pack_denoiser_input(color, albedo, normal, depth, spp, balance=balance)),
+                                      albedo, balance)
     if levels:
-        denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels)
+        denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels, balance)
     if chroma:
         denoised = match_sample_chroma(denoised, color)
     if post_filter:
@@ -117,20 +122,21 @@ class DenoiseOnDevice:
 
     @classmethod
     def for_model(cls, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool,
-                  converging: bool = False):
+                  converging: bool = False, white_balance: bool = True):
         made = cls._made.setdefault(model, {})
-        key = (width, height, levels, chroma, post_filter, converging)
+        key = (width, height, levels, chroma, post_filter, converging, white_balance)
         if key not in made:
-            made[key] = cls(weakref.proxy(model), width, height, levels, chroma, post_filter, converging)
+            made[key] = cls(weakref.proxy(model), width, height, levels, chroma, post_filter, converging,
+                            white_balance)
         return made[key]
 
     def __init__(self, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool,
-                 converging: bool = False):
+                 converging: bool = False, white_balance: bool = True):
         self.ctx = model.ctx
         self.buffers = FrameBuffers(self.ctx, width, height)
         self.depth_max = DepthMaxPass(self.ctx, width, height)
         self.chain = DenoiseChain(self.ctx, width, height, model, self.depth_max.result, levels, chroma, post_filter,
-                                  converging)
+                                  converging, white_balance)
 
     def __call__(self, color, albedo, normal, depth, counts: np.ndarray, half=None) -> np.ndarray:
         """``half``: (mean, u32 counts) after the first part of the samples, when ``converging``."""

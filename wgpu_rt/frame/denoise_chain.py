@@ -1,8 +1,8 @@
-"""What follows the tracer when a frame is denoised, in order: pack, the network, unpack, the low band's
-coarser levels (frame/lowband.py), the chroma hold (frame/chroma.py), the post filter (frame/atrous.py)
-and the hand-over to converged samples (frame/converge.py). The frame loop records it between the
-tracer and the temporal pass (``FramePipeline``), ``denoise()`` over uploaded planes
-(``frame.denoise.DenoiseOnDevice``), so both run one chain in one order."""
+"""What follows the tracer when a frame is denoised, in order: the white balance (frame/pack.py), pack, the
+network, unpack, the low band's coarser levels (frame/lowband.py), the chroma hold (frame/chroma.py), the
+post filter (frame/atrous.py) and the hand-over to converged samples (frame/converge.py). The frame loop
+records it between the tracer and the temporal pass (``FramePipeline``), ``denoise()`` over uploaded
+planes (``frame.denoise.DenoiseOnDevice``), so both run one chain in one order."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from .atrous import AtrousPass
 from .chroma import ChromaPass
 from .converge import CONVERGED, ConvergePass
 from .lowband import LowBand
-from .pack import PackDenoiserPass
+from .pack import NO_BALANCE, PackDenoiserPass, WhiteBalancePass
 from .planes import DENOISED, DENOISER_INPUT
 from .unpack import UnpackPass
 
@@ -23,15 +23,18 @@ def _no_mark(encoder, name: str) -> None:
 class DenoiseChain:
     """The chain for ``denoiser`` at width×height; ``depth_max`` is a DepthMaxPass's result, recorded
     earlier in the same encoder. ``levels``: the low band's coarser levels (0: none); ``chroma``,
-    ``post_filter``, ``converge``: whether those steps run. ``output`` is the plane the chain leaves its
+    ``post_filter``, ``converge``, ``white_balance``: whether those steps run (without the white balance
+    the network reads the irradiance as it is: gains of 1). ``output`` is the plane the chain leaves its
     result in."""
 
     def __init__(self, ctx, width: int, height: int, denoiser, depth_max, levels: int = 0, chroma: bool = True,
-                 post_filter: bool = True, converge: bool = False):
+                 post_filter: bool = True, converge: bool = False, white_balance: bool = True):
         self.width, self.height, self.denoiser = width, height, denoiser
-        self.pack = PackDenoiserPass(ctx, width, height, depth_max)
-        self.unpack = UnpackPass(ctx, width, height)
-        self.low_band = LowBand(ctx, width, height, depth_max, denoiser, levels) if levels else None
+        self.balance = WhiteBalancePass(ctx, width, height) if white_balance else None
+        gains = self.balance.result if white_balance else ctx.upload(NO_BALANCE, label="no white balance")
+        self.pack = PackDenoiserPass(ctx, width, height, depth_max, gains)
+        self.unpack = UnpackPass(ctx, width, height, gains)
+        self.low_band = LowBand(ctx, width, height, depth_max, gains, denoiser, levels) if levels else None
         self.chroma = ChromaPass(ctx, width, height) if chroma else None
         self.post_filter = AtrousPass(ctx, width, height) if post_filter else None
         self.converge = ConvergePass(ctx, width, height) if converge else None
@@ -40,8 +43,8 @@ class DenoiseChain:
     def stages(self) -> list:
         """Its passes in order (a Stage stands in for the network), for frame.pipeline.check_wiring."""
         steps = (self.low_band, self.chroma, self.post_filter, self.converge)
-        return [self.pack, Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack,
-                *(step for step in steps if step is not None)]
+        return [step for step in (self.balance, self.pack) if step is not None] + [
+            Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack, *(step for step in steps if step is not None)]
 
     def prepare(self, buffers) -> None:
         """Build ahead what the chain's first ``record`` would for its networks (frame.pipeline's
@@ -53,6 +56,8 @@ class DenoiseChain:
     def record(self, encoder, buffers, low_band: bool = True, mark=_no_mark) -> None:
         """Record the chain into ``encoder`` over ``buffers``' planes (the low band only where
         ``low_band``), calling ``mark(encoder, name)`` at the end of each timed stage."""
+        if self.balance is not None:
+            self.balance.execute(encoder, buffers)
         self.pack.execute(encoder, buffers)
         mark(encoder, "pack")
         network_output = self.denoiser.record(encoder, buffers.get(DENOISER_INPUT), self.height, self.width)

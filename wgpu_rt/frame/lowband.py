@@ -103,16 +103,17 @@ def transfer_low_band(denoised: np.ndarray, coarse: np.ndarray, spp=1) -> np.nda
     return np.minimum(full * ratio, F32_MAX).astype(np.float32)
 
 
-def low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels: int) -> np.ndarray:
+def low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels: int, balance) -> np.ndarray:
     """``denoised`` (the frame's denoiser output, unpacked) with the low band of ``levels`` coarser levels:
     each denoised by ``run`` (packed (11, h, w) input → (3, h, w) output) on the frame averaged over
-    2^k × 2^k blocks, then from the coarsest up each level takes its band below quarter resolution from
-    the next (``transfer_low_band``, the level's own summed sample counts)."""
+    2^k × 2^k blocks, balanced by the frame's own gains (``balance``, pack.white_balance_gains), then from the
+    coarsest up each level takes its band below quarter resolution from the next (``transfer_low_band``,
+    the level's own summed sample counts)."""
     shape = np.shape(color)[:2]
     radiance = [denoised]
     for level in range(1, levels + 1):
-        packed = pack_level_input(color, albedo, normal, depth, spp, 2 ** level)
-        radiance.append(unpack_denoiser_output(run(packed), packed[3:6].transpose(1, 2, 0)))
+        packed = pack_level_input(color, albedo, normal, depth, spp, 2 ** level, balance)
+        radiance.append(unpack_denoiser_output(run(packed), packed[3:6].transpose(1, 2, 0), balance))
     for level in reversed(range(levels)):
         radiance[level] = transfer_low_band(radiance[level], radiance[level + 1],
                                             level_sample_counts(spp, shape, 2 ** level))
@@ -143,15 +144,17 @@ class LowBand(ComputePass):
     """The low band of a frame's denoised radiance on the device (``low_band_denoise``'s steps): for each of
     ``levels`` coarser levels its pack (``self.packs``), ``denoiser`` on that canvas and an unpack into the
     level's own radiance buffer; then, from the coarsest up, a LowBandPass per level, the last on the
-    frame's denoised plane in place (read against the frame's packed input, DENOISER_INPUT)."""
+    frame's denoised plane in place (read against the frame's packed input, DENOISER_INPUT). ``depth_max``
+    and ``balance`` are the full frame's (pack.DepthMaxPass's and pack.WhiteBalancePass's results)."""
 
     inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP, DENOISER_INPUT, DENOISED)
     outputs = (DENOISED,)
 
-    def __init__(self, ctx, width: int, height: int, depth_max, denoiser, levels: int):
+    def __init__(self, ctx, width: int, height: int, depth_max, balance, denoiser, levels: int):
         self.denoiser = denoiser
-        self.packs = [PackLevelPass(ctx, width, height, depth_max, 2 ** level) for level in range(1, levels + 1)]
-        self.unpacks = [UnpackPass(ctx, *pack.size, albedo_plane=3) for pack in self.packs]
+        self.packs = [PackLevelPass(ctx, width, height, depth_max, balance, 2 ** level)
+                      for level in range(1, levels + 1)]
+        self.unpacks = [UnpackPass(ctx, *pack.size, balance, albedo_plane=3) for pack in self.packs]
         self.radiance = [ctx.storage(DENOISED.nbytes(*pack.size), label=f"denoised, level {level}")
                          for level, pack in enumerate(self.packs, 1)]
         sizes = [(width, height)] + [pack.size for pack in self.packs[:-1]]

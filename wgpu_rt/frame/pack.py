@@ -11,6 +11,11 @@ failed sample adds nothing); non-finite normal components become 0 (mapping to 0
 The denoiser sees colour *demodulated* by albedo: log1p(colour / (albedo + ALBEDO_EPSILON)), the
 irradiance, which is smooth across texture and material edges (those come back, noise-free, when
 ``unpack`` multiplies by the same factor). ALBEDO_EPSILON keeps black albedo (misses, emitters) finite.
+The irradiance is also white-balanced: each channel divided by the frame's gain (``white_balance_gains``,
+on the device ``WhiteBalancePass``), which ``unpack`` multiplies back. The shipped network, trained on
+light that is mostly near white, turns strongly coloured light grey: given a 4096-spp render of a room lit
+by a green wall's bounce (world-2147483667) as its input, it returned it 31 dB away. Balanced, its input
+looks like what it knows (BENCHMARKS.md §27).
 """
 
 from __future__ import annotations
@@ -22,25 +27,44 @@ from .kernel import TILE, FrameKernel, ceil_div, finite, nonnegative_finite
 from .planes import CONFIDENCE_INPUT, DENOISER_INPUT, ERROR_INPUT
 
 # The bindings each entry point of frame/pack.wgsl uses (their indices are read from the WGSL).
-DENOISER_BINDINGS = ("color", "albedo", "normal", "depth", "depth_max_bits", "spp", "packed")
+DENOISER_BINDINGS = ("color", "albedo", "normal", "depth", "depth_max_bits", "spp", "packed", "balance")
 ERROR_BINDINGS = ("color", "packed")
 CONFIDENCE_BINDINGS = ("color", "depth", "depth_max_bits", "reprojected", "packed")
 
 
 # -- numpy references ---------------------------------------------------------------------------------
 ALBEDO_EPSILON = 0.01
+WHITE_BALANCE_POWER = 0.5          # the gains are this power of the mean irradiance's channels
+WHITE_BALANCE_FLOOR = 1.0 / 16.0   # no gain below this (a channel black everywhere is divided by it, not 0)
+IRRADIANCE_LIMIT = 1e30            # each pixel's irradiance clamped to this in the mean (its f32 sum stays finite)
+NO_BALANCE = np.ones(3, np.float32)
 
 
-def albedo_factor(albedo: np.ndarray) -> np.ndarray:
-    """(H, W, 3) albedo → the (3, H, W) demodulation factor: albedo sanitised, clamped to [0, 1], + ε."""
+def white_balance_gains(color: np.ndarray, albedo: np.ndarray) -> np.ndarray:
+    """(H, W, 3) radiance and albedo → the frame's (3,) white-balance gains: the mean of each channel of
+    the irradiance (sanitised radiance / albedo_factor, each pixel clamped to IRRADIANCE_LIMIT) to the
+    power WHITE_BALANCE_POWER, divided by the three's mean, at least WHITE_BALANCE_FLOOR; (1, 1, 1) for a
+    black frame."""
+    irradiance = nonnegative_finite(color).transpose(2, 0, 1).astype(np.float64) / albedo_factor(albedo)
+    mean = np.minimum(irradiance, IRRADIANCE_LIMIT).reshape(3, -1).mean(axis=1)
+    if not mean.max() > 0.0:
+        return NO_BALANCE
+    gains = mean ** WHITE_BALANCE_POWER
+    return np.maximum(gains / gains.mean(), WHITE_BALANCE_FLOOR).astype(np.float32)
+
+
+def albedo_factor(albedo: np.ndarray, balance: np.ndarray = NO_BALANCE) -> np.ndarray:
+    """(H, W, 3) albedo → the (3, H, W) demodulation factor: albedo sanitised, clamped to [0, 1], + ε,
+    times the frame's white-balance gain of each channel (``white_balance_gains``; none by default)."""
     clamped = np.clip(nonnegative_finite(albedo), 0.0, 1.0)
-    return (clamped + np.float32(ALBEDO_EPSILON)).transpose(2, 0, 1).astype(np.float32)
+    factor = (clamped + np.float32(ALBEDO_EPSILON)) * np.asarray(balance, np.float32)
+    return factor.transpose(2, 0, 1).astype(np.float32)
 
 
-def demodulated_log_color(color: np.ndarray, albedo: np.ndarray) -> np.ndarray:
+def demodulated_log_color(color: np.ndarray, albedo: np.ndarray, balance: np.ndarray = NO_BALANCE) -> np.ndarray:
     """(H, W, 3) radiance and albedo → (3, H, W) log1p of the sanitised radiance / albedo_factor (clamped
     to f32's max first: bright radiance over black albedo would overflow)."""
-    irradiance = nonnegative_finite(color).transpose(2, 0, 1).astype(np.float64) / albedo_factor(albedo)
+    irradiance = nonnegative_finite(color).transpose(2, 0, 1).astype(np.float64) / albedo_factor(albedo, balance)
     return np.log1p(np.minimum(irradiance, np.finfo(np.float32).max)).astype(np.float32)
 
 
@@ -66,15 +90,18 @@ def sample_count_plane(spp, shape: tuple[int, int]) -> np.ndarray:
     return (1.0 / np.sqrt(np.maximum(np.nan_to_num(counts, nan=1.0), 1.0)))[None].astype(np.float32)
 
 
-def pack_denoiser_input(color, albedo, normal, depth, spp=1, frame_max: float | None = None) -> np.ndarray:
+def pack_denoiser_input(color, albedo, normal, depth, spp=1, frame_max: float | None = None,
+                        balance: np.ndarray | None = None) -> np.ndarray:
     """(H, W, 3) radiance, albedo, normal, (H, W[, 1]) depth and the sample count (one number, or an
     (H, W[, 1]) map as adaptive sampling makes) → the denoiser's (11, H, W) float32 input: log1p of the
-    albedo-demodulated RGB, albedo clamped to [0, 1], normal·0.5+0.5 clamped to [0, 1], depth / frame max
-    depth (``frame_max``, default this depth's own), 1/sqrt(spp) (``sample_count_plane``)."""
+    albedo-demodulated, white-balanced RGB (``balance``, default this frame's own ``white_balance_gains``),
+    albedo clamped to [0, 1], normal·0.5+0.5 clamped to [0, 1], depth / frame max depth (``frame_max``,
+    default this depth's own), 1/sqrt(spp) (``sample_count_plane``)."""
     clamped_albedo = np.clip(nonnegative_finite(albedo), 0.0, 1.0).transpose(2, 0, 1)
     normal = np.clip(finite(normal) * 0.5 + 0.5, 0.0, 1.0).transpose(2, 0, 1)
     depth = normalize_depth(depth, frame_max_depth(depth) if frame_max is None else frame_max)[None]
-    return np.concatenate([demodulated_log_color(color, albedo), clamped_albedo, normal, depth,
+    balance = white_balance_gains(color, albedo) if balance is None else balance
+    return np.concatenate([demodulated_log_color(color, albedo, balance), clamped_albedo, normal, depth,
                            sample_count_plane(spp, depth.shape[1:])]).astype(np.float32)
 
 
@@ -98,11 +125,14 @@ def level_sample_counts(spp, shape: tuple[int, int], factor: int) -> np.ndarray:
     return block_sum(np.broadcast_to(np.asarray(spp, np.float64).reshape(np.shape(spp)[:2]), shape), factor)
 
 
-def pack_level_input(color, albedo, normal, depth, spp=1, factor: int = 2) -> np.ndarray:
+def pack_level_input(color, albedo, normal, depth, spp=1, factor: int = 2, balance: np.ndarray | None = None
+                     ) -> np.ndarray:
     """The denoiser's (11, ceil(H/f), ceil(W/f)) input for the frame averaged over f×f blocks, f = ``factor``
     (a coarser level of frame/lowband.py): each pixel packs the mean of its block of frame pixels
     (sanitised colour, albedo and depth; the normals' mean renormalised, 0 where its largest component
-    is under 1e-6), the block's sample counts summed, depth divided by the full frame's max."""
+    is under 1e-6), the block's sample counts summed, depth divided by the full frame's max, colour
+    balanced by the full frame's gains (``balance``, default its ``white_balance_gains``)."""
+    balance = white_balance_gains(color, albedo) if balance is None else balance
     height, width = np.shape(color)[:2]
     depth = np.asarray(depth).reshape(height, width, 1)
     normal = block_mean(finite(normal), factor).astype(np.float64)
@@ -112,7 +142,8 @@ def pack_level_input(color, albedo, normal, depth, spp=1, factor: int = 2) -> np
     return pack_denoiser_input(block_mean(nonnegative_finite(color), factor),
                                block_mean(nonnegative_finite(albedo), factor), normal,
                                block_mean(nonnegative_finite(depth), factor),
-                               level_sample_counts(spp, (height, width), factor), frame_max=frame_max_depth(depth))
+                               level_sample_counts(spp, (height, width), factor), frame_max=frame_max_depth(depth),
+                               balance=balance)
 
 
 def pack_error_input(color) -> np.ndarray:
@@ -146,34 +177,59 @@ class DepthMaxPass(ComputePass):
         self.kernel.dispatch(encoder, {"depth": buffers.get(DEPTH), "depth_max_bits": self.result})
 
 
+class WhiteBalancePass(ComputePass):
+    """radiance, albedo → ``self.result``, a buffer of the frame's three white-balance gains
+    (``white_balance_gains``, found by frame/balance.wgsl: per-tile sums, then one workgroup's reduction; not a
+    per-pixel plane, so the pass owns it; the denoiser's packing and unpacking passes are handed it)."""
+
+    inputs = (RADIANCE, ALBEDO)
+
+    def __init__(self, ctx, width: int, height: int):
+        constants = {"POWER": WHITE_BALANCE_POWER, "FLOOR": WHITE_BALANCE_FLOOR}
+        self.tile_kernel = FrameKernel(ctx, "frame/balance.wgsl", "tile_sums_main", ("color", "albedo", "tile_sums"),
+                                       width, height, constants)
+        self.gains_kernel = FrameKernel(ctx, "frame/balance.wgsl", "gains_main", ("tile_sums", "balance"),
+                                        width, height, constants)
+        tiles = ceil_div(width, TILE) * ceil_div(height, TILE)
+        self.tile_sums = ctx.storage(4 * 3 * tiles, label="irradiance tile sums")
+        self.result = ctx.storage(4 * 3, label="white balance")
+
+    def execute(self, encoder, buffers) -> None:
+        planes = {"color": buffers.get(RADIANCE), "albedo": buffers.get(ALBEDO), "tile_sums": self.tile_sums,
+                  "balance": self.result}
+        self.tile_kernel.dispatch(encoder, planes)
+        self.gains_kernel.dispatch(encoder, planes, groups=(1, 1))
+
+
 class PackDenoiserPass(ComputePass):
     """radiance, albedo, normal, depth, spp → denoiser_input (11 planes); ``depth_max`` is a DepthMaxPass's
-    result, recorded earlier in the same encoder. A denoiser trained without the sample-count plane (10
-    inputs, models before it) reads the first 10 planes, which are laid out as before."""
+    result and ``balance`` a WhiteBalancePass's, recorded earlier in the same encoder. A denoiser trained
+    without the sample-count plane (10 inputs, models before it) reads the first 10 planes, which are laid
+    out as before."""
 
     inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP)
     outputs = (DENOISER_INPUT,)
 
-    def __init__(self, ctx, width: int, height: int, depth_max):
-        self.depth_max = depth_max
+    def __init__(self, ctx, width: int, height: int, depth_max, balance):
+        self.depth_max, self.balance = depth_max, balance
         self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_denoiser", DENOISER_BINDINGS, width, height)
 
     def execute(self, encoder, buffers) -> None:
         self.kernel.dispatch(encoder, {
             "color": buffers.get(RADIANCE), "albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL),
             "depth": buffers.get(DEPTH), "depth_max_bits": self.depth_max, "spp": buffers.get(SPP),
-            "packed": buffers.get(DENOISER_INPUT)})
+            "packed": buffers.get(DENOISER_INPUT), "balance": self.balance})
 
 
 class PackLevelPass(ComputePass):
     """radiance, albedo, normal, depth, spp → ``self.result``, the denoiser's input for the frame averaged
     over ``factor``×``factor`` blocks (``self.size``: ceil(W/factor)×ceil(H/factor); not a frame-sized
-    plane, so the pass owns it); ``depth_max`` as for PackDenoiserPass."""
+    plane, so the pass owns it); ``depth_max`` and ``balance`` (the full frame's) as for PackDenoiserPass."""
 
     inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP)
 
-    def __init__(self, ctx, width: int, height: int, depth_max, factor: int):
-        self.depth_max = depth_max
+    def __init__(self, ctx, width: int, height: int, depth_max, balance, factor: int):
+        self.depth_max, self.balance = depth_max, balance
         self.size = (ceil_div(width, factor), ceil_div(height, factor))
         self.result = ctx.storage(DENOISER_INPUT.nbytes(*self.size), label=f"denoiser_input, {factor}x{factor} blocks")
         self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_denoiser_level", DENOISER_BINDINGS, width, height,
@@ -183,7 +239,8 @@ class PackLevelPass(ComputePass):
         self.kernel.dispatch(encoder, {
             "color": buffers.get(RADIANCE), "albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL),
             "depth": buffers.get(DEPTH), "depth_max_bits": self.depth_max, "spp": buffers.get(SPP),
-            "packed": self.result}, groups=(ceil_div(self.size[0], TILE), ceil_div(self.size[1], TILE)))
+            "packed": self.result, "balance": self.balance},
+            groups=(ceil_div(self.size[0], TILE), ceil_div(self.size[1], TILE)))
 
 
 class PackErrorPass(ComputePass):

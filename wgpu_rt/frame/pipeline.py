@@ -183,7 +183,8 @@ class FramePipeline:
     (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE
     while some pixel holds fewer than LOW_BAND_MAX_SPP samples). ``chroma``: the denoised colour
     balance held to the samples' block means (frame/chroma.py). ``post_filter``: the denoised frame
-    smoothed by an edge-aware à-trous filter (frame/atrous.py). ``aovs`` names the G-buffer planes to
+    smoothed by an edge-aware à-trous filter (frame/atrous.py). ``white_balance``: the denoiser's input
+    white-balanced by the frame's gains (frame/pack.py). ``aovs`` names the G-buffer planes to
     read back with the colour; ``operator`` None skips the display image;
     ``hdr=False`` skips the HDR colour (12 bytes a pixel; ``RenderResult.color`` is then None) for
     callers that want only the display image or AOVs.
@@ -194,7 +195,8 @@ class FramePipeline:
                  temporal: TemporalSettings | None = None, confidence=None, aovs=(),
                  operator: str | None = "aces", exposure: float = 0.0, srgb: bool = True,
                  output: str = "rgba8", timings: bool | None = None, progress=None, aux_samples: int = 0,
-                 hdr: bool = True, low_band: bool | None = None, chroma: bool = True, post_filter: bool = True):
+                 hdr: bool = True, low_band: bool | None = None, chroma: bool = True, post_filter: bool = True,
+                 white_balance: bool = True):
         check_readback(hdr, operator, aovs)
         if adaptive is not None and adaptive.sampler == "heat" and error_predictor is None:
             raise ModelError("the heat adaptive sampler needs an error predictor model")
@@ -213,7 +215,8 @@ class FramePipeline:
             fewest = spp if temporal is None and adaptive is None else 1
             self.chain = DenoiseChain(ctx, width, height, denoiser, self.depth_max.result,
                                       low_band_levels(width, height, low_band, fewest), chroma, post_filter,
-                                      converge=(spp > 1 or adaptive is not None) and temporal is None)
+                                      converge=(spp > 1 or adaptive is not None) and temporal is None,
+                                      white_balance=white_balance)
             color = self.chain.output
         half_aovs = {HALF_RADIANCE.name, HALF_SPP.name} & set(aovs)
         if half_aovs and temporal is not None:

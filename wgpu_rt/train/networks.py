@@ -1,8 +1,9 @@
 """The three networks, defined in torch (training only) and exported to ONNX for the WGSL engine.
 
-- ``UNet``: the denoiser. Input: 11 channels, NCHW — log1p(noisy HDR RGB / (albedo + 0.01)), albedo RGB,
+- ``UNet``: the denoiser. Input: 11 channels, NCHW — log1p(noisy HDR RGB / ((albedo + 0.01) · the frame's
+  white-balance gain)), albedo RGB,
   normals mapped to [0, 1], normalized depth, 1/sqrt(spp) (wgpu_rt.frame.pack.pack_denoiser_input).
-  Output: log1p of the clean irradiance (the pipeline applies expm1 and multiplies by albedo + 0.01:
+  Output: log1p of the clean irradiance (the pipeline applies expm1 and multiplies by (albedo + 0.01) · gain:
   wgpu_rt.frame.pack/unpack). Levels of
   ``widths`` channels, each a double 3×3 conv + ReLU; 2×2 max-pool down; 2×2 stride-2 transposed conv
   up; skips concatenated on channels and merged by a double 3×3 conv; a 1×1 conv to RGB. With

@@ -36,7 +36,7 @@ import torch
 
 from ..dataset.store import View
 from ..frame.pack import (albedo_factor, demodulated_log_color, log_color, pack_confidence_input,
-                          pack_denoiser_input, pack_error_input)
+                          pack_denoiser_input, pack_error_input, white_balance_gains)
 from .targets import HEATMAP_PERCENTILE, confidence_pair
 
 ANY_SPP = "any"   # a curriculum stage: each crop draws one of its view's rendered sample counts
@@ -279,8 +279,9 @@ def _expose(planes: torch.Tensor, channels: slice, exposure) -> torch.Tensor:
 
 class DenoiserSamples(TaskSamples):
     """Noisy render at ``spp`` + G-buffers → 6 target planes: log1p of gold demodulated by the noisy
-    render's albedo factor (what the network outputs), then that factor (for the loss on remodulated
-    colour, which is what unpack produces and the metrics score)."""
+    render's albedo factor and white-balanced by its gains (what the network outputs), then that factor
+    times the gains (for the loss on remodulated colour, which is what unpack produces and the metrics
+    score)."""
 
     aux_channels = slice(3, 10)
     exposed_target = slice(0, 3)
@@ -290,9 +291,11 @@ class DenoiserSamples(TaskSamples):
     def planes(self, item, spp, copy=0):
         frame = self.views[item[0]].frames[item[1]]
         noisy = frame.renders_at(spp)[copy]
-        x = pack_denoiser_input(noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"], spp)
+        balance = white_balance_gains(noisy["color"], noisy["albedo"])
+        x = pack_denoiser_input(noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"], spp, balance=balance)
         gold = frame.gold["color"]
-        return x, np.concatenate([demodulated_log_color(gold, noisy["albedo"]), albedo_factor(noisy["albedo"])])
+        return x, np.concatenate([demodulated_log_color(gold, noisy["albedo"], balance),
+                                  albedo_factor(noisy["albedo"], balance)])
 
 
 class ErrorSamples(TaskSamples):

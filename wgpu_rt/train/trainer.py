@@ -502,6 +502,7 @@ class Trainer:
 
     def validate(self) -> dict[str, float]:
         from .. import metrics
+        from ..frame.pack import white_balance_gains
         from ..frame.unpack import unpack_denoiser_output
 
         scores: dict[str, list[float]] = {}
@@ -510,7 +511,9 @@ class Trainer:
             out = self.predict(x)
             if self.config.task == "denoiser":
                 frame = self.val_set.views[item[0]].frames[item[1]]
-                denoised = unpack_denoiser_output(out, frame.noisy[1]["albedo"])
+                noisy = frame.noisy[1]
+                gains = white_balance_gains(noisy["color"], noisy["albedo"])
+                denoised = unpack_denoiser_output(out, noisy["albedo"], gains)
                 values = metrics.all_metrics(frame.gold["color"], denoised)
             elif self.config.model_name == "error_predictor":
                 values = {"spearman": rank_correlation(out, y)}
@@ -599,8 +602,9 @@ class Trainer:
             + ("; each draw takes a random one of a frame's independent 1-spp renders" if copied else ""),
         ]
         if cfg.task == "denoiser":
-            lines.append("- input and output colour demodulated by albedo: log1p(colour / (albedo + "
-                         f"{ALBEDO_EPSILON})); unpack multiplies back")
+            lines.append("- input and output colour demodulated by albedo and white-balanced: log1p(colour / "
+                         f"((albedo + {ALBEDO_EPSILON}) · gain)), the gains the square roots of the frame's mean "
+                         "irradiance per channel over their mean; unpack multiplies back")
             drawn = "; 'any': each crop draws one of its view's sample counts" if ANY_SPP in cfg.curriculum else ""
             lines.append(f"- loss 0.8·(1 − SSIM on {cfg.ssim_space} colour) + 0.2·{cfg.pixel_loss} on log1p "
                          "irradiance" + (f" + {cfg.lowpass:g}·L1 of its 8×8 block means" if cfg.lowpass else "")

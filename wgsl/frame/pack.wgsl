@@ -1,12 +1,13 @@
 // Packing the tracer's planes into the networks' planar NCHW f32 inputs, one invocation per pixel.
 // Colours go to log space (log1p of the sanitised radiance: NaN/Inf → 0, negatives → 0) so that HDR
 // values up to f16's 65504 land near 11 and the FP16 network path keeps precision; the denoiser's colour
-// is first demodulated by albedo (frame/albedo.wgsl: it sees irradiance); albedo is clamped
+// is first demodulated by albedo (frame/albedo.wgsl: it sees irradiance) and white-balanced by the frame's
+// gains (frame/balance.wgsl, found earlier in the same encoder); albedo is clamped
 // to [0, 1], normals are mapped by n·0.5 + 0.5, and depth is divided by the frame's max depth (read as
 // the bit pattern written by frame/depth_max.wgsl; a frame with no hit packs depth 0). The denoiser's
 // last plane says how many samples the pixel's colour averages, as 1/sqrt(spp) (its noise relative to
 // one sample's: 1 at 1 spp, 1/16 at 256; a pixel of 0 samples counts as 1).
-//   pack_denoiser:   11 ch = log1p RGB/albedo factor, albedo, normal·0.5+0.5, depth/max, 1/sqrt(spp)
+//   pack_denoiser:   11 ch = log1p RGB/(albedo factor·gain), albedo, normal·0.5+0.5, depth/max, 1/sqrt(spp)
 //   pack_denoiser_level: the same for the frame averaged over LEVEL_FACTOR² blocks (frame/lowband.wgsl)
 //   pack_error:       3 ch = log1p RGB                                     (error predictor)
 //   pack_confidence:  8 ch = log1p RGB, log1p reprojected history RGB, depth/max,
@@ -22,6 +23,7 @@
 @group(0) @binding(5) var<storage, read> reprojected: array<f32>;   // frame/temporal.wgsl's 5 planes
 @group(0) @binding(6) var<storage, read_write> packed: array<f32>;
 @group(0) @binding(7) var<storage, read> spp: array<u32>;
+@group(0) @binding(8) var<storage, read> balance: array<f32, 3>;   // frame/balance.wgsl's gains
 
 fn log_color(channel: u32, i: u32) -> f32 {
     return log1p_accurate(sanitize(color[channel * pixel_count() + i]));
@@ -39,7 +41,7 @@ fn normalized_depth(d: f32) -> f32 {
 fn write_denoiser_input(i: u32, n: u32, rgb: vec3f, albedo_value: vec3f, normal_value: vec3f, d: f32,
                         samples: u32) {
     for (var c = 0u; c < 3u; c++) {
-        packed[c * n + i] = log1p_accurate(min(rgb[c] / albedo_factor(albedo_value[c]), F32_MAX));
+        packed[c * n + i] = log1p_accurate(min(rgb[c] / (albedo_factor(albedo_value[c]) * balance[c]), F32_MAX));
         packed[(3u + c) * n + i] = clamp(albedo_value[c], 0.0, 1.0);
         packed[(6u + c) * n + i] = clamp(normal_value[c] * 0.5 + 0.5, 0.0, 1.0);
     }
