@@ -26,7 +26,7 @@ def add_denoiser_step_flags(parser, image: str = "frame") -> None:
     parser.add_argument("--white-balance", choices=list(SWITCHES), default="on",
                         help="divide the irradiance the network reads by the frame's per-channel gains (the "
                              "square roots of its channels' means over their mean) and multiply them back "
-                             "after: the network turns strongly coloured light grey (default on)")
+                             "after, so that strongly coloured light does not come out greyed (default on)")
     parser.add_argument("--low-band", choices=list(LOW_BAND_SETTINGS), default="auto",
                         help="the denoiser's band below quarter resolution from passes at half (and, from "
                              "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
