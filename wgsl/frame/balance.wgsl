@@ -1,11 +1,11 @@
 // The denoiser's white balance (frame/pack.py's white_balance_gains), found on the device in two dispatches so
 // that packing needs no CPU round trip. The irradiance is what pack_denoiser demodulates: sanitised
 // colour / albedo_factor, each pixel's clamped to IRRADIANCE_LIMIT so that the sums stay finite.
-//   tile_sums: each 8×8 workgroup sums its pixels' irradiance (tree reduction in workgroup memory) into
-//              tile_sums[3·tile + c], tiles numbered row by row;
-//   gains:     one workgroup of 256 sums the tiles' sums (each invocation a strided share, then a tree),
-//              divides by the pixel count and writes balance[c] = max(mean_c^POWER / mean of the three,
-//              FLOOR), or 1 for every channel when the frame is black.
+//   tile_sums_main: each 8×8 workgroup sums its pixels' irradiance (tree reduction in workgroup memory) into
+//                   tile_sums[3·tile + c], tiles numbered row by row;
+//   gains_main:     one workgroup of 256 sums the tiles' sums (each invocation a strided share, then a
+//                   tree), divides by the pixel count and writes balance[c] = max(mean_c^POWER / mean of
+//                   the three, FLOOR), or 1 for every channel when the frame is black.
 // #import frame/common.wgsl
 // #import frame/albedo.wgsl
 
