@@ -633,6 +633,7 @@ def test_denoiser_steps_frame_equals_the_numpy_path(gpu):
     (dict(quality="best"), "quality 'best': choose one of balanced, high"),
     (dict(chroma="on"), "chroma must be True or False"),
     (dict(post_filter=1), "post_filter must be True or False"),
+    (dict(white_balance="off"), "white_balance must be True or False"),
     (dict(low_band="on"), "low_band must be True, False or None"),
     (dict(hdr=False, aovs=()), "read nothing back"),
     (dict(hdr=False, tonemap=None, aovs=""), "read nothing back"),
