@@ -26,14 +26,3 @@ fn bsdf_sample(m: Material, wi: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
     }
     return diffuse_sample(m, wi, u);
 }
-
-// The albedo the denoiser sees for a non-delta surface.
-fn bsdf_albedo(m: Material) -> vec3f {
-    if HAS_CONDUCTOR && m.kind == MATERIAL_CONDUCTOR {
-        return m.reflectance * fresnel_conductor(1.0, m.eta, m.k);
-    }
-    if HAS_DIELECTRIC && m.kind == MATERIAL_DIELECTRIC {
-        return vec3f(1.0);
-    }
-    return m.reflectance;
-}

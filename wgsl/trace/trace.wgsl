@@ -21,6 +21,7 @@
 // #import trace/trace_bindings.wgsl
 // #import accel/bvh.wgsl
 // #import trace/bsdf.wgsl
+// #import trace/guide_albedo.wgsl
 // #import trace/emitters.wgsl
 // #import trace/camera.wgsl
 // #import trace/surface.wgsl
@@ -94,6 +95,9 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     let dir = (*path).dir;
     let depth = (*path).depth;
     if hit.prim == NO_HIT {
+        if WRITE_AOVS && (*path).albedo_pending {
+            (*path).albedo = background_albedo();
+        }
         if HAS_ANALYTIC_LIGHTS && params.background_pmf > 0.0 {
             let light_pdf = params.background_pmf * INV_FOUR_PI;
             let weight = select(power_heuristic((*path).previous_pdf, light_pdf), 1.0, (*path).previous_delta);
@@ -129,7 +133,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
             }
         }
         if (*path).albedo_pending && !material_is_delta(material) {
-            (*path).albedo = bsdf_albedo(material);
+            (*path).albedo = surface_albedo(material, cos_front > 0.0);
             (*path).albedo_pending = false;
         }
     }
