@@ -424,6 +424,23 @@ def test_a_dataset_from_before_the_worlds_resumes(dataset):
     assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []
 
 
+def test_a_dataset_from_before_the_guide_albedo_is_not_resumed_with_it(dataset):
+    """A dataset rendered while escapes and emitters had albedo 0 lacks ``guide_albedo``: it resumes
+    under that version, and a run that would add views with today's albedo (the command's) is refused by
+    name rather than mixing the two in one folder."""
+    from dataclasses import replace
+
+    from wgpu_rt.trace.trace_pass import GUIDE_ALBEDO
+
+    path = dataset / "config.json"
+    held = json.loads(path.read_text())
+    held.pop("guide_albedo")
+    path.write_text(json.dumps(held))
+    assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []
+    with pytest.raises(DatasetError, match=f"guide_albedo=1, not {GUIDE_ALBEDO}"):
+        TruthEngine(replace(CONFIG, guide_albedo=GUIDE_ALBEDO), dataset, renderer=fake_render).run(progress=False)
+
+
 @pytest.mark.parametrize("change, field", [
     ({"view_id": None}, "view_id"), ({"size": "64"}, "size"), ({"frames": 0}, "≥ 1"), ({"spp": []}, "≥ 1"),
     ({"split": "bogus"}, "split"), ({"seconds": "a while"}, "seconds"), ({"noisy_copies": -1}, "≥ 1"),

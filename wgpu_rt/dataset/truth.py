@@ -49,7 +49,7 @@ GBUFFERS = ("albedo", "normal", "depth", "motion")
 # View numbers, seeds and images depend on all of these, so a resumed run must keep them.
 CONFIG_KEYS_THAT_MUST_MATCH = ("scenes", "views", "size", "spp", "gold", "seed", "max_depth",
                                "sequence_length", "sequence_fraction", "mesh_dir", "worlds", "family",
-                               "aux_samples")
+                               "aux_samples", "guide_albedo")
 MAX_WORLDS = 2 ** 20     # world numbers of one dataset seed stay distinct (see plan_views)
 
 
@@ -76,6 +76,9 @@ class DatasetConfig:
     # does (TracePass.execute_aux), so training sees what inference feeds; 0: the tracer's own (datasets
     # rendered before the aux pass lack the key and mean 0).
     aux_samples: int = 0
+    # What the albedo of escapes and emitters is (trace_pass.GUIDE_ALBEDO; datasets rendered before the
+    # key existed mean 1: 0 and the reflectance).
+    guide_albedo: int = 1
 
     def __post_init__(self):
         """Refuse settings that cannot make a dataset, naming the command-line flag."""
@@ -218,7 +221,7 @@ def check_config(out: Path, config: DatasetConfig) -> None:
         defaults = {f.name: f.default for f in fields(DatasetConfig)}   # for keys older datasets lack
         for key in CONFIG_KEYS_THAT_MUST_MATCH:
             if held.get(key, defaults[key]) != json.loads(json.dumps(wanted[key])):
-                raise DatasetError(f"{path}: this dataset was rendered with {key}={held.get(key)!r}, "
+                raise DatasetError(f"{path}: this dataset was rendered with {key}={held.get(key, defaults[key])!r}, "
                                    f"not {wanted[key]!r}; use another --out or the same settings")
     try:
         out.mkdir(parents=True, exist_ok=True)
