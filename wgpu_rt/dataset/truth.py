@@ -76,8 +76,8 @@ class DatasetConfig:
     # does (TracePass.execute_aux), so training sees what inference feeds; 0: the tracer's own (datasets
     # rendered before the aux pass lack the key and mean 0).
     aux_samples: int = 0
-    # What the albedo of escapes and emitters is (trace_pass.GUIDE_ALBEDO; datasets rendered before the
-    # key existed mean 1: 0 and the reflectance).
+    # What an escaping path's albedo is (trace_pass.GUIDE_ALBEDO; datasets rendered before the key existed
+    # mean 1: 0).
     guide_albedo: int = 1
 
     def __post_init__(self):

@@ -10,10 +10,9 @@ failed sample adds nothing); non-finite normal components become 0 (mapping to 0
 
 The denoiser sees colour *demodulated* by albedo: log1p(colour / (albedo + ALBEDO_EPSILON)), the
 irradiance, which is smooth across texture and material edges (those come back, noise-free, when
-``unpack`` multiplies by the same factor). ALBEDO_EPSILON keeps black albedo finite. Where a pixel shows
-something that reflects nothing, the tracer's albedo is what its colour is a multiple of (the background's
-radiance where a path escapes, an emitter's reflectance + emission; each at most 1;
-``wgsl/trace/guide_albedo.wgsl``), so the irradiance stays smooth across horizons and emitters' rims.
+``unpack`` multiplies by the same factor). ALBEDO_EPSILON keeps black albedo finite. Where a path escapes,
+the tracer's albedo is the background's radiance (at most 1; ``wgsl/trace/guide_albedo.wgsl``), what the
+pixel's colour is a multiple of, so the irradiance stays smooth across a horizon.
 The irradiance is also white-balanced: each channel divided by the frame's gain (``white_balance_gains``,
 on the device ``WhiteBalancePass``), which ``unpack`` multiplies back. The shipped network, trained on
 light that is mostly near white, turns strongly coloured light grey: given a 4096-spp render of a room lit

@@ -77,9 +77,8 @@ CHUNK_START_OFFSET = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
 # twice the aux pass on glass scenes (§15): kept for quality, the first saving to take where it weighs.
 AUX_SAMPLES = 4
 AUX_DELTA_FACTOR = 2
-# What the albedo plane holds where a path escapes or meets an emitter's front (wgsl/trace/guide_albedo.wgsl):
-# since version 2 the background's radiance and reflectance + emission, each at most 1; in 1 (datasets
-# rendered before) 0 and the reflectance alone. A dataset records the version it was rendered with.
+# What the albedo plane holds where a path escapes (wgsl/trace/guide_albedo.wgsl): since version 2 the
+# background's radiance, at most 1; in 1 (datasets rendered before) 0. A dataset records its version.
 GUIDE_ALBEDO = 2
 
 

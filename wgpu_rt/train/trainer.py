@@ -551,7 +551,7 @@ class Trainer:
                 f"{dataset.get('spp')} spp"
                 + (f" ({copies} independent renders of each frame at {min(dataset['spp'])} spp)" if copies > 1 else "")
                 + f"; gold at {dataset.get('gold')} spp; max depth {dataset.get('max_depth')}; "
-                + ("escapes and emitters with albedo 0 (rendered before the guide albedo's version 2); "
+                + ("escaping paths with albedo 0 (rendered before the guide albedo's version 2); "
                    if int(dataset.get("guide_albedo", 1)) < 2 else "")
                 + f"{len(manifest['views'])} views rendered in {render_minutes:.1f} min")
 

@@ -17,8 +17,8 @@
 // Only pixels behind mirrors and glass take the extra samples (a pixel seen directly varies only by its
 // jitter at edges). (The count depends on what the first paths met, so at the rim of a glass object the
 // average leans slightly towards its delta side.)
-// Albedo as the tracer takes it (trace/guide_albedo.wgsl: emitters' emission and an escape's background
-// count); running out of max_depth inside the chain counts as albedo 0, as in the tracer. Like
+// Albedo as the tracer takes it (trace/guide_albedo.wgsl: an escape's is the background's radiance);
+// running out of max_depth inside the chain counts as albedo 0, as in the tracer. Like
 // the tracer (LOOP_BUDGET in trace/trace.wgsl), an invocation starts no new sample once its loops have
 // gone round AUX_LOOP_BUDGET times (lavapipe ends loops at 65535 turns per dispatch) and averages the
 // samples it completed.
@@ -71,7 +71,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                 let delta = material_is_delta(material);
                 met_delta = met_delta || delta;
                 if !delta {
-                    sum += weight * surface_albedo(material, -dot(traced.geometric_normal, dir) > 0.0);
+                    sum += weight * surface_albedo(material);
                 } else if depth + 1u < params.max_depth {
                     let geometric_normal = traced.geometric_normal;
                     let cos_front = -dot(geometric_normal, dir);

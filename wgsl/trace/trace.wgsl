@@ -133,7 +133,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
             }
         }
         if (*path).albedo_pending && !material_is_delta(material) {
-            (*path).albedo = surface_albedo(material, cos_front > 0.0);
+            (*path).albedo = surface_albedo(material);
             (*path).albedo_pending = false;
         }
     }
