@@ -390,7 +390,7 @@ def test_albedo_of_an_escape_is_the_background(gpu, aux_samples):
     pass's agree on it."""
     from pathlib import Path
 
-    from first_hits import first_materials
+    from scene_scores import first_materials
     from wgpu_rt.scene.loader import parse_scene
 
     scene = parse_scene(GLOW_SCENE, "glow", Path("."))

@@ -1,14 +1,17 @@
-"""What each pixel's camera rays meet first, by the tracer's own ray queries: SUBPIXELS² rays a pixel on
-a regular grid. The denoiser's scene tests pick the pixels they score with it (those that see only
-glass; those on a rim between sky and ground or around an emitter)."""
+"""The denoiser's scene tests: what each pixel's camera rays meet first, by the tracer's own ray queries
+(SUBPIXELS² rays a pixel on a regular grid), to pick the pixels a test scores (those that see only glass;
+those on the horizon), and the shipped denoiser's PSNR there and over the whole image."""
 
 import numpy as np
 
 from wgpu_rt.accel.geometry import GeometryBuffers, scene_material_names
 from wgpu_rt.accel.ray_query import NO_HIT, RayQuery, query_rays
+from wgpu_rt.metrics import psnr
+from wgpu_rt.renderer import render
 from wgpu_rt.trace.scene_data import camera_vectors
 
 SUBPIXELS = 4
+SEEDS = (0, 1, 2, 3)   # the 1-spp renders a test scores, a mean over them
 
 
 def first_materials(ctx, scene, size: int) -> np.ndarray:
@@ -26,3 +29,16 @@ def first_materials(ctx, scene, size: int) -> np.ndarray:
     met = np.where(hits["prim"] != NO_HIT, np.minimum(surfaces["material"], len(names) - 2), len(names) - 1)
     per_subpixel = names[met].reshape(size, SUBPIXELS, size, SUBPIXELS).transpose(0, 2, 1, 3)
     return per_subpixel.reshape(size, size, -1)
+
+
+def denoised_psnr(ctx, scene, size: int, mask: np.ndarray, gold_spp: int, seeds=SEEDS) -> tuple[list, list]:
+    """PSNR of ``render(..., denoise=True)`` at 1 spp against a gold render at ``gold_spp`` (seed 1000), over
+    ``mask`` and over the whole image, one of each per seed; every denoised image must be finite."""
+    gold = render(scene, gold_spp, (size, size), seed=1000, ctx=ctx).color
+    region, image = [], []
+    for seed in seeds:
+        denoised = render(scene, 1, (size, size), seed=seed, denoise=True, ctx=ctx).color
+        assert np.isfinite(denoised).all()
+        region.append(psnr(gold[mask], denoised[mask]))
+        image.append(psnr(gold, denoised))
+    return region, image
