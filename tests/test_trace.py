@@ -399,7 +399,8 @@ def test_albedo_of_an_escape_is_the_background(gpu, aux_samples):
     sky = (met == "").all(axis=-1)
     tiles = (met == "glow").all(axis=-1)
     assert sky.sum() > 20 and tiles[:, :16].sum() > 20 and tiles[:, 16:].sum() > 20
-    np.testing.assert_allclose(albedo[sky], np.broadcast_to(np.minimum(SKY_RADIANCE, 1.0), albedo[sky].shape), atol=1e-6)
+    sky_albedo = np.broadcast_to(np.minimum(SKY_RADIANCE, 1.0), albedo[sky].shape)
+    np.testing.assert_allclose(albedo[sky], sky_albedo, atol=1e-6)
     np.testing.assert_allclose(albedo[tiles], GLOW_REFLECTANCE, atol=1e-6)
 
 
