@@ -425,7 +425,7 @@ def test_a_dataset_from_before_the_worlds_resumes(dataset):
 
 
 def test_a_dataset_from_before_the_guide_albedo_is_not_resumed_with_it(dataset):
-    """A dataset rendered while escapes and emitters had albedo 0 lacks ``guide_albedo``: it resumes
+    """A dataset rendered while escaping paths had albedo 0 lacks ``guide_albedo``: it resumes
     under that version, and a run that would add views with today's albedo (the command's) is refused by
     name rather than mixing the two in one folder."""
     from dataclasses import replace
