@@ -62,7 +62,7 @@ def test_the_rim_is_the_horizon(gpu, open_ground):
     assert mask.any(axis=0).mean() >= 0.7
 
 
-def test_denoised_rims_have_no_seam(gpu, open_ground):
+def test_the_denoised_horizon_has_no_seam(gpu, open_ground):
     mask = rim_pixels(gpu, open_ground)
     rim, image = denoised_psnr(gpu, open_ground, SIZE, mask, GOLD_SPP)
     assert np.mean(rim) >= RIM_BOUND_DB, f"rim {np.round(rim, 2)} dB"
