@@ -425,20 +425,19 @@ def test_a_dataset_from_before_the_worlds_resumes(dataset):
 
 
 def test_a_dataset_from_before_the_guide_albedo_is_not_resumed_with_it(dataset):
-    """A dataset rendered while escaping paths had albedo 0 lacks ``guide_albedo``: it resumes
-    under that version, and a run that would add views with today's albedo (the command's) is refused by
-    name rather than mixing the two in one folder."""
-    from dataclasses import replace
-
+    """config.json records the albedo convention the renderer writes (``guide_albedo``, not a setting);
+    a dataset rendered while escaping paths had albedo 0 lacks the key and reads as version 1, and adding
+    views with today's albedo to it is refused by name rather than mixing the two in one folder."""
     from wgpu_rt.trace.trace_pass import GUIDE_ALBEDO
 
     path = dataset / "config.json"
     held = json.loads(path.read_text())
+    assert held["guide_albedo"] == GUIDE_ALBEDO
+    assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []
     held.pop("guide_albedo")
     path.write_text(json.dumps(held))
-    assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []
     with pytest.raises(DatasetError, match=f"guide_albedo=1, not {GUIDE_ALBEDO}"):
-        TruthEngine(replace(CONFIG, guide_albedo=GUIDE_ALBEDO), dataset, renderer=fake_render).run(progress=False)
+        TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False)
 
 
 @pytest.mark.parametrize("change, field", [

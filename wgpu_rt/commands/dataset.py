@@ -70,7 +70,7 @@ def run(args) -> int:
     from pathlib import Path
 
     from ..dataset import DatasetConfig, DatasetError, TruthEngine
-    from ..trace.trace_pass import AUX_SAMPLES, GUIDE_ALBEDO
+    from ..trace.trace_pass import AUX_SAMPLES
 
     if args.meshes and not Path(args.meshes).is_dir():
         raise DatasetError(f"{args.meshes}: --meshes must be a folder of mesh files")
@@ -81,7 +81,7 @@ def run(args) -> int:
                            noisy_copies=args.noisy_copies,
                            aux_samples=AUX_SAMPLES if args.aux_samples is None else args.aux_samples,
                            mesh_dir=str(Path(args.meshes).resolve()) if args.meshes else None,
-                           worlds=args.worlds, family=args.family, guide_albedo=GUIDE_ALBEDO)
+                           worlds=args.worlds, family=args.family)
     rendered = TruthEngine(config, args.out).run(args.shard, progress=not args.quiet)
     print(f"rendered {len(rendered)} views into {args.out} "
           f"({sum(r.seconds for r in rendered):.1f} s); manifest: {Path(args.out) / 'manifest.json'}")

@@ -46,7 +46,8 @@ from .variety import HELD_OUT_SHAPES, MESH_SUFFIXES, TRAINING_SHAPES, load_mesh_
 from .worlds import FAMILIES, generate_world, world_seed
 
 GBUFFERS = ("albedo", "normal", "depth", "motion")
-# View numbers, seeds and images depend on all of these, so a resumed run must keep them.
+# View numbers, seeds and images depend on all of these, so a resumed run must keep them; ``guide_albedo``
+# is no setting but the renderer's (trace_pass.GUIDE_ALBEDO), recorded beside them.
 CONFIG_KEYS_THAT_MUST_MATCH = ("scenes", "views", "size", "spp", "gold", "seed", "max_depth",
                                "sequence_length", "sequence_fraction", "mesh_dir", "worlds", "family",
                                "aux_samples", "guide_albedo")
@@ -76,9 +77,6 @@ class DatasetConfig:
     # does (TracePass.execute_aux), so training sees what inference feeds; 0: the tracer's own (datasets
     # rendered before the aux pass lack the key and mean 0).
     aux_samples: int = 0
-    # What an escaping path's albedo is (trace_pass.GUIDE_ALBEDO; datasets rendered before the key existed
-    # mean 1: 0).
-    guide_albedo: int = 1
 
     def __post_init__(self):
         """Refuse settings that cannot make a dataset, naming the command-line flag."""
@@ -207,10 +205,13 @@ class ViewRecord:
 
 
 def check_config(out: Path, config: DatasetConfig) -> None:
-    """Record ``config`` in ``out``; on resume, refuse a config that would change existing views (a
-    folder with no rendered image yet takes the new config)."""
+    """Record ``config`` in ``out``, with the albedo convention this renderer writes (``guide_albedo``); on
+    resume, refuse a config or a convention that would change existing views (a folder with no rendered
+    image yet takes the new config)."""
+    from ..trace.trace_pass import GUIDE_ALBEDO
+
     path = out / "config.json"
-    wanted = asdict(config)
+    wanted = {**asdict(config), "guide_albedo": GUIDE_ALBEDO}
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out}: is a file; name a folder")
     if path.exists() and any((out / "views").glob("*/*.exr")):
@@ -218,7 +219,8 @@ def check_config(out: Path, config: DatasetConfig) -> None:
             held = json.loads(path.read_text())
         except json.JSONDecodeError as err:
             raise DatasetError(f"{path}: not valid JSON ({err})") from None
-        defaults = {f.name: f.default for f in fields(DatasetConfig)}   # for keys older datasets lack
+        # for keys older datasets lack (before guide_albedo existed, escaping paths had albedo 0: version 1)
+        defaults = {**{f.name: f.default for f in fields(DatasetConfig)}, "guide_albedo": 1}
         for key in CONFIG_KEYS_THAT_MUST_MATCH:
             if held.get(key, defaults[key]) != json.loads(json.dumps(wanted[key])):
                 raise DatasetError(f"{path}: this dataset was rendered with {key}={held.get(key, defaults[key])!r}, "
