@@ -3,6 +3,8 @@ at each spp, on the same noisy renders, against a gold render. Issue 12's bar: o
 never falls below brute force at the same spp.
 
     python3 benchmarks/bench_spp.py --size 96 --spp 1 2 4 16 64 256 --gold-spp 4096 [--scenes ...] [--quality high]
+    python3 benchmarks/bench_spp.py --size 256 --spp 1 4 --gold-renderer mitsuba --gold-spp 8192 \
+        --oidn-quality balanced --scenes benchmarks/scenes/*.toml     # issue 12's scenes as a user builds them
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ def main():
                              "since one 64² realization moves a model's score by a few tenths of a dB")
     parser.add_argument("--quality", choices=["balanced", "high"], default="balanced",
                         help="our denoiser's quality (high: an ensemble of 4 turned passes)")
+    parser.add_argument("--oidn-quality", choices=["balanced", "high"], default="high",
+                        help="OIDN's quality (issue 12's per-scene bar is against balanced)")
     add_gold_arguments(parser, 4096)
     add_model_arguments(parser)
     args = parse_with_quick_defaults(parser, {"size": 48, "spp": [1, 4, 16], "gold_spp": 512})
@@ -47,16 +51,17 @@ def main():
                                        **options).frames())   # OIDN gets the albedo ours gets
                 ours = next(Renderer(scene, spp, denoise=True, aovs=(), quality=args.quality, **denoiser_options(args),
                                      **options).frames()).color
-                theirs = oidn(noisy.color, noisy.aovs["albedo"], noisy.aovs["normal"])
+                theirs = oidn(noisy.color, noisy.aovs["albedo"], noisy.aovs["normal"], args.oidn_quality)
                 for name, image in (("brute", noisy.color), ("ours", ours), ("oidn", theirs)):
                     scores[name].append(errors(gold, image)["PSNR"] if twin is None
                                         else twin_corrected_psnr(gold, twin, image))
             psnr = {name: sum(values) / len(values) for name, values in scores.items()}
             rows.append([scene.name, spp, psnr["brute"], psnr["ours"], psnr["oidn"],
                          psnr["ours"] - psnr["brute"], psnr["ours"] - psnr["oidn"]])
-    against = (f"the truth as two {args.gold_spp}-spp golds estimate it (--gold-twin)" if args.gold_twin
-               else f"{args.gold_spp}-spp gold")
-    print_table(f"PSNR (dB) against {against}, {args.size}², same noisy input for all"
+    gold = f"{args.gold_spp}-spp gold" + (" of Mitsuba" if args.gold_renderer == "mitsuba" else "")
+    against = f"the truth as two {gold}s estimate it (--gold-twin)" if args.gold_twin else gold
+    print_table(f"PSNR (dB) against {against}, {args.size}², ours {args.quality}, OIDN {args.oidn_quality}, "
+                "same noisy input for all"
                 + (f", mean of {args.seeds} noise seeds" if args.seeds > 1 else ""),
                 ["scene", "spp", "brute force", "ours", "OIDN", "ours − brute", "ours − OIDN"], rows)
 

@@ -29,6 +29,7 @@ MESH_SCENE = "bunny"
 GOLD_SEED = 12345
 GOLD_TWIN_SEED = 54321   # the second gold of --gold-twin
 TRIM_QUANTILE = 0.999
+MITSUBA_PASS_SPP = 512   # a Mitsuba gold renders in passes of at most this many samples (its wavefront's memory)
 
 
 def image_size(text: str) -> tuple[int, int]:
@@ -90,12 +91,20 @@ def resolve_models(args) -> None:
 def load_scenes(names: list[str]) -> list:
     """The scenes named (built-ins; ``bunny``: the mesh scene with ../shared/meshes' Stanford bunny,
     skipped with a message when the file is absent; ``world-SEED``: the generated world of that seed, as
-    the dataset names them, e.g. world-2147483648 is the held-out family's first)."""
+    the dataset names them, e.g. world-2147483648 is the held-out family's first; a scene file, e.g.
+    benchmarks/scenes/*.toml, skipped with a message when it names a mesh file that is absent)."""
     from wgpu_rt.dataset.worlds import generate_world
-    from wgpu_rt.scene import load_scene
+    from wgpu_rt.scene import SCENE_SUFFIXES, load_scene
 
     scenes = []
     for name in names:
+        if Path(name).suffix.lower() in SCENE_SUFFIXES:
+            missing = missing_mesh_files(Path(name))
+            if missing:
+                print(f"skipping {name}: {missing[0]} not found")
+                continue
+            scenes.append(load_scene(name))
+            continue
         if name.startswith("world-") and name[len("world-"):].isdigit():
             scene = generate_world(int(name[len("world-"):]))
             scene.name = name
@@ -111,6 +120,21 @@ def load_scenes(names: list[str]) -> list:
     return scenes
 
 
+def missing_mesh_files(scene_file: Path) -> list[Path]:
+    """The mesh files that the scene file's meshes name (relative to its folder) and that do not exist: the
+    user scenes in benchmarks/scenes name ../shared/meshes, which the project does not ship."""
+    import json
+    import tomllib
+
+    try:
+        text = scene_file.read_text(encoding="utf-8")
+        data = json.loads(text) if scene_file.suffix.lower() == ".json" else tomllib.loads(text)
+        files = [scene_file.parent / entry["file"] for entry in data.get("meshes", []) if "file" in entry]
+    except (OSError, UnicodeDecodeError, ValueError, TypeError, AttributeError):
+        return []   # the scene loader then says what is wrong with the file
+    return [path for path in files if not path.exists()]
+
+
 def add_gold_arguments(parser, default_spp: int) -> None:
     parser.add_argument("--gold-spp", type=int, default=default_spp)
     parser.add_argument("--gold-cache", metavar="DIR",
@@ -122,20 +146,32 @@ def add_gold_arguments(parser, default_spp: int) -> None:
                              "truth as the two estimate it (twin_corrected_psnr): for golds of few spp, whose "
                              "own noise otherwise caps every score and narrows the gaps between them"
                              % GOLD_TWIN_SEED)
+    parser.add_argument("--gold-renderer", choices=["ours", "mitsuba"], default="ours",
+                        help="who renders the gold: our tracer, or Mitsuba 3 in its fastest variant here "
+                             "(an independent reference; llvm_ad_rgb is ~7x our lavapipe speed on meshes)")
 
 
 def gold_render(scene, size, args, seed: int = GOLD_SEED) -> np.ndarray:
-    """(H, W, 3) radiance of our own render at ``args.gold_spp`` with seed 12345 (no other run uses that
-    seed, so the gold's noise is independent of every image measured against it; the twin's: seed
-    GOLD_TWIN_SEED), from ``args.gold_cache`` when it holds one."""
+    """(H, W, 3) radiance of our own render (or Mitsuba's, with --gold-renderer mitsuba: passes of at most
+    MITSUBA_PASS_SPP samples, seeds ``seed``, ``seed`` + 1, …, averaged) at ``args.gold_spp`` with seed
+    12345 (no other run uses that seed, so the gold's noise is independent of every image measured against
+    it; the twin's: seed GOLD_TWIN_SEED), from ``args.gold_cache`` when it holds one."""
     from wgpu_rt.renderer import render
 
+    by_mitsuba = getattr(args, "gold_renderer", "ours") == "mitsuba"
+
     def compute():
+        if by_mitsuba:
+            mi, _ = mitsuba()
+            passes = -(-args.gold_spp // MITSUBA_PASS_SPP)
+            total = sum(mitsuba_render(mi, scene, size, args.gold_spp // passes, args.max_depth, seed + k)[0]
+                        .astype(np.float64) for k in range(passes))
+            return {"color": (total / passes).astype(np.float32)}
         return {"color": render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=seed,
                                 aovs=()).color}
 
     key = (f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}"
-           + ("" if seed == GOLD_SEED else f"_seed{seed}"))
+           + ("" if seed == GOLD_SEED else f"_seed{seed}") + ("_mitsuba" if by_mitsuba else ""))
     return _cached(args, key, compute, ["color"])["color"]
 
 
@@ -216,12 +252,12 @@ def linear_frame(renderer, frame: int = 0) -> np.ndarray:
     return next(renderer.frames(frame)).color
 
 
-def oidn(color, albedo, normal) -> np.ndarray:
-    """Intel Open Image Denoise (pyoidn, HDR mode, quality high, with albedo and normal guides) on the
+def oidn(color, albedo, normal, quality: str = "high") -> np.ndarray:
+    """Intel Open Image Denoise (pyoidn, HDR mode, ``quality``, with albedo and normal guides) on the
     CPU."""
     from peers import oidn_denoise
 
-    return oidn_denoise(color, albedo, normal, quality="high", device="cpu")
+    return oidn_denoise(color, albedo, normal, quality=quality, device="cpu")
 
 
 def errors(reference, image) -> dict[str, float]:
