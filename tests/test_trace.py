@@ -1,6 +1,9 @@
 """The tracer's sampling contract: reproducible from the seed, extra passes add distinct samples and
-keep the running means consistent, the alias table picks emitters in proportion to power, the
+keep the running means consistent, the alias table picks emitters in proportion to power (a sun's and
+a sky's through the region the camera frames), the
 G-buffers hold what ARCHITECTURE.md says they hold."""
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,10 +11,11 @@ import pytest
 from wgpu_rt.renderer import render
 from wgpu_rt.passes import FrameBuffers
 from wgpu_rt.scene import load_scene
+from wgpu_rt.scene.loader import parse_scene
 from wgpu_rt.accel.geometry import GeometryBuffers
 from wgpu_rt.trace import SampleSchedule, TracePass
 from wgpu_rt.trace.trace_pass import WorkList, batch_count, item_counts, work_list_entries
-from wgpu_rt.trace.scene_data import alias_table
+from wgpu_rt.trace.scene_data import alias_table, build_emitter_table, view_radius
 
 SIZE = (24, 24)
 
@@ -218,6 +222,45 @@ def test_alias_table_matches_weights():
     np.testing.assert_allclose(frequency, weights / weights.sum(), atol=2e-4)
 
 
+def test_view_radius_is_what_the_camera_frames_at_its_target():
+    camera = parse_scene(_WIDE_GROUND, "wide ground", Path.cwd()).camera
+    distance = np.hypot(0.6, 3.0)   # origin (0, 1, 3), target (0, 0.4, 0)
+    assert view_radius(camera) == pytest.approx(np.sqrt(2) * distance * np.tan(np.radians(camera.fov) / 2))
+
+
+def test_a_wide_ground_does_not_starve_a_point_light_beside_the_objects():
+    """A sun and a sky over a 16 × 16 ground, and a point light of luminance 1.3 near the objects: through
+    the ground's bounding sphere (radius 11.3) the sun and the sky took 199 picks in 200; through the
+    region the camera frames (radius 1.55) the point light takes 1 in 5 (BENCHMARKS.md §29)."""
+    scene = parse_scene(_WIDE_GROUND, "wide ground", Path.cwd())
+    geometry = GeometryBuffers.build(scene)
+    materials = [scene.materials[n] for n in sorted(scene.materials)]
+
+    def pmf_of(radius):
+        table = build_emitter_table(scene, np.zeros(0, np.intp), np.zeros((0, 3, 3)), geometry.material_ids,
+                                    materials, scene_radius=radius)
+        records = table.records[:table.count]
+        assert table.count == 3 and records["pmf"].sum() == pytest.approx(1.0, abs=1e-6)
+        assert table.background_pmf == pytest.approx(records["pmf"][records["kind"] == 3][0])
+        return {int(k): float(p) for k, p in zip(records["kind"], records["pmf"])}
+
+    wide = pmf_of(11.3)
+    assert wide[1] > 0.15 and wide[2] > 0.15 and wide[3] > 0.15, wide
+    assert pmf_of(1.0)[1] > wide[1], "a scene smaller than the view is taken at its own radius"
+    assert pmf_of(1e6) == pytest.approx(wide)
+
+
+_WIDE_GROUND = {
+    "camera": {"origin": [0, 1, 3], "target": [0, 0.4, 0]},
+    "materials": {"ground": {"reflectance": 0.5}},
+    "meshes": [{"shape": "rectangle", "material": "ground",
+                "transform": {"rotate": {"axis": [1, 0, 0], "angle": -90}, "scale": 8}}],
+    "lights": [{"type": "directional", "direction": [-0.85, -0.3, -0.4], "irradiance": [3.2, 2.5, 1.7]},
+               {"type": "point", "position": [0.9, 1.2, 1.2], "intensity": [1.2, 1.3, 1.5]}],
+    "background": [0.35, 0.5, 0.8],
+}
+
+
 def test_gbuffers_match_the_geometry(gpu):
     """Normals are unit, depth is the camera-axis distance of the first hit (4.9 on the
     back wall, z = -1, seen from z = 3.9 above the boxes), albedo is the material's."""
@@ -347,9 +390,6 @@ def test_aux_albedo_behind_a_pane_of_glass_is_noise_free(gpu, delta_samples):
     pixel behind glass (8 by default; an odd count too) share the first glass bounce's two lobes in
     proportion to F, each weighed by its lobe's share, and leave the slab along its more likely lobe. Picking the lobes at random, as the
     tracer does, spread these pixels by ±0.046 around the mean and fails this test."""
-    from pathlib import Path
-
-    from wgpu_rt.scene.loader import parse_scene
     from wgpu_rt.trace.scene_data import camera_vectors
 
     scene = parse_scene(PANE_SCENE, "pane", Path("."))
@@ -388,10 +428,7 @@ def test_albedo_of_an_escape_is_the_background(gpu, aux_samples):
     most 1 (wgsl/trace/guide_albedo.wgsl: what the pixel's colour is a multiple of); an emitter keeps its
     reflectance from either side. The tracer's own plane (aux_samples=0, one path a sample) and the aux
     pass's agree on it."""
-    from pathlib import Path
-
     from scene_scores import first_materials
-    from wgpu_rt.scene.loader import parse_scene
 
     scene = parse_scene(GLOW_SCENE, "glow", Path("."))
     albedo = _albedo(gpu, scene, 4, aux_samples)

@@ -3,8 +3,12 @@ parameters (bind group 1; record layouts as in wgsl/trace/material.wgsl and wgsl
 
 Emitters are sampled in proportion to their power through an alias table (Vose's method), so next-event
 estimation picks a light in O(1): emissive triangles by luminance·area (uniform in area within one),
-point lights by 4π·intensity, a directional light by its irradiance through the scene's cross-section,
-the constant background by its radiance over a sphere around the scene.
+point lights by 4π·intensity, a directional light by its irradiance through a disc, the constant
+background by its radiance over a sphere. The disc and the sphere have the radius of the region the
+camera frames at its target's distance (``view_radius``), at most the scene's bounding radius: through
+the bounding sphere, a large ground plane made a sun and a sky so powerful that a small point light
+beside the objects was picked once in 200 picks and lit a frosted ball with fireflies, and the same
+starved point lights filled a fifth of issue 12's held-out worlds with fireflies (BENCHMARKS.md §29).
 """
 
 from __future__ import annotations
@@ -64,6 +68,13 @@ def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return threshold.astype(np.float32), alias
 
 
+def view_radius(camera) -> float:
+    """The radius of the region the camera frames at its target's distance: that distance times the tan of
+    half its field of view, times √2 for the corners (the aspect is not known here)."""
+    distance = np.linalg.norm(np.asarray(camera.target, np.float64) - np.asarray(camera.origin, np.float64))
+    return float(np.sqrt(2.0) * distance * np.tan(np.radians(camera.fov) / 2))
+
+
 @dataclass
 class EmitterTable:
     records: np.ndarray            # EMITTER_DTYPE, at least one record (a black one when there is none)
@@ -98,7 +109,7 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
     triangle_power = np.pi * area * (emission @ LUMINANCE)
 
     lights = []  # (kind, position, edge1, edge2, area, radiance, power)
-    cross_section = np.pi * scene_radius ** 2
+    radius = min(scene_radius, view_radius(scene.camera))
     for light in scene.lights:
         if isinstance(light, PointLight):
             intensity = np.asarray(light.intensity, np.float64)
@@ -106,11 +117,11 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
         elif isinstance(light, DirectionalLight):
             irradiance = np.asarray(light.irradiance, np.float64)
             lights.append((EMITTER_DIRECTIONAL, 0, light.direction, 0, 0, irradiance,
-                           cross_section * LUMINANCE @ irradiance))
+                           np.pi * radius ** 2 * LUMINANCE @ irradiance))
     background = np.asarray(scene.background, np.float64)
     if np.any(background > 0):
         lights.append((EMITTER_BACKGROUND, 0, 0, 0, 0, background,
-                       4 * np.pi ** 2 * scene_radius ** 2 * max(float(LUMINANCE @ background), 1e-6)))
+                       4 * np.pi ** 2 * radius ** 2 * max(float(LUMINANCE @ background), 1e-6)))
     lights = [light for light in lights if light[6] > 0]
 
     triangle_count = len(numbers)

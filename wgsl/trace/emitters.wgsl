@@ -1,8 +1,9 @@
 // Next-event estimation over the emitter table: pick an entry with the alias table (probability
-// proportional to its power), then a point on it: area-uniform on a triangle (one-sided: its front
-// face, the side its winding's normal points to), the position of a point light, the direction of a
-// directional light, a uniform direction for the constant background. Also the solid-angle pdf of
-// having sampled a triangle that a BSDF-sampled ray hit, for multiple importance sampling.
+// proportional to its power, as trace/scene_data.py reckons it), then a point on it: area-uniform on a
+// triangle (one-sided: its front face, the side its winding's normal points to), the position of a point
+// light, the direction of a directional light, a uniform direction for the constant background. Also
+// the solid-angle pdf of having sampled a triangle that a BSDF-sampled ray hit, for multiple importance
+// sampling.
 
 // #import trace/features.wgsl
 // #import trace/trace_bindings.wgsl
