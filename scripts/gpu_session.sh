@@ -34,6 +34,9 @@
 # input white-balanced (§27), in training as in every scoring part, so call 2's fine-tune learns it.
 # Session 29 had no GPU; since then a path that escapes takes the background's radiance as albedo (§28),
 # so every view the parts render (guide_albedo 2) has it, and call 2 trains on it for the first time.
+# Session 30 had no GPU; since then a sun's and a sky's power, by which next-event estimation picks
+# lights, counts through the region the camera frames (§29): four held-out dusk worlds lose the fireflies
+# that filled their inputs and their golds, so `heldout` scores them against the truth for the first time.
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:
