@@ -162,11 +162,17 @@ def gold_render(scene, size, args, seed: int = GOLD_SEED) -> np.ndarray:
 
     def compute():
         if by_mitsuba:
-            mi, _ = mitsuba()
+            try:
+                mi, _ = mitsuba()
+            except ImportError as err:
+                print(f"--gold-renderer mitsuba: Mitsuba 3 does not load here ({err}); pip install mitsuba, or "
+                      "leave the gold to our tracer", file=sys.stderr)
+                raise SystemExit(2) from None
             passes = -(-args.gold_spp // MITSUBA_PASS_SPP)
-            total = sum(mitsuba_render(mi, scene, size, args.gold_spp // passes, args.max_depth, seed + k)[0]
-                        .astype(np.float64) for k in range(passes))
-            return {"color": (total / passes).astype(np.float32)}
+            counts = [args.gold_spp // passes + (k < args.gold_spp % passes) for k in range(passes)]
+            total = sum(count * mitsuba_render(mi, scene, size, count, args.max_depth, seed + k)[0].astype(np.float64)
+                        for k, count in enumerate(counts))
+            return {"color": (total / args.gold_spp).astype(np.float32)}
         return {"color": render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=seed,
                                 aovs=()).color}
 

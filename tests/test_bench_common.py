@@ -71,3 +71,28 @@ def test_a_scene_file_whose_mesh_is_absent_is_skipped_by_name(common, tmp_path, 
 
     with pytest.raises(SceneError, match="broken.toml: cannot parse"):
         common.load_scenes([str(broken)])
+
+
+def test_a_mitsuba_gold_is_the_sample_weighted_mean_of_its_passes(common, monkeypatch, tmp_path):
+    """1100 samples in passes of at most MITSUBA_PASS_SPP (512): 367 + 367 + 366, seeds 12345, 12346,
+    12347, weighed by their counts; cached under a key of its own."""
+    calls = []
+
+    def fake_render(mi, scene, size, spp, max_depth, seed):
+        calls.append((spp, seed))
+        return np.full((size[1], size[0], 3), float(seed - common.GOLD_SEED), np.float32), 0.0
+
+    monkeypatch.setattr(common, "mitsuba", lambda: (None, "fake"))
+    monkeypatch.setattr(common, "mitsuba_render", fake_render)
+
+    class Args:
+        gold_renderer, gold_spp, max_depth, gold_cache = "mitsuba", 1100, 8, str(tmp_path)
+
+    class Scene:
+        name = "box"
+
+    gold = common.gold_render(Scene(), (4, 2), Args())
+    assert calls == [(367, 12345), (367, 12346), (366, 12347)]
+    np.testing.assert_allclose(gold, (367 * 0 + 367 * 1 + 366 * 2) / 1100, rtol=1e-6)
+    assert (tmp_path / "box_4x2_1100spp_depth8_mitsuba.npy").exists()
+    assert common.gold_render(Scene(), (4, 2), Args()).shape == (2, 4, 3) and len(calls) == 3, "read back"

@@ -248,6 +248,9 @@ def test_a_wide_ground_does_not_starve_a_point_light_beside_the_objects():
     assert wide[1] > 0.15 and wide[2] > 0.15 and wide[3] > 0.15, wide
     assert pmf_of(1.0)[1] > wide[1], "a scene smaller than the view is taken at its own radius"
     assert pmf_of(1e6) == pytest.approx(wide)
+    scene.camera.target = scene.camera.origin + np.float32([0, 0, -1e-30])   # a region of radius ~0
+    close = pmf_of(11.3)
+    assert close[2] > 0 and close[3] > 0, "the sun and the sky stay in the table, drawn rarely"
 
 
 _WIDE_GROUND = {

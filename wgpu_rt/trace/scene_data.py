@@ -5,7 +5,8 @@ Emitters are sampled in proportion to their power through an alias table (Vose's
 estimation picks a light in O(1): emissive triangles by luminance·area (uniform in area within one),
 point lights by 4π·intensity, a directional light by its irradiance through a disc, the constant
 background by its radiance over a sphere. The disc and the sphere have the radius of the region the
-camera frames at its target's distance (``view_radius``), at most the scene's bounding radius: through
+camera frames at its target's distance (``view_radius``), at most the scene's bounding radius (at least
+VIEW_RADIUS_FLOOR of it, so that a sun is never dropped for a camera at its target): through
 the bounding sphere, a large ground plane made a sun and a sky so powerful that a small point light
 beside the objects was picked once in 200 picks and lit a frosted ball with fireflies, and the same
 starved point lights filled a fifth of issue 12's held-out worlds with fireflies (BENCHMARKS.md §29).
@@ -22,6 +23,7 @@ from ..scene.model import DirectionalLight, Material, PointLight, Scene
 MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2}
 EMITTER_TRIANGLE, EMITTER_POINT, EMITTER_DIRECTIONAL, EMITTER_BACKGROUND = range(4)
 LUMINANCE = np.array([0.212671, 0.715160, 0.072169])
+VIEW_RADIUS_FLOOR = 1e-6   # a framed region counts as at least this fraction of the bounding radius
 
 MATERIAL_DTYPE = np.dtype([
     ("reflectance", "<f4", 3), ("kind", "<u4"), ("emission", "<f4", 3), ("roughness", "<f4"),
@@ -109,7 +111,7 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
     triangle_power = np.pi * area * (emission @ LUMINANCE)
 
     lights = []  # (kind, position, edge1, edge2, area, radiance, power)
-    radius = min(scene_radius, view_radius(scene.camera))
+    radius = min(scene_radius, max(view_radius(scene.camera), VIEW_RADIUS_FLOOR * scene_radius))
     for light in scene.lights:
         if isinstance(light, PointLight):
             intensity = np.asarray(light.intensity, np.float64)
