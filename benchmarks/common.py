@@ -123,14 +123,13 @@ def load_scenes(names: list[str]) -> list:
 def missing_mesh_files(scene_file: Path) -> list[Path]:
     """The mesh files that the scene file's meshes name (relative to its folder) and that do not exist: the
     user scenes in benchmarks/scenes name ../shared/meshes, which the project does not ship."""
-    import json
-    import tomllib
+    from wgpu_rt.errors import SceneError
+    from wgpu_rt.scene.loader import read_scene_file
 
     try:
-        text = scene_file.read_text(encoding="utf-8")
-        data = json.loads(text) if scene_file.suffix.lower() == ".json" else tomllib.loads(text)
-        files = [scene_file.parent / entry["file"] for entry in data.get("meshes", []) if "file" in entry]
-    except (OSError, UnicodeDecodeError, ValueError, TypeError, AttributeError):
+        meshes = read_scene_file(scene_file).get("meshes", [])
+        files = [scene_file.parent / entry["file"] for entry in meshes if "file" in entry]
+    except (SceneError, TypeError, AttributeError):
         return []   # the scene loader then says what is wrong with the file
     return [path for path in files if not path.exists()]
 

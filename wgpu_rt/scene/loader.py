@@ -419,8 +419,9 @@ def parse_scene(data, source: str, folder: Path) -> Scene:
                  camera_keyframes=camera_keyframes, frame_count=frame_count, name=name)
 
 
-def load_scene_file(path) -> Scene:
-    """Read and parse the JSON or TOML scene file at ``path``."""
+def read_scene_file(path) -> dict:
+    """The JSON or TOML document of the scene file at ``path``, unchecked; SceneError names what is wrong
+    with the file itself."""
     path = Path(path)
     source = str(path)
     if path.suffix.lower() not in SCENE_SUFFIXES:
@@ -432,7 +433,13 @@ def load_scene_file(path) -> Scene:
     except (OSError, UnicodeDecodeError) as err:
         raise SceneError(f"{source}: cannot read the file: {err}") from err
     try:
-        data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
+        return json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
     except (ValueError, RecursionError) as err:     # syntax errors, integers over 4300 digits, deep nesting
         raise SceneError(f"{source}: cannot parse the file: {err}") from err
-    return parse_scene(data, source, path.parent)
+
+
+def load_scene_file(path) -> Scene:
+    """Read and parse the JSON or TOML scene file at ``path``."""
+    path = Path(path)
+    data = read_scene_file(path)
+    return parse_scene(data, str(path), path.parent)
