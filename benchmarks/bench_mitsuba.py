@@ -1,5 +1,6 @@
-"""Converged cross-validation against Mitsuba 3: `cornell` and `cornell-glossy` (any built-in with
---scenes), box filter, max depth 8.
+"""Converged cross-validation against Mitsuba 3: `cornell` and `cornell-glossy` (with --scenes, any
+built-in, generated world (world-SEED) or scene file, as benchmarks/common.py's load_scenes reads them),
+box filter, max depth 8.
 
 Per scene: channel means of ours over Mitsuba's (goal: within 1%), and relMSE (epsilon 0.01) of ours
 against one Mitsuba render divided by relMSE between two independently seeded Mitsuba renders (its own
@@ -20,11 +21,10 @@ import sys
 import numpy as np
 
 from _mitsuba_setup import timed_render
-from common import print_header
+from common import load_scenes, print_header
 from peers import mitsuba_peer, time_mitsuba
 
 from wgpu_rt.renderer import render
-from wgpu_rt.scene import load_scene
 
 
 HOT_PIXEL = 100.0
@@ -48,8 +48,8 @@ def main() -> int:
         return 0
     size = (args.size, args.size)
     ok = True
-    for name in args.scenes.split(","):
-        scene = load_scene(name)
+    for scene in load_scenes(args.scenes.split(",")):
+        name = scene.name
         result = render(scene, spp=args.spp, size=size, max_depth=8, aovs=(), progress=True)
         ours, ours_s = result.color, result.seconds
         mi_a, seconds_a = time_mitsuba(mi, scene, size, args.spp, 8, seed=1)
