@@ -87,3 +87,22 @@ def test_back_faces_of_diffuse_surfaces_match_mitsuba(gpu):
     assert ours.mean() > 1e-3
     ratio = ours.reshape(-1, 3).mean(0) / reference.reshape(-1, 3).mean(0)
     assert np.all(np.abs(ratio - 1) < 0.03), ratio
+
+
+def test_lights_picked_by_their_irradiance_match_mitsuba(gpu):
+    """A floor lit by a panel, a glowing ball, a point light, a sun and a sky, each light its own emitter
+    group picked by its estimated irradiance at the shading point (tests/test_emitter_groups.py): the
+    multiple-importance weights of what BSDF rays meet must use the same probabilities, or the
+    means drift."""
+    from pathlib import Path
+
+    from test_emitter_groups import _FIVE_LIGHTS
+
+    from wgpu_rt.scene.loader import parse_scene
+
+    scene = parse_scene(_FIVE_LIGHTS, "five lights", Path.cwd())
+    size = (32, 32)
+    ours = render(scene, spp=256, size=size, max_depth=8, aovs=()).color
+    reference = mitsuba_render(scene, size, 1024, 8)
+    ratio = ours.reshape(-1, 3).mean(0) / reference.reshape(-1, 3).mean(0)
+    assert np.all(np.abs(ratio - 1) < 0.02), ratio

@@ -239,10 +239,9 @@ def test_a_wide_ground_does_not_starve_a_point_light_beside_the_objects():
     def pmf_of(radius):
         table = build_emitter_table(scene, np.zeros(0, np.intp), np.zeros((0, 3, 3)), geometry.material_ids,
                                     materials, scene_radius=radius)
-        records = table.records[:table.count]
-        assert table.count == 3 and records["pmf"].sum() == pytest.approx(1.0, abs=1e-6)
-        assert table.background_pmf == pytest.approx(records["pmf"][records["kind"] == 3][0])
-        return {int(k): float(p) for k, p in zip(records["kind"], records["pmf"])}
+        pmf = table.power_pmf()
+        assert table.count == 3 and pmf.sum() == pytest.approx(1.0, abs=1e-6)
+        return {int(k): float(p) for k, p in zip(table.records["kind"], pmf)}
 
     wide = pmf_of(11.3)
     assert wide[1] > 0.15 and wide[2] > 0.15 and wide[3] > 0.15, wide

@@ -1,11 +1,21 @@
 """Packing the shading side of a scene for the kernel: materials, the emitter table and the frame
 parameters (bind group 1; record layouts as in wgsl/trace/material.wgsl and wgsl/trace/trace_bindings.wgsl).
 
-Emitters are sampled in proportion to their power through an alias table (Vose's method), so next-event
-estimation picks a light in O(1): emissive triangles by luminance·area (uniform in area within one),
-point lights by 4π·intensity, a directional light by its irradiance through a disc, the constant
-background by its radiance over a sphere. The disc and the sphere have the radius of the region the
-camera frames at its target's distance (``view_radius``), at most the scene's bounding radius (at least
+Next-event estimation picks a light in two steps. The table's entries fall into *emitter groups*: the
+emissive triangles of one material, each point light, the sun, the background. At each shading point a
+group is picked in proportion to an estimate of the irradiance it gives there (``group_probabilities``,
+the numpy reference of wgsl/trace/emitters.wgsl: a point light's intensity over the squared distance, an
+area light's radiance times its area over the squared distance to its bounding sphere, times a bound on
+the cosine at the light for a flat one, which gives nothing behind its plane; a sun's irradiance; π
+times a sky's radiance), mixed with DEFENSIVE_SHARE of picks by power, so that a light the estimate
+misjudges (an occluded one, say) is never starved. Within its group an entry is picked in proportion to
+its power through an alias table (Vose's method; triangles by luminance·area, uniform in area within
+one). A scene of more than MAX_EMITTER_GROUPS groups keeps one group of everything, picked by power alone
+(the choice before groups, BENCHMARKS.md §30).
+
+Power: point lights 4π·intensity, a directional light its irradiance through a disc, the constant
+background its radiance over a sphere. The disc and the sphere have the radius of the region the camera
+frames at its target's distance (``view_radius``), at most the scene's bounding radius (at least
 VIEW_RADIUS_FLOOR of it, so that a sun is never dropped for a camera at its target): through
 the bounding sphere, a large ground plane made a sun and a sky so powerful that a small point light
 beside the objects was picked once in 200 picks and lit a frosted ball with fireflies, and the same
@@ -22,33 +32,44 @@ from ..scene.model import DirectionalLight, Material, PointLight, Scene
 
 MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2}
 EMITTER_TRIANGLE, EMITTER_POINT, EMITTER_DIRECTIONAL, EMITTER_BACKGROUND = range(4)
+# how a group's irradiance estimate is reckoned (wgsl/trace/emitters.wgsl's group_importance)
+GROUP_CONSTANT, GROUP_POINT, GROUP_SOLID, GROUP_FLAT = range(4)
+MAX_EMITTER_GROUPS = 16       # the FrameParams array's length (wgsl/trace/trace_bindings.wgsl)
+DEFENSIVE_SHARE = 0.1         # of a shading point's picks, made by power alone
+FLAT_TOLERANCE = 1e-5         # a group is flat if its normals and vertices deviate less (relative)
 LUMINANCE = np.array([0.212671, 0.715160, 0.072169])
 VIEW_RADIUS_FLOOR = 1e-6   # a framed region counts as at least this fraction of the bounding radius
 
 MATERIAL_DTYPE = np.dtype([
     ("reflectance", "<f4", 3), ("kind", "<u4"), ("emission", "<f4", 3), ("roughness", "<f4"),
-    ("eta", "<f4", 3), ("ior", "<f4"), ("k", "<f4", 3), ("is_emissive", "<u4")])
+    ("eta", "<f4", 3), ("ior", "<f4"), ("k", "<f4", 3), ("emitter_group", "<u4")])
 
 EMITTER_DTYPE = np.dtype([
-    ("position", "<f4", 3), ("kind", "<u4"), ("edge1", "<f4", 3), ("pmf", "<f4"),
+    ("position", "<f4", 3), ("kind", "<u4"), ("edge1", "<f4", 3), ("share", "<f4"),
     ("edge2", "<f4", 3), ("area", "<f4"), ("radiance", "<f4", 3), ("alias_threshold", "<f4"),
     ("alias_index", "<u4"), ("pad", "<u4", 3)])
+
+EMITTER_GROUP_DTYPE = np.dtype([
+    ("center", "<f4", 3), ("kind", "<u4"), ("normal", "<f4", 3), ("radius", "<f4"),
+    ("power", "<f4"), ("pmf", "<f4"), ("first", "<u4"), ("count", "<u4")])
 
 FRAME_PARAMS_DTYPE = np.dtype([
     ("camera_origin", "<f4", 3), ("width", "<u4"), ("camera_right", "<f4", 3), ("height", "<u4"),
     ("camera_up", "<f4", 3), ("seed", "<u4"), ("camera_forward", "<f4", 3), ("max_depth", "<u4"),
     ("previous_origin", "<f4", 3), ("sample_offset", "<u4"), ("previous_right", "<f4", 3),
     ("emitter_count", "<u4"), ("previous_up", "<f4", 3), ("tile_row_stride", "<u4"),
-    ("previous_forward", "<f4", 3), ("background_pmf", "<f4"), ("background", "<f4", 3),
-    ("chunk_start", "<u4"), ("chunk_size", "<u4"), ("pass_samples", "<u4"), ("pad", "<u4", 2)])
+    ("previous_forward", "<f4", 3), ("background_share", "<f4"), ("background", "<f4", 3),
+    ("chunk_start", "<u4"), ("chunk_size", "<u4"), ("pass_samples", "<u4"), ("emitter_group_count", "<u4"),
+    ("background_group", "<u4"), ("emitter_groups", EMITTER_GROUP_DTYPE, MAX_EMITTER_GROUPS)])
 
 
-def pack_materials(materials: list[Material]) -> np.ndarray:
-    """Material records in material-id order."""
+def pack_materials(materials: list[Material], emitter_groups: dict[int, int]) -> np.ndarray:
+    """Material records in material-id order; ``emitter_groups`` (an EmitterTable's
+    ``material_groups``) maps the id of an emitting material to its emitter group."""
     out = np.zeros(max(1, len(materials)), MATERIAL_DTYPE)
     for i, m in enumerate(materials):
-        out[i] = (m.reflectance, MATERIAL_KIND_CODES[m.kind], m.emission, m.roughness, m.eta, m.ior, m.k,
-                  int(m.is_emissive))
+        group = emitter_groups[i] + 1 if m.is_emissive and i in emitter_groups else 0
+        out[i] = (m.reflectance, MATERIAL_KIND_CODES[m.kind], m.emission, m.roughness, m.eta, m.ior, m.k, group)
     return out
 
 
@@ -79,13 +100,25 @@ def view_radius(camera) -> float:
 
 @dataclass
 class EmitterTable:
-    records: np.ndarray            # EMITTER_DTYPE, at least one record (a black one when there is none)
-    triangle_density: np.ndarray   # (T,) f32: pmf / area of each triangle's record, 0 if not emissive
-    background_pmf: float
+    records: np.ndarray            # EMITTER_DTYPE, at least one record (a black one when there is none);
+                                   # each group's records contiguous, alias indices absolute
+    groups: np.ndarray             # EMITTER_GROUP_DTYPE, 1 to MAX_EMITTER_GROUPS records
+    triangle_density: np.ndarray   # (T,) f32: share / area of each triangle's record, 0 if not emissive
+    material_groups: dict[int, int]    # emitting material id -> its triangles' group
+    background_group: int = 0
+    background_share: float = 0.0  # the background's share of its group (0: no background in the table)
 
     @property
     def count(self) -> int:
         return len(self.records)
+
+    def power_pmf(self) -> np.ndarray:
+        """Per record, the probability that a pick by power alone takes it."""
+        pmf = np.zeros(len(self.records))
+        for group in self.groups:
+            span = slice(int(group["first"]), int(group["first"] + group["count"]))
+            pmf[span] = group["pmf"] * self.records["share"][span]
+        return pmf
 
 
 def emissive_triangles(material_ids: np.ndarray, materials: list[Material]) -> np.ndarray:
@@ -93,6 +126,23 @@ def emissive_triangles(material_ids: np.ndarray, materials: list[Material]) -> n
     ``materials[material_ids[t]]``; array work: an instanced scene places millions)."""
     emits = np.array([m.is_emissive for m in materials], bool)
     return np.flatnonzero(emits[np.asarray(material_ids, np.intp)]) if len(materials) else np.zeros(0, np.intp)
+
+
+def _triangle_group(tri: np.ndarray, edge1: np.ndarray, edge2: np.ndarray, area: np.ndarray,
+                    power: np.ndarray) -> tuple:
+    """(kind, center, normal, radius, importance power) of the emitter group of triangles ``tri``: flat
+    (one normal, every vertex in its plane) or solid, around their area-weighted centroid (which lies in
+    a flat group's plane)."""
+    center = (area[:, None] * tri.mean(axis=1)).sum(0) / area.sum()
+    radius = float(np.sqrt(np.max(np.sum((tri.reshape(-1, 3) - center) ** 2, axis=1))))
+    normals = np.cross(edge1, edge2)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normal = normals[np.argmax(area)]
+    flat = (np.all(normals @ normal >= 1 - FLAT_TOLERANCE)
+            and np.all(np.abs((tri.reshape(-1, 3) - center) @ normal) <= FLAT_TOLERANCE * max(radius, 1e-30)))
+    # radiance·area (a flat light seen face on), a quarter of it for a solid (its mean projected area)
+    lit = power.sum() / np.pi
+    return (GROUP_FLAT, center, normal, radius, lit) if flat else (GROUP_SOLID, center, 0, radius, lit / 4)
 
 
 def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray, material_ids: np.ndarray,
@@ -106,48 +156,110 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
     area = 0.5 * np.linalg.norm(np.cross(edge1, edge2), axis=1)
     keep = area > 0
     numbers, tri, edge1, edge2, area = numbers[keep], tri[keep], edge1[keep], edge2[keep], area[keep]
+    triangle_material = np.asarray(material_ids, np.intp)[numbers]
+    order = np.argsort(triangle_material, kind="stable")   # each material's triangles contiguous
+    numbers, tri, edge1, edge2, area = numbers[order], tri[order], edge1[order], edge2[order], area[order]
+    triangle_material = triangle_material[order]
     material_emission = np.array([m.emission for m in materials], np.float64).reshape(-1, 3)
-    emission = material_emission[np.asarray(material_ids, np.intp)[numbers]].reshape(-1, 3)
+    emission = material_emission[triangle_material].reshape(-1, 3)
     triangle_power = np.pi * area * (emission @ LUMINANCE)
 
-    lights = []  # (kind, position, edge1, edge2, area, radiance, power)
+    lights = []  # (kind, position, edge1, radiance, power, group kind, importance power)
     radius = min(scene_radius, max(view_radius(scene.camera), VIEW_RADIUS_FLOOR * scene_radius))
     for light in scene.lights:
         if isinstance(light, PointLight):
             intensity = np.asarray(light.intensity, np.float64)
-            lights.append((EMITTER_POINT, light.position, 0, 0, 0, intensity, 4 * np.pi * LUMINANCE @ intensity))
+            lights.append((EMITTER_POINT, light.position, 0, intensity, 4 * np.pi * LUMINANCE @ intensity,
+                           GROUP_POINT, LUMINANCE @ intensity))
         elif isinstance(light, DirectionalLight):
             irradiance = np.asarray(light.irradiance, np.float64)
-            lights.append((EMITTER_DIRECTIONAL, 0, light.direction, 0, 0, irradiance,
-                           np.pi * radius ** 2 * LUMINANCE @ irradiance))
+            lights.append((EMITTER_DIRECTIONAL, 0, light.direction, irradiance,
+                           np.pi * radius ** 2 * LUMINANCE @ irradiance, GROUP_CONSTANT, LUMINANCE @ irradiance))
     background = np.asarray(scene.background, np.float64)
     if np.any(background > 0):
-        lights.append((EMITTER_BACKGROUND, 0, 0, 0, 0, background,
-                       4 * np.pi ** 2 * radius ** 2 * max(float(LUMINANCE @ background), 1e-6)))
-    lights = [light for light in lights if light[6] > 0]
+        luminance = max(float(LUMINANCE @ background), 1e-6)
+        lights.append((EMITTER_BACKGROUND, 0, 0, background, 4 * np.pi ** 2 * radius ** 2 * luminance,
+                       GROUP_CONSTANT, np.pi * luminance))
+    lights = [light for light in lights if light[4] > 0]
 
     triangle_count = len(numbers)
     count = triangle_count + len(lights)
     records = np.zeros(max(1, count), EMITTER_DTYPE)
+    records["kind"][:triangle_count] = EMITTER_TRIANGLE
+    records["position"][:triangle_count] = tri[:, 0]
+    records["edge1"][:triangle_count], records["edge2"][:triangle_count] = edge1, edge2
+    records["area"][:triangle_count], records["radiance"][:triangle_count] = area, emission
+    for i, (kind, position, direction, value, *_) in enumerate(lights, start=triangle_count):
+        records["kind"][i], records["position"][i], records["edge1"][i], records["radiance"][i] = (
+            kind, position, direction, value)
+    power = np.concatenate([triangle_power, [light[4] for light in lights]])
+
+    # groups: (first, count, kind, center, normal, radius, importance power)
+    groups, material_groups = [], {}
+    materials_used, firsts, counts = np.unique(triangle_material, return_index=True, return_counts=True)
+    for material, first, n in zip(materials_used, firsts, counts):
+        span = slice(first, first + n)
+        material_groups[int(material)] = len(groups)
+        groups.append((first, n, *_triangle_group(tri[span], edge1[span], edge2[span], area[span],
+                                                  triangle_power[span])))
+    for i, (kind, position, *_, group_kind, lit) in enumerate(lights, start=triangle_count):
+        groups.append((i, 1, group_kind, position if kind == EMITTER_POINT else 0, 0, 0, lit))
+    if len(groups) > MAX_EMITTER_GROUPS or count == 0:
+        material_groups = dict.fromkeys(material_groups, 0)
+        groups = [(0, max(1, count), GROUP_CONSTANT, 0, 0, 0, 1.0)]
+
+    table = np.zeros(len(groups), EMITTER_GROUP_DTYPE)
+    for g, (first, n, kind, center, normal, group_radius, lit) in enumerate(groups):
+        span = slice(first, first + n)
+        table[g] = (center, kind, normal, group_radius, lit, power[span].sum() / power.sum() if count else 1.0,
+                    first, n)
+        if count:
+            threshold, alias = alias_table(power[span])
+            records["share"][span] = power[span] / power[span].sum()
+            records["alias_threshold"][span], records["alias_index"][span] = threshold, alias + first
     triangle_density = np.zeros(len(material_ids), np.float32)
-    background_pmf = 0.0
-    if count:
-        power = np.concatenate([triangle_power, [light[6] for light in lights]])
-        pmf = power / power.sum()
-        threshold, alias = alias_table(power)
-        records["kind"][:triangle_count] = EMITTER_TRIANGLE
-        records["position"][:triangle_count] = tri[:, 0]
-        records["edge1"][:triangle_count], records["edge2"][:triangle_count] = edge1, edge2
-        records["area"][:triangle_count], records["radiance"][:triangle_count] = area, emission
-        for i, (kind, position, e1, e2, a, radiance, _) in enumerate(lights, start=triangle_count):
-            for field, value in zip(("kind", "position", "edge1", "edge2", "area", "radiance"),
-                                    (kind, position, e1, e2, a, radiance)):
-                records[field][i] = value
-            if kind == EMITTER_BACKGROUND:
-                background_pmf = float(pmf[i])
-        records["pmf"][:count], records["alias_threshold"][:count], records["alias_index"][:count] = pmf, threshold, alias
-        triangle_density[numbers] = records["pmf"][:triangle_count] / records["area"][:triangle_count]
-    return EmitterTable(records, triangle_density, background_pmf)
+    triangle_density[numbers] = records["share"][:triangle_count] / records["area"][:triangle_count]
+    background = np.flatnonzero(records["kind"][triangle_count:count] == EMITTER_BACKGROUND) + triangle_count
+    if not len(background):
+        return EmitterTable(records, table, triangle_density, material_groups)
+    background_group = int(np.flatnonzero(table["first"] <= background[0])[-1])
+    return EmitterTable(records, table, triangle_density, material_groups, background_group,
+                        float(records["share"][background[0]]))
+
+
+def group_importance(groups: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(G,) the irradiance each emitter group is estimated to give at point ``x`` (as
+    wgsl/trace/emitters.wgsl's group_importance): constant for a sun, a sky or the group of everything;
+    intensity / d² for a point light; radiance·area / max(d², radius²) for an area light, a quarter of
+    that for a solid one, and for a flat one times the cosine at the light bounded over its bounding
+    sphere (0 behind its plane)."""
+    offset = np.asarray(x, np.float64) - groups["center"]
+    d2 = np.sum(offset * offset, axis=1)
+    power = groups["power"].astype(np.float64)
+    near = np.maximum(d2, groups["radius"].astype(np.float64) ** 2)
+    height = np.sum(offset * groups["normal"], axis=1)
+    distance = np.sqrt(np.maximum(d2, 1e-30))
+    cos_light = np.clip(height / distance, -1, 1)
+    sin_bound = np.minimum(groups["radius"] / distance, 1)
+    cos_bound = np.sqrt(1 - sin_bound ** 2)
+    cos_tilted = cos_light * cos_bound + np.sqrt(1 - cos_light ** 2) * sin_bound
+    flat = np.where(height <= 0, 0.0, np.where(cos_light >= cos_bound, 1.0, cos_tilted)) * power / near
+    kind = groups["kind"]
+    return np.select([kind == GROUP_POINT, kind == GROUP_SOLID, kind == GROUP_FLAT],
+                     [power / np.maximum(d2, 1e-20), power / near, flat], power)
+
+
+def group_probabilities(groups: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(G,) the probability that next-event estimation at ``x`` picks each group: by ``group_importance``,
+    mixed with DEFENSIVE_SHARE of picks by power (all by power where every estimate is 0)."""
+    if len(groups) == 1:
+        return np.ones(1)
+    importance = group_importance(groups, x)
+    total = importance.sum()
+    by_power = groups["pmf"].astype(np.float64)
+    if total <= 0:
+        return by_power
+    return (1 - DEFENSIVE_SHARE) * importance / total + DEFENSIVE_SHARE * by_power
 
 
 def camera_vectors(camera, width: int, height: int) -> dict[str, np.ndarray]:

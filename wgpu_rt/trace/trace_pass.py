@@ -387,7 +387,7 @@ class TracePass(ComputePass):
 
         self._emitter_table, self._max_depth = emitters, max_depth
         self._geometry_group = ctx.bind_group(self.pipeline, geometry_buffers, group=0)
-        material_records = pack_materials(materials)
+        material_records = pack_materials(materials, emitters.material_groups)
         if self.placement.tables:
             self._materials = ctx.uniform(_padded(material_records, UNIFORM_TABLE_CAPACITY["materials"]).tobytes(),
                                           label="materials")
@@ -447,7 +447,10 @@ class TracePass(ComputePass):
         params["previous_up"] = before["unit_up"] / tan_y
         params["width"], params["height"], params["seed"], params["max_depth"] = w, h, seed, max_depth
         params["tile_row_stride"] = self._tile_row_stride
-        params["emitter_count"], params["background_pmf"] = emitters.count, emitters.background_pmf
+        params["emitter_count"] = emitters.count
+        params["background_share"], params["background_group"] = emitters.background_share, emitters.background_group
+        params["emitter_group_count"] = len(emitters.groups)
+        params["emitter_groups"][:len(emitters.groups)] = emitters.groups
         params["background"] = scene.background
         return params
 

@@ -1,9 +1,11 @@
-// Next-event estimation over the emitter table: pick an entry with the alias table (probability
-// proportional to its power, as trace/scene_data.py reckons it), then a point on it: area-uniform on a
-// triangle (one-sided: its front face, the side its winding's normal points to), the position of a point
-// light, the direction of a directional light, a uniform direction for the constant background. Also
-// the solid-angle pdf of having sampled a triangle that a BSDF-sampled ray hit, for multiple importance
-// sampling.
+// Next-event estimation over the emitter table: pick an emitter group by an estimate of the irradiance
+// it gives at the shading point, mixed with picks by power (trace/scene_data.py's group_probabilities is
+// the numpy reference), then an entry within the group with its alias table (in proportion to power),
+// then a point on it: area-uniform on a triangle (one-sided: its front face, the side its winding's
+// normal points to), the position of a point light, the direction of a directional light, a uniform
+// direction for the constant background. Also the solid-angle pdfs with which the estimate at a point
+// would have sampled what a BSDF-sampled ray from there met (a triangle, the background), for multiple
+// importance sampling.
 
 // #import trace/features.wgsl
 // #import trace/trace_bindings.wgsl
@@ -17,16 +19,110 @@ struct EmitterSample {
 }
 
 const FAR_AWAY: f32 = 3.0e38;
+const DEFENSIVE_SHARE: f32 = 0.1;   // wgpu_rt.trace.scene_data.DEFENSIVE_SHARE
 
-fn pick_emitter(u: f32) -> u32 {
-    let n = params.emitter_count;
-    let scaled = u * f32(n);
-    let i = min(u32(scaled), n - 1u);
-    let entry = emitters[i];
-    return select(entry.alias_index, i, scaled - f32(i) < entry.alias_threshold);
+// The irradiance group g is estimated to give at x: constant for a sun, a sky or the group of everything;
+// intensity / d² for a point light; radiance·area / max(d², radius²) for an area light (`power` holds a
+// quarter of it for a solid one), times, for a flat one, the cosine at the light bounded over its
+// bounding sphere as seen from x, which is 0 behind its plane.
+fn group_importance(g: EmitterGroup, x: vec3f) -> f32 {
+    if g.kind == GROUP_CONSTANT {
+        return g.power;
+    }
+    let offset = x - g.center;
+    let d2 = dot(offset, offset);
+    if g.kind == GROUP_POINT {
+        return g.power / max(d2, 1e-20);
+    }
+    let near = g.power / max(d2, g.radius * g.radius);
+    if g.kind == GROUP_SOLID {
+        return near;
+    }
+    let height = dot(offset, g.normal);
+    if height <= 0.0 {
+        return 0.0;
+    }
+    let distance = sqrt(d2);
+    let cos_light = min(height / distance, 1.0);
+    let sin_bound = min(g.radius / distance, 1.0);
+    let cos_bound = sqrt(max(1.0 - sin_bound * sin_bound, 0.0));
+    if cos_light >= cos_bound {
+        return near;
+    }
+    return near * (cos_light * cos_bound + sqrt(max(1.0 - cos_light * cos_light, 0.0)) * sin_bound);
 }
 
-fn sample_triangle_emitter(e: Emitter, x: vec3f, u: vec2f) -> EmitterSample {
+fn group_probability_of(importance: f32, total: f32, pmf: f32) -> f32 {
+    if total <= 0.0 {
+        return pmf;
+    }
+    return (1.0 - DEFENSIVE_SHARE) * importance / total + DEFENSIVE_SHARE * pmf;
+}
+
+fn importance_total(x: vec3f) -> f32 {
+    var total = 0.0;
+    for (var g = 0u; g < params.emitter_group_count; g++) {
+        total += group_importance(params.emitter_groups[g], x);
+    }
+    return total;
+}
+
+// Probability that the estimate at x picks group `index`.
+fn group_probability(x: vec3f, index: u32) -> f32 {
+    if params.emitter_group_count == 1u {
+        return 1.0;
+    }
+    let total = importance_total(x);
+    var probability = 0.0;
+    for (var g = 0u; g < params.emitter_group_count; g++) {
+        let group = params.emitter_groups[g];
+        if g == index {
+            probability = group_probability_of(group_importance(group, x), total, group.pmf);
+        }
+    }
+    return probability;
+}
+
+// The entry of the table the estimate at x takes for random number u, and the probability of
+// having picked its group.
+struct EmitterPick {
+    index: u32,
+    group_probability: f32,
+}
+
+fn pick_emitter(x: vec3f, u: f32) -> EmitterPick {
+    var first = 0u;
+    var count = params.emitter_count;
+    var probability = 1.0;
+    var rest = u;       // u rescaled to [0, 1) within the picked group's interval
+    if params.emitter_group_count > 1u {
+        let total = importance_total(x);
+        var below = 0.0;
+        var picked = false;
+        for (var g = 0u; g < params.emitter_group_count; g++) {
+            let group = params.emitter_groups[g];
+            let p = group_probability_of(group_importance(group, x), total, group.pmf);
+            // the last group takes what rounding leaves past the sum of the probabilities
+            if !picked && (u < below + p || g + 1u == params.emitter_group_count) {
+                picked = true;
+                first = group.first;
+                count = group.count;
+                probability = p;
+                rest = min(max(u - below, 0.0) / p, 0.99999994);
+            }
+            below += p;
+        }
+    } else {
+        first = params.emitter_groups[0].first;
+        count = params.emitter_groups[0].count;
+    }
+    let scaled = rest * f32(count);
+    let i = min(u32(scaled), count - 1u);
+    let entry = emitters[first + i];
+    return EmitterPick(select(entry.alias_index, first + i, scaled - f32(i) < entry.alias_threshold), probability);
+}
+
+fn sample_triangle_emitter(e: Emitter, pmf: f32, x: vec3f, u: vec2f) -> EmitterSample {
     let b = square_to_triangle(u);
     let y = e.position + b.x * e.edge1 + b.y * e.edge2;
     let n = normalize(cross(e.edge1, e.edge2));
@@ -38,31 +134,38 @@ fn sample_triangle_emitter(e: Emitter, x: vec3f, u: vec2f) -> EmitterSample {
     if cos_light <= 0.0 || dist2 == 0.0 {
         return EmitterSample(dir, dist, vec3f(0.0), 0.0);
     }
-    let pdf = e.pmf / e.area * dist2 / cos_light;
+    let pdf = pmf / e.area * dist2 / cos_light;
     return EmitterSample(dir, dist, e.radiance / pdf, pdf);
 }
 
 fn sample_emitter(x: vec3f, u_pick: f32, u: vec2f) -> EmitterSample {
-    let e = emitters[pick_emitter(u_pick)];
+    let pick = pick_emitter(x, u_pick);
+    let e = emitters[pick.index];
+    let pmf = pick.group_probability * e.share;
     if !HAS_ANALYTIC_LIGHTS || e.kind == EMITTER_TRIANGLE {
-        return sample_triangle_emitter(e, x, u);
+        return sample_triangle_emitter(e, pmf, x, u);
     }
     if e.kind == EMITTER_POINT {
         let offset = e.position - x;
         let dist2 = dot(offset, offset);
         let dist = sqrt(dist2);
-        return EmitterSample(offset / dist, dist, e.radiance / (e.pmf * dist2), 0.0);
+        return EmitterSample(offset / dist, dist, e.radiance / (pmf * dist2), 0.0);
     }
     if e.kind == EMITTER_DIRECTIONAL {
-        return EmitterSample(-normalize(e.edge1), FAR_AWAY, e.radiance / e.pmf, 0.0);
+        return EmitterSample(-normalize(e.edge1), FAR_AWAY, e.radiance / pmf, 0.0);
     }
     let dir = square_to_uniform_sphere(u);
-    let pdf = e.pmf * INV_FOUR_PI;
+    let pdf = pmf * INV_FOUR_PI;
     return EmitterSample(dir, FAR_AWAY, e.radiance / pdf, pdf);
 }
 
-// Solid-angle pdf with which sample_emitter would pick the point a ray from x hit on triangle `prim`
-// at distance t, whose front face it hit with cosine cos_light.
-fn triangle_emitter_pdf(prim: u32, t: f32, cos_light: f32) -> f32 {
-    return triangle_emitter_density[prim] * t * t / cos_light;
+// Solid-angle pdf with which sample_emitter at x would pick the point a ray from x hit on triangle
+// `prim` of emitter group `group` at distance t, whose front face it hit with cosine cos_light.
+fn triangle_emitter_pdf(x: vec3f, group: u32, prim: u32, t: f32, cos_light: f32) -> f32 {
+    return group_probability(x, group) * triangle_emitter_density[prim] * t * t / cos_light;
+}
+
+// Solid-angle pdf with which sample_emitter at x would pick a direction to the background.
+fn background_emitter_pdf(x: vec3f) -> f32 {
+    return group_probability(x, params.background_group) * params.background_share * INV_FOUR_PI;
 }

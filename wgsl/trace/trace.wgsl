@@ -42,6 +42,7 @@ struct Path {
     eta_scale: f32,             // product of relative indices crossed (Russian roulette uses eta²)
     throughput: vec3f,
     previous_pdf: f32,          // solid-angle pdf of the BSDF sample that made `dir`
+    previous_position: vec3f,   // the vertex that sample left (where its emitter pdf is reckoned)
     radiance: vec3f,
     previous_delta: bool,       // that sample came from a delta lobe (no MIS for what it hits)
     albedo: vec3f,
@@ -82,8 +83,8 @@ fn shadow_ray_to_light(position: vec3f, geometric_normal: vec3f, light: EmitterS
 
 fn start_path(sampler: ptr<function, Sampler>, pixel_corner: vec2f) -> Path {
     let film = pixel_corner + next_2d(sampler);
-    return Path(params.camera_origin, 0u, camera_ray_direction(film), 1.0, vec3f(1.0), 0.0, vec3f(0.0), true,
-                vec3f(0.0), WRITE_AOVS, vec3f(0.0), 0.0, film, vec2f(0.0));
+    return Path(params.camera_origin, 0u, camera_ray_direction(film), 1.0, vec3f(1.0), 0.0, params.camera_origin,
+                vec3f(0.0), true, vec3f(0.0), WRITE_AOVS, vec3f(0.0), 0.0, film, vec2f(0.0));
 }
 
 // Shades where the path's last segment landed (`traced`), leaving the next-event estimate made there in
@@ -98,9 +99,11 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
         if WRITE_AOVS && (*path).albedo_pending {
             (*path).albedo = background_albedo();
         }
-        if HAS_ANALYTIC_LIGHTS && params.background_pmf > 0.0 {
-            let light_pdf = params.background_pmf * INV_FOUR_PI;
-            let weight = select(power_heuristic((*path).previous_pdf, light_pdf), 1.0, (*path).previous_delta);
+        if HAS_ANALYTIC_LIGHTS && params.background_share > 0.0 {
+            var weight = 1.0;
+            if !(*path).previous_delta {
+                weight = power_heuristic((*path).previous_pdf, background_emitter_pdf((*path).previous_position));
+            }
             (*path).radiance += (*path).throughput * params.background * weight;
         }
         if WRITE_AOVS && HAS_MOTION && depth == 0u {
@@ -113,10 +116,12 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     let material = materials[tri_material(hit.prim)];
     let cos_front = -dot(geometric_normal, dir);
 
-    if HAS_AREA_LIGHTS && material.is_emissive != 0u && cos_front > 0.0 {
+    if HAS_AREA_LIGHTS && material.emitter_group != 0u && cos_front > 0.0 {
         var weight = 1.0;
         if !(*path).previous_delta {
-            weight = power_heuristic((*path).previous_pdf, triangle_emitter_pdf(hit.prim, hit.t, cos_front));
+            let light_pdf = triangle_emitter_pdf((*path).previous_position, material.emitter_group - 1u, hit.prim,
+                                                 hit.t, cos_front);
+            weight = power_heuristic((*path).previous_pdf, light_pdf);
         }
         (*path).radiance += (*path).throughput * material.emission * weight;
     }
@@ -169,6 +174,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     (*path).dir = next_dir;
     (*path).origin = offset_ray_origin(position, geometric_normal, next_dir);
     (*path).previous_pdf = bs.pdf;
+    (*path).previous_position = position;
     (*path).previous_delta = bs.is_delta;
     (*path).eta_scale = eta_scale;
     (*path).depth = depth + 1u;

@@ -20,17 +20,19 @@ struct FrameParams {
     previous_up: vec3f,       // unit up vector / tan(vertical half-fov) of the previous camera
     tile_row_stride: u32,     // tile rows are traced in the order row · stride mod rows (camera.wgsl)
     previous_forward: vec3f,
-    background_pmf: f32,      // probability that emitter sampling picks the background
+    background_share: f32,    // the background's share of its emitter group (0: not in the table)
     background: vec3f,
     chunk_start: u32,         // this dispatch takes samples [chunk_start, chunk_start + chunk_size)
     chunk_size: u32,          //   of each pixel's count for this pass
     pass_samples: u32,        // the count each pixel takes in a uniform pass
-    pad0: u32,
-    pad1: u32,
+    emitter_group_count: u32,
+    background_group: u32,
+    emitter_groups: array<EmitterGroup, 16>,   // wgpu_rt.trace.scene_data.MAX_EMITTER_GROUPS
 }
 
 @group(1) @binding(0) var<uniform> params: FrameParams;
-@group(1) @binding(3) var<storage, read> triangle_emitter_density: array<f32>;  // per triangle: its entry's pmf / area, 0 if none
+// per triangle: its entry's share of its emitter group / area, 0 if none
+@group(1) @binding(3) var<storage, read> triangle_emitter_density: array<f32>;
 @group(1) @binding(4) var<storage, read> sample_counts: array<u32>;      // per pixel (adaptive passes)
 
 @group(2) @binding(0) var<storage, read_write> out_radiance: array<f32>;
