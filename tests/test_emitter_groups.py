@@ -13,8 +13,9 @@ from wgpu_rt.scene.loader import parse_scene
 from wgpu_rt.trace import scene_data
 from wgpu_rt.trace.scene_data import (
     DEFENSIVE_SHARE, GROUP_CONSTANT, GROUP_FLAT, GROUP_POINT, GROUP_SOLID, build_emitter_table, emissive_triangles,
-    group_probabilities, pack_materials,
+    emitter_group_count, group_probabilities, pack_materials,
 )
+from wgpu_rt.trace.features import SceneFeatures
 
 # A floor lit from its two ends: a panel facing down at x = -1.5, a glowing ball at x = +1.5, a point
 # light, a sun and a sky.
@@ -92,8 +93,10 @@ def test_probabilities_follow_the_irradiance_and_never_starve_a_light():
 
 
 def test_more_groups_than_the_kernel_holds_fall_back_to_picks_by_power(monkeypatch):
-    _, materials, grouped = _table(_FIVE_LIGHTS)
+    scene, materials, grouped = _table(_FIVE_LIGHTS)
+    assert emitter_group_count(scene) == len(grouped.groups) == 5 and SceneFeatures.of(scene).has_emitter_groups
     _, _, merged = _table(_FIVE_LIGHTS, max_groups=4, monkeypatch=monkeypatch)
+    assert emitter_group_count(scene) == 1 and not SceneFeatures.of(scene).has_emitter_groups
     assert len(merged.groups) == 1 and merged.groups[0]["count"] == merged.count
     assert set(merged.material_groups.values()) == {0}
     np.testing.assert_allclose(merged.power_pmf(), grouped.power_pmf(), rtol=1e-5)
@@ -114,3 +117,15 @@ def test_local_picks_render_the_same_image_with_less_noise(gpu, monkeypatch):
     assert np.all(np.abs(ratio - 1) < 0.01), ratio
     error = lambda image: np.mean((image - reference) ** 2) / np.mean(reference ** 2)  # noqa: E731
     assert error(grouped) < 0.75 * error(by_power), (error(grouped), error(by_power))
+
+
+def test_a_kernel_without_emitter_groups_refuses_a_scene_with_several(gpu):
+    """A kernel specialized without the group picks would draw every light from the first group alone."""
+    from dataclasses import replace
+
+    from wgpu_rt.trace import TracePass
+
+    scene = parse_scene(_FIVE_LIGHTS, "five lights", Path.cwd())
+    features = replace(SceneFeatures.of(scene), has_emitter_groups=False)
+    with pytest.raises(ValueError, match="5 emitter groups"):
+        TracePass(gpu, scene, GeometryBuffers.build(scene), 8, 8, features=features)

@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from ..scene.model import Scene
+from .scene_data import emitter_group_count
 
 
 @dataclass(frozen=True)
@@ -21,6 +22,7 @@ class SceneFeatures:
     has_conductor: bool = True
     has_area_lights: bool = True
     has_analytic_lights: bool = True  # point or directional lights, or a non-black background
+    has_emitter_groups: bool = True   # lights in more than one emitter group (scene_data.emitter_group_count)
     has_motion: bool = True
     has_vertex_normals: bool = True   # any mesh with its own vertex normals (smooth shading)
     write_aovs: bool = True
@@ -34,6 +36,7 @@ class SceneFeatures:
             has_conductor="conductor" in kinds,
             has_area_lights=any(scene.materials[name].is_emissive for name in used),
             has_analytic_lights=bool(scene.lights) or bool(np.any(np.asarray(scene.background) > 0)),
+            has_emitter_groups=emitter_group_count(scene) > 1,
             has_motion=scene.has_motion,
             has_vertex_normals=any(mesh.normals is not None for mesh in scene.meshes),
             write_aovs=write_aovs,

@@ -128,6 +128,14 @@ def emissive_triangles(material_ids: np.ndarray, materials: list[Material]) -> n
     return np.flatnonzero(emits[np.asarray(material_ids, np.intp)]) if len(materials) else np.zeros(0, np.intp)
 
 
+def emitter_group_count(scene: Scene) -> int:
+    """How many emitter groups ``scene``'s emitter table will have (at most: an emitting material whose
+    triangles all have zero area, or a light of zero power, makes none)."""
+    emitting = {mesh.material for mesh in scene.meshes if scene.materials[mesh.material].is_emissive}
+    count = len(emitting) + len(scene.lights) + int(np.any(np.asarray(scene.background) > 0))
+    return count if count <= MAX_EMITTER_GROUPS else 1
+
+
 def _triangle_group(tri: np.ndarray, edge1: np.ndarray, edge2: np.ndarray, area: np.ndarray,
                     power: np.ndarray) -> tuple:
     """(kind, center, normal, radius, importance power) of the emitter group of triangles ``tri``: flat

@@ -353,6 +353,9 @@ class TracePass(ComputePass):
         emissive = emissive_triangles(geometry.material_ids, materials)
         emitters = build_emitter_table(scene, emissive, geometry.triangles[emissive], geometry.material_ids,
                                        materials, _scene_radius(geometry.triangles))
+        if len(emitters.groups) > 1 and not self.features.has_emitter_groups:
+            raise ValueError(f"scene {scene.name!r} has {len(emitters.groups)} emitter groups, but its kernel's "
+                             f"features leave emitter groups out")
         fitting = BufferPlacement(tables=tables_fit_uniform(len(materials), emitters.count),
                                   geometry=geometry.fits_uniform)
         self.placement = placement or fitting

@@ -59,28 +59,22 @@ fn group_probability_of(importance: f32, total: f32, pmf: f32) -> f32 {
     return (1.0 - DEFENSIVE_SHARE) * importance / total + DEFENSIVE_SHARE * pmf;
 }
 
-fn importance_total(x: vec3f) -> f32 {
-    var total = 0.0;
-    for (var g = 0u; g < params.emitter_group_count; g++) {
-        total += group_importance(params.emitter_groups[g], x);
-    }
-    return total;
-}
-
 // Probability that the estimate at x picks group `index`.
 fn group_probability(x: vec3f, index: u32) -> f32 {
-    if params.emitter_group_count == 1u {
+    if !HAS_EMITTER_GROUPS || params.emitter_group_count == 1u {
         return 1.0;
     }
-    let total = importance_total(x);
-    var probability = 0.0;
+    var total = 0.0;
+    var mine = 0.0;
+    var pmf = 0.0;
     for (var g = 0u; g < params.emitter_group_count; g++) {
         let group = params.emitter_groups[g];
-        if g == index {
-            probability = group_probability_of(group_importance(group, x), total, group.pmf);
-        }
+        let importance = group_importance(group, x);
+        total += importance;
+        mine = select(mine, importance, g == index);
+        pmf = select(pmf, group.pmf, g == index);
     }
-    return probability;
+    return group_probability_of(mine, total, pmf);
 }
 
 // The entry of the table the estimate at x takes for random number u, and the probability of
@@ -95,13 +89,18 @@ fn pick_emitter(x: vec3f, u: f32) -> EmitterPick {
     var count = params.emitter_count;
     var probability = 1.0;
     var rest = u;       // u rescaled to [0, 1) within the picked group's interval
-    if params.emitter_group_count > 1u {
-        let total = importance_total(x);
+    if HAS_EMITTER_GROUPS && params.emitter_group_count > 1u {
+        var importance: array<f32, 16>;   // per group (MAX_EMITTER_GROUPS)
+        var total = 0.0;
+        for (var g = 0u; g < params.emitter_group_count; g++) {
+            importance[g] = group_importance(params.emitter_groups[g], x);
+            total += importance[g];
+        }
         var below = 0.0;
         var picked = false;
         for (var g = 0u; g < params.emitter_group_count; g++) {
             let group = params.emitter_groups[g];
-            let p = group_probability_of(group_importance(group, x), total, group.pmf);
+            let p = group_probability_of(importance[g], total, group.pmf);
             // the last group takes what rounding leaves past the sum of the probabilities
             if !picked && (u < below + p || g + 1u == params.emitter_group_count) {
                 picked = true;

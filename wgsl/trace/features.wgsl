@@ -6,6 +6,7 @@ override HAS_DIELECTRIC: bool = true;       // any smooth or rough glass
 override HAS_CONDUCTOR: bool = true;        // any smooth or rough metal
 override HAS_AREA_LIGHTS: bool = true;      // any emissive triangle
 override HAS_ANALYTIC_LIGHTS: bool = true;  // any point or directional light, or a non-black background
+override HAS_EMITTER_GROUPS: bool = true;   // lights in more than one emitter group (trace/emitters.wgsl)
 override HAS_MOTION: bool = true;           // camera or object motion between this frame and the last
 override HAS_VERTEX_NORMALS: bool = true;   // any mesh with vertex normals (else shading = geometric normal)
 override WRITE_AOVS: bool = true;           // albedo, normal, depth and motion planes are wanted
