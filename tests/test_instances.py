@@ -21,6 +21,7 @@ from wgpu_rt.scene import Camera, Material, Mesh, Scene, load_scene
 from wgpu_rt.scene.primitives import primitive
 from wgpu_rt.scene.transforms import compose, rotate, scale, translate
 from wgpu_rt.trace import SampleSchedule, TracePass
+from wgpu_rt.trace import scene_data
 from wgpu_rt.trace.scene_data import FRAME_PARAMS_DTYPE
 
 
@@ -434,6 +435,26 @@ def test_a_moving_light_is_followed_without_a_rebuild(gpu, frame):
     assert np.mean(np.all(difference < 1e-3, axis=0)) > 0.95
     # the light really moved: the frame's lighting differs from frame 0's far beyond that
     assert np.mean(np.abs(stale["radiance"] - rebuilt["radiance"])) > 10 * np.mean(difference)
+
+
+def test_a_moving_light_changes_its_cluster_without_a_rebuild(gpu, monkeypatch):
+    """Four point lights in a row beside the swinging panel and room for 3 emitter groups: the clusters
+    in space change as the panel swings (between frames 6 and 13 it leaves one pair of point lights for
+    the other), and the moved pass follows: its materials name the panel's new cluster."""
+    from wgpu_rt.scene import PointLight
+
+    monkeypatch.setattr(scene_data, "MAX_EMITTER_GROUPS", 3)
+    scene = lamp_scene()
+    scene.lights = [PointLight(np.float32([x, 0.5, 0.3]), np.float32([0.05, 0.05, 0.05]))
+                    for x in (-0.45, -0.3, 0.3, 0.45)]
+    trace = TracePass(gpu, scene, InstancedGeometry(scene, 0), 32, 24, frame=6)
+    before = dict(trace._emitter_table.material_groups)
+    trace.set_frame(scene, 13, 0)
+    assert trace._emitter_table.material_groups != before, "the panel should change clusters"
+    rebuilt = _trace_frame(gpu, scene, GeometryBuffers.build(scene, 13), 13, None, spp=16)
+    moved = _trace_frame(gpu, scene, InstancedGeometry(scene, 6), 13, None, move_to=13, spp=16)
+    difference = np.abs(moved["radiance"] - rebuilt["radiance"])
+    assert np.mean(difference) < 0.01 * np.mean(rebuilt["radiance"])
 
 
 def test_a_moving_light_renders_frames_in_place(gpu):

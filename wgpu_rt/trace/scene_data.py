@@ -10,8 +10,9 @@ the cosine at the light for a flat one, which gives nothing behind its plane; a 
 times a sky's radiance), mixed with DEFENSIVE_SHARE of picks by power, so that a light the estimate
 misjudges (an occluded one, say) is never starved. Within its group an entry is picked in proportion to
 its power through an alias table (Vose's method; triangles by luminance·area, uniform in area within
-one). A scene of more than MAX_EMITTER_GROUPS groups keeps one group of everything, picked by power alone
-(the choice before groups, BENCHMARKS.md §30).
+one). A scene of more than MAX_EMITTER_GROUPS groups has its lights other than suns and skies clustered
+in space (``_clustered``); a kernel with one group is compiled without the group code
+(``emitter_group_count``, trace/features.py). BENCHMARKS.md §30 measures all this.
 
 Power: point lights 4π·intensity, a directional light its irradiance through a disc, the constant
 background its radiance over a sphere. The disc and the sphere have the radius of the region the camera
@@ -129,11 +130,15 @@ def emissive_triangles(material_ids: np.ndarray, materials: list[Material]) -> n
 
 
 def emitter_group_count(scene: Scene) -> int:
-    """How many emitter groups ``scene``'s emitter table will have (at most: an emitting material whose
-    triangles all have zero area, or a light of zero power, makes none)."""
+    """How many emitter groups ``scene``'s emitter table will have, at most (an emitting material whose
+    triangles all have zero area, or a light of zero power, makes none; clusters may stop short)."""
     emitting = {mesh.material for mesh in scene.meshes if scene.materials[mesh.material].is_emissive}
-    count = len(emitting) + len(scene.lights) + int(np.any(np.asarray(scene.background) > 0))
-    return count if count <= MAX_EMITTER_GROUPS else 1
+    sky = int(np.any(np.asarray(scene.background) > 0))
+    constant = sum(isinstance(light, DirectionalLight) for light in scene.lights) + sky
+    count = len(emitting) + len(scene.lights) + sky
+    if count > MAX_EMITTER_GROUPS and constant + 1 > MAX_EMITTER_GROUPS:
+        return 1      # one group of everything (_clustered)
+    return min(count, MAX_EMITTER_GROUPS)
 
 
 def _triangle_group(tri: np.ndarray, edge1: np.ndarray, edge2: np.ndarray, area: np.ndarray,
@@ -151,6 +156,49 @@ def _triangle_group(tri: np.ndarray, edge1: np.ndarray, edge2: np.ndarray, area:
     # radiance·area (a flat light seen face on), a quarter of it for a solid (its mean projected area)
     lit = power.sum() / np.pi
     return (GROUP_FLAT, center, normal, radius, lit) if flat else (GROUP_SOLID, center, 0, radius, lit / 4)
+
+
+def _clustered(groups: list[tuple]) -> tuple[list[tuple], np.ndarray, list[int]]:
+    """More groups than MAX_EMITTER_GROUPS, (first, count, kind, center, normal, radius, importance power)
+    each, made into at most that many: suns and skies stay as they are, the rest are split into spatial
+    clusters by repeated median cuts of the largest cluster along its longest axis (if suns and skies
+    leave no room, one group of everything, picked by power). A cluster of several groups is
+    solid (a flat member counts with a quarter of its power, its mean projected area), around the
+    power-weighted centroid. Returns the new groups, the order of the records that makes each one's
+    contiguous, and each old group's new index."""
+    constant = [g for g, group in enumerate(groups) if group[2] == GROUP_CONSTANT]
+    finite = [g for g in range(len(groups)) if g not in constant]
+    if len(constant) + 1 > MAX_EMITTER_GROUPS:
+        everything = sum(group[1] for group in groups)
+        return [(0, everything, GROUP_CONSTANT, 0, 0, 0, 1.0)], np.arange(everything), [0] * len(groups)
+    centers = np.array([np.broadcast_to(groups[g][3], 3) for g in range(len(groups))], np.float64)
+    parts = [finite]
+    while len(parts) + len(constant) < MAX_EMITTER_GROUPS:
+        extent = [np.ptp(centers[part], axis=0).max() if len(part) > 1 else -1.0 for part in parts]
+        largest = int(np.argmax(extent))
+        if extent[largest] <= 0:
+            break
+        part = parts.pop(largest)
+        axis = int(np.argmax(np.ptp(centers[part], axis=0)))
+        ranked = [part[i] for i in np.argsort(centers[part, axis], kind="stable")]
+        parts += [ranked[:len(ranked) // 2], ranked[len(ranked) // 2:]]
+    clusters = parts + [[g] for g in constant]
+
+    merged, order, cluster_of = [], [], [0] * len(groups)
+    for c, members in enumerate(clusters):
+        first = len(order)
+        for g in members:
+            order.extend(range(groups[g][0], groups[g][0] + groups[g][1]))
+            cluster_of[g] = c
+        if len(members) == 1:
+            merged.append((first, len(order) - first, *groups[members[0]][2:]))
+        else:
+            lit = np.array([groups[g][6] * (0.25 if groups[g][2] == GROUP_FLAT else 1.0) for g in members])
+            centers = np.array([np.broadcast_to(groups[g][3], 3) for g in members], np.float64)
+            center = (lit[:, None] * centers).sum(0) / lit.sum()
+            reach = max(np.linalg.norm(centers[i] - center) + groups[g][5] for i, g in enumerate(members))
+            merged.append((first, len(order) - first, GROUP_SOLID, center, 0, reach, lit.sum()))
+    return merged, np.array(order, np.intp), cluster_of
 
 
 def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray, material_ids: np.ndarray,
@@ -212,9 +260,13 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
                                                   triangle_power[span])))
     for i, (kind, position, *_, group_kind, lit) in enumerate(lights, start=triangle_count):
         groups.append((i, 1, group_kind, position if kind == EMITTER_POINT else 0, 0, 0, lit))
-    if len(groups) > MAX_EMITTER_GROUPS or count == 0:
-        material_groups = dict.fromkeys(material_groups, 0)
-        groups = [(0, max(1, count), GROUP_CONSTANT, 0, 0, 0, 1.0)]
+    record_triangle = np.concatenate([numbers, np.full(len(lights), -1)])   # scene triangle of each record
+    if count == 0:
+        groups = [(0, 1, GROUP_CONSTANT, 0, 0, 0, 1.0)]
+    elif len(groups) > MAX_EMITTER_GROUPS:
+        groups, order, cluster_of = _clustered(groups)
+        records, power, record_triangle = records[order], power[order], record_triangle[order]
+        material_groups = {material: cluster_of[g] for material, g in material_groups.items()}
 
     table = np.zeros(len(groups), EMITTER_GROUP_DTYPE)
     for g, (first, n, kind, center, normal, group_radius, lit) in enumerate(groups):
@@ -226,8 +278,9 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
             records["share"][span] = power[span] / power[span].sum()
             records["alias_threshold"][span], records["alias_index"][span] = threshold, alias + first
     triangle_density = np.zeros(len(material_ids), np.float32)
-    triangle_density[numbers] = records["share"][:triangle_count] / records["area"][:triangle_count]
-    background = np.flatnonzero(records["kind"][triangle_count:count] == EMITTER_BACKGROUND) + triangle_count
+    is_triangle = record_triangle >= 0
+    triangle_density[record_triangle[is_triangle]] = records["share"][is_triangle] / records["area"][is_triangle]
+    background = np.flatnonzero((records["kind"][:count] == EMITTER_BACKGROUND) & ~is_triangle)
     if not len(background):
         return EmitterTable(records, table, triangle_density, material_groups)
     background_group = int(np.flatnonzero(table["first"] <= background[0])[-1])

@@ -390,13 +390,11 @@ class TracePass(ComputePass):
 
         self._emitter_table, self._max_depth = emitters, max_depth
         self._geometry_group = ctx.bind_group(self.pipeline, geometry_buffers, group=0)
-        material_records = pack_materials(materials, emitters.material_groups)
         if self.placement.tables:
-            self._materials = ctx.uniform(_padded(material_records, UNIFORM_TABLE_CAPACITY["materials"]).tobytes(),
-                                          label="materials")
+            self._materials = ctx.uniform(self._material_bytes(materials, emitters), label="materials")
             self._emitters = ctx.uniform(self._emitter_bytes(emitters), label="emitters")
         else:
-            self._materials = ctx.upload(material_records, label="materials")
+            self._materials = ctx.upload(pack_materials(materials, emitters.material_groups), label="materials")
             self._emitters = ctx.upload(emitters.records, label="emitters")
         self._triangle_density = ctx.upload(emitters.triangle_density, label="triangle emitter densities")
         self.set_frame(scene, frame, seed)
@@ -417,6 +415,10 @@ class TracePass(ComputePass):
                 self._move_emitters(scene, frame)
         self._params = self._frame_params(scene, frame, self._max_depth, seed, self._emitter_table)
 
+    def _material_bytes(self, materials, emitters) -> bytes:
+        records = pack_materials(materials, emitters.material_groups)
+        return (_padded(records, UNIFORM_TABLE_CAPACITY["materials"]) if self.placement.tables else records).tobytes()
+
     def _emitter_bytes(self, emitters) -> bytes:
         records = emitters.records
         return (_padded(records, UNIFORM_TABLE_CAPACITY["emitters"]) if self.placement.tables else records).tobytes()
@@ -432,6 +434,8 @@ class TracePass(ComputePass):
                              f"{self._emitter_table.count} at the pass's first frame")
         queue = self.ctx.device.queue
         queue.write_buffer(self._emitters, 0, self._emitter_bytes(emitters))
+        if emitters.material_groups != self._emitter_table.material_groups:   # clusters in space moved
+            queue.write_buffer(self._materials, 0, self._material_bytes(materials, emitters))
         if len(emissive):   # only the emissive triangles' span of the densities changes (the rest stay 0)
             first, last = int(emissive[0]), int(emissive[-1]) + 1
             queue.write_buffer(self._triangle_density, 4 * first, emitters.triangle_density[first:last].tobytes())
