@@ -13,7 +13,7 @@ from wgpu_rt.scene.loader import parse_scene
 from wgpu_rt.trace import scene_data
 from wgpu_rt.trace.scene_data import (
     DEFENSIVE_SHARE, GROUP_CONSTANT, GROUP_FLAT, GROUP_POINT, GROUP_SOLID, build_emitter_table, emissive_triangles,
-    emitter_group_count, group_probabilities, pack_materials,
+    emitter_group_count, group_probabilities,
 )
 from wgpu_rt.trace.features import SceneFeatures
 
@@ -45,12 +45,12 @@ def _table(description, max_groups=None, monkeypatch=None):
     emissive = emissive_triangles(geometry.material_ids, materials)
     radius = 0.5 * float(np.ptp(geometry.triangles.reshape(-1, 3), axis=0).max())
     table = build_emitter_table(scene, emissive, geometry.triangles[emissive], geometry.material_ids, materials,
-                                radius)
-    return scene, materials, table
+                                radius, geometry.object_ids)
+    return scene, geometry, table
 
 
-def test_each_light_and_each_emitting_material_is_a_group():
-    scene, materials, table = _table(_FIVE_LIGHTS)
+def test_each_light_and_each_emitting_mesh_is_a_group():
+    scene, geometry, table = _table(_FIVE_LIGHTS)
     kinds = sorted(int(k) for k in table.groups["kind"])
     assert kinds == sorted([GROUP_FLAT, GROUP_SOLID, GROUP_POINT, GROUP_CONSTANT, GROUP_CONSTANT])
     flat = table.groups[table.groups["kind"] == GROUP_FLAT][0]
@@ -61,12 +61,24 @@ def test_each_light_and_each_emitting_material_is_a_group():
     assert solid["radius"] == pytest.approx(0.2, rel=1e-3)
     _check_layout(table)
     assert table.background_share == 1.0 and table.groups[table.background_group]["kind"] == GROUP_CONSTANT
-    # the materials point at their triangles' groups (1 + index), the floor at none
-    packed = pack_materials(materials, table.material_groups)
-    names = scene_material_names(scene)
-    assert packed["emitter_group"][names.index("floor")] == 0
-    for name, kind in (("panel", GROUP_FLAT), ("glow", GROUP_SOLID)):
-        assert table.groups[packed["emitter_group"][names.index(name)] - 1]["kind"] == kind
+    # each triangle points at its record (the floor's at none), each record at its group
+    _check_entries(table, geometry)
+    groups = table.group_of()
+    for mesh, kind in ((0, -1), (1, GROUP_FLAT), (2, GROUP_SOLID)):
+        of_mesh = groups[geometry.object_ids == mesh]
+        assert len(set(of_mesh)) == 1 and (of_mesh[0] == -1 if kind == -1 else table.groups[of_mesh[0]]["kind"] == kind)
+
+
+def test_two_lamps_of_one_material_are_two_groups():
+    """Groups follow meshes, not materials: a second panel of the panel's material far away is its own group."""
+    scene = {**_FIVE_LIGHTS, "meshes": _FIVE_LIGHTS["meshes"] + [
+        {"shape": "rectangle", "material": "panel",
+         "transform": {"rotate": {"axis": [1, 0, 0], "angle": 90}, "scale": 0.15, "translate": [0, 1.0, -2]}}]}
+    _, geometry, table = _table(scene)
+    assert sorted(int(k) for k in table.groups["kind"]).count(GROUP_FLAT) == 2
+    groups = table.group_of()
+    assert groups[geometry.object_ids == 1][0] != groups[geometry.object_ids == 3][0]
+    _check_entries(table, geometry)
 
 
 def test_probabilities_follow_the_irradiance_and_never_starve_a_light():
@@ -88,7 +100,7 @@ def test_more_groups_than_the_kernel_holds_are_clustered_in_space(monkeypatch):
     """With room for 4 groups, the sun and the sky keep theirs and the panel (x = -1.5), the point light
     (x = 0) and the ball (x = 1.5) are cut at the median along x; with room for 2, the sun and the sky
     leave none, and one group of everything is picked by power."""
-    scene, materials, grouped = _table(_FIVE_LIGHTS)
+    scene, geometry, grouped = _table(_FIVE_LIGHTS)
     assert emitter_group_count(scene) == len(grouped.groups) == 5 and SceneFeatures.of(scene).has_emitter_groups
     _, _, clustered = _table(_FIVE_LIGHTS, max_groups=4, monkeypatch=monkeypatch)
     assert emitter_group_count(scene) == len(clustered.groups) == 4
@@ -97,26 +109,28 @@ def test_more_groups_than_the_kernel_holds_are_clustered_in_space(monkeypatch):
     pair = clustered.groups[clustered.groups["kind"] == GROUP_SOLID][0]
     assert pair["count"] == grouped.groups[grouped.groups["kind"] == GROUP_SOLID][0]["count"] + 1
     assert -0.1 < pair["center"][0] < 1.5 and pair["radius"] >= 1.5
-    names = scene_material_names(scene)
     solid = int(np.flatnonzero(clustered.groups["kind"] == GROUP_SOLID)[0])
-    assert clustered.material_groups[names.index("glow")] == solid
+    assert set(clustered.group_of()[geometry.object_ids == 2]) == {solid}      # the ball's triangles
     _check_layout(clustered)
+    _check_entries(clustered, geometry)      # the records were reordered: the entries follow them
     np.testing.assert_allclose(np.sort(clustered.power_pmf()), np.sort(grouped.power_pmf()), rtol=1e-5)
-    # the densities follow the records after their reordering: share within the cluster / area
-    geometry = GeometryBuffers.build(scene)
-    corners = geometry.triangles
-    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
-    is_triangle = clustered.records["kind"] == 0
-    assert np.count_nonzero(clustered.triangle_density) == np.count_nonzero(is_triangle)
-    shares = clustered.records["share"][is_triangle].sum()
-    assert np.sum(clustered.triangle_density * area) == pytest.approx(shares, rel=1e-5)
 
     _, _, merged = _table(_FIVE_LIGHTS, max_groups=2, monkeypatch=monkeypatch)
     assert emitter_group_count(scene) == 1 and not SceneFeatures.of(scene).has_emitter_groups
     assert len(merged.groups) == 1 and merged.groups[0]["count"] == merged.count
-    assert set(merged.material_groups.values()) == {0}
+    assert set(merged.group_of()[merged.triangle_entry > 0]) == {0}
     np.testing.assert_allclose(merged.power_pmf(), grouped.power_pmf(), rtol=1e-5)
     assert group_probabilities(merged.groups, [0, 0, 0]) == pytest.approx([1.0])
+
+
+def _check_entries(table, geometry):
+    """Each emissive triangle's entry is the record of that triangle, every triangle record has one."""
+    entries = table.triangle_entry
+    emitting = np.flatnonzero(entries)
+    assert len(emitting) == np.count_nonzero(table.records["kind"][:table.count] == 0)
+    records = table.records[entries[emitting] - 1]
+    assert np.all(records["kind"] == 0)
+    np.testing.assert_allclose(records["position"], geometry.triangles[emitting, 0], atol=1e-6)
 
 
 def _check_layout(table):

@@ -2,7 +2,7 @@
 parameters (bind group 1; record layouts as in wgsl/trace/material.wgsl and wgsl/trace/trace_bindings.wgsl).
 
 Next-event estimation picks a light in two steps. The table's entries fall into *emitter groups*: the
-emissive triangles of one material, each point light, the sun, the background. At each shading point a
+emissive triangles of one mesh, each point light, the sun, the background. At each shading point a
 group is picked in proportion to an estimate of the irradiance it gives there (``group_probabilities``,
 the numpy reference of wgsl/trace/emitters.wgsl: a point light's intensity over the squared distance, an
 area light's radiance times its area over the squared distance to its bounding sphere, times a bound on
@@ -43,12 +43,12 @@ VIEW_RADIUS_FLOOR = 1e-6   # a framed region counts as at least this fraction of
 
 MATERIAL_DTYPE = np.dtype([
     ("reflectance", "<f4", 3), ("kind", "<u4"), ("emission", "<f4", 3), ("roughness", "<f4"),
-    ("eta", "<f4", 3), ("ior", "<f4"), ("k", "<f4", 3), ("emitter_group", "<u4")])
+    ("eta", "<f4", 3), ("ior", "<f4"), ("k", "<f4", 3), ("is_emissive", "<u4")])
 
 EMITTER_DTYPE = np.dtype([
     ("position", "<f4", 3), ("kind", "<u4"), ("edge1", "<f4", 3), ("share", "<f4"),
     ("edge2", "<f4", 3), ("area", "<f4"), ("radiance", "<f4", 3), ("alias_threshold", "<f4"),
-    ("alias_index", "<u4"), ("pad", "<u4", 3)])
+    ("alias_index", "<u4"), ("group", "<u4"), ("pad", "<u4", 2)])
 
 EMITTER_GROUP_DTYPE = np.dtype([
     ("center", "<f4", 3), ("kind", "<u4"), ("normal", "<f4", 3), ("radius", "<f4"),
@@ -64,13 +64,12 @@ FRAME_PARAMS_DTYPE = np.dtype([
     ("background_group", "<u4"), ("emitter_groups", EMITTER_GROUP_DTYPE, MAX_EMITTER_GROUPS)])
 
 
-def pack_materials(materials: list[Material], emitter_groups: dict[int, int]) -> np.ndarray:
-    """Material records in material-id order; ``emitter_groups`` (an EmitterTable's
-    ``material_groups``) maps the id of an emitting material to its emitter group."""
+def pack_materials(materials: list[Material]) -> np.ndarray:
+    """Material records in material-id order."""
     out = np.zeros(max(1, len(materials)), MATERIAL_DTYPE)
     for i, m in enumerate(materials):
-        group = emitter_groups[i] + 1 if m.is_emissive and i in emitter_groups else 0
-        out[i] = (m.reflectance, MATERIAL_KIND_CODES[m.kind], m.emission, m.roughness, m.eta, m.ior, m.k, group)
+        out[i] = (m.reflectance, MATERIAL_KIND_CODES[m.kind], m.emission, m.roughness, m.eta, m.ior, m.k,
+                  int(m.is_emissive))
     return out
 
 
@@ -104,14 +103,18 @@ class EmitterTable:
     records: np.ndarray            # EMITTER_DTYPE, at least one record (a black one when there is none);
                                    # each group's records contiguous, alias indices absolute
     groups: np.ndarray             # EMITTER_GROUP_DTYPE, 1 to MAX_EMITTER_GROUPS records
-    triangle_density: np.ndarray   # (T,) f32: share / area of each triangle's record, 0 if not emissive
-    material_groups: dict[int, int]    # emitting material id -> its triangles' group
+    triangle_entry: np.ndarray     # (T,) u32: 1 + the index of each triangle's record, 0 if not emissive
     background_group: int = 0
     background_share: float = 0.0  # the background's share of its group (0: no background in the table)
 
     @property
     def count(self) -> int:
         return len(self.records)
+
+    def group_of(self) -> np.ndarray:
+        """(T,) per scene triangle, the index of its record's group, -1 if not emissive."""
+        entry = self.triangle_entry.astype(np.int64) - 1
+        return np.where(entry >= 0, self.records["group"][np.maximum(entry, 0)].astype(np.int64), -1)
 
     def power_pmf(self) -> np.ndarray:
         """Per record, the probability that a pick by power alone takes it."""
@@ -130,9 +133,9 @@ def emissive_triangles(material_ids: np.ndarray, materials: list[Material]) -> n
 
 
 def emitter_group_count(scene: Scene) -> int:
-    """How many emitter groups ``scene``'s emitter table will have, at most (an emitting material whose
+    """How many emitter groups ``scene``'s emitter table will have, at most (an emitting mesh whose
     triangles all have zero area, or a light of zero power, makes none; clusters may stop short)."""
-    emitting = {mesh.material for mesh in scene.meshes if scene.materials[mesh.material].is_emissive}
+    emitting = [mesh for mesh in scene.meshes if scene.materials[mesh.material].is_emissive]
     sky = int(np.any(np.asarray(scene.background) > 0))
     constant = sum(isinstance(light, DirectionalLight) for light in scene.lights) + sky
     count = len(emitting) + len(scene.lights) + sky
@@ -158,19 +161,19 @@ def _triangle_group(tri: np.ndarray, edge1: np.ndarray, edge2: np.ndarray, area:
     return (GROUP_FLAT, center, normal, radius, lit) if flat else (GROUP_SOLID, center, 0, radius, lit / 4)
 
 
-def _clustered(groups: list[tuple]) -> tuple[list[tuple], np.ndarray, list[int]]:
+def _clustered(groups: list[tuple]) -> tuple[list[tuple], np.ndarray]:
     """More groups than MAX_EMITTER_GROUPS, (first, count, kind, center, normal, radius, importance power)
     each, made into at most that many: suns and skies stay as they are, the rest are split into spatial
     clusters by repeated median cuts of the largest cluster along its longest axis (if suns and skies
     leave no room, one group of everything, picked by power). A cluster of several groups is
     solid (a flat member counts with a quarter of its power, its mean projected area), around the
-    power-weighted centroid. Returns the new groups, the order of the records that makes each one's
-    contiguous, and each old group's new index."""
+    power-weighted centroid. Returns the new groups and the order of the records that makes each one's
+    contiguous."""
     constant = [g for g, group in enumerate(groups) if group[2] == GROUP_CONSTANT]
     finite = [g for g in range(len(groups)) if g not in constant]
     if len(constant) + 1 > MAX_EMITTER_GROUPS:
         everything = sum(group[1] for group in groups)
-        return [(0, everything, GROUP_CONSTANT, 0, 0, 0, 1.0)], np.arange(everything), [0] * len(groups)
+        return [(0, everything, GROUP_CONSTANT, 0, 0, 0, 1.0)], np.arange(everything)
     centers = np.array([np.broadcast_to(groups[g][3], 3) for g in range(len(groups))], np.float64)
     parts = [finite]
     while len(parts) + len(constant) < MAX_EMITTER_GROUPS:
@@ -184,12 +187,11 @@ def _clustered(groups: list[tuple]) -> tuple[list[tuple], np.ndarray, list[int]]
         parts += [ranked[:len(ranked) // 2], ranked[len(ranked) // 2:]]
     clusters = parts + [[g] for g in constant]
 
-    merged, order, cluster_of = [], [], [0] * len(groups)
-    for c, members in enumerate(clusters):
+    merged, order = [], []
+    for members in clusters:
         first = len(order)
         for g in members:
             order.extend(range(groups[g][0], groups[g][0] + groups[g][1]))
-            cluster_of[g] = c
         if len(members) == 1:
             merged.append((first, len(order) - first, *groups[members[0]][2:]))
         else:
@@ -198,24 +200,26 @@ def _clustered(groups: list[tuple]) -> tuple[list[tuple], np.ndarray, list[int]]
             center = (lit[:, None] * centers).sum(0) / lit.sum()
             reach = max(np.linalg.norm(centers[i] - center) + groups[g][5] for i, g in enumerate(members))
             merged.append((first, len(order) - first, GROUP_SOLID, center, 0, reach, lit.sum()))
-    return merged, np.array(order, np.intp), cluster_of
+    return merged, np.array(order, np.intp)
 
 
 def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray, material_ids: np.ndarray,
-                        materials: list[Material], scene_radius: float) -> EmitterTable:
+                        materials: list[Material], scene_radius: float,
+                        object_ids: np.ndarray | None = None) -> EmitterTable:
     """The emitter table of ``scene``'s lights and of its emissive triangles ``numbers`` (from
     ``emissive_triangles``), whose world-space vertices are ``triangles`` (len(numbers), 3, 3); the
-    scene has len(material_ids) triangles."""
+    scene has len(material_ids) triangles, triangle t of mesh ``object_ids[t]`` (default: all of one)."""
     numbers = np.asarray(numbers, np.intp)
     tri = np.asarray(triangles, np.float64).reshape(-1, 3, 3)
     edge1, edge2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
     area = 0.5 * np.linalg.norm(np.cross(edge1, edge2), axis=1)
     keep = area > 0
     numbers, tri, edge1, edge2, area = numbers[keep], tri[keep], edge1[keep], edge2[keep], area[keep]
-    triangle_material = np.asarray(material_ids, np.intp)[numbers]
-    order = np.argsort(triangle_material, kind="stable")   # each material's triangles contiguous
+    triangle_object = np.zeros(len(numbers), np.intp) if object_ids is None else np.asarray(object_ids, np.intp)[numbers]
+    order = np.argsort(triangle_object, kind="stable")   # each mesh's triangles contiguous
     numbers, tri, edge1, edge2, area = numbers[order], tri[order], edge1[order], edge2[order], area[order]
-    triangle_material = triangle_material[order]
+    triangle_object = triangle_object[order]
+    triangle_material = np.asarray(material_ids, np.intp)[numbers]
     material_emission = np.array([m.emission for m in materials], np.float64).reshape(-1, 3)
     emission = material_emission[triangle_material].reshape(-1, 3)
     triangle_power = np.pi * area * (emission @ LUMINANCE)
@@ -251,11 +255,10 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
     power = np.concatenate([triangle_power, [light[4] for light in lights]])
 
     # groups: (first, count, kind, center, normal, radius, importance power)
-    groups, material_groups = [], {}
-    materials_used, firsts, counts = np.unique(triangle_material, return_index=True, return_counts=True)
-    for material, first, n in zip(materials_used, firsts, counts):
+    groups = []
+    _, firsts, counts = np.unique(triangle_object, return_index=True, return_counts=True)
+    for first, n in zip(firsts, counts):
         span = slice(first, first + n)
-        material_groups[int(material)] = len(groups)
         groups.append((first, n, *_triangle_group(tri[span], edge1[span], edge2[span], area[span],
                                                   triangle_power[span])))
     for i, (kind, position, *_, group_kind, lit) in enumerate(lights, start=triangle_count):
@@ -264,9 +267,8 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
     if count == 0:
         groups = [(0, 1, GROUP_CONSTANT, 0, 0, 0, 1.0)]
     elif len(groups) > MAX_EMITTER_GROUPS:
-        groups, order, cluster_of = _clustered(groups)
+        groups, order = _clustered(groups)
         records, power, record_triangle = records[order], power[order], record_triangle[order]
-        material_groups = {material: cluster_of[g] for material, g in material_groups.items()}
 
     table = np.zeros(len(groups), EMITTER_GROUP_DTYPE)
     for g, (first, n, kind, center, normal, group_radius, lit) in enumerate(groups):
@@ -277,14 +279,14 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
             threshold, alias = alias_table(power[span])
             records["share"][span] = power[span] / power[span].sum()
             records["alias_threshold"][span], records["alias_index"][span] = threshold, alias + first
-    triangle_density = np.zeros(len(material_ids), np.float32)
+            records["group"][span] = g
+    triangle_entry = np.zeros(len(material_ids), np.uint32)
     is_triangle = record_triangle >= 0
-    triangle_density[record_triangle[is_triangle]] = records["share"][is_triangle] / records["area"][is_triangle]
+    triangle_entry[record_triangle[is_triangle]] = np.flatnonzero(is_triangle) + 1
     background = np.flatnonzero((records["kind"][:count] == EMITTER_BACKGROUND) & ~is_triangle)
     if not len(background):
-        return EmitterTable(records, table, triangle_density, material_groups)
-    background_group = int(np.flatnonzero(table["first"] <= background[0])[-1])
-    return EmitterTable(records, table, triangle_density, material_groups, background_group,
+        return EmitterTable(records, table, triangle_entry)
+    return EmitterTable(records, table, triangle_entry, int(records["group"][background[0]]),
                         float(records["share"][background[0]]))
 
 

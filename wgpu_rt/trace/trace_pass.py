@@ -352,7 +352,7 @@ class TracePass(ComputePass):
         materials = [scene.materials[n] for n in scene_material_names(scene)]
         emissive = emissive_triangles(geometry.material_ids, materials)
         emitters = build_emitter_table(scene, emissive, geometry.triangles[emissive], geometry.material_ids,
-                                       materials, _scene_radius(geometry.triangles))
+                                       materials, _scene_radius(geometry.triangles), geometry.object_ids)
         if len(emitters.groups) > 1 and not self.features.has_emitter_groups:
             raise ValueError(f"scene {scene.name!r} has {len(emitters.groups)} emitter groups, but its kernel's "
                              f"features leave emitter groups out")
@@ -390,13 +390,15 @@ class TracePass(ComputePass):
 
         self._emitter_table, self._max_depth = emitters, max_depth
         self._geometry_group = ctx.bind_group(self.pipeline, geometry_buffers, group=0)
+        material_records = pack_materials(materials)
         if self.placement.tables:
-            self._materials = ctx.uniform(self._material_bytes(materials, emitters), label="materials")
+            self._materials = ctx.uniform(_padded(material_records, UNIFORM_TABLE_CAPACITY["materials"]).tobytes(),
+                                          label="materials")
             self._emitters = ctx.uniform(self._emitter_bytes(emitters), label="emitters")
         else:
-            self._materials = ctx.upload(pack_materials(materials, emitters.material_groups), label="materials")
+            self._materials = ctx.upload(material_records, label="materials")
             self._emitters = ctx.upload(emitters.records, label="emitters")
-        self._triangle_density = ctx.upload(emitters.triangle_density, label="triangle emitter densities")
+        self._triangle_entry = ctx.upload(emitters.triangle_entry, label="triangle emitter entries")
         self.set_frame(scene, frame, seed)
         self._no_counts = ctx.storage(16, label="no sample counts")
         self._param_buffers: dict[tuple, list] = {}
@@ -415,10 +417,6 @@ class TracePass(ComputePass):
                 self._move_emitters(scene, frame)
         self._params = self._frame_params(scene, frame, self._max_depth, seed, self._emitter_table)
 
-    def _material_bytes(self, materials, emitters) -> bytes:
-        records = pack_materials(materials, emitters.material_groups)
-        return (_padded(records, UNIFORM_TABLE_CAPACITY["materials"]) if self.placement.tables else records).tobytes()
-
     def _emitter_bytes(self, emitters) -> bytes:
         records = emitters.records
         return (_padded(records, UNIFORM_TABLE_CAPACITY["emitters"]) if self.placement.tables else records).tobytes()
@@ -428,17 +426,15 @@ class TracePass(ComputePass):
         place (a transform is never singular, so no emissive triangle appears or vanishes)."""
         materials, emissive, radius = self._shading
         emitters = build_emitter_table(scene, emissive, self._geometry.placed_triangles(frame, emissive),
-                                       self._geometry.material_ids, materials, radius)
+                                       self._geometry.material_ids, materials, radius, self._geometry.object_ids)
         if emitters.count != self._emitter_table.count:
             raise ValueError(f"scene {scene.name!r}, frame {frame}: {emitters.count} emitters, "
                              f"{self._emitter_table.count} at the pass's first frame")
         queue = self.ctx.device.queue
         queue.write_buffer(self._emitters, 0, self._emitter_bytes(emitters))
-        if emitters.material_groups != self._emitter_table.material_groups:   # clusters in space moved
-            queue.write_buffer(self._materials, 0, self._material_bytes(materials, emitters))
-        if len(emissive):   # only the emissive triangles' span of the densities changes (the rest stay 0)
+        if len(emissive):   # only the emissive triangles' span of the entries changes (the rest stay 0)
             first, last = int(emissive[0]), int(emissive[-1]) + 1
-            queue.write_buffer(self._triangle_density, 4 * first, emitters.triangle_density[first:last].tobytes())
+            queue.write_buffer(self._triangle_entry, 4 * first, emitters.triangle_entry[first:last].tobytes())
         self._emitter_table = emitters
 
     def _frame_params(self, scene, frame, max_depth, seed, emitters) -> np.ndarray:
@@ -509,7 +505,7 @@ class TracePass(ComputePass):
                 constants={**self.features.constants(), "AUX_SAMPLES": samples, "AUX_DELTA_SAMPLES": delta_samples},
                 label=f"aux {self.features}", layout=trace_layout(self.ctx, geometry_bindings, placement))
         shading = self._bind_group(1, [self._params_buffer(SampleSchedule()), self._materials, self._emitters,
-                                       self._triangle_density, self._no_counts])
+                                       self._triangle_entry, self._no_counts])
         compute = encoder.begin_compute_pass(label="aux")
         compute.set_pipeline(pipeline)
         compute.set_bind_group(0, self._geometry_group)
@@ -527,7 +523,7 @@ class TracePass(ComputePass):
         """Record the dispatches that add ``schedule``'s samples to ``buffers``."""
         uniform = self._params_buffer(schedule)
         counts = schedule.sample_counts if schedule.sample_counts is not None else self._no_counts
-        shading = self._bind_group(1, [uniform, self._materials, self._emitters, self._triangle_density, counts])
+        shading = self._bind_group(1, [uniform, self._materials, self._emitters, self._triangle_entry, counts])
         planes = self._bind_group(2, [buffers.get(spec) for spec in self.outputs])
         if schedule.sample_counts is not None:
             self._execute_targeted(encoder, buffers, schedule, uniform, shading, planes)

@@ -159,9 +159,15 @@ fn sample_emitter(x: vec3f, u_pick: f32, u: vec2f) -> EmitterSample {
 }
 
 // Solid-angle pdf with which sample_emitter at x would pick the point a ray from x hit on triangle
-// `prim` of emitter group `group` at distance t, whose front face it hit with cosine cos_light.
-fn triangle_emitter_pdf(x: vec3f, group: u32, prim: u32, t: f32, cos_light: f32) -> f32 {
-    return group_probability(x, group) * triangle_emitter_density[prim] * t * t / cos_light;
+// `prim` at distance t, whose front face it hit with cosine cos_light (0 for a triangle of no area,
+// which has no entry).
+fn triangle_emitter_pdf(x: vec3f, prim: u32, t: f32, cos_light: f32) -> f32 {
+    let entry = triangle_emitter[prim];
+    if entry == 0u {
+        return 0.0;
+    }
+    let e = emitters[entry - 1u];
+    return group_probability(x, e.group) * e.share / e.area * t * t / cos_light;
 }
 
 // Solid-angle pdf with which sample_emitter at x would pick a direction to the background.

@@ -17,7 +17,7 @@ struct Material {
     eta: vec3f,     // conductor: real part of the complex index of refraction
     ior: f32,       // dielectric: interior index over an exterior of 1
     k: vec3f,       // conductor: imaginary part
-    emitter_group: u32,   // 1 + the index of its triangles' emitter group; 0: it emits nothing
+    is_emissive: u32,
 }
 
 // What a BSDF sample returns: the direction (local frame), weight = f·|cos|/pdf, the solid-angle pdf

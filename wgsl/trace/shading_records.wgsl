@@ -21,16 +21,16 @@ struct Emitter {
     radiance: vec3f,      // radiance, intensity or irradiance by kind
     alias_threshold: f32,
     alias_index: u32,
+    group: u32,           // the emitter group it belongs to
     pad0: u32,
     pad1: u32,
-    pad2: u32,
 }
 
 
 const GROUP_CONSTANT: u32 = 0u;   // a sun, a sky, or the one group of everything
 const GROUP_POINT: u32 = 1u;
-const GROUP_SOLID: u32 = 2u;      // emissive triangles of one material, not all in one plane
-const GROUP_FLAT: u32 = 3u;       // emissive triangles of one material in one plane, facing `normal`
+const GROUP_SOLID: u32 = 2u;      // emissive triangles of one mesh not all in one plane, or a cluster
+const GROUP_FLAT: u32 = 3u;       // emissive triangles of one mesh in one plane, facing `normal`
 
 // A group of the emitter table's entries, [first, first + count): next-event estimation picks a group by
 // an estimate of the irradiance it gives at the shading point (emitters.wgsl's group_importance), then

@@ -116,11 +116,10 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     let material = materials[tri_material(hit.prim)];
     let cos_front = -dot(geometric_normal, dir);
 
-    if HAS_AREA_LIGHTS && material.emitter_group != 0u && cos_front > 0.0 {
+    if HAS_AREA_LIGHTS && material.is_emissive != 0u && cos_front > 0.0 {
         var weight = 1.0;
         if !(*path).previous_delta {
-            let light_pdf = triangle_emitter_pdf((*path).previous_position, material.emitter_group - 1u, hit.prim,
-                                                 hit.t, cos_front);
+            let light_pdf = triangle_emitter_pdf((*path).previous_position, hit.prim, hit.t, cos_front);
             weight = power_heuristic((*path).previous_pdf, light_pdf);
         }
         (*path).radiance += (*path).throughput * material.emission * weight;

@@ -31,8 +31,8 @@ struct FrameParams {
 }
 
 @group(1) @binding(0) var<uniform> params: FrameParams;
-// per triangle: its entry's share of its emitter group / area, 0 if none
-@group(1) @binding(3) var<storage, read> triangle_emitter_density: array<f32>;
+// per triangle: 1 + the index of its entry in the emitter table, 0 if it does not emit
+@group(1) @binding(3) var<storage, read> triangle_emitter: array<u32>;
 @group(1) @binding(4) var<storage, read> sample_counts: array<u32>;      // per pixel (adaptive passes)
 
 @group(2) @binding(0) var<storage, read_write> out_radiance: array<f32>;
