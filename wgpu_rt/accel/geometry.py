@@ -364,8 +364,9 @@ class InstancedGeometry:
     copies as they find a single-level tree's) and the instances' entries (``top_level``), then each
     bottom level's ``orderings(ctx)`` copies (its triangles' indices offset to its place in the
     triangle buffers). A frame whose transforms changed rewrites only the top level and entries, the
-    instance records and the object motion (``frame_arrays``, ``write_frame``). Emissive meshes must
-    not move (the emitter table is built once from ``triangles``, world space at ``frame``; ``suits``).
+    instance records and the object motion (``frame_arrays``, ``write_frame``). Where emissive meshes
+    move (``moves_emitters``), the tracer rebuilds the emitter table for each frame from
+    ``placed_triangles`` (wgpu_rt/trace/trace_pass.py).
     """
 
     instances_module = "accel/instances.wgsl"
