@@ -39,13 +39,22 @@ def test_twin_golds_recover_the_score_against_the_truth(common):
     assert common.twin_corrected_psnr(gold, twin, 0.5 * (gold + twin)) == float("inf")
 
 
-USER_SCENES = sorted((REPO / "benchmarks" / "scenes").glob("*.toml"))
+SCENE_FILES = sorted((REPO / "benchmarks" / "scenes").glob("*.toml"))
+# issue 12's three scenes as a user builds them: a mesh with a rough copper ball and a glass cube, a
+# closed room lit indirectly, rough gold and frosted glass under a low sun and a sky
+USER_SCENES = [REPO / "benchmarks" / "scenes" / f"{name}.toml"
+               for name in ("bunny-copper-glass", "gold-bunny-sky", "teapot-closed-room")]
 
 
 def test_the_user_scenes_exist():
-    """Issue 12's three scenes as a user builds them: a mesh with a rough copper ball and a glass cube, a
-    closed room lit indirectly, rough gold and frosted glass under a low sun and a sky."""
-    assert [p.stem for p in USER_SCENES] == ["bunny-copper-glass", "gold-bunny-sky", "teapot-closed-room"]
+    """The three user scenes, and the corridor of twenty lamps (light picks, BENCHMARKS.md §30)."""
+    assert all(path in SCENE_FILES for path in USER_SCENES)
+    assert [p.stem for p in SCENE_FILES if p not in USER_SCENES] == ["corridor-lamps"]
+
+
+def test_the_corridor_scene_loads_with_its_twenty_lamps(common):
+    [scene] = common.load_scenes([str(REPO / "benchmarks" / "scenes" / "corridor-lamps.toml")])
+    assert sum(scene.materials[m.material].is_emissive for m in scene.meshes) == 20
 
 
 @pytest.mark.parametrize("path", USER_SCENES, ids=lambda p: p.stem)
