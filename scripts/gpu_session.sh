@@ -37,6 +37,11 @@
 # Session 30 had no GPU; since then a sun's and a sky's power, by which next-event estimation picks
 # lights, counts through the region the camera frames (§29): four held-out dusk worlds lose the fireflies
 # that filled their inputs and their golds, so `heldout` scores them against the truth for the first time.
+# Session 31 had no GPU; since then each shading point picks lights by their estimated irradiance there
+# (§30: up to 16 emitter groups looped over for each light sample, 9-34 % more time a sample on lavapipe
+# where a scene has several): `trace` and `frame` give the first GPU numbers of that cost (cornell has
+# one group and compiles without it; the worlds of `heldout` have several), and call 2's renders train on
+# the cleaner inputs (guide_albedo 3: an emitter's albedo at least 0.5 grey).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:
@@ -181,6 +186,8 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
         part trace_bunny python3 benchmarks/bench_trace.py --scene bunny --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows $small_leaves auto
         part trace_cornell python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows wide+small-leaves+rows auto
         part trace_glossy python3 benchmarks/bench_trace.py --scene cornell-glossy --size $SQUARE --spp $TRACE_SPP --layouts threaded wide wide8 threaded+rows wide+rows wide8+rows $small_leaves auto
+        # session 31: twenty lamps clustered into 16 emitter groups, each light sample loops over them
+        part trace_corridor python3 benchmarks/bench_trace.py --scene benchmarks/scenes/corridor-lamps.toml --size $SQUARE --spp $TRACE_SPP --layouts auto
         part bvh_rays python3 benchmarks/bench_bvh.py --sizes 100000
         part trace_cornell_checked env WGPU_RT_BOUNDS_CHECKS=1 python3 benchmarks/bench_trace.py --scene cornell --size $SQUARE --spp $TRACE_SPP
         part watertight python3 benchmarks/bench_watertight.py --size $SQUARE --spp $TRACE_SPP ;;

@@ -77,9 +77,10 @@ CHUNK_START_OFFSET = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
 # twice the aux pass on glass scenes (§15): kept for quality, the first saving to take where it weighs.
 AUX_SAMPLES = 4
 AUX_DELTA_FACTOR = 2
-# What the albedo plane holds where a path escapes (wgsl/trace/guide_albedo.wgsl): since version 2 the
-# background's radiance, at most 1; in 1 (datasets rendered before) 0. A dataset records its version.
-GUIDE_ALBEDO = 2
+# What the albedo plane holds (wgsl/trace/guide_albedo.wgsl): where a path escapes, since version 2 the
+# background's radiance, at most 1 (in 1, datasets rendered before, 0); on an emitter, since version 3 at
+# least 0.5 grey (in 1 and 2 its reflectance, 0 for a black lamp). A dataset records its version.
+GUIDE_ALBEDO = 3
 
 
 STORAGE_TABLES = "trace/shading_tables_storage.wgsl"   # what trace/trace_bindings.wgsl imports

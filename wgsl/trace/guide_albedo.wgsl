@@ -4,12 +4,17 @@
 // escapes, that is the background's radiance (at most 1): with 0 there, a pixel half sky and half floor
 // read as the floor's irradiance times two plus the sky's times 100, and the denoiser, pulled towards the
 // floor, left a dark seam along every horizon (BENCHMARKS.md §28). A black background stays at 0, so what
-// the network leaks into it is multiplied by 0.01. An emitter keeps its reflectance: adding its emission
-// (at most 1) helped faint glowing objects but cost up to 0.3 dB around the Cornell box's light and 57 %
-// more error where the `moving` scene disoccludes (§28).
+// the network leaks into it is multiplied by 0.01. An emitter keeps its reflectance, but at least
+// EMITTER_ALBEDO_FLOOR grey: a lamp given emission and a black reflectance (as area lights often are)
+// read as its radiance times 100 and came out dark inside a halo (+0.18 / +0.53 / +0.63 dB at 1 / 4 / 16
+// spp on benchmarks/scenes/corridor-lamps.toml, +0.05 to +0.20 on sun-room's black sun; 0.8 gave less,
+// BENCHMARKS.md §30). Adding its emission instead (at most 1) helped faint glowing objects but cost up to
+// 0.3 dB around the Cornell box's light and 57 % more error where the `moving` scene disoccludes (§28).
 
 // #import trace/trace_bindings.wgsl
 // #import trace/bsdf.wgsl
+
+const EMITTER_ALBEDO_FLOOR: f32 = 0.5;
 
 // A non-delta surface.
 fn surface_albedo(m: Material) -> vec3f {
@@ -18,6 +23,9 @@ fn surface_albedo(m: Material) -> vec3f {
     }
     if HAS_DIELECTRIC && m.kind == MATERIAL_DIELECTRIC {
         return vec3f(1.0);
+    }
+    if HAS_AREA_LIGHTS && m.is_emissive != 0u {
+        return max(m.reflectance, vec3f(EMITTER_ALBEDO_FLOOR));
     }
     return m.reflectance;
 }
