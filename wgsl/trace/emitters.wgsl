@@ -85,7 +85,7 @@ struct EmitterPick {
 }
 
 fn pick_emitter(x: vec3f, u: f32) -> EmitterPick {
-    var first = 0u;
+    var first = 0u;                       // one group: it holds the whole table
     var count = params.emitter_count;
     var probability = 1.0;
     var rest = u;       // u rescaled to [0, 1) within the picked group's interval
@@ -111,9 +111,6 @@ fn pick_emitter(x: vec3f, u: f32) -> EmitterPick {
             }
             below += p;
         }
-    } else {
-        first = params.emitter_groups[0].first;
-        count = params.emitter_groups[0].count;
     }
     let scaled = rest * f32(count);
     let i = min(u32(scaled), count - 1u);

@@ -26,7 +26,6 @@ struct Emitter {
     pad1: u32,
 }
 
-
 const GROUP_CONSTANT: u32 = 0u;   // a sun, a sky, or the one group of everything
 const GROUP_POINT: u32 = 1u;
 const GROUP_SOLID: u32 = 2u;      // emissive triangles of one mesh not all in one plane, or a cluster
