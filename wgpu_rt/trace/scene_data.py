@@ -215,7 +215,8 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
     area = 0.5 * np.linalg.norm(np.cross(edge1, edge2), axis=1)
     keep = area > 0
     numbers, tri, edge1, edge2, area = numbers[keep], tri[keep], edge1[keep], edge2[keep], area[keep]
-    triangle_object = np.zeros(len(numbers), np.intp) if object_ids is None else np.asarray(object_ids, np.intp)[numbers]
+    triangle_object = (np.zeros(len(numbers), np.intp) if object_ids is None
+                       else np.asarray(object_ids, np.intp)[numbers])
     order = np.argsort(triangle_object, kind="stable")   # each mesh's triangles contiguous
     numbers, tri, edge1, edge2, area = numbers[order], tri[order], edge1[order], edge2[order], area[order]
     triangle_object = triangle_object[order]
