@@ -59,29 +59,23 @@ fn group_probability_of(importance: f32, total: f32, pmf: f32) -> f32 {
     return (1.0 - DEFENSIVE_SHARE) * importance / total + DEFENSIVE_SHARE * pmf;
 }
 
-// Probability that the estimate at x picks group `index`.
-fn group_probability(x: vec3f, index: u32) -> f32 {
+// Probability that the estimate at x, whose groups' importances summed to `importance_total` when
+// pick_emitter made it, picks group `index`.
+fn group_probability(x: vec3f, importance_total: f32, index: u32) -> f32 {
     if !HAS_EMITTER_GROUPS || params.emitter_group_count == 1u {
         return 1.0;
     }
-    var total = 0.0;
-    var mine = 0.0;
-    var pmf = 0.0;
-    for (var g = 0u; g < params.emitter_group_count; g++) {
-        let group = params.emitter_groups[g];
-        let importance = group_importance(group, x);
-        total += importance;
-        mine = select(mine, importance, g == index);
-        pmf = select(pmf, group.pmf, g == index);
-    }
-    return group_probability_of(mine, total, pmf);
+    let group = params.emitter_groups[index];
+    return group_probability_of(group_importance(group, x), importance_total, group.pmf);
 }
 
-// The entry of the table the estimate at x takes for random number u, and the probability of
-// having picked its group.
+// The entry of the table the estimate at x takes for random number u, the probability of having
+// picked its group, and the sum of the groups' importances at x (kept by the path for the multiple-
+// importance weight of what its next segment meets, so that it need not loop over the groups again).
 struct EmitterPick {
     index: u32,
     group_probability: f32,
+    importance_total: f32,
 }
 
 fn pick_emitter(x: vec3f, u: f32) -> EmitterPick {
@@ -89,9 +83,9 @@ fn pick_emitter(x: vec3f, u: f32) -> EmitterPick {
     var count = params.emitter_count;
     var probability = 1.0;
     var rest = u;       // u rescaled to [0, 1) within the picked group's interval
+    var total = 0.0;
     if HAS_EMITTER_GROUPS && params.emitter_group_count > 1u {
         var importance: array<f32, 16>;   // per group (MAX_EMITTER_GROUPS)
-        var total = 0.0;
         for (var g = 0u; g < params.emitter_group_count; g++) {
             importance[g] = group_importance(params.emitter_groups[g], x);
             total += importance[g];
@@ -115,7 +109,8 @@ fn pick_emitter(x: vec3f, u: f32) -> EmitterPick {
     let scaled = rest * f32(count);
     let i = min(u32(scaled), count - 1u);
     let entry = emitters[first + i];
-    return EmitterPick(select(entry.alias_index, first + i, scaled - f32(i) < entry.alias_threshold), probability);
+    let index = select(entry.alias_index, first + i, scaled - f32(i) < entry.alias_threshold);
+    return EmitterPick(index, probability, total);
 }
 
 fn sample_triangle_emitter(e: Emitter, pmf: f32, x: vec3f, u: vec2f) -> EmitterSample {
@@ -134,8 +129,8 @@ fn sample_triangle_emitter(e: Emitter, pmf: f32, x: vec3f, u: vec2f) -> EmitterS
     return EmitterSample(dir, dist, e.radiance / pdf, pdf);
 }
 
-fn sample_emitter(x: vec3f, u_pick: f32, u: vec2f) -> EmitterSample {
-    let pick = pick_emitter(x, u_pick);
+// A point on the entry `pick` took, seen from x.
+fn sample_emitter(pick: EmitterPick, x: vec3f, u: vec2f) -> EmitterSample {
     let e = emitters[pick.index];
     let pmf = pick.group_probability * e.share;
     if !HAS_ANALYTIC_LIGHTS || e.kind == EMITTER_TRIANGLE {
@@ -155,19 +150,20 @@ fn sample_emitter(x: vec3f, u_pick: f32, u: vec2f) -> EmitterSample {
     return EmitterSample(dir, FAR_AWAY, e.radiance / pdf, pdf);
 }
 
-// Solid-angle pdf with which sample_emitter at x would pick the point a ray from x hit on triangle
-// `prim` at distance t, whose front face it hit with cosine cos_light (0 for a triangle of no area,
-// which has no entry).
-fn triangle_emitter_pdf(x: vec3f, prim: u32, t: f32, cos_light: f32) -> f32 {
+// Solid-angle pdf with which the estimate at x (importance_total: its pick's) would pick the point a ray
+// from x hit on triangle `prim` at distance t, whose front face it hit with cosine cos_light (0 for a
+// triangle of no area, which has no entry).
+fn triangle_emitter_pdf(x: vec3f, importance_total: f32, prim: u32, t: f32, cos_light: f32) -> f32 {
     let entry = triangle_emitter[prim];
     if entry == 0u {
         return 0.0;
     }
     let e = emitters[entry - 1u];
-    return group_probability(x, e.group) * e.share / e.area * t * t / cos_light;
+    return group_probability(x, importance_total, e.group) * e.share / e.area * t * t / cos_light;
 }
 
-// Solid-angle pdf with which sample_emitter at x would pick a direction to the background.
-fn background_emitter_pdf(x: vec3f) -> f32 {
-    return group_probability(x, params.background_group) * params.background_share * INV_FOUR_PI;
+// Solid-angle pdf with which the estimate at x (importance_total: its pick's) would pick a direction to
+// the background.
+fn background_emitter_pdf(x: vec3f, importance_total: f32) -> f32 {
+    return group_probability(x, importance_total, params.background_group) * params.background_share * INV_FOUR_PI;
 }

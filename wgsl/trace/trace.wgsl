@@ -43,6 +43,7 @@ struct Path {
     throughput: vec3f,
     previous_pdf: f32,          // solid-angle pdf of the BSDF sample that made `dir`
     previous_position: vec3f,   // the vertex that sample left (where its emitter pdf is reckoned)
+    previous_importance: f32,   // and the emitter groups' importances summed there (emitters.wgsl)
     radiance: vec3f,
     previous_delta: bool,       // that sample came from a delta lobe (no MIS for what it hits)
     albedo: vec3f,
@@ -84,7 +85,7 @@ fn shadow_ray_to_light(position: vec3f, geometric_normal: vec3f, light: EmitterS
 fn start_path(sampler: ptr<function, Sampler>, pixel_corner: vec2f) -> Path {
     let film = pixel_corner + next_2d(sampler);
     return Path(params.camera_origin, 0u, camera_ray_direction(film), 1.0, vec3f(1.0), 0.0, params.camera_origin,
-                vec3f(0.0), true, vec3f(0.0), WRITE_AOVS, vec3f(0.0), 0.0, film, vec2f(0.0));
+                0.0, vec3f(0.0), true, vec3f(0.0), WRITE_AOVS, vec3f(0.0), 0.0, film, vec2f(0.0));
 }
 
 // Shades where the path's last segment landed (`traced`), leaving the next-event estimate made there in
@@ -102,7 +103,8 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
         if HAS_ANALYTIC_LIGHTS && params.background_share > 0.0 {
             var weight = 1.0;
             if !(*path).previous_delta {
-                weight = power_heuristic((*path).previous_pdf, background_emitter_pdf((*path).previous_position));
+                let light_pdf = background_emitter_pdf((*path).previous_position, (*path).previous_importance);
+                weight = power_heuristic((*path).previous_pdf, light_pdf);
             }
             (*path).radiance += (*path).throughput * params.background * weight;
         }
@@ -119,7 +121,8 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     if HAS_AREA_LIGHTS && material.is_emissive != 0u && cos_front > 0.0 {
         var weight = 1.0;
         if !(*path).previous_delta {
-            let light_pdf = triangle_emitter_pdf((*path).previous_position, hit.prim, hit.t, cos_front);
+            let light_pdf = triangle_emitter_pdf((*path).previous_position, (*path).previous_importance, hit.prim,
+                                                 hit.t, cos_front);
             weight = power_heuristic((*path).previous_pdf, light_pdf);
         }
         (*path).radiance += (*path).throughput * material.emission * weight;
@@ -148,9 +151,11 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     let frame = frame_from_normal(shading_normal);
     let wi = to_local(frame, -dir);
 
+    var importance_total = 0.0;
     if !material_is_delta(material) {
-        let u_pick = next_1d(sampler);
-        let light = sample_emitter(position, u_pick, next_2d(sampler));
+        let pick = pick_emitter(position, next_1d(sampler));
+        importance_total = pick.importance_total;
+        let light = sample_emitter(pick, position, next_2d(sampler));
         if any(light.value > vec3f(0.0)) {
             let wo = to_local(frame, light.direction);
             let f = bsdf_eval(material, wi, wo);
@@ -174,6 +179,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     (*path).origin = offset_ray_origin(position, geometric_normal, next_dir);
     (*path).previous_pdf = bs.pdf;
     (*path).previous_position = position;
+    (*path).previous_importance = importance_total;
     (*path).previous_delta = bs.is_delta;
     (*path).eta_scale = eta_scale;
     (*path).depth = depth + 1u;
