@@ -5,8 +5,9 @@ EXR channel names (what our renderer writes and our denoiser reads):
 | layer  | channels                        | meaning                                          |
 | ------ | ------------------------------- | ------------------------------------------------ |
 | color  | ``R``, ``G``, ``B``             | HDR radiance, linear Rec.709                     |
-| albedo | ``albedo.R/G/B``                | first non-delta surface's reflectance; where the |
-|        |                                 | ray escapes, the background's radiance (≤ 1)     |
+| albedo | ``albedo.R/G/B``                | first non-delta surface's reflectance (an        |
+|        |                                 | emitter's at least 0.5); where the ray escapes,  |
+|        |                                 | the background's radiance (≤ 1)                  |
 | normal | ``normal.X/Y/Z``                | world-space unit normal                          |
 | depth  | ``depth.Z``                     | linear depth along the camera axis (0 = miss)    |
 | motion | ``motion.X/Y``                  | pixels to the previous frame's position          |
