@@ -91,20 +91,19 @@ fn pick_emitter(x: vec3f, u: f32) -> EmitterPick {
             total += importance[g];
         }
         var below = 0.0;
-        var picked = false;
+        var chosen = params.emitter_group_count;     // none yet
         for (var g = 0u; g < params.emitter_group_count; g++) {
-            let group = params.emitter_groups[g];
-            let p = group_probability_of(importance[g], total, group.pmf);
+            let p = group_probability_of(importance[g], total, params.emitter_groups[g].pmf);
             // the last group takes what rounding leaves past the sum of the probabilities
-            if !picked && (u < below + p || g + 1u == params.emitter_group_count) {
-                picked = true;
-                first = group.first;
-                count = group.count;
+            if chosen == params.emitter_group_count && (u < below + p || g + 1u == params.emitter_group_count) {
+                chosen = g;
                 probability = p;
                 rest = min(max(u - below, 0.0) / p, 0.99999994);
             }
             below += p;
         }
+        first = params.emitter_groups[chosen].first;
+        count = params.emitter_groups[chosen].count;
     }
     let scaled = rest * f32(count);
     let i = min(u32(scaled), count - 1u);
