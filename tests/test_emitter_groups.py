@@ -197,3 +197,15 @@ def test_many_lights_clustered_render_the_same_image_with_less_noise(gpu, monkey
     assert emitter_group_count(scene) == 16 and SceneFeatures.of(scene).has_emitter_groups
     clustered, by_power = _error_against_picks_by_power(scene, monkeypatch)
     assert clustered < 0.2 * by_power, (clustered, by_power)
+
+
+def test_the_kernel_and_the_packing_agree_on_their_constants():
+    """The defensive share and the group capacity are written in the WGSL as well as in scene_data."""
+    import re
+
+    from wgpu_rt.shaders import read_wgsl
+
+    emitters, bindings = read_wgsl("trace/emitters.wgsl"), read_wgsl("trace/trace_bindings.wgsl")
+    assert float(re.search(r"const DEFENSIVE_SHARE: f32 = ([0-9.]+);", emitters).group(1)) == DEFENSIVE_SHARE
+    assert f"array<f32, {scene_data.MAX_EMITTER_GROUPS}>" in emitters
+    assert f"emitter_groups: array<EmitterGroup, {scene_data.MAX_EMITTER_GROUPS}>" in bindings
