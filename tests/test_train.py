@@ -875,3 +875,25 @@ def test_the_card_names_a_worlds_dataset_by_its_family(tmp_path):
         "max_depth": 8}, "views": []}))
     line = Trainer._dataset_line(str(tmp_path))
     assert "adapter: 3 generated worlds of the held_out family; 32² px" in line
+
+
+@pytest.mark.parametrize("version, words", [
+    (1, "escaping paths with albedo 0; emitters with their reflectance as albedo, 0 for a black lamp "
+        "(rendered before the guide albedo's version 2)"),
+    (2, "emitters with their reflectance as albedo, 0 for a black lamp (rendered before the guide albedo's version 3)"),
+])
+def test_the_card_says_which_albedo_an_older_dataset_holds(tiny_dataset, tmp_path, version, words):
+    """A dataset rendered under an older guide albedo (its manifest's ``guide_albedo``, 1 where absent) is
+    named with what its albedo planes held; one rendered today, with nothing."""
+    import json
+    import shutil
+
+    base = dict(task="denoiser", out=str(tmp_path / "out"), widths=(4, 8))
+    assert "rendered before the guide albedo" not in Trainer(TrainConfig(data=str(tiny_dataset), **base),
+                                                             progress=False).model_card()
+    older = tmp_path / "older"
+    shutil.copytree(tiny_dataset, older)
+    manifest = json.loads((older / "manifest.json").read_text())
+    manifest["config"]["guide_albedo"] = version
+    (older / "manifest.json").write_text(json.dumps(manifest))
+    assert words in Trainer(TrainConfig(data=str(older), **base), progress=False).model_card()

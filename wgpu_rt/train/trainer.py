@@ -551,8 +551,7 @@ class Trainer:
                 f"{dataset.get('spp')} spp"
                 + (f" ({copies} independent renders of each frame at {min(dataset['spp'])} spp)" if copies > 1 else "")
                 + f"; gold at {dataset.get('gold')} spp; max depth {dataset.get('max_depth')}; "
-                + ("escaping paths with albedo 0 (rendered before the guide albedo's version 2); "
-                   if int(dataset.get("guide_albedo", 1)) < 2 else "")
+                + _older_guide_albedo(int(dataset.get("guide_albedo", 1)))
                 + f"{len(manifest['views'])} views rendered in {render_minutes:.1f} min")
 
     def _base_runs(self) -> list[dict]:
@@ -795,3 +794,15 @@ def train(config: TrainConfig, progress: bool = True) -> dict | None:
     finally:
         trainer.context.close()
     return {"onnx": str(onnx_path), "card": str(card), "metrics": metrics, "seconds": trainer.seconds}
+
+
+# What a dataset's albedo planes held before each change of the renderer's convention
+# (trace_pass.GUIDE_ALBEDO), by the version that changed it
+GUIDE_ALBEDO_CHANGES = {2: "escaping paths with albedo 0",
+                        3: "emitters with their reflectance as albedo, 0 for a black lamp"}
+
+
+def _older_guide_albedo(version: int) -> str:
+    """The model card's words for a dataset rendered under guide albedo ``version`` (none for today's)."""
+    notes = [text for changed_in, text in GUIDE_ALBEDO_CHANGES.items() if version < changed_in]
+    return f"{'; '.join(notes)} (rendered before the guide albedo's version {version + 1}); " if notes else ""
