@@ -139,9 +139,15 @@ def emitter_group_count(scene: Scene) -> int:
     sky = int(np.any(np.asarray(scene.background) > 0))
     constant = sum(isinstance(light, DirectionalLight) for light in scene.lights) + sky
     count = len(emitting) + len(scene.lights) + sky
-    if count > MAX_EMITTER_GROUPS and constant + 1 > MAX_EMITTER_GROUPS:
+    if count > MAX_EMITTER_GROUPS and _no_room_for_clusters(constant):
         return 1      # one group of everything (_clustered)
     return min(count, MAX_EMITTER_GROUPS)
+
+
+def _no_room_for_clusters(constant: int) -> bool:
+    """Whether ``constant`` suns and skies, each a group of its own, leave no group for the other lights
+    (then every light is in one group, picked by power)."""
+    return constant + 1 > MAX_EMITTER_GROUPS
 
 
 def _triangle_group(tri: np.ndarray, edge1: np.ndarray, edge2: np.ndarray, area: np.ndarray,
@@ -171,7 +177,7 @@ def _clustered(groups: list[tuple]) -> tuple[list[tuple], np.ndarray]:
     contiguous."""
     constant = [g for g, group in enumerate(groups) if group[2] == GROUP_CONSTANT]
     finite = [g for g in range(len(groups)) if g not in constant]
-    if len(constant) + 1 > MAX_EMITTER_GROUPS:
+    if _no_room_for_clusters(len(constant)):
         everything = sum(group[1] for group in groups)
         return [(0, everything, GROUP_CONSTANT, 0, 0, 0, 1.0)], np.arange(everything)
     centers = np.array([np.broadcast_to(groups[g][3], 3) for g in range(len(groups))], np.float64)
