@@ -63,7 +63,7 @@ def test_each_light_and_each_emitting_mesh_is_a_group():
     assert table.background_share == 1.0 and table.groups[table.background_group]["kind"] == GROUP_CONSTANT
     # each triangle points at its record (the floor's at none), each record at its group
     _check_entries(table, geometry)
-    groups = table.group_of()
+    groups = _group_of(table)
     for mesh, kind in ((0, -1), (1, GROUP_FLAT), (2, GROUP_SOLID)):
         of_mesh = groups[geometry.object_ids == mesh]
         assert len(set(of_mesh)) == 1 and (of_mesh[0] == -1 if kind == -1 else table.groups[of_mesh[0]]["kind"] == kind)
@@ -76,7 +76,7 @@ def test_two_lamps_of_one_material_are_two_groups():
          "transform": {"rotate": {"axis": [1, 0, 0], "angle": 90}, "scale": 0.15, "translate": [0, 1.0, -2]}}]}
     _, geometry, table = _table(scene)
     assert sorted(int(k) for k in table.groups["kind"]).count(GROUP_FLAT) == 2
-    groups = table.group_of()
+    groups = _group_of(table)
     assert groups[geometry.object_ids == 1][0] != groups[geometry.object_ids == 3][0]
     _check_entries(table, geometry)
 
@@ -110,7 +110,7 @@ def test_more_groups_than_the_kernel_holds_are_clustered_in_space(monkeypatch):
     assert pair["count"] == grouped.groups[grouped.groups["kind"] == GROUP_SOLID][0]["count"] + 1
     assert -0.1 < pair["center"][0] < 1.5 and pair["radius"] >= 1.5
     solid = int(np.flatnonzero(clustered.groups["kind"] == GROUP_SOLID)[0])
-    assert set(clustered.group_of()[geometry.object_ids == 2]) == {solid}      # the ball's triangles
+    assert set(_group_of(clustered)[geometry.object_ids == 2]) == {solid}      # the ball's triangles
     _check_layout(clustered)
     _check_entries(clustered, geometry)      # the records were reordered: the entries follow them
     np.testing.assert_allclose(np.sort(clustered.power_pmf()), np.sort(grouped.power_pmf()), rtol=1e-5)
@@ -118,9 +118,15 @@ def test_more_groups_than_the_kernel_holds_are_clustered_in_space(monkeypatch):
     _, _, merged = _table(_FIVE_LIGHTS, max_groups=2, monkeypatch=monkeypatch)
     assert emitter_group_count(scene) == 1 and not SceneFeatures.of(scene).has_emitter_groups
     assert len(merged.groups) == 1 and merged.groups[0]["count"] == merged.count
-    assert set(merged.group_of()[merged.triangle_entry > 0]) == {0}
+    assert set(_group_of(merged)[merged.triangle_entry > 0]) == {0}
     np.testing.assert_allclose(merged.power_pmf(), grouped.power_pmf(), rtol=1e-5)
     assert group_probabilities(merged.groups, [0, 0, 0]) == pytest.approx([1.0])
+
+
+def _group_of(table) -> np.ndarray:
+    """(T,) per scene triangle, the index of its record's group, -1 if it does not emit."""
+    entry = table.triangle_entry.astype(np.int64) - 1
+    return np.where(entry >= 0, table.records["group"][np.maximum(entry, 0)].astype(np.int64), -1)
 
 
 def _check_entries(table, geometry):

@@ -111,11 +111,6 @@ class EmitterTable:
     def count(self) -> int:
         return len(self.records)
 
-    def group_of(self) -> np.ndarray:
-        """(T,) per scene triangle, the index of its record's group, -1 if not emissive."""
-        entry = self.triangle_entry.astype(np.int64) - 1
-        return np.where(entry >= 0, self.records["group"][np.maximum(entry, 0)].astype(np.int64), -1)
-
     def power_pmf(self) -> np.ndarray:
         """Per record, the probability that a pick by power alone takes it."""
         pmf = np.zeros(len(self.records))
