@@ -246,6 +246,9 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
         [ -d "$HELDOUT" ] || render_heldout
         part train_eval python3 benchmarks/bench_denoise.py --data $HELDOUT --models "$trained" \
             --per-view --noise-seeds 3 --oidn-quality balanced
+        # session 32: the shipped set on the same views and noise, a comparison within one run
+        part train_eval_shipped python3 benchmarks/bench_denoise.py --data $HELDOUT --models models \
+            --per-view --noise-seeds 3 --oidn-quality balanced
         [ $what = train_check ] || continue
         # §14's checks, where the CPU fine-tunes lost (built-ins, 128² at 4 spp, …660's pane): shipped and new
         for set in models "$trained"; do
