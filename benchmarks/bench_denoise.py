@@ -70,8 +70,7 @@ def render_test_views(data: Path, view_ids: set[str], spp: list[int], seed: int,
     frames (its --aux-samples), the denoisers' input."""
     from wgpu_rt.renderer import render
 
-    config = read_manifest(data)["config"]
-    config = DatasetConfig(**{**config, "scenes": tuple(config["scenes"]), "spp": tuple(config["spp"])})
+    config = DatasetConfig.from_record(read_manifest(data)["config"])
     engine = TruthEngine(config, data, renderer=render)
     aux = dict(aovs=("albedo", "normal", "depth"), aux_samples=config.aux_samples) if gbuffers else dict(aovs=())
     result = {}

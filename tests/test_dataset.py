@@ -44,6 +44,12 @@ def test_engine_writes_every_file_and_a_manifest(dataset):
     assert not list(dataset.rglob("*.tmp"))
 
 
+def test_a_manifest_gives_back_the_config_it_was_rendered_with(dataset):
+    recorded = json.loads((dataset / "manifest.json").read_text())["config"]
+    assert "guide_albedo" in recorded            # the renderer's convention, recorded beside the settings
+    assert DatasetConfig.from_record(recorded) == CONFIG
+
+
 def test_test_views_hold_only_held_out_shapes(dataset):
     for record in json.loads((dataset / "manifest.json").read_text())["views"]:
         added = {name.rsplit("_", 1)[0] for name in record["objects"]

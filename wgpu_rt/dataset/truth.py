@@ -98,6 +98,13 @@ class DatasetConfig:
         if not (math.isfinite(self.sequence_fraction) and 0 <= self.sequence_fraction <= 1):
             raise DatasetError(f"--sequence-fraction must be in [0, 1], got {self.sequence_fraction}")
 
+    @classmethod
+    def from_record(cls, record: dict) -> "DatasetConfig":
+        """The config a dataset's ``config.json`` (or its manifest's ``config``) records; keys that are not
+        settings (``guide_albedo``, the renderer's convention) are left out, lists become tuples."""
+        settings = {f.name: record[f.name] for f in fields(cls) if f.name in record}
+        return cls(**{key: tuple(value) if isinstance(value, list) else value for key, value in settings.items()})
+
 
 @dataclass(frozen=True)
 class ViewPlan:
