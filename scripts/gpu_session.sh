@@ -42,6 +42,16 @@
 # where a scene has several): `trace` and `frame` give the first GPU numbers of that cost (cornell has
 # one group and compiles without it; the worlds of `heldout` have several), and call 2's renders train on
 # the cleaner inputs (guide_albedo 3: an emitter's albedo at least 0.5 grey).
+# Session 32 (H200, §31) ran call 2 first (OIDN peer, timeout_s 570: 560 s): train_render 114 s (160
+# worlds at 256², SHARDS=12), train_render_builtin 22, train_render_small 83, train 242 (12280 steps of 32
+# crops, 61.7 steps/s), heldout_render 68; train_eval then failed on a fresh dataset's config (fixed
+# since), so the model was scored on lavapipe. Call 1 (Mitsuba peer, DEADLINE=150 PART_LIMIT=120
+# TEST_WORKERS=14): the suite reached ~95 % in 120 s with two failures whose names the cut-off output
+# lost (now -v: each result is on its own line as it comes); `frame` then ran up to the deadline. Next:
+# call 1 `tests` alone with PART_LIMIT=240 (the Mitsuba cross-checks passed on cuda_ad_rgb in 12 s),
+# then `trace`, `nn_widths`, the adaptive part of `frame`, and a quality check of --math f16-acc
+# (6.51 ms against 7.48 for the default f16 math at 1080p on the H200: bench_denoise --precision fp16
+# --math f16 / f16-acc on the held-out worlds) before it can become the default.
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:
@@ -139,7 +149,7 @@ for what in "$@"; do
     tests)
         root=$PWD
         workers=$(python3 -c "import xdist" 2>/dev/null && echo "-n ${TEST_WORKERS:-8}" || echo "")
-        part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -q -rs $workers -p no:cacheprovider" ;;
+        part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -v -rs $workers -p no:cacheprovider" ;;
     nn)
         profile="wgpu-rt profile models/denoiser.onnx --size ${W}x${H}"   # word-split on purpose
         # the default on a discrete GPU with shader-f16 (fp16 storage, f16 math: §21), then fp32 beside it

@@ -1,0 +1,90 @@
+"""`wgpu-rt blend`: a model between a network and its fine-tune (wgpu_rt.train.blend), without torch."""
+
+import numpy as np
+import onnx
+import onnxruntime as ort
+import pytest
+from onnx import helper, numpy_helper
+
+from wgpu_rt.cli import main
+
+
+def conv_model(path, seed, channels=(3, 4), kernel=3, op="Conv"):
+    """A one-conv ONNX model with random weights, a card beside it; returns its weights."""
+    rng = np.random.default_rng(seed)
+    c_in, c_out = channels
+    weights = {"w": rng.normal(size=(c_out, c_in, kernel, kernel)).astype(np.float32),
+               "b": rng.normal(size=c_out).astype(np.float32)}
+    node = helper.make_node(op, ["x", "w", "b"], ["y"], pads=[kernel // 2] * 4) if op == "Conv" else \
+        helper.make_node(op, ["x", "w", "b"], ["y"])
+    x = helper.make_tensor_value_info("x", onnx.TensorProto.FLOAT, [1, c_in, 8, 8])
+    graph = helper.make_graph([node], "tiny", [x],
+                              [helper.make_tensor_value_info("y", onnx.TensorProto.FLOAT, [1, c_out, "H", "W"])],
+                              [numpy_helper.from_array(v, k) for k, v in weights.items()])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    onnx.save(model, str(path))
+    path.with_suffix(".md").write_text(f"# {path.name}\n\nseed {seed}\n")
+    return weights
+
+
+def run_model(path, x):
+    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    return session.run(None, {"x": x})[0]
+
+
+def test_a_blend_is_the_weighted_mean_of_the_weights_and_its_card_names_both(tmp_path, capsys):
+    base, tuned = conv_model(tmp_path / "base.onnx", 1), conv_model(tmp_path / "tuned.onnx", 2)
+    out = tmp_path / "out" / "denoiser.onnx"
+    assert main(["blend", str(tmp_path / "base.onnx"), str(tmp_path / "tuned.onnx"), "--weight", "0.25",
+                 "--out", str(out)]) == 0
+    assert "wrote" in capsys.readouterr().out
+    blended = {i.name: numpy_helper.to_array(i) for i in onnx.load(str(out)).graph.initializer}
+    for name in base:
+        np.testing.assert_allclose(blended[name], 0.75 * base[name] + 0.25 * tuned[name], rtol=1e-6, atol=1e-7)
+    # a conv is linear in its weights, so the blended model's output is the same mix of the two outputs
+    x = np.random.default_rng(3).normal(size=(1, 3, 8, 8)).astype(np.float32)
+    expected = 0.75 * run_model(tmp_path / "base.onnx", x) + 0.25 * run_model(tmp_path / "tuned.onnx", x)
+    np.testing.assert_allclose(run_model(out, x), expected, rtol=1e-5, atol=1e-5)
+    card = out.with_suffix(".md").read_text()
+    assert "--weight 0.25" in card and "seed 1" in card and "seed 2" in card
+    assert "## Fine-tune" in card and "## Base" in card and "\n## base.onnx" in card   # headings one level down
+
+
+@pytest.mark.parametrize("weight, expected", [("0", "base"), ("1", "tuned")])
+def test_the_ends_of_the_line_are_the_two_models(tmp_path, weight, expected):
+    weights = {"base": conv_model(tmp_path / "base.onnx", 1), "tuned": conv_model(tmp_path / "tuned.onnx", 2)}
+    out = tmp_path / "end.onnx"
+    assert main(["blend", str(tmp_path / "base.onnx"), str(tmp_path / "tuned.onnx"), "--weight", weight,
+                 "--out", str(out)]) == 0
+    for init in onnx.load(str(out)).graph.initializer:
+        np.testing.assert_array_equal(numpy_helper.to_array(init), weights[expected][init.name])
+
+
+@pytest.mark.parametrize("case, named", [
+    ("other_shape", "initializer 'w'"),
+    ("other_graph", "its graph is not the base's"),
+    ("weight", "--weight must be in [0, 1]"),
+    ("overwrite", "would overwrite"),
+    ("missing", "not found"),
+    ("not_onnx", "not a valid ONNX model"),
+    ("suffix", "name an .onnx file"),
+])
+def test_bad_input_is_one_line_naming_it_and_nothing_is_written(tmp_path, capsys, case, named):
+    conv_model(tmp_path / "base.onnx", 1)
+    tuned = tmp_path / "tuned.onnx"
+    if case == "other_shape":
+        conv_model(tuned, 2, channels=(3, 8))
+    elif case == "other_graph":
+        conv_model(tuned, 2, kernel=1, op="ConvTranspose")
+    elif case == "not_onnx":
+        tuned.write_bytes(b"not a model")
+    elif case != "missing":
+        conv_model(tuned, 2)
+    out = {"overwrite": tmp_path / "base.onnx", "suffix": tmp_path / "out.bin"}.get(case, tmp_path / "out.onnx")
+    weight = "1.5" if case == "weight" else "0.5"
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert main(["blend", str(tmp_path / "base.onnx"), str(tuned), "--weight", weight, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert named in err and len(err.strip().splitlines()) == 1, err
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
