@@ -49,9 +49,9 @@
 # TEST_WORKERS=14): the suite reached ~95 % in 120 s with two failures whose names the cut-off output
 # lost (now -v: each result is on its own line as it comes); `frame` then ran up to the deadline. Next:
 # call 1 `tests` alone with PART_LIMIT=240 (the Mitsuba cross-checks passed on cuda_ad_rgb in 12 s),
-# then `trace`, `nn_widths`, the adaptive part of `frame`, and a quality check of --math f16-acc
-# (6.51 ms against 7.48 for the default f16 math at 1080p on the H200: bench_denoise --precision fp16
-# --math f16 / f16-acc on the held-out worlds) before it can become the default.
+# then `nn` (its new part half_math: the images of each half math against onnxruntime's on NVIDIA,
+# since session 32 made f16-acc the discrete-GPU default on lavapipe's evidence and the H200's 6.51 ms
+# against 7.48), `trace`, `nn_widths` and the adaptive part of `frame`.
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:
@@ -152,9 +152,12 @@ for what in "$@"; do
         part tests bash -c "cd /tmp && CI=true python3 -m pytest '$root/tests' -v -rs $workers -p no:cacheprovider" ;;
     nn)
         profile="wgpu-rt profile models/denoiser.onnx --size ${W}x${H}"   # word-split on purpose
-        # the default on a discrete GPU with shader-f16 (fp16 storage, f16 math: §21), then fp32 beside it
+        # the default on a discrete GPU with shader-f16 (fp16 storage, f16-acc math: §31), then fp32 beside it
         part profile_auto $profile
         part profile_fp32 $profile --precision fp32
+        # session 32: the denoised images in each math against onnxruntime's (§26 measured them on lavapipe)
+        part half_math python3 benchmarks/bench_half_math.py --size ${VIEW}x${VIEW} --scenes cornell \
+            cornell-glossy sun-room world-2147483648 world-2147483651 world-2147483662 world-2147483667
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN \
             --steps staged fp16-math fp16-acc --repeats 5 ;;
     nn_widths)   # issue 12 item 5 / issue 13's denoiser target: the shipped architecture at narrower widths

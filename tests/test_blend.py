@@ -51,6 +51,19 @@ def test_a_blend_is_the_weighted_mean_of_the_weights_and_its_card_names_both(tmp
     assert "## Fine-tune" in card and "## Base" in card and "\n## base.onnx" in card   # headings one level down
 
 
+def test_a_base_card_the_fine_tunes_card_already_holds_is_not_repeated(tmp_path):
+    import hashlib
+
+    conv_model(tmp_path / "base.onnx", 1)
+    conv_model(tmp_path / "tuned.onnx", 2)
+    digest = hashlib.sha256((tmp_path / "base.onnx").read_bytes()).hexdigest()[:12]
+    (tmp_path / "tuned.md").write_text(f"# tuned\n\nfine-tuned from base (sha256 {digest}…)\n\n## Base model\n\nseed 1\n")
+    assert main(["blend", str(tmp_path / "base.onnx"), str(tmp_path / "tuned.onnx"), "--weight", "0.5",
+                 "--out", str(tmp_path / "out.onnx")]) == 0
+    card = (tmp_path / "out.md").read_text()
+    assert card.count("seed 1") == 1 and "## Base (" not in card and "'Base model' below" in card
+
+
 @pytest.mark.parametrize("weight, expected", [("0", "base"), ("1", "tuned")])
 def test_the_ends_of_the_line_are_the_two_models(tmp_path, weight, expected):
     weights = {"base": conv_model(tmp_path / "base.onnx", 1), "tuned": conv_model(tmp_path / "tuned.onnx", 2)}

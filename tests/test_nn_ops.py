@@ -302,18 +302,19 @@ def test_staged_tiles_are_the_default_on_discrete_gpus(gpu):
 
 
 @pytest.mark.parametrize("kind, has_f16, agrees, precision, math", [
-    ("DiscreteGPU", True, True, "fp16", "f16"), ("DiscreteGPU", True, False, "fp16", "f32"),
-    ("DiscreteGPU", False, True, "fp32", "f32"), ("CPU", True, True, "fp32", "f32"),
-    ("IntegratedGPU", True, True, "fp32", "f32")])
+    ("DiscreteGPU", True, {"f16", "f16-acc"}, "fp16", "f16-acc"), ("DiscreteGPU", True, {"f16"}, "fp16", "f16"),
+    ("DiscreteGPU", True, set(), "fp16", "f32"), ("DiscreteGPU", False, {"f16", "f16-acc"}, "fp32", "f32"),
+    ("CPU", True, {"f16", "f16-acc"}, "fp32", "f32"), ("IntegratedGPU", True, {"f16", "f16-acc"}, "fp32", "f32")])
 def test_discrete_gpus_default_to_half_precision_and_half_math(monkeypatch, kind, has_f16, agrees, precision, math):
-    """precision "auto" is fp16 with f16 multiply-adds on a discrete GPU with shader-f16 (8.5 against
-    10.3 ms on an H200, BENCHMARKS.md §21) whose f16 kernels agree with f32 math there, fp32 elsewhere
-    (lavapipe has no half ALU); an fp32 model multiplies in f32 everywhere."""
+    """precision "auto" is fp16 on a discrete GPU with shader-f16 (8.5 against 10.3 ms on an H200,
+    BENCHMARKS.md §21), its 3×3 tiles summed in f16 where those kernels agree with f32 math there (6.5
+    against 7.5 ms, §31), else multiplying in f16 where those agree, else in f32; fp32 elsewhere (lavapipe
+    has no half ALU); an fp32 model multiplies in f32 everywhere."""
     from types import SimpleNamespace
 
     from wgpu_rt.nn import model as nn_model
 
-    monkeypatch.setattr(nn_model, "half_math_agrees", lambda ctx: agrees)
+    monkeypatch.setattr(nn_model, "half_math_agrees", lambda ctx, math="f16": math in agrees)
     ctx = SimpleNamespace(adapter=SimpleNamespace(info={"adapter_type": kind}), has_f16=has_f16)
     assert nn_model.default_precision(ctx) == precision and nn_model.default_math(ctx, precision) == math
     assert nn_model.default_math(ctx, "fp32") == "f32"

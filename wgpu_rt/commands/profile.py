@@ -19,7 +19,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--math", choices=("f32", "f16", "f16-acc"),
                         help="what the 3×3 convolutions multiply in: f32, or with fp16 activations f16 (each "
                         "kernel row's products summed in half precision) or f16-acc (the sums over input "
-                        "channels too); default: f16 on discrete GPUs in fp16")
+                        "channels too); default: as inference picks it (f16-acc, else f16, on discrete GPUs in fp16 whose "
+                        "f16 kernels pass a check against f32 math)")
     parser.add_argument("--repeat", type=int, default=5,
                         help="timed runs after one warm-up; times are their median (default 5)")
     parser.add_argument("--sort", choices=("order", "time"), default="order",

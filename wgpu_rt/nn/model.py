@@ -96,10 +96,14 @@ def default_precision(ctx) -> str:
 
 
 def default_math(ctx, precision: str) -> str:
-    """"f16" for fp16 activations on discrete GPUs (the H200 profile of the shipped denoiser: 7.5 against
-    8.8 ms with f32 math) whose compiler gets the f16 kernels right (``half_math_agrees``), else "f32"."""
+    """For fp16 activations on discrete GPUs, the most half-precision math whose kernels that GPU's
+    compiler gets right (``half_math_agrees``): "f16-acc" (the H200 profile of the shipped denoiser at
+    1080p: 6.5 ms, BENCHMARKS.md §31; its denoised images 71–84 dB from onnxruntime's on lavapipe, §26),
+    else "f16" (7.5 ms; 8.8 with f32 math, §25), else "f32"; "f32" everywhere else."""
     discrete = ctx.adapter.info.get("adapter_type") == "DiscreteGPU"
-    return "f16" if precision == "fp16" and discrete and half_math_agrees(ctx) else "f32"
+    if precision != "fp16" or not discrete:
+        return "f32"
+    return next((math for math in ("f16-acc", "f16") if half_math_agrees(ctx, math)), "f32")
 
 
 # a context's device -> {math: bool}

@@ -92,15 +92,24 @@ def _card(base_path: Path, tuned_path: Path, weight: float, out: Path) -> str:
     def digest(path: Path) -> str:
         return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
 
+    def card_of(path: Path) -> str:
+        card = path.with_suffix(".md")
+        return card.read_text(encoding="utf-8") if card.is_file() else "(no card beside it)"
+
+    base_digest, tuned_card = digest(base_path), card_of(tuned_path)
+    # a card written by `wgpu-rt train --init-from` names its base by hash and holds the base's card
+    base_inside = f"sha256 {base_digest}" in tuned_card
     lines = [f"# {out.name} — blend of a model and its fine-tune", "",
              f"Written by `wgpu-rt blend {base_path} {tuned_path} --weight {weight:g} --out {out}`: every weight is "
              f"(1 − {weight:g}) × the base's + {weight:g} × the fine-tune's.", "",
-             f"- base: `{base_path}` (sha256 {digest(base_path)}…)",
+             f"- base: `{base_path}` (sha256 {base_digest}…"
+             + ("; its card is the fine-tune's 'Base model' below)" if base_inside else ")"),
              f"- fine-tune: `{tuned_path}` (sha256 {digest(tuned_path)}…)",
              "- the fine-tune's validation figures below are its own, not the blend's"]
-    for title, path in (("Fine-tune", tuned_path), ("Base", base_path)):
-        card = path.with_suffix(".md")
-        lines += ["", f"## {title} (`{card.name}` as it was, headings one level down)", ""]
-        text = card.read_text(encoding="utf-8") if card.is_file() else "(no card beside it)"
+    sections = [("Fine-tune", tuned_path, tuned_card)]
+    if not base_inside:
+        sections.append(("Base", base_path, card_of(base_path)))
+    for title, path, text in sections:
+        lines += ["", f"## {title} (`{path.with_suffix('.md').name}` as it was, headings one level down)", ""]
         lines += ["#" + line if line.startswith("#") else line for line in text.splitlines()]
     return "\n".join(lines) + "\n"
