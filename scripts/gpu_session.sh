@@ -51,7 +51,8 @@
 # call 1 `tests` alone with PART_LIMIT=240 (the Mitsuba cross-checks passed on cuda_ad_rgb in 12 s),
 # then `nn` (its new part half_math: the images of each half math against onnxruntime's on NVIDIA,
 # since session 32 made f16-acc the discrete-GPU default on lavapipe's evidence and the H200's 6.51 ms
-# against 7.48), `trace`, `nn_widths` and the adaptive part of `frame`.
+# against 7.48), `trace`, `nn_widths` and the adaptive part of `frame`. Call 2's renders are the first
+# with lamps in view in the training worlds (worlds_version 2, §31); train from the shipped blend.
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:

@@ -430,20 +430,28 @@ def test_a_dataset_from_before_the_worlds_resumes(dataset):
     assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []
 
 
-def test_a_dataset_from_before_the_guide_albedo_is_not_resumed_with_it(dataset):
-    """config.json records the albedo convention the renderer writes (``guide_albedo``, not a setting);
-    a dataset rendered while escaping paths had albedo 0 lacks the key and reads as version 1, and adding
-    views with today's albedo to it is refused by name rather than mixing the two in one folder."""
+@pytest.mark.parametrize("key", ["guide_albedo", "worlds_version"])
+def test_a_dataset_from_before_a_convention_is_not_resumed_with_it(dataset, key):
+    """config.json records the albedo convention the renderer writes (``guide_albedo``) and the world
+    generator's version (``worlds_version``), neither a setting; a dataset rendered before either existed
+    (while escaping paths had albedo 0; before training worlds held lamps in view) lacks the key and reads
+    as version 1, and adding today's views to it is refused by name rather than mixing the two."""
+    from wgpu_rt.dataset.worlds import WORLDS_VERSION
     from wgpu_rt.trace.trace_pass import GUIDE_ALBEDO
 
     path = dataset / "config.json"
-    held = json.loads(path.read_text())
-    assert held["guide_albedo"] == GUIDE_ALBEDO
+    original = path.read_text()
+    held = json.loads(original)
+    today = {"guide_albedo": GUIDE_ALBEDO, "worlds_version": WORLDS_VERSION}[key]
+    assert held[key] == today
     assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []
-    held.pop("guide_albedo")
+    held.pop(key)
     path.write_text(json.dumps(held))
-    with pytest.raises(DatasetError, match=f"guide_albedo=1, not {GUIDE_ALBEDO}"):
-        TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False)
+    try:
+        with pytest.raises(DatasetError, match=f"{key}=1, not {today}"):
+            TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False)
+    finally:
+        path.write_text(original)
 
 
 @pytest.mark.parametrize("change, field", [

@@ -129,6 +129,61 @@ def test_indirect_worlds_show_no_emitting_side_to_the_camera(worlds):
             assert np.all(np.sum(front * toward_camera, axis=1) < 0), f"{w.name}: {mesh.name} faces the camera"
 
 
+def _lamps_in_view(scene):
+    return [mesh for mesh in scene.meshes if mesh.name.startswith("lamp_in_view_")]
+
+
+def test_some_training_worlds_hold_small_lamps_the_camera_sees(worlds):
+    """Lamps seen directly (BENCHMARKS.md §30's corridor): in about LAMPS_IN_VIEW_SHARE of the training
+    worlds, never where all light must arrive indirectly; each emits, lies inside the set and projects
+    into the frame, a small part of it."""
+    from wgpu_rt.dataset.worlds import LAMPS_IN_VIEW_SHARE
+
+    with_lamps = [w for w in worlds if _lamps_in_view(w)]
+    assert abs(len(with_lamps) / len(worlds) - LAMPS_IN_VIEW_SHARE) < 0.1
+    assert not any(_lamps_in_view(w) for w in worlds if w.name.endswith("/indirect"))
+    black = 0
+    for w in with_lamps:
+        cam = w.camera
+        forward = (cam.target - cam.origin) / np.linalg.norm(cam.target - cam.origin)
+        right = np.cross(forward, [0, 1, 0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, forward)
+        tan_half = np.tan(np.radians(cam.fov) / 2)
+        for lamp in _lamps_in_view(w):
+            material = w.materials[lamp.material]
+            assert material.is_emissive, (w.name, lamp.name)
+            black += float(np.max(material.reflectance)) == 0
+            corners = transform_points(lamp.transform, lamp.vertices).astype(np.float64)
+            centre, extent = corners.mean(0), np.ptp(corners, axis=0).max()
+            assert centre[1] > 0, (w.name, lamp.name)
+            depth = (centre - cam.origin) @ forward
+            x, y = ((centre - cam.origin) @ right, (centre - cam.origin) @ up)
+            assert depth > 0 and abs(x) <= depth * tan_half * 1.01 and abs(y) <= depth * tan_half * 1.01
+            assert extent <= 0.1 * 2 * depth * tan_half, (w.name, lamp.name)   # a small part of the frame
+    assert black > 0
+
+
+def test_lamps_in_view_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):
+    """The lamps draw from a random stream of their own: a training world with them is the world without
+    them plus the lamps, and a held-out world never gets any (its gold images stay valid)."""
+    from wgpu_rt.dataset import worlds as worlds_module
+
+    for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
+        monkeypatch.setattr(worlds_module, "LAMPS_IN_VIEW_SHARE", 1.0)
+        lit = generate_world(seed)
+        monkeypatch.setattr(worlds_module, "LAMPS_IN_VIEW_SHARE", 0.0)
+        plain = generate_world(seed)
+        assert bool(_lamps_in_view(lit)) == (family_of(seed) == "training" and not lit.name.endswith("/indirect"))
+        lamps = {m.name for m in _lamps_in_view(lit)} | {m.material for m in _lamps_in_view(lit)}
+        without = {key: value for key, value in _arrays(lit).items()
+                   if not any(key.startswith(f"{name}.") or key == f"material {name}" for name in lamps)}
+        expected = _arrays(plain)
+        assert lit.name == plain.name and without.keys() == expected.keys()
+        for key in expected:
+            np.testing.assert_array_equal(without[key], expected[key], err_msg=f"{seed}: {key}")
+
+
 def test_the_families_share_no_seed_and_no_geometry(tmp_path):
     import trimesh
 

@@ -43,14 +43,15 @@ import numpy as np
 from ..errors import OutputError, WgpuRtError
 from ..io import write_json
 from .variety import HELD_OUT_SHAPES, MESH_SUFFIXES, TRAINING_SHAPES, load_mesh_file, load_mesh_folder, vary_scene
-from .worlds import FAMILIES, generate_world, world_seed
+from .worlds import FAMILIES, WORLDS_VERSION, generate_world, world_seed
 
 GBUFFERS = ("albedo", "normal", "depth", "motion")
 # View numbers, seeds and images depend on all of these, so a resumed run must keep them; ``guide_albedo``
-# is no setting but the renderer's (trace_pass.GUIDE_ALBEDO), recorded beside them.
+# and ``worlds_version`` are no settings but the renderer's and the world generator's conventions
+# (trace_pass.GUIDE_ALBEDO, worlds.WORLDS_VERSION), recorded beside them.
 CONFIG_KEYS_THAT_MUST_MATCH = ("scenes", "views", "size", "spp", "gold", "seed", "max_depth",
                                "sequence_length", "sequence_fraction", "mesh_dir", "worlds", "family",
-                               "aux_samples", "guide_albedo")
+                               "aux_samples", "guide_albedo", "worlds_version")
 MAX_WORLDS = 2 ** 20     # world numbers of one dataset seed stay distinct (see plan_views)
 
 
@@ -212,13 +213,13 @@ class ViewRecord:
 
 
 def check_config(out: Path, config: DatasetConfig) -> None:
-    """Record ``config`` in ``out``, with the albedo convention this renderer writes (``guide_albedo``); on
-    resume, refuse a config or a convention that would change existing views (a folder with no rendered
-    image yet takes the new config)."""
+    """Record ``config`` in ``out``, with the albedo convention this renderer writes (``guide_albedo``) and
+    the world generator's version (``worlds_version``); on resume, refuse a config or a convention that
+    would change existing views (a folder with no rendered image yet takes the new config)."""
     from ..trace.trace_pass import GUIDE_ALBEDO
 
     path = out / "config.json"
-    wanted = {**asdict(config), "guide_albedo": GUIDE_ALBEDO}
+    wanted = {**asdict(config), "guide_albedo": GUIDE_ALBEDO, "worlds_version": WORLDS_VERSION}
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out}: is a file; name a folder")
     if path.exists() and any((out / "views").glob("*/*.exr")):
@@ -226,8 +227,9 @@ def check_config(out: Path, config: DatasetConfig) -> None:
             held = json.loads(path.read_text())
         except json.JSONDecodeError as err:
             raise DatasetError(f"{path}: not valid JSON ({err})") from None
-        # for keys older datasets lack (before guide_albedo existed, escaping paths had albedo 0: version 1)
-        defaults = {**{f.name: f.default for f in fields(DatasetConfig)}, "guide_albedo": 1}
+        # for keys older datasets lack (before guide_albedo existed, escaping paths had albedo 0: version 1;
+        # before worlds_version, no training world held lamps in view: version 1)
+        defaults = {**{f.name: f.default for f in fields(DatasetConfig)}, "guide_albedo": 1, "worlds_version": 1}
         for key in CONFIG_KEYS_THAT_MUST_MATCH:
             if held.get(key, defaults[key]) != json.loads(json.dumps(wanted[key])):
                 raise DatasetError(f"{path}: this dataset was rendered with {key}={held.get(key, defaults[key])!r}, "

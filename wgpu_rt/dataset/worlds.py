@@ -13,7 +13,11 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
 - lighting (``LIGHTINGS``): tiny and very bright to large and soft area lights, point lights, a sun
   with a coloured sky, emissive objects, or lamps that face a wall or the ceiling so light reaches the
   view only after a bounce;
-- a camera with a field of view of 20–90°, sometimes looking through a glass pane or at a mirror.
+- a camera with a field of view of 20–90°, sometimes looking through a glass pane or at a mirror;
+- in the training family only, sometimes small lamps in view (``LAMPS_IN_VIEW_SHARE``): emitters a few
+  pixels to a few dozen across, seen directly, as ceiling lamps along a corridor are (BENCHMARKS.md §30);
+  they come from a random stream of their own, so they leave every other choice, and the held-out
+  family, as it was (``WORLDS_VERSION`` 2).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -64,6 +68,10 @@ METALS = {
 }
 UP = np.array([0.0, 1.0, 0.0])
 CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, metres
+# What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
+# worlds may hold lamps in view.
+WORLDS_VERSION = 2
+LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
 
 
 def family_of(seed: int) -> str:
@@ -98,6 +106,8 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
     world.place_camera()
     world.add_view_features()
     world.light(lighting)
+    if family == "training" and lighting != "indirect":
+        world.add_lamps_in_view(np.random.default_rng(np.random.SeedSequence([int(seed), 0x1A4B])))
     if frames > 1:
         world.animate(frames)
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
@@ -321,6 +331,39 @@ class _World:
             if np.degrees(np.arccos(np.clip(seen @ view / np.linalg.norm(seen), -1, 1))) > 0.75 * self.camera.fov:
                 break
         self._panel(centre, -direction, side, side)
+
+    def add_lamps_in_view(self, rng: np.random.Generator) -> None:
+        """With probability LAMPS_IN_VIEW_SHARE, 1–12 small lamps (cubes and spheres, some with a black
+        reflectance, as area lights are often given) where the camera sees them: each in a random
+        direction inside the view at a random depth, kept inside the set, 0.3–4 % of the frame's width
+        across, with a radiance of 3–300 times what the objects' target irradiance over π would give."""
+        if rng.uniform() >= LAMPS_IN_VIEW_SHARE:
+            return
+        origin, target = self.camera.origin.astype(np.float64), self.camera.target.astype(np.float64)
+        forward = (target - origin) / np.linalg.norm(target - origin)
+        right = np.cross(forward, UP)
+        right /= np.linalg.norm(right)
+        up = np.cross(right, forward)
+        tan_half = np.tan(np.radians(self.camera.fov) / 2)
+        distance = float(np.linalg.norm(target - origin))
+        tint = blackbody_tint(rng.uniform(2200, 6500))
+        for i in range(int(rng.integers(1, 13))):
+            x, y = rng.uniform(-0.9, 0.9, 2)
+            ray = forward + tan_half * (x * right + y * up)
+            depth = distance * float(np.exp(rng.uniform(np.log(0.5), np.log(3.0))))
+            centre = self._inside(origin + ray * depth)
+            if self.setup != "ground":
+                centre[1] = min(centre[1], self.height - 0.05)
+            seen_at = float((centre - origin) @ forward)   # moved into the set, it may have left the view
+            aside = max(abs((centre - origin) @ right), abs((centre - origin) @ up))
+            if seen_at <= 0.1 or aside > 0.95 * seen_at * tan_half:
+                continue
+            size = 2 * seen_at * tan_half * rng.uniform(0.003, 0.04)
+            radiance = self.exposure / np.pi * float(np.exp(rng.uniform(np.log(3), np.log(300))))
+            material = Material("diffuse", reflectance=0.0 if rng.uniform() < 0.3 else 0.8,
+                                emission=tint * radiance)
+            shape = str(rng.choice(["cube", "sphere"]))
+            self.add(f"lamp_in_view_{i}", primitive(shape), material, compose(translate(centre), scale(size / 2)))
 
     def _point(self, position, dim: float = 1.0) -> None:
         target, _ = self.cluster()
