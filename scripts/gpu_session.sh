@@ -47,14 +47,19 @@
 # crops, 61.7 steps/s), heldout_render 68; train_eval then failed on a fresh dataset's config (fixed
 # since), so the model was scored on lavapipe. Call 1 (Mitsuba peer, DEADLINE=150 PART_LIMIT=120
 # TEST_WORKERS=14): the suite reached ~95 % in 120 s with two failures whose names the cut-off output
-# lost (now -v: each result is on its own line as it comes); `frame` then ran up to the deadline. Next:
-# call 1 `tests` alone with PART_LIMIT=240 (the Mitsuba cross-checks passed on cuda_ad_rgb in 12 s),
-# then `nn` (its new part half_math: the images of each half math against onnxruntime's on NVIDIA,
-# since session 32 made f16-acc the discrete-GPU default on lavapipe's evidence and the H200's 6.51 ms
-# against 7.48), `trace`, `nn_widths` and the adaptive part of `frame`. Call 2's renders are the first
-# with lamps in view in the training worlds (worlds_version 2, §31); train from the shipped blend.
+# lost (now -v: each result is on its own line as it comes); `frame` then ran up to the deadline.
+# Next (860 s with one start): call 1 as session 32's, the OIDN peer carried, timeout_s 570, with
+# TRAIN_BUILTIN_VIEWS=16 (the built-in views, 64 instead of 32: session 32's fine-tune lost up to 0.8 dB
+# on them) — its renders are the first with lamps in view in the training worlds (worlds_version 2), it
+# fine-tunes the shipped blend, and train_eval scores new and shipped on 4096-spp gold (issue 12's
+# measurement of record); then at once, the Mitsuba peer carried, timeout_s 240:
+#   . .device/setup.sh; D=$OUT; export OUT=/tmp/gs/r1 ARCHIVE=$D/r1.tgz; PART_LIMIT=170 TEST_WORKERS=14
+#   bash scripts/gpu_session.sh half_math tests
+# (since session 32, f16-acc is the discrete-GPU default on lavapipe's evidence and the H200's 6.51 ms
+# against 7.48; half_math measures its images against onnxruntime's on NVIDIA, ~30 s).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
+# half_math (the denoised images of each half-precision math against onnxruntime's),
 # nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:
 # with naga's bounds checks, with each weight fetch and as the autotuner picks), trace
 # (samples/s against Mitsuba cuda_ad_rgb with the threaded and the wide BVH and the measured choice; closest-hit rays/s of each
@@ -156,11 +161,11 @@ for what in "$@"; do
         # the default on a discrete GPU with shader-f16 (fp16 storage, f16-acc math: §31), then fp32 beside it
         part profile_auto $profile
         part profile_fp32 $profile --precision fp32
-        # session 32: the denoised images in each math against onnxruntime's (§26 measured them on lavapipe)
-        part half_math python3 benchmarks/bench_half_math.py --size ${VIEW}x${VIEW} --scenes cornell \
-            cornell-glossy sun-room world-2147483648 world-2147483651 world-2147483662 world-2147483667
         part bench_nn python3 benchmarks/bench_nn.py --model models/denoiser.onnx --sizes $NN \
             --steps staged fp16-math fp16-acc --repeats 5 ;;
+    half_math)   # session 32: the denoised images in each math against onnxruntime's (§26 measured lavapipe's)
+        part half_math python3 benchmarks/bench_half_math.py --size ${VIEW}x${VIEW} --scenes cornell \
+            cornell-glossy sun-room world-2147483648 world-2147483651 world-2147483662 world-2147483667 ;;
     nn_widths)   # issue 12 item 5 / issue 13's denoiser target: the shipped architecture at narrower widths
                  # (untrained: the speed is the architecture's), profiled as the default picks
         for widths in "16 32 64 128 128" "12 24 48 96 96" "8 16 32 64 64"; do
@@ -239,7 +244,8 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
         data=data/worlds-train-$VIEW
         render_dataset train_render --worlds $TRAIN_WORLDS --family training --size $VIEW \
             --spp 1,2,4,16,64 --noisy-copies 2 --gold $TRAIN_GOLD --sequence-fraction 0 --seed 14 --out $data --quiet
-        render_dataset train_render_builtin --scenes cornell cornell-glossy sun-room moving --views 8 \
+        render_dataset train_render_builtin --scenes cornell cornell-glossy sun-room moving \
+            --views ${TRAIN_BUILTIN_VIEWS:-8} \
             --size $VIEW --spp 1,2,4,16,64 --noisy-copies 2 --gold $TRAIN_GOLD --sequence-fraction 0 --seed 18 \
             --out data/builtin-$VIEW --quiet
         render_dataset train_render_small --worlds $TRAIN_WORLDS --family training --size $SMALL_VIEW \
@@ -272,7 +278,7 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
             part check_${name}_$CHECK_VIEW python3 benchmarks/bench_spp.py --size $CHECK_VIEW --spp 1 4 \
                 --gold-spp $GOLD --gold-cache /tmp/gold --seeds 2 --models "$set" --scenes $CHECK_SCENES_SMALL
         done ;;
-    *) echo "unknown part $what (tests, nn, nn_widths, nn_variants, trace, frame, heldout, train," \
+    *) echo "unknown part $what (tests, nn, half_math, nn_widths, nn_variants, trace, frame, heldout, train," \
             "train_eval, train_check)"; exit 2 ;;
     esac
 done
