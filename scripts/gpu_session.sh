@@ -48,12 +48,12 @@
 # since), so the model was scored on lavapipe. Call 1 (Mitsuba peer, DEADLINE=150 PART_LIMIT=120
 # TEST_WORKERS=14): the suite reached ~95 % in 120 s with two failures whose names the cut-off output
 # lost (now -v: each result is on its own line as it comes); `frame` then ran up to the deadline.
-# Next (860 s with one start): call 1 as session 32's, the OIDN peer carried, timeout_s 570, with
+# Next (~870 s with one start): call 1 as session 32's, the OIDN peer carried, timeout_s 590, with
 # TRAIN_BUILTIN_VIEWS=16 (the built-in views, 64 instead of 32: session 32's fine-tune lost up to 0.8 dB
 # on them) — its renders are the first with lamps in view in the training worlds (worlds_version 2), it
 # fine-tunes the shipped blend, and train_eval scores new and shipped on 4096-spp gold (issue 12's
-# measurement of record); then at once, the Mitsuba peer carried, timeout_s 240:
-#   . .device/setup.sh; D=$OUT; export OUT=/tmp/gs/r1 ARCHIVE=$D/r1.tgz; PART_LIMIT=170 TEST_WORKERS=14
+# measurement of record); then at once, the Mitsuba peer carried, timeout_s 210:
+#   . .device/setup.sh; D=$OUT; export OUT=/tmp/gs/r1 ARCHIVE=$D/r1.tgz; PART_LIMIT=160 TEST_WORKERS=14
 #   bash scripts/gpu_session.sh half_math tests
 # (since session 32, f16-acc is the discrete-GPU default on lavapipe's evidence and the H200's 6.51 ms
 # against 7.48; half_math measures its images against onnxruntime's on NVIDIA, ~30 s).
