@@ -50,7 +50,7 @@
 # lost (now -v: each result is on its own line as it comes); `frame` then ran up to the deadline.
 # Next (~870 s with one start): call 1 as session 32's, the OIDN peer carried, timeout_s 590, with
 # TRAIN_BUILTIN_VIEWS=16 (the built-in views, 64 instead of 32: session 32's fine-tune lost up to 0.8 dB
-# on them) — its renders are the first with lamps in view in the training worlds (worlds_version 2), it
+# on them), TRAIN_WORLDS=128 and TRAIN_MINUTES=3 (the two scorings add ~90 s; ~580 s in all) — its renders are the first with lamps in view in the training worlds (worlds_version 2), it
 # fine-tunes the shipped blend, and train_eval scores new and shipped on 4096-spp gold (issue 12's
 # measurement of record); then at once, the Mitsuba peer carried, timeout_s 210:
 #   . .device/setup.sh; D=$OUT; export OUT=/tmp/gs/r1 ARCHIVE=$D/r1.tgz; PART_LIMIT=160 TEST_WORKERS=14
