@@ -430,28 +430,48 @@ def test_a_dataset_from_before_the_worlds_resumes(dataset):
     assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []
 
 
-@pytest.mark.parametrize("key", ["guide_albedo", "worlds_version"])
-def test_a_dataset_from_before_a_convention_is_not_resumed_with_it(dataset, key):
-    """config.json records the albedo convention the renderer writes (``guide_albedo``) and the world
-    generator's version (``worlds_version``), neither a setting; a dataset rendered before either existed
-    (while escaping paths had albedo 0; before training worlds held lamps in view) lacks the key and reads
-    as version 1, and adding today's views to it is refused by name rather than mixing the two."""
-    from wgpu_rt.dataset.worlds import WORLDS_VERSION
-    from wgpu_rt.trace.trace_pass import GUIDE_ALBEDO
-
-    path = dataset / "config.json"
+def _resume_without(folder, config, key):
+    """Resume ``folder`` after taking ``key`` out of its config.json (a dataset from before it existed)."""
+    path = folder / "config.json"
     original = path.read_text()
     held = json.loads(original)
-    today = {"guide_albedo": GUIDE_ALBEDO, "worlds_version": WORLDS_VERSION}[key]
-    assert held[key] == today
-    assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []
     held.pop(key)
     path.write_text(json.dumps(held))
     try:
-        with pytest.raises(DatasetError, match=f"{key}=1, not {today}"):
-            TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False)
+        return TruthEngine(config, folder, renderer=fake_render).run(progress=False)
     finally:
         path.write_text(original)
+
+
+def test_a_dataset_from_before_the_guide_albedo_is_not_resumed_with_it(dataset):
+    """config.json records the albedo convention the renderer writes (``guide_albedo``, not a setting);
+    a dataset rendered while escaping paths had albedo 0 lacks the key and reads as version 1, and adding
+    views with today's albedo to it is refused by name rather than mixing the two in one folder."""
+    from wgpu_rt.trace.trace_pass import GUIDE_ALBEDO
+
+    assert json.loads((dataset / "config.json").read_text())["guide_albedo"] == GUIDE_ALBEDO
+    assert TruthEngine(CONFIG, dataset, renderer=fake_render).run(progress=False) == []
+    with pytest.raises(DatasetError, match=f"guide_albedo=1, not {GUIDE_ALBEDO}"):
+        _resume_without(dataset, CONFIG, "guide_albedo")
+
+
+def test_training_worlds_from_an_older_generator_are_not_resumed_with_new_ones(dataset, tmp_path):
+    """config.json records the world generator's version (``worlds_version``): a training-worlds dataset
+    from before training worlds held lamps in view reads as version 1 and is refused by name; the
+    generator's change leaves built-in scenes and the held-out family as they were, so those resume."""
+    from wgpu_rt.dataset.worlds import WORLDS_VERSION
+
+    assert json.loads((dataset / "config.json").read_text())["worlds_version"] == WORLDS_VERSION
+    assert _resume_without(dataset, CONFIG, "worlds_version") == []
+    for family in ("training", "held_out"):
+        config = DatasetConfig(scenes=(), worlds=2, family=family, size=8, spp=(1,), gold=4, sequence_fraction=0)
+        folder = tmp_path / family
+        TruthEngine(config, folder, renderer=fake_render).run(progress=False)
+        if family == "training":
+            with pytest.raises(DatasetError, match=f"worlds_version=1, not {WORLDS_VERSION}"):
+                _resume_without(folder, config, "worlds_version")
+        else:
+            assert _resume_without(folder, config, "worlds_version") == []
 
 
 @pytest.mark.parametrize("change, field", [

@@ -102,7 +102,7 @@ class DatasetConfig:
     @classmethod
     def from_record(cls, record: dict) -> "DatasetConfig":
         """The config a dataset's ``config.json`` (or its manifest's ``config``) records; keys that are not
-        settings (``guide_albedo``, the renderer's convention) are left out, lists become tuples."""
+        settings (``guide_albedo``, ``worlds_version``: conventions) are left out, lists become tuples."""
         settings = {f.name: record[f.name] for f in fields(cls) if f.name in record}
         return cls(**{key: tuple(value) if isinstance(value, list) else value for key, value in settings.items()})
 
@@ -230,7 +230,11 @@ def check_config(out: Path, config: DatasetConfig) -> None:
         # for keys older datasets lack (before guide_albedo existed, escaping paths had albedo 0: version 1;
         # before worlds_version, no training world held lamps in view: version 1)
         defaults = {**{f.name: f.default for f in fields(DatasetConfig)}, "guide_albedo": 1, "worlds_version": 1}
+        # the generator's version changes only training worlds (the held-out family stays as it was)
+        unaffected = () if config.worlds and config.family == "training" else ("worlds_version",)
         for key in CONFIG_KEYS_THAT_MUST_MATCH:
+            if key in unaffected:
+                continue
             if held.get(key, defaults[key]) != json.loads(json.dumps(wanted[key])):
                 raise DatasetError(f"{path}: this dataset was rendered with {key}={held.get(key, defaults[key])!r}, "
                                    f"not {wanted[key]!r}; use another --out or the same settings")
