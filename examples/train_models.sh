@@ -7,7 +7,9 @@
 # then ~55 min of renders at several spp and two 13-min fine-tunes for the sample-count input, then ~40
 # min of generated-world sequences and a 2-min confidence model on them, then 23 min of world renders and
 # ~20- and 14-min fine-tunes of a denoiser one level deeper);
-# scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine.
+# scale VIEWS/SIZE/GOLD/EPOCHS up on a bigger machine. The shipped denoiser went one step further, which
+# needs a GPU: this script's denoiser fine-tuned on CUDA (`scripts/gpu_session.sh train`, the H200 settings
+# in BENCHMARKS.md §31), then `wgpu-rt blend OUT/denoiser.onnx FINE_TUNED.onnx --weight 0.5` (its card says so).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
