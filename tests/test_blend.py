@@ -2,35 +2,22 @@
 
 import numpy as np
 import onnx
-import onnxruntime as ort
 import pytest
 from onnx import helper, numpy_helper
+from test_nn_ops import conv, make_model, onnxruntime_fn
 
 from wgpu_rt.cli import main
 
 
-def conv_model(path, seed, channels=(3, 4), kernel=3, op="Conv"):
-    """A one-conv ONNX model with random weights, a card beside it; returns its weights."""
-    rng = np.random.default_rng(seed)
-    c_in, c_out = channels
-    weights = {"w": rng.normal(size=(c_out, c_in, kernel, kernel)).astype(np.float32),
-               "b": rng.normal(size=c_out).astype(np.float32)}
-    node = helper.make_node(op, ["x", "w", "b"], ["y"], pads=[kernel // 2] * 4) if op == "Conv" else \
-        helper.make_node(op, ["x", "w", "b"], ["y"])
-    x = helper.make_tensor_value_info("x", onnx.TensorProto.FLOAT, [1, c_in, 8, 8])
-    graph = helper.make_graph([node], "tiny", [x],
-                              [helper.make_tensor_value_info("y", onnx.TensorProto.FLOAT, [1, c_out, "H", "W"])],
-                              [numpy_helper.from_array(v, k) for k, v in weights.items()])
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
-    model.ir_version = 8
-    onnx.save(model, str(path))
+def conv_model(path, seed, out_channels=4, relu=False):
+    """A 3→``out_channels`` 3×3 conv model (then a ReLU with ``relu``: another graph) at ``path``, its
+    weights drawn from ``seed``, a card beside it; returns its weights."""
+    nodes, inits = conv("conv", "x", "h" if relu else "y", 3, out_channels, 3, seed=seed)
+    if relu:
+        nodes.append(helper.make_node("Relu", ["h"], ["y"], name="relu"))
+    make_model(path.parent, path.stem, nodes, 3, inits)
     path.with_suffix(".md").write_text(f"# {path.name}\n\nseed {seed}\n")
-    return weights
-
-
-def run_model(path, x):
-    session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
-    return session.run(None, {"x": x})[0]
+    return dict(inits)
 
 
 def test_a_blend_is_the_weighted_mean_of_the_weights_and_its_card_names_both(tmp_path, capsys):
@@ -44,8 +31,8 @@ def test_a_blend_is_the_weighted_mean_of_the_weights_and_its_card_names_both(tmp
         np.testing.assert_allclose(blended[name], 0.75 * base[name] + 0.25 * tuned[name], rtol=1e-6, atol=1e-7)
     # a conv is linear in its weights, so the blended model's output is the same mix of the two outputs
     x = np.random.default_rng(3).normal(size=(1, 3, 8, 8)).astype(np.float32)
-    expected = 0.75 * run_model(tmp_path / "base.onnx", x) + 0.25 * run_model(tmp_path / "tuned.onnx", x)
-    np.testing.assert_allclose(run_model(out, x), expected, rtol=1e-5, atol=1e-5)
+    expected = 0.75 * onnxruntime_fn(tmp_path / "base.onnx")(x) + 0.25 * onnxruntime_fn(tmp_path / "tuned.onnx")(x)
+    np.testing.assert_allclose(onnxruntime_fn(out)(x), expected, rtol=1e-5, atol=1e-5)
     card = out.with_suffix(".md").read_text()
     assert "--weight 0.25" in card and "seed 1" in card and "seed 2" in card
     assert "## Fine-tune" in card and "## Base" in card and "\n## base.onnx" in card   # headings one level down
@@ -57,7 +44,8 @@ def test_a_base_card_the_fine_tunes_card_already_holds_is_not_repeated(tmp_path)
     conv_model(tmp_path / "base.onnx", 1)
     conv_model(tmp_path / "tuned.onnx", 2)
     digest = hashlib.sha256((tmp_path / "base.onnx").read_bytes()).hexdigest()[:12]
-    (tmp_path / "tuned.md").write_text(f"# tuned\n\nfine-tuned from base (sha256 {digest}…)\n\n## Base model\n\nseed 1\n")
+    card = f"# tuned\n\nfine-tuned from base (sha256 {digest}…)\n\n## Base model\n\nseed 1\n"
+    (tmp_path / "tuned.md").write_text(card)
     assert main(["blend", str(tmp_path / "base.onnx"), str(tmp_path / "tuned.onnx"), "--weight", "0.5",
                  "--out", str(tmp_path / "out.onnx")]) == 0
     card = (tmp_path / "out.md").read_text()
@@ -75,7 +63,7 @@ def test_the_ends_of_the_line_are_the_two_models(tmp_path, weight, expected):
 
 
 @pytest.mark.parametrize("case, named", [
-    ("other_shape", "initializer 'w'"),
+    ("other_shape", "initializer 'conv_w'"),
     ("other_graph", "its graph is not the base's"),
     ("weight", "--weight must be in [0, 1]"),
     ("overwrite", "would overwrite"),
@@ -87,9 +75,9 @@ def test_bad_input_is_one_line_naming_it_and_nothing_is_written(tmp_path, capsys
     conv_model(tmp_path / "base.onnx", 1)
     tuned = tmp_path / "tuned.onnx"
     if case == "other_shape":
-        conv_model(tuned, 2, channels=(3, 8))
+        conv_model(tuned, 2, out_channels=8)
     elif case == "other_graph":
-        conv_model(tuned, 2, kernel=1, op="ConvTranspose")
+        conv_model(tuned, 2, relu=True)
     elif case == "not_onnx":
         tuned.write_bytes(b"not a model")
     elif case != "missing":

@@ -225,10 +225,9 @@ class ShapeMismatch(Exception):
     """The graph does not fit together at this size (the engine then pads to ``multiple``)."""
 
 
-def load_graph(path: str | Path) -> NetworkGraph:
-    """Read and lower the ONNX file at ``path``; every problem is a ModelError naming the file/node."""
+def read_onnx(path: str | Path):
+    """The checked ONNX model at ``path``; a missing or invalid file is a ModelError naming it."""
     import onnx
-    from onnx import numpy_helper
 
     path = str(path)
     if not Path(path).is_file():
@@ -238,7 +237,15 @@ def load_graph(path: str | Path) -> NetworkGraph:
         onnx.checker.check_model(model)
     except Exception as err:  # onnx raises DecodeError, ValidationError, ... for a bad file
         raise ModelError(f"{path}: not a valid ONNX model ({type(err).__name__}: {err})") from None
-    graph = model.graph
+    return model
+
+
+def load_graph(path: str | Path) -> NetworkGraph:
+    """Read and lower the ONNX file at ``path``; every problem is a ModelError naming the file/node."""
+    from onnx import numpy_helper
+
+    path = str(path)
+    graph = read_onnx(path).graph
     constants = {init.name: numpy_helper.to_array(init) for init in graph.initializer}
     inputs = [i for i in graph.input if i.name not in constants]
     if len(inputs) != 1 or len(graph.output) != 1:

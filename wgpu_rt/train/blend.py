@@ -16,19 +16,7 @@ import numpy as np
 
 from ..errors import ModelError, OutputError
 from ..io import atomic_output
-
-
-def _load(path: Path):
-    import onnx
-
-    if not path.is_file():
-        raise ModelError(f"{path}: ONNX model file not found")
-    try:
-        model = onnx.load(str(path))
-        onnx.checker.check_model(model)
-    except Exception as err:  # onnx raises DecodeError, ValidationError, ... for a bad file
-        raise ModelError(f"{path}: not a valid ONNX model ({type(err).__name__}: {err})") from None
-    return model
+from ..nn.graph import read_onnx
 
 
 def _structure(model) -> list[tuple[str, tuple[str, ...], tuple[str, ...]]]:
@@ -72,7 +60,7 @@ def blend_models(base_path: str | Path, tuned_path: str | Path, weight: float, o
         raise OutputError(f"--out {out}: name an .onnx file")
     if out.resolve() in (base_path.resolve(), tuned_path.resolve()):
         raise OutputError(f"--out {out}: would overwrite one of the models it reads; name another file")
-    base, tuned = _load(base_path), _load(tuned_path)
+    base, tuned = read_onnx(base_path), read_onnx(tuned_path)
     if _structure(base) != _structure(tuned):
         raise ModelError(f"{tuned_path}: its graph is not the base's ({base_path}); only a fine-tune of the same "
                          "architecture can be blended")
