@@ -145,10 +145,7 @@ def test_some_training_worlds_hold_small_lamps_the_camera_sees(worlds):
     black = 0
     for w in with_lamps:
         cam = w.camera
-        forward = (cam.target - cam.origin) / np.linalg.norm(cam.target - cam.origin)
-        right = np.cross(forward, [0, 1, 0])
-        right /= np.linalg.norm(right)
-        up = np.cross(right, forward)
+        right, up, forward = cam.basis()
         tan_half = np.tan(np.radians(cam.fov) / 2)
         for lamp in _lamps_in_view(w):
             material = w.materials[lamp.material]

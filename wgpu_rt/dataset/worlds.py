@@ -340,11 +340,8 @@ class _World:
         if rng.uniform() >= LAMPS_IN_VIEW_SHARE:
             return
         origin, target = self.camera.origin.astype(np.float64), self.camera.target.astype(np.float64)
-        forward = (target - origin) / np.linalg.norm(target - origin)
-        right = np.cross(forward, UP)
-        right /= np.linalg.norm(right)
-        up = np.cross(right, forward)
-        tan_half = np.tan(np.radians(self.camera.fov) / 2)
+        right, up, forward = (axis.astype(np.float64) for axis in self.camera.basis())
+        tan_half = np.tan(np.radians(self.camera.fov) / 2)   # both axes: world views are square
         distance = float(np.linalg.norm(target - origin))
         tint = blackbody_tint(rng.uniform(2200, 6500))
         for i in range(int(rng.integers(1, 13))):
