@@ -14,6 +14,7 @@ from test_train import tiny_dataset  # noqa: F401  (the module-scoped fake datas
 
 from wgpu_rt.models import DENOISER
 from wgpu_rt.train import TrainConfig, train
+from wgpu_rt.train.context import end_data_parallel_process
 from wgpu_rt.train.trainer import Trainer
 
 WORLD_SIZE = 2
@@ -47,6 +48,7 @@ def train_as_rank(rank: int, port: int, config: dict, folder: str) -> None:
     summary = train(TrainConfig(**config), progress=False)
     with open(os.path.join(folder, f"rank{rank}.json"), "w") as out:
         json.dump({"seen": seen, "summary": summary}, out)
+    end_data_parallel_process(0)   # as `wgpu-rt train` ends under torchrun
 
 
 def test_two_gloo_processes_train_one_model(tiny_dataset, tmp_path):  # noqa: F811

@@ -76,6 +76,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     from ..train import TrainConfig, train
+    from ..train.context import end_data_parallel_process
 
     config = TrainConfig(task=args.task, data=args.data, out=args.out, epochs=args.epochs, batch=args.batch,
                          lr=args.lr, seed=args.seed, crop_min=args.crop[0], crop_max=args.crop[1],
@@ -88,8 +89,8 @@ def run(args) -> int:
                          validate_every=args.validate_every, device=args.device,
                          minutes=args.minutes)
     summary = train(config, progress=not args.quiet)
-    if summary is None:   # a data-parallel rank other than 0: rank 0 reports
-        return 0
-    metrics = ", ".join(f"{k} {v:.4g}" for k, v in summary["metrics"].items() if isinstance(v, float))
-    print(f"wrote {summary['onnx']} and {summary['card']} ({summary['seconds'] / 60:.1f} min); {metrics}")
+    if summary is not None:   # None: a data-parallel rank other than 0; rank 0 reports
+        metrics = ", ".join(f"{k} {v:.4g}" for k, v in summary["metrics"].items() if isinstance(v, float))
+        print(f"wrote {summary['onnx']} and {summary['card']} ({summary['seconds'] / 60:.1f} min); {metrics}")
+    end_data_parallel_process(0)
     return 0

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,6 +129,18 @@ def resolve_device(name: str) -> torch.device:
         raise WgpuRtError(f"--device cuda: torch {torch.__version__} sees no CUDA device here "
                           "(use --device cpu or auto)")
     return torch.device("cuda" if name != "cpu" and torch.cuda.is_available() else "cpu")
+
+
+def end_data_parallel_process(status: int) -> None:
+    """Under torchrun (WORLD_SIZE > 1), end this process now with ``status``, its output flushed, without the
+    interpreter's teardown; otherwise return. With its gloo group destroyed and every file written, that
+    teardown still aborted one of the two processes in about one run in fifty on torch 2.13 (6 of 280 runs on
+    2 cores, "terminate called without an active exception" with no Python frame left, with or without
+    DistributedDataParallel; none of 180 runs that ended here), and torchrun reports such a run as failed."""
+    if _launch_env()[0] > 1:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
 
 
 def _launch_env() -> tuple[int, int, int]:
