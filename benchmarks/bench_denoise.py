@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from common import add_denoiser_step_flags, denoiser_options, save_array
+from common import add_denoiser_step_flags, denoiser_options, equivalent_spp, save_array
 from peers import DEVICE_NAMES, QUALITIES, oidn_denoise, oidn_devices, preferred
 from wgpu_rt import metrics
 from wgpu_rt.frame.denoise import QUALITIES as OUR_QUALITIES
@@ -46,20 +46,6 @@ FRAME_SEED_STRIDE = 7919   # frame f > 0 of a reference render: seeds shifted by
 NOISE_SEED = 30_000        # --noise-seeds: the k-th realization renders with seed NOISE_SEED + 1000·k + spp
 AUC_WAYS = {"roc_auc": "model", "roc_auc_tested": "model, tested pixels", "roc_auc_stage": "temporal stage"}
 NOISE_ROBUST_BLUR = 1.5    # σ (pixels) of the --mask-spp mask that ignores gold noise: see disocclusion_mask
-
-
-def equivalent_spp(spp: list[int], error: list[float], target: float) -> str:
-    """The sample count at which brute force's ``error`` (lower is better) first falls to ``target``,
-    interpolated in log-log on the first segment that crosses it; "< 1" / "> N" outside the measured
-    range (the curve is noisy at high spp when gold itself has few samples, so only crossings count)."""
-    x, y = np.log(np.asarray(spp, float)), np.log(np.asarray(error, float))
-    t = np.log(target)
-    if t >= y[0]:
-        return f"< {spp[0]}"
-    for i in range(len(x) - 1):
-        if y[i] >= t >= y[i + 1]:
-            return f"{np.exp(x[i] + (t - y[i]) * (x[i + 1] - x[i]) / (y[i + 1] - y[i])):.1f}"
-    return f"> {spp[-1]}"
 
 
 def render_test_views(data: Path, view_ids: set[str], spp: list[int], seed: int,

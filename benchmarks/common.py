@@ -275,6 +275,20 @@ def errors(reference, image) -> dict[str, float]:
     return result
 
 
+def equivalent_spp(spp: list[int], error: list[float], target: float) -> str:
+    """The sample count at which brute force's ``error`` (lower is better) first falls to ``target``,
+    interpolated in log-log on the first segment that crosses it; "< 1" / "> N" outside the measured
+    range (the curve is noisy at high spp when gold itself has few samples, so only crossings count)."""
+    x, y = np.log(np.asarray(spp, float)), np.log(np.asarray(error, float))
+    t = np.log(target)
+    if t > y[0]:
+        return f"< {spp[0]}"
+    for i in range(len(x) - 1):
+        if y[i] >= t >= y[i + 1]:
+            return f"{np.exp(x[i] + (t - y[i]) * (x[i + 1] - x[i]) / (y[i + 1] - y[i])):.1f}"
+    return f"> {spp[-1]}"
+
+
 def trimmed_rel_mse(reference, image, quantile: float = TRIM_QUANTILE) -> float:
     """relMSE with each pixel's error (relMSE averaged over its channels) clipped at the image's
     ``quantile`` (default: the top 0.1% of pixels count as the 99.9th-percentile error): a robust twin of
