@@ -1,5 +1,6 @@
-"""benchmarks/common.py: scoring against golds of few samples (twin_corrected_psnr); scene files named
-by path, skipped when a mesh they name is absent (the user scenes in benchmarks/scenes)."""
+"""benchmarks/common.py: scoring against golds of few samples (twin_corrected_psnr); equivalent spp on a
+brute-force curve; scene files named by path, skipped when a mesh they name is absent (the user scenes in
+benchmarks/scenes)."""
 
 import importlib
 from pathlib import Path
@@ -16,6 +17,19 @@ REPO = Path(__file__).resolve().parents[1]
 def common(monkeypatch):
     monkeypatch.syspath_prepend(str(REPO / "benchmarks"))
     return importlib.import_module("common")
+
+
+def test_equivalent_spp_reads_the_brute_force_curve_in_log_log(common):
+    """On a Monte Carlo curve (error ∝ 1/spp) an error between two measured counts maps back to its exact
+    count; brute force's own error at a measured count is that count; outside the curve it says so."""
+    spp = [1, 4, 16, 64]
+    error = [0.8 / n for n in spp]
+    assert common.equivalent_spp(spp, error, 0.8 / 10) == "10.0"
+    assert common.equivalent_spp(spp, error, 0.8) == "1.0" and common.equivalent_spp(spp, error, 0.2) == "4.0"
+    assert common.equivalent_spp(spp, error, 0.9) == "< 1" and common.equivalent_spp(spp, error, 0.001) == "> 64"
+    # a noisy curve that crosses the target twice: the first crossing counts
+    first = common.equivalent_spp([1, 4], [1.0, 0.1], 0.15)
+    assert common.equivalent_spp([1, 4, 16, 64], [1.0, 0.1, 0.2, 0.05], 0.15) == first
 
 
 def test_twin_golds_recover_the_score_against_the_truth(common):
