@@ -19,10 +19,9 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (GOLD_TWIN_SEED, add_gold_arguments, add_model_arguments, equivalent_spp, errors, gold_render,
-                    load_scenes,
-                    denoiser_options, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models,
-                    twin_corrected_psnr)
+from common import (GOLD_TWIN_SEED, add_gold_arguments, add_model_arguments, denoiser_options, equivalent_spp, errors,
+                    gold_render, load_scenes, oidn, parse_with_quick_defaults, print_header, print_table,
+                    resolve_models, twin_corrected_psnr)
 
 from wgpu_rt import metrics
 

@@ -134,9 +134,10 @@ def resolve_device(name: str) -> torch.device:
 def end_data_parallel_process(status: int) -> None:
     """Under torchrun (WORLD_SIZE > 1), end this process now with ``status``, its output flushed, without the
     interpreter's teardown; otherwise return. With its gloo group destroyed and every file written, that
-    teardown still aborted one of the two processes in about one run in fifty on torch 2.13 (6 of 280 runs on
-    2 cores, "terminate called without an active exception" with no Python frame left, with or without
-    DistributedDataParallel; none of 180 runs that ended here), and torchrun reports such a run as failed."""
+    teardown still aborted one of the two processes in about one run in fifty on torch 2.13 (2 cores, two runs
+    at a time: 2 of 120 with DistributedDataParallel, 6 of 280 with a plain all_reduce in its place, "terminate
+    called without an active exception" with no Python frame left; none of 180 runs that ended here), and
+    torchrun reports such a run as failed."""
     if _launch_env()[0] > 1:
         sys.stdout.flush()
         sys.stderr.flush()
