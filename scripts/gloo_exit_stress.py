@@ -1,5 +1,6 @@
 """How often a two-process gloo run aborts at its end (BENCHMARKS.md §32): VARIANT is ``ddp`` (the model in
-DistributedDataParallel), ``allreduce`` (gradients summed by one all_reduce instead) or either with ``-exit``
+DistributedDataParallel), ``allreduce`` (one all_reduce of the gradients instead, its sum not written back:
+only the collective matters here) or either with ``-exit``
 appended (each process ends with os._exit once its work is done, as wgpu_rt.train.context's
 end_data_parallel_process does). Each run trains a small conv net for 20 steps with the collectives the
 trainer uses, then barrier and destroy_process_group; the failures are counted and printed.
