@@ -17,7 +17,7 @@ from wgpu_rt.train import TrainConfig, TrainingError, train
 from wgpu_rt.train.losses import denoiser_loss, ssim
 from wgpu_rt.train.networks import UNet, export_onnx
 from wgpu_rt.train.samples import ANY_SPP, curriculum_spp
-from wgpu_rt.train.trainer import Trainer, confidence_aucs, roc_auc
+from wgpu_rt.train.trainer import Trainer, _without_history_tables, confidence_aucs, roc_auc
 
 
 @pytest.fixture(scope="module")
@@ -205,7 +205,20 @@ def test_validation_every_n_epochs_and_after_the_last(tiny_dataset, tmp_path):
                                   batch=2, crop_min=8, crop_max=16, validate_every=2), progress=False)
     trainer.run()
     assert [h["epoch"] for h in trainer.history if "val_spearman" in h] == [2, 4, 5]
-    assert "| 1 | " in trainer.model_card() and "—" in trainer.model_card()
+    card = trainer.model_card()
+    rows = [line for line in card.split("## History")[1].splitlines() if line[2:3].isdigit()]
+    assert [int(row.split("|")[1]) for row in rows] == [1, 2, 4, 5]    # the first, the validated, the last
+    assert rows[0].endswith("| — |")    # epoch 1: not validated
+    epochs_3_and_4 = np.mean([h["train_loss"] for h in trainer.history[2:4]])
+    assert float(rows[2].split("|")[4]) == pytest.approx(epochs_3_and_4, abs=6e-5)
+
+
+def test_a_base_cards_history_tables_are_left_out():
+    card = "# m\n\n## Data\n- x\n| not history |\n\n## History\n\n| epoch |\n| --- |\n| 1 |\n\n" \
+           "## Base model\n\n### History\n\n| 7 |\n"
+    assert _without_history_tables(card).splitlines() == [
+        "# m", "", "## Data", "- x", "| not history |", "", "## History", "", "", "## Base model", "",
+        "### History"]
 
 
 @pytest.mark.parametrize("minutes, epochs_run", [(1e-9, 1), (600.0, 4)])

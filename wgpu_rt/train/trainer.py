@@ -650,19 +650,49 @@ class Trainer:
         lines += ["",
                   f"## Validation (last epoch, held-out views; every {cfg.validate_every} epoch(s) in the history)"]
         lines += [f"- {k[4:]}: {v:.4f}" for k, v in last.items() if k.startswith("val_")]
-        lines += ["", "## History", "", "| epoch | step | spp | train loss | its steps, s | "
+        lines += ["", "## History", "",
+                  "The first epoch, every validated one and the last; train loss and step time are summed over "
+                  "the epochs since the row above (the checkpoint keeps every epoch).", "",
+                  "| epoch | step | spp | train loss | its steps, s | "
                   + " | ".join(k[4:] for k in last if k.startswith("val_")) + " |",
                   "|" + " --- |" * (5 + sum(k.startswith("val_") for k in last))]
-        for h in self.history:
-            seconds = f"{h['steps_seconds']:.1f}" if "steps_seconds" in h else "—"   # older runs lack it
-            lines.append(f"| {h['epoch']} | {h['step']} | {h['spp']} | {h['train_loss']:.4f} | {seconds} | "
+        for h, since in _card_history_rows(self.history):
+            loss = np.mean([row["train_loss"] for row in since])
+            timed = [row["steps_seconds"] for row in since if "steps_seconds" in row]   # older runs lack it
+            seconds = f"{sum(timed):.1f}" if timed else "—"
+            lines.append(f"| {h['epoch']} | {h['step']} | {h['spp']} | {loss:.4f} | {seconds} | "
                          + " | ".join(f"{h[k]:.4f}" if k in h else "—" for k in last if k.startswith("val_")) + " |")
         for base in base_runs:
             if base.get("card"):
                 lines += ["", f"## Base model (`{Path(base['path']).with_suffix('.md').name}` as it was, headings "
-                          "one level down)", ""]
-                lines += ["#" + line if line.startswith("#") else line for line in base["card"].splitlines()]
+                          "one level down, history tables left out)", ""]
+                lines += ["#" + line if line.startswith("#") else line
+                          for line in _without_history_tables(base["card"]).splitlines()]
         return "\n".join(lines) + "\n"
+
+
+def _card_history_rows(history: list) -> list:
+    """(row shown, the rows it sums) for a model card's history table: the first epoch, every validated
+    epoch and the last, each with the epochs since the shown row before it (itself included)."""
+    shown, since = [], []
+    for index, row in enumerate(history):
+        since.append(row)
+        if index == 0 or index == len(history) - 1 or any(key.startswith("val_") for key in row):
+            shown.append((row, since))
+            since = []
+    return shown
+
+
+def _without_history_tables(card: str) -> str:
+    """``card`` (a model card's markdown) less the table rows of its history sections, base cards' included:
+    an older card kept a row per epoch, thousands of them."""
+    kept, in_history = [], False
+    for line in card.splitlines():
+        if line.startswith("#"):
+            in_history = line.lstrip("#").strip() == "History"
+        if not (in_history and line.startswith("|")):
+            kept.append(line)
+    return "\n".join(kept)
 
 
 def _with_new_input_channels(weights: dict, expected: dict) -> dict:
