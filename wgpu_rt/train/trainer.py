@@ -651,8 +651,8 @@ class Trainer:
                   f"## Validation (last epoch, held-out views; every {cfg.validate_every} epoch(s) in the history)"]
         lines += [f"- {k[4:]}: {v:.4f}" for k, v in last.items() if k.startswith("val_")]
         lines += ["", "## History", "",
-                  "The first epoch, every validated one and the last; train loss and step time are summed over "
-                  "the epochs since the row above (the checkpoint keeps every epoch).", "",
+                  "The first epoch, every validated one and the last; train loss is the mean and step time the "
+                  "sum over the epochs since the row above (the checkpoint keeps every epoch).", "",
                   "| epoch | step | spp | train loss | its steps, s | "
                   + " | ".join(k[4:] for k in last if k.startswith("val_")) + " |",
                   "|" + " --- |" * (5 + sum(k.startswith("val_") for k in last))]
