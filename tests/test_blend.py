@@ -52,6 +52,17 @@ def test_a_base_card_the_fine_tunes_card_already_holds_is_not_repeated(tmp_path)
     assert card.count("seed 1") == 1 and "## Base (" not in card and "'Base model' below" in card
 
 
+def test_the_fine_tunes_history_stays_and_the_bases_is_left_out(tmp_path):
+    conv_model(tmp_path / "base.onnx", 1)
+    conv_model(tmp_path / "tuned.onnx", 2)
+    for name in ("base", "tuned"):
+        (tmp_path / f"{name}.md").write_text(f"# {name}\n\n## History\n\n| epoch |\n| {name} row |\n")
+    assert main(["blend", str(tmp_path / "base.onnx"), str(tmp_path / "tuned.onnx"), "--weight", "0.5",
+                 "--out", str(tmp_path / "out.onnx")]) == 0
+    card = (tmp_path / "out.md").read_text()
+    assert "| tuned row |" in card and "| base row |" not in card and "history tables left out" in card
+
+
 @pytest.mark.parametrize("weight, expected", [("0", "base"), ("1", "tuned")])
 def test_the_ends_of_the_line_are_the_two_models(tmp_path, weight, expected):
     weights = {"base": conv_model(tmp_path / "base.onnx", 1), "tuned": conv_model(tmp_path / "tuned.onnx", 2)}

@@ -17,7 +17,8 @@ from wgpu_rt.train import TrainConfig, TrainingError, train
 from wgpu_rt.train.losses import denoiser_loss, ssim
 from wgpu_rt.train.networks import UNet, export_onnx
 from wgpu_rt.train.samples import ANY_SPP, curriculum_spp
-from wgpu_rt.train.trainer import Trainer, _without_history_tables, confidence_aucs, roc_auc
+from wgpu_rt.train.cards import without_history_tables
+from wgpu_rt.train.trainer import Trainer, confidence_aucs, roc_auc
 
 
 @pytest.fixture(scope="module")
@@ -216,7 +217,7 @@ def test_validation_every_n_epochs_and_after_the_last(tiny_dataset, tmp_path):
 def test_a_base_cards_history_tables_are_left_out():
     card = "# m\n\n## Data\n- x\n| not history |\n\n## History\n\n| epoch |\n| --- |\n| 1 |\n\n" \
            "## Base model\n\n### History\n\n| 7 |\n"
-    assert _without_history_tables(card).splitlines() == [
+    assert without_history_tables(card).splitlines() == [
         "# m", "", "## Data", "- x", "| not history |", "", "## History", "", "", "## Base model", "",
         "### History"]
 

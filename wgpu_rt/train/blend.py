@@ -17,6 +17,7 @@ import numpy as np
 from ..errors import ModelError, OutputError
 from ..io import atomic_output
 from ..nn.graph import read_onnx
+from .cards import embedded_card
 
 
 def _structure(model) -> list[tuple[str, tuple[str, ...], tuple[str, ...]]]:
@@ -97,7 +98,8 @@ def _card(base_path: Path, tuned_path: Path, weight: float, out: Path) -> str:
     sections = [("Fine-tune", tuned_path, tuned_card)]
     if not base_inside:
         sections.append(("Base", base_path, card_of(base_path)))
-    for title, path, text in sections:
-        lines += ["", f"## {title} (`{path.with_suffix('.md').name}` as it was, headings one level down)", ""]
-        lines += ["#" + line if line.startswith("#") else line for line in text.splitlines()]
+    for title, path, text in sections:   # the fine-tune's own history stays; cards inside it lost theirs
+        lines += ["", f"## {title} (`{path.with_suffix('.md').name}` as it was, headings one level down"
+                  + ("" if title == "Fine-tune" else ", history tables left out") + ")", ""]
+        lines += embedded_card(text, keep_history=title == "Fine-tune")
     return "\n".join(lines) + "\n"

@@ -31,6 +31,7 @@ from ..errors import WgpuRtError
 from ..frame.denoise import pad_to_multiple
 from ..models import Network, network_named
 from ..io import atomic_output, check_output_path
+from .cards import embedded_card
 from .context import TrainContext, training_context
 from .samples import ANY_SPP, Augmentation, curriculum_spp, grouped_by_crop, samples_for
 
@@ -666,14 +667,13 @@ class Trainer:
             if base.get("card"):
                 lines += ["", f"## Base model (`{Path(base['path']).with_suffix('.md').name}` as it was, headings "
                           "one level down, history tables left out)", ""]
-                lines += ["#" + line if line.startswith("#") else line
-                          for line in _without_history_tables(base["card"]).splitlines()]
+                lines += embedded_card(base["card"])
         return "\n".join(lines) + "\n"
 
 
 def _card_history_rows(history: list) -> list:
-    """(row shown, the rows it sums) for a model card's history table: the first epoch, every validated
-    epoch and the last, each with the epochs since the shown row before it (itself included)."""
+    """(row shown, the rows it stands for) for a model card's history table: the first epoch, every
+    validated epoch and the last, each with the epochs since the shown row before it (itself included)."""
     shown, since = [], []
     for index, row in enumerate(history):
         since.append(row)
@@ -681,18 +681,6 @@ def _card_history_rows(history: list) -> list:
             shown.append((row, since))
             since = []
     return shown
-
-
-def _without_history_tables(card: str) -> str:
-    """``card`` (a model card's markdown) less the table rows of its history sections, base cards' included:
-    an older card kept a row per epoch, thousands of them."""
-    kept, in_history = [], False
-    for line in card.splitlines():
-        if line.startswith("#"):
-            in_history = line.lstrip("#").strip() == "History"
-        if not (in_history and line.startswith("|")):
-            kept.append(line)
-    return "\n".join(kept)
 
 
 def _with_new_input_channels(weights: dict, expected: dict) -> dict:

@@ -1,0 +1,22 @@
+"""Model-card text shared by the trainer and `wgpu-rt blend`: another model's card embedded in a new one."""
+
+from __future__ import annotations
+
+
+def without_history_tables(card: str) -> str:
+    """``card`` (a model card's markdown) less the table rows of its history sections, embedded cards' included:
+    an older card kept a row per epoch, thousands of them."""
+    kept, in_history = [], False
+    for line in card.splitlines():
+        if line.startswith("#"):
+            in_history = line.lstrip("#").strip() == "History"
+        if not (in_history and line.startswith("|")):
+            kept.append(line)
+    return "\n".join(kept)
+
+
+def embedded_card(card: str, keep_history: bool = False) -> list[str]:
+    """The lines of ``card`` to embed under a heading of a new card: its headings one level down and, unless
+    ``keep_history``, its history tables left out."""
+    text = card if keep_history else without_history_tables(card)
+    return ["#" + line if line.startswith("#") else line for line in text.splitlines()]
