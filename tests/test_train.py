@@ -14,10 +14,10 @@ from dataset_fakes import fake_render
 from wgpu_rt.dataset import DatasetConfig, TruthEngine
 from wgpu_rt.models import DENOISER
 from wgpu_rt.train import TrainConfig, TrainingError, train
+from wgpu_rt.train.cards import without_history_tables
 from wgpu_rt.train.losses import denoiser_loss, ssim
 from wgpu_rt.train.networks import UNet, export_onnx
 from wgpu_rt.train.samples import ANY_SPP, curriculum_spp
-from wgpu_rt.train.cards import without_history_tables
 from wgpu_rt.train.trainer import Trainer, confidence_aucs, roc_auc
 
 

@@ -99,7 +99,5 @@ def _card(base_path: Path, tuned_path: Path, weight: float, out: Path) -> str:
     if not base_inside:
         sections.append(("Base", base_path, card_of(base_path)))
     for title, path, text in sections:   # the fine-tune's own history stays; cards inside it lost theirs
-        lines += ["", f"## {title} (`{path.with_suffix('.md').name}` as it was, headings one level down"
-                  + ("" if title == "Fine-tune" else ", history tables left out") + ")", ""]
-        lines += embedded_card(text, keep_history=title == "Fine-tune")
+        lines += embedded_card(title, path.with_suffix(".md").name, text, keep_history=title == "Fine-tune")
     return "\n".join(lines) + "\n"

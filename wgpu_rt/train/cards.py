@@ -15,8 +15,10 @@ def without_history_tables(card: str) -> str:
     return "\n".join(kept)
 
 
-def embedded_card(card: str, keep_history: bool = False) -> list[str]:
-    """The lines of ``card`` to embed under a heading of a new card: its headings one level down and, unless
-    ``keep_history``, its history tables left out."""
+def embedded_card(title: str, card_name: str, card: str, keep_history: bool = False) -> list[str]:
+    """The lines that embed ``card`` (the file ``card_name`` as it was) in a new card: a ``title`` heading,
+    then the card with its headings one level down and, unless ``keep_history``, its history tables left out."""
     text = card if keep_history else without_history_tables(card)
-    return ["#" + line if line.startswith("#") else line for line in text.splitlines()]
+    return ["", f"## {title} (`{card_name}` as it was, headings one level down"
+            + ("" if keep_history else ", history tables left out") + ")", "",
+            *("#" + line if line.startswith("#") else line for line in text.splitlines())]

@@ -665,9 +665,7 @@ class Trainer:
                          + " | ".join(f"{h[k]:.4f}" if k in h else "—" for k in last if k.startswith("val_")) + " |")
         for base in base_runs:
             if base.get("card"):
-                lines += ["", f"## Base model (`{Path(base['path']).with_suffix('.md').name}` as it was, headings "
-                          "one level down, history tables left out)", ""]
-                lines += embedded_card(base["card"])
+                lines += embedded_card("Base model", Path(base["path"]).with_suffix(".md").name, base["card"])
         return "\n".join(lines) + "\n"
 
 
