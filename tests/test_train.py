@@ -94,6 +94,27 @@ def test_block_mean_term_adds_the_l1_of_8x8_block_means_of_the_compared_colours(
         pytest.approx(3.0 * float(block_shift), rel=1e-4)
 
 
+def test_log_mse_term_adds_the_mean_of_each_crops_log_display_mse():
+    """log_mse·mean over crops of log10(1 + MSE / 1e-6) of the display colours on top of the usual loss: zero
+    at the target; with one crop off by d and the other off by 10·d it is the mean of the two crops' logs (the
+    second crop's term 10× the first's MSE, not 100× its gradient share as an MSE's would be)."""
+    from wgpu_rt.train.losses import LOG_MSE_FLOOR, log_to_display, remodulate
+
+    log_irradiance = 0.5 + 0.2 * torch.rand(2, 3, 16, 16)
+    target = with_albedo_factor(log_irradiance)
+    assert float(denoiser_loss(log_irradiance, target, log_mse=0.5)) == pytest.approx(0.0, abs=1e-6)
+    shifted = log_irradiance.clone()
+    shifted[0] += 0.001
+    shifted[1] += 0.01
+    display = lambda x: log_to_display(remodulate(x, target[:, 3:]))   # noqa: E731
+    mse = ((display(shifted) - display(log_irradiance)) ** 2).mean(dim=(1, 2, 3))
+    expected = float(np.log10(1.0 + mse.numpy() / LOG_MSE_FLOOR).mean())
+    for space in ("log", "display"):
+        base = denoiser_loss(shifted, target, ssim_space=space)
+        assert float(denoiser_loss(shifted, target, ssim_space=space, log_mse=0.5) - base) == \
+            pytest.approx(0.5 * expected, rel=1e-4)
+
+
 def test_denoiser_loss_scores_remodulated_colour_against_skimage():
     """0.8·(1 − SSIM of the display colours, irradiance × albedo factor) + 0.2·L1 on log1p irradiance,
     recomputed with numpy, the metrics' display mapping and scikit-image's SSIM."""

@@ -48,6 +48,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--lowpass", type=float, default=0.0, metavar="WEIGHT",
                         help="denoiser: add WEIGHT × L1 of 8×8 block means of the compared colours, against "
                              "low-frequency blotches (default: 0, off)")
+    parser.add_argument("--log-mse", type=float, default=0.0, metavar="WEIGHT",
+                        help="denoiser: add WEIGHT × the mean over crops of log10(1 + display MSE / 1e-6), so "
+                             "each crop's relative error counts alike, as a mean PSNR does (default: 0, off)")
     parser.add_argument("--permute-colours", action="store_true",
                         help="denoiser: draw a random order of the R, G, B channels per crop (colour, albedo and "
                              "target alike), so bounce light of every hue is seen (default: off)")
@@ -81,6 +84,7 @@ def run(args) -> int:
     config = TrainConfig(task=args.task, data=args.data, out=args.out, epochs=args.epochs, batch=args.batch,
                          lr=args.lr, seed=args.seed, crop_min=args.crop[0], crop_max=args.crop[1],
                          pixel_loss=args.pixel_loss, ssim_space=args.ssim_space, lowpass=args.lowpass,
+                         log_mse=args.log_mse,
                          permute_colours=args.permute_colours,
                          widths=tuple(args.widths), residual=args.residual, bottom_merge=args.bottom_merge,
                          curriculum=tuple(args.curriculum), resume=args.resume,

@@ -26,6 +26,7 @@ DISPLAY_GAMMA = 2.2
 DISPLAY_EPSILON = 1e-5      # keeps the gamma curve's slope finite at black
 LOWPASS_BLOCK = 8           # the block-mean term's block size (px)
 MAX_LOG_IRRADIANCE = 30.0   # expm1(30) ≈ 1e13: far above any training radiance, finite in float32
+LOG_MSE_FLOOR = 1e-6        # the log-MSE term's floor: a crop's display MSE below it (PSNR above 60 dB) counts little
 
 
 def _gaussian_window(channels: int, dtype, device) -> torch.Tensor:
@@ -66,13 +67,23 @@ def remodulate(log_irradiance: torch.Tensor, factor: torch.Tensor) -> torch.Tens
     return torch.log1p(torch.expm1(log_irradiance.clamp(0.0, MAX_LOG_IRRADIANCE)) * factor)
 
 
+def log_display_mse(prediction: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Mean over the batch of log10(1 + MSE / LOG_MSE_FLOOR), each crop's MSE taken over its display values: a
+    crop's share of the gradient no longer grows with its error, so a 1 dB gain on a dark, nearly clean crop
+    counts as much as one on a noisy bright crop, as a mean of PSNRs weighs them."""
+    mse = ((prediction - target) ** 2).mean(dim=(1, 2, 3))
+    return torch.log10(1.0 + mse / LOG_MSE_FLOOR).mean()
+
+
 def denoiser_loss(prediction: torch.Tensor, target: torch.Tensor, pixel_loss: str = "l1",
-                  ssim_space: str = "log", lowpass: float = 0.0) -> torch.Tensor:
-    """0.8·(1 − SSIM) + 0.2·(L1 or Charbonnier) [+ lowpass · L1 of 8×8 block means]. ``prediction``:
+                  ssim_space: str = "log", lowpass: float = 0.0, log_mse: float = 0.0) -> torch.Tensor:
+    """0.8·(1 − SSIM) + 0.2·(L1 or Charbonnier) [+ lowpass · L1 of 8×8 block means] [+ log_mse ·
+    ``log_display_mse``]. ``prediction``:
     (N, 3, H, W) log1p irradiance; ``target``: (N, 6, H, W), the gold log1p irradiance and the albedo
     factor. The pixel term compares log1p irradiance; SSIM compares the remodulated colours, in log1p or
     (``ssim_space="display"``) display values; the block-mean term compares the same colours averaged
-    over 8×8 blocks, where low-frequency blotches that SSIM's 11-px window barely sees stand out."""
+    over 8×8 blocks, where low-frequency blotches that SSIM's 11-px window barely sees stand out; the log-MSE
+    term compares display values whatever ``ssim_space`` is."""
     target, factor = target[:, :3], target[:, 3:]
     pixel = charbonnier(prediction, target) if pixel_loss == "charbonnier" else F.l1_loss(prediction, target)
     prediction, target = remodulate(prediction, factor), remodulate(target, factor)
@@ -81,4 +92,8 @@ def denoiser_loss(prediction: torch.Tensor, target: torch.Tensor, pixel_loss: st
     loss = SSIM_WEIGHT * (1.0 - ssim(prediction, target)) + (1.0 - SSIM_WEIGHT) * pixel
     if lowpass:
         loss = loss + lowpass * F.l1_loss(F.avg_pool2d(prediction, LOWPASS_BLOCK), F.avg_pool2d(target, LOWPASS_BLOCK))
+    if log_mse:
+        if ssim_space != "display":
+            prediction, target = log_to_display(prediction), log_to_display(target)
+        loss = loss + log_mse * log_display_mse(prediction, target)
     return loss

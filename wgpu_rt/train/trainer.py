@@ -64,6 +64,7 @@ class TrainConfig:
     pixel_loss: str = "l1"               # or "charbonnier"
     ssim_space: str = "log"              # or "display" (the metrics' Reinhard + gamma mapping)
     lowpass: float = 0.0                 # weight of the denoiser's 8×8 block-mean L1 term (0: none)
+    log_mse: float = 0.0                 # weight of the denoiser's per-crop log display-MSE term (0: none)
     permute_colours: bool = False        # a random RGB order per crop (samples.Augmentation)
     widths: tuple[int, ...] = (32, 64, 128)
     residual: bool = False               # denoiser predicts a correction to its noisy input
@@ -353,7 +354,7 @@ class Trainer:
 
         if self.config.task == "denoiser":
             return denoiser_loss(prediction, target, self.config.pixel_loss, self.config.ssim_space,
-                                 self.config.lowpass)
+                                 self.config.lowpass, self.config.log_mse)
         if self.config.task == "confidence":
             # Disocclusions (target 0: history invalid) are rare: weight them by the batch's class ratio.
             invalid = (1 - target).mean().clamp(0.01, 0.99)
@@ -566,6 +567,7 @@ class Trainer:
     def model_card(self) -> str:
         from ..dataset.store import read_manifest
         from ..frame.pack import ALBEDO_EPSILON
+        from .losses import LOG_MSE_FLOOR
 
         cfg = self.config
         last = self.history[-1] if self.history else {}
@@ -610,6 +612,8 @@ class Trainer:
             drawn = "; 'any': each crop draws one of its view's sample counts" if ANY_SPP in cfg.curriculum else ""
             lines.append(f"- loss 0.8·(1 − SSIM on {cfg.ssim_space} colour) + 0.2·{cfg.pixel_loss} on log1p "
                          "irradiance" + (f" + {cfg.lowpass:g}·L1 of its 8×8 block means" if cfg.lowpass else "")
+                         + (f" + {cfg.log_mse:g}·mean over crops of log10(1 + display MSE / {LOG_MSE_FLOOR:g})"
+                            if cfg.log_mse else "")
                          + f"; curriculum {' → '.join(map(str, cfg.curriculum))} spp (equal shares of the "
                          f"epochs{drawn})")
         elif cfg.model_name == "error_predictor":
