@@ -57,10 +57,10 @@
 #   bash scripts/gpu_session.sh half_math tests
 # (since session 32, f16-acc is the discrete-GPU default on lavapipe's evidence and the H200's 6.51 ms
 # against 7.48; half_math measures its images against onnxruntime's on NVIDIA, ~30 s).
-# Sessions 33–35 had no GPU. Since session 35 the shipped denoiser is that blend fine-tuned twice on two CPU
-# cores on lamps-in-view worlds (75, then all 150) and 24 built-in views at 128² (§33, §34: +0.22 / +0.41 dB
-# at 1 / 4 spp on the held-out family against 4096-spp gold); call 1's fine-tune starts from it (TRAIN_INIT's
-# default).
+# Sessions 33–36 had no GPU. Since session 36 the shipped denoiser is that blend fine-tuned three times on two
+# CPU cores on lamps-in-view worlds (75, then all 150; the last with --log-mse 0.05) and 24 built-in views at
+# 128² (§33–§35: +0.26 / +0.47 dB at 1 / 4 spp on the held-out family against 4096-spp gold); call 1's
+# fine-tune starts from it (TRAIN_INIT's default).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
