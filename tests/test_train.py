@@ -95,9 +95,9 @@ def test_block_mean_term_adds_the_l1_of_8x8_block_means_of_the_compared_colours(
 
 
 def test_log_mse_term_adds_the_mean_of_each_crops_log_display_mse():
-    """log_mse·mean over crops of log10(1 + MSE / 1e-6) of the display colours on top of the usual loss: zero
-    at the target; with one crop off by d and the other off by 10·d it is the mean of the two crops' logs (the
-    second crop's term 10× the first's MSE, not 100× its gradient share as an MSE's would be)."""
+    """log_mse·mean over crops of log10(1 + MSE / 1e-6) of the display colours on top of the usual loss, in
+    either SSIM space: zero at the target; with two crops off by different amounts, the mean of their two logs
+    (not the log of the batch's MSE). A negative or non-finite weight is refused before any work."""
     from wgpu_rt.train.losses import LOG_MSE_FLOOR, log_to_display, remodulate
 
     log_irradiance = 0.5 + 0.2 * torch.rand(2, 3, 16, 16)
@@ -113,6 +113,9 @@ def test_log_mse_term_adds_the_mean_of_each_crops_log_display_mse():
         base = denoiser_loss(shifted, target, ssim_space=space)
         assert float(denoiser_loss(shifted, target, ssim_space=space, log_mse=0.5) - base) == \
             pytest.approx(0.5 * expected, rel=1e-4)
+    for flag, weight in (("lowpass", -1.0), ("log_mse", float("nan"))):
+        with pytest.raises(TrainingError, match=f"--{flag.replace('_', '-')} must be a loss weight"):
+            TrainConfig(task="denoiser", data="unused", **{flag: weight}).check()
 
 
 def test_denoiser_loss_scores_remodulated_colour_against_skimage():

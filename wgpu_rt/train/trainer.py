@@ -108,6 +108,9 @@ class TrainConfig:
             raise TrainingError(f"--lr must be a positive number, got {self.lr}")
         if self.minutes is not None and not (math.isfinite(self.minutes) and self.minutes > 0):
             raise TrainingError(f"--minutes must be a positive number, got {self.minutes}")
+        for flag, weight in (("--lowpass", self.lowpass), ("--log-mse", self.log_mse)):
+            if not (math.isfinite(weight) and weight >= 0):
+                raise TrainingError(f"{flag} must be a loss weight of 0 or more, got {weight}")
         if self.init_from is not None and not Path(self.init_from).is_file():
             raise TrainingError(f"--init-from {self.init_from}: no such checkpoint or ONNX file")
         checkpoint, *exported = self.outputs()
