@@ -118,6 +118,41 @@ def test_log_mse_term_adds_the_mean_of_each_crops_log_display_mse():
             TrainConfig(task="denoiser", data="unused", **{flag: weight}).check()
 
 
+def test_edge_term_adds_the_display_l1_within_two_pixels_of_an_aux_edge():
+    """edge·mean |display difference| over the pixels within 2 px of a step in the albedo, normal or depth
+    planes, on top of the usual loss: zero at the target; an error inside the marked band counts in full,
+    one elsewhere not at all; flat aux planes (or noise below the step) mark nothing. A negative weight is
+    refused before any work."""
+    from wgpu_rt.train.losses import aux_edges, log_to_display, remodulate
+
+    aux = torch.full((1, 7, 16, 16), 0.5)
+    aux[:, 6] = 0.3                                             # depth
+    aux[:, 4, :, 8:] = 0.9                                      # a normal plane steps between columns 7 and 8
+    aux[:, 6, 12:, :] = 0.36                                    # depth steps 20 % between rows 11 and 12
+    marked = aux_edges(aux)[0, 0]
+    expected = torch.zeros(16, 16)
+    expected[:, 6:10] = 1
+    expected[10:14, :] = 1
+    assert torch.equal(marked, expected)
+    flat = torch.full((1, 7, 16, 16), 0.5) + 0.04 * torch.rand(1, 7, 16, 16)
+    flat[:, 6] = 0.5 + 0.01 * torch.rand(16, 16)               # depth within 2 %
+    assert float(aux_edges(flat).sum()) == 0.0
+
+    log_irradiance = 0.5 + 0.2 * torch.rand(1, 3, 16, 16)
+    target = with_albedo_factor(log_irradiance)
+    assert float(denoiser_loss(log_irradiance, target, edge=2.0, aux=aux)) == pytest.approx(0.0, abs=1e-6)
+    display = lambda x: log_to_display(remodulate(x, target[:, 3:]))   # noqa: E731
+    for rows, cols, inside in ((slice(0, 4), slice(6, 10), True), (slice(0, 4), slice(0, 4), False)):
+        shifted = log_irradiance.clone()
+        shifted[..., rows, cols] += 0.2
+        base = denoiser_loss(shifted, target, ssim_space="display")
+        added = float(denoiser_loss(shifted, target, ssim_space="display", edge=2.0, aux=aux) - base)
+        shift = float((display(shifted) - display(log_irradiance)).abs().sum() / (3 * expected.sum()))
+        assert added == pytest.approx(2.0 * shift if inside else 0.0, rel=1e-4, abs=1e-7)
+    with pytest.raises(TrainingError, match="--edge must be a loss weight"):
+        TrainConfig(task="denoiser", data="unused", edge=-0.5).check()
+
+
 def test_denoiser_loss_scores_remodulated_colour_against_skimage():
     """0.8·(1 − SSIM of the display colours, irradiance × albedo factor) + 0.2·L1 on log1p irradiance,
     recomputed with numpy, the metrics' display mapping and scikit-image's SSIM."""
@@ -494,7 +529,7 @@ def test_a_nan_loss_stops_training_with_a_clear_message(tiny_dataset, tmp_path, 
     config = TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), epochs=1, batch=2,
                          crop_min=12, crop_max=16, widths=(4, 8))
     trainer = Trainer(config, progress=False)
-    monkeypatch.setattr(trainer, "loss", lambda prediction, target: (prediction * float("nan")).mean())
+    monkeypatch.setattr(trainer, "loss", lambda prediction, target, x: (prediction * float("nan")).mean())
     with pytest.raises(TrainingError, match="denoiser: loss became nan at step 0"):
         trainer.run()
 
@@ -508,9 +543,9 @@ def test_a_loss_that_turns_nan_mid_epoch_is_named_by_its_step_and_never_checkpoi
     trainer = Trainer(config, progress=False)
     real_loss, calls = trainer.loss, []
 
-    def loss_then_nan(prediction, target):
+    def loss_then_nan(prediction, target, x):
         calls.append(1)
-        value = real_loss(prediction, target)
+        value = real_loss(prediction, target, x)
         return value * float("nan") if len(calls) > trainer.steps_per_epoch + 1 else value
 
     monkeypatch.setattr(trainer, "loss", loss_then_nan)

@@ -51,6 +51,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--log-mse", type=float, default=0.0, metavar="WEIGHT",
                         help="denoiser: add WEIGHT × the mean over crops of log10(1 + display MSE / 1e-6), so "
                              "each crop's relative error counts alike, as a mean PSNR does (default: 0, off)")
+    parser.add_argument("--edge", type=float, default=0.0, metavar="WEIGHT",
+                        help="denoiser: add WEIGHT × L1 of display colours within 2 px of a silhouette or crease "
+                             "in the albedo, normal or depth planes, where a thin line's error is diluted in the "
+                             "other terms' means (default: 0, off)")
     parser.add_argument("--permute-colours", action="store_true",
                         help="denoiser: draw a random order of the R, G, B channels per crop (colour, albedo and "
                              "target alike), so bounce light of every hue is seen (default: off)")
@@ -84,7 +88,7 @@ def run(args) -> int:
     config = TrainConfig(task=args.task, data=args.data, out=args.out, epochs=args.epochs, batch=args.batch,
                          lr=args.lr, seed=args.seed, crop_min=args.crop[0], crop_max=args.crop[1],
                          pixel_loss=args.pixel_loss, ssim_space=args.ssim_space, lowpass=args.lowpass,
-                         log_mse=args.log_mse,
+                         log_mse=args.log_mse, edge=args.edge,
                          permute_colours=args.permute_colours,
                          widths=tuple(args.widths), residual=args.residual, bottom_merge=args.bottom_merge,
                          curriculum=tuple(args.curriculum), resume=args.resume,

@@ -27,6 +27,10 @@ DISPLAY_EPSILON = 1e-5      # keeps the gamma curve's slope finite at black
 LOWPASS_BLOCK = 8           # the block-mean term's block size (px)
 MAX_LOG_IRRADIANCE = 30.0   # expm1(30) ≈ 1e13: far above any training radiance, finite in float32
 LOG_MSE_FLOOR = 1e-6        # the log-MSE term's floor: a crop's display MSE below it (PSNR above 60 dB) counts little
+INPUT_AUX = slice(3, 10)    # the denoiser input's albedo, normal and depth planes (wgpu_rt.frame.pack_denoiser_input)
+EDGE_STEP = 0.1             # an albedo or normal plane (in [0, 1]) stepping this much between neighbours is an edge
+EDGE_DEPTH_RATIO = 0.05     # so is depth changing by this fraction of the nearer pixel's
+EDGE_REACH = 2              # pixels within this many of an edge (the line between two pixels) count as on it
 
 
 def _gaussian_window(channels: int, dtype, device) -> torch.Tensor:
@@ -75,15 +79,40 @@ def log_display_mse(prediction: torch.Tensor, target: torch.Tensor) -> torch.Ten
     return torch.log10(1.0 + mse / LOG_MSE_FLOOR).mean()
 
 
+def aux_edges(aux: torch.Tensor) -> torch.Tensor:
+    """(N, 7, H, W) albedo, normal (both in [0, 1]) and normalised depth → (N, 1, H, W) float mask, 1 within
+    EDGE_REACH pixels of a silhouette or crease: an albedo or normal plane stepping EDGE_STEP or more between
+    neighbours, or depth changing by EDGE_DEPTH_RATIO of the nearer one's."""
+    shading, depth = aux[:, :6], aux[:, 6:7]
+    edge = torch.zeros_like(depth, dtype=torch.bool)
+    for dim in (2, 3):
+        length = aux.shape[dim] - 1
+        a, b = shading.narrow(dim, 0, length), shading.narrow(dim, 1, length)
+        near, far = depth.narrow(dim, 0, length), depth.narrow(dim, 1, length)
+        step = ((a - b).abs().amax(dim=1, keepdim=True) >= EDGE_STEP) | \
+            ((near - far).abs() >= EDGE_DEPTH_RATIO * torch.minimum(near, far))
+        edge.narrow(dim, 0, length).logical_or_(step)   # both pixels beside the step
+        edge.narrow(dim, 1, length).logical_or_(step)
+    return F.max_pool2d(edge.float(), 2 * EDGE_REACH - 1, stride=1, padding=EDGE_REACH - 1)
+
+
+def edge_l1(prediction: torch.Tensor, target: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    """Mean absolute difference over the pixels ``mask`` marks (all channels); 0 where it marks none."""
+    return ((prediction - target).abs() * mask).sum() / (mask.sum() * prediction.shape[1]).clamp_min(1.0)
+
+
 def denoiser_loss(prediction: torch.Tensor, target: torch.Tensor, pixel_loss: str = "l1",
-                  ssim_space: str = "log", lowpass: float = 0.0, log_mse: float = 0.0) -> torch.Tensor:
+                  ssim_space: str = "log", lowpass: float = 0.0, log_mse: float = 0.0, edge: float = 0.0,
+                  aux: torch.Tensor | None = None) -> torch.Tensor:
     """0.8·(1 − SSIM) + 0.2·(L1 or Charbonnier) [+ lowpass · L1 of 8×8 block means] [+ log_mse ·
-    ``log_display_mse``]. ``prediction``:
+    ``log_display_mse``] [+ edge · L1 of display colours on ``aux_edges(aux)``]. ``prediction``:
     (N, 3, H, W) log1p irradiance; ``target``: (N, 6, H, W), the gold log1p irradiance and the albedo
     factor. The pixel term compares log1p irradiance; SSIM compares the remodulated colours, in log1p or
     (``ssim_space="display"``) display values; the block-mean term compares the same colours averaged
     over 8×8 blocks, where low-frequency blotches that SSIM's 11-px window barely sees stand out; the log-MSE
-    term compares display values whatever ``ssim_space`` is."""
+    term and the edge term (``aux``: the input's INPUT_AUX planes) compare display values whatever ``ssim_space`` is,
+    the edge term only near the silhouettes and creases that the aux planes show, where the other terms' means
+    dilute the error of a few thin pixels."""
     target, factor = target[:, :3], target[:, 3:]
     pixel = charbonnier(prediction, target) if pixel_loss == "charbonnier" else F.l1_loss(prediction, target)
     prediction, target = remodulate(prediction, factor), remodulate(target, factor)
@@ -92,8 +121,10 @@ def denoiser_loss(prediction: torch.Tensor, target: torch.Tensor, pixel_loss: st
     loss = SSIM_WEIGHT * (1.0 - ssim(prediction, target)) + (1.0 - SSIM_WEIGHT) * pixel
     if lowpass:
         loss = loss + lowpass * F.l1_loss(F.avg_pool2d(prediction, LOWPASS_BLOCK), F.avg_pool2d(target, LOWPASS_BLOCK))
+    if (log_mse or edge) and ssim_space != "display":
+        prediction, target = log_to_display(prediction), log_to_display(target)
     if log_mse:
-        if ssim_space != "display":
-            prediction, target = log_to_display(prediction), log_to_display(target)
         loss = loss + log_mse * log_display_mse(prediction, target)
+    if edge:
+        loss = loss + edge * edge_l1(prediction, target, aux_edges(aux))
     return loss

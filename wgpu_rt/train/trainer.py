@@ -65,6 +65,7 @@ class TrainConfig:
     ssim_space: str = "log"              # or "display" (the metrics' Reinhard + gamma mapping)
     lowpass: float = 0.0                 # weight of the denoiser's 8×8 block-mean L1 term (0: none)
     log_mse: float = 0.0                 # weight of the denoiser's per-crop log display-MSE term (0: none)
+    edge: float = 0.0                    # weight of the denoiser's display L1 near aux edges (0: none)
     permute_colours: bool = False        # a random RGB order per crop (samples.Augmentation)
     widths: tuple[int, ...] = (32, 64, 128)
     residual: bool = False               # denoiser predicts a correction to its noisy input
@@ -108,7 +109,7 @@ class TrainConfig:
             raise TrainingError(f"--lr must be a positive number, got {self.lr}")
         if self.minutes is not None and not (math.isfinite(self.minutes) and self.minutes > 0):
             raise TrainingError(f"--minutes must be a positive number, got {self.minutes}")
-        for flag, weight in (("--lowpass", self.lowpass), ("--log-mse", self.log_mse)):
+        for flag, weight in (("--lowpass", self.lowpass), ("--log-mse", self.log_mse), ("--edge", self.edge)):
             if not (math.isfinite(weight) and weight >= 0):
                 raise TrainingError(f"{flag} must be a loss weight of 0 or more, got {weight}")
         if self.init_from is not None and not Path(self.init_from).is_file():
@@ -350,14 +351,17 @@ class Trainer:
                       if key in saved and key not in RESUMABLE_CHANGES and not same(saved[key], value))
 
     # -- training ----------------------------------------------------------------------------------
-    def loss(self, prediction, target):
+    def loss(self, prediction, target, x):
+        """The task's loss of ``prediction`` against ``target``; ``x``, the network's input, shows the
+        denoiser's edge term where the aux planes' edges lie."""
         import torch.nn.functional as F
 
-        from .losses import denoiser_loss
+        from .losses import INPUT_AUX, denoiser_loss
 
         if self.config.task == "denoiser":
-            return denoiser_loss(prediction, target, self.config.pixel_loss, self.config.ssim_space,
-                                 self.config.lowpass, self.config.log_mse)
+            cfg = self.config
+            return denoiser_loss(prediction, target, cfg.pixel_loss, cfg.ssim_space, cfg.lowpass, cfg.log_mse,
+                                 cfg.edge, x[:, INPUT_AUX].float())
         if self.config.task == "confidence":
             # Disocclusions (target 0: history invalid) are rare: weight them by the batch's class ratio.
             invalid = (1 - target).mean().clamp(0.01, 0.99)
@@ -375,7 +379,7 @@ class Trainer:
         self.network.train()
         with self.context.autocast():
             prediction = self.network(x)
-        loss = self.loss(prediction.float(), y)   # the loss in float32 whatever the network ran in
+        loss = self.loss(prediction.float(), y, x)   # the loss in float32 whatever the network ran in
         scaler = self.context.scaler   # float16 only: scales the loss so small gradients survive
         self.optimizer.zero_grad(set_to_none=True)
         scaler.scale(loss).backward()
@@ -570,7 +574,7 @@ class Trainer:
     def model_card(self) -> str:
         from ..dataset.store import read_manifest
         from ..frame.pack import ALBEDO_EPSILON
-        from .losses import LOG_MSE_FLOOR
+        from .losses import EDGE_REACH, LOG_MSE_FLOOR
 
         cfg = self.config
         last = self.history[-1] if self.history else {}
@@ -617,6 +621,8 @@ class Trainer:
                          "irradiance" + (f" + {cfg.lowpass:g}·L1 of its 8×8 block means" if cfg.lowpass else "")
                          + (f" + {cfg.log_mse:g}·mean over crops of log10(1 + display MSE / {LOG_MSE_FLOOR:g})"
                             if cfg.log_mse else "")
+                         + (f" + {cfg.edge:g}·display L1 within {EDGE_REACH} px of the aux planes' edges"
+                            if cfg.edge else "")
                          + f"; curriculum {' → '.join(map(str, cfg.curriculum))} spp (equal shares of the "
                          f"epochs{drawn})")
         elif cfg.model_name == "error_predictor":
