@@ -942,12 +942,26 @@ def test_throughput_is_printed_and_on_the_card(tiny_dataset, tmp_path, capsys):
     assert len(speed) == 1 and "steps/s" in speed[0] and "training views/hour (batch 2 × 1 process(es)" in speed[0]
 
 
+def world_view(number: int) -> dict:
+    """A manifest's record of a generated world's 32², 1-spp view."""
+    return {"view_id": f"v{number:05d}", "scene": f"world-{100 + number}", "split": "train", "frames": 1,
+            "size": 32, "spp": [1], "gold": 64, "objects": [], "seconds": 1.0}
+
+
 def test_the_card_names_a_worlds_dataset_by_its_family(tmp_path):
     (tmp_path / "manifest.json").write_text(json.dumps({"config": {
         "worlds": 3, "family": "held_out", "scenes": [], "size": 32, "spp": [1], "gold": 64, "seed": 5,
-        "max_depth": 8}, "views": []}))
+        "max_depth": 8}, "views": [world_view(n) for n in range(3)]}))
     line = Trainer._dataset_line(str(tmp_path))
     assert "adapter: 3 generated worlds of the held_out family; 32² px" in line
+
+
+def test_the_card_of_a_stopped_worlds_render_says_how_many_worlds_it_holds(tmp_path):
+    (tmp_path / "manifest.json").write_text(json.dumps({"config": {
+        "worlds": 150, "family": "training", "scenes": [], "size": 32, "spp": [1], "gold": 64, "seed": 5,
+        "max_depth": 8}, "views": [world_view(n) for n in range(2)]}))
+    line = Trainer._dataset_line(str(tmp_path))
+    assert "adapter: 2 of 150 generated worlds of the training family;" in line and "2 views rendered" in line
 
 
 @pytest.mark.parametrize("version, words", [

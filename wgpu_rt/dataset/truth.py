@@ -45,6 +45,7 @@ from ..io import write_json
 from .variety import HELD_OUT_SHAPES, MESH_SUFFIXES, TRAINING_SHAPES, load_mesh_file, load_mesh_folder, vary_scene
 from .worlds import FAMILIES, WORLDS_VERSION, generate_world, world_seed
 
+WORLD_VIEW_PREFIX = "world-"   # a generated world's view names its scene world-SEED in the manifest
 GBUFFERS = ("albedo", "normal", "depth", "motion")
 # View numbers, seeds and images depend on all of these, so a resumed run must keep them; ``guide_albedo``
 # and ``worlds_version`` are no settings but the renderer's and the world generator's conventions
@@ -190,7 +191,7 @@ def plan_views(config: DatasetConfig, shard: tuple[int, int] = (0, 1)) -> list[V
             sequence = config.sequence_fraction > 0 and (first_of_split or rng.uniform() < config.sequence_fraction)
             frames = config.sequence_length if sequence else 1
             seed = seed_fn(index) if seed_fn else None
-            plans.append(ViewPlan(f"v{number:05d}", f"world-{seed}" if seed_fn else scene, index, scene_index,
+            plans.append(ViewPlan(f"v{number:05d}", f"{WORLD_VIEW_PREFIX}{seed}" if seed_fn else scene, index, scene_index,
                                   split, frames, seed))
         first_number += count
     return plans

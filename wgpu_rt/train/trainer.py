@@ -546,6 +546,7 @@ class Trainer:
     @staticmethod
     def _dataset_line(folder: str) -> str:
         from ..dataset.store import read_manifest
+        from ..dataset.truth import WORLD_VIEW_PREFIX
 
         manifest = read_manifest(folder)
         dataset = manifest.get("config", {})
@@ -553,7 +554,9 @@ class Trainer:
         copies = int(dataset.get("noisy_copies", 1))
         worlds = int(dataset.get("worlds") or 0)
         scenes = ", ".join(dataset.get("scenes", []))
-        content = (f"{worlds} generated worlds of the {dataset.get('family', 'training')} family"
+        rendered = sum(view.get("scene", "").startswith(WORLD_VIEW_PREFIX) for view in manifest["views"])
+        share = f"{rendered} of {worlds}" if rendered < worlds else f"{worlds}"   # fewer: a stopped render
+        content = (f"{share} generated worlds of the {dataset.get('family', 'training')} family"
                    + (f" and scenes {scenes}" if scenes else "")) if worlds else f"scenes {scenes}"
         return (f"- dataset `{folder}` (seed {dataset.get('seed')}), rendered by `wgpu-rt dataset` on this machine's "
                 f"adapter: {content}; {dataset.get('size')}² px; noisy at "
