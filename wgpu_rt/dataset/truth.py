@@ -191,8 +191,8 @@ def plan_views(config: DatasetConfig, shard: tuple[int, int] = (0, 1)) -> list[V
             sequence = config.sequence_fraction > 0 and (first_of_split or rng.uniform() < config.sequence_fraction)
             frames = config.sequence_length if sequence else 1
             seed = seed_fn(index) if seed_fn else None
-            plans.append(ViewPlan(f"v{number:05d}", f"{WORLD_VIEW_PREFIX}{seed}" if seed_fn else scene, index, scene_index,
-                                  split, frames, seed))
+            name = f"{WORLD_VIEW_PREFIX}{seed}" if seed_fn else scene
+            plans.append(ViewPlan(f"v{number:05d}", name, index, scene_index, split, frames, seed))
         first_number += count
     return plans
 
