@@ -414,12 +414,14 @@ def test_render_takes_a_builtin_name_and_a_frame_list(gpu):
 def test_what_the_first_frame_builds_is_set_up_time_not_frame_time(gpu, monkeypatch, slow):
     """A frame's ``seconds`` (what samples/s divide by) leave out what its first frame would build on its
     way, as a peer's timed render leaves out its scene load: a BVH build, or a denoiser plan (kernels,
-    activations), that takes a second shows in ``setup_seconds``."""
+    activations), that takes a second shows in ``setup_seconds``. A render first, unslowed, compiles the
+    passes' shaders, which a slow CPU driver may take seconds over; the second builds its BVH and plan afresh."""
     from wgpu_rt.accel import geometry as geometry_module
     from wgpu_rt.nn.model import WgslModel
 
     module, name = (geometry_module, "build_bvh") if slow == "BVH build" else (WgslModel, "_build_plan")
     original = getattr(module, name)
+    render("cornell", frames=[0], size=(8, 8), max_depth=2, ctx=gpu, denoise=slow == "network plan")
 
     def slowly(*args):
         time.sleep(1.0)
