@@ -153,6 +153,24 @@ def test_edge_term_adds_the_display_l1_within_two_pixels_of_an_aux_edge():
         TrainConfig(task="denoiser", data="unused", edge=-0.5).check()
 
 
+def test_the_trainer_gives_the_edge_term_the_inputs_albedo_normal_and_depth_planes(tiny_dataset, tmp_path):
+    """With --edge the trainer's loss is denoiser_loss with the input's planes 3–9 as its aux (the layout
+    pack_denoiser_input writes); without it, no edge term."""
+    from wgpu_rt.train.samples import Augmentation
+
+    config = dict(task="denoiser", data=str(tiny_dataset), out=str(tmp_path), epochs=1, batch=2, crop_min=12,
+                  crop_max=16, widths=(4, 8), ssim_space="display")
+    trainer = Trainer(TrainConfig(**config, edge=2.0), progress=False)
+    x, y = trainer.train_set.batch(trainer.train_set.items[:2], np.random.default_rng(0), Augmentation(16, 16), 1)
+    prediction = y[:, :3] + 0.1 * torch.rand(y[:, :3].shape)
+    with_edge = float(trainer.loss(prediction, y, x))
+    assert with_edge == pytest.approx(float(denoiser_loss(prediction, y, ssim_space="display", edge=2.0,
+                                                          aux=x[:, 3:10])), rel=1e-6)
+    plain = Trainer(TrainConfig(**config), progress=False)
+    assert float(plain.loss(prediction, y, x)) == pytest.approx(float(denoiser_loss(prediction, y, ssim_space="display")))
+    assert with_edge > float(plain.loss(prediction, y, x))
+
+
 def test_denoiser_loss_scores_remodulated_colour_against_skimage():
     """0.8·(1 − SSIM of the display colours, irradiance × albedo factor) + 0.2·L1 on log1p irradiance,
     recomputed with numpy, the metrics' display mapping and scikit-image's SSIM."""

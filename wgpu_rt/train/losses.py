@@ -27,7 +27,6 @@ DISPLAY_EPSILON = 1e-5      # keeps the gamma curve's slope finite at black
 LOWPASS_BLOCK = 8           # the block-mean term's block size (px)
 MAX_LOG_IRRADIANCE = 30.0   # expm1(30) ≈ 1e13: far above any training radiance, finite in float32
 LOG_MSE_FLOOR = 1e-6        # the log-MSE term's floor: a crop's display MSE below it (PSNR above 60 dB) counts little
-INPUT_AUX = slice(3, 10)    # the denoiser input's albedo, normal and depth planes (wgpu_rt.frame.pack_denoiser_input)
 EDGE_STEP = 0.1             # an albedo or normal plane (in [0, 1]) stepping this much between neighbours is an edge
 EDGE_DEPTH_RATIO = 0.05     # so is depth changing by this fraction of the nearer pixel's
 EDGE_REACH = 2              # pixels within this many of an edge (the line between two pixels) count as on it
@@ -110,9 +109,9 @@ def denoiser_loss(prediction: torch.Tensor, target: torch.Tensor, pixel_loss: st
     factor. The pixel term compares log1p irradiance; SSIM compares the remodulated colours, in log1p or
     (``ssim_space="display"``) display values; the block-mean term compares the same colours averaged
     over 8×8 blocks, where low-frequency blotches that SSIM's 11-px window barely sees stand out; the log-MSE
-    term and the edge term (``aux``: the input's INPUT_AUX planes) compare display values whatever ``ssim_space`` is,
-    the edge term only near the silhouettes and creases that the aux planes show, where the other terms' means
-    dilute the error of a few thin pixels."""
+    term and the edge term (``aux``: the input's albedo, normal and depth planes) compare display values
+    whatever ``ssim_space`` is, the edge term only near the silhouettes and creases that the aux planes show,
+    where the other terms' means dilute the error of a few thin pixels."""
     target, factor = target[:, :3], target[:, 3:]
     pixel = charbonnier(prediction, target) if pixel_loss == "charbonnier" else F.l1_loss(prediction, target)
     prediction, target = remodulate(prediction, factor), remodulate(target, factor)

@@ -356,12 +356,13 @@ class Trainer:
         denoiser's edge term where the aux planes' edges lie."""
         import torch.nn.functional as F
 
-        from .losses import INPUT_AUX, denoiser_loss
+        from .losses import denoiser_loss
 
         if self.config.task == "denoiser":
             cfg = self.config
+            aux = x[:, self.train_set.aux_channels].float() if cfg.edge else None
             return denoiser_loss(prediction, target, cfg.pixel_loss, cfg.ssim_space, cfg.lowpass, cfg.log_mse,
-                                 cfg.edge, x[:, INPUT_AUX].float())
+                                 cfg.edge, aux)
         if self.config.task == "confidence":
             # Disocclusions (target 0: history invalid) are rare: weight them by the batch's class ratio.
             invalid = (1 - target).mean().clamp(0.01, 0.99)
