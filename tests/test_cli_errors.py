@@ -121,3 +121,24 @@ def test_a_reader_that_leaves_early_ends_the_command_quietly(printed):
     done = subprocess.run([sys.executable, "-c", script], stdout=write_end, stderr=subprocess.PIPE, text=True)
     os.close(write_end)
     assert done.returncode == 141 and done.stderr == "", done.stderr
+
+
+def test_a_command_that_returns_after_a_swallowed_sigterm_exits_143(monkeypatch):
+    """A library that catches BaseException can swallow the exit SIGTERM raises; the command then runs on
+    to its end, and the CLI still reports the termination (status 143), not success."""
+    import signal
+
+    from wgpu_rt import termination
+    from wgpu_rt.commands import info
+
+    def run_swallowing_sigterm(args):
+        try:
+            termination.on_sigterm(signal.SIGTERM, None)
+        except BaseException:
+            pass
+        return 0
+
+    monkeypatch.setattr(info, "run", run_swallowing_sigterm)
+    before = signal.getsignal(signal.SIGTERM)
+    assert main(["info"]) == 143
+    assert termination.received() is None and signal.getsignal(signal.SIGTERM) is before

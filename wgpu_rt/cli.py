@@ -5,7 +5,7 @@ and ``run(args) -> int``; modules import their heavy dependencies inside ``run``
 stays fast. Modules whose name starts with ``_`` are helpers the subcommands share. Errors a user can
 cause (``WgpuRtError``, or an ``OSError`` about a named path) print one line and exit 2; a reader of
 stdout that leaves early (``| head``) ends the command quietly with status 141; SIGTERM ends it as Ctrl-C
-does, its cleanup run, with status 143.
+does, its cleanup run, with status 143 (``wgpu_rt.termination``).
 """
 
 from __future__ import annotations
@@ -14,11 +14,10 @@ import argparse
 import importlib
 import os
 import pkgutil
-import signal
 import sys
 import threading
 
-from . import commands
+from . import commands, termination
 from .errors import WgpuRtError
 
 
@@ -39,23 +38,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _terminated(signum, frame):
-    """SIGTERM (a `timeout`, a job scheduler) ends a command as Ctrl-C does: its cleanup runs (no half-written
-    output; `wgpu-rt dataset` lists the views it finished), then exit status 143."""
-    raise SystemExit(128 + signum)
-
-
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.adapter:
         from .gpu import ADAPTER_ENV
         os.environ[ADAPTER_ENV] = args.adapter
     on_main_thread = threading.current_thread() is threading.main_thread()
-    previous = signal.signal(signal.SIGTERM, _terminated) if on_main_thread else None
+    previous = termination.install() if on_main_thread else None
     try:
         status = int(args.run(args) or 0)
         sys.stdout.flush()   # inside the try: a reader gone shows here, not at the interpreter's exit
-        return status
+        signum = termination.received()   # a SIGTERM whose exit a library swallowed
+        return 128 + signum if signum is not None else status
     except BrokenPipeError:
         # the reader of stdout left (`wgpu-rt info | head`): stop quietly, as other command-line tools do;
         # stdout goes to /dev/null so that the interpreter's own flush at exit does not fail again
@@ -76,7 +70,7 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     finally:
         if on_main_thread:
-            signal.signal(signal.SIGTERM, previous)
+            termination.uninstall(previous)
 
 
 if __name__ == "__main__":

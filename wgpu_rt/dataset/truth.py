@@ -42,6 +42,7 @@ import numpy as np
 
 from ..errors import OutputError, WgpuRtError
 from ..io import write_json
+from ..termination import raise_if_terminated
 from .variety import HELD_OUT_SHAPES, MESH_SUFFIXES, TRAINING_SHAPES, load_mesh_file, load_mesh_folder, vary_scene
 from .worlds import FAMILIES, WORLDS_VERSION, generate_world, world_seed
 
@@ -319,6 +320,7 @@ class TruthEngine:
                 for view in bar:
                     bar.set_postfix_str(f"{view.view_id} {view.scene} {view.split} ×{view.frames}")
                     done.append(self.render_view(view))
+                    raise_if_terminated()   # a SIGTERM whose exit a library swallowed mid-view
         finally:   # interrupted too (Ctrl-C, SIGTERM: wgpu_rt.cli), the manifest lists every view finished
             write_manifest(self.out)
         return done
