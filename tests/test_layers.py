@@ -7,10 +7,10 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1] / "wgpu_rt"
-# Lower first. Shared infrastructure (errors, GPU context, shaders, files, metrics, the pass contract,
-# the network registry) sits under every stage.
+# Lower first. Shared infrastructure (errors, SIGTERM's record, GPU context, shaders, files, metrics, the pass
+# contract, the network registry) sits under every stage.
 STAGES = [
-    {"errors", "gpu", "shaders", "io", "measured_choices", "metrics", "passes", "models"},
+    {"errors", "termination", "gpu", "shaders", "io", "measured_choices", "metrics", "passes", "models"},
     {"scene"},
     {"accel"},
     {"trace"},
