@@ -82,6 +82,71 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
 
 
+def _write_other_renderers_exr(path, color, layers):
+    """An EXR as another renderer writes one: layers under names of its own, an alpha beside the colour,
+    channels stored in whatever order the writer's dictionary had (alphabetical here)."""
+    import OpenEXR
+
+    h, w = color.shape[:2]
+    planes = {"ViewLayer.Combined": np.dstack([color, np.full((h, w), 0.5)]), "ViewLayer.Denoising Albedo":
+              layers["albedo"], "ViewLayer.Denoising Normal": layers["normal"], "ViewLayer.Z": layers["depth"],
+              "ViewLayer.Diffuse": layers["albedo"][..., ::-1]}
+    names = {"ViewLayer.Combined": "RGBA", "ViewLayer.Denoising Normal": "XYZ", "ViewLayer.Z": "V"}
+    channels = {f"{layer}.{c}": np.ascontiguousarray(planes[layer][..., i], np.float32)
+                for layer in planes for i, c in enumerate(names.get(layer, "RGB"))}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, dict(sorted(channels.items()))) as exr:
+        exr.write(str(path))
+    return channels
+
+
+def test_another_renderers_layers_are_read_by_role_and_kept_in_the_output(gpu, tmp_path):
+    """`--layer ROLE=NAME` reads each input from the layer another renderer named; the result equals our own
+    file's, and the output keeps every layer and channel name of the input, the colour's alpha included,
+    with the denoised colour in that layer's R, G, B."""
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    write_exr(tmp_path / "ours.exr", color, layers)
+    assert main(["denoise", str(tmp_path / "ours.exr"), "--out", str(tmp_path / "ours_out.exr"),
+                 "--model", str(model)]) == 0
+    channels = _write_other_renderers_exr(tmp_path / "theirs.exr", color, layers)
+    assert main(["denoise", str(tmp_path / "theirs.exr"), "--out", str(tmp_path / "theirs_out.exr"),
+                 "--model", str(model), "--layer", "color=ViewLayer.Combined",
+                 "--layer", "albedo=ViewLayer.Denoising Albedo", "--layer", "normal=ViewLayer.Denoising Normal",
+                 "--layer", "depth=ViewLayer.Z"]) == 0
+    ours, theirs = read_exr(tmp_path / "ours_out.exr"), read_exr(tmp_path / "theirs_out.exr")
+    combined = theirs["ViewLayer.Combined"]
+    np.testing.assert_allclose(combined[..., :3], ours["color"], rtol=1e-5, atol=1e-6)
+    np.testing.assert_array_equal(combined[..., 3], 0.5)
+    np.testing.assert_allclose(theirs["color"], ours["color"], rtol=1e-5, atol=1e-6)   # none of its own
+    np.testing.assert_array_equal(theirs["ViewLayer.Diffuse"], np.float32(layers["albedo"][..., ::-1]))
+    assert set(theirs.channels) == {"color", *(name.rpartition(".")[0] for name in channels)}
+    assert {f"{layer}.{c}" for layer, names in theirs.channels.items() if layer != "color"
+            for c in names} == set(channels)
+
+
+@pytest.mark.parametrize("flags, says", [
+    (["--layer", "albedo"], "--layer 'albedo': expected ROLE=NAME"),
+    (["--layer", "shadow=ViewLayer.Z"], "--layer 'shadow=ViewLayer.Z': expected ROLE=NAME with ROLE one of color"),
+    (["--layer", "depth=ViewLayer.Z", "--layer", "depth=ViewLayer.Combined"], "depth is already read from"),
+    (["--layer", "depth=Mist"], "theirs.exr: no layer 'Mist' (--layer depth=Mist); layers present: ViewLayer"),
+    (["--layer", "albedo=ViewLayer.Diffuse", "--layer", "normal=ViewLayer.Denoising Normal",
+      "--layer", "depth=ViewLayer.Combined"], "layer 'ViewLayer.Combined' has 4 channel(s); depth needs exactly one"),
+    ([], "theirs.exr: missing layer 'albedo' (channels albedo.R, albedo.G, albedo.B); layers present: "
+         "ViewLayer.Combined, ViewLayer.Denoising Albedo, ViewLayer.Denoising Normal, ViewLayer.Diffuse, ViewLayer.Z "
+         "(--layer albedo=NAME reads it from another)"),
+])
+def test_bad_layer_flags_are_one_line_before_any_output(flags, says, tmp_path, capfd):
+    color, layers = _render_like()
+    _write_other_renderers_exr(tmp_path / "theirs.exr", color, layers)
+    assert main(["denoise", str(tmp_path / "theirs.exr"), "--out", str(tmp_path / "o.exr"),
+                 "--layer", "color=ViewLayer.Combined", *flags]) == 2
+    err = capfd.readouterr().err
+    assert err.count("\n") == 1 and says in err, err
+    assert not (tmp_path / "o.exr").exists()
+
+
 def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
     """`--quality high`: the mean of the network over the image as given and turned 90°, 180°, 270°."""
     import onnxruntime

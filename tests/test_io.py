@@ -33,6 +33,47 @@ def test_exr_roundtrip_keeps_layers_and_order(tmp_path):
     assert back["depth"].shape == (6, 7, 1) and back["features"].shape == (6, 7, 12)
 
 
+def test_exr_channels_keep_their_order_and_names_whatever_the_files_order(tmp_path):
+    """A file stores channels in any order (OpenEXR sorts them by name): known sets come back R, G, B, A /
+    X, Y, Z, numbered ones in numeric order, and each layer's channel names are kept for writing back."""
+    import OpenEXR
+
+    rng = np.random.default_rng(2)
+    planes = {name: rng.random((3, 4)).astype(np.float32) for name in
+              ("R", "G", "B", "A", "diffuse.R", "diffuse.G", "diffuse.B", "N.X", "N.Y", "N.Z",
+               *(f"feature.{i}" for i in range(11)))}
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, dict(sorted(planes.items()))) as exr:
+        exr.write(str(tmp_path / "theirs.exr"))
+    back = read_exr(tmp_path / "theirs.exr")
+    assert back.channels == {"color": list("RGBA"), "diffuse": list("RGB"), "N": list("XYZ"),
+                             "feature": [str(i) for i in range(11)]}
+    for layer, names in back.channels.items():
+        for i, name in enumerate(names):
+            np.testing.assert_array_equal(back[layer][..., i], planes[name if layer == "color" else f"{layer}.{name}"])
+    write_exr(tmp_path / "again.exr", back["color"], {k: v for k, v in back.items() if k != "color"},
+              channel_names=back.channels)
+    again = read_exr(tmp_path / "again.exr")
+    assert again.channels == back.channels
+    assert all(np.array_equal(again[layer], back[layer]) for layer in back)
+
+
+def test_half_layers_are_named_by_their_channels_and_old_numbered_ones_still_read(tmp_path):
+    """`--aov half_radiance,half_spp` writes half_radiance.R/G/B and half_spp.Y (as the README says); files
+    written before, with half_radiance.0/1/2, read the same."""
+    import OpenEXR
+
+    half = np.random.default_rng(3).random((2, 3, 3)).astype(np.float32)
+    write_exr(tmp_path / "new.exr", np.zeros((2, 3, 3)), {"half_radiance": half, "half_spp": np.ones((2, 3))})
+    new = read_exr(tmp_path / "new.exr")
+    assert new.channels["half_radiance"] == list("RGB") and new.channels["half_spp"] == ["Y"]
+    channels = {c: np.zeros((2, 3), np.float32) for c in "RGB"}
+    channels.update({f"half_radiance.{i}": np.ascontiguousarray(half[..., i]) for i in range(3)})
+    with OpenEXR.File({"type": OpenEXR.scanlineimage}, channels) as exr:
+        exr.write(str(tmp_path / "old.exr"))
+    np.testing.assert_array_equal(read_exr(tmp_path / "old.exr")["half_radiance"], new["half_radiance"])
+
+
 def test_exr_refuses_nan_and_leaves_no_file(tmp_path):
     color = np.zeros((2, 2, 3), np.float32)
     color[0, 0, 1] = np.nan

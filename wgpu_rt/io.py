@@ -12,8 +12,13 @@ EXR channel names (what our renderer writes and our denoiser reads):
 | depth  | ``depth.Z``                     | linear depth along the camera axis (0 = miss)    |
 | motion | ``motion.X/Y``                  | pixels to the previous frame's position          |
 | spp    | ``spp.Y``                       | samples taken in the pixel                       |
+| half_radiance | ``half_radiance.R/G/B``  | the mean after the first half of the samples     |
+| half_spp | ``half_spp.Y``                | the samples in that mean                         |
 
-Any other layer ``name`` with C channels is written as ``name.0`` … ``name.{C-1}``.
+Any other layer ``name`` with C channels is written as ``name.0`` … ``name.{C-1}``. Read back, a layer's
+channels keep their file order where their names are a known set (R/G/B/A, X/Y/Z/W, U/V/W; numbers in
+numeric order), and ``read_exr``'s result carries each layer's channel names (``ExrLayers.channels``), which
+``write_exr`` takes back, so a file another renderer wrote keeps its layers' names when rewritten.
 
 Every file wgpu-rt writes goes through ``atomic_output`` (a temporary file renamed into place), so an
 interrupted run never leaves a half-written file, and every output path a user names is checked by
@@ -38,7 +43,26 @@ import numpy as np
 from .errors import ImageError, OutputError
 
 LAYER_CHANNELS = {"color": "RGB", "albedo": "RGB", "normal": "XYZ", "depth": "Z", "motion": "XY",
-                  "spp": "Y"}
+                  "spp": "Y", "half_radiance": "RGB", "half_spp": "Y"}
+CHANNEL_SETS = ("RGBA", "XYZW", "UVW")   # channel names whose order is known, whatever the file's order
+
+
+class ExrLayers(dict):
+    """``read_exr``'s {layer: (H, W, C) array}, with ``channels``: each layer's channel names (``R``, ``X``,
+    ``0`` …, without the layer's prefix) in the order of the array's last axis."""
+
+    def __init__(self, arrays: dict, channels: dict):
+        super().__init__(arrays)
+        self.channels = channels
+
+
+def _channel_order(suffixes) -> list[str]:
+    """Channel names in their known order: R, G, B, A (or X, Y, Z, W; U, V, W), else numbers in numeric
+    order before other names in alphabetical order."""
+    for known in CHANNEL_SETS:
+        if set(suffixes) <= set(known):
+            return sorted(suffixes, key=known.index)
+    return sorted(suffixes, key=lambda s: (not s.isdigit(), int(s) if s.isdigit() else 0, s))
 
 
 def _channel_names(layer: str, count: int) -> list[str]:
@@ -108,8 +132,10 @@ def check_output_path(path: str | os.PathLike, flag: str, suffixes: tuple[str, .
 
 
 def write_exr(path: str | os.PathLike, color: np.ndarray, layers: dict | None = None,
-              half: bool = False) -> None:
-    """Write ``color`` (H, W, 3) and named ``layers`` ((H, W) or (H, W, C)) as one scanline EXR."""
+              half: bool = False, channel_names: dict | None = None) -> None:
+    """Write ``color`` (H, W, 3) and named ``layers`` ((H, W) or (H, W, C)) as one scanline EXR.
+    ``channel_names``: {layer: its channels' names} for layers whose names are not this module's (as
+    ``read_exr`` gives them in ``ExrLayers.channels``)."""
     import OpenEXR
 
     path = Path(path)
@@ -117,7 +143,10 @@ def write_exr(path: str | os.PathLike, color: np.ndarray, layers: dict | None = 
     channels = {}
     for name, array in {"color": color, **(layers or {})}.items():
         array = _as_hwc(name, array, color.shape[:2])
-        for i, channel in enumerate(_channel_names(name, array.shape[2])):
+        given = (channel_names or {}).get(name)
+        names = (_channel_names(name, array.shape[2]) if given is None or len(given) != array.shape[2]
+                 else [s if name == "color" else f"{name}.{s}" for s in given])
+        for i, channel in enumerate(names):
             plane = np.ascontiguousarray(array[..., i])
             channels[channel] = plane.astype(np.float16) if half and name != "spp" else plane
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
@@ -128,10 +157,11 @@ def write_exr(path: str | os.PathLike, color: np.ndarray, layers: dict | None = 
             raise OutputError(f"{path}: cannot write ({str(err).replace(str(tmp), str(path))})") from None
 
 
-def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """Read an EXR into {"color": (H, W, 3), layer: (H, W, C), …} float32 arrays.
+def read_exr(path: str | os.PathLike) -> ExrLayers:
+    """Read an EXR into {"color": (H, W, C), layer: (H, W, C), …} float32 arrays.
 
-    Channels are grouped by the text before their last dot; R/G/B (or X/Y/Z) order is restored.
+    Channels are grouped by the text before their last dot ("color": those without one); each group's
+    channels in their known order (``_channel_order``), their names in the result's ``channels``.
     """
     import OpenEXR
 
@@ -151,15 +181,9 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     for name, plane in planes.items():
         layer, _, suffix = name.rpartition(".")
         groups.setdefault(layer or "color", {})[suffix] = plane
-    result = {}
-    for layer, chans in groups.items():
-        order = LAYER_CHANNELS.get(layer, "")
-        if order and set(order) <= set(chans):
-            keys = list(order)
-        else:
-            keys = sorted(chans, key=lambda s: (not s.isdigit(), int(s) if s.isdigit() else 0, s))
-        result[layer] = np.stack([chans[k] for k in keys], axis=-1)
-    return result
+    names = {layer: _channel_order(chans) for layer, chans in groups.items()}
+    return ExrLayers({layer: np.stack([groups[layer][k] for k in keys], axis=-1) for layer, keys in names.items()},
+                     names)
 
 
 def require_layers(images: dict, path, *names: str) -> None:

@@ -9,6 +9,8 @@ HELP = "denoise an EXR that carries colour plus albedo, normal and depth layers 
 
 REQUIRED_LAYERS = ("color", "albedo", "normal", "depth")
 HALF_LAYERS = {"half_radiance": 3, "half_spp": 1}   # `wgpu-rt render --aov …,half_radiance,half_spp`
+ROLES = (*REQUIRED_LAYERS, "spp", *HALF_LAYERS)     # what --layer can point at another layer of the file
+CHANNELS = {"color": 3, "albedo": 3, "normal": 3, "depth": 1}   # the channels each role's layer gives the network
 
 
 def add_arguments(parser) -> None:
@@ -16,6 +18,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("-o", "--out", required=True, metavar="OUT.exr", help="denoised EXR (other layers kept)")
     parser.add_argument("--model", help="denoiser ONNX (default: the shipped denoiser.onnx)")
     add_denoiser_flags(parser, "image")
+    parser.add_argument("--layer", action="append", default=[], metavar="ROLE=NAME",
+                        help=f"read ROLE ({', '.join(ROLES)}) from the file's layer NAME, as another renderer "
+                             "named it (e.g. --layer 'albedo=ViewLayer.Denoising Albedo'); repeat for each. "
+                             "The denoised colour replaces the first three channels of the colour's layer")
     parser.add_argument("--spp", type=int, metavar="N",
                         help="samples per pixel of the colour (default: the input's 'spp' layer, which "
                              "`wgpu-rt render` writes, else 1). With 'half_radiance' and 'half_spp' layers too "
@@ -27,22 +33,90 @@ def run(args) -> int:
     import time
 
     from ..frame.denoise import denoise, load_model
-    from ..io import check_output_path, read_exr, require_layers, write_exr
+    from ..io import check_output_path, read_exr, write_exr
 
     check_output_path(args.out, "--out", (".exr",))
-    images = read_exr(args.input)
-    require_layers(images, args.input, *REQUIRED_LAYERS)
+    named = layer_names(args.layer)
+    file_layers = read_exr(args.input)
+    channel_names = file_layers.channels
+    images = network_inputs(file_layers, named, args.input)
     spp = sample_counts(images, args)
     half = half_layers(images, args.input)
     model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
-    images = finite_layers(images, args.input)
+    file_layers = finite_layers(file_layers, args.input)   # what the network reads, and what is written back
+    images = network_inputs(file_layers, named, args.input)
     started = time.perf_counter()
     color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp, **denoiser_options(args),
                     half=None if half is None else (images["half_radiance"], half))
     seconds = time.perf_counter() - started
-    write_exr(args.out, color, {k: v for k, v in images.items() if k != "color"})
-    print(f"wrote {args.out} ({color.shape[1]}×{color.shape[0]}, {model.precision.name}, {args.quality}, {seconds:.2f} s)")
+    write_exr(args.out, *denoised_file(file_layers, named.get("color", "color"), color),
+              channel_names=channel_names)
+    height, width = color.shape[:2]
+    print(f"wrote {args.out} ({width}×{height}, {model.precision.name}, {args.quality}, {seconds:.2f} s)")
     return 0
+
+
+def layer_names(flags: list[str]) -> dict[str, str]:
+    """--layer ROLE=NAME flags → {role: the file's layer name}, checked before any work."""
+    from ..errors import WgpuRtError
+
+    named = {}
+    for flag in flags:
+        role, equals, name = flag.partition("=")
+        if not equals or role not in ROLES or not name:
+            raise WgpuRtError(f"--layer {flag!r}: expected ROLE=NAME with ROLE one of {', '.join(ROLES)}")
+        if role in named:
+            raise WgpuRtError(f"--layer {flag!r}: {role} is already read from layer {named[role]!r}")
+        named[role] = name
+    return named
+
+
+def network_inputs(file_layers: dict, named: dict, path) -> dict:
+    """The file's layers, and each --layer's NAME also as its ROLE (a role given another layer no longer reads
+    its own name), the four the denoiser needs present, each cut to the channels the network reads
+    (``network_channels``)."""
+    from ..errors import ImageError
+    from ..io import require_layers
+
+    for role, name in named.items():
+        if name not in file_layers:
+            present = ", ".join(sorted(file_layers)) or "none"
+            raise ImageError(f"{path}: no layer {name!r} (--layer {role}={name}); layers present: {present}")
+    images = {**file_layers, **{role: file_layers[name] for role, name in named.items()}}
+    missing = [role for role in REQUIRED_LAYERS if role not in images]
+    if missing:
+        try:
+            require_layers(file_layers, path, missing[0])
+        except ImageError as err:
+            raise ImageError(f"{err} (--layer {missing[0]}=NAME reads it from another)") from None
+    return {role: network_channels(role, layer, named.get(role, role), path) for role, layer in images.items()}
+
+
+def network_channels(role: str, layer, name: str, path):
+    """The channels of a role's layer that the network reads: the first three of colour, albedo and normal
+    (R, G, B of an RGBA layer), depth's only one; other roles' layers as they are (checked later)."""
+    from ..errors import ImageError
+
+    wanted = CHANNELS.get(role)
+    if wanted is None:
+        return layer
+    if layer.shape[2] < wanted or (wanted == 1 and layer.shape[2] != 1):
+        raise ImageError(f"{path}: layer {name!r} has {layer.shape[2]} channel(s); {role} needs "
+                         + ("exactly one" if wanted == 1 else f"{wanted}"))
+    return layer[..., :wanted]
+
+
+def denoised_file(file_layers: dict, color_layer: str, color) -> tuple:
+    """(top-level colour, other layers) of the output: the input file's layers with the denoised colour in
+    the first three channels of the layer it was read from (an alpha kept), and at the top level as well
+    when the file has no top-level colour of its own."""
+    import numpy as np
+
+    layers = dict(file_layers)
+    source = layers[color_layer]
+    layers[color_layer] = np.concatenate([color, source[..., 3:]], axis=-1)
+    top = layers.pop("color", color)
+    return top, layers
 
 
 def sample_counts(images: dict, args):
