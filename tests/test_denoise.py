@@ -12,6 +12,10 @@ from wgpu_rt.io import read_exr, write_exr
 from wgpu_rt.train.networks import ConfidencePredictor, ErrorPredictor, UNet, export_onnx
 
 
+# A file whose albedo our aux pass averaged over each pixel's area: `wgpu-rt denoise` reads it as it is.
+AUX_ALBEDO = {"wgpuRtAuxSamples": 4}
+
+
 def _render_like(h=20, w=28, seed=0):
     rng = np.random.default_rng(seed)
     color = rng.gamma(0.5, 2.0, size=(h, w, 3)).astype(np.float32)
@@ -68,7 +72,7 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
     torch.manual_seed(0)
     model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
     color, layers = _render_like()
-    write_exr(tmp_path / "in.exr", color, layers)
+    write_exr(tmp_path / "in.exr", color, layers, attributes=AUX_ALBEDO)
     assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.exr"), "--model", str(model),
                  "--precision", precision]) == 0
     written = read_exr(tmp_path / "out.exr")
@@ -80,6 +84,49 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
     # the colour balance and the post filter (frame/chroma.py, frame/atrous.py), on by default
     expected = atrous_filter(match_sample_chroma(network, color), layers["albedo"], layers["normal"], layers["depth"])
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
+
+
+def test_a_point_sampled_albedo_is_smoothed_by_a_gaussian_narrowing_with_its_samples():
+    """area_averaged_albedo: a Gaussian of 0.9/sqrt(N) px, normalised (a flat albedo stays flat), symmetric
+    about a step, and the identity for N = 0 (an aux-pass albedo) or N large enough to make it negligible."""
+    from wgpu_rt.frame.denoise import area_averaged_albedo
+
+    step = np.zeros((9, 12, 3), np.float32)
+    step[:, 6:] = 1.0
+    one, four = area_averaged_albedo(step, 1), area_averaged_albedo(step, 4)
+    np.testing.assert_allclose(one[:, 5] + one[:, 6], 1.0, rtol=1e-6)            # symmetric about the step
+    # beside the step, the taps past it: 0.28 of a sampled Gaussian of 0.9 px, 0.07 of one of 0.45 px
+    assert 0.26 < one[0, 5, 0] < 0.30 and 0.06 < four[0, 5, 0] < 0.09
+    np.testing.assert_allclose(area_averaged_albedo(np.full((5, 7, 3), 0.3, np.float32), 1), 0.3, rtol=1e-6)
+    for samples in (0, 100):
+        assert area_averaged_albedo(step, samples) is step
+
+
+def test_the_albedo_is_smoothed_unless_the_aux_pass_averaged_it(gpu, tmp_path, monkeypatch):
+    """`wgpu-rt denoise` smooths the albedo by the colour's samples (another renderer's file) or by
+    --albedo-samples, and leaves an albedo that our aux pass averaged (the file's wgpuRtAuxSamples) as it is."""
+    import wgpu_rt.frame.denoise as frame_denoise
+
+    seen = []   # the albedo each run hands the denoiser
+    monkeypatch.setattr(frame_denoise, "denoise", lambda model, color, albedo, *rest, **options: seen.append(albedo)
+                        or color)
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    for name, attributes in (("theirs.exr", None), ("ours.exr", AUX_ALBEDO)):
+        write_exr(tmp_path / name, color, {**layers, "spp": np.full((20, 28), 4.0)}, attributes=attributes)
+    run = lambda name, *flags: main(["denoise", str(tmp_path / name), "--out", str(tmp_path / "o.exr"),  # noqa: E731
+                                     "--model", str(model), *flags])
+    assert run("theirs.exr") == 0 and run("theirs.exr", "--albedo-samples", "1") == 0
+    assert run("theirs.exr", "--albedo-samples", "0") == 0 and run("ours.exr") == 0
+    assert run("ours.exr", "--albedo-samples", "4") == 0
+    by_four, by_one = (frame_denoise.area_averaged_albedo(np.float32(layers["albedo"]), n) for n in (4, 1))
+    np.testing.assert_allclose(seen[0], by_four, rtol=1e-6)
+    np.testing.assert_allclose(seen[1], by_one, rtol=1e-6)
+    np.testing.assert_array_equal(seen[2], np.float32(layers["albedo"]))
+    np.testing.assert_array_equal(seen[3], np.float32(layers["albedo"]))
+    np.testing.assert_allclose(seen[4], by_four, rtol=1e-6)
+    assert run("theirs.exr", "--albedo-samples", "-1") == 2
 
 
 def _write_other_renderers_exr(path, color, layers):
@@ -159,7 +206,7 @@ def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
     torch.manual_seed(0)
     model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
     color, layers = _render_like()
-    write_exr(tmp_path / "in.exr", color, layers)
+    write_exr(tmp_path / "in.exr", color, layers, attributes=AUX_ALBEDO)
     assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.exr"), "--model", str(model),
                  "--quality", "high"]) == 0
     assert ", high, " in capsys.readouterr().out
@@ -191,7 +238,7 @@ def test_white_balance_setting_on_the_device_and_the_command(gpu, tmp_path):
 
     color, layers = _render_like(h=17, w=22, seed=8)
     color *= np.array([0.2, 1.5, 0.5], np.float32)                      # a green cast
-    write_exr(tmp_path / "in.exr", color, layers)
+    write_exr(tmp_path / "in.exr", color, layers, attributes=AUX_ALBEDO)
     aux = (layers["albedo"], layers["normal"], layers["depth"])
     model = load_model("denoiser", "fp32", ctx=gpu)
     written = {}
@@ -262,7 +309,7 @@ def test_the_sample_count_comes_from_the_spp_layer_or_the_flag(gpu, tmp_path, ca
     model = load_model("denoiser", path=model_path)
     color, layers = _render_like()
     counts = np.random.default_rng(0).integers(1, 300, (20, 28, 1))
-    write_exr(tmp_path / "in.exr", color, layers | {"spp": counts.astype(np.float32)})
+    write_exr(tmp_path / "in.exr", color, layers | {"spp": counts.astype(np.float32)}, attributes=AUX_ALBEDO)
     out = lambda *flags: main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "o.exr"),  # noqa: E731
                                "--model", str(model_path), *flags]) or read_exr(tmp_path / "o.exr")["color"]
     aux = (layers["albedo"], layers["normal"], layers["depth"])
@@ -286,7 +333,7 @@ def test_a_render_with_half_layers_hands_over_as_the_fused_frame_does(gpu, tmp_p
     that many spp does on the device. One half layer without the other is one line naming the file."""
     pytest.importorskip("wgpu_rt.nn")
     from wgpu_rt.frame.converge import converge
-    from wgpu_rt.frame.denoise import denoise, load_model
+    from wgpu_rt.frame.denoise import area_averaged_albedo, denoise, load_model
     from wgpu_rt.renderer import render
 
     torch.manual_seed(2)
@@ -300,7 +347,8 @@ def test_a_render_with_half_layers_hands_over_as_the_fused_frame_does(gpu, tmp_p
     np.testing.assert_allclose(layers["half_radiance"], half, rtol=1e-5, atol=1e-6)
     assert main(["denoise", str(noisy), "--out", str(tmp_path / "o.exr"), "--model", str(model_path)]) == 0
     model = load_model("denoiser", path=model_path)
-    aux = [layers[name] for name in ("albedo", "normal", "depth")]
+    assert read_exr(noisy).attributes["wgpuRtAuxSamples"] == 0   # the albedo of the colour's 8 samples: smoothed
+    aux = [area_averaged_albedo(layers["albedo"], 8), layers["normal"], layers["depth"]]
     denoised = denoise(model, layers["color"], *aux, layers["spp"])
     expected = converge(denoised, layers["color"], np.full((12, 16), 8), half, np.full((12, 16), 4))
     np.testing.assert_allclose(read_exr(tmp_path / "o.exr")["color"], expected, rtol=1e-5, atol=1e-6)

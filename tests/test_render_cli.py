@@ -17,6 +17,17 @@ def test_exr_holds_color_and_requested_aovs(gpu, tmp_path):
     assert "normal" not in layers
 
 
+@pytest.mark.parametrize("flags, aux", [([], 0), (["--aux-samples", "3"], 3), (["--denoise", "--spp", "1"], 4)])
+def test_exr_says_whether_its_albedo_came_from_the_aux_pass(flags, aux, gpu, tmp_path):
+    """The header's wgpuRtAuxSamples: the aux pass's samples behind the albedo layer (0: the colour's own), which
+    `wgpu-rt denoise` reads to know whether the albedo is already averaged over each pixel's area."""
+    out = tmp_path / "a.exr"
+    assert main(["render", "cornell", "--size", "8x8", "--aov", "albedo", *flags, "--out", str(out)]) == 0
+    assert read_exr(out).attributes["wgpuRtAuxSamples"] == aux
+    assert main(["render", "cornell", "--size", "8x8", "--aov", "depth", *flags, "--out", str(out)]) == 0
+    assert "wgpuRtAuxSamples" not in read_exr(out).attributes
+
+
 def test_png_preview_and_frame_pattern(gpu, tmp_path):
     assert main(["render", "moving", "--spp", "1", "--size", "8x8", "--frames", "2:4",
                  "--out", str(tmp_path / "f{frame:03d}.png")]) == 0

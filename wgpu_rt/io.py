@@ -44,16 +44,19 @@ from .errors import ImageError, OutputError
 
 LAYER_CHANNELS = {"color": "RGB", "albedo": "RGB", "normal": "XYZ", "depth": "Z", "motion": "XY",
                   "spp": "Y", "half_radiance": "RGB", "half_spp": "Y"}
+AUX_SAMPLES_ATTRIBUTE = "wgpuRtAuxSamples"   # the aux pass's samples behind the albedo layer; 0: the colour's
 CHANNEL_SETS = ("RGBA", "XYZW", "UVW")   # channel names whose order is known, whatever the file's order
 
 
 class ExrLayers(dict):
     """``read_exr``'s {layer: (H, W, C) array}, with ``channels``: each layer's channel names (``R``, ``X``,
-    ``0`` …, without the layer's prefix) in the order of the array's last axis."""
+    ``0`` …, without the layer's prefix) in the order of the array's last axis, and ``attributes``: the
+    header's text and integer attributes (``generatedBy``, ours: AUX_SAMPLES_ATTRIBUTE)."""
 
-    def __init__(self, arrays: dict, channels: dict):
+    def __init__(self, arrays: dict, channels: dict, attributes: dict | None = None):
         super().__init__(arrays)
         self.channels = channels
+        self.attributes = attributes or {}
 
 
 def _channel_order(suffixes) -> list[str]:
@@ -132,10 +135,10 @@ def check_output_path(path: str | os.PathLike, flag: str, suffixes: tuple[str, .
 
 
 def write_exr(path: str | os.PathLike, color: np.ndarray, layers: dict | None = None,
-              half: bool = False, channel_names: dict | None = None) -> None:
+              half: bool = False, channel_names: dict | None = None, attributes: dict | None = None) -> None:
     """Write ``color`` (H, W, 3) and named ``layers`` ((H, W) or (H, W, C)) as one scanline EXR.
     ``channel_names``: {layer: its channels' names} for layers whose names are not this module's (as
-    ``read_exr`` gives them in ``ExrLayers.channels``)."""
+    ``read_exr`` gives them in ``ExrLayers.channels``); ``attributes``: header attributes (text or int)."""
     import OpenEXR
 
     path = Path(path)
@@ -149,7 +152,7 @@ def write_exr(path: str | os.PathLike, color: np.ndarray, layers: dict | None = 
         for i, channel in enumerate(names):
             plane = np.ascontiguousarray(array[..., i])
             channels[channel] = plane.astype(np.float16) if half and name != "spp" else plane
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    header = {**(attributes or {}), "compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     with atomic_output(path) as tmp, OpenEXR.File(header, channels) as exr:
         try:
             exr.write(str(tmp))
@@ -172,6 +175,8 @@ def read_exr(path: str | os.PathLike) -> ExrLayers:
     try:
         with _library_output_captured(printed), OpenEXR.File(str(path), separate_channels=True) as exr:
             planes = {name: np.asarray(ch.pixels, dtype=np.float32) for name, ch in exr.channels().items()}
+            attributes = {key: value for key, value in exr.header().items()
+                          if isinstance(value, (str, int)) and not isinstance(value, bool)}
     except Exception as err:  # OpenEXR raises bare exceptions on corrupt files
         # Its own first diagnostic names the damage ("Invalid chunk size …"); on a truncated file the
         # exception only says "file has 0 parts".
@@ -183,7 +188,7 @@ def read_exr(path: str | os.PathLike) -> ExrLayers:
         groups.setdefault(layer or "color", {})[suffix] = plane
     names = {layer: _channel_order(chans) for layer, chans in groups.items()}
     return ExrLayers({layer: np.stack([groups[layer][k] for k in keys], axis=-1) for layer, keys in names.items()},
-                     names)
+                     names, attributes)
 
 
 def require_layers(images: dict, path, *names: str) -> None:

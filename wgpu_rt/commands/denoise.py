@@ -22,6 +22,12 @@ def add_arguments(parser) -> None:
                         help=f"read ROLE ({', '.join(ROLES)}) from the file's layer NAME, as another renderer "
                              "named it (e.g. --layer 'albedo=ViewLayer.Denoising Albedo'); repeat for each. "
                              "The denoised colour replaces the first three channels of the colour's layer")
+    parser.add_argument("--albedo-samples", type=int, metavar="N",
+                        help="point samples a pixel that the albedo layer averages: it is smoothed by a Gaussian "
+                             "of 0.9/sqrt(N) px first, as the network was trained on an albedo averaged over "
+                             "each pixel's area (0: as it is). Default: 0 for files of `wgpu-rt render "
+                             "--aux-samples`, whose aux pass made that average, else the colour's samples a "
+                             "pixel, which another renderer's albedo holds")
     parser.add_argument("--spp", type=int, metavar="N",
                         help="samples per pixel of the colour (default: the input's 'spp' layer, which "
                              "`wgpu-rt render` writes, else 1). With 'half_radiance' and 'half_spp' layers too "
@@ -32,7 +38,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     import time
 
-    from ..frame.denoise import denoise, load_model
+    from ..frame.denoise import area_averaged_albedo, denoise, load_model
     from ..io import check_output_path, read_exr, write_exr
 
     check_output_path(args.out, "--out", (".exr",))
@@ -42,9 +48,11 @@ def run(args) -> int:
     images = network_inputs(file_layers, named, args.input)
     spp = sample_counts(images, args)
     half = half_layers(images, args.input)
+    albedo_samples = point_samples_in_albedo(args, file_layers.attributes, spp)
     model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
     file_layers = finite_layers(file_layers, args.input)   # what the network reads, and what is written back
     images = network_inputs(file_layers, named, args.input)
+    images["albedo"] = area_averaged_albedo(images["albedo"], albedo_samples)
     started = time.perf_counter()
     color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp, **denoiser_options(args),
                     half=None if half is None else (images["half_radiance"], half))
@@ -135,6 +143,21 @@ def sample_counts(images: dict, args):
         raise ImageError(f"{args.input}: layer 'spp' must be one channel of sample counts ≥ 0 "
                          "(pass --spp N to override it)")
     return layer
+
+
+def point_samples_in_albedo(args, attributes: dict, spp) -> float:
+    """How many point samples a pixel the albedo averages: --albedo-samples; else 0 for a file whose albedo
+    came from our aux pass (its AUX_SAMPLES_ATTRIBUTE), else the colour's samples (the median of a map)."""
+    import numpy as np
+
+    from ..io import AUX_SAMPLES_ATTRIBUTE
+    from ..renderer import check_int
+
+    if args.albedo_samples is not None:
+        return check_int("--albedo-samples", args.albedo_samples, 0)
+    if attributes.get(AUX_SAMPLES_ATTRIBUTE, 0) > 0:
+        return 0
+    return float(np.median(spp))
 
 
 def half_layers(images: dict, path):

@@ -84,7 +84,7 @@ def output_path(pattern: str, frame: int):
 
 def run(args) -> int:
     from ..errors import WgpuRtError
-    from ..io import write_exr, write_png
+    from ..io import AUX_SAMPLES_ATTRIBUTE, write_exr, write_png
     from ..renderer import Renderer, check_aovs, check_int, parse_size
 
     size = parse_size(args.size)
@@ -117,7 +117,8 @@ def run(args) -> int:
         if png:
             write_png(path, result.image[..., :3])
         else:
-            write_exr(path, result.color, result.aovs)
+            write_exr(path, result.color, result.aovs,
+                      attributes={AUX_SAMPLES_ATTRIBUTE: renderer.pipeline.aux_samples} if "albedo" in aovs else None)
         stages = ", ".join(f"{name} {ms:.1f} ms" for name, ms in result.stage_ms.items())
         setup = f" after {result.setup_seconds:.2f} s of set-up" if result.setup_seconds else ""
         print(f"{path}: {size[0]}x{size[1]}, {mean_spp:g} spp, {result.seconds:.2f} s{setup} "

@@ -32,6 +32,33 @@ from .planes import write_plane
 from .unpack import unpack_denoiser_output
 
 
+# An albedo that averages a pixel's own few point samples (another renderer's, or ours without the aux pass) has
+# the jagged edges of those samples, where the network was trained on the aux pass's estimate of the pixel's
+# area mean, and remodulating by it puts the jags into the result: 2–3 dB at 1 spp on Mitsuba 3's files.
+# ``area_averaged_albedo`` smooths it by a Gaussian of this many pixels over the square root of the samples
+# (picked on four scenes, checked on three more: BENCHMARKS.md §37).
+POINT_ALBEDO_SIGMA = 0.9
+NEGLIGIBLE_SIGMA = 0.1   # below this, a Gaussian of a pixel's neighbours is the pixel
+
+
+def area_averaged_albedo(albedo: np.ndarray, samples: float) -> np.ndarray:
+    """(H, W, C) albedo averaging ``samples`` point samples a pixel → an estimate of each pixel's area mean:
+    blurred by a Gaussian of POINT_ALBEDO_SIGMA / sqrt(samples) pixels (edges repeat the border); as given
+    for ``samples`` 0 (already area-averaged, as our aux pass's) or many."""
+    sigma = POINT_ALBEDO_SIGMA / np.sqrt(samples) if samples > 0 else 0.0
+    if sigma < NEGLIGIBLE_SIGMA:
+        return albedo
+    radius = int(np.ceil(3 * sigma))
+    taps = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma) ** 2)
+    taps /= taps.sum()
+    result = np.asarray(albedo, np.float32)
+    for axis in (0, 1):
+        padded = np.pad(result, [(radius, radius) if a == axis else (0, 0) for a in range(result.ndim)], mode="edge")
+        length = result.shape[axis]
+        result = sum(w * np.take(padded, np.arange(k, k + length), axis=axis) for k, w in enumerate(taps))
+    return result.astype(np.float32)
+
+
 # Denoiser quality → passes of its self-ensemble (nn.WgslModel's ``ensemble``): "high" averages the image
 # denoised as given and turned three ways, 4× the work for 0.35 dB on held-out worlds (BENCHMARKS.md §10).
 QUALITIES = {"balanced": 1, "high": 4}
