@@ -102,6 +102,19 @@ def test_a_point_sampled_albedo_is_smoothed_by_a_gaussian_narrowing_with_its_sam
         assert area_averaged_albedo(step, samples) is step
 
 
+def test_the_sky_of_another_renderer_gets_our_albedo_there():
+    """Nothing hit (depth 0) and a black albedo: the albedo becomes the colour clamped to 1, what our tracer
+    writes for escaped paths; hit pixels, and misses that already have an albedo, keep theirs."""
+    from wgpu_rt.frame.denoise import escaped_albedo
+
+    color = np.array([[[0.2, 0.5, 3.0], [0.4, 0.4, 0.4], [0.9, 0.1, 0.1]]], np.float32)
+    albedo = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.3, 0.3, 0.3]]], np.float32)
+    depth = np.array([[[0.0], [2.0], [0.0]]], np.float32)
+    expected = [[0.2, 0.5, 1.0], [0, 0, 0], [0.3] * 3]
+    np.testing.assert_allclose(escaped_albedo(albedo, color, depth)[0], expected, rtol=1e-6)
+    assert escaped_albedo(albedo, color, depth + 1) is albedo
+
+
 def test_the_albedo_is_smoothed_unless_the_aux_pass_averaged_it(gpu, tmp_path, monkeypatch):
     """`wgpu-rt denoise` smooths the albedo by the colour's samples (another renderer's file) or by
     --albedo-samples, and leaves an albedo that our aux pass averaged (the file's wgpuRtAuxSamples) as it is."""

@@ -38,7 +38,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     import time
 
-    from ..frame.denoise import area_averaged_albedo, denoise, load_model
+    from ..frame.denoise import area_averaged_albedo, denoise, escaped_albedo, load_model
     from ..io import check_output_path, read_exr, write_exr
 
     check_output_path(args.out, "--out", (".exr",))
@@ -52,7 +52,8 @@ def run(args) -> int:
     model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
     file_layers = finite_layers(file_layers, args.input)   # what the network reads, and what is written back
     images = network_inputs(file_layers, named, args.input)
-    images["albedo"] = area_averaged_albedo(images["albedo"], albedo_samples)
+    albedo = escaped_albedo(images["albedo"], images["color"], images["depth"])
+    images["albedo"] = area_averaged_albedo(albedo, albedo_samples)
     started = time.perf_counter()
     color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp, **denoiser_options(args),
                     half=None if half is None else (images["half_radiance"], half))

@@ -59,6 +59,19 @@ def area_averaged_albedo(albedo: np.ndarray, samples: float) -> np.ndarray:
     return result.astype(np.float32)
 
 
+def escaped_albedo(albedo: np.ndarray, color: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """Where nothing was hit (depth 0) and the albedo is black, as other renderers write the sky's, the
+    albedo our tracer gives there (wgsl/trace/guide_albedo.wgsl): the colour, which is the background's
+    radiance, at most 1. Otherwise the network, trained on ours, reads the sky's colour divided by
+    pack.ALBEDO_EPSILON (+0.6 dB on gold-bunny-sky from Mitsuba at 1 spp, BENCHMARKS.md §37)."""
+    escaped = (depth[..., 0] <= 0) & (albedo.max(axis=-1) <= 0)
+    if not escaped.any():
+        return albedo
+    result = albedo.copy()
+    result[escaped] = np.clip(color[escaped], 0.0, 1.0)
+    return result
+
+
 # Denoiser quality → passes of its self-ensemble (nn.WgslModel's ``ensemble``): "high" averages the image
 # denoised as given and turned three ways, 4× the work for 0.35 dB on held-out worlds (BENCHMARKS.md §10).
 QUALITIES = {"balanced": 1, "high": 4}
