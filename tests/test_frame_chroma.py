@@ -94,14 +94,15 @@ def test_denoise_command_takes_the_chroma_setting(gpu, tmp_path):
     """``wgpu-rt denoise --chroma on|off`` writes what ``denoise()`` gives with that setting."""
     from wgpu_rt.cli import main
     from wgpu_rt.frame.denoise import denoise, load_model
-    from wgpu_rt.io import read_exr, write_exr
+    from wgpu_rt.io import AUX_SAMPLES_ATTRIBUTE, read_exr, write_exr
 
     rng = np.random.default_rng(9)
     denoised, color = biased_pair(rng, 22, 17)
     albedo = rng.uniform(0, 1, (17, 22, 3)).astype(np.float32)
     normal = rng.normal(size=(17, 22, 3)).astype(np.float32)
     depth = rng.uniform(1, 5, (17, 22, 1)).astype(np.float32)
-    write_exr(tmp_path / "in.exr", color, {"albedo": albedo, "normal": normal, "depth": depth})
+    write_exr(tmp_path / "in.exr", color, {"albedo": albedo, "normal": normal, "depth": depth},
+              attributes={AUX_SAMPLES_ATTRIBUTE: 4})   # an aux-pass albedo: read as it is
     model = load_model("denoiser")
     written = {}
     for setting in ("on", "off"):

@@ -206,11 +206,12 @@ def test_denoise_command_takes_the_low_band_setting(gpu, tmp_path):
     on this small image)."""
     from wgpu_rt.cli import main
     from wgpu_rt.frame.denoise import denoise, load_model
-    from wgpu_rt.io import read_exr, write_exr
+    from wgpu_rt.io import AUX_SAMPLES_ATTRIBUTE, read_exr, write_exr
 
     rng = np.random.default_rng(6)
     color, albedo, normal, depth, _ = random_planes(rng, 22, 17)
-    write_exr(tmp_path / "in.exr", color, {"albedo": albedo, "normal": normal, "depth": depth[..., None]})
+    write_exr(tmp_path / "in.exr", color, {"albedo": albedo, "normal": normal, "depth": depth[..., None]},
+              attributes={AUX_SAMPLES_ATTRIBUTE: 4})   # an aux-pass albedo: read as it is
     model = load_model("denoiser")
     written = {}
     for setting in ("auto", "on", "off"):
