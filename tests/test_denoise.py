@@ -115,9 +115,10 @@ def test_the_sky_of_another_renderer_gets_our_albedo_there():
     assert escaped_albedo(albedo, color, depth + 1) is albedo
 
 
-def test_the_albedo_is_smoothed_unless_the_aux_pass_averaged_it(gpu, tmp_path, monkeypatch):
+def test_the_albedo_is_smoothed_unless_the_aux_pass_averaged_it(gpu, tmp_path, monkeypatch, capfd):
     """`wgpu-rt denoise` smooths the albedo by the colour's samples (another renderer's file) or by
-    --albedo-samples, and leaves an albedo that our aux pass averaged (the file's wgpuRtAuxSamples) as it is."""
+    --albedo-samples, and leaves an albedo that our aux pass averaged (the file's wgpuRtAuxSamples) as it is.
+    A file without an 'spp' layer, and no --spp, is taken as 1 sample a pixel, with a warning saying so."""
     import wgpu_rt.frame.denoise as frame_denoise
 
     seen = []   # the albedo each run hands the denoiser
@@ -140,6 +141,12 @@ def test_the_albedo_is_smoothed_unless_the_aux_pass_averaged_it(gpu, tmp_path, m
     np.testing.assert_array_equal(seen[3], np.float32(layers["albedo"]))
     np.testing.assert_allclose(seen[4], by_four, rtol=1e-6)
     assert run("theirs.exr", "--albedo-samples", "-1") == 2
+    capfd.readouterr()
+    write_exr(tmp_path / "no_spp.exr", color, layers)
+    assert run("no_spp.exr") == 0
+    assert capfd.readouterr().err == (f"wgpu-rt denoise: warning: {tmp_path / 'no_spp.exr'}: no 'spp' layer; taken "
+                                      "as 1 sample a pixel (--spp N to say how many)\n")
+    assert run("no_spp.exr", "--spp", "2") == 0 and capfd.readouterr().err == ""
 
 
 def _write_other_renderers_exr(path, color, layers):
@@ -392,7 +399,7 @@ def test_nan_and_inf_in_the_layers_are_zeroed_with_one_warning_each(gpu, tmp_pat
         exr.write(str(tmp_path / "in.exr"))     # write_exr refuses NaN, as it should for our own output
     capfd.readouterr()
     assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.exr"),
-                 "--model", str(model)]) == 0
+                 "--model", str(model), "--spp", "1"]) == 0
     warnings = capfd.readouterr().err.splitlines()
     assert sorted(line.split(": ", 3)[-1] for line in warnings) == [
         "layer 'albedo' holds 18 NaN/Inf values; treated as 0",

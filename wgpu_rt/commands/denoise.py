@@ -129,7 +129,9 @@ def denoised_file(file_layers: dict, color_layer: str, color) -> tuple:
 
 
 def sample_counts(images: dict, args):
-    """The colour's samples per pixel: --spp, else the input's one-channel 'spp' layer, else 1."""
+    """The colour's samples per pixel: --spp, else the input's one-channel 'spp' layer, else 1 (with a warning)."""
+    import sys
+
     import numpy as np
 
     from ..errors import ImageError
@@ -138,7 +140,9 @@ def sample_counts(images: dict, args):
     if args.spp is not None:
         return check_int("--spp", args.spp, 1)
     layer = images.get("spp")
-    if layer is None:
+    if layer is None:   # the count sets the network's noise level and the albedo's smoothing: say what is assumed
+        print(f"wgpu-rt denoise: warning: {args.input}: no 'spp' layer; taken as 1 sample a pixel (--spp N to say "
+              "how many)", file=sys.stderr)
         return 1
     if layer.shape[2] != 1 or not np.all(np.isfinite(layer)) or layer.min() < 0:
         raise ImageError(f"{args.input}: layer 'spp' must be one channel of sample counts ≥ 0 "
