@@ -20,7 +20,7 @@ def add_arguments(parser) -> None:
     add_denoiser_flags(parser, "image")
     parser.add_argument("--layer", action="append", default=[], metavar="ROLE=NAME",
                         help=f"read ROLE ({', '.join(ROLES)}) from the file's layer NAME, as another renderer "
-                             "named it (e.g. --layer 'albedo=ViewLayer.Denoising Albedo'); repeat for each. "
+                             "named it (e.g. --layer normal=nn for Mitsuba 3's aov integrator); repeat for each. "
                              "The denoised colour replaces the first three channels of the colour's layer")
     parser.add_argument("--albedo-samples", type=int, metavar="N",
                         help="point samples a pixel that the albedo layer averages: it is smoothed by a Gaussian "
