@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..passes import RADIANCE, ComputePass
-from .kernel import TILE, FrameKernel, ceil_div, nonnegative_finite
+from .kernel import TILE, FrameKernel, ceil_div, gaussian_taps, nonnegative_finite, separable_blur
 from .lowband import bilinear_up
 from .pack import block_sum
 from .planes import DENOISED
@@ -38,24 +38,6 @@ STATISTICS_LIMIT = 1e18   # radiance clamped to this for the block statistics (s
 F32_MAX = float(np.finfo(np.float32).max)
 
 
-def gaussian_taps() -> np.ndarray:
-    """The 2·RADIUS_BLOCKS + 1 normalised Gaussian weights of σ SIGMA_BLOCKS (float64)."""
-    offsets = np.arange(-RADIUS_BLOCKS, RADIUS_BLOCKS + 1)
-    taps = np.exp(-offsets * offsets / (2.0 * SIGMA_BLOCKS ** 2))
-    return taps / taps.sum()
-
-
-def blur_blocks(grid: np.ndarray, taps: np.ndarray) -> np.ndarray:
-    """(h, w, C) block values weighed by ``taps`` along both axes, indices clamped at the edges (float64)."""
-    radius = len(taps) // 2
-    out = np.asarray(grid, np.float64)
-    for axis in (0, 1):
-        padded = np.pad(out, [(radius, radius) if a == axis else (0, 0) for a in range(3)], mode="edge")
-        length = out.shape[axis]
-        out = sum(tap * np.take(padded, np.arange(k, k + length), axis=axis) for k, tap in enumerate(taps))
-    return out
-
-
 def chroma_ratios(denoised: np.ndarray, color: np.ndarray) -> np.ndarray:
     """(H, W, 3) denoised radiance F and samples' mean N → the (ceil(H/BLOCK), ceil(W/BLOCK), 3) per-block
     channel scale factors (the module docstring's rule; float64)."""
@@ -67,9 +49,9 @@ def chroma_ratios(denoised: np.ndarray, color: np.ndarray) -> np.ndarray:
     # variance of the block's mean: Σ(r − r̄)² / (n (n − 1))
     residual = n - f - np.repeat(np.repeat(mean_n - mean_f, BLOCK, 0), BLOCK, 1)[:f.shape[0], :f.shape[1]]
     spread = block_sum(residual * residual, BLOCK) / (pixels * np.maximum(pixels - 1, 1))
-    taps = gaussian_taps()
-    low_f, low_n = blur_blocks(mean_f, taps), blur_blocks(mean_n, taps)
-    variance = blur_blocks(spread, taps * taps)
+    taps = gaussian_taps(SIGMA_BLOCKS, RADIUS_BLOCKS)
+    low_f, low_n = separable_blur(mean_f, taps), separable_blur(mean_n, taps)
+    variance = separable_blur(spread, taps * taps)
     difference2 = (low_n - low_f) ** 2
     k = np.where(variance < difference2, 1.0 - variance / np.where(difference2 > 0, difference2, 1.0), 0.0)
     target = np.maximum(low_f + k * (low_n - low_f), 0.0) + SHARE_EPSILON
@@ -98,7 +80,8 @@ class ChromaPass(ComputePass):
         count = self.blocks[0] * self.blocks[1]
         self.statistics = ctx.storage(4 * 9 * count, label="chroma block statistics")
         self.ratios = ctx.storage(4 * 3 * count, label="chroma ratios")
-        taps = gaussian_taps()[RADIUS_BLOCKS:]   # offsets 0 … RADIUS_BLOCKS (the kernel's TAP_k)
+        # offsets 0 … RADIUS_BLOCKS (the kernel's TAP_k)
+        taps = gaussian_taps(SIGMA_BLOCKS, RADIUS_BLOCKS)[RADIUS_BLOCKS:]
         constants = {"SHARE_EPSILON": SHARE_EPSILON, "RATIO_LIMIT": RATIO_LIMIT, "STATISTICS_LIMIT": STATISTICS_LIMIT,
                      **{f"TAP_{k}": float(tap) for k, tap in enumerate(taps)}}
         names = ("color", "denoised", "statistics", "ratios")

@@ -26,6 +26,7 @@ from .atrous import atrous_filter
 from .chroma import match_sample_chroma
 from .converge import HALF_SPP, converge
 from .denoise_chain import DenoiseChain
+from .kernel import gaussian_taps, separable_blur
 from .lowband import fewest_samples, low_band_denoise, low_band_levels
 from .pack import NO_BALANCE, DepthMaxPass, pack_denoiser_input, white_balance_gains
 from .planes import write_plane
@@ -48,15 +49,7 @@ def area_averaged_albedo(albedo: np.ndarray, samples: float) -> np.ndarray:
     sigma = POINT_ALBEDO_SIGMA / np.sqrt(samples) if samples > 0 else 0.0
     if sigma < NEGLIGIBLE_SIGMA:
         return albedo
-    radius = int(np.ceil(3 * sigma))
-    taps = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma) ** 2)
-    taps /= taps.sum()
-    result = np.asarray(albedo, np.float32)
-    for axis in (0, 1):
-        padded = np.pad(result, [(radius, radius) if a == axis else (0, 0) for a in range(result.ndim)], mode="edge")
-        length = result.shape[axis]
-        result = sum(w * np.take(padded, np.arange(k, k + length), axis=axis) for k, w in enumerate(taps))
-    return result.astype(np.float32)
+    return separable_blur(albedo, gaussian_taps(sigma, int(np.ceil(3 * sigma)))).astype(np.float32)
 
 
 def escaped_albedo(albedo: np.ndarray, color: np.ndarray, depth: np.ndarray) -> np.ndarray:

@@ -28,6 +28,24 @@ def ceil_div(a: int, b: int) -> int:
     return -(-a // b)
 
 
+def gaussian_taps(sigma: float, radius: int) -> np.ndarray:
+    """The 2·radius + 1 normalised weights of a Gaussian of ``sigma`` (float64)."""
+    offsets = np.arange(-radius, radius + 1)
+    taps = np.exp(-offsets * offsets / (2.0 * sigma ** 2))
+    return taps / taps.sum()
+
+
+def separable_blur(image: np.ndarray, taps: np.ndarray) -> np.ndarray:
+    """(h, w, C) values weighed by ``taps`` along both axes, indices clamped at the edges (float64)."""
+    radius = len(taps) // 2
+    out = np.asarray(image, np.float64)
+    for axis in (0, 1):
+        padded = np.pad(out, [(radius, radius) if a == axis else (0, 0) for a in range(3)], mode="edge")
+        length = out.shape[axis]
+        out = sum(tap * np.take(padded, np.arange(k, k + length), axis=axis) for k, tap in enumerate(taps))
+    return out
+
+
 def nonnegative_finite(values: np.ndarray) -> np.ndarray:
     """``values`` as float32 with NaN/±Inf replaced by 0 and negatives clamped to 0 (the sanitising rule
     shared by every frame pass: a non-finite sample is a failed sample, not a bright one)."""
