@@ -4,6 +4,7 @@ import os
 
 import numpy as np
 import pytest
+from exr_files import write_parts
 
 from wgpu_rt.errors import ImageError, OutputError
 from wgpu_rt.io import (
@@ -80,6 +81,34 @@ def test_exr_refuses_nan_and_leaves_no_file(tmp_path):
     with pytest.raises(ValueError, match="NaN/Inf"):
         write_exr(tmp_path / "bad.exr", color)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_every_part_of_a_multi_part_file_is_read(tmp_path):
+    """Blender 5 writes a multilayer EXR as one part per pass: every part's channels are read as one file's,
+    with the first part's header attributes."""
+    rng = np.random.default_rng(3)
+    planes = {name: rng.random((3, 4)) for name in ("VL.Combined.R", "VL.Combined.G", "VL.Combined.B",
+                                                    "VL.Combined.A", "VL.Depth.Z", "VL.Normal.X", "VL.Normal.Y",
+                                                    "VL.Normal.Z")}
+    write_parts(tmp_path / "parts.exr", {"VL.Combined": {k: v for k, v in planes.items() if ".Combined." in k},
+                                          "VL.Depth": {"VL.Depth.Z": planes["VL.Depth.Z"]},
+                                          "VL.Normal": {k: v for k, v in planes.items() if ".Normal." in k}})
+    back = read_exr(tmp_path / "parts.exr")
+    assert back.channels == {"VL.Combined": list("RGBA"), "VL.Depth": ["Z"], "VL.Normal": list("XYZ")}
+    for layer, names in back.channels.items():
+        for i, name in enumerate(names):
+            np.testing.assert_array_equal(back[layer][..., i], np.float32(planes[f"{layer}.{name}"]))
+    assert back.attributes.get("name") == "VL.Combined"
+
+
+@pytest.mark.parametrize("second, says", [
+    ({"a.R": np.zeros((3, 4))}, "channel 'a.R' appears in more than one part"),
+    ({"b.R": np.zeros((5, 4))}, "part 'second' is 4×5 pixels, unlike the file's first part"),
+])
+def test_multi_part_files_whose_parts_clash_are_refused(second, says, tmp_path):
+    write_parts(tmp_path / "clash.exr", {"first": {"a.R": np.ones((3, 4))}, "second": second})
+    with pytest.raises(ImageError, match=f"clash.exr: {says}"):
+        read_exr(tmp_path / "clash.exr")
 
 
 def test_exr_refuses_mismatched_layer(tmp_path):

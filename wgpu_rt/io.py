@@ -164,7 +164,9 @@ def read_exr(path: str | os.PathLike) -> ExrLayers:
     """Read an EXR into {"color": (H, W, C), layer: (H, W, C), …} float32 arrays.
 
     Channels are grouped by the text before their last dot ("color": those without one); each group's
-    channels in their known order (``_channel_order``), their names in the result's ``channels``.
+    channels in their known order (``_channel_order``), their names in the result's ``channels``. Every
+    part of a multi-part file is read (their channel names must differ and their sizes agree); the
+    ``attributes`` are the first part's.
     """
     import OpenEXR
 
@@ -172,11 +174,21 @@ def read_exr(path: str | os.PathLike) -> ExrLayers:
     if not path.is_file():
         raise ImageError(f"{path}: no such file")
     printed: list[str] = []
+    planes: dict[str, np.ndarray] = {}
     try:
         with _library_output_captured(printed), OpenEXR.File(str(path), separate_channels=True) as exr:
-            planes = {name: np.asarray(ch.pixels, dtype=np.float32) for name, ch in exr.channels().items()}
+            for part in exr.parts:   # a multi-part file (Blender's multilayer EXR: a part per pass) as one
+                for name, channel in part.channels.items():
+                    if name in planes:
+                        raise ImageError(f"{path}: channel {name!r} appears in more than one part")
+                    planes[name] = np.asarray(channel.pixels, dtype=np.float32)
+                    if planes[name].shape[:2] != next(iter(planes.values())).shape[:2]:
+                        raise ImageError(f"{path}: part {part.name()!r} is {part.width()}×{part.height()} "
+                                         "pixels, unlike the file's first part")
             attributes = {key: value for key, value in exr.header().items()
                           if isinstance(value, (str, int)) and not isinstance(value, bool)}
+    except ImageError:
+        raise
     except Exception as err:  # OpenEXR raises bare exceptions on corrupt files
         # Its own first diagnostic names the damage ("Invalid chunk size …"); on a truncated file the
         # exception only says "file has 0 parts".
