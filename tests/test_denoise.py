@@ -6,6 +6,7 @@ import gc
 import numpy as np
 import pytest
 import torch
+from exr_files import write_blender_exr
 
 from wgpu_rt.cli import main
 from wgpu_rt.io import read_exr, write_exr
@@ -200,9 +201,11 @@ def test_another_renderers_layers_are_read_by_role_and_kept_in_the_output(gpu, t
     (["--layer", "depth=Mist"], "theirs.exr: no layer 'Mist' (--layer depth=Mist); layers present: ViewLayer"),
     (["--layer", "albedo=ViewLayer.Diffuse", "--layer", "normal=ViewLayer.Denoising Normal",
       "--layer", "depth=ViewLayer.Combined"], "layer 'ViewLayer.Combined' has 4 channel(s); depth needs exactly one"),
-    ([], "theirs.exr: missing layer 'albedo' (channels albedo.R, albedo.G, albedo.B); layers present: "
-         "ViewLayer.Combined, ViewLayer.Denoising Albedo, ViewLayer.Denoising Normal, ViewLayer.Diffuse, ViewLayer.Z "
-         "(--layer albedo=NAME reads it from another)"),
+    ([], "theirs.exr: no layer 'ViewLayer.Denoising Depth': Blender writes the Denoising Data passes when View "
+         "Layer Properties ▸ Passes ▸ Data ▸ Denoising Data is on (--layer depth=NAME reads it from another layer)"),
+    (["--layer", "depth=ViewLayer.Z", "--layer", "albedo=Diffuse"], "theirs.exr: no layer 'Diffuse' (--layer "
+     "albedo=Diffuse); layers present: ViewLayer.Combined, ViewLayer.Denoising Albedo, ViewLayer.Denoising Normal, "
+     "ViewLayer.Diffuse, ViewLayer.Z"),
 ])
 def test_bad_layer_flags_are_one_line_before_any_output(flags, says, tmp_path, capfd):
     color, layers = _render_like()
@@ -212,6 +215,62 @@ def test_bad_layer_flags_are_one_line_before_any_output(flags, says, tmp_path, c
     err = capfd.readouterr().err
     assert err.count("\n") == 1 and says in err, err
     assert not (tmp_path / "o.exr").exists()
+
+
+def test_a_blender_file_is_denoised_without_flags(gpu, tmp_path, capfd):
+    """Blender's multilayer EXR (a part per pass): its view layer's Combined, Denoising Albedo/Normal/Depth passes
+    and the header's sample count are found by their names, so `wgpu-rt denoise FILE` gives what our own file
+    of the same planes gives with --spp; its Z pass (1e10 where nothing was hit) read as depth is the same
+    as its Denoising Depth (0 there); the output keeps the file's passes, the Combined pass denoised."""
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    layers["depth"][:3] = 0   # sky
+    write_exr(tmp_path / "ours.exr", color, layers)
+    write_blender_exr(tmp_path / "blender.exr", color, layers, samples=4)
+
+    def run(name, *flags):
+        return main(["denoise", str(tmp_path / name), "--out", str(tmp_path / f"{name}.out.exr"), "--model", str(model),
+                     *flags])
+    assert run("ours.exr", "--spp", "4") == 0 and run("blender.exr") == 0
+    assert run("blender.exr", "--layer", "depth=ViewLayer.Depth", "--out", str(tmp_path / "z.exr")) == 0
+    assert capfd.readouterr().err == ""   # no "no 'spp' layer" warning: the header said 4
+    ours, blender = read_exr(tmp_path / "ours.exr.out.exr"), read_exr(tmp_path / "blender.exr.out.exr")
+    np.testing.assert_allclose(blender["ViewLayer.Combined"][..., :3], ours["color"], rtol=1e-5, atol=1e-6)
+    np.testing.assert_array_equal(blender["ViewLayer.Combined"][..., 3], 1.0)
+    np.testing.assert_array_equal(read_exr(tmp_path / "z.exr")["ViewLayer.Combined"], blender["ViewLayer.Combined"])
+    assert {"ViewLayer.Depth", "ViewLayer.Normal", "ViewLayer.Denoising Albedo"} <= set(blender)
+
+
+@pytest.mark.parametrize("write, flags, says", [
+    (dict(view_layers=("Front", "Back")), [], "blender.exr: view layers Back, Front: --layer color=VL.Combined picks one"),
+    (dict(denoising_data=False), [], "blender.exr: no layer 'ViewLayer.Denoising Albedo': Blender writes the "
+                                     "Denoising Data passes when View Layer Properties ▸ Passes ▸ Data ▸ Denoising "
+                                     "Data is on (--layer albedo=NAME reads it from another layer)"),
+])
+def test_blender_files_without_one_view_layers_denoising_passes_are_one_line(write, flags, says, tmp_path, capfd):
+    color, layers = _render_like()
+    write_blender_exr(tmp_path / "blender.exr", color, layers, **write)
+    assert main(["denoise", str(tmp_path / "blender.exr"), "--out", str(tmp_path / "o.exr"), *flags]) == 2
+    err = capfd.readouterr().err
+    assert err.count("\n") == 1 and says in err, err
+    assert not (tmp_path / "o.exr").exists()
+
+
+def test_a_view_layer_is_picked_by_its_combined_pass(gpu, tmp_path, capfd):
+    """With several view layers, --layer color=VL.Combined picks VL's passes and its header sample count."""
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    write_blender_exr(tmp_path / "two.exr", color, layers, view_layers=("Front", "Back"), samples=2)
+    write_blender_exr(tmp_path / "one.exr", color, layers, samples=2)
+    for name, flags in (("two.exr", ["--layer", "color=Back.Combined"]), ("one.exr", [])):
+        assert main(["denoise", str(tmp_path / name), "--out", str(tmp_path / f"{name}.out.exr"), "--model",
+                     str(model), *flags]) == 0
+    assert capfd.readouterr().err == ""
+    picked = read_exr(tmp_path / "two.exr.out.exr")
+    np.testing.assert_array_equal(picked["Back.Combined"], read_exr(tmp_path / "one.exr.out.exr")["ViewLayer.Combined"])
+    np.testing.assert_array_equal(picked["Front.Combined"][..., :3], np.float32(color))   # the other left as it was
 
 
 def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):

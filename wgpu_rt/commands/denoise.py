@@ -11,6 +11,11 @@ REQUIRED_LAYERS = ("color", "albedo", "normal", "depth")
 HALF_LAYERS = {"half_radiance": 3, "half_spp": 1}   # `wgpu-rt render --aov …,half_radiance,half_spp`
 ROLES = (*REQUIRED_LAYERS, "spp", *HALF_LAYERS)     # what --layer can point at another layer of the file
 CHANNELS = {"color": 3, "albedo": 3, "normal": 3, "depth": 1}   # the channels each role's layer gives the network
+# Blender's multilayer EXR: a view layer VL's passes are layers "VL.Combined", "VL.Denoising Albedo", … (the
+# Denoising Data passes, 0 depth and normal where nothing was hit); its header's "cycles.VL.samples" the count.
+BLENDER_PASSES = {"color": "Combined", "albedo": "Denoising Albedo", "normal": "Denoising Normal",
+                  "depth": "Denoising Depth"}
+NO_HIT_DEPTH = 1e9   # a depth this far is a miss: Blender's Z pass writes 1e10 there, ours and Mitsuba's 0
 
 
 def add_arguments(parser) -> None:
@@ -21,6 +26,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--layer", action="append", default=[], metavar="ROLE=NAME",
                         help=f"read ROLE ({', '.join(ROLES)}) from the file's layer NAME, as another renderer "
                              "named it (e.g. --layer normal=nn for Mitsuba 3's aov integrator); repeat for each. "
+                             "A Blender multilayer EXR needs none: its view layer's Combined and Denoising Data "
+                             "passes are found by their names (--layer color=VL.Combined picks view layer VL). "
                              "The denoised colour replaces the first three channels of the colour's layer")
     parser.add_argument("--albedo-samples", type=int, metavar="N",
                         help="point samples a pixel that the albedo layer averages: it is smoothed by a Gaussian "
@@ -30,7 +37,7 @@ def add_arguments(parser) -> None:
                              "pixel, which another renderer's albedo holds")
     parser.add_argument("--spp", type=int, metavar="N",
                         help="samples per pixel of the colour (default: the input's 'spp' layer, which "
-                             "`wgpu-rt render` writes, else 1). With 'half_radiance' and 'half_spp' layers too "
+                             "`wgpu-rt render` writes, else the samples in a Blender file's header, else 1). With 'half_radiance' and 'half_spp' layers too "
                              "(the mean after the first half of the samples), each pixel hands over to the "
                              "colour where that has converged, as `wgpu-rt render --denoise` does")
 
@@ -45,8 +52,9 @@ def run(args) -> int:
     named = layer_names(args.layer)
     file_layers = read_exr(args.input)
     channel_names = file_layers.channels
+    named = blender_layer_names(file_layers, named, args.input)
     images = network_inputs(file_layers, named, args.input)
-    spp = sample_counts(images, args)
+    spp = sample_counts(images, args, blender_samples(file_layers.attributes, named))
     half = half_layers(images, args.input)
     albedo_samples = point_samples_in_albedo(args, file_layers.attributes, spp)
     model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
@@ -80,6 +88,40 @@ def layer_names(flags: list[str]) -> dict[str, str]:
     return named
 
 
+def blender_layer_names(file_layers: dict, named: dict, path) -> dict:
+    """``named`` with the roles it leaves open read from a Blender multilayer EXR's passes (BLENDER_PASSES) of
+    the view layer whose "VL.Combined" is the colour: the one --layer color names, else the file's only one.
+    Files with a top-level colour (ours, Mitsuba's) are left as they are."""
+    from ..errors import ImageError
+
+    if "color" in file_layers and "color" not in named:
+        return named
+    suffix = "." + BLENDER_PASSES["color"]
+    if "color" in named:
+        view_layers = [named["color"].removesuffix(suffix)] if named["color"].endswith(suffix) else []
+    else:
+        view_layers = sorted(name.removesuffix(suffix) for name in file_layers if name.endswith(suffix))
+    if len(view_layers) > 1:
+        raise ImageError(f"{path}: view layers {', '.join(view_layers)}: --layer color=VL.Combined picks one")
+    if not view_layers:
+        return named
+    passes = {role: f"{view_layers[0]}.{name}" for role, name in BLENDER_PASSES.items()}
+    missing = [role for role, layer in passes.items() if role not in named and layer not in file_layers]
+    if missing:
+        raise ImageError(f"{path}: no layer {passes[missing[0]]!r}: Blender writes the Denoising Data passes when "
+                         "View Layer Properties ▸ Passes ▸ Data ▸ Denoising Data is on (--layer "
+                         f"{missing[0]}=NAME reads it from another layer)")
+    return {**passes, **named}
+
+
+def blender_samples(attributes: dict, named: dict) -> int | None:
+    """The samples per pixel a Blender file's header gives for the colour's view layer ("cycles.VL.samples"),
+    else None."""
+    view_layer = named.get("color", "").removesuffix("." + BLENDER_PASSES["color"])
+    text = str(attributes.get(f"cycles.{view_layer}.samples", ""))
+    return int(text) if text.isdigit() and int(text) > 0 else None
+
+
 def network_inputs(file_layers: dict, named: dict, path) -> dict:
     """The file's layers, and each --layer's NAME also as its ROLE (a role given another layer no longer reads
     its own name), the four the denoiser needs present, each cut to the channels the network reads
@@ -103,7 +145,10 @@ def network_inputs(file_layers: dict, named: dict, path) -> dict:
 
 def network_channels(role: str, layer, name: str, path):
     """The channels of a role's layer that the network reads: the first three of colour, albedo and normal
-    (R, G, B of an RGBA layer), depth's only one; other roles' layers as they are (checked later)."""
+    (R, G, B of an RGBA layer), depth's only one (NO_HIT_DEPTH and beyond: 0, a miss); other roles' layers as
+    they are (checked later)."""
+    import numpy as np
+
     from ..errors import ImageError
 
     wanted = CHANNELS.get(role)
@@ -112,6 +157,8 @@ def network_channels(role: str, layer, name: str, path):
     if layer.shape[2] < wanted or (wanted == 1 and layer.shape[2] != 1):
         raise ImageError(f"{path}: layer {name!r} has {layer.shape[2]} channel(s); {role} needs "
                          + ("exactly one" if wanted == 1 else f"{wanted}"))
+    if role == "depth":
+        return np.where(layer >= NO_HIT_DEPTH, np.float32(0), layer)
     return layer[..., :wanted]
 
 
@@ -128,8 +175,9 @@ def denoised_file(file_layers: dict, color_layer: str, color) -> tuple:
     return top, layers
 
 
-def sample_counts(images: dict, args):
-    """The colour's samples per pixel: --spp, else the input's one-channel 'spp' layer, else 1 (with a warning)."""
+def sample_counts(images: dict, args, header_samples: int | None = None):
+    """The colour's samples per pixel: --spp, else the input's one-channel 'spp' layer, else the count its
+    header gives (``header_samples``), else 1 (with a warning)."""
     import sys
 
     import numpy as np
@@ -140,6 +188,8 @@ def sample_counts(images: dict, args):
     if args.spp is not None:
         return check_int("--spp", args.spp, 1)
     layer = images.get("spp")
+    if layer is None and header_samples is not None:
+        return header_samples
     if layer is None:   # the count sets the network's noise level and the albedo's smoothing: say what is assumed
         print(f"wgpu-rt denoise: warning: {args.input}: no 'spp' layer; taken as 1 sample a pixel (--spp N to say "
               "how many)", file=sys.stderr)
