@@ -90,7 +90,7 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
 def test_a_point_sampled_albedo_is_smoothed_by_a_gaussian_narrowing_with_its_samples():
     """area_averaged_albedo: a Gaussian of 0.9/sqrt(N) px, normalised (a flat albedo stays flat), symmetric
     about a step, and the identity for N = 0 (an aux-pass albedo) or N large enough to make it negligible."""
-    from wgpu_rt.frame.denoise import area_averaged_albedo
+    from wgpu_rt.frame.area_albedo import area_averaged_albedo
 
     step = np.zeros((9, 12, 3), np.float32)
     step[:, 6:] = 1.0
@@ -121,6 +121,7 @@ def test_the_albedo_is_smoothed_unless_the_aux_pass_averaged_it(gpu, tmp_path, m
     --albedo-samples, and leaves an albedo that our aux pass averaged (the file's wgpuRtAuxSamples) as it is.
     A file without an 'spp' layer, and no --spp, is taken as 1 sample a pixel, with a warning saying so."""
     import wgpu_rt.frame.denoise as frame_denoise
+    from wgpu_rt.frame.area_albedo import area_averaged_albedo
 
     seen = []   # the albedo each run hands the denoiser
     monkeypatch.setattr(frame_denoise, "denoise", lambda model, color, albedo, *rest, **options: seen.append(albedo)
@@ -135,7 +136,7 @@ def test_the_albedo_is_smoothed_unless_the_aux_pass_averaged_it(gpu, tmp_path, m
     assert run("theirs.exr") == 0 and run("theirs.exr", "--albedo-samples", "1") == 0
     assert run("theirs.exr", "--albedo-samples", "0") == 0 and run("ours.exr") == 0
     assert run("ours.exr", "--albedo-samples", "4") == 0
-    by_four, by_one = (frame_denoise.area_averaged_albedo(np.float32(layers["albedo"]), n) for n in (4, 1))
+    by_four, by_one = (area_averaged_albedo(np.float32(layers["albedo"]), n) for n in (4, 1))
     np.testing.assert_allclose(seen[0], by_four, rtol=1e-6)
     np.testing.assert_allclose(seen[1], by_one, rtol=1e-6)
     np.testing.assert_array_equal(seen[2], np.float32(layers["albedo"]))
@@ -412,7 +413,8 @@ def test_a_render_with_half_layers_hands_over_as_the_fused_frame_does(gpu, tmp_p
     that many spp does on the device. One half layer without the other is one line naming the file."""
     pytest.importorskip("wgpu_rt.nn")
     from wgpu_rt.frame.converge import converge
-    from wgpu_rt.frame.denoise import area_averaged_albedo, denoise, load_model
+    from wgpu_rt.frame.area_albedo import area_averaged_albedo
+    from wgpu_rt.frame.denoise import denoise, load_model
     from wgpu_rt.renderer import render
 
     torch.manual_seed(2)

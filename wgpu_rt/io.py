@@ -18,7 +18,8 @@ EXR channel names (what our renderer writes and our denoiser reads):
 Any other layer ``name`` with C channels is written as ``name.0`` … ``name.{C-1}``. Read back, a layer's
 channels keep their file order where their names are a known set (R/G/B/A, X/Y/Z/W, U/V/W; numbers in
 numeric order), and ``read_exr``'s result carries each layer's channel names (``ExrLayers.channels``), which
-``write_exr`` takes back, so a file another renderer wrote keeps its layers' names when rewritten.
+``write_exr`` takes back, so a file another renderer wrote keeps its layers' names when rewritten. A multi-part
+file (Blender 5 writes its multilayer EXR as one part per pass) is read whole, and written back as one part.
 
 Every file wgpu-rt writes goes through ``atomic_output`` (a temporary file renamed into place), so an
 interrupted run never leaves a half-written file, and every output path a user names is checked by

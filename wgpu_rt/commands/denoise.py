@@ -45,7 +45,8 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     import time
 
-    from ..frame.denoise import area_averaged_albedo, denoise, escaped_albedo, load_model
+    from ..frame.area_albedo import area_averaged_albedo
+    from ..frame.denoise import denoise, escaped_albedo, load_model
     from ..io import check_output_path, read_exr, write_exr
 
     check_output_path(args.out, "--out", (".exr",))

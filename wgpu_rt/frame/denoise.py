@@ -26,30 +26,10 @@ from .atrous import atrous_filter
 from .chroma import match_sample_chroma
 from .converge import HALF_SPP, converge
 from .denoise_chain import DenoiseChain
-from .kernel import gaussian_taps, separable_blur
 from .lowband import fewest_samples, low_band_denoise, low_band_levels
 from .pack import NO_BALANCE, DepthMaxPass, pack_denoiser_input, white_balance_gains
 from .planes import write_plane
 from .unpack import unpack_denoiser_output
-
-
-# An albedo that averages a pixel's own few point samples (another renderer's, or ours without the aux pass) has
-# the jagged edges of those samples, where the network was trained on the aux pass's estimate of the pixel's
-# area mean, and remodulating by it puts the jags into the result: 2–3 dB at 1 spp on Mitsuba 3's files.
-# ``area_averaged_albedo`` smooths it by a Gaussian of this many pixels over the square root of the samples
-# (picked on four scenes, checked on three more: BENCHMARKS.md §37).
-POINT_ALBEDO_SIGMA = 0.9
-NEGLIGIBLE_SIGMA = 0.1   # below this, a Gaussian of a pixel's neighbours is the pixel
-
-
-def area_averaged_albedo(albedo: np.ndarray, samples: float) -> np.ndarray:
-    """(H, W, C) albedo averaging ``samples`` point samples a pixel → an estimate of each pixel's area mean:
-    blurred by a Gaussian of POINT_ALBEDO_SIGMA / sqrt(samples) pixels (edges repeat the border); as given
-    for ``samples`` 0 (already area-averaged, as our aux pass's) or many."""
-    sigma = POINT_ALBEDO_SIGMA / np.sqrt(samples) if samples > 0 else 0.0
-    if sigma < NEGLIGIBLE_SIGMA:
-        return albedo
-    return separable_blur(albedo, gaussian_taps(sigma, int(np.ceil(3 * sigma)))).astype(np.float32)
 
 
 def escaped_albedo(albedo: np.ndarray, color: np.ndarray, depth: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ from ..passes import (ALBEDO, DEPTH, MOTION, NORMAL, NUMPY_DTYPE, RADIANCE, SPP,
                       prepare_network)
 from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
+from .area_albedo import AreaAlbedoPass
 from .converge import HALF_SPP, copy_half, half_count
 from .denoise_chain import DenoiseChain
 from .interleave import InterleavePass, interleaved, interleaves
@@ -179,7 +180,8 @@ class FramePipeline:
     where given, is told every few, see ProgressWaits); ``adaptive`` replaces them by a 1-spp probe plus
     targeted samples. With
     ``aux_samples``, the albedo plane is then re-estimated noise-free from that many delta-chain paths
-    per pixel (``TracePass.execute_aux``). ``low_band``: the denoiser's low band from passes at half
+    per pixel (``TracePass.execute_aux``); without it, the tracer's albedo of the frame's own point samples is
+    smoothed for the denoiser (frame/area_albedo.py), an albedo AOV staying the tracer's. ``low_band``: the denoiser's low band from passes at half
     (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE
     while some pixel holds fewer than LOW_BAND_MAX_SPP samples). ``chroma``: the denoised colour
     balance held to the samples' block means (frame/chroma.py). ``post_filter``: the denoised frame
@@ -218,6 +220,8 @@ class FramePipeline:
                                       converge=(spp > 1 or adaptive is not None) and temporal is None,
                                       white_balance=white_balance)
             color = self.chain.output
+        # Without the aux pass the tracer's albedo is a few point samples a pixel: smoothed for the denoiser.
+        self.area_albedo = AreaAlbedoPass(ctx, width, height) if denoiser is not None and not aux_samples else None
         half_aovs = {HALF_RADIANCE.name, HALF_SPP.name} & set(aovs)
         if half_aovs and temporal is not None:
             raise WgpuRtError(f"AOV {sorted(half_aovs)[0]!r} is the mean after the first half of one frame's samples; "
@@ -278,6 +282,8 @@ class FramePipeline:
             elif self.adaptive.sampler == "heat":
                 stages += [self.pack_error, Stage("error predictor", (ERROR_INPUT,), (HEAT,))]
             stages.append(self.extra_samples)
+        if self.area_albedo is not None:
+            stages.append(self.area_albedo)
         if self.chain is not None:
             stages += self.chain.stages()
         return stages + [stage for stage in (self.temporal, self.tonemap) if stage is not None]
@@ -416,9 +422,14 @@ class FramePipeline:
         if self.aux_samples:
             self._aux_albedo(encoder, trace, converging)
             self._mark(encoder, "aux")
+        elif self.area_albedo is not None:
+            self.area_albedo.execute(encoder, buffers)
+            self._mark(encoder, "area albedo")
         self.depth_max.execute(encoder, buffers)
         if self.chain is not None:
             self.chain.record(encoder, buffers, low_band=self._runs_low_band(), mark=self._mark)
+        if self.area_albedo is not None:
+            self.area_albedo.restore(encoder, buffers)
         if self.temporal is not None:
             self.temporal.execute(encoder, buffers, "converge" if converging else change)
             self._mark(encoder, "temporal")
