@@ -273,6 +273,48 @@ def oidn_denoise(color, albedo, normal, quality: str = "high", device: str = "cp
     return pyoidn.denoise(*images, hdr=True, quality=quality)
 
 
+def oidn_prefiltered(color, albedo, normal, quality: str = "high") -> np.ndarray:
+    """OIDN on the CPU as its documentation recommends for noisy aux images, and as Blender's "Accurate"
+    prefilter runs it: the albedo and the normal are denoised first (``oidn_clean_guides``), then the colour
+    with them as noise-free guides (``cleanAux``)."""
+    import pyoidn
+
+    guides = oidn_clean_guides(albedo, normal, quality)
+    return pyoidn.denoise(np.ascontiguousarray(color, np.float32), *guides, hdr=True, clean_aux=True,
+                          quality=quality)
+
+
+def oidn_clean_guides(albedo, normal, quality: str = "high") -> tuple[np.ndarray, np.ndarray]:
+    """The albedo and the normal each denoised by OIDN's RT filter given that image alone."""
+    import pyoidn
+
+    device = pyoidn.Device()
+    device.commit()
+
+    def run(name: str, image) -> np.ndarray:
+        image = np.ascontiguousarray(image, np.float32)
+        output = np.empty_like(image)
+        oidn_filter = pyoidn.Filter(device, pyoidn.OIDN_FILTER_TYPE_RT)
+        try:
+            oidn_filter.set_image(name, image, pyoidn.OIDN_FORMAT_FLOAT3)
+            oidn_filter.set_image("output", output, pyoidn.OIDN_FORMAT_FLOAT3)
+            oidn_filter.set_quality({"fast": pyoidn.OIDN_QUALITY_FAST, "balanced": pyoidn.OIDN_QUALITY_BALANCED,
+                                     "high": pyoidn.OIDN_QUALITY_HIGH}[quality])
+            oidn_filter.commit()
+            oidn_filter.execute()
+            error = device.get_error()
+            if error:
+                raise RuntimeError(f"OIDN failed on the {name}: {error}")
+        finally:
+            oidn_filter.release()
+        return output
+
+    try:
+        return run("albedo", albedo), run("normal", normal)
+    finally:
+        device.release()
+
+
 class OidnFilter:
     """OIDN's RT filter (HDR colour, albedo and normal guides) on ``device`` at ``quality``, set up and
     committed once for its images; calling it denoises them into ``output``. On CUDA the images are

@@ -183,3 +183,23 @@ def test_best_seconds_on_the_cpu_is_the_fastest_call(peers):
     durations = iter([0.2, 0.05, 0.12])
     wall, cpu = peers.best_seconds(lambda: time.sleep(next(durations)), repeats=3)
     assert 0.05 <= wall < 0.12 and cpu is not None and cpu < wall   # sleeping takes no CPU time
+
+
+def test_oidn_with_prefiltered_aux_denoises_the_guides_first(peers):
+    """The "Accurate" prefilter Blender runs by default: the noisy albedo and normal are denoised first (closer
+    to the truth than given), and the colour is denoised with them as clean guides."""
+    pyoidn = pytest.importorskip("pyoidn")
+    rng = np.random.default_rng(0)
+    ys, xs = np.mgrid[0:48, 0:64] / 64.0
+    albedo = np.stack([0.2 + 0.6 * (xs > 0.5), 0.5 + 0.3 * ys, np.full_like(xs, 0.4)], -1).astype(np.float32)
+    normal = np.dstack([np.zeros_like(xs), 0.6 * np.ones_like(xs), 0.8 * np.ones_like(xs)]).astype(np.float32)
+    color = (albedo * rng.exponential(1.0, (48, 64, 1))).astype(np.float32)
+    noisy_albedo = np.clip(albedo + rng.normal(0, 0.2, albedo.shape), 0, 1).astype(np.float32)
+    noisy_normal = (normal + rng.normal(0, 0.3, normal.shape)).astype(np.float32)
+    clean_albedo, clean_normal = peers.oidn_clean_guides(noisy_albedo, noisy_normal, "balanced")
+    assert np.abs(clean_albedo - albedo).mean() < 0.5 * np.abs(noisy_albedo - albedo).mean()
+    assert np.abs(clean_normal - normal).mean() < 0.5 * np.abs(noisy_normal - normal).mean()
+    prefiltered = peers.oidn_prefiltered(color, noisy_albedo, noisy_normal, "balanced")
+    np.testing.assert_array_equal(prefiltered, pyoidn.denoise(color, clean_albedo, clean_normal, hdr=True,
+                                                              clean_aux=True, quality="balanced"))
+    assert not np.allclose(prefiltered, peers.oidn_denoise(color, noisy_albedo, noisy_normal, "balanced"), atol=1e-3)
