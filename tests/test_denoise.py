@@ -245,6 +245,8 @@ def test_a_blender_file_is_denoised_without_flags(gpu, tmp_path, capfd):
 
 @pytest.mark.parametrize("write, flags, says", [
     (dict(view_layers=("Front", "Back")), [], "blender.exr: view layers Back, Front: --layer color=VL.Combined picks one"),
+    (dict(), ["--layer", "color=Side.Combined"], "blender.exr: no layer 'Side.Combined' (--layer color=Side.Combined); "
+                                                 "layers present: ViewLayer.Combined, "),
     (dict(denoising_data=False), [], "blender.exr: no layer 'ViewLayer.Denoising Albedo': Blender writes the "
                                      "Denoising Data passes when View Layer Properties ▸ Passes ▸ Data ▸ Denoising "
                                      "Data is on (--layer albedo=NAME reads it from another layer)"),

@@ -98,8 +98,9 @@ def blender_layer_names(file_layers: dict, named: dict, path) -> dict:
     if "color" in file_layers and "color" not in named:
         return named
     suffix = "." + BLENDER_PASSES["color"]
-    if "color" in named:
-        view_layers = [named["color"].removesuffix(suffix)] if named["color"].endswith(suffix) else []
+    if "color" in named:   # (a colour layer the file lacks is reported as such by network_inputs)
+        given = named["color"]
+        view_layers = [given.removesuffix(suffix)] if given.endswith(suffix) and given in file_layers else []
     else:
         view_layers = sorted(name.removesuffix(suffix) for name in file_layers if name.endswith(suffix))
     if len(view_layers) > 1:
