@@ -655,7 +655,7 @@ def test_geometry_ids_and_order():
                                   np.concatenate(list(world_triangles(scene).values()))[geometry.bvh.order])
     nodes, positions, attributes, motion = geometry.packed_arrays()
     assert nodes.itemsize == 32 and positions.nbytes == 48 * geometry.triangle_count
-    assert attributes.nbytes == 48 * geometry.triangle_count and motion.nbytes == 64 * len(scene.meshes)
+    assert attributes.nbytes == 64 * geometry.triangle_count and motion.nbytes == 64 * len(scene.meshes)
 
 
 def test_unknown_material_in_programmatic_scene():
@@ -718,3 +718,50 @@ def test_the_mesh_scene_fits_a_file_by_where_its_nodes_place_it(tmp_path):
     assert np.ptp(world[:, 0]) == pytest.approx(1.2, rel=1e-5)          # the fitted width
     assert world[:, 1].min() == pytest.approx(-1.0, abs=1e-5)          # on the floor
     assert np.abs(world[:, [0, 2]]).max() < 1.0                        # inside the walls
+
+
+def _colored_ply(path, kind: str):
+    """A PLY of a quad with an 8-bit sRGB colour per vertex (kind "vertex") or per face ("face")."""
+    import trimesh
+
+    vertices = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], np.float64)
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    if kind == "vertex":
+        mesh.visual.vertex_colors = np.array([[255, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [128, 128, 128, 255]],
+                                             np.uint8)
+    else:
+        mesh.visual.face_colors = np.array([[200, 100, 50, 255], [200, 100, 50, 255]], np.uint8)
+    mesh.export(path)
+
+
+@pytest.mark.parametrize("kind", ["vertex", "face"])
+def test_a_mesh_files_colours_are_read_as_linear_vertex_colours_unless_turned_off(tmp_path, kind):
+    from wgpu_rt.scene.model import linear_from_srgb8
+    from wgpu_rt.trace.features import SceneFeatures
+
+    _colored_ply(tmp_path / "quad.ply", kind)
+    data = {**MINIMAL, "meshes": [{"file": "quad.ply", "material": "white"}]}
+    scene = load_scene(write_json(tmp_path, data))
+    expected = ([[255, 0, 0], [0, 255, 0], [0, 0, 255], [128, 128, 128]] if kind == "vertex"
+                else [[200, 100, 50]] * 4)
+    np.testing.assert_allclose(scene.meshes[0].colors, linear_from_srgb8(np.array(expected)), rtol=1e-6)
+    assert SceneFeatures.of(scene).has_vertex_colors
+    off = load_scene(write_json(tmp_path, {**data, "meshes": [{**data["meshes"][0], "vertex_colors": False}]}))
+    assert off.meshes[0].colors is None and not SceneFeatures.of(off).has_vertex_colors
+    assert load_scene(write_json(tmp_path, MINIMAL)).meshes[0].colors is None   # a primitive has none
+
+
+def test_vertex_colors_flag_must_be_a_boolean(tmp_path):
+    _colored_ply(tmp_path / "quad.ply", "vertex")
+    data = {**MINIMAL, "meshes": [{"file": "quad.ply", "material": "white", "vertex_colors": "yes"}]}
+    with pytest.raises(SceneError, match=r"meshes\[0\]\.vertex_colors: expected true or false, got 'yes'"):
+        load_scene(write_json(tmp_path, data))
+
+
+def test_srgb8_codes_round_trip_and_follow_the_srgb_curve():
+    from wgpu_rt.scene.model import linear_from_srgb8, srgb8
+
+    codes = np.arange(256, dtype=np.uint8)
+    np.testing.assert_array_equal(srgb8(linear_from_srgb8(codes)), codes)
+    np.testing.assert_allclose(linear_from_srgb8(np.array([0, 128, 255])), [0.0, 0.2158605, 1.0], rtol=1e-5)

@@ -458,3 +458,27 @@ def test_denoising_renders_get_the_noise_free_albedo(gpu):
     assert np.abs(clean - plain).max() > 0.1
     with pytest.raises(WgpuRtError, match="aux_samples"):
         render("cornell", size=(8, 8), aux_samples=-1)
+
+
+@pytest.mark.parametrize("aux_samples", [0, 4])
+def test_vertex_colors_tint_the_albedo_the_denoiser_sees(gpu, aux_samples):
+    """A tile whose vertices carry one colour: the albedo there (the tracer's own and the aux pass's) is the
+    material's reflectance times that colour as the GPU stores it (8-bit sRGB); colours that differ per
+    vertex vary across it."""
+    from scene_scores import first_materials
+
+    from wgpu_rt.scene.model import vertex_colors_as_rendered
+
+    data = {**GLOW_SCENE, "materials": {"glow": {"kind": "diffuse", "reflectance": 0.8}}, "background": [0, 0, 0]}
+    scene = parse_scene(data, "tile", Path("."))
+    met = first_materials(gpu, scene, 32)
+    front = (met == "glow").all(axis=-1)
+    front[:, 16:] = False
+    for mesh in scene.meshes:
+        mesh.colors = np.tile(np.float32([0.9, 0.35, 0.05]), (len(mesh.vertices), 1))
+    albedo = _albedo(gpu, scene, 4, aux_samples)
+    expected = 0.8 * vertex_colors_as_rendered(scene.meshes[0])[0]
+    np.testing.assert_allclose(albedo[front], np.broadcast_to(expected, albedo[front].shape), rtol=1e-5)
+    scene.meshes[0].colors = np.float32([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]])[:len(scene.meshes[0].vertices)]
+    varied = _albedo(gpu, scene, 4, aux_samples)[front]
+    assert np.ptp(varied[:, 0]) > 0.3 and np.ptp(varied[:, 1]) > 0.3

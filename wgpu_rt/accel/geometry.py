@@ -8,10 +8,11 @@ See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/
    (``wgpu_rt.accel.bvh.wide_nodes``); two-level: see InstancedGeometry.
 1. ``tri_positions``: three vec4f per triangle (xyz = world vertex, w = 0; two-level: in the space of
    the triangle's bottom level).
-2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, unused}`` (48 bytes): the three
-   shading normals (the mesh's vertex normals, else its face normal; two-level: in the bottom level's
-   space, zero for meshes without vertex normals) and the ids (two-level: an instance's own override
-   them, except the world-space level's).
+2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, unused, c0, c1, c2, unused}`` (64 bytes):
+   the three shading normals (the mesh's vertex normals, else its face normal; two-level: in the bottom
+   level's space, zero for meshes without vertex normals), the ids (two-level: an instance's own override
+   them, except the world-space level's) and the three vertex colours as 8-bit sRGB in one word each
+   (R in the low byte; white where the mesh has none).
 3. ``object_motion``: one column-major mat4x4f per object (mesh index): world at this frame → world
    at the previous frame.
 4. two-level only: ``instances``, INSTANCE_DTYPE per instance (wgsl/accel/instances.wgsl).
@@ -46,7 +47,7 @@ from .bvh import (
     wide_nodes,
 )
 from ..errors import SceneError
-from ..scene.model import Scene
+from ..scene.model import Scene, srgb8
 from ..scene.transforms import transform_normals, transform_points
 
 
@@ -144,6 +145,18 @@ def _face_normals(triangles: np.ndarray) -> np.ndarray:
     return np.where(length > 0, normals / np.where(length > 0, length, 1.0), [0.0, 0.0, 1.0]).astype(np.float32)
 
 
+WHITE = 0x00FFFFFF   # a packed vertex colour of 1, 1, 1: the material's reflectance as it is
+
+
+def _mesh_colors(mesh) -> np.ndarray:
+    """(F, 3) u32: each face's vertex colours packed as 8-bit sRGB (R in the low byte), WHITE without any."""
+    faces = np.asarray(mesh.faces, np.int64)
+    if mesh.colors is None:
+        return np.full(faces.shape, WHITE, np.uint32)
+    codes = srgb8(mesh.colors).astype(np.uint32)
+    return (codes[:, 0] | codes[:, 1] << 8 | codes[:, 2] << 16)[faces]
+
+
 def _mesh_triangles(mesh, transform: np.ndarray, face_normals: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """``mesh``'s triangles (F, 3, 3) and per-vertex shading normals (F, 3, 3), both mapped by
     ``transform`` (object → the space they are stored in). A mesh without vertex normals gets its face
@@ -188,6 +201,7 @@ def _check_triangles(scene: Scene, triangles: list[np.ndarray]) -> np.ndarray:
 class GeometryBuffers:
     triangles: np.ndarray          # (T, 3, 3) f32 world-space vertices, BVH order
     shading_normals: np.ndarray    # (T, 3, 3) f32 unit world-space normals per vertex
+    vertex_colors: np.ndarray      # (T, 3) u32 packed 8-bit sRGB colour per vertex (_mesh_colors)
     material_ids: np.ndarray       # (T,) u32 index into scene_material_names(scene)
     object_ids: np.ndarray         # (T,) u32 index into scene.meshes
     object_motion: np.ndarray      # (O, 4, 4) f32 world at this frame → world at the previous frame
@@ -222,18 +236,20 @@ class GeometryBuffers:
         """``scene``'s triangles at ``frame`` and their BVH (built with small leaves or not), laid out
         threaded (``as_variant`` for others)."""
         material_ids = _material_ids(scene)
-        triangles, normals, materials, objects = [], [], [], []
+        triangles, normals, colors, materials, objects = [], [], [], [], []
         for object_id, mesh in enumerate(scene.meshes):
             world, shading = _mesh_triangles(mesh, mesh.transform_at(frame))
             triangles.append(world)
             normals.append(shading)
+            colors.append(_mesh_colors(mesh))
             materials.append(np.full(len(world), material_ids[object_id], np.uint32))
             objects.append(np.full(len(world), object_id, np.uint32))
         all_triangles = _check_triangles(scene, triangles)
         bvh = build_bvh(all_triangles, leaf_traversal_cost(small_leaves))
         order = bvh.order
-        return cls(all_triangles[order], np.concatenate(normals)[order], np.concatenate(materials)[order],
-                   np.concatenate(objects)[order], object_motion(scene, frame), bvh, small_leaves=small_leaves)
+        return cls(all_triangles[order], np.concatenate(normals)[order], np.concatenate(colors)[order],
+                   np.concatenate(materials)[order], np.concatenate(objects)[order], object_motion(scene, frame), bvh,
+                   small_leaves=small_leaves)
 
     def as_variant(self, variant: str) -> "GeometryBuffers":
         """This geometry laid out and fetched as ``variant`` (bvh_variants): the same BVH, or where the
@@ -253,7 +269,8 @@ class GeometryBuffers:
             order = bvh.order
             rebuilt[small_leaves] = dataclasses.replace(
                 self, triangles=self.triangles[order], shading_normals=self.shading_normals[order],
-                material_ids=self.material_ids[order], object_ids=self.object_ids[order], bvh=bvh,
+                vertex_colors=self.vertex_colors[order], material_ids=self.material_ids[order],
+                object_ids=self.object_ids[order], bvh=bvh,
                 small_leaves=small_leaves)
         return rebuilt[small_leaves]
 
@@ -274,8 +291,8 @@ class GeometryBuffers:
 
     def packed_arrays(self, orderings: int = ORDERINGS) -> list[np.ndarray]:
         """The four arrays of bind group 0, laid out byte for byte as wgsl/accel/bvh.wgsl reads them."""
-        positions, attributes = _pack_triangles(self.triangles, self.shading_normals, self.material_ids,
-                                                self.object_ids)
+        positions, attributes = _pack_triangles(self.triangles, self.shading_normals, self.vertex_colors,
+                                                self.material_ids, self.object_ids)
         return [self._nodes(orderings), positions, attributes, _column_major(self.object_motion)]
 
     @property
@@ -314,15 +331,16 @@ def _fits_uniform(node_bytes: int, triangle_count: int) -> bool:
     return max(node_bytes, triangle_count * POSITION_BYTES) <= UNIFORM_GEOMETRY_BYTES
 
 
-def _pack_triangles(triangles, shading_normals, material_ids, object_ids):
-    """Bindings 1 and 2: positions (T, 3, 4) f32 and attributes (T, 12) words (the last one unused)."""
+def _pack_triangles(triangles, shading_normals, vertex_colors, material_ids, object_ids):
+    """Bindings 1 and 2: positions (T, 3, 4) f32 and attributes (T, 16) words (words 11 and 15 unused)."""
     count = len(triangles)
     positions = np.zeros((count, 3, 4), np.float32)
     positions[..., :3] = triangles
-    attributes = np.zeros((count, 12), np.float32)
+    attributes = np.zeros((count, 16), np.float32)
     attributes[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]] = shading_normals.reshape(count, 9)
     attributes_u32 = attributes.view(np.uint32)
     attributes_u32[:, 3], attributes_u32[:, 7] = material_ids, object_ids
+    attributes_u32[:, 12:15] = vertex_colors
     return positions, attributes
 
 
@@ -408,7 +426,7 @@ class InstancedGeometry:
         self.instance_meshes = ([None] if in_world else []) + [mesh for group in placed for mesh in group]
         self.instance_levels = np.repeat(np.arange(len(self.levels)),
                                          ([1] if in_world else []) + [len(group) for group in placed])
-        stored, normals, materials, objects, self._bvhs = ([] for _ in range(5))
+        stored, normals, colors, materials, objects, self._bvhs = ([] for _ in range(6))
         for meshes, world_space in self.levels:
             level = [_mesh_triangles(scene.meshes[i], scene.meshes[i].transform_at(frame) if world_space
                                      else np.eye(4), face_normals=False) for i in meshes]
@@ -417,6 +435,7 @@ class InstancedGeometry:
             order = bvh.order
             stored.append(triangles[order])
             normals.append(np.concatenate([n for _, n in level])[order])
+            colors.append(np.concatenate([_mesh_colors(scene.meshes[i]) for i in meshes])[order])
             materials.append(np.repeat([material_ids[i] for i in meshes], [len(t) for t, _ in level])[order])
             objects.append(np.repeat(meshes, [len(t) for t, _ in level])[order])
             self._bvhs.append(bvh)
@@ -430,6 +449,7 @@ class InstancedGeometry:
                              f"layout")
         self.stored_triangles = np.concatenate(stored)       # (T, 3, 3) f32 in each level's space
         self.shading_normals = np.concatenate(normals)       # (T, 3, 3) f32 in each level's space
+        self.vertex_colors = np.concatenate(colors)          # (T, 3) u32 (_mesh_colors)
         self.stored_material_ids = np.concatenate(materials).astype(np.uint32)
         self.stored_object_ids = np.concatenate(objects).astype(np.uint32)
 
@@ -621,7 +641,7 @@ class InstancedGeometry:
     def packed_arrays(self, orderings: int = ORDERINGS) -> list[np.ndarray]:
         """The five arrays of bind group 0 at ``self.frame``."""
         top, motion, records = self.frame_arrays(self.frame, orderings)
-        positions, attributes = _pack_triangles(self.stored_triangles, self.shading_normals,
+        positions, attributes = _pack_triangles(self.stored_triangles, self.shading_normals, self.vertex_colors,
                                                 self.stored_material_ids, self.stored_object_ids)
         return [np.concatenate([top, self.bottom_nodes(orderings)]), positions, attributes, motion, records]
 

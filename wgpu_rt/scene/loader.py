@@ -321,8 +321,11 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         file = fields.string("file")
         path = Path(file) if Path(file).is_absolute() else folder / file
         base = name or path.stem
+        colors = fields.raw("vertex_colors", True)
+        if not isinstance(colors, bool):
+            fields.fail(f"expected true or false, got {_show(colors)}", "vertex_colors")
         try:
-            parts = load_mesh_file(path, material, base)
+            parts = load_mesh_file(path, material, base, vertex_colors=colors)
         except SceneError as err:
             fields.fail(str(err), "file")
     fields.done()

@@ -5,7 +5,8 @@ geometry becomes one ``Mesh`` whose ``transform`` is its node's world transform,
 A geometry placed at several nodes is read once: its placements are instances of one shape
 (``Mesh.instance``), sharing their arrays, as a scene file's ``instances`` would make them. Vertex
 normals are kept when the file has them (trimesh keeps loaded normals in its cache; without them we
-leave ``normals`` None and the tracer shades flat). Files are loaded with
+leave ``normals`` None and the tracer shades flat), and so are its vertex colours (or its texture,
+sampled at the vertices), which multiply the material's reflectance. Files are loaded with
 ``process=False`` so vertices are neither merged nor reordered. Every problem is a SceneError naming
 the file.
 """
@@ -40,8 +41,33 @@ def validate_mesh_arrays(vertices: np.ndarray, faces: np.ndarray, where: str) ->
                          f"out of range for {len(vertices)} vertices")
 
 
-def load_mesh_file(path: Path, material: str, name: str | None = None) -> list:
-    """The meshes of the file at ``path``, all with ``material``, named ``name`` (default: file stem)."""
+def file_vertex_colors(geometry: trimesh.Trimesh) -> np.ndarray | None:
+    """A geometry's colour per vertex as linear RGB: the file's vertex (or face) colours, or its texture image
+    sampled at each vertex's UV (trimesh's ``to_color``); None where the file gives neither (a material's
+    single colour is not read: the scene file's material says that)."""
+    from .model import linear_from_srgb8
+
+    visual = geometry.visual
+    if getattr(visual, "kind", None) == "texture":
+        material = getattr(visual, "material", None)
+        image = getattr(material, "image", None) or getattr(material, "baseColorTexture", None)
+        if image is None or getattr(visual, "uv", None) is None:
+            return None
+        try:
+            visual = visual.to_color()
+        except Exception:   # trimesh raises many types for an image or UVs it cannot sample
+            return None
+    if getattr(visual, "kind", None) not in ("vertex", "face"):
+        return None
+    rgba = np.asarray(visual.vertex_colors)
+    if rgba.shape != (len(geometry.vertices), 4):
+        return None
+    return linear_from_srgb8(rgba[:, :3])
+
+
+def load_mesh_file(path: Path, material: str, name: str | None = None, vertex_colors: bool = True) -> list:
+    """The meshes of the file at ``path``, all with ``material``, named ``name`` (default: file stem), with
+    the file's vertex colours (``file_vertex_colors``) unless ``vertex_colors`` is False."""
     from .model import Mesh
 
     path = Path(path)
@@ -78,7 +104,8 @@ def load_mesh_file(path: Path, material: str, name: str | None = None) -> list:
                 normals = None
         first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
                                               material, normals=normals,
-                                              transform=np.asarray(transform, np.float32))
+                                              transform=np.asarray(transform, np.float32),
+                                              colors=file_vertex_colors(geometry) if vertex_colors else None)
         meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")

@@ -23,7 +23,7 @@ import re
 
 import numpy as np
 
-from .model import DirectionalLight, Material, PointLight, Scene
+from .model import DirectionalLight, Material, PointLight, Scene, vertex_colors_as_rendered
 from .transforms import transform_normals, transform_points
 
 
@@ -31,13 +31,20 @@ def _rgb(value) -> dict:
     return {"type": "rgb", "value": [float(x) for x in np.asarray(value, np.float64)]}
 
 
-def material_to_bsdf(material: Material) -> dict:
-    """The Mitsuba BSDF dict for ``material``, as seen from its front face."""
+# The per-vertex reflectance of a mesh with vertex colours (the colours times its material's reflectance), as
+# the mesh attribute its BSDF reads.
+VERTEX_REFLECTANCE = {"type": "mesh_attribute", "name": "vertex_color"}
+
+
+def material_to_bsdf(material: Material, vertex_colored: bool = False) -> dict:
+    """The Mitsuba BSDF dict for ``material``, as seen from its front face; ``vertex_colored``: its
+    reflectance read from the mesh's "vertex_color" attribute (VERTEX_REFLECTANCE)."""
+    reflectance = VERTEX_REFLECTANCE if vertex_colored else _rgb(material.reflectance)
     if material.kind == "diffuse":
-        return {"type": "diffuse", "reflectance": _rgb(material.reflectance)}
+        return {"type": "diffuse", "reflectance": reflectance}
     if material.kind == "conductor":
         bsdf = {"type": "conductor", "eta": _rgb(material.eta), "k": _rgb(material.k),
-                "specular_reflectance": _rgb(material.reflectance)}
+                "specular_reflectance": reflectance}
         if material.roughness > 0:
             bsdf.update(type="roughconductor", distribution="ggx", alpha=float(material.roughness))
         return bsdf
@@ -47,13 +54,13 @@ def material_to_bsdf(material: Material) -> dict:
     return bsdf
 
 
-def surface_bsdf(material: Material) -> dict:
+def surface_bsdf(material: Material, vertex_colored: bool = False) -> dict:
     """``material_to_bsdf`` made two-sided where our tracer is (every kind but dielectric)."""
-    bsdf = material_to_bsdf(material)
+    bsdf = material_to_bsdf(material, vertex_colored)
     return bsdf if material.kind == "dielectric" else {"type": "twosided", "bsdf": bsdf}
 
 
-def _mitsuba_mesh(mi, name: str, vertices, faces, normals, bsdf: dict, emission):
+def _mitsuba_mesh(mi, name: str, vertices, faces, normals, bsdf: dict, emission, vertex_reflectance=None):
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf)
     if emission is not None:
@@ -65,6 +72,8 @@ def _mitsuba_mesh(mi, name: str, vertices, faces, normals, bsdf: dict, emission)
     if normals is not None:
         params["vertex_normals"] = np.ascontiguousarray(normals, np.float32).ravel()
     params.update()
+    if vertex_reflectance is not None:
+        mesh.add_attribute("vertex_color", 3, np.ascontiguousarray(vertex_reflectance, np.float32).ravel())
     return mesh
 
 
@@ -120,9 +129,11 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         transform = mesh.transform_at(frame)
         normals = None if mesh.normals is None else transform_normals(transform, mesh.normals)
         key = f"mesh{index:04d}-" + re.sub(r"[^A-Za-z0-9_-]", "_", mesh.name)
+        colors = vertex_colors_as_rendered(mesh)
         result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
-                                    surface_bsdf(material),
-                                    material.emission if material.is_emissive else None)
+                                    surface_bsdf(material, colors is not None),
+                                    material.emission if material.is_emissive else None,
+                                    None if colors is None else colors * material.reflectance)
     for index, light in enumerate(scene.lights):
         if isinstance(light, PointLight):
             result[f"light{index:03d}"] = {"type": "point", "position": [float(x) for x in light.position],

@@ -133,6 +133,10 @@ class Mesh:
     normals: np.ndarray | None = None  # (V, 3) per-vertex shading normals, or None for flat shading
     transform: np.ndarray = field(default_factory=lambda: np.eye(4, dtype=np.float32))
     keyframes: dict[int, np.ndarray] = field(default_factory=dict)
+    # (V, 3) linear RGB in [0, 1] per vertex, interpolated across each triangle, multiplying the material's
+    # reflectance (a mesh file's vertex colours, or a texture sampled at its vertices); stored on the GPU as
+    # 8-bit sRGB (``srgb8``), so every renderer of the scene reads ``vertex_colors_as_rendered``.
+    colors: np.ndarray | None = None
 
     def transform_at(self, frame: int) -> np.ndarray:
         return _interpolate(self.keyframes, frame, self.transform)
@@ -144,18 +148,36 @@ class Mesh:
     @property
     def shape_key(self) -> tuple[int, int, int]:
         """Equal for meshes that share their arrays (instances of one shape), else different."""
-        return id(self.vertices), id(self.faces), id(self.normals)
+        return id(self.vertices), id(self.faces), id(self.normals), id(self.colors)
 
     def instance(self, name: str, material: str | None = None, transform=None, keyframes=None) -> Mesh:
         """Another placement of this mesh's shape (its arrays shared, not copied, and made read-only so
         that an edit cannot move every instance at once), with its own name, material (default: this
         mesh's), transform (default: identity) and keyframes (default: none)."""
-        for array in (self.vertices, self.faces, self.normals):
+        for array in (self.vertices, self.faces, self.normals, self.colors):
             if array is not None:
                 array.flags.writeable = False
         placement = np.eye(4) if transform is None else transform
         return Mesh(name, self.vertices, self.faces, self.material if material is None else material,
-                    self.normals, np.asarray(placement, np.float32), dict(keyframes or {}))
+                    self.normals, np.asarray(placement, np.float32), dict(keyframes or {}), self.colors)
+
+
+def srgb8(colors: np.ndarray) -> np.ndarray:
+    """(..., 3) linear RGB in [0, 1] → the (..., 3) uint8 sRGB codes the GPU stores (the nearest)."""
+    linear = np.clip(np.asarray(colors, np.float64), 0.0, 1.0)
+    encoded = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055)
+    return np.round(encoded * 255.0).astype(np.uint8)
+
+
+def linear_from_srgb8(codes: np.ndarray) -> np.ndarray:
+    """uint8 sRGB codes → linear RGB (float32), as wgsl/accel/bvh.wgsl's tri_color decodes them."""
+    encoded = np.asarray(codes, np.float64) / 255.0
+    return np.where(encoded <= 0.04045, encoded / 12.92, ((encoded + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def vertex_colors_as_rendered(mesh: "Mesh") -> np.ndarray | None:
+    """``mesh.colors`` as the tracer reads them (through 8-bit sRGB), or None."""
+    return None if mesh.colors is None else linear_from_srgb8(srgb8(mesh.colors))
 
 
 @dataclass

@@ -141,6 +141,18 @@ fn tri_shading_normal_or(prim: u32, u: f32, v: f32, geometric_normal: vec3f) -> 
     return select(geometric_normal, n * inverseSqrt(len2), len2 > 1e-12);
 }
 
+// The vertex colour at (u, v) of a triangle: its three 8-bit sRGB codes decoded to linear (as
+// wgpu_rt.scene.model.linear_from_srgb8) and interpolated.
+fn tri_color(prim: u32, u: f32, v: f32) -> vec3f {
+    let a = tri_attributes[placed_triangle(prim).stored];
+    return (1.0 - u - v) * srgb8_to_linear(a.c0) + u * srgb8_to_linear(a.c1) + v * srgb8_to_linear(a.c2);
+}
+
+fn srgb8_to_linear(word: u32) -> vec3f {
+    let encoded = unpack4x8unorm(word).xyz;
+    return select(pow((encoded + 0.055) / 1.055, vec3f(2.4)), encoded / 12.92, encoded <= vec3f(0.04045));
+}
+
 // The material and object of a triangle: its instance's, else (single level, world-space level) its own.
 fn tri_material(prim: u32) -> u32 {
     let placed = placed_triangle(prim);

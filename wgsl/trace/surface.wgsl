@@ -7,6 +7,15 @@
 // #import accel/bvh.wgsl
 // #import trace/material.wgsl
 
+// A hit's material (its triangle's) with the reflectance tinted by the mesh's vertex colours there.
+fn vertex_colored(material: Material, hit: Hit) -> Material {
+    var tinted = material;
+    if HAS_VERTEX_COLORS {
+        tinted.reflectance *= tri_color(hit.prim, hit.u, hit.v);
+    }
+    return tinted;
+}
+
 fn shading_normal_at(hit: Hit, geometric_normal: vec3f, material: Material, cos_front: f32) -> vec3f {
     var shading_normal = geometric_normal;
     if HAS_VERTEX_NORMALS {
