@@ -10,6 +10,8 @@
 - ``mesh``: any mesh file (``mesh=PATH``), centred, scaled to fit and set on the floor of a lit room.
 - ``moving``: the Cornell box over 16 frames: the camera orbits slightly and the short box slides and
   turns, for temporal filtering and motion vectors.
+- ``painted``: the Cornell box with textures as vertex colours (none in any training world): a checkered
+  floor, a blotched back wall, a striped and a marbled sphere in place of the boxes.
 """
 
 from __future__ import annotations
@@ -151,8 +153,60 @@ def moving() -> Scene:
     return scene
 
 
+def _grid(cells: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rectangle primitive ([-1, 1]² at z = 0, facing +z) as cells × cells quads."""
+    u, v = np.meshgrid(np.linspace(-1, 1, cells + 1), np.linspace(-1, 1, cells + 1))
+    vertices = np.stack([u.ravel(), v.ravel(), np.zeros(u.size)], -1).astype(np.float32)
+    index = np.arange((cells + 1) ** 2).reshape(cells + 1, cells + 1)
+    a, b, c, d = index[:-1, :-1].ravel(), index[:-1, 1:].ravel(), index[1:, 1:].ravel(), index[1:, :-1].ravel()
+    return vertices, np.concatenate([np.stack([a, b, c], -1), np.stack([a, c, d], -1)]).astype(np.uint32)
+
+
+def _waves(points: np.ndarray, frequency: float) -> np.ndarray:
+    """A smooth pattern in about [-1.3, 1.3]: four octaves of products of sines of the coordinates."""
+    total = np.zeros(len(points))
+    for octave, (scale_, phase) in enumerate([(1.0, 0.3), (2.1, 1.7), (4.3, 2.9), (8.7, 0.8)]):
+        f = frequency * scale_
+        total += (np.sin(f * points[:, 0] + phase) * np.sin(1.3 * f * points[:, 1] + 2 * phase)
+                  * np.sin(0.7 * f * points[:, 2] + phase)) / (octave + 1)
+    return total
+
+
+def _mix(t: np.ndarray, one, other) -> np.ndarray:
+    t = np.clip(t, 0.0, 1.0)[:, None]
+    return (t * np.asarray(one) + (1 - t) * np.asarray(other)).astype(np.float32)
+
+
+def painted() -> Scene:
+    import trimesh
+
+    materials, meshes = _cornell_room()
+    materials["white-base"] = Material("diffuse", reflectance=(1.0, 1.0, 1.0))
+    for mesh in meshes:
+        if mesh.name in ("floor", "back"):
+            mesh.vertices, mesh.faces = _grid(192 if mesh.name == "floor" else 160)
+            mesh.material = "white-base"
+            if mesh.name == "floor":
+                cell = (np.floor(mesh.vertices[:, 0] * 6) + np.floor(mesh.vertices[:, 1] * 6)) % 2
+                mesh.colors = _mix(cell, (0.85, 0.8, 0.7), (0.12, 0.16, 0.3))
+            else:
+                mesh.colors = _mix(0.5 + 0.6 * _waves(mesh.vertices * 2.5, 3.0), (0.8, 0.65, 0.35), (0.18, 0.4, 0.22))
+    sphere = trimesh.creation.icosphere(subdivisions=5)
+    vertices, faces = np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32)
+    normals = np.asarray(sphere.vertex_normals, np.float32)
+    stripes = (np.floor((vertices[:, 1] + 0.5 * vertices[:, 0]) * 5) % 2)
+    marble = 0.5 + 0.5 * np.sin(4.5 * vertices[:, 0] + 4 * _waves(vertices, 2.0))
+    meshes += [Mesh("striped-sphere", vertices, faces, "white-base", normals,
+                    compose(translate([0.4, -0.65, 0.3]), scale(0.35)), colors=_mix(stripes, (0.75, 0.08, 0.08),
+                                                                                    (0.85, 0.85, 0.8))),
+               Mesh("marbled-sphere", vertices, faces, "white-base", normals,
+                    compose(translate([-0.4, -0.55, -0.3]), scale(0.45)), colors=_mix(marble, (0.8, 0.8, 0.85),
+                                                                                     (0.08, 0.08, 0.12)))]
+    return Scene(_cornell_camera(), meshes, materials, name="painted")
+
+
 BUILTIN_SCENES = {"cornell": cornell, "cornell-glossy": cornell_glossy, "sun-room": sun_room,
-                  "mesh": mesh_room, "moving": moving}
+                  "mesh": mesh_room, "moving": moving, "painted": painted}
 
 
 def builtin_scene(name: str, mesh=None) -> Scene:
