@@ -32,6 +32,8 @@ def _arrays(scene):
         out[f"{mesh.name}.transform"] = mesh.transform
         if mesh.normals is not None:
             out[f"{mesh.name}.normals"] = mesh.normals
+        if mesh.colors is not None:
+            out[f"{mesh.name}.colors"] = mesh.colors
         for f, matrix in mesh.keyframes.items():
             out[f"{mesh.name}@{f}"] = matrix
     for name, m in scene.materials.items():
@@ -179,6 +181,50 @@ def test_lamps_in_view_leave_every_other_choice_and_the_held_out_family_alone(mo
         assert lit.name == plain.name and without.keys() == expected.keys()
         for key in expected:
             np.testing.assert_array_equal(without[key], expected[key], err_msg=f"{seed}: {key}")
+
+
+def test_painting_leaves_every_other_choice_and_the_held_out_family_alone(monkeypatch):
+    """Painted surfaces draw from a random stream of their own: a painted training world is the world without
+    paint, its painted meshes subdivided (the same bounds) and given vertex colours in [0, 1] (never glass or
+    an emitter); a held-out world is never painted (its gold images stay valid)."""
+    from wgpu_rt.dataset import worlds as worlds_module
+
+    painted_meshes = 0
+    for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
+        monkeypatch.setattr(worlds_module, "PAINTED_SHARE", 1.0)
+        painted = generate_world(seed)
+        monkeypatch.setattr(worlds_module, "PAINTED_SHARE", 0.0)
+        plain = generate_world(seed)
+        colored = [mesh for mesh in painted.meshes if mesh.colors is not None]
+        assert not colored or family_of(seed) == "training"
+        painted_meshes += len(colored)
+        for mesh in colored:
+            material = painted.materials[mesh.material]
+            assert material.kind != "dielectric" and not material.is_emissive, (seed, mesh.name)
+            assert mesh.colors.shape == mesh.vertices.shape and 0 <= mesh.colors.min() and mesh.colors.max() <= 1
+            before = next(m for m in plain.meshes if m.name == mesh.name)
+            np.testing.assert_allclose([mesh.vertices.min(0), mesh.vertices.max(0)],
+                                       [before.vertices.min(0), before.vertices.max(0)], atol=1e-6)
+            assert len(mesh.faces) >= len(before.faces)
+        names = {mesh.name for mesh in colored}
+        kept = {key: value for key, value in _arrays(painted).items()
+                if not any(key in (f"{name}.vertices", f"{name}.faces", f"{name}.normals", f"{name}.colors")
+                           for name in names)}
+        expected = {key: value for key, value in _arrays(plain).items()
+                    if not any(key in (f"{name}.vertices", f"{name}.faces", f"{name}.normals") for name in names)}
+        assert painted.name == plain.name and kept.keys() == expected.keys()
+        for key in expected:
+            np.testing.assert_array_equal(kept[key], expected[key], err_msg=f"{seed}: {key}")
+    assert painted_meshes >= 12
+
+
+def test_about_half_the_training_worlds_are_painted(worlds):
+    from wgpu_rt.dataset.worlds import PAINTED_SHARE
+
+    painted = [w for w in worlds if any(mesh.colors is not None for mesh in w.meshes)]
+    assert abs(len(painted) / len(worlds) - PAINTED_SHARE) < 0.1
+    varied = [np.ptp(mesh.colors, axis=0).max() > 0.05 for w in painted for mesh in w.meshes if mesh.colors is not None]
+    assert np.mean(varied) > 0.9   # (two colours drawn alike, or a pattern whose cells fall between vertices, vary less)
 
 
 def test_the_families_share_no_seed_and_no_geometry(tmp_path):

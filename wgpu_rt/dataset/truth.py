@@ -230,7 +230,7 @@ def check_config(out: Path, config: DatasetConfig) -> None:
         except json.JSONDecodeError as err:
             raise DatasetError(f"{path}: not valid JSON ({err})") from None
         # for keys older datasets lack (before guide_albedo existed, escaping paths had albedo 0: version 1;
-        # before worlds_version, no training world held lamps in view: version 1)
+        # before worlds_version, no training world held lamps in view: version 1; 3 paints training worlds)
         defaults = {**{f.name: f.default for f in fields(DatasetConfig)}, "guide_albedo": 1, "worlds_version": 1}
         # the generator's version changes only training worlds (the held-out family stays as it was)
         unaffected = () if config.worlds and config.family == "training" else ("worlds_version",)

@@ -17,7 +17,11 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
 - in the training family only, sometimes small lamps in view (``LAMPS_IN_VIEW_SHARE``): emitters a few
   pixels to a few dozen across, seen directly, as ceiling lamps along a corridor are (BENCHMARKS.md §30);
   they come from a random stream of their own, so they leave every other choice, and the held-out
-  family, as it was (``WORLDS_VERSION`` 2).
+  family, as it was (``WORLDS_VERSION`` 2);
+- in the training family only, sometimes painted surfaces (``PAINTED_SHARE``): set surfaces and objects
+  given textures as vertex colours (checkers, stripes, blotches, fine mottling, ``paint_surfaces``) that
+  tint their materials, so the denoiser sees albedos that vary across a surface, as every textured scene a
+  user brings has; also from a stream of their own (``WORLDS_VERSION`` 3).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -69,9 +73,12 @@ METALS = {
 UP = np.array([0.0, 1.0, 0.0])
 CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, metres
 # What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
-# worlds may hold lamps in view.
-WORLDS_VERSION = 2
+# worlds may hold lamps in view; 3: painted surfaces.
+WORLDS_VERSION = 3
 LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
+PAINTED_SHARE = 0.5         # of the training worlds
+PATTERNS = ("checker", "stripes", "blotches", "mottle")
+PAINT_EDGE = 0.02           # surfaces are subdivided until their edges are at most this share of the set's size
 
 
 def family_of(seed: int) -> str:
@@ -108,6 +115,8 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
     world.light(lighting)
     if family == "training" and lighting != "indirect":
         world.add_lamps_in_view(np.random.default_rng(np.random.SeedSequence([int(seed), 0x1A4B])))
+    if family == "training":
+        world.paint_surfaces(np.random.default_rng(np.random.SeedSequence([int(seed), 0x9A17])))
     if frames > 1:
         world.animate(frames)
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
@@ -362,6 +371,23 @@ class _World:
             shape = str(rng.choice(["cube", "sphere"]))
             self.add(f"lamp_in_view_{i}", primitive(shape), material, compose(translate(centre), scale(size / 2)))
 
+    def paint_surfaces(self, rng: np.random.Generator) -> None:
+        """With probability PAINTED_SHARE, each set surface and object that is neither glass nor an emitter
+        is painted with probability one half: subdivided until its edges are at most PAINT_EDGE of the set's
+        size, then given a colour per vertex from one of PATTERNS in its own coordinates (``painted_colors``),
+        which tints its material."""
+        if rng.uniform() >= PAINTED_SHARE:
+            return
+        extent = float(max(self.half[0], self.half[2], self.height / 2))
+        for mesh in self.meshes:
+            material = self.materials[mesh.material]
+            if material.kind == "dielectric" or material.is_emissive or rng.uniform() >= 0.5:
+                continue
+            world_scale = float(np.cbrt(abs(np.linalg.det(mesh.transform[:3, :3].astype(np.float64)))))
+            mesh.vertices, mesh.faces, mesh.normals = _subdivided(mesh.vertices, mesh.faces, mesh.normals,
+                                                                  PAINT_EDGE * extent / max(world_scale, 1e-6))
+            mesh.colors = painted_colors(rng, mesh.vertices * world_scale)
+
     def _point(self, position, dim: float = 1.0) -> None:
         target, _ = self.cluster()
         distance2 = max(float(np.sum((np.asarray(position, np.float64) - target) ** 2)), 0.25)
@@ -413,6 +439,49 @@ class _World:
     def scene(self, name: str, frames: int) -> Scene:
         return Scene(self.keyframes.get(0, self.camera), self.meshes, self.materials, self.lights,
                      np.asarray(self.background, np.float32), self.keyframes, max(frames, 1), name)
+
+
+def _subdivided(vertices, faces, normals, longest: float, most: int = 60_000):
+    """A mesh split into four triangles a triangle until no edge is longer than ``longest`` (or the next
+    split would pass ``most`` triangles), vertex normals interpolated (renormalised)."""
+    import trimesh
+
+    vertices, faces = np.asarray(vertices, np.float64), np.asarray(faces, np.int64)
+    normals = None if normals is None else np.asarray(normals, np.float64)
+    while 4 * len(faces) <= most:
+        edges = vertices[faces[:, [1, 2, 0]]] - vertices[faces]
+        if np.sqrt((edges ** 2).sum(-1)).max() <= longest:
+            break
+        attributes = {} if normals is None else {"normals": normals}
+        vertices, faces, attributes = trimesh.remesh.subdivide(vertices, faces, vertex_attributes=attributes)
+        if normals is not None:
+            normals = attributes["normals"] / np.linalg.norm(attributes["normals"], axis=1, keepdims=True)
+    return (vertices.astype(np.float32), faces.astype(np.uint32),
+            None if normals is None else normals.astype(np.float32))
+
+
+def painted_colors(rng: np.random.Generator, points: np.ndarray) -> np.ndarray:
+    """(V, 3) vertex colours in [0, 1] at ``points``: a pattern of PATTERNS in a random orientation whose
+    cells are 2–25 % of the points' extent, mixing white (the material as it is) or a random colour with
+    another, dark to bright."""
+    kind = PATTERNS[int(rng.integers(len(PATTERNS)))]
+    axes = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    extent = max(float(np.ptp(points, axis=0).max()), 1e-6)
+    p = np.asarray(points, np.float64) @ axes / (extent * float(np.exp(rng.uniform(np.log(0.02), np.log(0.25)))))
+    if kind == "checker":
+        t = (np.floor(p[:, 0]) + np.floor(p[:, 1]) + np.floor(p[:, 2])) % 2
+    elif kind == "stripes":
+        t = (np.floor(p[:, 0] + 0.3 * np.sin(p[:, 1])) % 2)
+    else:
+        octaves = 4 if kind == "blotches" else 2
+        t = sum(np.sin(2.0 ** k * p[:, 0] + rng.uniform(0, 6.3)) * np.sin(2.0 ** k * 1.3 * p[:, 1] + rng.uniform(0, 6.3))
+                * np.sin(2.0 ** k * 0.7 * p[:, 2] + rng.uniform(0, 6.3)) / (k + 1) for k in range(octaves))
+        t = 0.5 + (0.8 if kind == "blotches" else 2.5) * t
+    colours = [np.array(colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0, 0.9), rng.uniform(0.05, 1.0)))
+               for _ in range(2)]
+    first = np.ones(3) if rng.uniform() < 0.5 else colours[1]
+    t = np.clip(t, 0.0, 1.0)[:, None]
+    return (t * first + (1 - t) * colours[0]).astype(np.float32)
 
 
 # -- materials ----------------------------------------------------------------------------------------
