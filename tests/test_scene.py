@@ -765,3 +765,10 @@ def test_srgb8_codes_round_trip_and_follow_the_srgb_curve():
     codes = np.arange(256, dtype=np.uint8)
     np.testing.assert_array_equal(srgb8(linear_from_srgb8(codes)), codes)
     np.testing.assert_allclose(linear_from_srgb8(np.array([0, 128, 255])), [0.0, 0.2158605, 1.0], rtol=1e-5)
+
+
+def test_vertex_colors_of_the_wrong_shape_are_refused_by_mesh_name():
+    scene = load_scene("cornell")
+    scene.meshes[1].colors = np.ones((3, 3), np.float32)
+    with pytest.raises(SceneError, match="mesh 'floor': colors must be finite, one RGB a vertex"):
+        GeometryBuffers.build(scene)

@@ -153,7 +153,11 @@ def _mesh_colors(mesh) -> np.ndarray:
     faces = np.asarray(mesh.faces, np.int64)
     if mesh.colors is None:
         return np.full(faces.shape, WHITE, np.uint32)
-    codes = srgb8(mesh.colors).astype(np.uint32)
+    colors = np.asarray(mesh.colors)
+    if colors.shape != np.shape(mesh.vertices) or not np.all(np.isfinite(colors)):
+        raise SceneError(f"mesh {mesh.name!r}: colors must be finite, one RGB a vertex ({np.shape(mesh.vertices)}), "
+                         f"got shape {colors.shape}")
+    codes = srgb8(colors).astype(np.uint32)
     return (codes[:, 0] | codes[:, 1] << 8 | codes[:, 2] << 16)[faces]
 
 
