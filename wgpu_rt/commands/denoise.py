@@ -37,9 +37,10 @@ def add_arguments(parser) -> None:
                              "pixel, which another renderer's albedo holds")
     parser.add_argument("--spp", type=int, metavar="N",
                         help="samples per pixel of the colour (default: the input's 'spp' layer, which "
-                             "`wgpu-rt render` writes, else the samples in a Blender file's header, else 1). With 'half_radiance' and 'half_spp' layers too "
-                             "(the mean after the first half of the samples), each pixel hands over to the "
-                             "colour where that has converged, as `wgpu-rt render --denoise` does")
+                             "`wgpu-rt render` writes, else the samples in a Blender file's header, else 1). "
+                             "With 'half_radiance' and 'half_spp' layers too (the mean after the first half of "
+                             "the samples), each pixel hands over to the colour where that has converged, as "
+                             "`wgpu-rt render --denoise` does")
 
 
 def run(args) -> int:
