@@ -60,7 +60,10 @@
 # Sessions 33–36 had no GPU. Since session 36 the shipped denoiser is that blend fine-tuned three times on two
 # CPU cores on lamps-in-view worlds (75, then all 150; the last with --log-mse 0.05) and 24 built-in views at
 # 128² (§33–§35: +0.26 / +0.47 dB at 1 / 4 spp on the held-out family against 4096-spp gold); call 1's
-# fine-tune starts from it (TRAIN_INIT's default).
+# fine-tune starts from it (TRAIN_INIT's default). Sessions 37–39 had no GPU. Since session 39 half the training
+# worlds are painted with textures as vertex colours (worlds_version 3, §38): call 1's renders are the first at
+# scale with textures (18 painted worlds on two CPU cores left the textured `painted` scene level at 4 spp), so
+# train_eval should also score `painted` (bench_spp.py --scenes painted) beside the held-out family.
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
