@@ -655,7 +655,7 @@ def test_geometry_ids_and_order():
                                   np.concatenate(list(world_triangles(scene).values()))[geometry.bvh.order])
     nodes, positions, attributes, motion = geometry.packed_arrays()
     assert nodes.itemsize == 32 and positions.nbytes == 48 * geometry.triangle_count
-    assert attributes.nbytes == 64 * geometry.triangle_count and motion.nbytes == 64 * len(scene.meshes)
+    assert attributes.nbytes == 48 * geometry.triangle_count and motion.nbytes == 64 * len(scene.meshes)
 
 
 def test_unknown_material_in_programmatic_scene():

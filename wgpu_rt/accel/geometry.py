@@ -6,13 +6,13 @@ See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/
 0. ``bvh_nodes``: the BVH's 32-byte threaded nodes, one depth-first copy per direction octant
    (``wgpu_rt.accel.bvh.ordered_threaded_nodes``), or with layout "wide" its 112-byte 4-wide nodes
    (``wgpu_rt.accel.bvh.wide_nodes``); two-level: see InstancedGeometry.
-1. ``tri_positions``: three vec4f per triangle (xyz = world vertex, w = 0; two-level: in the space of
-   the triangle's bottom level).
-2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, unused, c0, c1, c2, unused}`` (64 bytes):
-   the three shading normals (the mesh's vertex normals, else its face normal; two-level: in the bottom
-   level's space, zero for meshes without vertex normals), the ids (two-level: an instance's own override
-   them, except the world-space level's) and the three vertex colours as 8-bit sRGB in one word each
-   (R in the low byte; white where the mesh has none).
+1. ``tri_positions``: three vec4f per triangle (xyz = world vertex, two-level: in the space of the
+   triangle's bottom level; w = the vertex's colour as 8-bit sRGB, R in the low byte, its bits stored as
+   the float's: white where the mesh has none; the w words were spare, so colours cost no memory).
+2. ``tri_attributes``: per triangle ``{n0, material, n1, object, n2, unused}`` (48 bytes): the three
+   shading normals (the mesh's vertex normals, else its face normal; two-level: in the bottom level's
+   space, zero for meshes without vertex normals) and the ids (two-level: an instance's own override
+   them, except the world-space level's).
 3. ``object_motion``: one column-major mat4x4f per object (mesh index): world at this frame → world
    at the previous frame.
 4. two-level only: ``instances``, INSTANCE_DTYPE per instance (wgsl/accel/instances.wgsl).
@@ -336,15 +336,16 @@ def _fits_uniform(node_bytes: int, triangle_count: int) -> bool:
 
 
 def _pack_triangles(triangles, shading_normals, vertex_colors, material_ids, object_ids):
-    """Bindings 1 and 2: positions (T, 3, 4) f32 and attributes (T, 16) words (words 11 and 15 unused)."""
+    """Bindings 1 and 2: positions (T, 3, 4) f32, each vertex's packed colour in its w word's bits, and
+    attributes (T, 12) words (the last one unused)."""
     count = len(triangles)
     positions = np.zeros((count, 3, 4), np.float32)
     positions[..., :3] = triangles
-    attributes = np.zeros((count, 16), np.float32)
+    positions.view(np.uint32)[..., 3] = vertex_colors
+    attributes = np.zeros((count, 12), np.float32)
     attributes[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]] = shading_normals.reshape(count, 9)
     attributes_u32 = attributes.view(np.uint32)
     attributes_u32[:, 3], attributes_u32[:, 7] = material_ids, object_ids
-    attributes_u32[:, 12:15] = vertex_colors
     return positions, attributes
 
 

@@ -141,11 +141,13 @@ fn tri_shading_normal_or(prim: u32, u: f32, v: f32, geometric_normal: vec3f) -> 
     return select(geometric_normal, n * inverseSqrt(len2), len2 > 1e-12);
 }
 
-// The vertex colour at (u, v) of a triangle: its three 8-bit sRGB codes decoded to linear (as
-// wgpu_rt.scene.model.linear_from_srgb8) and interpolated.
+// The vertex colour at (u, v) of a triangle: its three 8-bit sRGB codes (the bits of its positions' w words)
+// decoded to linear (as wgpu_rt.scene.model.linear_from_srgb8) and interpolated.
 fn tri_color(prim: u32, u: f32, v: f32) -> vec3f {
-    let a = tri_attributes[placed_triangle(prim).stored];
-    return (1.0 - u - v) * srgb8_to_linear(a.c0) + u * srgb8_to_linear(a.c1) + v * srgb8_to_linear(a.c2);
+    let at = TRIANGLE_WORDS * placed_triangle(prim).stored + 3u;
+    return (1.0 - u - v) * srgb8_to_linear(bitcast<u32>(position_word(at)))
+        + u * srgb8_to_linear(bitcast<u32>(position_word(at + 4u)))
+        + v * srgb8_to_linear(bitcast<u32>(position_word(at + 8u)));
 }
 
 fn srgb8_to_linear(word: u32) -> vec3f {

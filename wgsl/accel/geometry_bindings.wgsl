@@ -7,7 +7,7 @@
 // #import accel/geometry_words.wgsl
 
 const NODE_WORDS: u32 = 8u;        // wgpu_rt.bvh.THREADED_NODE_DTYPE
-const TRIANGLE_WORDS: u32 = 12u;   // three (x, y, z, unused) vertices
+const TRIANGLE_WORDS: u32 = 12u;   // three (x, y, z, colour) vertices: the colour's 8-bit sRGB bits in w
 const LEAF_COUNT_BITS: u32 = 4u;   // == wgpu_rt.bvh.LEAF_COUNT_BITS
 const LEAF_COUNT_MASK: u32 = 15u;
 
@@ -20,11 +20,9 @@ struct BvhNode { lo: vec3f, skip: u32, hi: vec3f, triangles: u32 }
 struct WideNode { lo_x: vec4f, lo_y: vec4f, lo_z: vec4f, hi_x: vec4f, hi_y: vec4f, hi_z: vec4f, children: vec4u }
 const WIDE_NODE_WORDS: u32 = 28u;   // == wgpu_rt.accel.bvh.WIDE_NODE_DTYPE's size in words
 struct TrianglePositions { a: vec3f, b: vec3f, c: vec3f }
-// Per stored triangle: shading normals (in its bottom level's space), ids and vertex colours (8-bit sRGB,
-// R in the low byte). In a two-level scene a stored triangle may be placed many times, and its instance's
-// material and object override these.
-struct TriAttributes { n0: vec3f, material: u32, n1: vec3f, object: u32, n2: vec3f, _unused: u32,
-                       c0: u32, c1: u32, c2: u32, _unused2: u32 }
+// Per stored triangle: shading normals (in its bottom level's space) and ids. In a two-level scene a
+// stored triangle may be placed many times, and its instance's material and object override these.
+struct TriAttributes { n0: vec3f, material: u32, n1: vec3f, object: u32, n2: vec3f, _unused: u32 }
 // What a hit on an instance needs (wgpu_rt.accel.geometry.INSTANCE_DTYPE): its object → world transform
 // and the inverse transpose of its linear part, for normals; the number of its first placed triangle
 // (a Hit's prim) and where its bottom level's stored triangles start (placed triangle first_prim + k is
