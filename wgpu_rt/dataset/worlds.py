@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scene.builtin import GOLD_ETA, GOLD_K
+from ..scene.builtin import GOLD_ETA, GOLD_K, sine_pattern
 from ..scene.model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene
 from ..scene.primitives import primitive
 from ..scene.transforms import compose, rotate, scale, transform_points, translate
@@ -473,10 +473,8 @@ def painted_colors(rng: np.random.Generator, points: np.ndarray) -> np.ndarray:
     elif kind == "stripes":
         t = (np.floor(p[:, 0] + 0.3 * np.sin(p[:, 1])) % 2)
     else:
-        octaves = 4 if kind == "blotches" else 2
-        t = sum(np.sin(2.0 ** k * p[:, 0] + rng.uniform(0, 6.3)) * np.sin(2.0 ** k * 1.3 * p[:, 1] + rng.uniform(0, 6.3))
-                * np.sin(2.0 ** k * 0.7 * p[:, 2] + rng.uniform(0, 6.3)) / (k + 1) for k in range(octaves))
-        t = 0.5 + (0.8 if kind == "blotches" else 2.5) * t
+        octaves = [(2.0 ** k, tuple(rng.uniform(0, 6.3, 3))) for k in range(4 if kind == "blotches" else 2)]
+        t = 0.5 + (0.8 if kind == "blotches" else 2.5) * sine_pattern(p, octaves)
     colours = [np.array(colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0, 0.9), rng.uniform(0.05, 1.0)))
                for _ in range(2)]
     first = np.ones(3) if rng.uniform() < 0.5 else colours[1]

@@ -162,14 +162,21 @@ def _grid(cells: int) -> tuple[np.ndarray, np.ndarray]:
     return vertices, np.concatenate([np.stack([a, b, c], -1), np.stack([a, c, d], -1)]).astype(np.uint32)
 
 
-def _waves(points: np.ndarray, frequency: float) -> np.ndarray:
-    """A smooth pattern in about [-1.3, 1.3]: four octaves of products of sines of the coordinates."""
+def sine_pattern(points: np.ndarray, octaves) -> np.ndarray:
+    """A smooth pattern of (N, 3) ``points``: over ``octaves`` [(frequency, (phase x, phase y, phase z)), …], the
+    sum of the products of sines of the coordinates (frequencies along y and z 1.3 and 0.7 times x's), the k-th
+    octave weighed 1 / (k + 1)."""
     total = np.zeros(len(points))
-    for octave, (scale_, phase) in enumerate([(1.0, 0.3), (2.1, 1.7), (4.3, 2.9), (8.7, 0.8)]):
-        f = frequency * scale_
-        total += (np.sin(f * points[:, 0] + phase) * np.sin(1.3 * f * points[:, 1] + 2 * phase)
-                  * np.sin(0.7 * f * points[:, 2] + phase)) / (octave + 1)
+    for octave, (f, (phase_x, phase_y, phase_z)) in enumerate(octaves):
+        total += (np.sin(f * points[:, 0] + phase_x) * np.sin(1.3 * f * points[:, 1] + phase_y)
+                  * np.sin(0.7 * f * points[:, 2] + phase_z)) / (octave + 1)
     return total
+
+
+def _waves(points: np.ndarray, frequency: float) -> np.ndarray:
+    """``painted``'s pattern, in about [-1.3, 1.3]: four octaves of ``sine_pattern`` with fixed phases."""
+    return sine_pattern(points, [(frequency * scale_, (phase, 2 * phase, phase))
+                                 for scale_, phase in [(1.0, 0.3), (2.1, 1.7), (4.3, 2.9), (8.7, 0.8)]])
 
 
 def _mix(t: np.ndarray, one, other) -> np.ndarray:
