@@ -14,15 +14,13 @@ bpy`; bpy 5.0.1 was measured):
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
-from common import add_model_arguments, errors, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models
+from common import add_model_arguments, denoise_exr, errors, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models
 from peers import oidn_prefiltered
 
 SCENES_SCRIPT = Path(__file__).with_name("blender_scenes.py")
@@ -42,20 +40,6 @@ def cycles_exr(args, scene: str, spp: int, seed: int, path: Path) -> dict:
         if done.returncode or not path.is_file():
             raise SystemExit(f"Blender failed on {scene} ({' '.join(command)}):\n{done.stderr[-2000:]}")
     return read_exr(path)
-
-
-def denoise_file(path: Path, out: Path, args, *extra: str) -> np.ndarray:
-    """`wgpu-rt denoise PATH --out OUT EXTRA` as a Blender user runs it; the denoised Combined pass."""
-    from wgpu_rt.cli import main
-    from wgpu_rt.io import read_exr
-
-    flags = ["--precision", args.precision, *extra]
-    flags += ["--model", str(Path(args.models) / "denoiser.onnx")] if args.models else []
-    with contextlib.redirect_stdout(io.StringIO()):   # its "wrote …" line
-        status = main(["denoise", str(path), "--out", str(out), *flags])
-    if status:
-        raise SystemExit(f"wgpu-rt denoise {path} failed with status {status}")
-    return read_exr(out)[f"{VIEW_LAYER}.Combined"][..., :3]
 
 
 def main():
@@ -93,7 +77,7 @@ def main():
                     path = Path(folder) / f"{scene}_{spp}_{seed}.exr"
                     layers = cycles_exr(args, scene, spp, seed, path)
                     planes = (layers[combined][..., :3], layers[albedo], layers[normal])
-                    images = [planes[0], denoise_file(path, path.with_suffix(".out.exr"), args),
+                    images = [planes[0], denoise_exr(path, path.with_suffix(".out.exr"), args)[combined][..., :3],
                               oidn(*planes, "balanced"), oidn_prefiltered(*planes, "high")]
                     for name, image in zip(names, images):
                         scores[name].append(errors(gold, image)["PSNR"])

@@ -12,14 +12,12 @@ with its point-sampled albedo as it is (`--albedo-samples 0`), which shows what 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import io
 import tempfile
 from pathlib import Path
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, denoiser_options, errors, gold_render, load_scenes,
-                    mitsuba, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models)
+from common import (add_gold_arguments, add_model_arguments, denoise_exr, denoiser_options, errors, gold_render,
+                    load_scenes, mitsuba, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models)
 
 # How Mitsuba's AOV integrator names the layers (aovs="albedo:albedo,nn:sh_normal,dd:depth"): its colour is
 # the file's top-level R, G, B, its depth the distance along the camera ray, 0 where nothing was hit.
@@ -40,18 +38,9 @@ def mitsuba_exr(mi, scene, size, spp: int, max_depth: int, seed: int, path: Path
 
 def denoise_file(path: Path, out: Path, spp: int, args, *extra: str) -> np.ndarray:
     """`wgpu-rt denoise PATH --layer … EXTRA` as a user runs it; the denoised top-level colour."""
-    from wgpu_rt.cli import main
-    from wgpu_rt.io import read_exr
-
-    flags = ["--precision", args.precision, "--spp", str(spp), *LAYER_FLAGS, *extra]
-    flags += ["--model", str(Path(args.models) / "denoiser.onnx")] if args.models else []
-    flags += ["--white-balance", args.white_balance, "--low-band", args.low_band, "--chroma", args.chroma,
-              "--post-filter", args.post_filter]
-    with contextlib.redirect_stdout(io.StringIO()):   # its "wrote …" line
-        status = main(["denoise", str(path), "--out", str(out), *flags])
-    if status:
-        raise SystemExit(f"wgpu-rt denoise {path} failed with status {status}")
-    return read_exr(out)["color"]
+    steps = ["--white-balance", args.white_balance, "--low-band", args.low_band, "--chroma", args.chroma,
+             "--post-filter", args.post_filter]
+    return denoise_exr(path, out, args, "--spp", str(spp), *LAYER_FLAGS, *extra, *steps)["color"]
 
 
 def main():

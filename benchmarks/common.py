@@ -257,6 +257,24 @@ def linear_frame(renderer, frame: int = 0) -> np.ndarray:
     return next(renderer.frames(frame)).color
 
 
+def denoise_exr(path: Path, out: Path, args, *flags: str) -> dict:
+    """`wgpu-rt denoise PATH --out OUT FLAGS` as a user runs it, with the benchmark's --precision and --models
+    (its "wrote …" line kept off the table); the layers of the file it wrote."""
+    import contextlib
+    import io
+
+    from wgpu_rt.cli import main
+    from wgpu_rt.io import read_exr
+
+    flags = ["--precision", args.precision, *flags]
+    flags += ["--model", str(Path(args.models) / "denoiser.onnx")] if args.models else []
+    with contextlib.redirect_stdout(io.StringIO()):
+        status = main(["denoise", str(path), "--out", str(out), *flags])
+    if status:
+        raise SystemExit(f"wgpu-rt denoise {path} failed with status {status}")
+    return read_exr(out)
+
+
 def oidn(color, albedo, normal, quality: str = "high") -> np.ndarray:
     """Intel Open Image Denoise (pyoidn, HDR mode, ``quality``, with albedo and normal guides) on the
     CPU."""

@@ -273,6 +273,12 @@ def oidn_denoise(color, albedo, normal, quality: str = "high", device: str = "cp
     return pyoidn.denoise(*images, hdr=True, quality=quality)
 
 
+def oidn_quality(pyoidn, quality: str) -> int:
+    """OIDN's constant for ``quality`` (one of QUALITIES)."""
+    return {"fast": pyoidn.OIDN_QUALITY_FAST, "balanced": pyoidn.OIDN_QUALITY_BALANCED,
+            "high": pyoidn.OIDN_QUALITY_HIGH}[quality]
+
+
 def oidn_prefiltered(color, albedo, normal, quality: str = "high") -> np.ndarray:
     """OIDN on the CPU as its documentation recommends for noisy aux images, and as Blender's "Accurate"
     prefilter runs it: the albedo and the normal are denoised first (``oidn_clean_guides``), then the colour
@@ -298,8 +304,7 @@ def oidn_clean_guides(albedo, normal, quality: str = "high") -> tuple[np.ndarray
         try:
             oidn_filter.set_image(name, image, pyoidn.OIDN_FORMAT_FLOAT3)
             oidn_filter.set_image("output", output, pyoidn.OIDN_FORMAT_FLOAT3)
-            oidn_filter.set_quality({"fast": pyoidn.OIDN_QUALITY_FAST, "balanced": pyoidn.OIDN_QUALITY_BALANCED,
-                                     "high": pyoidn.OIDN_QUALITY_HIGH}[quality])
+            oidn_filter.set_quality(oidn_quality(pyoidn, quality))
             oidn_filter.commit()
             oidn_filter.execute()
             error = device.get_error()
@@ -342,8 +347,7 @@ class OidnFilter:
         for name, image in {**images, "output": self.output}.items():
             self.filter.set_image(name, image, pyoidn.OIDN_FORMAT_FLOAT3)
         self.filter.set_bool("hdr", True)
-        self.filter.set_quality({"fast": pyoidn.OIDN_QUALITY_FAST, "balanced": pyoidn.OIDN_QUALITY_BALANCED,
-                                 "high": pyoidn.OIDN_QUALITY_HIGH}[quality])
+        self.filter.set_quality(oidn_quality(pyoidn, quality))
         self.filter.commit()
         self.check("set-up")
 
