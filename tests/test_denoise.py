@@ -222,7 +222,8 @@ def test_a_blender_file_is_denoised_without_flags(gpu, tmp_path, capfd):
     """Blender's multilayer EXR (a part per pass): its view layer's Combined, Denoising Albedo/Normal/Depth passes
     and the header's sample count are found by their names, so `wgpu-rt denoise FILE` gives what our own file
     of the same planes gives with --spp; its Z pass (1e10 where nothing was hit) read as depth is the same
-    as its Denoising Depth (0 there); the output keeps the file's passes, the Combined pass denoised."""
+    as its Denoising Depth (0 there); the output keeps the file's passes, the Combined pass denoised, and its
+    header's attributes, less those that laid out the input's parts."""
     torch.manual_seed(0)
     model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
     color, layers = _render_like()
@@ -241,6 +242,7 @@ def test_a_blender_file_is_denoised_without_flags(gpu, tmp_path, capfd):
     np.testing.assert_array_equal(blender["ViewLayer.Combined"][..., 3], 1.0)
     np.testing.assert_array_equal(read_exr(tmp_path / "z.exr")["ViewLayer.Combined"], blender["ViewLayer.Combined"])
     assert {"ViewLayer.Depth", "ViewLayer.Normal", "ViewLayer.Denoising Albedo"} <= set(blender)
+    assert blender.attributes == {"BlenderMultiChannel": "Blender V2.55.1 and newer", "cycles.ViewLayer.samples": "4"}
 
 
 @pytest.mark.parametrize("write, flags, says", [

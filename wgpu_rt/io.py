@@ -46,6 +46,7 @@ from .errors import ImageError, OutputError
 LAYER_CHANNELS = {"color": "RGB", "albedo": "RGB", "normal": "XYZ", "depth": "Z", "motion": "XY",
                   "spp": "Y", "half_radiance": "RGB", "half_spp": "Y"}
 AUX_SAMPLES_ATTRIBUTE = "wgpuRtAuxSamples"   # the aux pass's samples behind the albedo layer; 0: the colour's
+PART_ATTRIBUTES = {"name", "chunkCount", "version", "view"}   # a multi-part file's per-part layout
 CHANNEL_SETS = ("RGBA", "XYZW", "UVW")   # channel names whose order is known, whatever the file's order
 
 
@@ -167,7 +168,8 @@ def read_exr(path: str | os.PathLike) -> ExrLayers:
     Channels are grouped by the text before their last dot ("color": those without one); each group's
     channels in their known order (``_channel_order``), their names in the result's ``channels``. Every
     part of a multi-part file is read (their channel names must differ and their sizes agree); the
-    ``attributes`` are the first part's.
+    ``attributes`` are the first part's text and integer ones, less those that describe a part
+    (PART_ATTRIBUTES), so they can be written into another file as they are.
     """
     import OpenEXR
 
@@ -187,7 +189,8 @@ def read_exr(path: str | os.PathLike) -> ExrLayers:
                         raise ImageError(f"{path}: part {part.name()!r} is {part.width()}×{part.height()} "
                                          "pixels, unlike the file's first part")
             attributes = {key: value for key, value in exr.header().items()
-                          if isinstance(value, (str, int)) and not isinstance(value, bool)}
+                          if isinstance(value, (str, int)) and not isinstance(value, bool)
+                          and key not in PART_ATTRIBUTES}
     except ImageError:
         raise
     except Exception as err:  # OpenEXR raises bare exceptions on corrupt files

@@ -20,7 +20,8 @@ NO_HIT_DEPTH = 1e9   # a depth this far is a miss: Blender's Z pass writes 1e10 
 
 def add_arguments(parser) -> None:
     parser.add_argument("input", metavar="IN.exr", help="noisy render with albedo, normal and depth layers")
-    parser.add_argument("-o", "--out", required=True, metavar="OUT.exr", help="denoised EXR (other layers kept)")
+    parser.add_argument("-o", "--out", required=True, metavar="OUT.exr", help="denoised EXR (other layers and the header's text "
+                        "and integer attributes kept)")
     parser.add_argument("--model", help="denoiser ONNX (default: the shipped denoiser.onnx)")
     add_denoiser_flags(parser, "image")
     parser.add_argument("--layer", action="append", default=[], metavar="ROLE=NAME",
@@ -53,12 +54,12 @@ def run(args) -> int:
     check_output_path(args.out, "--out", (".exr",))
     named = layer_names(args.layer)
     file_layers = read_exr(args.input)
-    channel_names = file_layers.channels
+    channel_names, attributes = file_layers.channels, file_layers.attributes
     named = blender_layer_names(file_layers, named, args.input)
     images = network_inputs(file_layers, named, args.input)
-    spp = sample_counts(images, args, blender_samples(file_layers.attributes, named))
+    spp = sample_counts(images, args, blender_samples(attributes, named))
     half = half_layers(images, args.input)
-    albedo_samples = point_samples_in_albedo(args, file_layers.attributes, spp)
+    albedo_samples = point_samples_in_albedo(args, attributes, spp)
     model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
     file_layers = finite_layers(file_layers, args.input)   # what the network reads, and what is written back
     images = network_inputs(file_layers, named, args.input)
@@ -69,7 +70,7 @@ def run(args) -> int:
                     half=None if half is None else (images["half_radiance"], half))
     seconds = time.perf_counter() - started
     write_exr(args.out, *denoised_file(file_layers, named.get("color", "color"), color),
-              channel_names=channel_names)
+              channel_names=channel_names, attributes=attributes)
     height, width = color.shape[:2]
     print(f"wrote {args.out} ({width}×{height}, {model.precision.name}, {args.quality}, {seconds:.2f} s)")
     return 0
