@@ -64,6 +64,9 @@
 # worlds are painted with textures as vertex colours (worlds_version 3, §38): call 1's renders are the first at
 # scale with textures (18 painted worlds on two CPU cores left the textured `painted` scene level at 4 spp), so
 # train_eval should also score `painted` (bench_spp.py --scenes painted) beside the held-out family.
+# Session 40 had no GPU; it found the denoiser's ceiling (§39: a converged 1024-spp render comes back at 43–45
+# dB where OIDN keeps 50–56), which is what holds it back from 16 spp: after a fine-tune at scale, also run
+# benchmarks/bench_passthrough.py (the model's --models; ~1 s a scene there once the inputs are rendered).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
