@@ -20,8 +20,8 @@ NO_HIT_DEPTH = 1e9   # a depth this far is a miss: Blender's Z pass writes 1e10 
 
 def add_arguments(parser) -> None:
     parser.add_argument("input", metavar="IN.exr", help="noisy render with albedo, normal and depth layers")
-    parser.add_argument("-o", "--out", required=True, metavar="OUT.exr", help="denoised EXR (other layers and the header's text "
-                        "and integer attributes kept)")
+    parser.add_argument("-o", "--out", required=True, metavar="OUT.exr",
+                        help="denoised EXR (other layers and the header's text and integer attributes kept)")
     parser.add_argument("--model", help="denoiser ONNX (default: the shipped denoiser.onnx)")
     add_denoiser_flags(parser, "image")
     parser.add_argument("--layer", action="append", default=[], metavar="ROLE=NAME",
