@@ -20,7 +20,8 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from common import add_model_arguments, denoise_exr, errors, oidn, parse_with_quick_defaults, print_header, print_table, resolve_models
+from common import (add_model_arguments, denoise_exr, errors, oidn, parse_with_quick_defaults, print_header,
+                    print_table, resolve_models)
 from peers import oidn_prefiltered
 
 SCENES_SCRIPT = Path(__file__).with_name("blender_scenes.py")

@@ -728,8 +728,8 @@ def _colored_ply(path, kind: str):
     faces = np.array([[0, 1, 2], [0, 2, 3]])
     mesh = trimesh.Trimesh(vertices, faces, process=False)
     if kind == "vertex":
-        mesh.visual.vertex_colors = np.array([[255, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [128, 128, 128, 255]],
-                                             np.uint8)
+        mesh.visual.vertex_colors = np.array([[255, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255],
+                                              [128, 128, 128, 255]], np.uint8)
     else:
         mesh.visual.face_colors = np.array([[200, 100, 50, 255], [200, 100, 50, 255]], np.uint8)
     mesh.export(path)

@@ -224,7 +224,8 @@ def test_about_half_the_training_worlds_are_painted(worlds):
     painted = [w for w in worlds if any(mesh.colors is not None for mesh in w.meshes)]
     assert abs(len(painted) / len(worlds) - PAINTED_SHARE) < 0.1
     varied = [np.ptp(mesh.colors, axis=0).max() > 0.05 for w in painted for mesh in w.meshes if mesh.colors is not None]
-    assert np.mean(varied) > 0.9   # (two colours drawn alike, or a pattern whose cells fall between vertices, vary less)
+    # (two colours drawn alike, or a pattern whose cells fall between vertices, vary less)
+    assert np.mean(varied) > 0.9
 
 
 def test_the_families_share_no_seed_and_no_geometry(tmp_path):

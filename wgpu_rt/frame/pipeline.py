@@ -178,14 +178,14 @@ class FramePipeline:
 
     ``spp`` samples per pixel are traced per frame (in several submits when they are many; ``progress``,
     where given, is told every few, see ProgressWaits); ``adaptive`` replaces them by a 1-spp probe plus
-    targeted samples. With
-    ``aux_samples``, the albedo plane is then re-estimated noise-free from that many delta-chain paths
-    per pixel (``TracePass.execute_aux``); without it, the tracer's albedo of the frame's own point samples is
-    smoothed for the denoiser (frame/area_albedo.py), an albedo AOV staying the tracer's. ``low_band``: the
-    denoiser's low band from passes at half (and quarter) resolution (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE
-    while some pixel holds fewer than LOW_BAND_MAX_SPP samples). ``chroma``: the denoised colour
-    balance held to the samples' block means (frame/chroma.py). ``post_filter``: the denoised frame
-    smoothed by an edge-aware à-trous filter (frame/atrous.py). ``white_balance``: the denoiser's input
+    targeted samples. With ``aux_samples``, the albedo plane is then re-estimated noise-free from that
+    many delta-chain paths per pixel (``TracePass.execute_aux``); without it, the tracer's albedo of the
+    frame's own point samples is smoothed for the denoiser (frame/area_albedo.py), an albedo AOV staying the
+    tracer's. ``low_band``: the denoiser's low band from passes at half (and quarter) resolution
+    (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE while some pixel holds fewer than
+    LOW_BAND_MAX_SPP samples). ``chroma``: the denoised colour balance held to the samples' block means
+    (frame/chroma.py). ``post_filter``: the denoised frame smoothed by an edge-aware à-trous filter
+    (frame/atrous.py). ``white_balance``: the denoiser's input
     white-balanced by the frame's gains (frame/pack.py). ``aovs`` names the G-buffer planes to
     read back with the colour; ``operator`` None skips the display image;
     ``hdr=False`` skips the HDR colour (12 bytes a pixel; ``RenderResult.color`` is then None) for
