@@ -37,11 +37,10 @@ def main():
 
     model = load_model("denoiser", args.precision, models_dir=args.models)
     size = (args.size, args.size)
-    input_args = argparse.Namespace(**{**vars(args), "gold_spp": args.input_spp})
     rows = []
     for scene in load_scenes(args.scenes):
         gold = gold_render(scene, size, args)
-        converged = gold_render(scene, size, input_args, seed=GOLD_TWIN_SEED)
+        converged = gold_render(scene, size, args, seed=GOLD_TWIN_SEED, spp=args.input_spp)
         aux = next(Renderer(scene, 1, aovs=("albedo", "normal", "depth"), aux_samples=AUX_SAMPLES, size=size,
                             max_depth=args.max_depth, seed=7).frames()).aovs
         guides = (aux["albedo"], aux["normal"], aux["depth"])

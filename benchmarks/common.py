@@ -150,14 +150,16 @@ def add_gold_arguments(parser, default_spp: int) -> None:
                              "(an independent reference; llvm_ad_rgb is ~7x our lavapipe speed on meshes)")
 
 
-def gold_render(scene, size, args, seed: int = GOLD_SEED) -> np.ndarray:
+def gold_render(scene, size, args, seed: int = GOLD_SEED, spp: int | None = None) -> np.ndarray:
     """(H, W, 3) radiance of our own render (or Mitsuba's, with --gold-renderer mitsuba: passes of at most
-    MITSUBA_PASS_SPP samples, seeds ``seed``, ``seed`` + 1, …, averaged) at ``args.gold_spp`` with seed
-    12345 (no other run uses that seed, so the gold's noise is independent of every image measured against
-    it; the twin's: seed GOLD_TWIN_SEED), from ``args.gold_cache`` when it holds one."""
+    MITSUBA_PASS_SPP samples, seeds ``seed``, ``seed`` + 1, …, averaged) at ``spp`` samples a pixel (default
+    ``args.gold_spp``) with seed 12345 (no other run uses that seed, so the gold's noise is independent of
+    every image measured against it; the twin's: seed GOLD_TWIN_SEED), from ``args.gold_cache`` when it
+    holds one."""
     from wgpu_rt.renderer import render
 
     by_mitsuba = getattr(args, "gold_renderer", "ours") == "mitsuba"
+    spp = args.gold_spp if spp is None else spp
 
     def compute():
         if by_mitsuba:
@@ -167,15 +169,15 @@ def gold_render(scene, size, args, seed: int = GOLD_SEED) -> np.ndarray:
                 print(f"--gold-renderer mitsuba: Mitsuba 3 does not load here ({err}); pip install mitsuba, or "
                       "leave the gold to our tracer", file=sys.stderr)
                 raise SystemExit(2) from None
-            passes = -(-args.gold_spp // MITSUBA_PASS_SPP)
-            counts = [args.gold_spp // passes + (k < args.gold_spp % passes) for k in range(passes)]
+            passes = -(-spp // MITSUBA_PASS_SPP)
+            counts = [spp // passes + (k < spp % passes) for k in range(passes)]
             total = sum(count * mitsuba_render(mi, scene, size, count, args.max_depth, seed + k)[0].astype(np.float64)
                         for k, count in enumerate(counts))
-            return {"color": (total / args.gold_spp).astype(np.float32)}
-        return {"color": render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=seed,
+            return {"color": (total / spp).astype(np.float32)}
+        return {"color": render(scene, spp=spp, size=size, max_depth=args.max_depth, seed=seed,
                                 aovs=()).color}
 
-    key = (f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}"
+    key = (f"{scene.name}_{size[0]}x{size[1]}_{spp}spp_depth{args.max_depth}"
            + ("" if seed == GOLD_SEED else f"_seed{seed}") + ("_mitsuba" if by_mitsuba else ""))
     return _cached(args, key, compute, ["color"])["color"]
 
