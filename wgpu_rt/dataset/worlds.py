@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..scene.builtin import GOLD_ETA, GOLD_K, sine_pattern
+from ..scene.builtin import GOLD_ETA, GOLD_K, mix_colors, sine_pattern
 from ..scene.model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene
 from ..scene.primitives import primitive
 from ..scene.transforms import compose, rotate, scale, transform_points, translate
@@ -477,9 +477,7 @@ def painted_colors(rng: np.random.Generator, points: np.ndarray) -> np.ndarray:
         t = 0.5 + (0.8 if kind == "blotches" else 2.5) * sine_pattern(p, octaves)
     colours = [np.array(colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0, 0.9), rng.uniform(0.05, 1.0)))
                for _ in range(2)]
-    first = np.ones(3) if rng.uniform() < 0.5 else colours[1]
-    t = np.clip(t, 0.0, 1.0)[:, None]
-    return (t * first + (1 - t) * colours[0]).astype(np.float32)
+    return mix_colors(t, np.ones(3) if rng.uniform() < 0.5 else colours[1], colours[0])
 
 
 # -- materials ----------------------------------------------------------------------------------------

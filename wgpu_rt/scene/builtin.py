@@ -179,7 +179,8 @@ def _waves(points: np.ndarray, frequency: float) -> np.ndarray:
                                  for scale_, phase in [(1.0, 0.3), (2.1, 1.7), (4.3, 2.9), (8.7, 0.8)]])
 
 
-def _mix(t: np.ndarray, one, other) -> np.ndarray:
+def mix_colors(t: np.ndarray, one, other) -> np.ndarray:
+    """(N,) weights → (N, 3) colours: ``one`` where t is 1, ``other`` where 0 (t clipped to [0, 1]), float32."""
     t = np.clip(t, 0.0, 1.0)[:, None]
     return (t * np.asarray(one) + (1 - t) * np.asarray(other)).astype(np.float32)
 
@@ -195,20 +196,21 @@ def painted() -> Scene:
             mesh.material = "white-base"
             if mesh.name == "floor":
                 cell = (np.floor(mesh.vertices[:, 0] * 6) + np.floor(mesh.vertices[:, 1] * 6)) % 2
-                mesh.colors = _mix(cell, (0.85, 0.8, 0.7), (0.12, 0.16, 0.3))
+                mesh.colors = mix_colors(cell, (0.85, 0.8, 0.7), (0.12, 0.16, 0.3))
             else:
-                mesh.colors = _mix(0.5 + 0.6 * _waves(mesh.vertices * 2.5, 3.0), (0.8, 0.65, 0.35), (0.18, 0.4, 0.22))
+                mesh.colors = mix_colors(0.5 + 0.6 * _waves(mesh.vertices * 2.5, 3.0), (0.8, 0.65, 0.35),
+                                         (0.18, 0.4, 0.22))
     sphere = trimesh.creation.icosphere(subdivisions=5)
     vertices, faces = np.asarray(sphere.vertices, np.float32), np.asarray(sphere.faces, np.uint32)
     normals = np.asarray(sphere.vertex_normals, np.float32)
     stripes = (np.floor((vertices[:, 1] + 0.5 * vertices[:, 0]) * 5) % 2)
     marble = 0.5 + 0.5 * np.sin(4.5 * vertices[:, 0] + 4 * _waves(vertices, 2.0))
     meshes += [Mesh("striped-sphere", vertices, faces, "white-base", normals,
-                    compose(translate([0.4, -0.65, 0.3]), scale(0.35)), colors=_mix(stripes, (0.75, 0.08, 0.08),
-                                                                                    (0.85, 0.85, 0.8))),
+                    compose(translate([0.4, -0.65, 0.3]), scale(0.35)),
+                    colors=mix_colors(stripes, (0.75, 0.08, 0.08), (0.85, 0.85, 0.8))),
                Mesh("marbled-sphere", vertices, faces, "white-base", normals,
-                    compose(translate([-0.4, -0.55, -0.3]), scale(0.45)), colors=_mix(marble, (0.8, 0.8, 0.85),
-                                                                                     (0.08, 0.08, 0.12)))]
+                    compose(translate([-0.4, -0.55, -0.3]), scale(0.45)),
+                    colors=mix_colors(marble, (0.8, 0.8, 0.85), (0.08, 0.08, 0.12)))]
     return Scene(_cornell_camera(), meshes, materials, name="painted")
 
 
