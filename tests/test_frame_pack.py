@@ -5,6 +5,8 @@ import pytest
 from parity import check_parity
 
 from wgpu_rt.frame.pack import (
+    EXPOSURE_KEY,
+    EXPOSURE_LIMIT,
     NO_BALANCE,
     WHITE_BALANCE_FLOOR,
     DepthMaxPass,
@@ -12,6 +14,8 @@ from wgpu_rt.frame.pack import (
     PackDenoiserPass,
     PackErrorPass,
     WhiteBalancePass,
+    exposure_scale,
+    frame_irradiance,
     pack_confidence_input,
     pack_denoiser_input,
     pack_error_input,
@@ -49,9 +53,9 @@ def denoiser_on_gpu(gpu, color, albedo, normal, depth, spp=None):
     return buffers.read(DENOISER_INPUT.name)
 
 
-def balance_on_gpu(gpu, color, albedo):
+def balance_on_gpu(gpu, color, albedo, balance=True, exposure=True):
     height, width = color.shape[:2]
-    balance = WhiteBalancePass(gpu, width, height)
+    balance = WhiteBalancePass(gpu, width, height, balance, exposure)
     run(gpu, [balance], {RADIANCE: color, ALBEDO: albedo}, width, height)
     return gpu.read(balance.result, shape=(3,))
 
@@ -138,26 +142,62 @@ def test_white_balance_reference_by_hand():
     albedo = np.full((2, 2, 3), 0.99, np.float32)                  # factor 1
     color = np.zeros((2, 2, 3), np.float32)
     color[0, 0] = [16.0, 4.0, 0.0]                                 # means 4, 1, 0: roots 2, 1, 0; their mean 1
-    np.testing.assert_allclose(white_balance_gains(color, albedo), [2.0, 1.0, WHITE_BALANCE_FLOOR], rtol=1e-6)
-    np.testing.assert_array_equal(white_balance_gains(np.zeros_like(color), albedo), [1.0, 1.0, 1.0])
-    np.testing.assert_allclose(white_balance_gains(1e-6 * color, albedo), white_balance_gains(color, albedo), rtol=1e-6)
+
+    def gains(c):
+        return white_balance_gains(c, albedo, exposure=False)
+
+    np.testing.assert_allclose(gains(color), [2.0, 1.0, WHITE_BALANCE_FLOOR], rtol=1e-6)
+    np.testing.assert_array_equal(gains(np.zeros_like(color)), [1.0, 1.0, 1.0])
+    np.testing.assert_allclose(gains(1e-6 * color), gains(color), rtol=1e-6)
     color[1, 1] = [np.nan, -3.0, np.inf]                           # sanitised away
-    np.testing.assert_allclose(white_balance_gains(color, albedo), [2.0, 1.0, WHITE_BALANCE_FLOOR], rtol=1e-6)
+    np.testing.assert_allclose(gains(color), [2.0, 1.0, WHITE_BALANCE_FLOOR], rtol=1e-6)
+    np.testing.assert_array_equal(white_balance_gains(color, albedo, balance=False, exposure=False), NO_BALANCE)
 
 
+def test_exposure_reference_by_hand():
+    """The key is the log-average of the 8×8 tiles' mean luminance (tiles cut short at the frame's edges,
+    black tiles left out), brought to EXPOSURE_KEY: the gains then scale with the frame's light, so that the
+    irradiance the network reads does not."""
+    irradiance = np.zeros((3, 9, 16))
+    irradiance[:, :8, :8] = 0.3 * 4.0                              # tile means 1.2, 0.3 / 4, a dark corner strip
+    irradiance[:, :8, 8:] = 0.3 / 4.0                              # and a black strip below: key 0.3
+    irradiance[0, 8, :8] = 1e-9                                    # a tile of 8 pixels at 1e-9 / 3: left out
+    assert exposure_scale(irradiance) == pytest.approx(1.0, rel=1e-12)
+    irradiance[:, 8, 8:] = 0.3 * 1e-3                              # a third tile, of 8 pixels
+    assert exposure_scale(irradiance) == pytest.approx(1e-3 ** (1 / 3), rel=1e-9)
+    assert exposure_scale(np.zeros((3, 5, 5))) == 1.0              # nothing lit: left alone
+    assert exposure_scale(np.full((3, 2, 2), 1e30)) == EXPOSURE_LIMIT
+    color = np.random.default_rng(0).exponential(1.0, (19, 23, 3)).astype(np.float32)
+    albedo = np.full_like(color, 0.5)
+    for stops in (-20, -6, 0, 5):
+        np.testing.assert_allclose(white_balance_gains(2.0 ** stops * color, albedo),
+                                   2.0 ** stops * white_balance_gains(color, albedo), rtol=1e-5)
+    key = exposure_scale(frame_irradiance(color, albedo)) * EXPOSURE_KEY
+    np.testing.assert_allclose(white_balance_gains(color, albedo, balance=False), NO_BALANCE * key / EXPOSURE_KEY,
+                               rtol=1e-6)
+
+
+@pytest.mark.parametrize("balance, exposure", [(True, True), (True, False), (False, True)])
 @pytest.mark.parametrize("size", [(21, 37), (157, 203)])   # one tile row; more tiles than the reduction's 256 lanes
-def test_white_balance_pass_matches_reference(gpu, size):
+def test_white_balance_pass_matches_reference(gpu, size, balance, exposure):
     rng = np.random.default_rng(7)
     color = (rng.exponential(1.0, size + (3,)) * [0.2, 1.5, 0.6]).astype(np.float32)   # a green cast
     albedo = rng.uniform(-0.1, 1.1, size + (3,)).astype(np.float32)
     color[rng.uniform(size=color.shape) < 0.01] = np.inf
-    ours, reference = check_parity(None, white_balance_gains, lambda c, a: balance_on_gpu(gpu, c, a), atol=0.0,
-                                   rtol=2e-5, inputs=[color, albedo], name="white balance")
-    assert reference[1] > 1.2 > 0.8 > reference[0]                # the cast is seen
-    np.testing.assert_array_equal(balance_on_gpu(gpu, np.zeros_like(color), albedo), [1.0, 1.0, 1.0])
+    color[:5, :9] *= 1e-12                                         # a dark corner moves the key, not the mean
+
+    def reference(c, a):
+        return white_balance_gains(c, a, balance, exposure)
+
+    def ours(c, a):
+        return balance_on_gpu(gpu, c, a, balance, exposure)
+
+    _, gains = check_parity(None, reference, ours, atol=0.0, rtol=2e-5, inputs=[color, albedo], name="white balance")
+    assert (gains[1] > 1.2 * gains[0]) == balance                  # the cast is seen
+    np.testing.assert_array_equal(ours(np.zeros_like(color), albedo), [1.0, 1.0, 1.0])
     color[0, 0, 1], albedo[0, 0] = 3e38, 0.0                       # green irradiance past f32's range
-    check_parity(None, white_balance_gains, lambda c, a: balance_on_gpu(gpu, c, a), atol=0.0, rtol=2e-5,
-                 inputs=[color, albedo], name="white_balance_gains, clamped irradiance")
+    check_parity(None, reference, ours, atol=0.0, rtol=2e-5, inputs=[color, albedo],
+                 name="white_balance_gains, clamped irradiance")
 
 
 def test_pack_error_matches_reference(gpu):

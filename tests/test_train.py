@@ -738,7 +738,8 @@ def test_onnx_denoiser_is_the_denoise_command_with_the_exported_network(tiny_dat
 
 def test_exposure_on_the_packed_planes_equals_packing_the_scaled_render(tiny_dataset):
     """Samples expose the kept log1p planes (log1p(e · expm1(p))): the same as packing the render scaled
-    by e, as the numpy references do; the error predictor's target is ``targets.error_heatmap`` of the
+    by e with the frame's own gains, as the numpy references do (gains found anew would take the scale out:
+    they carry the frame's exposure); the error predictor's target is ``targets.error_heatmap`` of the
     scaled renders (its percentile depends on the exposure)."""
     from wgpu_rt.dataset import load_views
     from wgpu_rt.frame.pack import (albedo_factor, demodulated_log_color, pack_denoiser_input, pack_error_input,
@@ -749,10 +750,10 @@ def test_exposure_on_the_packed_planes_equals_packing_the_scaled_render(tiny_dat
     views = load_views(tiny_dataset, "train")
     frame = views[0].frames[0]
     noisy, gold = frame.noisy[4], frame.gold["color"]
-    balance = white_balance_gains(noisy["color"], noisy["albedo"])   # the same for the scaled render
+    balance = white_balance_gains(noisy["color"], noisy["albedo"])
     x, y = DenoiserSamples(views).full((0, 0), 4, 2.5)
     np.testing.assert_allclose(x, pack_denoiser_input(2.5 * noisy["color"], noisy["albedo"], noisy["normal"],
-                                                      noisy["depth"], 4), rtol=2e-6, atol=1e-6)
+                                                      noisy["depth"], 4, balance=balance), rtol=2e-6, atol=1e-6)
     np.testing.assert_array_equal(x[-1], 0.5)    # the sample-count plane: 1/sqrt(4)
     np.testing.assert_allclose(y, np.concatenate([demodulated_log_color(2.5 * gold, noisy["albedo"], balance),
                                                   albedo_factor(noisy["albedo"], balance)]), rtol=2e-6, atol=1e-6)

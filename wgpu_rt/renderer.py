@@ -103,7 +103,7 @@ class Renderer:
                  models_dir=None, networks: dict | None = None, mesh=None, ctx=None, progress: bool = False,
                  timings: bool | None = None, aux_samples: int | None = None, hdr: bool = True,
                  quality: str = "balanced", low_band: bool | None = None, chroma: bool = True,
-                 post_filter: bool = True, white_balance: bool = True):
+                 post_filter: bool = True, white_balance: bool = True, auto_exposure: bool = True):
         from .frame.adaptive import AdaptiveSettings
         from .frame.temporal import TemporalSettings
         from .frame.tonemap import check_settings
@@ -125,7 +125,8 @@ class Renderer:
         from .frame.lowband import uses_low_band
 
         uses_low_band(self.width, self.height, low_band)   # checks the setting
-        for name, value in (("chroma", chroma), ("post_filter", post_filter), ("white_balance", white_balance)):
+        for name, value in (("chroma", chroma), ("post_filter", post_filter), ("white_balance", white_balance),
+                            ("auto_exposure", auto_exposure)):
             if not isinstance(value, bool):
                 raise WgpuRtError(f"{name} must be True or False, got {value!r}")
         if tonemap is not None:
@@ -161,7 +162,8 @@ class Renderer:
             error_predictor=networks.get("error_predictor"), temporal=temporal,
             confidence=networks.get("confidence"), aovs=self.aovs, operator=tonemap, exposure=exposure,
             srgb=srgb, output=display, timings=timings, aux_samples=aux_samples, hdr=hdr,
-            low_band=low_band, chroma=chroma, post_filter=post_filter, white_balance=white_balance)
+            low_band=low_band, chroma=chroma, post_filter=post_filter, white_balance=white_balance,
+            auto_exposure=auto_exposure)
         self.setup_seconds = time.perf_counter() - started
 
     def _trace_factory(self):
@@ -277,7 +279,10 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       smoothed by an edge-aware à-trous filter guided by albedo, normal and depth; False: not),
       ``white_balance`` (True: the network reads the irradiance divided per channel by the frame's gains,
       the square roots of its channels' means over their mean, and its output is multiplied back; False:
-      as it is), ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
+      as it is), ``auto_exposure`` (True: those gains also bring the frame's irradiance to one key, the
+      log-average of its 8×8 tiles' means, so that the network reads the frame alike at any scale of its
+      light; False: at the scale it has), ``models_dir``, ``networks`` ({"denoiser": model, …} to use
+      instead of loading), ``mesh``, ``ctx``,
       ``progress`` (a progress bar, on a terminal), ``timings`` (per-stage GPU times; default: when the
       adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a

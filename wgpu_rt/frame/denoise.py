@@ -27,7 +27,7 @@ from .chroma import match_sample_chroma
 from .converge import HALF_SPP, converge
 from .denoise_chain import DenoiseChain
 from .lowband import fewest_samples, low_band_denoise, low_band_levels
-from .pack import NO_BALANCE, DepthMaxPass, pack_denoiser_input, white_balance_gains
+from .pack import DepthMaxPass, pack_denoiser_input, white_balance_gains
 from .planes import write_plane
 from .unpack import unpack_denoiser_output
 
@@ -70,7 +70,8 @@ def load_model(name: str, precision: str = "auto", models_dir=None, path=None, c
 
 
 def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: bool = True,
-            post_filter: bool = True, half=None, white_balance: bool = True) -> np.ndarray:
+            post_filter: bool = True, half=None, white_balance: bool = True,
+            auto_exposure: bool = True) -> np.ndarray:
     """(H, W, 3) linear HDR colour of ``spp`` samples per pixel (one count, or an (H, W[, 1]) map) +
     G-buffers → the denoised (H, W, 3) colour (finite, ≥ 0). ``model`` runs (N, C, H, W) batches; one with
     fewer ``input_channels`` (10: trained before the sample-count plane existed) gets the first ones.
@@ -81,6 +82,8 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     ``post_filter``: then smooth it by the edge-aware à-trous filter (frame/atrous.py).
     ``white_balance``: the network reads the irradiance divided by the frame's gains, and its output is
     multiplied back (frame/pack.py's ``white_balance_gains``); False: gains of 1.
+    ``auto_exposure``: the gains also bring the frame's irradiance to one key (pack.py's ``exposure_scale``),
+    so that a frame reads the same at any scale of its light.
     ``half``: (the mean after the first part of the samples, its (H, W) counts): each pixel then hands over
     to the samples' own mean where that has converged, as a denoised render of several samples does
     (frame/converge.py)."""
@@ -90,20 +93,20 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     half_counts = None if half is None else device_sample_counts(half[1], (height, width))
     if hasattr(model, "record") and counts is not None and (half is None or half_counts is not None):
         on_device = DenoiseOnDevice.for_model(model, width, height, levels, chroma, post_filter, half is not None,
-                                              white_balance)
+                                              white_balance, auto_exposure)
         return on_device(color, albedo, normal, depth, counts, None if half is None else (half[0], half_counts))
     channels = getattr(model, "input_channels", None)
 
     def run(packed):
         return np.asarray(model(packed[None, :channels]), np.float32)[0]
 
-    balance = white_balance_gains(color, albedo) if white_balance else NO_BALANCE
+    balance = white_balance_gains(color, albedo, white_balance, auto_exposure)
     denoised = unpack_denoiser_output(run(pack_denoiser_input(color, albedo, normal, depth, spp, balance=balance)),
                                       albedo, balance)
     if levels:
         denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels, balance)
     if chroma:
-        denoised = match_sample_chroma(denoised, color)
+        denoised = match_sample_chroma(denoised, color, balance)
     if post_filter:
         denoised = atrous_filter(denoised, albedo, normal, depth, spp)
     if half is None:
@@ -135,21 +138,21 @@ class DenoiseOnDevice:
 
     @classmethod
     def for_model(cls, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool,
-                  converging: bool = False, white_balance: bool = True):
+                  converging: bool = False, white_balance: bool = True, auto_exposure: bool = True):
         made = cls._made.setdefault(model, {})
-        key = (width, height, levels, chroma, post_filter, converging, white_balance)
+        key = (width, height, levels, chroma, post_filter, converging, white_balance, auto_exposure)
         if key not in made:
             made[key] = cls(weakref.proxy(model), width, height, levels, chroma, post_filter, converging,
-                            white_balance)
+                            white_balance, auto_exposure)
         return made[key]
 
     def __init__(self, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool,
-                 converging: bool = False, white_balance: bool = True):
+                 converging: bool = False, white_balance: bool = True, auto_exposure: bool = True):
         self.ctx = model.ctx
         self.buffers = FrameBuffers(self.ctx, width, height)
         self.depth_max = DepthMaxPass(self.ctx, width, height)
         self.chain = DenoiseChain(self.ctx, width, height, model, self.depth_max.result, levels, chroma, post_filter,
-                                  converging, white_balance)
+                                  converging, white_balance, auto_exposure)
 
     def __call__(self, color, albedo, normal, depth, counts: np.ndarray, half=None) -> np.ndarray:
         """``half``: (mean, u32 counts) after the first part of the samples, when ``converging``."""

@@ -1,4 +1,5 @@
-"""What follows the tracer when a frame is denoised, in order: the white balance (frame/pack.py), pack, the
+"""What follows the tracer when a frame is denoised, in order: the white balance and exposure (frame/pack.py),
+pack, the
 network, unpack, the low band's coarser levels (frame/lowband.py), the chroma hold (frame/chroma.py), the
 post filter (frame/atrous.py) and the hand-over to converged samples (frame/converge.py). The frame loop
 records it between the tracer and the temporal pass (``FramePipeline``), ``denoise()`` over uploaded
@@ -23,19 +24,21 @@ def _no_mark(encoder, name: str) -> None:
 class DenoiseChain:
     """The chain for ``denoiser`` at width×height; ``depth_max`` is a DepthMaxPass's result, recorded
     earlier in the same encoder. ``levels``: the low band's coarser levels (0: none); ``chroma``,
-    ``post_filter``, ``converge``, ``white_balance``: whether those steps run (without the white balance
-    the network reads the irradiance as it is: gains of 1). ``output`` is the plane the chain leaves its
-    result in."""
+    ``post_filter``, ``converge``, ``white_balance``, ``auto_exposure``: whether those steps run (without
+    the white balance and the exposure the network reads the irradiance as it is: gains of 1). ``output``
+    is the plane the chain leaves its result in."""
 
     def __init__(self, ctx, width: int, height: int, denoiser, depth_max, levels: int = 0, chroma: bool = True,
-                 post_filter: bool = True, converge: bool = False, white_balance: bool = True):
+                 post_filter: bool = True, converge: bool = False, white_balance: bool = True,
+                 auto_exposure: bool = True):
         self.width, self.height, self.denoiser = width, height, denoiser
-        self.balance = WhiteBalancePass(ctx, width, height) if white_balance else None
-        gains = self.balance.result if white_balance else ctx.upload(NO_BALANCE, label="no white balance")
+        gained = white_balance or auto_exposure
+        self.balance = WhiteBalancePass(ctx, width, height, white_balance, auto_exposure) if gained else None
+        gains = self.balance.result if gained else ctx.upload(NO_BALANCE, label="no white balance")
         self.pack = PackDenoiserPass(ctx, width, height, depth_max, gains)
         self.unpack = UnpackPass(ctx, width, height, gains)
         self.low_band = LowBand(ctx, width, height, depth_max, gains, denoiser, levels) if levels else None
-        self.chroma = ChromaPass(ctx, width, height) if chroma else None
+        self.chroma = ChromaPass(ctx, width, height, gains) if chroma else None
         self.post_filter = AtrousPass(ctx, width, height) if post_filter else None
         self.converge = ConvergePass(ctx, width, height) if converge else None
         self.output = CONVERGED if converge else DENOISED

@@ -18,6 +18,10 @@ on the device ``WhiteBalancePass``), which ``unpack`` multiplies back. The shipp
 light that is mostly near white, turns strongly coloured light grey: given a 4096-spp render of a room lit
 by a green wall's bounce (world-2147483667) as its input, it returned it 31 dB away. Balanced, its input
 looks like what it knows (BENCHMARKS.md §27).
+The gains also carry the frame's exposure (``exposure_scale``): the irradiance's key, the log-average of its
+8×8 tiles' mean luminance, is brought to EXPOSURE_KEY, so that the network reads a frame at 1/64 of the light
+as it reads the frame itself (without it, 12 dB lower at 4 spp on `cornell`), and frames dark and bright sit
+where most of its training did (BENCHMARKS.md §40).
 """
 
 from __future__ import annotations
@@ -40,19 +44,45 @@ WHITE_BALANCE_POWER = 0.5          # the gains are this power of the mean irradi
 WHITE_BALANCE_FLOOR = 1.0 / 16.0   # no gain below this (a channel black everywhere is divided by it, not 0)
 IRRADIANCE_LIMIT = 1e30            # each pixel's irradiance clamped to this in the mean (its f32 sum stays finite)
 NO_BALANCE = np.ones(3, np.float32)
+EXPOSURE_KEY = 0.3                 # the key the network reads: near the median of its training frames' keys
+KEY_FLOOR = 1e-8                   # tiles darker than this (black, or lit by nothing) leave the key alone
+EXPOSURE_LIMIT = 2.0 ** 64         # the exposure scale stays within [1 / this, this]
 
 
-def white_balance_gains(color: np.ndarray, albedo: np.ndarray) -> np.ndarray:
+def white_balance_gains(color: np.ndarray, albedo: np.ndarray, balance: bool = True,
+                        exposure: bool = True) -> np.ndarray:
     """(H, W, 3) radiance and albedo → the frame's (3,) white-balance gains: the mean of each channel of
     the irradiance (sanitised radiance / albedo_factor, each pixel clamped to IRRADIANCE_LIMIT) to the
     power WHITE_BALANCE_POWER, divided by the three's mean, at least WHITE_BALANCE_FLOOR; (1, 1, 1) for a
-    black frame."""
-    irradiance = nonnegative_finite(color).transpose(2, 0, 1).astype(np.float64) / albedo_factor(albedo)
-    mean = np.minimum(irradiance, IRRADIANCE_LIMIT).reshape(3, -1).mean(axis=1)
-    if not mean.max() > 0.0:
+    black frame or without ``balance``. With ``exposure``, all three times the frame's ``exposure_scale``."""
+    if not (balance or exposure):
         return NO_BALANCE
+    irradiance = np.minimum(frame_irradiance(color, albedo), IRRADIANCE_LIMIT)
+    scale = exposure_scale(irradiance) if exposure else 1.0
+    mean = irradiance.reshape(3, -1).mean(axis=1)
+    if not (balance and mean.max() > 0.0):
+        return (NO_BALANCE * scale).astype(np.float32)
     gains = mean ** WHITE_BALANCE_POWER
-    return np.maximum(gains / gains.mean(), WHITE_BALANCE_FLOOR).astype(np.float32)
+    return (np.maximum(gains / gains.mean(), WHITE_BALANCE_FLOOR) * scale).astype(np.float32)
+
+
+def frame_irradiance(color: np.ndarray, albedo: np.ndarray) -> np.ndarray:
+    """(H, W, 3) radiance and albedo → (3, H, W) float64 irradiance: sanitised radiance / albedo_factor."""
+    return nonnegative_finite(color).transpose(2, 0, 1).astype(np.float64) / albedo_factor(albedo)
+
+
+def exposure_scale(irradiance: np.ndarray) -> float:
+    """(3, H, W) irradiance → the factor it is divided by so that its key becomes EXPOSURE_KEY: the key is
+    exp of the mean log of the mean luminance (the channels' mean) of each TILE×TILE tile (fewer pixels at
+    the frame's right and bottom edges) brighter than KEY_FLOOR; 1 where no tile is. Tiles first, so
+    that one firefly moves one tile's log, not the frame's mean; within EXPOSURE_LIMIT."""
+    luminance = irradiance.mean(axis=0)
+    means = block_sum(luminance, TILE) / block_sum(np.ones_like(luminance), TILE)
+    tiles = means[means > KEY_FLOOR]
+    if tiles.size == 0:
+        return 1.0
+    key = float(np.exp(np.log(tiles).mean()))
+    return float(np.clip(key / EXPOSURE_KEY, 1.0 / EXPOSURE_LIMIT, EXPOSURE_LIMIT))
 
 
 def albedo_factor(albedo: np.ndarray, balance: np.ndarray = NO_BALANCE) -> np.ndarray:
@@ -180,14 +210,17 @@ class DepthMaxPass(ComputePass):
 
 
 class WhiteBalancePass(ComputePass):
-    """radiance, albedo → ``self.result``, a buffer of the frame's three white-balance gains
-    (``white_balance_gains``, found by frame/balance.wgsl: per-tile sums, then one workgroup's reduction; not a
-    per-pixel plane, so the pass owns it; the denoiser's packing and unpacking passes are handed it)."""
+    """radiance, albedo → ``self.result``, a buffer of the frame's three white-balance gains (1 without
+    ``balance``), times its exposure scale where ``exposure`` (``white_balance_gains``, found by
+    frame/balance.wgsl: per-tile sums, then one workgroup's reduction; not a per-pixel plane, so the pass
+    owns it; the denoiser's packing and unpacking passes are handed it)."""
 
     inputs = (RADIANCE, ALBEDO)
 
-    def __init__(self, ctx, width: int, height: int):
-        constants = {"POWER": WHITE_BALANCE_POWER, "FLOOR": WHITE_BALANCE_FLOOR}
+    def __init__(self, ctx, width: int, height: int, balance: bool = True, exposure: bool = True):
+        constants = {"POWER": WHITE_BALANCE_POWER, "FLOOR": WHITE_BALANCE_FLOOR, "BALANCE": balance,
+                     "EXPOSURE": exposure, "KEY": EXPOSURE_KEY, "KEY_FLOOR": KEY_FLOOR,
+                     "EXPOSURE_LIMIT": EXPOSURE_LIMIT}
         self.tile_kernel = FrameKernel(ctx, "frame/balance.wgsl", "tile_sums_main", ("color", "albedo", "tile_sums"),
                                        width, height, constants)
         self.gains_kernel = FrameKernel(ctx, "frame/balance.wgsl", "gains_main", ("tile_sums", "balance"),

@@ -185,11 +185,11 @@ class FramePipeline:
     (frame/lowband.py; None: on frames whose sides reach LOW_BAND_MIN_SIDE while some pixel holds fewer than
     LOW_BAND_MAX_SPP samples). ``chroma``: the denoised colour balance held to the samples' block means
     (frame/chroma.py). ``post_filter``: the denoised frame smoothed by an edge-aware à-trous filter
-    (frame/atrous.py). ``white_balance``: the denoiser's input
-    white-balanced by the frame's gains (frame/pack.py). ``aovs`` names the G-buffer planes to
-    read back with the colour; ``operator`` None skips the display image;
-    ``hdr=False`` skips the HDR colour (12 bytes a pixel; ``RenderResult.color`` is then None) for
-    callers that want only the display image or AOVs.
+    (frame/atrous.py). ``white_balance``: the denoiser's input white-balanced by the frame's gains
+    (frame/pack.py); ``auto_exposure``: and brought to one key. ``aovs`` names the G-buffer planes to read
+    back with the colour; ``operator`` None skips the display image; ``hdr=False`` skips the HDR colour
+    (12 bytes a pixel; ``RenderResult.color`` is then None) for callers that want only the display image
+    or AOVs.
     """
 
     def __init__(self, ctx, width: int, height: int, trace_factory, *, spp: int = 1, denoiser=None,
@@ -198,7 +198,7 @@ class FramePipeline:
                  operator: str | None = "aces", exposure: float = 0.0, srgb: bool = True,
                  output: str = "rgba8", timings: bool | None = None, progress=None, aux_samples: int = 0,
                  hdr: bool = True, low_band: bool | None = None, chroma: bool = True, post_filter: bool = True,
-                 white_balance: bool = True):
+                 white_balance: bool = True, auto_exposure: bool = True):
         check_readback(hdr, operator, aovs)
         if adaptive is not None and adaptive.sampler == "heat" and error_predictor is None:
             raise ModelError("the heat adaptive sampler needs an error predictor model")
@@ -218,7 +218,7 @@ class FramePipeline:
             self.chain = DenoiseChain(ctx, width, height, denoiser, self.depth_max.result,
                                       low_band_levels(width, height, low_band, fewest), chroma, post_filter,
                                       converge=(spp > 1 or adaptive is not None) and temporal is None,
-                                      white_balance=white_balance)
+                                      white_balance=white_balance, auto_exposure=auto_exposure)
             color = self.chain.output
         # Without the aux pass the tracer's albedo is a few point samples a pixel: smoothed for the denoiser.
         self.area_albedo = AreaAlbedoPass(ctx, width, height) if denoiser is not None and not aux_samples else None

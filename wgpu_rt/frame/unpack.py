@@ -1,4 +1,4 @@
-"""The denoiser's output back to linear radiance: expm1 of its log1p irradiance (clamped to [0, 88],
+"""The denoiser's output back to linear radiance: expm1 of its log1p irradiance (clamped to [0, 43],
 NaN → 0), remodulated by the frame's albedo factor (pack.albedo_factor, the one the input was divided by)."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from .kernel import FrameKernel, finite
 from .pack import albedo_factor
 from .planes import DENOISED
 
-MAX_LOG_RADIANCE = 87.0   # expm1(87) ≈ 6.1e37: times the factor (≤ 1.01 × 3, the largest white-balance gain)
-                          # still a finite f32
+MAX_LOG_RADIANCE = 43.0   # expm1(43) ≈ 4.7e18: times the factor (≤ 1.01 × 3, the largest white-balance gain,
+                          # × 2^64, the largest exposure scale) still a finite f32
 
 
 def unpack_denoiser_output(output: np.ndarray, albedo: np.ndarray, balance: np.ndarray) -> np.ndarray:

@@ -5,8 +5,10 @@ normalisation sees the frame's true max depth, as at runtime), then, as torch te
 device, cropped and exposed (the crop alone, where the target is made pixel by pixel) and augmented:
 
 - exposure jitter: colour and gold scaled by 2^U(−1, 1), applied to the packed log1p planes as
-  log1p(e · expm1(p)), the same as packing the scaled render (the log1p compression makes this a
-  non-trivial change of the input, which is the point);
+  log1p(e · expm1(p)), the same as packing the scaled render with the frame's own gains (the log1p
+  compression makes this a non-trivial change of the input, which is the point); since the gains carry
+  the frame's exposure (frame/pack.py), which packing the scaled render anew would take out again, it
+  stands for the exposure step's key missing by up to a stop;
 - a random square crop of ``crop`` ∈ [crop_min, crop_max] (a multiple of ``multiple``, at most the
   frame), the same for a whole batch, whose frames the trainer draws from one crop limit
   (``grouped_by_crop``: datasets of several frame sizes mix);

@@ -577,7 +577,7 @@ class Trainer:
 
     def model_card(self) -> str:
         from ..dataset.store import read_manifest
-        from ..frame.pack import ALBEDO_EPSILON
+        from ..frame.pack import ALBEDO_EPSILON, EXPOSURE_KEY
         from .losses import EDGE_REACH, LOG_MSE_FLOOR
 
         cfg = self.config
@@ -619,7 +619,9 @@ class Trainer:
         if cfg.task == "denoiser":
             lines.append("- input and output colour demodulated by albedo and white-balanced: log1p(colour / "
                          f"((albedo + {ALBEDO_EPSILON}) · gain)), the gains the square roots of the frame's mean "
-                         "irradiance per channel over their mean; unpack multiplies back")
+                         "irradiance per channel over their mean, times the frame's exposure scale (its "
+                         f"irradiance's key, the log-average of 8×8 tile means, brought to {EXPOSURE_KEY}); "
+                         "unpack multiplies back")
             drawn = "; 'any': each crop draws one of its view's sample counts" if ANY_SPP in cfg.curriculum else ""
             lines.append(f"- loss 0.8·(1 − SSIM on {cfg.ssim_space} colour) + 0.2·{cfg.pixel_loss} on log1p "
                          "irradiance" + (f" + {cfg.lowpass:g}·L1 of its 8×8 block means" if cfg.lowpass else "")

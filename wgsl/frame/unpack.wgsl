@@ -2,12 +2,13 @@
 // albedo factor pack_denoiser divided by (frame/albedo.wgsl), read from the albedo plane (ALBEDO_PLANE 0)
 // or from the packed input itself (ALBEDO_PLANE 3: a coarser level's, frame/lowband.wgsl), times the
 // white-balance gain it divided by (frame/balance.wgsl). NaN/±Inf in the network's output become 0, and
-// the log value is clamped to [0, 87] first, so the result is finite (expm1(87) · 1.01 · 3, the largest
-// gain, ≈ 1.8e38 < f32 max) and non-negative (a network may undershoot below log1p(0) = 0).
+// the log value is clamped to [0, 43] first, so the result is finite (expm1(43) · 1.01 · 3, the largest
+// gain, · 2^64, the largest exposure scale, ≈ 2.6e38 < f32 max) and non-negative (a network may undershoot
+// below log1p(0) = 0).
 // #import frame/common.wgsl
 // #import frame/albedo.wgsl
 
-const MAX_LOG_RADIANCE: f32 = 87.0;
+const MAX_LOG_RADIANCE: f32 = 43.0;
 override ALBEDO_PLANE: u32 = 0u;
 
 @group(0) @binding(0) var<storage, read> network_output: array<f32>;
