@@ -58,16 +58,25 @@ def test_missing_model_is_named(tmp_path, capsys):
     assert f"{model}: no such model file" in capsys.readouterr().err
 
 
+def _packed_for_a_model_without_exposure(color, layers):
+    """The (1, 11, H, W) input `wgpu-rt denoise` packs for a model whose ONNX file does not say it was
+    trained with the exposure step (frame/denoise_chain.py's INPUT_EXPOSURE)."""
+    from wgpu_rt.frame.pack import pack_denoiser_input, white_balance_gains
+
+    gains = white_balance_gains(color, layers["albedo"], exposure=False)
+    return pack_denoiser_input(color, layers["albedo"], layers["normal"], layers["depth"], balance=gains)[None]
+
+
 def _chain_after_the_network(output, color, layers):
     """What `wgpu-rt denoise` makes of the network's (3, H, W) ``output`` by the numpy references: unpacked
-    with the frame's gains, then the colour balance and the post filter (frame/chroma.py, frame/atrous.py),
-    on by default."""
+    with the frame's gains (no exposure step, as ``_packed_for_a_model_without_exposure``), then the colour
+    balance and the post filter (frame/chroma.py, frame/atrous.py), on by default."""
     from wgpu_rt.frame.atrous import atrous_filter
     from wgpu_rt.frame.chroma import match_sample_chroma
     from wgpu_rt.frame.pack import white_balance_gains
     from wgpu_rt.frame.unpack import unpack_denoiser_output
 
-    gains = white_balance_gains(color, layers["albedo"])
+    gains = white_balance_gains(color, layers["albedo"], exposure=False)
     network = unpack_denoiser_output(output, layers["albedo"], gains)
     return atrous_filter(match_sample_chroma(network, color, gains), layers["albedo"], layers["normal"],
                          layers["depth"])
@@ -80,8 +89,6 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
         pytest.skip("no shader-f16 on this adapter")
     import onnxruntime
 
-    from wgpu_rt.frame.pack import pack_denoiser_input
-
     torch.manual_seed(0)
     model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
     color, layers = _render_like()
@@ -90,7 +97,7 @@ def test_denoise_matches_onnxruntime(precision, tolerance, gpu, tmp_path):
                  "--precision", precision]) == 0
     written = read_exr(tmp_path / "out.exr")
     np.testing.assert_allclose(written["depth"], layers["depth"], rtol=1e-6)
-    x = pack_denoiser_input(color, layers["albedo"], layers["normal"], layers["depth"])[None]
+    x = _packed_for_a_model_without_exposure(color, layers)
     session = onnxruntime.InferenceSession(str(model), providers=["CPUExecutionProvider"])
     expected = _chain_after_the_network(session.run(None, {"input": x})[0][0, :, :20, :28], color, layers)
     np.testing.assert_allclose(written["color"], expected, rtol=tolerance, atol=tolerance / 10)
@@ -291,8 +298,6 @@ def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
     """`--quality high`: the mean of the network over the image as given and turned 90°, 180°, 270°."""
     import onnxruntime
 
-    from wgpu_rt.frame.pack import pack_denoiser_input
-
     torch.manual_seed(0)
     model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
     color, layers = _render_like()
@@ -300,7 +305,7 @@ def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
     assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.exr"), "--model", str(model),
                  "--quality", "high"]) == 0
     assert ", high, " in capsys.readouterr().out
-    x = pack_denoiser_input(color, layers["albedo"], layers["normal"], layers["depth"])[None]
+    x = _packed_for_a_model_without_exposure(color, layers)
     session = onnxruntime.InferenceSession(str(model), providers=["CPUExecutionProvider"])
     turned = [np.rot90(session.run(None, {"input": np.ascontiguousarray(np.rot90(x, k, axes=(2, 3)))})[0], -k,
                        axes=(2, 3)) for k in range(4)]
@@ -312,7 +317,7 @@ class NumpyPath:
     """The same network without ``record``: ``denoise`` then takes the numpy references of every pass."""
 
     def __init__(self, model):
-        self.model, self.input_channels = model, model.input_channels
+        self.model, self.input_channels, self.graph = model, model.input_channels, model.graph
 
     def __call__(self, x):
         return self.model(x)
@@ -348,9 +353,10 @@ def test_auto_exposure_denoises_a_frame_alike_at_any_scale_of_its_light(gpu, tmp
     """With the exposure step (the default) a frame at 2^-6 or 2^5 of its light denoises to that scale of
     the frame's own result up to the post filter, which weighs edges by their display luminance at the
     frame's own scale (frame/atrous.py), so it is left out here; without the step the shipped network reads
-    each scale differently. ``wgpu-rt denoise
-    --auto-exposure off`` writes what ``denoise()`` gives without it, on the device as by the numpy
-    references; ``render`` refuses the flag without --denoise."""
+    each scale differently. By default the step runs as the model's ONNX file says it was trained (the
+    shipped one says nothing: off); ``wgpu-rt denoise --auto-exposure on|off|auto`` writes what ``denoise()``
+    gives so, on the device as by the numpy references; ``render`` refuses the flag without --denoise."""
+    from wgpu_rt.frame.denoise_chain import INPUT_EXPOSURE
     from wgpu_rt.frame.denoise import denoise, load_model
 
     color, layers = _render_like(h=24, w=30, seed=9)
@@ -367,11 +373,18 @@ def test_auto_exposure_denoises_a_frame_alike_at_any_scale_of_its_light(gpu, tmp
         else:
             assert moved > 0.02 * base.max()
     write_exr(tmp_path / "in.exr", color, layers, attributes=AUX_ALBEDO)
-    out = tmp_path / "off.exr"
-    assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(out), "--auto-exposure", "off",
-                 "--precision", "fp32"]) == 0
-    np.testing.assert_allclose(read_exr(out)["color"], denoise(model, color, *aux, auto_exposure=False),
-                               rtol=1e-4, atol=1e-5)
+    torch.manual_seed(1)
+    tiny = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx", metadata={INPUT_EXPOSURE: "on"})
+    for path, flag, auto in ((None, "off", False), (None, "auto", False), (tiny, "auto", True), (tiny, "off", False)):
+        chosen = model if path is None else load_model("denoiser", "fp32", path=path, ctx=gpu)
+        expected = denoise(chosen, color, *aux, auto_exposure=auto)
+        if flag == "auto":
+            np.testing.assert_array_equal(denoise(chosen, color, *aux), expected)
+        out = tmp_path / "out.exr"
+        assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(out), "--auto-exposure", flag,
+                     "--precision", "fp32", *(["--model", str(path)] if path else [])]) == 0
+        np.testing.assert_allclose(read_exr(out)["color"], expected, rtol=1e-4, atol=1e-5)
+    assert not np.allclose(denoise(chosen, color, *aux, auto_exposure=True), expected, rtol=1e-3, atol=1e-4)
     assert main(["render", "cornell", "--size", "8x8", "--auto-exposure", "off", "--out", str(tmp_path / "x.exr")]) == 2
     assert not (tmp_path / "x.exr").exists()
 

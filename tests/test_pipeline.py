@@ -612,8 +612,9 @@ def test_static_view_traces_its_aux_albedo_once(gpu, monkeypatch):
 
 def test_denoiser_steps_frame_equals_the_numpy_path(gpu):
     """A denoised frame with its colour balance held to the samples and the à-trous post filter (both
-    by default), and with each left out, equals ``denoise()`` with the same settings on the frame's own
-    traced planes; each step changes the frame."""
+    by default), and with each left out, and with the exposure step (by default as the model was trained:
+    the shipped one without), equals ``denoise()`` with the same settings on the frame's own traced planes;
+    each step changes the frame."""
     from wgpu_rt.frame.denoise import denoise, load_model
     from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 
@@ -622,13 +623,15 @@ def test_denoiser_steps_frame_equals_the_numpy_path(gpu):
     planes = render("cornell", aovs=("albedo", "normal", "depth", "spp"), aux_samples=AUX_SAMPLES, **options)
     inputs = (planes.color, *(planes.aovs[name] for name in ("albedo", "normal", "depth", "spp")))
     frames = {}
-    for settings in ((True, True), (False, True), (True, False)):
-        steps = dict(zip(("chroma", "post_filter"), settings))
+    for settings in ((True, True, None), (False, True, None), (True, False, None), (True, True, True),
+                     (True, True, False)):
+        steps = dict(zip(("chroma", "post_filter", "auto_exposure"), settings))
         frames[settings] = render("cornell", denoise=True, aovs=(), networks={"denoiser": model}, **steps,
                                   **options).color
         np.testing.assert_allclose(frames[settings], denoise(model, *inputs, **steps), rtol=1e-4, atol=1e-5)
-    for settings in ((False, True), (True, False)):
-        assert not np.allclose(frames[True, True], frames[settings], rtol=1e-3, atol=1e-4)
+    for settings in ((False, True, None), (True, False, None), (True, True, True)):
+        assert not np.allclose(frames[True, True, None], frames[settings], rtol=1e-3, atol=1e-4)
+    np.testing.assert_array_equal(frames[True, True, None], frames[True, True, False])
 
 
 @pytest.mark.parametrize("options, message", [
@@ -636,6 +639,7 @@ def test_denoiser_steps_frame_equals_the_numpy_path(gpu):
     (dict(chroma="on"), "chroma must be True or False"),
     (dict(post_filter=1), "post_filter must be True or False"),
     (dict(white_balance="off"), "white_balance must be True or False"),
+    (dict(auto_exposure="on"), "auto_exposure must be True, False or None"),
     (dict(low_band="on"), "low_band must be True, False or None"),
     (dict(hdr=False, aovs=()), "read nothing back"),
     (dict(hdr=False, tonemap=None, aovs=""), "read nothing back"),

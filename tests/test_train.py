@@ -399,6 +399,33 @@ def test_smoke_training_exports_a_model_equal_to_torch(task, tiny_dataset, tmp_p
     np.testing.assert_allclose(exported, trainer.predict(x), atol=1e-4)
 
 
+@pytest.mark.parametrize("setting", ["on", "off"])
+def test_a_denoisers_onnx_records_whether_it_trained_with_the_exposure_step(setting, tiny_dataset, tmp_path):
+    """`wgpu-rt train denoiser --auto-exposure on|off` packs its inputs so and writes it into the ONNX file,
+    which the engine's model and the OnnxDenoiser read back (`--auto-exposure auto` then does the same); the
+    card says it."""
+    from wgpu_rt.frame.denoise import load_model
+    from wgpu_rt.frame.denoise_chain import trained_auto_exposure
+    from wgpu_rt.cli import main
+    from wgpu_rt.frame.pack import pack_denoiser_input, white_balance_gains
+    from wgpu_rt.train.samples import OnnxDenoiser
+
+    out = tmp_path / setting
+    assert main(["train", "denoiser", "--data", str(tiny_dataset), "--out", str(out), "--epochs", "1", "--batch",
+                 "2", "--crop", "12", "16", "--widths", "4", "8", "--auto-exposure", setting, "--quiet"]) == 0
+    wanted = setting == "on"
+    assert trained_auto_exposure(load_model("denoiser", "fp32", path=out / "denoiser.onnx")) == wanted
+    assert OnnxDenoiser(out / "denoiser.onnx").auto_exposure == wanted
+    assert ("exposure scale" in (out / "denoiser.md").read_text()) == wanted
+    trainer = Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(out), widths=(4, 8),
+                                  auto_exposure=wanted), progress=False)
+    x, _ = trainer.train_set.full(trainer.train_set.items[0], 1, 1.0)
+    noisy = trainer.train_set.views[0].frames[0].noisy[1]
+    gains = white_balance_gains(noisy["color"], noisy["albedo"], exposure=wanted)
+    np.testing.assert_allclose(x, pack_denoiser_input(noisy["color"], noisy["albedo"], noisy["normal"],
+                                                      noisy["depth"], balance=gains), rtol=2e-6, atol=1e-6)
+
+
 def test_resume_continues_from_the_checkpoint(tiny_dataset, tmp_path):
     base = dict(task="error-predictor", data=str(tiny_dataset), out=str(tmp_path), batch=2, crop_min=8,
                 crop_max=16)

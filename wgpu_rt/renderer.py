@@ -103,7 +103,7 @@ class Renderer:
                  models_dir=None, networks: dict | None = None, mesh=None, ctx=None, progress: bool = False,
                  timings: bool | None = None, aux_samples: int | None = None, hdr: bool = True,
                  quality: str = "balanced", low_band: bool | None = None, chroma: bool = True,
-                 post_filter: bool = True, white_balance: bool = True, auto_exposure: bool = True):
+                 post_filter: bool = True, white_balance: bool = True, auto_exposure: bool | None = None):
         from .frame.adaptive import AdaptiveSettings
         from .frame.temporal import TemporalSettings
         from .frame.tonemap import check_settings
@@ -125,10 +125,11 @@ class Renderer:
         from .frame.lowband import uses_low_band
 
         uses_low_band(self.width, self.height, low_band)   # checks the setting
-        for name, value in (("chroma", chroma), ("post_filter", post_filter), ("white_balance", white_balance),
-                            ("auto_exposure", auto_exposure)):
+        for name, value in (("chroma", chroma), ("post_filter", post_filter), ("white_balance", white_balance)):
             if not isinstance(value, bool):
                 raise WgpuRtError(f"{name} must be True or False, got {value!r}")
+        if auto_exposure is not None and not isinstance(auto_exposure, bool):
+            raise WgpuRtError(f"auto_exposure must be True, False or None, got {auto_exposure!r}")
         if tonemap is not None:
             check_settings(tonemap, display, exposure)
         check_readback(hdr, tonemap, self.aovs)
@@ -281,8 +282,8 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       the square roots of its channels' means over their mean, and its output is multiplied back; False:
       as it is), ``auto_exposure`` (True: those gains also bring the frame's irradiance to one key, the
       log-average of its 8×8 tiles' means, so that the network reads the frame alike at any scale of its
-      light; False: at the scale it has), ``models_dir``, ``networks`` ({"denoiser": model, …} to use
-      instead of loading), ``mesh``, ``ctx``,
+      light; False: at the scale it has; None: as the denoiser was trained, its ONNX metadata),
+      ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
       ``progress`` (a progress bar, on a terminal), ``timings`` (per-stage GPU times; default: when the
       adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a

@@ -6,6 +6,7 @@ from ..errors import WgpuRtError
 from ..frame.lowband import LOW_BAND_SETTINGS
 
 SWITCHES = {"on": True, "off": False}
+AUTO_SWITCHES = {"auto": None, **SWITCHES}
 
 
 def add_denoiser_flags(parser, image: str) -> None:
@@ -27,10 +28,10 @@ def add_denoiser_step_flags(parser, image: str = "frame") -> None:
                         help="divide the irradiance the network reads by the frame's per-channel gains (the "
                              "square roots of its channels' means over their mean) and multiply them back "
                              "after, so that strongly coloured light does not come out greyed (default on)")
-    parser.add_argument("--auto-exposure", choices=list(SWITCHES), default="on",
+    parser.add_argument("--auto-exposure", choices=list(AUTO_SWITCHES), default="auto",
                         help="bring the irradiance the network reads to one key (the log-average of 8×8 tile "
                              f"means) and back after, so that a {image} denoises alike at any scale of its light "
-                             "(default on)")
+                             "(auto, the default: as the model was trained, which its ONNX file records)")
     parser.add_argument("--low-band", choices=list(LOW_BAND_SETTINGS), default="auto",
                         help="the denoiser's band below quarter resolution from passes at half (and, from "
                              "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
@@ -48,7 +49,7 @@ def denoiser_options(args) -> dict:
     """The renderer's / ``denoise()``'s options from the flags (quality and precision left to the caller)."""
     return {"low_band": LOW_BAND_SETTINGS[args.low_band], "chroma": SWITCHES[args.chroma],
             "post_filter": SWITCHES[args.post_filter], "white_balance": SWITCHES[args.white_balance],
-            "auto_exposure": SWITCHES[args.auto_exposure]}
+            "auto_exposure": AUTO_SWITCHES[args.auto_exposure]}
 
 
 def check_denoiser_flags(args) -> None:
@@ -56,6 +57,6 @@ def check_denoiser_flags(args) -> None:
     for flag, value, default in (("--quality", args.quality, "balanced"), ("--low-band", args.low_band, "auto"),
                                  ("--chroma", args.chroma, "on"), ("--post-filter", args.post_filter, "on"),
                                  ("--white-balance", args.white_balance, "on"),
-                                 ("--auto-exposure", args.auto_exposure, "on")):
+                                 ("--auto-exposure", args.auto_exposure, "auto")):
         if value != default:
             raise WgpuRtError(f"{flag} {value} is the denoiser's: add --denoise")

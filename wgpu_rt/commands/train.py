@@ -58,6 +58,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--permute-colours", action="store_true",
                         help="denoiser: draw a random order of the R, G, B channels per crop (colour, albedo and "
                              "target alike), so bounce light of every hue is seen (default: off)")
+    parser.add_argument("--auto-exposure", choices=["on", "off"], default="on",
+                        help="denoiser: bring each frame's irradiance to one key before the network, as "
+                             "`--auto-exposure auto` then does when it runs the model (the ONNX file records "
+                             "it; default: on)")
     parser.add_argument("--max-views", type=int, help="use at most this many views per split")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--checkpoints", help="checkpoint folder (default: OUT/checkpoints)")
@@ -89,7 +93,7 @@ def run(args) -> int:
                          lr=args.lr, seed=args.seed, crop_min=args.crop[0], crop_max=args.crop[1],
                          pixel_loss=args.pixel_loss, ssim_space=args.ssim_space, lowpass=args.lowpass,
                          log_mse=args.log_mse, edge=args.edge,
-                         permute_colours=args.permute_colours,
+                         permute_colours=args.permute_colours, auto_exposure=args.auto_exposure == "on",
                          widths=tuple(args.widths), residual=args.residual, bottom_merge=args.bottom_merge,
                          curriculum=tuple(args.curriculum), resume=args.resume,
                          extra_data=tuple(args.extra_data), max_views=args.max_views,

@@ -25,7 +25,7 @@ from .adaptive import HALF_RADIANCE
 from .atrous import atrous_filter
 from .chroma import match_sample_chroma
 from .converge import HALF_SPP, converge
-from .denoise_chain import DenoiseChain
+from .denoise_chain import DenoiseChain, trained_auto_exposure
 from .lowband import fewest_samples, low_band_denoise, low_band_levels
 from .pack import DepthMaxPass, pack_denoiser_input, white_balance_gains
 from .planes import write_plane
@@ -71,7 +71,7 @@ def load_model(name: str, precision: str = "auto", models_dir=None, path=None, c
 
 def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: bool = True,
             post_filter: bool = True, half=None, white_balance: bool = True,
-            auto_exposure: bool = True) -> np.ndarray:
+            auto_exposure: bool | None = None) -> np.ndarray:
     """(H, W, 3) linear HDR colour of ``spp`` samples per pixel (one count, or an (H, W[, 1]) map) +
     G-buffers → the denoised (H, W, 3) colour (finite, ≥ 0). ``model`` runs (N, C, H, W) batches; one with
     fewer ``input_channels`` (10: trained before the sample-count plane existed) gets the first ones.
@@ -83,11 +83,13 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     ``white_balance``: the network reads the irradiance divided by the frame's gains, and its output is
     multiplied back (frame/pack.py's ``white_balance_gains``); False: gains of 1.
     ``auto_exposure``: the gains also bring the frame's irradiance to one key (pack.py's ``exposure_scale``),
-    so that a frame reads the same at any scale of its light.
+    so that a frame reads the same at any scale of its light; None: as the model was trained
+    (``trained_auto_exposure``).
     ``half``: (the mean after the first part of the samples, its (H, W) counts): each pixel then hands over
     to the samples' own mean where that has converged, as a denoised render of several samples does
     (frame/converge.py)."""
     height, width = color.shape[:2]
+    auto_exposure = trained_auto_exposure(model) if auto_exposure is None else auto_exposure
     levels = low_band_levels(width, height, low_band, fewest_samples(spp))
     counts = device_sample_counts(spp, (height, width))
     half_counts = None if half is None else device_sample_counts(half[1], (height, width))

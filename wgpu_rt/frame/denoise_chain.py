@@ -17,6 +17,17 @@ from .planes import DENOISED, DENOISER_INPUT
 from .unpack import UnpackPass
 
 
+# The ONNX metadata key that says whether a denoiser was trained on inputs brought to one exposure
+# (frame/pack.py's exposure_scale): "on" or "off"; models from before it say nothing and read "off".
+INPUT_EXPOSURE = "wgpu_rt.auto_exposure"
+
+
+def trained_auto_exposure(model) -> bool:
+    """Whether ``model`` (a WGSL engine model, or anything with its ``graph``) was trained with the exposure
+    step: its ONNX file's INPUT_EXPOSURE metadata."""
+    return getattr(getattr(model, "graph", None), "metadata", {}).get(INPUT_EXPOSURE) == "on"
+
+
 def _no_mark(encoder, name: str) -> None:
     """A stage boundary nobody times."""
 

@@ -30,7 +30,7 @@ from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
 from .area_albedo import AreaAlbedoPass
 from .converge import HALF_SPP, copy_half, half_count
-from .denoise_chain import DenoiseChain
+from .denoise_chain import DenoiseChain, trained_auto_exposure
 from .interleave import InterleavePass, interleaved, interleaves
 from .lowband import low_band_levels, uses_low_band
 from .pack import DepthMaxPass, PackErrorPass
@@ -186,10 +186,10 @@ class FramePipeline:
     LOW_BAND_MAX_SPP samples). ``chroma``: the denoised colour balance held to the samples' block means
     (frame/chroma.py). ``post_filter``: the denoised frame smoothed by an edge-aware à-trous filter
     (frame/atrous.py). ``white_balance``: the denoiser's input white-balanced by the frame's gains
-    (frame/pack.py); ``auto_exposure``: and brought to one key. ``aovs`` names the G-buffer planes to read
-    back with the colour; ``operator`` None skips the display image; ``hdr=False`` skips the HDR colour
-    (12 bytes a pixel; ``RenderResult.color`` is then None) for callers that want only the display image
-    or AOVs.
+    (frame/pack.py); ``auto_exposure``: and brought to one key (None: as the denoiser was trained).
+    ``aovs`` names the G-buffer planes to read back with the colour; ``operator`` None skips the display
+    image; ``hdr=False`` skips the HDR colour (12 bytes a pixel; ``RenderResult.color`` is then None) for
+    callers that want only the display image or AOVs.
     """
 
     def __init__(self, ctx, width: int, height: int, trace_factory, *, spp: int = 1, denoiser=None,
@@ -198,7 +198,7 @@ class FramePipeline:
                  operator: str | None = "aces", exposure: float = 0.0, srgb: bool = True,
                  output: str = "rgba8", timings: bool | None = None, progress=None, aux_samples: int = 0,
                  hdr: bool = True, low_band: bool | None = None, chroma: bool = True, post_filter: bool = True,
-                 white_balance: bool = True, auto_exposure: bool = True):
+                 white_balance: bool = True, auto_exposure: bool | None = None):
         check_readback(hdr, operator, aovs)
         if adaptive is not None and adaptive.sampler == "heat" and error_predictor is None:
             raise ModelError("the heat adaptive sampler needs an error predictor model")
@@ -218,7 +218,9 @@ class FramePipeline:
             self.chain = DenoiseChain(ctx, width, height, denoiser, self.depth_max.result,
                                       low_band_levels(width, height, low_band, fewest), chroma, post_filter,
                                       converge=(spp > 1 or adaptive is not None) and temporal is None,
-                                      white_balance=white_balance, auto_exposure=auto_exposure)
+                                      white_balance=white_balance,
+                                      auto_exposure=trained_auto_exposure(denoiser) if auto_exposure is None
+                                      else auto_exposure)
             color = self.chain.output
         # Without the aux pass the tracer's albedo is a few point samples a pixel: smoothed for the denoiser.
         self.area_albedo = AreaAlbedoPass(ctx, width, height) if denoiser is not None and not aux_samples else None

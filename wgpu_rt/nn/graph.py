@@ -94,6 +94,8 @@ class NetworkGraph:
     input_channels: int
     output_name: str
     layers: list[Layer]
+    # the ONNX file's metadata_props (e.g. how its input was packed, frame/denoise_chain.py's INPUT_EXPOSURE)
+    metadata: dict[str, str] = field(default_factory=dict)
     # tensor -> (concat tensor it is written into, channel offset); resolved to a root by ``placement``
     aliases: dict[str, tuple[str, int]] = field(default_factory=dict)
     # concat layer name -> inputs copied at the concat (not aliased)
@@ -245,7 +247,8 @@ def load_graph(path: str | Path) -> NetworkGraph:
     from onnx import numpy_helper
 
     path = str(path)
-    graph = read_onnx(path).graph
+    model = read_onnx(path)
+    graph = model.graph
     constants = {init.name: numpy_helper.to_array(init) for init in graph.initializer}
     inputs = [i for i in graph.input if i.name not in constants]
     if len(inputs) != 1 or len(graph.output) != 1:
@@ -261,7 +264,8 @@ def load_graph(path: str | Path) -> NetworkGraph:
     lowering = _Lowering(path, constants, inputs[0].name, graph.output[0].name, readers)
     for node in graph.node:
         lowering.lower(node, numpy_helper)
-    network = NetworkGraph(path, inputs[0].name, dims[1].dim_value, graph.output[0].name, lowering.layers)
+    network = NetworkGraph(path, inputs[0].name, dims[1].dim_value, graph.output[0].name, lowering.layers,
+                           metadata={prop.key: prop.value for prop in model.metadata_props})
     _fold_pools(network)
     _plan_concats(network)
     _fold_adds(network)

@@ -132,8 +132,10 @@ def input_channels(model: nn.Module) -> int:
     return first.in_channels
 
 
-def export_onnx(model: nn.Module, path: str | Path, height: int = 64, width: int = 64) -> Path:
-    """Write ``model`` to ONNX (opset 17) with dynamic batch, height and width."""
+def export_onnx(model: nn.Module, path: str | Path, height: int = 64, width: int = 64,
+                metadata: dict[str, str] | None = None) -> Path:
+    """Write ``model`` to ONNX (opset 17) with dynamic batch, height and width, and ``metadata`` as the
+    file's metadata_props (how its input was packed: frame/denoise_chain.py's INPUT_EXPOSURE)."""
     from ..io import atomic_output
 
     path = Path(path)
@@ -145,6 +147,13 @@ def export_onnx(model: nn.Module, path: str | Path, height: int = 64, width: int
             opset_version=ONNX_OPSET, dynamo=False,
             dynamic_axes={"input": {0: "batch", 2: "height", 3: "width"},
                           "output": {0: "batch", 2: "height", 3: "width"}})
+        if metadata:
+            import onnx
+
+            exported = onnx.load(str(tmp))
+            for key, value in metadata.items():
+                exported.metadata_props.add(key=key, value=value)
+            onnx.save(exported, str(tmp))
     return path
 
 

@@ -37,6 +37,7 @@ import numpy as np
 import torch
 
 from ..dataset.store import View
+from ..frame.denoise_chain import INPUT_EXPOSURE
 from ..frame.pack import (albedo_factor, demodulated_log_color, log_color, pack_confidence_input,
                           pack_denoiser_input, pack_error_input, white_balance_gains)
 from .targets import HEATMAP_PERCENTILE, confidence_pair
@@ -281,19 +282,23 @@ def _expose(planes: torch.Tensor, channels: slice, exposure) -> torch.Tensor:
 
 class DenoiserSamples(TaskSamples):
     """Noisy render at ``spp`` + G-buffers → 6 target planes: log1p of gold demodulated by the noisy
-    render's albedo factor and white-balanced by its gains (what the network outputs), then that factor
-    times the gains (for the loss on remodulated colour, which is what unpack produces and the metrics
-    score)."""
+    render's albedo factor and white-balanced by its gains (what the network outputs; with its exposure
+    where ``auto_exposure``), then that factor times the gains (for the loss on remodulated colour, which
+    is what unpack produces and the metrics score)."""
 
     aux_channels = slice(3, 10)
     exposed_target = slice(0, 3)
     colour_inputs = (slice(0, 3), slice(3, 6))    # log irradiance, albedo
     colour_targets = (slice(0, 3), slice(3, 6))   # gold log irradiance, albedo factor
 
+    def __init__(self, views: list[View], auto_exposure: bool = True):
+        super().__init__(views)
+        self.auto_exposure = auto_exposure
+
     def planes(self, item, spp, copy=0):
         frame = self.views[item[0]].frames[item[1]]
         noisy = frame.renders_at(spp)[copy]
-        balance = white_balance_gains(noisy["color"], noisy["albedo"])
+        balance = white_balance_gains(noisy["color"], noisy["albedo"], exposure=self.auto_exposure)
         x = pack_denoiser_input(noisy["color"], noisy["albedo"], noisy["normal"], noisy["depth"], spp, balance=balance)
         gold = frame.gold["color"]
         return x, np.concatenate([demodulated_log_color(gold, noisy["albedo"], balance),
@@ -332,6 +337,8 @@ class OnnxDenoiser:
         options = onnxruntime.SessionOptions()
         options.intra_op_num_threads = 1   # training shares 2 cores with everything else
         self.session = onnxruntime.InferenceSession(str(self.path), options, providers=["CPUExecutionProvider"])
+        metadata = self.session.get_modelmeta().custom_metadata_map
+        self.auto_exposure = metadata.get(INPUT_EXPOSURE) == "on"   # as the WGSL engine reads it
 
     def __call__(self, render: dict) -> np.ndarray:
         from ..frame.denoise import denoise
@@ -340,7 +347,8 @@ class OnnxDenoiser:
             return self.session.run(None, {"input": x})[0]
 
         run.input_channels = self.session.get_inputs()[0].shape[1]   # denoise() packs that many planes
-        return denoise(run, render["color"], render["albedo"], render["normal"], render["depth"])
+        return denoise(run, render["color"], render["albedo"], render["normal"], render["depth"],
+                       auto_exposure=self.auto_exposure)
 
 
 class ConfidenceSamples(TaskSamples):
@@ -383,11 +391,15 @@ class ConfidenceSamples(TaskSamples):
         return self._pair(item)[3]
 
 
-def samples_for(task: str, views: list[View], denoiser: OnnxDenoiser | None = None) -> TaskSamples:
-    """The task's samples; the confidence model's need the ``denoiser`` that makes its current frame."""
+def samples_for(task: str, views: list[View], denoiser: OnnxDenoiser | None = None,
+                auto_exposure: bool = True) -> TaskSamples:
+    """The task's samples; the confidence model's need the ``denoiser`` that makes its current frame; the
+    denoiser's inputs are brought to one exposure where ``auto_exposure`` (frame/pack.py)."""
     if task == "confidence":
         return ConfidenceSamples(views, denoiser)
-    return {"denoiser": DenoiserSamples, "error_predictor": ErrorSamples}[task](views)
+    if task == "denoiser":
+        return DenoiserSamples(views, auto_exposure)
+    return ErrorSamples(views)
 
 
 def curriculum_spp(progress: float, available: list[int], stages: tuple[int | str, ...] = (16, 4, 1)) -> int | str:

@@ -67,6 +67,8 @@ class TrainConfig:
     log_mse: float = 0.0                 # weight of the denoiser's per-crop log display-MSE term (0: none)
     edge: float = 0.0                    # weight of the denoiser's display L1 near aux edges (0: none)
     permute_colours: bool = False        # a random RGB order per crop (samples.Augmentation)
+    auto_exposure: bool = True           # the denoiser's input brought to one key (frame/pack.py), as its
+                                         # ONNX file then records (frame/denoise_chain.py's INPUT_EXPOSURE)
     widths: tuple[int, ...] = (32, 64, 128)
     residual: bool = False               # denoiser predicts a correction to its noisy input
     bottom_merge: str = "concat"         # or "add": the denoiser's deepest level added to the skip above
@@ -191,7 +193,7 @@ class Trainer:
         denoiser = self._source_denoiser() if config.task == "confidence" else None
         self.train_set, self.val_set = (
             samples_for(config.model_name, [v for folder in folders for v in load_views(folder, split, config.max_views)],
-                        denoiser)
+                        denoiser, config.auto_exposure)
             for split in ("train", "val"))
         for name, subset in (("train", self.train_set), ("val", self.val_set)):
             if not subset.items:
@@ -522,7 +524,7 @@ class Trainer:
             if self.config.task == "denoiser":
                 frame = self.val_set.views[item[0]].frames[item[1]]
                 noisy = frame.noisy[1]
-                gains = white_balance_gains(noisy["color"], noisy["albedo"])
+                gains = white_balance_gains(noisy["color"], noisy["albedo"], exposure=self.config.auto_exposure)
                 denoised = unpack_denoiser_output(out, noisy["albedo"], gains)
                 values = metrics.all_metrics(frame.gold["color"], denoised)
             elif self.config.model_name == "error_predictor":
@@ -536,10 +538,13 @@ class Trainer:
     # -- export ------------------------------------------------------------------------------------
     def export(self) -> tuple[Path, Path]:
         """``OUT/<name>.onnx`` and its model card ``OUT/<name>.md``."""
+        from ..frame.denoise_chain import INPUT_EXPOSURE
         from .networks import export_onnx
 
         _, onnx_path, card = self.config.outputs()
-        export_onnx(copy.deepcopy(self.model).cpu(), onnx_path)   # traced on the CPU, wherever it trained
+        metadata = ({INPUT_EXPOSURE: "on" if self.config.auto_exposure else "off"}
+                    if self.config.task == "denoiser" else None)
+        export_onnx(copy.deepcopy(self.model).cpu(), onnx_path, metadata=metadata)   # traced on the CPU
         with atomic_output(card) as tmp:
             tmp.write_text(self.model_card())
         return onnx_path, card
@@ -619,9 +624,11 @@ class Trainer:
         if cfg.task == "denoiser":
             lines.append("- input and output colour demodulated by albedo and white-balanced: log1p(colour / "
                          f"((albedo + {ALBEDO_EPSILON}) · gain)), the gains the square roots of the frame's mean "
-                         "irradiance per channel over their mean, times the frame's exposure scale (its "
-                         f"irradiance's key, the log-average of 8×8 tile means, brought to {EXPOSURE_KEY}); "
-                         "unpack multiplies back")
+                         "irradiance per channel over their mean"
+                         + (", times the frame's exposure scale (its irradiance's key, the log-average of 8×8 "
+                            f"tile means, brought to {EXPOSURE_KEY}; the ONNX file records it)"
+                            if cfg.auto_exposure else "; no exposure step (the ONNX file records it)")
+                         + "; unpack multiplies back")
             drawn = "; 'any': each crop draws one of its view's sample counts" if ANY_SPP in cfg.curriculum else ""
             lines.append(f"- loss 0.8·(1 − SSIM on {cfg.ssim_space} colour) + 0.2·{cfg.pixel_loss} on log1p "
                          "irradiance" + (f" + {cfg.lowpass:g}·L1 of its 8×8 block means" if cfg.lowpass else "")
