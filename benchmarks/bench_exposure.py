@@ -3,8 +3,7 @@
 by ours with the exposure step on and off (``denoise()`` as `wgpu-rt denoise` runs it, with the steps'
 flags: no hand-over to the samples' mean) and by OIDN, divided back by 2^stops and scored against the
 scene's gold. A denoiser that reads every scale alike gives one PSNR along a row; the renderer's own units
-are 0 stops. With the exposure step ours differs along a row only by the post filter, which weighs edges
-by their display luminance at the frame's own scale (BENCHMARKS.md §40).
+are 0 stops (BENCHMARKS.md §40).
 
     python3 benchmarks/bench_exposure.py --size 256 --spp 1 4 16 --seeds 2 --stops -8 -4 -2 0 2 4 8 \
         --gold-cache /tmp/gold --scenes cornell sun-room world-2147483652

@@ -73,13 +73,14 @@ def _chain_after_the_network(output, color, layers):
     balance and the post filter (frame/chroma.py, frame/atrous.py), on by default."""
     from wgpu_rt.frame.atrous import atrous_filter
     from wgpu_rt.frame.chroma import match_sample_chroma
-    from wgpu_rt.frame.pack import white_balance_gains
+    from wgpu_rt.frame.pack import frame_exposure, white_balance_gains
     from wgpu_rt.frame.unpack import unpack_denoiser_output
 
     gains = white_balance_gains(color, layers["albedo"], exposure=False)
+    exposure = frame_exposure(color, layers["albedo"])   # which the chroma hold and post filter read
     network = unpack_denoiser_output(output, layers["albedo"], gains)
-    return atrous_filter(match_sample_chroma(network, color, gains), layers["albedo"], layers["normal"],
-                         layers["depth"])
+    return atrous_filter(match_sample_chroma(network, color, exposure), layers["albedo"], layers["normal"],
+                         layers["depth"], exposure=exposure)
 
 
 @pytest.mark.parametrize("precision, tolerance", [("fp32", 1e-3), ("fp16", 3e-2)])
@@ -350,10 +351,9 @@ def test_white_balance_setting_on_the_device_and_the_command(gpu, tmp_path):
 
 
 def test_auto_exposure_denoises_a_frame_alike_at_any_scale_of_its_light(gpu, tmp_path):
-    """With the exposure step (the default) a frame at 2^-6 or 2^5 of its light denoises to that scale of
-    the frame's own result up to the post filter, which weighs edges by their display luminance at the
-    frame's own scale (frame/atrous.py), so it is left out here; without the step the shipped network reads
-    each scale differently. By default the step runs as the model's ONNX file says it was trained (the
+    """With the exposure step a frame at 2^-6 or 2^5 of its light denoises to that scale of the frame's
+    own result (the chroma hold and the post filter read the frame at one key either way); without it the
+    shipped network reads each scale differently. By default the step runs as the model's ONNX file says it was trained (the
     shipped one says nothing: off); ``wgpu-rt denoise --auto-exposure on|off|auto`` writes what ``denoise()``
     gives so, on the device as by the numpy references; ``render`` refuses the flag without --denoise."""
     from wgpu_rt.frame.denoise_chain import INPUT_EXPOSURE
@@ -363,11 +363,11 @@ def test_auto_exposure_denoises_a_frame_alike_at_any_scale_of_its_light(gpu, tmp
     aux = (layers["albedo"], layers["normal"], layers["depth"])
     model = load_model("denoiser", "fp32", ctx=gpu)
     for auto in (True, False):
-        base = denoise(model, color, *aux, 4, auto_exposure=auto, post_filter=False)
-        np.testing.assert_allclose(base, denoise(NumpyPath(model), color, *aux, 4, auto_exposure=auto,
-                                                 post_filter=False), rtol=1e-4, atol=1e-5)
-        moved = max(np.abs(denoise(model, 2.0 ** stops * color, *aux, 4, auto_exposure=auto, post_filter=False)
-                           / 2.0 ** stops - base).max() for stops in (-6, 5))
+        base = denoise(model, color, *aux, 4, auto_exposure=auto)
+        np.testing.assert_allclose(base, denoise(NumpyPath(model), color, *aux, 4, auto_exposure=auto),
+                                   rtol=1e-4, atol=1e-5)
+        moved = max(np.abs(denoise(model, 2.0 ** stops * color, *aux, 4, auto_exposure=auto) / 2.0 ** stops
+                           - base).max() for stops in (-6, 5))
         if auto:
             assert moved < 1e-5 * base.max()
         else:

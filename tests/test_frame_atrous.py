@@ -6,17 +6,18 @@ import numpy as np
 import pytest
 from parity import check_parity, run_frame_pass
 
-from wgpu_rt.frame.atrous import FILTER_LIMIT, AtrousPass, atrous_filter
+from wgpu_rt.frame.atrous import AS_GIVEN, FILTER_LIMIT, AtrousPass, atrous_filter
 from wgpu_rt.frame.planes import DENOISED
 from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, SPP
 
 SIZES = [(21, 13), (24, 16), (9, 30), (1, 1), (40, 37)]   # (W, H)
 
 
-def atrous_on_gpu(gpu, width, height, denoised, albedo, normal, depth, spp=None):
+def atrous_on_gpu(gpu, width, height, denoised, albedo, normal, depth, spp=None, exposure=None):
     planes = {DENOISED: denoised, ALBEDO: albedo, NORMAL: normal, DEPTH: depth,
               SPP: np.ones((height, width), np.uint32) if spp is None else spp}
-    buffers = run_frame_pass(gpu, AtrousPass(gpu, width, height), width, height, planes)
+    scale = None if exposure is None else gpu.upload(np.array([1, 1, 1, exposure], np.float32), label="exposure")
+    buffers = run_frame_pass(gpu, AtrousPass(gpu, width, height, scale), width, height, planes)
     return gpu.read(buffers.get(DENOISED), np.float32, (3, height, width)).transpose(1, 2, 0)
 
 
@@ -39,6 +40,24 @@ def test_atrous_matches_reference(gpu, width, height):
     inputs.append(rng.choice([0, 1, 16, 64, 1024], (height, width)).astype(np.uint32))   # the tolerance fades
     check_parity(None, atrous_filter, lambda *a: atrous_on_gpu(gpu, width, height, *a),
                  atol=1e-5, rtol=1e-5, inputs=inputs, name=f"atrous {width}x{height}")
+
+
+def test_atrous_reads_the_frame_at_one_key(gpu):
+    """The luminance is read at the frame's exposure brought to LUMINANCE_KEY: a frame scaled by 2^8 with its
+    exposure scaled alike is filtered as the frame is (on the device as by the reference); read as it is
+    (the default, AS_GIVEN) the bright frame saturates the display and is smoothed across its edges."""
+    rng = np.random.default_rng(5)
+    inputs = list(noisy_scene(rng, 24, 16))
+    shadow = np.where(np.arange(24)[None, :, None] < 6, 0.25, 1.0).astype(np.float32)   # on one surface
+    inputs[0] = inputs[0] * shadow
+    filtered = atrous_filter(*inputs)
+    scale = np.float32(2.0 ** 8)
+    bright = [inputs[0] * scale, *inputs[1:], np.ones((16, 24), np.uint32), AS_GIVEN * scale]
+    check_parity(None, atrous_filter, lambda *a: atrous_on_gpu(gpu, 24, 16, *a), atol=1e-5, rtol=1e-5,
+                 inputs=bright, name="atrous, a bright frame's exposure")
+    np.testing.assert_allclose(atrous_filter(*bright) / scale, filtered, rtol=1e-4, atol=1e-7)
+    as_given = atrous_filter(inputs[0] * scale, *inputs[1:]) / scale
+    assert np.abs(as_given - filtered).max() > 0.05 * filtered.max()
 
 
 @pytest.mark.parametrize("poison", [np.nan, np.inf, -np.inf, -1.0, np.finfo(np.float32).max])

@@ -13,9 +13,9 @@ from wgpu_rt.passes import RADIANCE
 SIZES = [(21, 13), (24, 16), (9, 30), (1, 1), (40, 37)]   # (W, H); 40×37: more blocks than the 7×7 window
 
 
-def chroma_on_gpu(gpu, width, height, denoised, color, gains=None):
-    balance = None if gains is None else gpu.upload(np.asarray(gains, np.float32), label="gains")
-    buffers = run_frame_pass(gpu, ChromaPass(gpu, width, height, balance), width, height,
+def chroma_on_gpu(gpu, width, height, denoised, color, exposure=None):
+    scale = None if exposure is None else gpu.upload(np.array([1, 1, 1, exposure], np.float32), label="exposure")
+    buffers = run_frame_pass(gpu, ChromaPass(gpu, width, height, scale), width, height,
                              {RADIANCE: color, DENOISED: denoised})
     return gpu.read(buffers.get(DENOISED), np.float32, (3, height, width)).transpose(1, 2, 0)
 
@@ -37,21 +37,19 @@ def test_chroma_matches_reference(gpu, width, height):
         assert not np.allclose(reference, inputs[0], rtol=1e-3)   # the case does move colours
 
 
-def test_chroma_scales_its_epsilon_with_the_frame_gains(gpu):
-    """ε is SHARE_EPSILON times the mean of the denoiser's gains, which carry the frame's exposure: a dark
-    frame with its gains scaled alike is held as the frame itself is (with ε fixed it is not), on the device
-    as by the reference."""
+def test_chroma_scales_its_epsilon_with_the_frame_exposure(gpu):
+    """ε is SHARE_EPSILON times the frame's exposure scale: a dark frame with its exposure scaled alike is
+    held as the frame itself is (with ε fixed it is not), on the device as by the reference."""
     denoised, color = biased_pair(np.random.default_rng(3), 24, 16)
     denoised[:8] *= 1e-4                                           # a near-black half, where ε matters
     color[:8] *= 1e-4
-    gains = np.array([0.5, 1.0, 1.5], np.float32)
-    scale = np.float32(2.0 ** -10)
+    exposure, scale = 1.5, np.float32(2.0 ** -10)
     check_parity(None, match_sample_chroma, lambda *a: chroma_on_gpu(gpu, 24, 16, *a), atol=1e-5, rtol=1e-5,
-                 inputs=[denoised * scale, color * scale, gains * scale], name="chroma with gains")
-    held = match_sample_chroma(denoised, color, gains)
-    np.testing.assert_allclose(match_sample_chroma(denoised * scale, color * scale, gains * scale) / scale, held,
+                 inputs=[denoised * scale, color * scale, exposure * scale], name="chroma with an exposure")
+    held = match_sample_chroma(denoised, color, exposure)
+    np.testing.assert_allclose(match_sample_chroma(denoised * scale, color * scale, exposure * scale) / scale, held,
                                rtol=1e-4, atol=1e-12)
-    assert not np.allclose(match_sample_chroma(denoised * scale, color * scale, gains) / scale, held, rtol=1e-2)
+    assert not np.allclose(match_sample_chroma(denoised * scale, color * scale, exposure) / scale, held, rtol=1e-2)
 
 
 @pytest.mark.parametrize("poison", [np.nan, np.inf, -np.inf, -1.0, np.finfo(np.float32).max])

@@ -15,6 +15,7 @@ from wgpu_rt.frame.pack import (
     PackErrorPass,
     WhiteBalancePass,
     exposure_scale,
+    frame_exposure,
     frame_irradiance,
     pack_confidence_input,
     pack_denoiser_input,
@@ -57,7 +58,9 @@ def balance_on_gpu(gpu, color, albedo, balance=True, exposure=True):
     height, width = color.shape[:2]
     balance = WhiteBalancePass(gpu, width, height, balance, exposure)
     run(gpu, [balance], {RADIANCE: color, ALBEDO: albedo}, width, height)
-    return gpu.read(balance.result, shape=(3,))
+    gains_and_exposure = gpu.read(balance.result, shape=(4,))
+    assert gains_and_exposure[3] == pytest.approx(frame_exposure(color, albedo), rel=2e-5)
+    return gains_and_exposure[:3]
 
 
 def random_planes(rng):

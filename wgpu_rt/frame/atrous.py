@@ -6,7 +6,10 @@ neighbours show the same surface. So the denoised frame F is smoothed by the edg
 wavelet filter of Dammertz et al. (HPG 2010, as SVGF uses it): STEPS passes of a 5×5 B3-spline kernel
 whose taps lie STEP pixels apart (1, 2, 4: a 25-pixel reach for 75 taps), each tap weighed by how alike
 the two pixels are in albedo, normal, relative depth and display luminance of the current pass's input
-(x/(1+x))^(1/2.2) of the channel mean, the metric's own display), so edges in any of them stop it.
+(x/(1+x))^(1/2.2) of the channel mean, the metric's own display, read at the frame's exposure brought to
+LUMINANCE_KEY: the irradiance's key, frame/pack.py's ``frame_exposure``), so edges in any of them stop it
+and a frame is filtered alike at any scale of its light (at the frame's own scale a bright frame saturated
+the display and was smoothed across its edges: `cornell` at 2^8 of its light lost 11 dB, BENCHMARKS.md §40).
 The luminance tolerance narrows as the centre pixel's samples grow past FADE_SPP, by sqrt(FADE_SPP / spp):
 what the denoiser leaves shrinks with the noise it was given. Indices are clamped at the frame's edges.
 Radiance and depth are clamped to FILTER_LIMIT first, so the weighted sums stay finite and the reciprocal
@@ -22,6 +25,7 @@ import numpy as np
 
 from ..passes import ALBEDO, DEPTH, NORMAL, SPP, ComputePass
 from .kernel import FrameKernel, finite, nonnegative_finite
+from .pack import EXPOSURE_KEY
 from .planes import DENOISED
 
 STEPS = (1, 2, 4)            # tap spacing of each pass, in pixels
@@ -34,11 +38,23 @@ SIGMA_DEPTH = 0.02           # depth difference relative to the centre's depth (
 DEPTH_FLOOR = 1e-3
 DISPLAY_GAMMA = 2.2
 FILTER_LIMIT = 1e30          # radiance and depth clamped to this before filtering
+LUMINANCE_KEY = 0.1          # the key the luminance is read at: near the built-ins' (0.09–0.15), where
+                             # the σ were tuned (§17)
+LUMINANCE_FACTOR_LIMIT = 1e8   # at most this factor on radiance ≤ FILTER_LIMIT, so its product stays finite
+AS_GIVEN = LUMINANCE_KEY / EXPOSURE_KEY   # the exposure scale whose frame is read as it is (factor 1)
 
 
-def display_luminance(radiance: np.ndarray) -> np.ndarray:
-    """(H, W, 3) radiance → (H, W): the channel mean m, as (m / (1 + m))^(1/2.2) (float64)."""
-    mean = (radiance / 3.0).sum(-1)
+def luminance_factor(exposure: float) -> float:
+    """The factor on radiance that brings a frame of exposure scale ``exposure`` (pack.frame_exposure:
+    its key over pack.EXPOSURE_KEY) to LUMINANCE_KEY, at most LUMINANCE_FACTOR_LIMIT."""
+    return float(min(np.float32(LUMINANCE_KEY) / (np.float32(EXPOSURE_KEY) * np.float32(exposure)),
+                     LUMINANCE_FACTOR_LIMIT))
+
+
+def display_luminance(radiance: np.ndarray, factor: float = 1.0) -> np.ndarray:
+    """(H, W, 3) radiance → (H, W): the channel mean m times ``factor``, as (m / (1 + m))^(1/2.2)
+    (float64)."""
+    mean = (radiance / 3.0).sum(-1) * factor
     return (mean / (1.0 + mean)) ** (1.0 / DISPLAY_GAMMA)
 
 
@@ -51,10 +67,12 @@ def luminance_sigma(spp, shape: tuple[int, int]) -> np.ndarray:
 
 
 def atrous_filter(denoised: np.ndarray, albedo: np.ndarray, normal: np.ndarray, depth: np.ndarray,
-                  spp=1) -> np.ndarray:
+                  spp=1, exposure: float = AS_GIVEN) -> np.ndarray:
     """(H, W, 3) denoised radiance and its (H, W, 3) albedo, (H, W, 3) normal and (H, W[, 1]) depth planes
-    and sample counts (one count or an (H, W[, 1]) map) → the radiance after the STEPS passes of the
-    module docstring (float32, finite, ≥ 0)."""
+    and sample counts (one count or an (H, W[, 1]) map), and the frame's exposure scale
+    (pack.frame_exposure) → the radiance after the STEPS passes of the module docstring (float32, finite,
+    ≥ 0)."""
+    factor = luminance_factor(exposure)
     height, width = np.shape(denoised)[:2]
     sigma = luminance_sigma(spp, (height, width))
     out = np.minimum(nonnegative_finite(denoised).astype(np.float64), FILTER_LIMIT)
@@ -64,7 +82,7 @@ def atrous_filter(denoised: np.ndarray, albedo: np.ndarray, normal: np.ndarray, 
     depth_scale = np.maximum(depth, DEPTH_FLOOR)
     rows, cols = np.arange(height), np.arange(width)
     for step in STEPS:
-        luminance = display_luminance(out)
+        luminance = display_luminance(out, factor)
         total, weights = np.zeros_like(out), np.zeros((height, width, 1))
         for i, dy in enumerate(range(-2, 3)):
             r = np.clip(rows + dy * step, 0, height - 1)[:, None]
@@ -85,29 +103,36 @@ class AtrousPass(ComputePass):
     """``atrous_filter`` on the device: DENOISED smoothed in place. A first dispatch lays out what every
     tap reads per pixel, side by side (the radiance with its display luminance; the guides with the
     pixel's luminance tolerance), then one dispatch per step ping-pongs between two work buffers, the
-    last writing DENOISED."""
+    last writing DENOISED. ``exposure``: a WhiteBalancePass's result, whose fourth value is the frame's
+    exposure scale (None: AS_GIVEN, the radiance's display luminance as it is)."""
 
     inputs = (DENOISED, ALBEDO, NORMAL, DEPTH, SPP)
     outputs = (DENOISED,)
 
-    def __init__(self, ctx, width: int, height: int):
+    def __init__(self, ctx, width: int, height: int, exposure=None):
+        self.exposure = (ctx.upload(np.array([1.0, 1.0, 1.0, AS_GIVEN], np.float32), label="exposure as given")
+                         if exposure is None else exposure)
         pixels = width * height
         self.work = [ctx.storage(16 * pixels, label=f"a-trous work {k}") for k in range(2)]
         self.guides = ctx.storage(32 * pixels, label="a-trous guides")
         constants = {"SIGMA_LUMINANCE": SIGMA_LUMINANCE, "FADE_SPP": FADE_SPP, "SIGMA_ALBEDO": SIGMA_ALBEDO,
                      "SIGMA_NORMAL": SIGMA_NORMAL, "SIGMA_DEPTH": SIGMA_DEPTH, "DEPTH_FLOOR": DEPTH_FLOOR,
-                     "FILTER_LIMIT": FILTER_LIMIT}
+                     "FILTER_LIMIT": FILTER_LIMIT, "LUMINANCE_KEY": LUMINANCE_KEY, "EXPOSURE_KEY": EXPOSURE_KEY,
+                     "LUMINANCE_FACTOR_LIMIT": LUMINANCE_FACTOR_LIMIT}
         self.prepare = FrameKernel(ctx, "frame/atrous.wgsl", "atrous_prepare",
-                                   ("denoised", "work_out", "albedo", "normal", "depth", "spp", "guides"),
+                                   ("denoised", "work_out", "albedo", "normal", "depth", "spp", "guides",
+                                    "exposure"),
                                    width, height, constants)
-        self.steps = [FrameKernel(ctx, "frame/atrous.wgsl", entry, ("work_in", output, "guides"), width, height,
-                                  {**constants, "STEP": step})
-                      for step, (entry, output) in zip(STEPS, [("atrous_step", "work_out")] * (len(STEPS) - 1)
-                                                       + [("atrous_last", "denoised")])]
+        # a step recomputes its output's luminance (reading the exposure); the last writes radiance only
+        self.steps = [FrameKernel(ctx, "frame/atrous.wgsl", entry, uses, width, height, {**constants, "STEP": step})
+                      for step, (entry, uses) in zip(STEPS, [("atrous_step", ("work_in", "work_out", "guides",
+                                                                              "exposure"))] * (len(STEPS) - 1)
+                                                     + [("atrous_last", ("work_in", "denoised", "guides"))])]
 
     def execute(self, encoder, buffers) -> None:
         bound = {"denoised": buffers.get(DENOISED), "albedo": buffers.get(ALBEDO), "normal": buffers.get(NORMAL),
-                 "depth": buffers.get(DEPTH), "spp": buffers.get(SPP), "guides": self.guides}
+                 "depth": buffers.get(DEPTH), "spp": buffers.get(SPP), "guides": self.guides,
+                 "exposure": self.exposure}
         self.prepare.dispatch(encoder, {**bound, "work_out": self.work[0]})
         for k, kernel in enumerate(self.steps):
             kernel.dispatch(encoder, {**bound, "work_in": self.work[k % 2], "work_out": self.work[(k + 1) % 2]})

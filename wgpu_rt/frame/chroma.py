@@ -10,10 +10,10 @@ James-Stein factor k = max(0, 1 − var / (N̄ − F̄)²), var being the estima
 spread of N − F about its mean over each block, Σ(r − r̄)² / (n(n − 1)), weighed by the squared
 Gaussian weights): a difference well beyond the noise is taken whole, one within it is left alone (so
 fireflies, whose blocks have a large var, move nothing). Only the block's chromaticity — each channel's
-share of the three channels' sum, ε added (SHARE_EPSILON times the mean of the denoiser's gains, which
-carry the frame's exposure, frame/pack.py: so the hold reads a frame alike at any scale of its light) — is
-taken from the result, so brightness and its edges stay the denoiser's: F's pixels are scaled per channel
-by share(target) / share(F̄), bilinear between block centres and clamped to [1/RATIO_LIMIT, RATIO_LIMIT].
+share of the three channels' sum, ε added (SHARE_EPSILON times the frame's exposure scale, frame/pack.py's
+``frame_exposure``: so the hold reads a frame alike at any scale of its light) — is taken from the result,
+so brightness and its edges stay the denoiser's: F's pixels are scaled per channel by share(target) /
+share(F̄), bilinear between block centres and clamped to [1/RATIO_LIMIT, RATIO_LIMIT].
 
 BENCHMARKS.md §17: at 256² over 13 scenes +0.5 dB at 1, 4 and 16 spp (world-2147483667 +5 dB), FLIP
 down on most. ``ChromaPass`` runs it on the device; ``match_sample_chroma`` is the numpy reference
@@ -27,23 +27,23 @@ import numpy as np
 from ..passes import RADIANCE, ComputePass
 from .kernel import TILE, FrameKernel, ceil_div, gaussian_taps, nonnegative_finite, separable_blur
 from .lowband import bilinear_up
-from .pack import NO_BALANCE, block_sum
+from .pack import block_sum
 from .planes import DENOISED
 
 BLOCK = 4                 # pixels per block side (wgsl/frame/block_grid.wgsl's BLOCK)
 SIGMA_BLOCKS = 1.0        # the Gaussian's σ over the block grid, in blocks
 RADIUS_BLOCKS = 3         # taps either side (3σ)
 SHARE_EPSILON = 1e-4      # radiance added to each channel's mean before taking shares (near-black blocks stay),
-                          # times the mean of the frame's gains
+                          # times the frame's exposure scale
 RATIO_LIMIT = 4.0         # a channel's scale factor stays in [1/4, 4]
 STATISTICS_LIMIT = 1e18   # radiance clamped to this for the block statistics (so squares and sums stay finite)
 F32_MAX = float(np.finfo(np.float32).max)
 
 
-def chroma_ratios(denoised: np.ndarray, color: np.ndarray, balance: np.ndarray = NO_BALANCE) -> np.ndarray:
+def chroma_ratios(denoised: np.ndarray, color: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     """(H, W, 3) denoised radiance F and samples' mean N → the (ceil(H/BLOCK), ceil(W/BLOCK), 3) per-block
-    channel scale factors (the module docstring's rule; float64); ``balance``: the gains the denoiser's
-    input was divided by (pack.white_balance_gains), which scale ε."""
+    channel scale factors (the module docstring's rule; float64); ``exposure``: the frame's exposure scale
+    (pack.frame_exposure), which scales ε."""
     f = np.minimum(nonnegative_finite(denoised).astype(np.float64), STATISTICS_LIMIT)
     n = np.minimum(nonnegative_finite(color).astype(np.float64), STATISTICS_LIMIT)
     pixels = block_sum(np.ones(f.shape[:2]), BLOCK)[..., None]
@@ -57,32 +57,32 @@ def chroma_ratios(denoised: np.ndarray, color: np.ndarray, balance: np.ndarray =
     variance = separable_blur(spread, taps * taps)
     difference2 = (low_n - low_f) ** 2
     k = np.where(variance < difference2, 1.0 - variance / np.where(difference2 > 0, difference2, 1.0), 0.0)
-    epsilon = SHARE_EPSILON * float(np.mean(np.asarray(balance, np.float32)))
+    epsilon = SHARE_EPSILON * float(np.float32(exposure))
     target = np.maximum(low_f + k * (low_n - low_f), 0.0) + epsilon
     low_f = low_f + epsilon
     ratio = (target / target.sum(-1, keepdims=True)) / (low_f / low_f.sum(-1, keepdims=True))
     return np.clip(ratio, 1.0 / RATIO_LIMIT, RATIO_LIMIT)
 
 
-def match_sample_chroma(denoised: np.ndarray, color: np.ndarray, balance: np.ndarray = NO_BALANCE) -> np.ndarray:
-    """(H, W, 3) denoised radiance, its samples' (H, W, 3) mean (and the denoiser's gains, ``chroma_ratios``)
-    → the denoised radiance with each block's chromaticity moved to what the samples support (float32,
-    finite, ≥ 0)."""
+def match_sample_chroma(denoised: np.ndarray, color: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """(H, W, 3) denoised radiance, its samples' (H, W, 3) mean (and the frame's exposure scale,
+    ``chroma_ratios``) → the denoised radiance with each block's chromaticity moved to what the samples
+    support (float32, finite, ≥ 0)."""
     height, width = np.shape(denoised)[:2]
-    ratio = bilinear_up(chroma_ratios(denoised, color, balance), BLOCK, (height, width))
+    ratio = bilinear_up(chroma_ratios(denoised, color, exposure), BLOCK, (height, width))
     return np.minimum(nonnegative_finite(denoised) * ratio, F32_MAX).astype(np.float32)
 
 
 class ChromaPass(ComputePass):
     """``match_sample_chroma`` on the device: DENOISED rewritten in place against RADIANCE (three
     dispatches: block statistics, per-block ratios over the Gaussian's window, per-pixel scaling);
-    ``balance``: the buffer of the denoiser's gains (a WhiteBalancePass's result; None: gains of 1)."""
+    ``exposure``: a WhiteBalancePass's result, whose fourth value is the frame's exposure scale (None: 1)."""
 
     inputs = (RADIANCE, DENOISED)
     outputs = (DENOISED,)
 
-    def __init__(self, ctx, width: int, height: int, balance=None):
-        self.balance = ctx.upload(NO_BALANCE, label="no gains") if balance is None else balance
+    def __init__(self, ctx, width: int, height: int, exposure=None):
+        self.exposure = ctx.upload(np.ones(4, np.float32), label="unit exposure") if exposure is None else exposure
         self.blocks = (ceil_div(width, BLOCK), ceil_div(height, BLOCK))
         count = self.blocks[0] * self.blocks[1]
         self.statistics = ctx.storage(4 * 9 * count, label="chroma block statistics")
@@ -91,14 +91,14 @@ class ChromaPass(ComputePass):
         taps = gaussian_taps(SIGMA_BLOCKS, RADIUS_BLOCKS)[RADIUS_BLOCKS:]
         constants = {"SHARE_EPSILON": SHARE_EPSILON, "RATIO_LIMIT": RATIO_LIMIT, "STATISTICS_LIMIT": STATISTICS_LIMIT,
                      **{f"TAP_{k}": float(tap) for k, tap in enumerate(taps)}}
-        names = ("color", "denoised", "statistics", "ratios", "balance")
+        names = ("color", "denoised", "statistics", "ratios", "exposure")
         self.kernels = [FrameKernel(ctx, "frame/chroma.wgsl", entry, uses, width, height, constants)
                         for entry, uses in (("chroma_statistics", names[:3]), ("chroma_ratios", names[2:]),
                                             ("chroma_apply", ("denoised", "ratios")))]
 
     def execute(self, encoder, buffers) -> None:
         bound = {"color": buffers.get(RADIANCE), "denoised": buffers.get(DENOISED),
-                 "statistics": self.statistics, "ratios": self.ratios, "balance": self.balance}
+                 "statistics": self.statistics, "ratios": self.ratios, "exposure": self.exposure}
         block_groups = (ceil_div(self.blocks[0], TILE), ceil_div(self.blocks[1], TILE))
         statistics, ratios, apply = self.kernels
         statistics.dispatch(encoder, bound, groups=block_groups)

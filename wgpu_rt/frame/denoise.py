@@ -27,7 +27,7 @@ from .chroma import match_sample_chroma
 from .converge import HALF_SPP, converge
 from .denoise_chain import DenoiseChain, trained_auto_exposure
 from .lowband import fewest_samples, low_band_denoise, low_band_levels
-from .pack import DepthMaxPass, pack_denoiser_input, white_balance_gains
+from .pack import DepthMaxPass, frame_exposure, pack_denoiser_input, white_balance_gains
 from .planes import write_plane
 from .unpack import unpack_denoiser_output
 
@@ -103,14 +103,15 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
         return np.asarray(model(packed[None, :channels]), np.float32)[0]
 
     balance = white_balance_gains(color, albedo, white_balance, auto_exposure)
+    exposure = frame_exposure(color, albedo)
     denoised = unpack_denoiser_output(run(pack_denoiser_input(color, albedo, normal, depth, spp, balance=balance)),
                                       albedo, balance)
     if levels:
         denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels, balance)
     if chroma:
-        denoised = match_sample_chroma(denoised, color, balance)
+        denoised = match_sample_chroma(denoised, color, exposure)
     if post_filter:
-        denoised = atrous_filter(denoised, albedo, normal, depth, spp)
+        denoised = atrous_filter(denoised, albedo, normal, depth, spp, exposure)
     if half is None:
         return denoised
     samples = np.broadcast_to(np.asarray(spp)[..., 0] if np.ndim(spp) == 3 else spp, (height, width))

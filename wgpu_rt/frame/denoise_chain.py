@@ -12,7 +12,7 @@ from .atrous import AtrousPass
 from .chroma import ChromaPass
 from .converge import CONVERGED, ConvergePass
 from .lowband import LowBand
-from .pack import NO_BALANCE, PackDenoiserPass, WhiteBalancePass
+from .pack import PackDenoiserPass, WhiteBalancePass
 from .planes import DENOISED, DENOISER_INPUT
 from .unpack import UnpackPass
 
@@ -36,28 +36,28 @@ class DenoiseChain:
     """The chain for ``denoiser`` at width×height; ``depth_max`` is a DepthMaxPass's result, recorded
     earlier in the same encoder. ``levels``: the low band's coarser levels (0: none); ``chroma``,
     ``post_filter``, ``converge``, ``white_balance``, ``auto_exposure``: whether those steps run (without
-    the white balance and the exposure the network reads the irradiance as it is: gains of 1). ``output``
-    is the plane the chain leaves its result in."""
+    the white balance and the exposure the network reads the irradiance as it is: gains of 1; the pass
+    that finds them runs anyway, for the frame's exposure scale the chroma hold and the post filter read).
+    ``output`` is the plane the chain leaves its result in."""
 
     def __init__(self, ctx, width: int, height: int, denoiser, depth_max, levels: int = 0, chroma: bool = True,
                  post_filter: bool = True, converge: bool = False, white_balance: bool = True,
                  auto_exposure: bool = True):
         self.width, self.height, self.denoiser = width, height, denoiser
-        gained = white_balance or auto_exposure
-        self.balance = WhiteBalancePass(ctx, width, height, white_balance, auto_exposure) if gained else None
-        gains = self.balance.result if gained else ctx.upload(NO_BALANCE, label="no white balance")
+        self.balance = WhiteBalancePass(ctx, width, height, white_balance, auto_exposure)
+        gains = self.balance.result   # and the frame's exposure scale
         self.pack = PackDenoiserPass(ctx, width, height, depth_max, gains)
         self.unpack = UnpackPass(ctx, width, height, gains)
         self.low_band = LowBand(ctx, width, height, depth_max, gains, denoiser, levels) if levels else None
         self.chroma = ChromaPass(ctx, width, height, gains) if chroma else None
-        self.post_filter = AtrousPass(ctx, width, height) if post_filter else None
+        self.post_filter = AtrousPass(ctx, width, height, gains) if post_filter else None
         self.converge = ConvergePass(ctx, width, height) if converge else None
         self.output = CONVERGED if converge else DENOISED
 
     def stages(self) -> list:
         """Its passes in order (a Stage stands in for the network), for frame.pipeline.check_wiring."""
         steps = (self.low_band, self.chroma, self.post_filter, self.converge)
-        return [step for step in (self.balance, self.pack) if step is not None] + [
+        return [self.balance, self.pack] + [
             Stage("denoiser", (DENOISER_INPUT,), ()), self.unpack, *(step for step in steps if step is not None)]
 
     def prepare(self, buffers) -> None:
@@ -70,8 +70,7 @@ class DenoiseChain:
     def record(self, encoder, buffers, low_band: bool = True, mark=_no_mark) -> None:
         """Record the chain into ``encoder`` over ``buffers``' planes (the low band only where
         ``low_band``), calling ``mark(encoder, name)`` at the end of each timed stage."""
-        if self.balance is not None:
-            self.balance.execute(encoder, buffers)
+        self.balance.execute(encoder, buffers)
         self.pack.execute(encoder, buffers)
         mark(encoder, "pack")
         network_output = self.denoiser.record(encoder, buffers.get(DENOISER_INPUT), self.height, self.width)

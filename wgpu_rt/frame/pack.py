@@ -71,6 +71,12 @@ def frame_irradiance(color: np.ndarray, albedo: np.ndarray) -> np.ndarray:
     return nonnegative_finite(color).transpose(2, 0, 1).astype(np.float64) / albedo_factor(albedo)
 
 
+def frame_exposure(color: np.ndarray, albedo: np.ndarray) -> float:
+    """(H, W, 3) radiance and albedo → the frame's ``exposure_scale`` (what WhiteBalancePass leaves in its
+    result's fourth value, whether or not the gains carry it)."""
+    return exposure_scale(np.minimum(frame_irradiance(color, albedo), IRRADIANCE_LIMIT))
+
+
 def exposure_scale(irradiance: np.ndarray) -> float:
     """(3, H, W) irradiance → the factor it is divided by so that its key becomes EXPOSURE_KEY: the key is
     exp of the mean log of the mean luminance (the channels' mean) of each TILE×TILE tile (fewer pixels at
@@ -211,9 +217,10 @@ class DepthMaxPass(ComputePass):
 
 class WhiteBalancePass(ComputePass):
     """radiance, albedo → ``self.result``, a buffer of the frame's three white-balance gains (1 without
-    ``balance``), times its exposure scale where ``exposure`` (``white_balance_gains``, found by
-    frame/balance.wgsl: per-tile sums, then one workgroup's reduction; not a per-pixel plane, so the pass
-    owns it; the denoiser's packing and unpacking passes are handed it)."""
+    ``balance``), times its exposure scale where ``exposure`` (``white_balance_gains``), then that scale
+    itself (``frame_exposure``), found by frame/balance.wgsl: per-tile sums, then one workgroup's
+    reduction; not a per-pixel plane, so the pass owns it; the denoiser's packing and unpacking passes read
+    the gains, the chroma hold and the post filter the scale."""
 
     inputs = (RADIANCE, ALBEDO)
 
@@ -227,7 +234,7 @@ class WhiteBalancePass(ComputePass):
                                         width, height, constants)
         tiles = ceil_div(width, TILE) * ceil_div(height, TILE)
         self.tile_sums = ctx.storage(4 * 3 * tiles, label="irradiance tile sums")
-        self.result = ctx.storage(4 * 3, label="white balance")
+        self.result = ctx.storage(4 * 4, label="white balance and exposure")
 
     def execute(self, encoder, buffers) -> None:
         planes = {"color": buffers.get(RADIANCE), "albedo": buffers.get(ALBEDO), "tile_sums": self.tile_sums,

@@ -9,7 +9,8 @@
 //                   BALANCE; with EXPOSURE, times
 //                   the frame's exposure scale (pack.py's exposure_scale): its key, exp of the mean log of
 //                   the tiles' mean luminance over the tiles brighter than KEY_FLOOR, over KEY, summed in the
-//                   same shares and tree.
+//                   same shares and tree; balance[3] is that scale whether or not the gains carry it
+//                   (the chroma hold and the post filter read the frame at one key with it).
 // #import frame/common.wgsl
 // #import frame/albedo.wgsl
 
@@ -96,9 +97,10 @@ fn gains_main(@builtin(local_invocation_index) lane: u32) {
             gains = max(powered / ((powered.x + powered.y + powered.z) / 3.0), vec3f(FLOOR));
         }
         let keyed = key_partial[0];
-        if (EXPOSURE && keyed.y > 0.0) {
-            gains *= clamp(exp(keyed.x / keyed.y) / KEY, 1.0 / EXPOSURE_LIMIT, EXPOSURE_LIMIT);
-        }
+        var scale = 1.0;
+        if (keyed.y > 0.0) { scale = clamp(exp(keyed.x / keyed.y) / KEY, 1.0 / EXPOSURE_LIMIT, EXPOSURE_LIMIT); }
+        if (EXPOSURE) { gains *= scale; }
+        balance[3] = scale;
         for (var c = 0u; c < 3u; c++) { balance[c] = gains[c]; }
     }
 }

@@ -7,8 +7,8 @@
 //                      (2·RADIUS + 1)² blocks around it (indices clamped; the variance weighed by the
 //                      squared weights), F's mean moved towards N's by k = max(0, 1 − var / (N̄ − F̄)²) per
 //                      channel, and each channel's share of the three (ε added: SHARE_EPSILON times the
-//                      mean of the denoiser's gains, so that it scales with the frame's exposure) in the
-//                      result over its share in F's mean, clamped to [1/RATIO_LIMIT, RATIO_LIMIT]
+//                      frame's exposure scale, so that it scales with the frame's light) in the result over
+//                      its share in F's mean, clamped to [1/RATIO_LIMIT, RATIO_LIMIT]
 //   chroma_apply:      one invocation per pixel: F scaled by the ratios, bilinear between block centres
 // #import frame/common.wgsl
 // #import frame/block_grid.wgsl
@@ -26,7 +26,7 @@ const RADIUS: i32 = 3;            // chroma.RADIUS_BLOCKS
 @group(0) @binding(1) var<storage, read_write> denoised: array<f32>;     // F, 3 planes, rewritten
 @group(0) @binding(2) var<storage, read_write> statistics: array<f32>;
 @group(0) @binding(3) var<storage, read_write> ratios: array<f32>;
-@group(0) @binding(4) var<storage, read> balance: array<f32, 3>;       // the denoiser's gains (frame/pack.wgsl)
+@group(0) @binding(4) var<storage, read> exposure: array<f32, 4>;      // [3]: the frame's (frame/balance.wgsl)
 
 fn statistic(x: f32) -> f32 { return min(sanitize(x), STATISTICS_LIMIT); }
 
@@ -99,7 +99,7 @@ fn chroma_ratios(@builtin(global_invocation_id) id: vec3u) {
     }
     let difference2 = (low_n - low_f) * (low_n - low_f);
     let k = select(vec3f(0.0), 1.0 - variance / difference2, variance < difference2);
-    let epsilon = SHARE_EPSILON * (balance[0] + balance[1] + balance[2]) / 3.0;
+    let epsilon = SHARE_EPSILON * exposure[3];
     let moved = max(low_f + k * (low_n - low_f), vec3f(0.0)) + epsilon;
     let own = low_f + epsilon;
     let ratio = clamp((moved / (moved.x + moved.y + moved.z)) / (own / (own.x + own.y + own.z)),
