@@ -353,9 +353,9 @@ def test_white_balance_setting_on_the_device_and_the_command(gpu, tmp_path):
 def test_auto_exposure_denoises_a_frame_alike_at_any_scale_of_its_light(gpu, tmp_path):
     """With the exposure step a frame at 2^-6 or 2^5 of its light denoises to that scale of the frame's
     own result (the chroma hold and the post filter read the frame at one key either way); without it the
-    shipped network reads each scale differently. By default the step runs as the model's ONNX file says it was trained (the
-    shipped one says nothing: off); ``wgpu-rt denoise --auto-exposure on|off|auto`` writes what ``denoise()``
-    gives so, on the device as by the numpy references; ``render`` refuses the flag without --denoise."""
+    shipped network reads each scale differently. By default the step runs as the model's ONNX file says it
+    was trained (the shipped one says nothing: off); ``wgpu-rt denoise --auto-exposure on|off|auto`` writes
+    what ``denoise()`` gives so, on the device as by the numpy references; ``render`` refuses the flag without --denoise."""
     from wgpu_rt.frame.denoise_chain import INPUT_EXPOSURE
     from wgpu_rt.frame.denoise import denoise, load_model
 
