@@ -355,7 +355,8 @@ def test_auto_exposure_denoises_a_frame_alike_at_any_scale_of_its_light(gpu, tmp
     own result (the chroma hold and the post filter read the frame at one key either way); without it the
     shipped network reads each scale differently. By default the step runs as the model's ONNX file says it
     was trained (the shipped one says nothing: off); ``wgpu-rt denoise --auto-exposure on|off|auto`` writes
-    what ``denoise()`` gives so, on the device as by the numpy references; ``render`` refuses the flag without --denoise."""
+    what ``denoise()`` gives so, on the device as by the numpy references; ``render`` refuses the flag
+    without --denoise."""
     from wgpu_rt.frame.denoise_chain import INPUT_EXPOSURE
     from wgpu_rt.frame.denoise import denoise, load_model
 
