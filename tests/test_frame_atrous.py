@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from parity import check_parity, run_frame_pass
 
-from wgpu_rt.frame.atrous import AS_GIVEN, FILTER_LIMIT, AtrousPass, atrous_filter
+from wgpu_rt.frame.atrous import FILTER_LIMIT, AtrousPass, atrous_filter
+from wgpu_rt.frame.pack import AS_TUNED
 from wgpu_rt.frame.planes import DENOISED
 from wgpu_rt.passes import ALBEDO, DEPTH, NORMAL, SPP
 
@@ -43,16 +44,16 @@ def test_atrous_matches_reference(gpu, width, height):
 
 
 def test_atrous_reads_the_frame_at_one_key(gpu):
-    """The luminance is read at the frame's exposure brought to LUMINANCE_KEY: a frame scaled by 2^8 with its
-    exposure scaled alike is filtered as the frame is (on the device as by the reference); read as it is
-    (the default, AS_GIVEN) the bright frame saturates the display and is smoothed across its edges."""
+    """The luminance is read at the frame's exposure brought to pack.STEPS_KEY: a frame scaled by 2^8 with
+    its exposure scaled alike is filtered as the frame is (on the device as by the reference); read as it is
+    (the default, AS_TUNED) the bright frame saturates the display and is smoothed across its edges."""
     rng = np.random.default_rng(5)
     inputs = list(noisy_scene(rng, 24, 16))
     shadow = np.where(np.arange(24)[None, :, None] < 6, 0.25, 1.0).astype(np.float32)   # on one surface
     inputs[0] = inputs[0] * shadow
     filtered = atrous_filter(*inputs)
     scale = np.float32(2.0 ** 8)
-    bright = [inputs[0] * scale, *inputs[1:], np.ones((16, 24), np.uint32), AS_GIVEN * scale]
+    bright = [inputs[0] * scale, *inputs[1:], np.ones((16, 24), np.uint32), AS_TUNED * scale]
     check_parity(None, atrous_filter, lambda *a: atrous_on_gpu(gpu, 24, 16, *a), atol=1e-5, rtol=1e-5,
                  inputs=bright, name="atrous, a bright frame's exposure")
     np.testing.assert_allclose(atrous_filter(*bright) / scale, filtered, rtol=1e-4, atol=1e-7)

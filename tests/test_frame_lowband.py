@@ -81,16 +81,18 @@ def test_pack_level_reference_by_hand():
     np.testing.assert_allclose(quarter[10], [[1 / np.sqrt(8)]])          # one block of all three
 
 
-def low_band_on_gpu(gpu, width, height, denoised, coarse, spp):
+def low_band_on_gpu(gpu, width, height, denoised, coarse, spp, exposure=None):
     """One LowBandPass on a given level: its denoised radiance, the coarser level's radiance, and its
-    sample counts packed as pack_denoiser does (the pass reads w from the 1/sqrt(spp) plane)."""
+    sample counts packed as pack_denoiser does (the pass reads w from the 1/sqrt(spp) plane); ``exposure``:
+    the frame's exposure scale (None: the pass's default)."""
     fine_input = pack_denoiser_input(np.zeros_like(denoised), np.zeros_like(denoised), np.zeros_like(denoised),
                                      np.zeros(denoised.shape[:2], np.float32), spp)
     buffers = [gpu.storage(array.nbytes) for array in (denoised, coarse, fine_input)]
     for buffer, array in zip(buffers, (denoised.transpose(2, 0, 1), coarse.transpose(2, 0, 1), fine_input)):
         gpu.device.queue.write_buffer(buffer, 0, np.ascontiguousarray(array, np.float32))
+    scale = None if exposure is None else gpu.upload(np.array([1, 1, 1, exposure], np.float32), label="exposure")
     encoder = gpu.device.create_command_encoder()
-    LowBandPass(gpu, width, height).execute(encoder, *buffers)
+    LowBandPass(gpu, width, height, scale).execute(encoder, *buffers)
     gpu.device.queue.submit([encoder.finish()])
     return gpu.read(buffers[0], np.float32, (3, height, width)).transpose(1, 2, 0)
 
@@ -104,6 +106,22 @@ def test_low_band_matches_reference(gpu, width, height):
               rng.integers(0, 6, (height, width)).astype(np.uint32))
     check_parity(None, transfer_low_band, lambda *a: low_band_on_gpu(gpu, width, height, *a),
                  atol=1e-5, rtol=1e-5, inputs=inputs, name=f"low band {width}x{height}")
+
+
+def test_low_band_scales_its_epsilon_with_the_frame_exposure(gpu):
+    """ε is LOW_BAND_EPSILON times how much brighter than pack.STEPS_KEY the frame is: a dark frame with its
+    exposure scaled alike moves as the frame itself does (with ε fixed it does not), on the device as by the
+    reference."""
+    rng = np.random.default_rng(6)
+    denoised = rng.exponential(0.01, (16, 20, 3)).astype(np.float32)
+    coarse = (2.0 * rng.exponential(0.01, (8, 10, 3))).astype(np.float32)
+    spp, scale = np.ones((16, 20), np.uint32), np.float32(2.0 ** -12)
+    check_parity(None, transfer_low_band, lambda *a: low_band_on_gpu(gpu, 20, 16, *a), atol=1e-5, rtol=1e-5,
+                 inputs=[denoised * scale, coarse * scale, spp, 0.5 * scale], name="low band with an exposure")
+    moved = transfer_low_band(denoised, coarse, spp, 0.5)
+    np.testing.assert_allclose(transfer_low_band(denoised * scale, coarse * scale, spp, 0.5 * scale) / scale, moved,
+                               rtol=1e-4)
+    assert not np.allclose(transfer_low_band(denoised * scale, coarse * scale, spp, 0.5) / scale, moved, rtol=1e-2)
 
 
 def test_low_band_never_emits_non_finite(gpu):
@@ -174,7 +192,7 @@ def test_denoise_leaves_the_low_band_out_from_16_samples_everywhere(monkeypatch)
     from wgpu_rt.frame import denoise as denoise_module
 
     levels_run = []
-    monkeypatch.setattr(denoise_module, "low_band_denoise", lambda *a: levels_run.append(a[-2]) or a[1])
+    monkeypatch.setattr(denoise_module, "low_band_denoise", lambda *a: levels_run.append(a[7]) or a[1])
     from wgpu_rt.frame import lowband
     monkeypatch.setattr(lowband, "LOW_BAND_MIN_SIDE", 8)
     rng = np.random.default_rng(2)

@@ -7,7 +7,7 @@ wavelet filter of Dammertz et al. (HPG 2010, as SVGF uses it): STEPS passes of a
 whose taps lie STEP pixels apart (1, 2, 4: a 25-pixel reach for 75 taps), each tap weighed by how alike
 the two pixels are in albedo, normal, relative depth and display luminance of the current pass's input
 (x/(1+x))^(1/2.2) of the channel mean, the metric's own display, read at the frame's exposure brought to
-LUMINANCE_KEY: the irradiance's key, frame/pack.py's ``frame_exposure``), so edges in any of them stop it
+pack.STEPS_KEY: the irradiance's key, frame/pack.py's ``frame_exposure``), so edges in any of them stop it
 and a frame is filtered alike at any scale of its light (at the frame's own scale a bright frame saturated
 the display and was smoothed across its edges: `cornell` at 2^8 of its light lost 11 dB, BENCHMARKS.md §40).
 The luminance tolerance narrows as the centre pixel's samples grow past FADE_SPP, by sqrt(FADE_SPP / spp):
@@ -25,7 +25,7 @@ import numpy as np
 
 from ..passes import ALBEDO, DEPTH, NORMAL, SPP, ComputePass
 from .kernel import FrameKernel, finite, nonnegative_finite
-from .pack import EXPOSURE_KEY
+from .pack import AS_TUNED, KEY_RATIO, steps_scale
 from .planes import DENOISED
 
 STEPS = (1, 2, 4)            # tap spacing of each pass, in pixels
@@ -38,17 +38,13 @@ SIGMA_DEPTH = 0.02           # depth difference relative to the centre's depth (
 DEPTH_FLOOR = 1e-3
 DISPLAY_GAMMA = 2.2
 FILTER_LIMIT = 1e30          # radiance and depth clamped to this before filtering
-LUMINANCE_KEY = 0.1          # the key the luminance is read at: near the built-ins' (0.09–0.15), where
-                             # the σ were tuned (§17)
 LUMINANCE_FACTOR_LIMIT = 1e8   # at most this factor on radiance ≤ FILTER_LIMIT, so its product stays finite
-AS_GIVEN = LUMINANCE_KEY / EXPOSURE_KEY   # the exposure scale whose frame is read as it is (factor 1)
 
 
 def luminance_factor(exposure: float) -> float:
-    """The factor on radiance that brings a frame of exposure scale ``exposure`` (pack.frame_exposure:
-    its key over pack.EXPOSURE_KEY) to LUMINANCE_KEY, at most LUMINANCE_FACTOR_LIMIT."""
-    return float(min(np.float32(LUMINANCE_KEY) / (np.float32(EXPOSURE_KEY) * np.float32(exposure)),
-                     LUMINANCE_FACTOR_LIMIT))
+    """The factor on radiance that brings a frame of exposure scale ``exposure`` (pack.frame_exposure) to
+    pack.STEPS_KEY, at most LUMINANCE_FACTOR_LIMIT."""
+    return float(min(np.float32(1.0) / np.float32(steps_scale(exposure)), LUMINANCE_FACTOR_LIMIT))
 
 
 def display_luminance(radiance: np.ndarray, factor: float = 1.0) -> np.ndarray:
@@ -67,7 +63,7 @@ def luminance_sigma(spp, shape: tuple[int, int]) -> np.ndarray:
 
 
 def atrous_filter(denoised: np.ndarray, albedo: np.ndarray, normal: np.ndarray, depth: np.ndarray,
-                  spp=1, exposure: float = AS_GIVEN) -> np.ndarray:
+                  spp=1, exposure: float = AS_TUNED) -> np.ndarray:
     """(H, W, 3) denoised radiance and its (H, W, 3) albedo, (H, W, 3) normal and (H, W[, 1]) depth planes
     and sample counts (one count or an (H, W[, 1]) map), and the frame's exposure scale
     (pack.frame_exposure) → the radiance after the STEPS passes of the module docstring (float32, finite,
@@ -104,20 +100,20 @@ class AtrousPass(ComputePass):
     tap reads per pixel, side by side (the radiance with its display luminance; the guides with the
     pixel's luminance tolerance), then one dispatch per step ping-pongs between two work buffers, the
     last writing DENOISED. ``exposure``: a WhiteBalancePass's result, whose fourth value is the frame's
-    exposure scale (None: AS_GIVEN, the radiance's display luminance as it is)."""
+    exposure scale (None: pack.AS_TUNED, the radiance's display luminance as it is)."""
 
     inputs = (DENOISED, ALBEDO, NORMAL, DEPTH, SPP)
     outputs = (DENOISED,)
 
     def __init__(self, ctx, width: int, height: int, exposure=None):
-        self.exposure = (ctx.upload(np.array([1.0, 1.0, 1.0, AS_GIVEN], np.float32), label="exposure as given")
+        self.exposure = (ctx.upload(np.array([1.0, 1.0, 1.0, AS_TUNED], np.float32), label="exposure as tuned")
                          if exposure is None else exposure)
         pixels = width * height
         self.work = [ctx.storage(16 * pixels, label=f"a-trous work {k}") for k in range(2)]
         self.guides = ctx.storage(32 * pixels, label="a-trous guides")
         constants = {"SIGMA_LUMINANCE": SIGMA_LUMINANCE, "FADE_SPP": FADE_SPP, "SIGMA_ALBEDO": SIGMA_ALBEDO,
                      "SIGMA_NORMAL": SIGMA_NORMAL, "SIGMA_DEPTH": SIGMA_DEPTH, "DEPTH_FLOOR": DEPTH_FLOOR,
-                     "FILTER_LIMIT": FILTER_LIMIT, "LUMINANCE_KEY": LUMINANCE_KEY, "EXPOSURE_KEY": EXPOSURE_KEY,
+                     "FILTER_LIMIT": FILTER_LIMIT, "KEY_RATIO": KEY_RATIO,
                      "LUMINANCE_FACTOR_LIMIT": LUMINANCE_FACTOR_LIMIT}
         self.prepare = FrameKernel(ctx, "frame/atrous.wgsl", "atrous_prepare",
                                    ("denoised", "work_out", "albedo", "normal", "depth", "spp", "guides",

@@ -10,8 +10,9 @@ James-Stein factor k = max(0, 1 − var / (N̄ − F̄)²), var being the estima
 spread of N − F about its mean over each block, Σ(r − r̄)² / (n(n − 1)), weighed by the squared
 Gaussian weights): a difference well beyond the noise is taken whole, one within it is left alone (so
 fireflies, whose blocks have a large var, move nothing). Only the block's chromaticity — each channel's
-share of the three channels' sum, ε added (SHARE_EPSILON times the frame's exposure scale, frame/pack.py's
-``frame_exposure``: so the hold reads a frame alike at any scale of its light) — is taken from the result,
+share of the three channels' sum, ε added (SHARE_EPSILON times how much brighter than pack.STEPS_KEY the
+frame is, frame/pack.py's ``steps_scale``: so the hold reads a frame alike at any scale of its light) — is
+taken from the result,
 so brightness and its edges stay the denoiser's: F's pixels are scaled per channel by share(target) /
 share(F̄), bilinear between block centres and clamped to [1/RATIO_LIMIT, RATIO_LIMIT].
 
@@ -27,23 +28,23 @@ import numpy as np
 from ..passes import RADIANCE, ComputePass
 from .kernel import TILE, FrameKernel, ceil_div, gaussian_taps, nonnegative_finite, separable_blur
 from .lowband import bilinear_up
-from .pack import block_sum
+from .pack import AS_TUNED, KEY_RATIO, block_sum, steps_scale
 from .planes import DENOISED
 
 BLOCK = 4                 # pixels per block side (wgsl/frame/block_grid.wgsl's BLOCK)
 SIGMA_BLOCKS = 1.0        # the Gaussian's σ over the block grid, in blocks
 RADIUS_BLOCKS = 3         # taps either side (3σ)
 SHARE_EPSILON = 1e-4      # radiance added to each channel's mean before taking shares (near-black blocks stay),
-                          # times the frame's exposure scale
+                          # times the frame's pack.steps_scale
 RATIO_LIMIT = 4.0         # a channel's scale factor stays in [1/4, 4]
 STATISTICS_LIMIT = 1e18   # radiance clamped to this for the block statistics (so squares and sums stay finite)
 F32_MAX = float(np.finfo(np.float32).max)
 
 
-def chroma_ratios(denoised: np.ndarray, color: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+def chroma_ratios(denoised: np.ndarray, color: np.ndarray, exposure: float = AS_TUNED) -> np.ndarray:
     """(H, W, 3) denoised radiance F and samples' mean N → the (ceil(H/BLOCK), ceil(W/BLOCK), 3) per-block
     channel scale factors (the module docstring's rule; float64); ``exposure``: the frame's exposure scale
-    (pack.frame_exposure), which scales ε."""
+    (pack.frame_exposure), which scales ε (``steps_scale``)."""
     f = np.minimum(nonnegative_finite(denoised).astype(np.float64), STATISTICS_LIMIT)
     n = np.minimum(nonnegative_finite(color).astype(np.float64), STATISTICS_LIMIT)
     pixels = block_sum(np.ones(f.shape[:2]), BLOCK)[..., None]
@@ -57,14 +58,14 @@ def chroma_ratios(denoised: np.ndarray, color: np.ndarray, exposure: float = 1.0
     variance = separable_blur(spread, taps * taps)
     difference2 = (low_n - low_f) ** 2
     k = np.where(variance < difference2, 1.0 - variance / np.where(difference2 > 0, difference2, 1.0), 0.0)
-    epsilon = SHARE_EPSILON * float(np.float32(exposure))
+    epsilon = SHARE_EPSILON * steps_scale(exposure)
     target = np.maximum(low_f + k * (low_n - low_f), 0.0) + epsilon
     low_f = low_f + epsilon
     ratio = (target / target.sum(-1, keepdims=True)) / (low_f / low_f.sum(-1, keepdims=True))
     return np.clip(ratio, 1.0 / RATIO_LIMIT, RATIO_LIMIT)
 
 
-def match_sample_chroma(denoised: np.ndarray, color: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+def match_sample_chroma(denoised: np.ndarray, color: np.ndarray, exposure: float = AS_TUNED) -> np.ndarray:
     """(H, W, 3) denoised radiance, its samples' (H, W, 3) mean (and the frame's exposure scale,
     ``chroma_ratios``) → the denoised radiance with each block's chromaticity moved to what the samples
     support (float32, finite, ≥ 0)."""
@@ -76,20 +77,23 @@ def match_sample_chroma(denoised: np.ndarray, color: np.ndarray, exposure: float
 class ChromaPass(ComputePass):
     """``match_sample_chroma`` on the device: DENOISED rewritten in place against RADIANCE (three
     dispatches: block statistics, per-block ratios over the Gaussian's window, per-pixel scaling);
-    ``exposure``: a WhiteBalancePass's result, whose fourth value is the frame's exposure scale (None: 1)."""
+    ``exposure``: a WhiteBalancePass's result, whose fourth value is the frame's exposure scale (None:
+    pack.AS_TUNED, ε as it is)."""
 
     inputs = (RADIANCE, DENOISED)
     outputs = (DENOISED,)
 
     def __init__(self, ctx, width: int, height: int, exposure=None):
-        self.exposure = ctx.upload(np.ones(4, np.float32), label="unit exposure") if exposure is None else exposure
+        self.exposure = (ctx.upload(np.array([1.0, 1.0, 1.0, AS_TUNED], np.float32), label="exposure as tuned")
+                         if exposure is None else exposure)
         self.blocks = (ceil_div(width, BLOCK), ceil_div(height, BLOCK))
         count = self.blocks[0] * self.blocks[1]
         self.statistics = ctx.storage(4 * 9 * count, label="chroma block statistics")
         self.ratios = ctx.storage(4 * 3 * count, label="chroma ratios")
         # offsets 0 … RADIUS_BLOCKS (the kernel's TAP_k)
         taps = gaussian_taps(SIGMA_BLOCKS, RADIUS_BLOCKS)[RADIUS_BLOCKS:]
-        constants = {"SHARE_EPSILON": SHARE_EPSILON, "RATIO_LIMIT": RATIO_LIMIT, "STATISTICS_LIMIT": STATISTICS_LIMIT,
+        constants = {"SHARE_EPSILON": SHARE_EPSILON, "KEY_RATIO": KEY_RATIO, "RATIO_LIMIT": RATIO_LIMIT,
+                     "STATISTICS_LIMIT": STATISTICS_LIMIT,
                      **{f"TAP_{k}": float(tap) for k, tap in enumerate(taps)}}
         names = ("color", "denoised", "statistics", "ratios", "exposure")
         self.kernels = [FrameKernel(ctx, "frame/chroma.wgsl", entry, uses, width, height, constants)

@@ -107,7 +107,7 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     denoised = unpack_denoiser_output(run(pack_denoiser_input(color, albedo, normal, depth, spp, balance=balance)),
                                       albedo, balance)
     if levels:
-        denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels, balance)
+        denoised = low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels, balance, exposure)
     if chroma:
         denoised = match_sample_chroma(denoised, color, exposure)
     if post_filter:

@@ -30,11 +30,12 @@ import numpy as np
 from ..errors import WgpuRtError
 from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, ComputePass, prepare_network
 from .kernel import TILE, FrameKernel, ceil_div, nonnegative_finite
-from .pack import PackLevelPass, block_mean, level_sample_counts, pack_level_input
+from .pack import AS_TUNED, KEY_RATIO, PackLevelPass, block_mean, level_sample_counts, pack_level_input, steps_scale
 from .planes import DENOISED, DENOISER_INPUT
 from .unpack import UnpackPass, unpack_denoiser_output
 
-LOW_BAND_EPSILON = 1e-3    # radiance added to both low bands: a black level, so near-black blocks keep F
+LOW_BAND_EPSILON = 1e-3    # radiance added to both low bands: a black level, so near-black blocks keep F;
+                           # times the frame's pack.steps_scale, so that it scales with the frame's light
 LOW_BAND_MIN_SIDE = 256    # "auto" takes the low band for frames (and levels) at least this wide and high
 LOW_BAND_LEVELS = 2        # coarser levels at most (half and quarter resolution)
 LOW_BAND_MAX_SPP = 16      # "auto" leaves out frames whose every pixel holds at least this many samples
@@ -85,11 +86,12 @@ def bilinear_up(image: np.ndarray, factor: int, shape: tuple[int, int]) -> np.nd
     return top[:, cols0] * (1 - tx[None, :, None]) + top[:, cols1] * tx[None, :, None]
 
 
-def transfer_low_band(denoised: np.ndarray, coarse: np.ndarray, spp=1) -> np.ndarray:
+def transfer_low_band(denoised: np.ndarray, coarse: np.ndarray, spp=1, exposure: float = AS_TUNED) -> np.ndarray:
     """(H, W, 3) denoised radiance F of a level, (ceil(H/2), ceil(W/2), 3) radiance C of the next coarser
     one and the level's samples per pixel (one count or an (H, W[, 1]) map) → F · (w·LC + (1 − w)·LF + ε) /
     (LF + ε), with LF, LC and w the means of F, C (replicated to F's size) and 1/spp over 4×4 pixels,
-    bilinear between block centres (float32, finite, ≥ 0)."""
+    bilinear between block centres, ε LOW_BAND_EPSILON times the frame's ``exposure`` as pack.steps_scale
+    has it (float32, finite, ≥ 0)."""
     height, width = denoised.shape[:2]
     full = nonnegative_finite(denoised)
     replicated = np.repeat(np.repeat(nonnegative_finite(coarse), 2, axis=0), 2, axis=1)[:height, :width]
@@ -98,17 +100,18 @@ def transfer_low_band(denoised: np.ndarray, coarse: np.ndarray, spp=1) -> np.nda
     counts = level_sample_counts(spp, (height, width), 1)
     w = bilinear_up(block_mean((1.0 / np.maximum(np.nan_to_num(counts, nan=1.0), 1.0))[..., None], 4), 4,
                     (height, width))
-    ratio = np.minimum((w * low_coarse + (1 - w) * low_full + LOW_BAND_EPSILON) / (low_full + LOW_BAND_EPSILON),
-                       F32_MAX)
+    epsilon = np.float32(LOW_BAND_EPSILON) * np.float32(steps_scale(exposure))
+    ratio = np.minimum((w * low_coarse + (1 - w) * low_full + epsilon) / (low_full + epsilon), F32_MAX)
     return np.minimum(full * ratio, F32_MAX).astype(np.float32)
 
 
-def low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels: int, balance) -> np.ndarray:
+def low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels: int, balance,
+                     exposure: float = AS_TUNED) -> np.ndarray:
     """``denoised`` (the frame's denoiser output, unpacked) with the low band of ``levels`` coarser levels:
     each denoised by ``run`` (packed (11, h, w) input → (3, h, w) output) on the frame averaged over
     2^k × 2^k blocks, balanced by the frame's own gains (``balance``, pack.white_balance_gains), then from the
     coarsest up each level takes its band below quarter resolution from the next (``transfer_low_band``,
-    the level's own summed sample counts)."""
+    the level's own summed sample counts, the frame's ``exposure``)."""
     shape = np.shape(color)[:2]
     radiance = [denoised]
     for level in range(1, levels + 1):
@@ -116,26 +119,30 @@ def low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels: i
         radiance.append(unpack_denoiser_output(run(packed), packed[3:6].transpose(1, 2, 0), balance))
     for level in reversed(range(levels)):
         radiance[level] = transfer_low_band(radiance[level], radiance[level + 1],
-                                            level_sample_counts(spp, shape, 2 ** level))
+                                            level_sample_counts(spp, shape, 2 ** level), exposure)
     return radiance[0]
 
 
 class LowBandPass(ComputePass):
     """One step on a width×height level: ``fine`` (its denoised radiance, rewritten), ``coarse`` (the next
     coarser level's radiance) and ``fine_input`` (the level's packed denoiser input, whose 1/sqrt(spp)
-    plane gives w) are buffers given to ``execute``."""
+    plane gives w) are buffers given to ``execute``; ``exposure``: a WhiteBalancePass's result, whose
+    fourth value is the frame's exposure scale (None: pack.AS_TUNED, ε as it is)."""
 
-    def __init__(self, ctx, width: int, height: int):
+    def __init__(self, ctx, width: int, height: int, exposure=None):
+        self.exposure = (ctx.upload(np.array([1.0, 1.0, 1.0, AS_TUNED], np.float32), label="exposure as tuned")
+                         if exposure is None else exposure)
         self.blocks = (ceil_div(width, 4), ceil_div(height, 4))
         self.means_buffer = ctx.storage(4 * 7 * self.blocks[0] * self.blocks[1], label="low band means")
-        constants = {"EPSILON": LOW_BAND_EPSILON}
+        constants = {"EPSILON": LOW_BAND_EPSILON, "KEY_RATIO": KEY_RATIO}
         self.means = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_means",
                                  ("fine", "coarse", "fine_input", "means"), width, height, constants)
-        self.apply = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_apply", ("fine", "means"),
+        self.apply = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_apply", ("fine", "means", "exposure"),
                                  width, height, constants)
 
     def execute(self, encoder, fine, coarse, fine_input) -> None:
-        bound = {"fine": fine, "coarse": coarse, "fine_input": fine_input, "means": self.means_buffer}
+        bound = {"fine": fine, "coarse": coarse, "fine_input": fine_input, "means": self.means_buffer,
+                 "exposure": self.exposure}
         self.means.dispatch(encoder, bound, groups=(ceil_div(self.blocks[0], TILE), ceil_div(self.blocks[1], TILE)))
         self.apply.dispatch(encoder, bound)
 
@@ -145,7 +152,8 @@ class LowBand(ComputePass):
     ``levels`` coarser levels its pack (``self.packs``), ``denoiser`` on that canvas and an unpack into the
     level's own radiance buffer; then, from the coarsest up, a LowBandPass per level, the last on the
     frame's denoised plane in place (read against the frame's packed input, DENOISER_INPUT). ``depth_max``
-    and ``balance`` are the full frame's (pack.DepthMaxPass's and pack.WhiteBalancePass's results)."""
+    and ``balance`` are the full frame's (pack.DepthMaxPass's and pack.WhiteBalancePass's results: its
+    gains, and its exposure scale for the steps' ε)."""
 
     inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP, DENOISER_INPUT, DENOISED)
     outputs = (DENOISED,)
@@ -158,7 +166,7 @@ class LowBand(ComputePass):
         self.radiance = [ctx.storage(DENOISED.nbytes(*pack.size), label=f"denoised, level {level}")
                          for level, pack in enumerate(self.packs, 1)]
         sizes = [(width, height)] + [pack.size for pack in self.packs[:-1]]
-        self.steps = [LowBandPass(ctx, *size) for size in sizes]
+        self.steps = [LowBandPass(ctx, *size, balance) for size in sizes]
 
     def prepare(self) -> None:
         """Build ahead the denoiser's plans for the coarser levels (see DenoiseChain.prepare)."""

@@ -47,6 +47,10 @@ NO_BALANCE = np.ones(3, np.float32)
 EXPOSURE_KEY = 0.3                 # the key the network reads: near the median of its training frames' keys
 KEY_FLOOR = 1e-8                   # tiles darker than this (black, or lit by nothing) leave the key alone
 EXPOSURE_LIMIT = 2.0 ** 64         # the exposure scale stays within [1 / this, this]
+STEPS_KEY = 0.1                    # the key the chroma hold, low band and post filter read a frame at: their ε
+                                   # and σ were tuned on the built-ins, whose keys are 0.09–0.15
+KEY_RATIO = EXPOSURE_KEY / STEPS_KEY
+AS_TUNED = 1.0 / KEY_RATIO         # the exposure scale of a frame at STEPS_KEY, which those steps read as it is
 
 
 def white_balance_gains(color: np.ndarray, albedo: np.ndarray, balance: bool = True,
@@ -75,6 +79,13 @@ def frame_exposure(color: np.ndarray, albedo: np.ndarray) -> float:
     """(H, W, 3) radiance and albedo → the frame's ``exposure_scale`` (what WhiteBalancePass leaves in its
     result's fourth value, whether or not the gains carry it)."""
     return exposure_scale(np.minimum(frame_irradiance(color, albedo), IRRADIANCE_LIMIT))
+
+
+def steps_scale(exposure: float) -> float:
+    """How many times brighter than STEPS_KEY a frame of exposure scale ``exposure`` is (in f32, as the
+    device finds it): the steps after the network scale their radiance ε by it and divide the radiance they
+    compare by it."""
+    return float(np.float32(exposure) * np.float32(KEY_RATIO))
 
 
 def exposure_scale(irradiance: np.ndarray) -> float:

@@ -18,8 +18,7 @@ override SIGMA_NORMAL: f32;
 override SIGMA_DEPTH: f32;
 override DEPTH_FLOOR: f32;
 override FILTER_LIMIT: f32;
-override LUMINANCE_KEY: f32;            // the key the luminance is read at (atrous.py)
-override EXPOSURE_KEY: f32;             // pack.py's: exposure[3] is the frame's key over it
+override KEY_RATIO: f32;                // pack.py's: exposure[3] · KEY_RATIO is the frame's key over STEPS_KEY
 override LUMINANCE_FACTOR_LIMIT: f32;
 const DISPLAY_GAMMA: f32 = 2.2;
 
@@ -33,9 +32,9 @@ const DISPLAY_GAMMA: f32 = 2.2;
 @group(0) @binding(7) var<storage, read_write> guides: array<vec4f>;    // per pixel: (albedo, depth), (normal, 1/2σ²)
 @group(0) @binding(8) var<storage, read> exposure: array<f32, 4>;        // [3]: the frame's (frame/balance.wgsl)
 
-// The channel mean at the frame's exposure brought to LUMINANCE_KEY, on the metric's display.
+// The channel mean at the frame's exposure brought to STEPS_KEY, on the metric's display.
 fn display_luminance(radiance: vec3f) -> f32 {
-    let factor = min(LUMINANCE_KEY / (EXPOSURE_KEY * exposure[3]), LUMINANCE_FACTOR_LIMIT);
+    let factor = min(1.0 / (exposure[3] * KEY_RATIO), LUMINANCE_FACTOR_LIMIT);
     let mean = (radiance.x / 3.0 + radiance.y / 3.0 + radiance.z / 3.0) * factor;
     return pow(mean / (1.0 + mean), 1.0 / DISPLAY_GAMMA);
 }

@@ -6,15 +6,17 @@
 //   chroma_ratios:     one invocation per block → `ratios`, 3 planes: the Gaussian-weighted means over the
 //                      (2·RADIUS + 1)² blocks around it (indices clamped; the variance weighed by the
 //                      squared weights), F's mean moved towards N's by k = max(0, 1 − var / (N̄ − F̄)²) per
-//                      channel, and each channel's share of the three (ε added: SHARE_EPSILON times the
-//                      frame's exposure scale, so that it scales with the frame's light) in the result over
-//                      its share in F's mean, clamped to [1/RATIO_LIMIT, RATIO_LIMIT]
+//                      channel, and each channel's share of the three (ε added: SHARE_EPSILON times how
+//                      much brighter than pack.py's STEPS_KEY the frame is, so that it scales with the
+//                      frame's light) in the result over its share in F's mean, clamped to
+//                      [1/RATIO_LIMIT, RATIO_LIMIT]
 //   chroma_apply:      one invocation per pixel: F scaled by the ratios, bilinear between block centres
 // #import frame/common.wgsl
 // #import frame/block_grid.wgsl
 
 override SHARE_EPSILON: f32;      // radiance added to each channel's mean before taking shares
 override RATIO_LIMIT: f32;
+override KEY_RATIO: f32;          // pack.py's: exposure[3] · KEY_RATIO is the frame's key over STEPS_KEY
 override STATISTICS_LIMIT: f32;   // radiance clamped to this for the statistics (squares stay finite)
 override TAP_0: f32;              // the normalised Gaussian's weights at offsets 0 … RADIUS blocks
 override TAP_1: f32;              // (chroma.gaussian_taps)
@@ -99,7 +101,7 @@ fn chroma_ratios(@builtin(global_invocation_id) id: vec3u) {
     }
     let difference2 = (low_n - low_f) * (low_n - low_f);
     let k = select(vec3f(0.0), 1.0 - variance / difference2, variance < difference2);
-    let epsilon = SHARE_EPSILON * exposure[3];
+    let epsilon = SHARE_EPSILON * (exposure[3] * KEY_RATIO);
     let moved = max(low_f + k * (low_n - low_f), vec3f(0.0)) + epsilon;
     let own = low_f + epsilon;
     let ratio = clamp((moved / (moved.x + moved.y + moved.z)) / (own / (own.x + own.y + own.z)),

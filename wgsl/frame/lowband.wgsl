@@ -3,7 +3,8 @@
 // coarser level, denoised on a canvas of half its size. With F the level's denoised radiance, C the
 // coarser level's (upsampled by pixel replication), LF and LC their means over 4×4 pixels of the level
 // and w the mean of 1/spp over the same pixels:
-//   out = F · (w·LC + (1 − w)·LF + ε) / (LF + ε),   LF, LC and w bilinear between block centres,
+//   out = F · (w·LC + (1 − w)·LF + ε) / (LF + ε),   LF, LC and w bilinear between block centres (ε: EPSILON
+//   times how much brighter than pack.py's STEPS_KEY the frame is),
 // so the detail above the quarter band is F's own and the band below it moves towards C by w (a low-band
 // weight too: an adaptive sample map does not print its pixels into the correction). WIDTH × HEIGHT is
 // the level's size.
@@ -12,12 +13,14 @@
 // #import frame/common.wgsl
 // #import frame/block_grid.wgsl
 
-override EPSILON: f32;                 // radiance added to both low bands (LOW_BAND_EPSILON)
+override EPSILON: f32;                 // radiance added to both low bands (LOW_BAND_EPSILON) at STEPS_KEY
+override KEY_RATIO: f32;               // pack.py's: exposure[3] · KEY_RATIO is the frame's key over STEPS_KEY
 
 @group(0) @binding(0) var<storage, read_write> fine: array<f32>;     // F, 3 planes of the level
 @group(0) @binding(1) var<storage, read> coarse: array<f32>;         // C, 3 planes at half the size
 @group(0) @binding(2) var<storage, read> fine_input: array<f32>;     // the level's packed denoiser input
 @group(0) @binding(3) var<storage, read_write> means: array<f32>;
+@group(0) @binding(4) var<storage, read> exposure: array<f32, 4>;    // [3]: the frame's (frame/balance.wgsl)
 
 fn coarse_size() -> vec2u { return vec2u((WIDTH + 1u) / 2u, (HEIGHT + 1u) / 2u); }
 
@@ -73,11 +76,12 @@ fn low_band_apply(@builtin(global_invocation_id) id: vec3u) {
     let n = pixel_count();
     let at = block_lookup(id.xy);
     let w = bilinear(6u, at);
+    let epsilon = EPSILON * (exposure[3] * KEY_RATIO);
     for (var c = 0u; c < 3u; c++) {
         let low_fine = bilinear(c, at);
         let low_coarse = bilinear(3u + c, at);
-        let numerator = w * low_coarse + (1.0 - w) * low_fine + EPSILON;
-        let denominator = low_fine + EPSILON;
+        let numerator = w * low_coarse + (1.0 - w) * low_fine + epsilon;
+        let denominator = low_fine + epsilon;
         let value = fine[c * n + i];
         if (denominator > numerator * 1.2676506e30) {
             // A ratio under 2^-100 (a block mean near f32's max) is taken as value / denominator · numerator:
