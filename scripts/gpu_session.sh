@@ -67,6 +67,11 @@
 # Session 40 had no GPU; it found the denoiser's ceiling (§39: a converged 1024-spp render comes back at 43–45
 # dB where OIDN keeps 50–56), which is what holds it back from 16 spp: after a fine-tune at scale, also run
 # benchmarks/bench_passthrough.py (the model's --models; ~1 s a scene there once the inputs are rendered).
+# Session 41 had no GPU; since then `wgpu-rt train` packs the denoiser's input with the exposure step by
+# default (each frame's irradiance brought to one key, §40) and writes that into the ONNX file, which
+# `--auto-exposure auto` follows when the model runs: call 1's fine-tune starts from the shipped model,
+# which was trained without it, and learns it (a 55-minute CPU fine-tune with it gained up to 1 dB on the
+# built-ins and `painted` and 0.15 on the held-out worlds at 1 spp, −0.02 at 4: not shipped, §40).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
