@@ -73,6 +73,20 @@ def test_the_ends_of_the_line_are_the_two_models(tmp_path, weight, expected):
         np.testing.assert_array_equal(numpy_helper.to_array(init), weights[expected][init.name])
 
 
+def test_a_blend_of_two_models_trained_with_the_exposure_step_says_so(tmp_path):
+    """Both read their input brought to one key: so does the blend, and its ONNX file says it (as `wgpu-rt
+    train` writes it), so that `--auto-exposure auto` runs it that way."""
+    for name, seed in (("base", 1), ("tuned", 2)):
+        conv_model(tmp_path / f"{name}.onnx", seed)
+        model = onnx.load(tmp_path / f"{name}.onnx")
+        model.metadata_props.add(key="wgpu_rt.auto_exposure", value="on")
+        onnx.save(model, tmp_path / f"{name}.onnx")
+    out = tmp_path / "out.onnx"
+    assert main(["blend", str(tmp_path / "base.onnx"), str(tmp_path / "tuned.onnx"), "--weight", "0.5",
+                 "--out", str(out)]) == 0
+    assert {p.key: p.value for p in onnx.load(out).metadata_props} == {"wgpu_rt.auto_exposure": "on"}
+
+
 @pytest.mark.parametrize("case, named", [
     ("other_shape", "initializer 'conv_w'"),
     ("other_graph", "its graph is not the base's"),
@@ -81,6 +95,7 @@ def test_the_ends_of_the_line_are_the_two_models(tmp_path, weight, expected):
     ("missing", "not found"),
     ("not_onnx", "not a valid ONNX model"),
     ("suffix", "name an .onnx file"),
+    ("exposure", "trained with the exposure step on, the base"),
 ])
 def test_bad_input_is_one_line_naming_it_and_nothing_is_written(tmp_path, capsys, case, named):
     conv_model(tmp_path / "base.onnx", 1)
@@ -93,6 +108,10 @@ def test_bad_input_is_one_line_naming_it_and_nothing_is_written(tmp_path, capsys
         tuned.write_bytes(b"not a model")
     elif case != "missing":
         conv_model(tuned, 2)
+    if case == "exposure":   # a fine-tune that learned to read its input brought to one key
+        model = onnx.load(tuned)
+        model.metadata_props.add(key="wgpu_rt.auto_exposure", value="on")
+        onnx.save(model, tuned)
     out = {"overwrite": tmp_path / "base.onnx", "suffix": tmp_path / "out.bin"}.get(case, tmp_path / "out.onnx")
     weight = "1.5" if case == "weight" else "0.5"
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}

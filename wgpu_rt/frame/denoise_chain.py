@@ -1,9 +1,8 @@
 """What follows the tracer when a frame is denoised, in order: the white balance and exposure (frame/pack.py),
-pack, the
-network, unpack, the low band's coarser levels (frame/lowband.py), the chroma hold (frame/chroma.py), the
-post filter (frame/atrous.py) and the hand-over to converged samples (frame/converge.py). The frame loop
-records it between the tracer and the temporal pass (``FramePipeline``), ``denoise()`` over uploaded
-planes (``frame.denoise.DenoiseOnDevice``), so both run one chain in one order."""
+pack, the network, unpack, the low band's coarser levels (frame/lowband.py), the chroma hold
+(frame/chroma.py), the post filter (frame/atrous.py) and the hand-over to converged samples
+(frame/converge.py). The frame loop records it between the tracer and the temporal pass (``FramePipeline``),
+``denoise()`` over uploaded planes (``frame.denoise.DenoiseOnDevice``), so both run one chain in one order."""
 
 from __future__ import annotations
 
@@ -37,7 +36,8 @@ class DenoiseChain:
     earlier in the same encoder. ``levels``: the low band's coarser levels (0: none); ``chroma``,
     ``post_filter``, ``converge``, ``white_balance``, ``auto_exposure``: whether those steps run (without
     the white balance and the exposure the network reads the irradiance as it is: gains of 1; the pass
-    that finds them runs anyway, for the frame's exposure scale the chroma hold and the post filter read).
+    that finds them runs anyway, for the frame's exposure scale the low band, chroma hold and post filter
+    read).
     ``output`` is the plane the chain leaves its result in."""
 
     def __init__(self, ctx, width: int, height: int, denoiser, depth_max, levels: int = 0, chroma: bool = True,

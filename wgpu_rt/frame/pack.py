@@ -18,10 +18,13 @@ on the device ``WhiteBalancePass``), which ``unpack`` multiplies back. The shipp
 light that is mostly near white, turns strongly coloured light grey: given a 4096-spp render of a room lit
 by a green wall's bounce (world-2147483667) as its input, it returned it 31 dB away. Balanced, its input
 looks like what it knows (BENCHMARKS.md §27).
-The gains also carry the frame's exposure (``exposure_scale``): the irradiance's key, the log-average of its
-8×8 tiles' mean luminance, is brought to EXPOSURE_KEY, so that the network reads a frame at 1/64 of the light
-as it reads the frame itself (without it, 12 dB lower at 4 spp on `cornell`), and frames dark and bright sit
-where most of its training did (BENCHMARKS.md §40).
+With the exposure step the gains also carry the frame's exposure (``exposure_scale``): the irradiance's key,
+the log-average of its 8×8 tiles' mean luminance, is brought to EXPOSURE_KEY, so that the network reads a
+frame at 1/64 of the light as it reads the frame itself (the shipped network, trained without the step and
+run without it, is 13 dB lower there at 4 spp on `cornell`; a model's ONNX file says which it was trained
+with, frame/denoise_chain.py's INPUT_EXPOSURE). Whether or not the gains carry it, the steps after the
+network (chroma hold, low band, post filter) read the frame at STEPS_KEY by it (``steps_scale``; BENCHMARKS.md
+§40).
 """
 
 from __future__ import annotations
@@ -58,7 +61,8 @@ def white_balance_gains(color: np.ndarray, albedo: np.ndarray, balance: bool = T
     """(H, W, 3) radiance and albedo → the frame's (3,) white-balance gains: the mean of each channel of
     the irradiance (sanitised radiance / albedo_factor, each pixel clamped to IRRADIANCE_LIMIT) to the
     power WHITE_BALANCE_POWER, divided by the three's mean, at least WHITE_BALANCE_FLOOR; (1, 1, 1) for a
-    black frame or without ``balance``. With ``exposure``, all three times the frame's ``exposure_scale``."""
+    black frame or without ``balance``. With ``exposure`` (as models trained since BENCHMARKS.md §40 read
+    their input), all three times the frame's ``exposure_scale``."""
     if not (balance or exposure):
         return NO_BALANCE
     irradiance = np.minimum(frame_irradiance(color, albedo), IRRADIANCE_LIMIT)
@@ -231,7 +235,7 @@ class WhiteBalancePass(ComputePass):
     ``balance``), times its exposure scale where ``exposure`` (``white_balance_gains``), then that scale
     itself (``frame_exposure``), found by frame/balance.wgsl: per-tile sums, then one workgroup's
     reduction; not a per-pixel plane, so the pass owns it; the denoiser's packing and unpacking passes read
-    the gains, the chroma hold and the post filter the scale."""
+    the gains, the chroma hold, low band and post filter the scale."""
 
     inputs = (RADIANCE, ALBEDO)
 

@@ -20,6 +20,15 @@ from ..nn.graph import read_onnx
 from .cards import embedded_card
 
 
+def _input_exposure(model) -> str:
+    """"on" where the ONNX model says it was trained with the exposure step (frame/denoise_chain.py's
+    INPUT_EXPOSURE), else "off"."""
+    from ..frame.denoise_chain import INPUT_EXPOSURE
+
+    said = {prop.key: prop.value for prop in model.metadata_props}.get(INPUT_EXPOSURE)
+    return "on" if said == "on" else "off"
+
+
 def _structure(model) -> list[tuple[str, tuple[str, ...], tuple[str, ...]]]:
     return [(node.op_type, tuple(node.input), tuple(node.output)) for node in model.graph.node]
 
@@ -65,6 +74,13 @@ def blend_models(base_path: str | Path, tuned_path: str | Path, weight: float, o
     if _structure(base) != _structure(tuned):
         raise ModelError(f"{tuned_path}: its graph is not the base's ({base_path}); only a fine-tune of the same "
                          "architecture can be blended")
+    if _input_exposure(base) != _input_exposure(tuned):
+        raise ModelError(f"{tuned_path}: trained with the exposure step {_input_exposure(tuned)}, the base "
+                         f"({base_path}) {_input_exposure(base)}: their weights read different inputs, so no "
+                         "blend of them reads either")
+    if _input_exposure(tuned) == "on":   # the blend reads its input as both were trained, and says so
+        del base.metadata_props[:]
+        base.metadata_props.extend(tuned.metadata_props)
     blended = blended_weights({i.name: numpy_helper.to_array(i) for i in base.graph.initializer},
                               {i.name: numpy_helper.to_array(i) for i in tuned.graph.initializer},
                               weight, str(tuned_path))
