@@ -354,7 +354,8 @@ def test_auto_exposure_denoises_a_frame_alike_at_any_scale_of_its_light(gpu, tmp
     """With the exposure step a frame at 2^-6 or 2^5 of its light denoises to that scale of the frame's
     own result (the chroma hold and the post filter read the frame at one key either way); without it the
     shipped network reads each scale differently. By default the step runs as the model's ONNX file says it
-    was trained (the shipped one says nothing: off); ``wgpu-rt denoise --auto-exposure on|off|auto`` writes
+    was trained (the shipped one says on; a file that says nothing runs without it); ``wgpu-rt denoise
+    --auto-exposure on|off|auto`` writes
     what ``denoise()`` gives so, on the device as by the numpy references; ``render`` refuses the flag
     without --denoise."""
     from wgpu_rt.frame.denoise_chain import INPUT_EXPOSURE
@@ -376,7 +377,9 @@ def test_auto_exposure_denoises_a_frame_alike_at_any_scale_of_its_light(gpu, tmp
     write_exr(tmp_path / "in.exr", color, layers, attributes=AUX_ALBEDO)
     torch.manual_seed(1)
     tiny = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx", metadata={INPUT_EXPOSURE: "on"})
-    for path, flag, auto in ((None, "off", False), (None, "auto", False), (tiny, "auto", True), (tiny, "off", False)):
+    silent = export_onnx(UNet(widths=(4, 8)), tmp_path / "silent.onnx")   # trained before the step existed
+    for path, flag, auto in ((None, "off", False), (None, "auto", True), (tiny, "auto", True), (tiny, "off", False),
+                             (silent, "auto", False)):
         chosen = model if path is None else load_model("denoiser", "fp32", path=path, ctx=gpu)
         expected = denoise(chosen, color, *aux, auto_exposure=auto)
         if flag == "auto":

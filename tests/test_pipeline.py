@@ -612,10 +612,11 @@ def test_static_view_traces_its_aux_albedo_once(gpu, monkeypatch):
 
 def test_denoiser_steps_frame_equals_the_numpy_path(gpu):
     """A denoised frame with its colour balance held to the samples and the à-trous post filter (both
-    by default), and with each left out, and with the exposure step (by default as the model was trained:
-    the shipped one without), equals ``denoise()`` with the same settings on the frame's own traced planes;
-    each step changes the frame."""
+    by default), and with each left out, and with the exposure step on and off (by default as the model
+    was trained: the shipped one with it), equals ``denoise()`` with the same settings on the frame's own
+    traced planes; each step changes the frame."""
     from wgpu_rt.frame.denoise import denoise, load_model
+    from wgpu_rt.frame.denoise_chain import trained_auto_exposure
     from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 
     model = load_model("denoiser", ctx=gpu)
@@ -629,9 +630,10 @@ def test_denoiser_steps_frame_equals_the_numpy_path(gpu):
         frames[settings] = render("cornell", denoise=True, aovs=(), networks={"denoiser": model}, **steps,
                                   **options).color
         np.testing.assert_allclose(frames[settings], denoise(model, *inputs, **steps), rtol=1e-4, atol=1e-5)
-    for settings in ((False, True, None), (True, False, None), (True, True, True)):
+    trained = trained_auto_exposure(model)
+    for settings in ((False, True, None), (True, False, None), (True, True, not trained)):
         assert not np.allclose(frames[True, True, None], frames[settings], rtol=1e-3, atol=1e-4)
-    np.testing.assert_array_equal(frames[True, True, None], frames[True, True, False])
+    np.testing.assert_array_equal(frames[True, True, None], frames[True, True, trained])
 
 
 @pytest.mark.parametrize("options, message", [
