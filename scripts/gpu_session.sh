@@ -69,9 +69,8 @@
 # benchmarks/bench_passthrough.py (the model's --models; ~1 s a scene there once the inputs are rendered).
 # Session 41 had no GPU; since then `wgpu-rt train` packs the denoiser's input with the exposure step by
 # default (each frame's irradiance brought to one key, §40) and writes that into the ONNX file, which
-# `--auto-exposure auto` follows when the model runs: call 1's fine-tune starts from the shipped model,
-# which was trained without it, and learns it (a 55-minute CPU fine-tune with it gained up to 1 dB on the
-# built-ins and `painted` and 0.15 on the held-out worlds at 1 spp, −0.02 at 4: not shipped, §40).
+# `--auto-exposure auto` follows when the model runs; the shipped model is a 100-minute CPU fine-tune with
+# it (§40), so call 1's fine-tune continues in the same convention.
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
