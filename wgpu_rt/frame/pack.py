@@ -20,9 +20,9 @@ by a green wall's bounce (world-2147483667) as its input, it returned it 31 dB a
 looks like what it knows (BENCHMARKS.md §27).
 With the exposure step the gains also carry the frame's exposure (``exposure_scale``): the irradiance's key,
 the log-average of its 8×8 tiles' mean luminance, is brought to EXPOSURE_KEY, so that the network reads a
-frame at 1/64 of the light as it reads the frame itself (the shipped network, trained without the step and
-run without it, is 13 dB lower there at 4 spp on `cornell`; a model's ONNX file says which it was trained
-with, frame/denoise_chain.py's INPUT_EXPOSURE). Whether or not the gains carry it, the steps after the
+frame at 1/64 of the light as it reads the frame itself (the network shipped before session 41, trained and
+run without the step, was 13 dB lower there at 4 spp on `cornell`; a model's ONNX file says which it was
+trained with, frame/denoise_chain.py's INPUT_EXPOSURE). Whether or not the gains carry it, the steps after the
 network (chroma hold, low band, post filter) read the frame at STEPS_KEY by it (``steps_scale``; BENCHMARKS.md
 §40).
 """
