@@ -25,7 +25,7 @@ import numpy as np
 
 from ..passes import ALBEDO, DEPTH, NORMAL, SPP, ComputePass
 from .kernel import FrameKernel, finite, nonnegative_finite
-from .pack import AS_TUNED, KEY_RATIO, steps_scale
+from .pack import AS_TUNED, KEY_RATIO, exposure_or_as_tuned, steps_scale
 from .planes import DENOISED
 
 STEPS = (1, 2, 4)            # tap spacing of each pass, in pixels
@@ -106,8 +106,7 @@ class AtrousPass(ComputePass):
     outputs = (DENOISED,)
 
     def __init__(self, ctx, width: int, height: int, exposure=None):
-        self.exposure = (ctx.upload(np.array([1.0, 1.0, 1.0, AS_TUNED], np.float32), label="exposure as tuned")
-                         if exposure is None else exposure)
+        self.exposure = exposure_or_as_tuned(ctx, exposure)
         pixels = width * height
         self.work = [ctx.storage(16 * pixels, label=f"a-trous work {k}") for k in range(2)]
         self.guides = ctx.storage(32 * pixels, label="a-trous guides")

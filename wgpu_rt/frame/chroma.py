@@ -12,9 +12,8 @@ Gaussian weights): a difference well beyond the noise is taken whole, one within
 fireflies, whose blocks have a large var, move nothing). Only the block's chromaticity — each channel's
 share of the three channels' sum, ε added (SHARE_EPSILON times how much brighter than pack.STEPS_KEY the
 frame is, frame/pack.py's ``steps_scale``: so the hold reads a frame alike at any scale of its light) — is
-taken from the result,
-so brightness and its edges stay the denoiser's: F's pixels are scaled per channel by share(target) /
-share(F̄), bilinear between block centres and clamped to [1/RATIO_LIMIT, RATIO_LIMIT].
+taken from the result, so brightness and its edges stay the denoiser's: F's pixels are scaled per channel
+by share(target) / share(F̄), bilinear between block centres and clamped to [1/RATIO_LIMIT, RATIO_LIMIT].
 
 BENCHMARKS.md §17: at 256² over 13 scenes +0.5 dB at 1, 4 and 16 spp (world-2147483667 +5 dB), FLIP
 down on most. ``ChromaPass`` runs it on the device; ``match_sample_chroma`` is the numpy reference
@@ -28,7 +27,7 @@ import numpy as np
 from ..passes import RADIANCE, ComputePass
 from .kernel import TILE, FrameKernel, ceil_div, gaussian_taps, nonnegative_finite, separable_blur
 from .lowband import bilinear_up
-from .pack import AS_TUNED, KEY_RATIO, block_sum, steps_scale
+from .pack import AS_TUNED, KEY_RATIO, block_sum, exposure_or_as_tuned, steps_scale
 from .planes import DENOISED
 
 BLOCK = 4                 # pixels per block side (wgsl/frame/block_grid.wgsl's BLOCK)
@@ -84,8 +83,7 @@ class ChromaPass(ComputePass):
     outputs = (DENOISED,)
 
     def __init__(self, ctx, width: int, height: int, exposure=None):
-        self.exposure = (ctx.upload(np.array([1.0, 1.0, 1.0, AS_TUNED], np.float32), label="exposure as tuned")
-                         if exposure is None else exposure)
+        self.exposure = exposure_or_as_tuned(ctx, exposure)
         self.blocks = (ceil_div(width, BLOCK), ceil_div(height, BLOCK))
         count = self.blocks[0] * self.blocks[1]
         self.statistics = ctx.storage(4 * 9 * count, label="chroma block statistics")

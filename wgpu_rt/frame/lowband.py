@@ -30,7 +30,8 @@ import numpy as np
 from ..errors import WgpuRtError
 from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, ComputePass, prepare_network
 from .kernel import TILE, FrameKernel, ceil_div, nonnegative_finite
-from .pack import AS_TUNED, KEY_RATIO, PackLevelPass, block_mean, level_sample_counts, pack_level_input, steps_scale
+from .pack import (AS_TUNED, KEY_RATIO, PackLevelPass, block_mean, exposure_or_as_tuned, level_sample_counts,
+                   pack_level_input, steps_scale)
 from .planes import DENOISED, DENOISER_INPUT
 from .unpack import UnpackPass, unpack_denoiser_output
 
@@ -130,8 +131,7 @@ class LowBandPass(ComputePass):
     fourth value is the frame's exposure scale (None: pack.AS_TUNED, ε as it is)."""
 
     def __init__(self, ctx, width: int, height: int, exposure=None):
-        self.exposure = (ctx.upload(np.array([1.0, 1.0, 1.0, AS_TUNED], np.float32), label="exposure as tuned")
-                         if exposure is None else exposure)
+        self.exposure = exposure_or_as_tuned(ctx, exposure)
         self.blocks = (ceil_div(width, 4), ceil_div(height, 4))
         self.means_buffer = ctx.storage(4 * 7 * self.blocks[0] * self.blocks[1], label="low band means")
         constants = {"EPSILON": LOW_BAND_EPSILON, "KEY_RATIO": KEY_RATIO}

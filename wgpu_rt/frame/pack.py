@@ -92,6 +92,14 @@ def steps_scale(exposure: float) -> float:
     return float(np.float32(exposure) * np.float32(KEY_RATIO))
 
 
+def exposure_or_as_tuned(ctx, exposure=None):
+    """``exposure`` (a WhiteBalancePass's result, read by the steps after the network for its fourth value,
+    the frame's exposure scale), or where None a buffer whose scale is AS_TUNED: the frame read as it is."""
+    if exposure is not None:
+        return exposure
+    return ctx.upload(np.array([1.0, 1.0, 1.0, AS_TUNED], np.float32), label="exposure as tuned")
+
+
 def exposure_scale(irradiance: np.ndarray) -> float:
     """(3, H, W) irradiance → the factor it is divided by so that its key becomes EXPOSURE_KEY: the key is
     exp of the mean log of the mean luminance (the channels' mean) of each TILE×TILE tile (fewer pixels at

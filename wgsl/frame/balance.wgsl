@@ -6,11 +6,11 @@
 //   gains_main:     one workgroup of 256 sums the tiles' sums (each invocation a strided share, then a
 //                   tree), divides by the pixel count and writes balance[c] = max(mean_c^POWER / mean of
 //                   the three, FLOOR), or 1 for every channel when the frame is black or without
-//                   BALANCE; with EXPOSURE, times
-//                   the frame's exposure scale (pack.py's exposure_scale): its key, exp of the mean log of
-//                   the tiles' mean luminance over the tiles brighter than KEY_FLOOR, over KEY, summed in the
-//                   same shares and tree; balance[3] is that scale whether or not the gains carry it
-//                   (the chroma hold and the post filter read the frame at one key with it).
+//                   BALANCE; with EXPOSURE, times the frame's exposure scale (pack.py's exposure_scale):
+//                   its key, exp of the mean log of the tiles' mean luminance over the tiles brighter than
+//                   KEY_FLOOR, over KEY, summed in the same shares and tree; balance[3] is that scale
+//                   whether or not the gains carry it (the low band, chroma hold and post filter read the
+//                   frame at one key with it).
 // #import frame/common.wgsl
 // #import frame/albedo.wgsl
 
@@ -36,12 +36,13 @@ fn tiles_across() -> u32 { return (WIDTH + TILE - 1u) / TILE; }
 
 fn tile_count() -> u32 { return tiles_across() * ((HEIGHT + TILE - 1u) / TILE); }
 
-// Sums partial[0..size) into partial[0] and key_partial likewise (size a power of two).
-fn reduce_partial(lane: u32, size: u32) {
+// Sums partial[0..size) into partial[0] (size a power of two), and key_partial likewise where `keyed` (the
+// gains pass; the per-tile pass has no key to sum).
+fn reduce_partial(lane: u32, size: u32, keyed: bool) {
     for (var stride = size / 2u; stride > 0u; stride = stride >> 1u) {
         if (lane < stride) {
             partial[lane] += partial[lane + stride];
-            key_partial[lane] += key_partial[lane + stride];
+            if (keyed) { key_partial[lane] += key_partial[lane + stride]; }
         }
         workgroupBarrier();
     }
@@ -66,9 +67,8 @@ fn tile_sums_main(@builtin(global_invocation_id) id: vec3u, @builtin(local_invoc
         }
     }
     partial[lane] = irradiance;
-    key_partial[lane] = vec2f(0.0);
     workgroupBarrier();
-    reduce_partial(lane, TILE * TILE);
+    reduce_partial(lane, TILE * TILE, false);
     if (lane == 0u) {
         let t = tile.y * tiles_across() + tile.x;
         for (var c = 0u; c < 3u; c++) { tile_sums[3u * t + c] = partial[0][c]; }
@@ -88,7 +88,7 @@ fn gains_main(@builtin(local_invocation_index) lane: u32) {
     partial[lane] = sum;
     key_partial[lane] = key_sum;
     workgroupBarrier();
-    reduce_partial(lane, GAINS_WORKGROUP);
+    reduce_partial(lane, GAINS_WORKGROUP, true);
     if (lane == 0u) {
         let mean = partial[0] / f32(pixel_count());
         var gains = vec3f(1.0);
