@@ -13,6 +13,9 @@ per pixel, so the probe's own error decides at low budgets). The first bounds a 
 second a perfect predictor of what the heat is trained on (one probe's error); the third, ``oracle
 denoised``, knows where each run's denoised probe is wrong, sqrt(mean_c (d_c − μ_c)² / (μ_c² + ε)) with d
 our denoiser's output on the probe: the bound for a predictor trained on the denoised frame's error.
+--stops adds rows of the heat sampler on the scene with 2^stops times its light (``Scene.with_light_scaled``:
+the same scene in other units, which renders exactly scaled), scored against the gold after dividing back:
+an error predictor that reads its probe at one key (its ONNX file says so) gives the 0-stop row at any scale.
 The reference curve is brute-force rendering at --uniform spp: the pipeline's
 ``uniform`` sampler at an integer budget B is exactly brute-force B spp (tests/test_adaptive.py), and
 the curve reaches past the samplers' 32-spp ceiling. --k, --variance-k and --uniform-share sweep the
@@ -46,7 +49,7 @@ programs took them.
         [--batch-items N ...] [--item-samples N ...]
     python3 benchmarks/bench_adaptive.py [--quick] [--size 96x96] [--budgets 2 4 8 16] [--seeds 3]
         [--k 1 3] [--variance-k 1] [--uniform-share 0 0.5] [--pool-sigma 0 2] [--oracle [--oracle-renders 64]]
-        [--gold-spp 8192] [--gold-cache DIR] [--denoised]
+        [--gold-spp 8192] [--gold-cache DIR] [--denoised] [--stops -8 8]
         [--scenes cornell cornell-glossy sun-room bunny] [--models DIR | --seed-models]
 """
 
@@ -96,6 +99,9 @@ def parse_args():
     parser.add_argument("--oracle-renders", type=int, default=64,
                         help="independent 1-spp renders behind the oracle's per-pixel variance")
     parser.add_argument("--denoised", action="store_true", help="also measure the denoised output's relMSE")
+    parser.add_argument("--stops", type=float, nargs="+", default=[0.0],
+                        help="also run the heat sampler on the scene with 2^stops times its light (its units "
+                             "changed), scored after dividing back: one row each (0, the default: as it is)")
     parser.add_argument("--max-depth", type=int, default=8)
     parser.add_argument("--pass-cost", action="store_true",
                         help="only time the targeted pass against a uniform pass of the same samples")
@@ -198,18 +204,21 @@ def denoised_oracle(scene, size, args, gold):
     return model
 
 
-def sampler_errors(scene, size, args, gold, settings: AdaptiveSettings, error_model=None) -> dict[str, float]:
+def sampler_errors(scene, size, args, gold, settings: AdaptiveSettings, error_model=None,
+                   stops: float = 0.0) -> dict[str, float]:
     """Mean errors over the seeds of one sampler and budget, with the measured mean spp and the share of
     pixels at the per-pixel cap. ``error_model``: a stand-in for the error predictor, or a function of
-    the seed giving one."""
-    runs = []
+    the seed giving one. ``stops``: the scene rendered with 2^stops times its light
+    (``Scene.with_light_scaled``; it renders exactly scaled), the images divided back before scoring."""
+    runs, scale = [], np.float32(2.0 ** stops)
+    lit = scene.with_light_scaled(scale) if stops else scene
     for seed in range(args.seeds):
         predictor = error_model(seed) if callable(error_model) else error_model
-        renderer = hdr_pipeline(scene, size, args, denoise=args.denoised, seed=seed, adaptive=settings,
+        renderer = hdr_pipeline(lit, size, args, denoise=args.denoised, seed=seed, adaptive=settings,
                                 networks={"error_predictor": predictor} if predictor is not None else None)
-        output = linear_frame(renderer)
+        output = linear_frame(renderer) / scale
         buffers = renderer.pipeline.buffers   # the traced planes under the denoised output
-        run = raw_errors(gold, buffers.read("radiance").transpose(1, 2, 0))
+        run = raw_errors(gold, buffers.read("radiance").transpose(1, 2, 0) / scale)
         if args.denoised:
             run[DENOISED] = metrics.rel_mse(gold, output)
         run["mean spp"] = float(buffers.read("spp").mean())
@@ -273,13 +282,23 @@ def geometric_means(summary) -> list[list]:
     return means
 
 
+def base_sampler(label: str) -> str:
+    """The AdaptiveSettings sampler a row's label runs: the oracles and the scaled-light rows are heat's."""
+    return "heat" if label in ORACLES or label.startswith("heat at ") else label
+
+
+def stops_of(label: str) -> float:
+    """The stops of light a row's label runs the scene at ("heat at -4 stops"; 0 for the others)."""
+    return float(label.split()[2]) if label.startswith("heat at ") else 0.0
+
+
 def distinct_settings(samplers: list[tuple]) -> list[tuple]:
     """``samplers`` without the ones that resolve to the same settings as an earlier one (a sweep
     value equal to the default, or one that does not apply to that sampler)."""
     seen, kept = set(), []
     for sampler, k, share, pool in samplers:
-        settings = AdaptiveSettings(sampler="heat" if sampler in ORACLES else sampler, budget=2.0, k=k,
-                                    uniform_share=share, pool_sigma=pool)
+        settings = AdaptiveSettings(sampler=base_sampler(sampler), budget=2.0, k=k, uniform_share=share,
+                                    pool_sigma=pool)
         key = (sampler, settings.exponent, settings.evenly_spread, settings.pooling)
         if key not in seen:
             seen.add(key)
@@ -398,6 +417,8 @@ def main() -> None:
     print(f"size {size[0]}x{size[1]}, budgets {args.budgets}, uniform curve {args.uniform}, {args.seeds} "
           f"seed(s), gold {args.gold_spp} spp, max depth {args.max_depth}")
     samplers = [("heat", k, share, pool) for k in args.k for share in args.uniform_share for pool in args.pool_sigma]
+    samplers += [(f"heat at {stops:+g} stops", k, share, pool) for stops in args.stops if stops
+                 for k, share, pool in itertools.product(args.k, args.uniform_share, args.pool_sigma)]
     samplers += [("variance", k, share, None) for k in args.variance_k for share in args.uniform_share]
     if args.oracle:
         samplers += [(oracle, 1.0, 0.0, 0.0) for oracle in ORACLES]
@@ -424,10 +445,10 @@ def main() -> None:
         rows = []
         for sampler, k, share, pool in samplers:
             for budget in sorted(args.budgets):
-                settings = AdaptiveSettings(sampler="heat" if sampler in ORACLES else sampler, budget=budget,
+                settings = AdaptiveSettings(sampler=base_sampler(sampler), budget=budget,
                                             k=k, uniform_share=share, pool_sigma=pool)
                 measured = sampler_errors(scene, size, args, gold, settings,
-                                          oracles.get(sampler))
+                                          oracles.get(sampler), stops_of(sampler))
                 ratios = [savings(fits[name], measured[name], budget) for name in RAW_METRICS]
                 if args.denoised:
                     uniform_denoised = denoised.get(int(budget)) if budget == int(budget) else None

@@ -37,7 +37,8 @@ from wgpu_rt import metrics
 from wgpu_rt.frame.denoise import QUALITIES as OUR_QUALITIES
 from wgpu_rt.frame.denoise import denoise, load_model
 from wgpu_rt.dataset import DatasetConfig, TruthEngine, load_views, plan_views, read_manifest
-from wgpu_rt.frame.pack import pack_confidence_input, pack_error_input
+from wgpu_rt.frame.denoise_chain import trained_auto_exposure
+from wgpu_rt.frame.pack import pack_confidence_input, pack_error_input, probe_exposure
 from wgpu_rt.nn import WgslModel
 from wgpu_rt.train.targets import confidence_pair, disocclusion_mask, error_heatmap
 from wgpu_rt.train.trainer import confidence_aucs, rank_correlation
@@ -172,7 +173,8 @@ def main() -> None:
                            if args.mask_spp and sequences else {})
         for view in views:
             noisy = view.frames[0].noisy[1]
-            heat = np.asarray(error_model(pack_error_input(noisy["color"])[None]))[0, 0]
+            exposure = probe_exposure(noisy["color"]) if trained_auto_exposure(error_model) else 1.0
+            heat = np.asarray(error_model(pack_error_input(noisy["color"], exposure)[None]))[0, 0]
             gold = gold_override.get(view.view_id, view.frames[0].gold["color"])
             spearman.append(rank_correlation(heat, error_heatmap(noisy["color"], gold)))
             if view.view_id not in sequences:

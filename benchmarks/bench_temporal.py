@@ -10,11 +10,13 @@ with reprojection, clamping and the Confidence Predictor when the models folder 
 - relMSE over all pixels, for context.
 On a static camera (``cornell``): PSNR of the temporal output after --static-frames frames (the tracer
 accumulates 1 spp per frame, the mean is denoised and blended with itself by spp) minus the PSNR of one
-denoised frame. Gold: our own render of each frame at --gold-spp.
+denoised frame. Gold: our own render of each frame at --gold-spp. --stops adds rows of temporal ours on
+``moving`` with 2^stops times its light (``Scene.with_light_scaled``: the scene in other units, which renders
+exactly scaled), divided back before scoring: a pipeline that reads every scale alike repeats the first row.
 
     python3 benchmarks/bench_temporal.py [--quick] [--size 96x96] [--frames 16] [--gold-spp 4096]
         [--gold-cache DIR]
-        [--clamp none|box|variance] [--gamma 1.0]
+        [--clamp none|box|variance] [--gamma 1.0] [--stops -8 8]
         [--models DIR | --seed-models]
 """
 
@@ -52,6 +54,8 @@ def parse_args():
                         help="variance-box width in standard deviations (default: the pipeline's)")
     parser.add_argument("--confidence-floor", type=float, default=TemporalSettings.confidence_floor,
                         help="confidence at or below which no history is kept (default: the pipeline's)")
+    parser.add_argument("--stops", type=float, nargs="*", default=[],
+                        help="also run temporal ours with 2^stops times the light, one row each")
     add_model_arguments(parser)
     return parse_with_quick_defaults(parser, QUICK)
 
@@ -94,6 +98,10 @@ def main() -> None:
     sequences = {"per-frame ours": [linear_frame(per_frame, f) for f in frames],
                  "per-frame OIDN": [noisy_oidn(f) for f in frames],
                  "temporal ours": [linear_frame(temporal, f) for f in frames]}
+    for stops in args.stops:
+        scale = np.float32(2.0 ** stops)
+        lit = hdr_pipeline(scene.with_light_scaled(scale), size, args, denoise=True, temporal=settings)
+        sequences[f"temporal ours at {stops:+g} stops"] = [linear_frame(lit, f) / scale for f in frames]
     gold_flicker = flicker(gold)
     rows, ghosting_by_frame = [], {}
     for name, sequence in sequences.items():

@@ -5,6 +5,7 @@ import pytest
 from parity import check_parity
 
 from wgpu_rt.frame.pack import (
+    CONFIDENCE_KEY,
     EXPOSURE_KEY,
     EXPOSURE_LIMIT,
     NO_BALANCE,
@@ -13,6 +14,7 @@ from wgpu_rt.frame.pack import (
     PackConfidencePass,
     PackDenoiserPass,
     PackErrorPass,
+    RadianceExposurePass,
     WhiteBalancePass,
     exposure_scale,
     frame_exposure,
@@ -20,6 +22,8 @@ from wgpu_rt.frame.pack import (
     pack_confidence_input,
     pack_denoiser_input,
     pack_error_input,
+    probe_exposure,
+    radiance_exposure,
     white_balance_gains,
 )
 from wgpu_rt.frame.planes import (
@@ -213,6 +217,36 @@ def test_pack_error_matches_reference(gpu):
     check_parity(None, pack_error_input, ours, atol=1e-6, rtol=1e-6, inputs=[color], name="pack_error")
 
 
+@pytest.mark.parametrize("size", [(21, 37), (157, 203)])   # one tile row; more tiles than the reduction's 256 lanes
+def test_probe_exposure_pass_matches_reference(gpu, size):
+    """The error predictor's probe brought to PROBE_KEY: the radiance's own key (no albedo), found on the
+    device, then the packing divides by it; a probe at any scale packs alike."""
+    rng = np.random.default_rng(8)
+    color = rng.exponential(0.05, size + (3,)).astype(np.float32)
+    color[rng.uniform(size=color.shape) < 0.01] = np.inf
+    color[:5, :9] *= 1e-12                                         # a dark corner moves the key
+    color[1, 1] = [3e38, np.nan, -1.0]
+
+    def ours(c):
+        exposure = RadianceExposurePass(gpu, size[1], size[0])
+        packing = PackErrorPass(gpu, size[1], size[0], exposure.result)
+        buffers = run(gpu, [exposure, packing], {RADIANCE: c}, size[1], size[0])
+        gains_and_scale = gpu.read(exposure.result, shape=(4,))
+        np.testing.assert_allclose(gains_and_scale, probe_exposure(c), rtol=2e-5)
+        return buffers.read(ERROR_INPUT.name)
+
+    def reference(c):
+        return pack_error_input(c, probe_exposure(c))
+
+    check_parity(None, reference, ours, atol=1e-5, rtol=2e-5, inputs=[color], name="probe exposure")
+    color[1, 1] = 0.0                                               # past f32's range when scaled up
+    for stops in (-20, -5, 7):                                      # tiles stay above KEY_FLOOR
+        np.testing.assert_allclose(reference(np.float32(2.0 ** stops) * color), reference(color), rtol=1e-5,
+                                   atol=1e-6)
+    np.testing.assert_array_equal(pack_error_input(color, 1.0), pack_error_input(color))
+    assert probe_exposure(np.zeros_like(color)) == 1.0              # nothing lit: read as it is
+
+
 def test_pack_confidence_matches_reference(gpu):
     rng = np.random.default_rng(6)
     color, _, _, depth = random_planes(rng)
@@ -222,15 +256,24 @@ def test_pack_confidence_matches_reference(gpu):
     current = PlaneSpec("current", 3)
     reprojected = PlaneSpec("reprojected", 5)   # frame/temporal.wgsl: RGB, previous depth, history length
 
-    def ours(c, h, d, pd):
+    def ours(c, h, d, pd, key=None):
         depth_max = DepthMaxPass(gpu, W, H)
-        packing = PackConfidencePass(gpu, W, H, current, reprojected, depth_max.result)
+        exposure = RadianceExposurePass(gpu, W, H, key, current) if key else None
+        packing = PackConfidencePass(gpu, W, H, current, reprojected, depth_max.result,
+                                     exposure.result if exposure else None)
         reprojected_planes = np.concatenate([h, pd[..., None], np.ones_like(pd)[..., None]], axis=-1)
-        return run(gpu, [depth_max, packing], {current: c, reprojected: reprojected_planes, DEPTH: d}
-                   ).read(CONFIDENCE_INPUT.name)
+        return run(gpu, [depth_max, *([exposure] if exposure else []), packing],
+                   {current: c, reprojected: reprojected_planes, DEPTH: d}).read(CONFIDENCE_INPUT.name)
 
-    check_parity(None, pack_confidence_input, ours, atol=1e-6, rtol=1e-6,
-                 inputs=[color, history, depth, previous_depth], name="pack_confidence")
+    planes = [color, history, depth, previous_depth]
+    check_parity(None, pack_confidence_input, ours, atol=1e-6, rtol=1e-6, inputs=planes, name="pack_confidence")
+    for key in (CONFIDENCE_KEY, 3.0):                                # the frame and its history at one key
+        def reference(c, h, d, pd):
+            return pack_confidence_input(c, h, d, pd, radiance_exposure(c, key))
+
+        _, packed = check_parity(None, reference, lambda *p: ours(*p, key=key), atol=1e-5, rtol=2e-5,
+                                 inputs=planes, name=f"pack_confidence at key {key}")
+        assert packed[:6].mean() != pytest.approx(pack_confidence_input(*planes)[:6].mean(), rel=0.05)
 
 
 def test_frame_kernels_take_binding_indices_from_the_wgsl(gpu):

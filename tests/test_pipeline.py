@@ -653,3 +653,72 @@ def test_bad_readback_choices_are_refused_before_work(options, message):
 
     with pytest.raises(WgpuRtError, match=message):
         render("no-such-scene", size=(W, H), **options)
+
+
+
+
+def contrasted_onnx(network, path, said):
+    """``network`` (a small heat/confidence CNN) with its last conv's weights ×30, so its output varies
+    across the frame, exported with the exposure step's metadata ``said`` ("on", or None: nothing)."""
+    import torch
+
+    from wgpu_rt.frame.denoise_chain import INPUT_EXPOSURE
+    from wgpu_rt.train.networks import export_onnx
+
+    with torch.no_grad():
+        network.body[-2].weight *= 30.0
+    return export_onnx(network, path, metadata={INPUT_EXPOSURE: said} if said else None)
+
+
+def test_error_predictor_reads_its_probe_at_one_key(gpu, scene, tmp_path):
+    """An error predictor whose ONNX file says it was trained with the exposure step gets the same sample
+    map from the scene at any scale of its light (the probe brought to PROBE_KEY on the device; the scene
+    renders exactly scaled; the key's own f32 rounding may move a pixel or two); one whose file says
+    nothing reads the probe as it is, and its map moves."""
+    torch = pytest.importorskip("torch")
+    from wgpu_rt.frame.adaptive import EXTRA_SAMPLES
+    from wgpu_rt.frame.denoise import load_model
+    from wgpu_rt.train.networks import ErrorPredictor
+
+    probe = render(scene, size=(W, H), max_depth=3, ctx=gpu, aovs=()).color
+    adaptive, maps = AdaptiveSettings(budget=3.0, uniform_share=0.0, pool_sigma=0.0), {}
+    for said in ("on", None):
+        torch.manual_seed(0)
+        path = contrasted_onnx(ErrorPredictor(), tmp_path / f"{said}.onnx", said)
+        model = load_model("error_predictor", "fp32", path=path, ctx=gpu)
+        for stops in (0, -7, 9):
+            lit = scene.with_light_scaled(2.0 ** stops)
+            np.testing.assert_array_equal(render(lit, size=(W, H), max_depth=3, ctx=gpu, aovs=()).color,
+                                          np.float32(2.0 ** stops) * probe)
+            pipeline = make_pipeline(lit, gpu, error_predictor=model, adaptive=adaptive)
+            pipeline.render(lit, 0)
+            maps[said, stops] = pipeline.buffers.read(EXTRA_SAMPLES.name)
+    assert maps["on", 0].min() < 2 < maps["on", 0].max()
+    for stops in (-7, 9):
+        assert np.mean(maps["on", stops] != maps["on", 0]) < 0.01
+        assert np.mean(maps[None, stops] != maps[None, 0]) > 0.1
+
+
+def test_confidence_reads_the_frame_at_one_key(gpu, tmp_path):
+    """A confidence model whose ONNX file says it was trained with the exposure step keeps the same history
+    on a moving scene at any scale of its light (the temporal output scales with it); one whose file says
+    nothing reads the frames as they are, and what it keeps moves with the light."""
+    torch = pytest.importorskip("torch")
+    from wgpu_rt.frame.denoise import load_model
+    from wgpu_rt.train.networks import ConfidencePredictor
+
+    moving = builtin_scene("moving")
+    outputs = {}
+    for said in ("on", None):
+        torch.manual_seed(0)
+        model = load_model("confidence", "fp32", path=contrasted_onnx(ConfidencePredictor(), tmp_path / f"{said}.onnx",
+                                                                      said), ctx=gpu)
+        for stops in (0, -7, 9):
+            scale = np.float32(2.0 ** stops)
+            frames = render(moving.with_light_scaled(scale), size=(W, H), max_depth=3, ctx=gpu, aovs=(),
+                            temporal=TemporalSettings(), frames=range(3), networks={"confidence": model})
+            outputs[said, stops] = frames[-1].color / scale
+    base = outputs["on", 0]
+    for stops in (-7, 9):
+        np.testing.assert_allclose(outputs["on", stops], base, rtol=1e-4, atol=1e-5 * base.max())
+        assert np.abs(outputs[None, stops] - outputs[None, 0]).max() > 0.01 * base.max()

@@ -772,3 +772,29 @@ def test_vertex_colors_of_the_wrong_shape_are_refused_by_mesh_name():
     scene.meshes[1].colors = np.ones((3, 3), np.float32)
     with pytest.raises(SceneError, match="mesh 'floor': colors must be finite, one RGB a vertex"):
         GeometryBuffers.build(scene)
+
+
+def test_a_scene_with_its_light_scaled_renders_scaled(gpu):
+    """Every source (emission, point and sun lights, background) is scaled and nothing else, the original
+    is left alone, and the copy renders exactly scaled (a power of two: the same paths, each sample scaled)."""
+    from wgpu_rt.renderer import render
+    from wgpu_rt.scene.builtin import builtin_scene
+    from wgpu_rt.scene.model import DirectionalLight, PointLight
+
+    scene = builtin_scene("cornell")
+    scene.lights = [PointLight(np.float32([0.3, 0.6, 0.5]), np.float32([2.0, 1.5, 1.0])),
+                    DirectionalLight(np.float32([-0.3, -0.4, -1.0]), np.float32([0.8, 0.8, 0.9]))]
+    scene.background = np.float32([0.1, 0.2, 0.3])
+    emission = {name: material.emission.copy() for name, material in scene.materials.items()}
+    dim = scene.with_light_scaled(2.0 ** -5)
+    for name, material in dim.materials.items():
+        np.testing.assert_array_equal(material.emission, emission[name] / 32)
+        np.testing.assert_array_equal(scene.materials[name].emission, emission[name])
+        np.testing.assert_array_equal(material.reflectance, scene.materials[name].reflectance)
+    np.testing.assert_array_equal(dim.lights[0].intensity, np.float32([2.0, 1.5, 1.0]) / 32)
+    np.testing.assert_array_equal(dim.lights[1].irradiance, np.float32([0.8, 0.8, 0.9]) / 32)
+    np.testing.assert_array_equal(dim.lights[1].direction, scene.lights[1].direction)
+    np.testing.assert_array_equal(dim.background, scene.background / 32)
+    assert dim.meshes is scene.meshes and dim.camera is scene.camera
+    options = dict(size=(12, 10), max_depth=3, ctx=gpu, aovs=())
+    np.testing.assert_array_equal(render(dim, **options).color * 32, render(scene, **options).color)

@@ -426,6 +426,22 @@ def test_a_denoisers_onnx_records_whether_it_trained_with_the_exposure_step(sett
                                                       noisy["depth"], balance=gains), rtol=2e-6, atol=1e-6)
 
 
+@pytest.mark.parametrize("setting", ["on", "off"])
+def test_an_error_predictors_onnx_records_whether_it_trained_with_the_exposure_step(setting, tiny_dataset, tmp_path):
+    """`wgpu-rt train error-predictor --auto-exposure on|off` reads its probes at PROBE_KEY or as they are
+    and says so in the ONNX file (the frame pipeline reads it back) and the card."""
+    from wgpu_rt.cli import main
+    from wgpu_rt.frame.denoise import load_model
+    from wgpu_rt.frame.denoise_chain import trained_auto_exposure
+
+    out = tmp_path / setting
+    assert main(["train", "error-predictor", "--data", str(tiny_dataset), "--out", str(out), "--epochs", "1",
+                 "--batch", "2", "--crop", "8", "16", "--auto-exposure", setting, "--quiet"]) == 0
+    wanted = setting == "on"
+    assert trained_auto_exposure(load_model("error_predictor", "fp32", path=out / "error_predictor.onnx")) == wanted
+    assert ("exposure scale" in (out / "error_predictor.md").read_text()) == wanted
+
+
 def test_resume_continues_from_the_checkpoint(tiny_dataset, tmp_path):
     base = dict(task="error-predictor", data=str(tiny_dataset), out=str(tmp_path), batch=2, crop_min=8,
                 crop_max=16)
@@ -717,7 +733,7 @@ def test_confidence_sample_is_the_denoised_frame_against_history(tiny_dataset):
     """Input: the current frame as the temporal pass's source (the denoiser's output, not the 1-spp
     render), reprojected history; target: 1 where the history is valid."""
     from wgpu_rt.dataset import load_views
-    from wgpu_rt.frame.pack import log_color
+    from wgpu_rt.frame.pack import CONFIDENCE_KEY, log_color, radiance_exposure
     from wgpu_rt.train.samples import ConfidenceSamples
     from wgpu_rt.train.targets import disocclusion_mask
 
@@ -727,16 +743,25 @@ def test_confidence_sample_is_the_denoised_frame_against_history(tiny_dataset):
         denoised[id(render)] = np.full_like(render["color"], 0.25 + len(denoised))
         return denoised[id(render)]
 
-    samples = ConfidenceSamples(load_views(tiny_dataset, "train"), stand_in_denoiser)
+    samples = ConfidenceSamples(load_views(tiny_dataset, "train"), stand_in_denoiser, auto_exposure=False)
     view_index, t = samples.items[0]
     frames = samples.views[view_index].frames
     x, target = samples.full((view_index, t), 1, 2.0)
     mask = disocclusion_mask(frames[t].gold["color"], frames[t + 1].gold["color"], frames[t + 1].gold["motion"])
     assert 0 < mask.mean() < 1
     np.testing.assert_array_equal(target[0], 1 - mask)
-    np.testing.assert_allclose(x[:3], log_color(2.0 * denoised[id(frames[t + 1].noisy[1])]), rtol=1e-6)
+    source = denoised[id(frames[t + 1].noisy[1])]
+    np.testing.assert_allclose(x[:3], log_color(2.0 * source), rtol=1e-6)
     samples.full((view_index, t), 1, 1.0)
     assert len(denoised) == 1   # each pair's frame is denoised once
+    # with the exposure step (the default) source and history are read at the source's key
+    exposed = ConfidenceSamples(samples.views, lambda render: source)
+    scale = np.float32(radiance_exposure(source, CONFIDENCE_KEY))   # then the exposure 2 on top
+    assert abs(np.log2(scale)) > 1
+    x_exposed, _ = exposed.full((view_index, t), 1, 2.0)
+    np.testing.assert_allclose(x_exposed[:3], log_color(2.0 * source / scale), rtol=1e-5)
+    np.testing.assert_allclose(np.expm1(x_exposed[3:6]), np.expm1(x[3:6]) / scale, rtol=1e-4, atol=1e-7)
+    np.testing.assert_array_equal(x_exposed[6:], x[6:])
 
 
 def test_onnx_denoiser_is_the_denoise_command_with_the_exported_network(tiny_dataset, tmp_path):
@@ -770,7 +795,7 @@ def test_exposure_on_the_packed_planes_equals_packing_the_scaled_render(tiny_dat
     scaled renders (its percentile depends on the exposure)."""
     from wgpu_rt.dataset import load_views
     from wgpu_rt.frame.pack import (albedo_factor, demodulated_log_color, pack_denoiser_input, pack_error_input,
-                                    white_balance_gains)
+                                    probe_exposure, white_balance_gains)
     from wgpu_rt.train.samples import DenoiserSamples, ErrorSamples
     from wgpu_rt.train.targets import error_heatmap
 
@@ -784,10 +809,16 @@ def test_exposure_on_the_packed_planes_equals_packing_the_scaled_render(tiny_dat
     np.testing.assert_array_equal(x[-1], 0.5)    # the sample-count plane: 1/sqrt(4)
     np.testing.assert_allclose(y, np.concatenate([demodulated_log_color(2.5 * gold, noisy["albedo"], balance),
                                                   albedo_factor(noisy["albedo"], balance)]), rtol=2e-6, atol=1e-6)
-    x, y = ErrorSamples(views).full((0, 0), 1, 0.6)
-    np.testing.assert_allclose(x, pack_error_input(0.6 * frame.noisy[1]["color"]), rtol=2e-6, atol=1e-6)
-    np.testing.assert_allclose(y[0], error_heatmap(0.6 * frame.noisy[1]["color"], 0.6 * gold), atol=1e-5)
+    probe = frame.noisy[1]["color"]
+    x, y = ErrorSamples(views, auto_exposure=False).full((0, 0), 1, 0.6)
+    np.testing.assert_allclose(x, pack_error_input(0.6 * probe), rtol=2e-6, atol=1e-6)
+    np.testing.assert_allclose(y[0], error_heatmap(0.6 * probe, 0.6 * gold), atol=1e-5)
     assert 0 < y.mean() < 1
+    scale = probe_exposure(probe) / 0.6                             # the jitter is around the probe's key
+    assert abs(np.log2(scale * 0.6)) > 0.5                          # the key moves this frame
+    x, y = ErrorSamples(views).full((0, 0), 1, 0.6)
+    np.testing.assert_allclose(x, pack_error_input(probe, scale), rtol=2e-6, atol=1e-6)
+    np.testing.assert_allclose(y[0], error_heatmap(probe / np.float32(scale), gold / np.float32(scale)), atol=1e-5)
 
 
 def test_kept_planes_give_the_same_batches_and_are_built_once(tiny_dataset):

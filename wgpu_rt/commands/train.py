@@ -59,8 +59,9 @@ def add_arguments(parser) -> None:
                         help="denoiser: draw a random order of the R, G, B channels per crop (colour, albedo and "
                              "target alike), so bounce light of every hue is seen (default: off)")
     parser.add_argument("--auto-exposure", choices=["on", "off"], default="on",
-                        help="denoiser: bring each frame's irradiance to one key before the network, as "
-                             "`--auto-exposure auto` then does when it runs the model (the ONNX file records "
+                        help="bring each input to one key before the network (denoiser: the frame's "
+                             "irradiance; error predictor: its probe's radiance; confidence: the denoised "
+                             "frame's), as the runtime then does when it runs the model (the ONNX file records "
                              "it; default: on)")
     parser.add_argument("--max-views", type=int, help="use at most this many views per split")
     parser.add_argument("--seed", type=int, default=0)

@@ -25,20 +25,25 @@ run without the step, was 13 dB lower there at 4 spp on `cornell`; a model's ONN
 trained with, frame/denoise_chain.py's INPUT_EXPOSURE). Whether or not the gains carry it, the steps after the
 network (chroma hold, low band, post filter) read the frame at STEPS_KEY by it (``steps_scale``; BENCHMARKS.md
 §40).
+The two small networks read log1p radiance, not demodulated; a model whose file says it was trained with the
+step reads it at one key too, found by the same pass without albedo (``RadianceExposurePass``): the error
+predictor its 1-spp probe at PROBE_KEY, the confidence model the denoised frame and its history at
+CONFIDENCE_KEY, both by the frame's key (BENCHMARKS.md §41: the shipped ones, trained without, lose their
+savings and their history at other scales of the light).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, ComputePass
+from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, ComputePass, PlaneSpec
 from .kernel import TILE, FrameKernel, ceil_div, finite, nonnegative_finite
 from .planes import CONFIDENCE_INPUT, DENOISER_INPUT, ERROR_INPUT
 
 # The bindings each entry point of frame/pack.wgsl uses (their indices are read from the WGSL).
 DENOISER_BINDINGS = ("color", "albedo", "normal", "depth", "depth_max_bits", "spp", "packed", "balance")
-ERROR_BINDINGS = ("color", "packed")
-CONFIDENCE_BINDINGS = ("color", "depth", "depth_max_bits", "reprojected", "packed")
+ERROR_BINDINGS = ("color", "packed", "balance")
+CONFIDENCE_BINDINGS = ("color", "depth", "depth_max_bits", "reprojected", "packed", "balance")
 
 
 # -- numpy references ---------------------------------------------------------------------------------
@@ -53,6 +58,10 @@ EXPOSURE_LIMIT = 2.0 ** 64         # the exposure scale stays within [1 / this, 
 STEPS_KEY = 0.1                    # the key the chroma hold, low band and post filter read a frame at: their ε
                                    # and σ were tuned on the built-ins, whose keys are 0.09–0.15
 KEY_RATIO = EXPOSURE_KEY / STEPS_KEY
+PROBE_KEY = 0.3                    # the radiance key an error predictor trained with the step reads its 1-spp probe
+                                   # at (0.03–3 tried on the shipped one, BENCHMARKS.md §41)
+CONFIDENCE_KEY = 0.1               # the radiance key a confidence model trained with the step reads its frames at:
+                                   # near the median of the training worlds' keys (0.09–0.10, §41)
 AS_TUNED = 1.0 / KEY_RATIO         # the exposure scale of a frame at STEPS_KEY, which those steps read as it is
 
 
@@ -100,8 +109,21 @@ def exposure_or_as_tuned(ctx, exposure=None):
     return ctx.upload(np.array([1.0, 1.0, 1.0, AS_TUNED], np.float32), label="exposure as tuned")
 
 
-def exposure_scale(irradiance: np.ndarray) -> float:
-    """(3, H, W) irradiance → the factor it is divided by so that its key becomes EXPOSURE_KEY: the key is
+def radiance_exposure(color: np.ndarray, key: float) -> float:
+    """(H, W, 3) radiance → ``exposure_scale`` of the radiance itself (no albedo to demodulate by), to
+    ``key`` (what RadianceExposurePass leaves in its result)."""
+    radiance = np.minimum(nonnegative_finite(color).transpose(2, 0, 1).astype(np.float64), IRRADIANCE_LIMIT)
+    return exposure_scale(radiance, key)
+
+
+def probe_exposure(color: np.ndarray) -> float:
+    """(H, W, 3) 1-spp radiance → the factor the error predictor's input divides it by when the model reads
+    its probe at one key: ``radiance_exposure`` to PROBE_KEY."""
+    return radiance_exposure(color, PROBE_KEY)
+
+
+def exposure_scale(irradiance: np.ndarray, key: float = EXPOSURE_KEY) -> float:
+    """(3, H, W) irradiance → the factor it is divided by so that its key becomes ``key``: the key is
     exp of the mean log of the mean luminance (the channels' mean) of each TILE×TILE tile (fewer pixels at
     the frame's right and bottom edges) brighter than KEY_FLOOR; 1 where no tile is. Tiles first, so
     that one firefly moves one tile's log, not the frame's mean; within EXPOSURE_LIMIT."""
@@ -110,8 +132,8 @@ def exposure_scale(irradiance: np.ndarray) -> float:
     tiles = means[means > KEY_FLOOR]
     if tiles.size == 0:
         return 1.0
-    key = float(np.exp(np.log(tiles).mean()))
-    return float(np.clip(key / EXPOSURE_KEY, 1.0 / EXPOSURE_LIMIT, EXPOSURE_LIMIT))
+    frame_key = float(np.exp(np.log(tiles).mean()))
+    return float(np.clip(frame_key / key, 1.0 / EXPOSURE_LIMIT, EXPOSURE_LIMIT))
 
 
 def albedo_factor(albedo: np.ndarray, balance: np.ndarray = NO_BALANCE) -> np.ndarray:
@@ -207,16 +229,19 @@ def pack_level_input(color, albedo, normal, depth, spp=1, factor: int = 2, balan
                                balance=balance)
 
 
-def pack_error_input(color) -> np.ndarray:
-    """(H, W, 3) 1-spp radiance → the error predictor's (3, H, W) input (log1p RGB)."""
-    return log_color(color)
+def pack_error_input(color, exposure: float = 1.0) -> np.ndarray:
+    """(H, W, 3) 1-spp radiance → the error predictor's (3, H, W) input: log1p RGB, divided first by
+    ``exposure`` (a model that reads its probe at one key is given ``probe_exposure``; clamped to f32's max)."""
+    scaled = nonnegative_finite(color).astype(np.float64) / np.float32(exposure)
+    return log_color(np.minimum(scaled, np.finfo(np.float32).max).astype(np.float32))
 
 
-def pack_confidence_input(color, history, depth, previous_depth) -> np.ndarray:
-    """The confidence predictor's (8, H, W) input: log1p current RGB, log1p reprojected history RGB,
-    current depth and reprojected previous depth, both divided by the current frame's max depth."""
+def pack_confidence_input(color, history, depth, previous_depth, exposure: float = 1.0) -> np.ndarray:
+    """The confidence predictor's (8, H, W) input: log1p current RGB, log1p reprojected history RGB (both
+    divided first by ``exposure``, as ``pack_error_input``), current depth and reprojected previous depth,
+    both divided by the current frame's max depth."""
     frame_max = frame_max_depth(depth)
-    return np.concatenate([log_color(color), log_color(history),
+    return np.concatenate([pack_error_input(color, exposure), pack_error_input(history, exposure),
                            normalize_depth(depth, frame_max)[None],
                            normalize_depth(previous_depth, frame_max)[None]]).astype(np.float32)
 
@@ -247,10 +272,12 @@ class WhiteBalancePass(ComputePass):
 
     inputs = (RADIANCE, ALBEDO)
 
-    def __init__(self, ctx, width: int, height: int, balance: bool = True, exposure: bool = True):
+    def __init__(self, ctx, width: int, height: int, balance: bool = True, exposure: bool = True,
+                 key: float = EXPOSURE_KEY, demodulate: bool = True):
         constants = {"POWER": WHITE_BALANCE_POWER, "FLOOR": WHITE_BALANCE_FLOOR, "BALANCE": balance,
-                     "EXPOSURE": exposure, "KEY": EXPOSURE_KEY, "KEY_FLOOR": KEY_FLOOR,
-                     "EXPOSURE_LIMIT": EXPOSURE_LIMIT}
+                     "EXPOSURE": exposure, "KEY": key, "KEY_FLOOR": KEY_FLOOR,
+                     "EXPOSURE_LIMIT": EXPOSURE_LIMIT, "DEMODULATE": demodulate}
+        self.demodulate = demodulate
         self.tile_kernel = FrameKernel(ctx, "frame/balance.wgsl", "tile_sums_main", ("color", "albedo", "tile_sums"),
                                        width, height, constants)
         self.gains_kernel = FrameKernel(ctx, "frame/balance.wgsl", "gains_main", ("tile_sums", "balance"),
@@ -260,10 +287,22 @@ class WhiteBalancePass(ComputePass):
         self.result = ctx.storage(4 * 4, label="white balance and exposure")
 
     def execute(self, encoder, buffers) -> None:
-        planes = {"color": buffers.get(RADIANCE), "albedo": buffers.get(ALBEDO), "tile_sums": self.tile_sums,
-                  "balance": self.result}
+        color = buffers.get(self.inputs[0])
+        albedo = buffers.get(ALBEDO) if self.demodulate else color   # not read without demodulate
+        planes = {"color": color, "albedo": albedo, "tile_sums": self.tile_sums, "balance": self.result}
         self.tile_kernel.dispatch(encoder, planes)
         self.gains_kernel.dispatch(encoder, planes, groups=(1, 1))
+
+
+class RadianceExposurePass(WhiteBalancePass):
+    """``color`` (a 3-plane radiance, the tracer's by default) → ``self.result``: ``radiance_exposure`` to
+    ``key`` as three equal gains, then again (the colour's own key, no albedo: the shader is handed the
+    colour in its place and reads none), for a network that reads its input at one key (the error
+    predictor's probe at PROBE_KEY, the confidence predictor's denoised frame at CONFIDENCE_KEY)."""
+
+    def __init__(self, ctx, width: int, height: int, key: float = PROBE_KEY, color: PlaneSpec = RADIANCE):
+        super().__init__(ctx, width, height, balance=False, exposure=True, key=key, demodulate=False)
+        self.inputs = (color,)
 
 
 class PackDenoiserPass(ComputePass):
@@ -309,25 +348,29 @@ class PackLevelPass(ComputePass):
 
 
 class PackErrorPass(ComputePass):
-    """radiance → error_input (3 planes of log1p RGB)."""
+    """radiance → error_input (3 planes of log1p RGB divided by ``exposure``, a RadianceExposurePass's result
+    recorded earlier in the same encoder; None: read as it is)."""
 
     inputs = (RADIANCE,)
     outputs = (ERROR_INPUT,)
 
-    def __init__(self, ctx, width: int, height: int):
+    def __init__(self, ctx, width: int, height: int, exposure=None):
+        self.exposure = exposure if exposure is not None else ctx.upload(NO_BALANCE, label="probe read as it is")
         self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_error", ERROR_BINDINGS, width, height)
 
     def execute(self, encoder, buffers) -> None:
-        self.kernel.dispatch(encoder, {"color": buffers.get(RADIANCE),
-                                       "packed": buffers.get(ERROR_INPUT)})
+        self.kernel.dispatch(encoder, {"color": buffers.get(RADIANCE), "packed": buffers.get(ERROR_INPUT),
+                                       "balance": self.exposure})
 
 
 class PackConfidencePass(ComputePass):
     """``color`` (the current denoised frame), ``reprojected`` history (frame/temporal.wgsl's planes),
-    depth → confidence_input; ``depth_max`` as for PackDenoiserPass."""
+    depth → confidence_input; ``depth_max`` as for PackDenoiserPass; both colours divided by ``exposure``
+    (a RadianceExposurePass's result recorded earlier in the same encoder; None: read as they are)."""
 
-    def __init__(self, ctx, width: int, height: int, color, reprojected, depth_max):
+    def __init__(self, ctx, width: int, height: int, color, reprojected, depth_max, exposure=None):
         self.color, self.reprojected, self.depth_max = color, reprojected, depth_max
+        self.exposure = exposure if exposure is not None else ctx.upload(NO_BALANCE, label="frame read as it is")
         self.inputs = (color, reprojected, DEPTH)
         self.outputs = (CONFIDENCE_INPUT,)
         self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_confidence", CONFIDENCE_BINDINGS, width, height)
@@ -336,4 +379,4 @@ class PackConfidencePass(ComputePass):
         self.kernel.dispatch(encoder, {
             "color": buffers.get(self.color), "reprojected": buffers.get(self.reprojected),
             "depth": buffers.get(DEPTH), "depth_max_bits": self.depth_max,
-            "packed": buffers.get(CONFIDENCE_INPUT)})
+            "packed": buffers.get(CONFIDENCE_INPUT), "balance": self.exposure})

@@ -33,7 +33,7 @@ from .converge import HALF_SPP, copy_half, half_count
 from .denoise_chain import DenoiseChain, trained_auto_exposure
 from .interleave import InterleavePass, interleaved, interleaves
 from .lowband import low_band_levels, uses_low_band
-from .pack import DepthMaxPass, PackErrorPass
+from .pack import DepthMaxPass, PackErrorPass, RadianceExposurePass
 from .planes import ERROR_INPUT
 from .temporal import TEMPORAL, TemporalPass, TemporalSettings, frame_change
 from .tonemap import TonemapPass
@@ -236,7 +236,11 @@ class FramePipeline:
         if adaptive is not None:
             source = SAMPLE_ERROR if adaptive.sampler == "variance" else HEAT
             self.extra_samples = ExtraSamplesPass(ctx, width, height, adaptive, source)
-            self.pack_error = PackErrorPass(ctx, width, height)
+            # An error predictor trained with the exposure step reads its probe at one key (as the denoiser does).
+            self.probe_exposure = (RadianceExposurePass(ctx, width, height)
+                                   if adaptive.sampler == "heat" and trained_auto_exposure(error_predictor) else None)
+            self.pack_error = PackErrorPass(ctx, width, height,
+                                            self.probe_exposure.result if self.probe_exposure is not None else None)
             self.half_buffer_error = HalfBufferErrorPass(ctx, width, height)
         self.color, self.hdr = color, hdr
         self.tonemap = (TonemapPass(ctx, width, height, color, operator, exposure, srgb, output)
@@ -282,7 +286,8 @@ class FramePipeline:
                 stages += [Stage("copy of the first probe sample", (RADIANCE,), (HALF_RADIANCE,)),
                            self.half_buffer_error]
             elif self.adaptive.sampler == "heat":
-                stages += [self.pack_error, Stage("error predictor", (ERROR_INPUT,), (HEAT,))]
+                stages += [stage for stage in (self.probe_exposure, self.pack_error) if stage is not None]
+                stages.append(Stage("error predictor", (ERROR_INPUT,), (HEAT,)))
             stages.append(self.extra_samples)
         if self.area_albedo is not None:
             stages.append(self.area_albedo)
@@ -380,6 +385,8 @@ class FramePipeline:
             trace.execute(encoder, buffers, SampleSchedule(samples=1))
             self._mark(encoder, "probe")
             if adaptive.sampler == "heat":
+                if self.probe_exposure is not None:
+                    self.probe_exposure.execute(encoder, buffers)
                 self.pack_error.execute(encoder, buffers)
                 heat = self.error_predictor.record(encoder, buffers.get(ERROR_INPUT), self.height, self.width)
                 encoder.copy_buffer_to_buffer(heat, 0, buffers.get(HEAT), 0, HEAT.nbytes(self.width, self.height))

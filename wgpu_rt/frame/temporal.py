@@ -24,7 +24,8 @@ from ..errors import WgpuRtError
 from ..passes import DEPTH, MOTION, NORMAL, RADIANCE, ComputePass, PlaneSpec, prepare_network
 from .converge import CONVERGED, ConvergePass
 from .kernel import FrameKernel, finite, nonnegative_finite
-from .pack import PackConfidencePass
+from .denoise_chain import trained_auto_exposure
+from .pack import CONFIDENCE_KEY, PackConfidencePass, RadianceExposurePass
 from .planes import CONFIDENCE_INPUT
 
 CLAMP_MODES = ("none", "box", "variance")
@@ -210,7 +211,11 @@ class TemporalPass(ComputePass):
         self.kernels = {entry: FrameKernel(ctx, "frame/temporal.wgsl", entry, bindings, width, height,
                                            constants)
                         for entry, bindings in ENTRY_BINDINGS.items()}
-        self.pack_confidence = (PackConfidencePass(ctx, width, height, source, REPROJECTED, depth_max)
+        # A confidence model trained with the exposure step reads the frame and its history at one key.
+        self.confidence_exposure = (RadianceExposurePass(ctx, width, height, CONFIDENCE_KEY, source)
+                                    if trained_auto_exposure(confidence) else None)
+        self.pack_confidence = (PackConfidencePass(ctx, width, height, source, REPROJECTED, depth_max,
+                                                   getattr(self.confidence_exposure, "result", None))
                                 if confidence is not None else None)
 
     def prepare(self, buffers) -> None:
@@ -238,6 +243,8 @@ class TemporalPass(ComputePass):
         planes |= {"motion": buffers.get(MOTION), "reprojected": buffers.get(REPROJECTED)}
         self.kernels["reproject"].dispatch(encoder, planes)
         if self.confidence is not None:
+            if self.confidence_exposure is not None:
+                self.confidence_exposure.execute(encoder, buffers)
             self.pack_confidence.execute(encoder, buffers)
             confidence = self.confidence.record(encoder, buffers.get(CONFIDENCE_INPUT), self.height, self.width)
         else:

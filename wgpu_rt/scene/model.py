@@ -9,7 +9,7 @@ the camera, matrices element-wise for objects; keyframes are meant to be dense e
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -241,6 +241,15 @@ class Scene:
         cams = {(c.origin.tobytes(), c.target.tobytes(), c.up.tobytes(), c.fov)
                 for c in self.camera_keyframes.values()}
         return len(cams) > 1 or any(m.is_animated for m in self.meshes)
+
+    def with_light_scaled(self, factor: float) -> Scene:
+        """A copy whose every source (emission, point and sun lights, background) gives ``factor`` times the
+        light: the same scene in other units, which renders as this one times ``factor``."""
+        factor = np.float32(factor)
+        materials = {name: replace(m, emission=m.emission * factor) for name, m in self.materials.items()}
+        lights = [replace(light, intensity=light.intensity * factor) if isinstance(light, PointLight)
+                  else replace(light, irradiance=light.irradiance * factor) for light in self.lights]
+        return replace(self, materials=materials, lights=lights, background=self.background * factor)
 
 
 def _interpolate(keyframes: dict[int, np.ndarray], frame: int, default: np.ndarray) -> np.ndarray:

@@ -38,8 +38,8 @@ import torch
 
 from ..dataset.store import View
 from ..frame.denoise_chain import INPUT_EXPOSURE
-from ..frame.pack import (albedo_factor, demodulated_log_color, log_color, pack_confidence_input,
-                          pack_denoiser_input, pack_error_input, white_balance_gains)
+from ..frame.pack import (CONFIDENCE_KEY, albedo_factor, demodulated_log_color, pack_confidence_input,
+                          pack_denoiser_input, pack_error_input, probe_exposure, radiance_exposure, white_balance_gains)
 from .targets import HEATMAP_PERCENTILE, confidence_pair
 
 ANY_SPP = "any"   # a curriculum stage: each crop draws one of its view's rendered sample counts
@@ -307,14 +307,21 @@ class DenoiserSamples(TaskSamples):
 
 class ErrorSamples(TaskSamples):
     """1-spp colour → the normalized |1 spp − gold| log-space heatmap (``targets.error_heatmap``, here in
-    torch on the full exposed frame: its percentile depends on the exposure)."""
+    torch on the full exposed frame: its percentile depends on the exposure); both read at the probe's key
+    (``probe_exposure``) where ``auto_exposure``."""
 
     exposed_target = slice(0, 3)
     pixelwise_target = False
 
+    def __init__(self, views: list[View], auto_exposure: bool = True):
+        super().__init__(views)
+        self.auto_exposure = auto_exposure
+
     def planes(self, item, spp, copy=0):
         frame = self.views[item[0]].frames[item[1]]
-        return pack_error_input(frame.renders_at(1)[copy]["color"]), log_color(frame.gold["color"])
+        probe = frame.renders_at(1)[copy]["color"]
+        exposure = probe_exposure(probe) if self.auto_exposure else 1.0
+        return pack_error_input(probe, exposure), pack_error_input(frame.gold["color"], exposure)
 
     def target(self, x, y):
         error = (x - y).abs().mean(dim=0, keepdim=True)
@@ -357,7 +364,8 @@ class ConfidenceSamples(TaskSamples):
     matching texel) → confidence that history is valid: 1 minus the disocclusion mask (needs sequences).
     The reprojection is a per-pixel reference and denoising a network run, so each pair's are computed
     once; exposure scales source and history alike (reprojection is linear in colour; the denoiser
-    nearly so)."""
+    nearly so). Where ``auto_exposure`` both are read at the source's key (``radiance_exposure`` to
+    CONFIDENCE_KEY), as the temporal pass reads them for a model whose file says so."""
 
     aux_channels = slice(6, 8)
     exposed_input = slice(0, 6)
@@ -365,9 +373,9 @@ class ConfidenceSamples(TaskSamples):
     def _items(self):
         return [(v, t) for v, view in enumerate(self.views) for t in range(len(view.frames) - 1)]
 
-    def __init__(self, views: list[View], denoiser):
+    def __init__(self, views: list[View], denoiser, auto_exposure: bool = True):
         super().__init__(views)
-        self.denoiser = denoiser
+        self.denoiser, self.auto_exposure = denoiser, auto_exposure
         self._pairs = {}
 
     def _pair(self, item):
@@ -384,7 +392,8 @@ class ConfidenceSamples(TaskSamples):
     def planes(self, item, spp, copy=0):
         source, history, history_depth, _, mask = self._pair(item)
         depth = self.views[item[0]].frames[item[1] + 1].noisy[1]["depth"]
-        return pack_confidence_input(source, history, depth, history_depth), 1.0 - mask[None]
+        exposure = radiance_exposure(source, CONFIDENCE_KEY) if self.auto_exposure else 1.0
+        return pack_confidence_input(source, history, depth, history_depth, exposure), 1.0 - mask[None]
 
     def tested(self, item) -> np.ndarray:
         """(H, W) bool: the pixels of ``item`` whose history passes the temporal pass's depth/normal tests."""
@@ -394,12 +403,12 @@ class ConfidenceSamples(TaskSamples):
 def samples_for(task: str, views: list[View], denoiser: OnnxDenoiser | None = None,
                 auto_exposure: bool = True) -> TaskSamples:
     """The task's samples; the confidence model's need the ``denoiser`` that makes its current frame; the
-    denoiser's inputs are brought to one exposure where ``auto_exposure`` (frame/pack.py)."""
+    networks' inputs are brought to one exposure where ``auto_exposure`` (frame/pack.py)."""
     if task == "confidence":
-        return ConfidenceSamples(views, denoiser)
+        return ConfidenceSamples(views, denoiser, auto_exposure)
     if task == "denoiser":
         return DenoiserSamples(views, auto_exposure)
-    return ErrorSamples(views)
+    return ErrorSamples(views, auto_exposure)
 
 
 def curriculum_spp(progress: float, available: list[int], stages: tuple[int | str, ...] = (16, 4, 1)) -> int | str:

@@ -67,7 +67,7 @@ class TrainConfig:
     log_mse: float = 0.0                 # weight of the denoiser's per-crop log display-MSE term (0: none)
     edge: float = 0.0                    # weight of the denoiser's display L1 near aux edges (0: none)
     permute_colours: bool = False        # a random RGB order per crop (samples.Augmentation)
-    auto_exposure: bool = True           # the denoiser's input brought to one key (frame/pack.py), as its
+    auto_exposure: bool = True           # the network's input brought to one key (frame/pack.py), as its
                                          # ONNX file then records (frame/denoise_chain.py's INPUT_EXPOSURE)
     widths: tuple[int, ...] = (32, 64, 128)
     residual: bool = False               # denoiser predicts a correction to its noisy input
@@ -542,8 +542,7 @@ class Trainer:
         from .networks import export_onnx
 
         _, onnx_path, card = self.config.outputs()
-        metadata = ({INPUT_EXPOSURE: "on" if self.config.auto_exposure else "off"}
-                    if self.config.task == "denoiser" else None)
+        metadata = {INPUT_EXPOSURE: "on" if self.config.auto_exposure else "off"}
         export_onnx(copy.deepcopy(self.model).cpu(), onnx_path, metadata=metadata)   # traced on the CPU
         with atomic_output(card) as tmp:
             tmp.write_text(self.model_card())
@@ -582,7 +581,7 @@ class Trainer:
 
     def model_card(self) -> str:
         from ..dataset.store import read_manifest
-        from ..frame.pack import ALBEDO_EPSILON, EXPOSURE_KEY
+        from ..frame.pack import ALBEDO_EPSILON, CONFIDENCE_KEY, EXPOSURE_KEY, PROBE_KEY
         from .losses import EDGE_REACH, LOG_MSE_FLOOR
 
         cfg = self.config
@@ -639,9 +638,15 @@ class Trainer:
                          + f"; curriculum {' → '.join(map(str, cfg.curriculum))} spp (equal shares of the "
                          f"epochs{drawn})")
         elif cfg.model_name == "error_predictor":
-            lines.append("- target |log1p(1 spp) − log1p(gold)| / its 99th percentile, clipped to [0, 1]; BCE loss")
+            lines.append("- target |log1p(1 spp) − log1p(gold)| / its 99th percentile, clipped to [0, 1]; BCE loss"
+                         + (f"; both divided first by the probe's exposure scale (its radiance's key, the "
+                            f"log-average of 8×8 tile means, brought to {PROBE_KEY}; the ONNX file records it)"
+                            if cfg.auto_exposure else "; no exposure step (the ONNX file records it)"))
         else:
             lines.append(f"- {self.model.layers} hidden 3×3 conv layers of {self.model.hidden} channels")
+            lines.append("- input colours divided by the current frame's exposure scale (its radiance's key, the "
+                         f"log-average of 8×8 tile means, brought to {CONFIDENCE_KEY}; the ONNX file records it)"
+                         if cfg.auto_exposure else "- no exposure step (the ONNX file records it)")
             denoiser = self.train_set.denoiser
             lines.append(f"- input current frame: the 1-spp render denoised by `{denoiser.path}` (sha256 "
                          f"{denoiser.digest}…; the temporal pass's source, what the runtime packs)")

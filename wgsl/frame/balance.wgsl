@@ -11,6 +11,8 @@
 //                   KEY_FLOOR, over KEY, summed in the same shares and tree; balance[3] is that scale
 //                   whether or not the gains carry it (the low band, chroma hold and post filter read the
 //                   frame at one key with it).
+// Without DEMODULATE the key is the radiance's own (the error predictor's probe exposure, PROBE_KEY as KEY):
+// albedo is then not read (its binding is handed the colour).
 // #import frame/common.wgsl
 // #import frame/albedo.wgsl
 
@@ -23,6 +25,7 @@ override EXPOSURE: bool = true;
 override KEY: f32 = 0.3;
 override KEY_FLOOR: f32 = 1e-8;
 override EXPOSURE_LIMIT: f32 = 1.8446744e19;   // 2^64
+override DEMODULATE: bool = true;
 
 @group(0) @binding(0) var<storage, read> color: array<f32>;
 @group(0) @binding(1) var<storage, read> albedo: array<f32>;
@@ -63,7 +66,9 @@ fn tile_sums_main(@builtin(global_invocation_id) id: vec3u, @builtin(local_invoc
         let i = pixel_index(id);
         let n = pixel_count();
         for (var c = 0u; c < 3u; c++) {
-            irradiance[c] = min(sanitize(color[c * n + i]) / albedo_factor(albedo[c * n + i]), IRRADIANCE_LIMIT);
+            var factor = 1.0;
+            if (DEMODULATE) { factor = albedo_factor(albedo[c * n + i]); }
+            irradiance[c] = min(sanitize(color[c * n + i]) / factor, IRRADIANCE_LIMIT);
         }
     }
     partial[lane] = irradiance;

@@ -9,9 +9,10 @@
 // one sample's: 1 at 1 spp, 1/16 at 256; a pixel of 0 samples counts as 1).
 //   pack_denoiser:   11 ch = log1p RGB/(albedo factor·gain), albedo, normal·0.5+0.5, depth/max, 1/sqrt(spp)
 //   pack_denoiser_level: the same for the frame averaged over LEVEL_FACTOR² blocks (frame/lowband.wgsl)
-//   pack_error:       3 ch = log1p RGB                                     (error predictor)
-//   pack_confidence:  8 ch = log1p RGB, log1p reprojected history RGB, depth/max,
-//                            reprojected previous depth/max               (confidence predictor)
+//   pack_error:       3 ch = log1p RGB / the probe's gains                  (error predictor; gains of 1, or
+//                            its exposure scale from frame/balance.wgsl without DEMODULATE)
+//   pack_confidence:  8 ch = log1p RGB, log1p reprojected history RGB (both / the gains, as pack_error),
+//                            depth/max, reprojected previous depth/max    (confidence predictor)
 // #import frame/common.wgsl
 // #import frame/albedo.wgsl
 
@@ -25,8 +26,9 @@
 @group(0) @binding(7) var<storage, read> spp: array<u32>;
 @group(0) @binding(8) var<storage, read> balance: array<f32, 3>;   // frame/balance.wgsl's gains
 
-fn log_color(channel: u32, i: u32) -> f32 {
-    return log1p_accurate(sanitize(color[channel * pixel_count() + i]));
+// log1p of a sanitised colour value divided by the channel's gain (clamped to f32's max first).
+fn log_exposed(value: f32, channel: u32) -> f32 {
+    return log1p_accurate(min(sanitize(value) / balance[channel], F32_MAX));
 }
 
 fn normalized_depth(d: f32) -> f32 {
@@ -109,7 +111,7 @@ fn pack_denoiser_level(@builtin(global_invocation_id) id: vec3u) {
 fn pack_error(@builtin(global_invocation_id) id: vec3u) {
     if (!in_frame(id)) { return; }
     let i = pixel_index(id);
-    for (var c = 0u; c < 3u; c++) { packed[c * pixel_count() + i] = log_color(c, i); }
+    for (var c = 0u; c < 3u; c++) { packed[c * pixel_count() + i] = log_exposed(color[c * pixel_count() + i], c); }
 }
 
 @compute @workgroup_size(8, 8)
@@ -118,8 +120,8 @@ fn pack_confidence(@builtin(global_invocation_id) id: vec3u) {
     let i = pixel_index(id);
     let n = pixel_count();
     for (var c = 0u; c < 3u; c++) {
-        packed[c * n + i] = log_color(c, i);
-        packed[(3u + c) * n + i] = log1p_accurate(sanitize(reprojected[c * n + i]));
+        packed[c * n + i] = log_exposed(color[c * n + i], c);
+        packed[(3u + c) * n + i] = log_exposed(reprojected[c * n + i], c);
     }
     packed[6u * n + i] = normalized_depth(depth[i]);
     packed[7u * n + i] = normalized_depth(reprojected[3u * n + i]);
