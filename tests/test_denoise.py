@@ -391,6 +391,9 @@ def test_auto_exposure_denoises_a_frame_alike_at_any_scale_of_its_light(gpu, tmp
     assert not np.allclose(denoise(chosen, color, *aux, auto_exposure=True), expected, rtol=1e-3, atol=1e-4)
     assert main(["render", "cornell", "--size", "8x8", "--auto-exposure", "off", "--out", str(tmp_path / "x.exr")]) == 2
     assert not (tmp_path / "x.exr").exists()
+    # the small networks read their input at a key too: the flag goes with --adaptive (or --temporal) alone
+    assert main(["render", "cornell", "--size", "8x8", "--adaptive", "2", "--auto-exposure", "on",
+                 "--out", str(tmp_path / "x.exr")]) == 0
 
 
 def test_denoise_runs_on_the_device_as_the_numpy_references_do(gpu, tmp_path):

@@ -682,7 +682,9 @@ def test_error_predictor_reads_its_probe_at_one_key(gpu, scene, tmp_path):
 
     probe = render(scene, size=(W, H), max_depth=3, ctx=gpu, aovs=()).color
     adaptive, maps = AdaptiveSettings(budget=3.0, uniform_share=0.0, pool_sigma=0.0), {}
-    for said in ("on", None):
+    # (what the file says, auto_exposure=): auto follows the file, True and False override it
+    cases = (("on", None), (None, None), (None, True), ("on", False))
+    for said, forced in cases:
         torch.manual_seed(0)
         path = contrasted_onnx(ErrorPredictor(), tmp_path / f"{said}.onnx", said)
         model = load_model("error_predictor", "fp32", path=path, ctx=gpu)
@@ -690,13 +692,15 @@ def test_error_predictor_reads_its_probe_at_one_key(gpu, scene, tmp_path):
             lit = scene.with_light_scaled(2.0 ** stops)
             np.testing.assert_array_equal(render(lit, size=(W, H), max_depth=3, ctx=gpu, aovs=()).color,
                                           np.float32(2.0 ** stops) * probe)
-            pipeline = make_pipeline(lit, gpu, error_predictor=model, adaptive=adaptive)
+            pipeline = make_pipeline(lit, gpu, error_predictor=model, adaptive=adaptive, auto_exposure=forced)
             pipeline.render(lit, 0)
-            maps[said, stops] = pipeline.buffers.read(EXTRA_SAMPLES.name)
-    assert maps["on", 0].min() < 2 < maps["on", 0].max()
-    for stops in (-7, 9):
-        assert np.mean(maps["on", stops] != maps["on", 0]) < 0.01
-        assert np.mean(maps[None, stops] != maps[None, 0]) > 0.1
+            maps[said, forced, stops] = pipeline.buffers.read(EXTRA_SAMPLES.name)
+    assert maps["on", None, 0].min() < 2 < maps["on", None, 0].max()
+    for said, forced in cases:
+        at_one_key = said == "on" if forced is None else forced
+        for stops in (-7, 9):
+            moved = np.mean(maps[said, forced, stops] != maps[said, forced, 0])
+            assert moved < 0.01 if at_one_key else moved > 0.1, (said, forced, stops)
 
 
 def test_confidence_reads_the_frame_at_one_key(gpu, tmp_path):
@@ -709,16 +713,21 @@ def test_confidence_reads_the_frame_at_one_key(gpu, tmp_path):
 
     moving = builtin_scene("moving")
     outputs = {}
-    for said in ("on", None):
+    cases = (("on", None), (None, None), (None, True), ("on", False))   # as for the error predictor
+    for said, forced in cases:
         torch.manual_seed(0)
         model = load_model("confidence", "fp32", path=contrasted_onnx(ConfidencePredictor(), tmp_path / f"{said}.onnx",
                                                                       said), ctx=gpu)
         for stops in (0, -7, 9):
             scale = np.float32(2.0 ** stops)
             frames = render(moving.with_light_scaled(scale), size=(W, H), max_depth=3, ctx=gpu, aovs=(),
-                            temporal=TemporalSettings(), frames=range(3), networks={"confidence": model})
-            outputs[said, stops] = frames[-1].color / scale
-    base = outputs["on", 0]
-    for stops in (-7, 9):
-        np.testing.assert_allclose(outputs["on", stops], base, rtol=1e-4, atol=1e-5 * base.max())
-        assert np.abs(outputs[None, stops] - outputs[None, 0]).max() > 0.01 * base.max()
+                            temporal=TemporalSettings(), frames=range(3), networks={"confidence": model},
+                            auto_exposure=forced)
+            outputs[said, forced, stops] = frames[-1].color / scale
+    for said, forced in cases:
+        base = outputs[said, forced, 0]
+        for stops in (-7, 9):
+            if (said == "on" if forced is None else forced):
+                np.testing.assert_allclose(outputs[said, forced, stops], base, rtol=1e-4, atol=1e-5 * base.max())
+            else:
+                assert np.abs(outputs[said, forced, stops] - base).max() > 0.01 * base.max(), (said, forced, stops)

@@ -282,7 +282,8 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       the square roots of its channels' means over their mean, and its output is multiplied back; False:
       as it is), ``auto_exposure`` (True: those gains also bring the frame's irradiance to one key, the
       log-average of its 8×8 tiles' means, so that the network reads the frame alike at any scale of its
-      light; False: at the scale it has; None: as the denoiser was trained, its ONNX metadata),
+      light, and the error predictor and confidence model read their radiance at a key of their own;
+      False: every network at the scale the frame has; None: each as it was trained, its ONNX metadata),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
       ``progress`` (a progress bar, on a terminal), ``timings`` (per-stage GPU times; default: when the
       adapter has them),

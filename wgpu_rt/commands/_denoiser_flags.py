@@ -31,7 +31,8 @@ def add_denoiser_step_flags(parser, image: str = "frame") -> None:
     parser.add_argument("--auto-exposure", choices=list(AUTO_SWITCHES), default="auto",
                         help="bring the irradiance the network reads to one key (the log-average of 8×8 tile "
                              f"means) and back after, so that a {image} denoises alike at any scale of its light "
-                             "(auto, the default: as the model was trained, which its ONNX file records)")
+                             "(the error predictor and confidence model read their input at a key too); auto, "
+                             "the default: each model as it was trained, which its ONNX file records")
     parser.add_argument("--low-band", choices=list(LOW_BAND_SETTINGS), default="auto",
                         help="the denoiser's band below quarter resolution from passes at half (and, from "
                              "512² up, quarter) resolution, weighed by 1/spp: cleaner large-scale shading on big "
@@ -52,11 +53,14 @@ def denoiser_options(args) -> dict:
             "auto_exposure": AUTO_SWITCHES[args.auto_exposure]}
 
 
-def check_denoiser_flags(args) -> None:
-    """Without --denoise the denoiser's flags must be left at their defaults (``render``)."""
+def check_denoiser_flags(args, small_networks: bool = False) -> None:
+    """Without --denoise the denoiser's flags must be left at their defaults (``render``); --auto-exposure
+    also steers the error predictor and the confidence model, so ``small_networks`` (--adaptive or
+    --temporal) lets it through."""
     for flag, value, default in (("--quality", args.quality, "balanced"), ("--low-band", args.low_band, "auto"),
                                  ("--chroma", args.chroma, "on"), ("--post-filter", args.post_filter, "on"),
                                  ("--white-balance", args.white_balance, "on"),
-                                 ("--auto-exposure", args.auto_exposure, "auto")):
+                                 ("--auto-exposure", "auto" if small_networks else args.auto_exposure, "auto")):
         if value != default:
-            raise WgpuRtError(f"{flag} {value} is the denoiser's: add --denoise")
+            raise WgpuRtError(f"{flag} {value} is the denoiser's: add --denoise"
+                              + (" (or --adaptive / --temporal)" if flag == "--auto-exposure" else ""))

@@ -101,7 +101,7 @@ def run(args) -> int:
     png = output_path(args.out, frames[0]).suffix.lower() == ".png"
     fused = args.denoise or args.adaptive is not None or args.temporal
     if not args.denoise:
-        check_denoiser_flags(args)
+        check_denoiser_flags(args, small_networks=args.adaptive is not None or args.temporal)
     if args.spp is not None and args.adaptive is not None:
         raise WgpuRtError("--spp with --adaptive: the adaptive budget sets the samples (mean spp)")
     spp = args.spp if args.spp is not None else (1 if fused else 64)

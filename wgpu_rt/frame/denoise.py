@@ -25,7 +25,7 @@ from .adaptive import HALF_RADIANCE
 from .atrous import atrous_filter
 from .chroma import match_sample_chroma
 from .converge import HALF_SPP, converge
-from .denoise_chain import DenoiseChain, trained_auto_exposure
+from .denoise_chain import DenoiseChain, reads_at_one_key
 from .lowband import fewest_samples, low_band_denoise, low_band_levels
 from .pack import DepthMaxPass, frame_exposure, pack_denoiser_input, white_balance_gains
 from .planes import write_plane
@@ -89,7 +89,7 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
     to the samples' own mean where that has converged, as a denoised render of several samples does
     (frame/converge.py)."""
     height, width = color.shape[:2]
-    auto_exposure = trained_auto_exposure(model) if auto_exposure is None else auto_exposure
+    auto_exposure = reads_at_one_key(model, auto_exposure)
     levels = low_band_levels(width, height, low_band, fewest_samples(spp))
     counts = device_sample_counts(spp, (height, width))
     half_counts = None if half is None else device_sample_counts(half[1], (height, width))

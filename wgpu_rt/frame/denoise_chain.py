@@ -28,6 +28,12 @@ def trained_auto_exposure(model) -> bool:
     return getattr(getattr(model, "graph", None), "metadata", {}).get(INPUT_EXPOSURE) == "on"
 
 
+def reads_at_one_key(model, auto_exposure: bool | None) -> bool:
+    """Whether ``model`` reads its input at one key: ``auto_exposure`` (the caller's ``auto_exposure=`` /
+    ``--auto-exposure on|off``), or where None (auto) as it was trained (``trained_auto_exposure``)."""
+    return trained_auto_exposure(model) if auto_exposure is None else auto_exposure
+
+
 def _no_mark(encoder, name: str) -> None:
     """A stage boundary nobody times."""
 

@@ -30,7 +30,7 @@ from ..trace.trace_pass import SampleSchedule, TracePass
 from .adaptive import HALF_RADIANCE, HEAT, SAMPLE_ERROR, AdaptiveSettings, ExtraSamplesPass, HalfBufferErrorPass
 from .area_albedo import AreaAlbedoPass
 from .converge import HALF_SPP, copy_half, half_count
-from .denoise_chain import DenoiseChain, trained_auto_exposure
+from .denoise_chain import DenoiseChain, reads_at_one_key
 from .interleave import InterleavePass, interleaved, interleaves
 from .lowband import low_band_levels, uses_low_band
 from .pack import DepthMaxPass, PackErrorPass, RadianceExposurePass
@@ -219,8 +219,7 @@ class FramePipeline:
                                       low_band_levels(width, height, low_band, fewest), chroma, post_filter,
                                       converge=(spp > 1 or adaptive is not None) and temporal is None,
                                       white_balance=white_balance,
-                                      auto_exposure=trained_auto_exposure(denoiser) if auto_exposure is None
-                                      else auto_exposure)
+                                      auto_exposure=reads_at_one_key(denoiser, auto_exposure))
             color = self.chain.output
         # Without the aux pass the tracer's albedo is a few point samples a pixel: smoothed for the denoiser.
         self.area_albedo = AreaAlbedoPass(ctx, width, height) if denoiser is not None and not aux_samples else None
@@ -231,14 +230,15 @@ class FramePipeline:
         self.copies_half = self.chain is not None and self.chain.converge is not None or bool(half_aovs)
         self.temporal = None
         if temporal is not None:
-            self.temporal = TemporalPass(ctx, width, height, color, temporal, confidence, self.depth_max.result)
+            self.temporal = TemporalPass(ctx, width, height, color, temporal, confidence, self.depth_max.result,
+                                         auto_exposure)
             color = TEMPORAL
         if adaptive is not None:
             source = SAMPLE_ERROR if adaptive.sampler == "variance" else HEAT
             self.extra_samples = ExtraSamplesPass(ctx, width, height, adaptive, source)
             # An error predictor trained with the exposure step reads its probe at one key (as the denoiser does).
-            self.probe_exposure = (RadianceExposurePass(ctx, width, height)
-                                   if adaptive.sampler == "heat" and trained_auto_exposure(error_predictor) else None)
+            self.probe_exposure = (RadianceExposurePass(ctx, width, height) if adaptive.sampler == "heat"
+                                   and reads_at_one_key(error_predictor, auto_exposure) else None)
             self.pack_error = PackErrorPass(ctx, width, height,
                                             self.probe_exposure.result if self.probe_exposure is not None else None)
             self.half_buffer_error = HalfBufferErrorPass(ctx, width, height)

@@ -24,7 +24,7 @@ from ..errors import WgpuRtError
 from ..passes import DEPTH, MOTION, NORMAL, RADIANCE, ComputePass, PlaneSpec, prepare_network
 from .converge import CONVERGED, ConvergePass
 from .kernel import FrameKernel, finite, nonnegative_finite
-from .denoise_chain import trained_auto_exposure
+from .denoise_chain import reads_at_one_key
 from .pack import CONFIDENCE_KEY, PackConfidencePass, RadianceExposurePass
 from .planes import CONFIDENCE_INPUT
 
@@ -193,13 +193,15 @@ class TemporalPass(ComputePass):
     keeps the converge pass's copy of them, ``converge.copy_half``). With a
     ``confidence`` network (an object with ``record(encoder, input_buffer, height, width) ->
     output_buffer``, such as ``wgpu_rt.nn.WgslModel``) and the frame's ``depth_max`` buffer, moving frames run the Confidence
-    Predictor on the packed (current, reprojected) pair and blend by its output.
+    Predictor on the packed (current, reprojected) pair and blend by its output; ``auto_exposure`` as
+    ``reads_at_one_key`` takes it (None: as the model was trained).
     """
 
     outputs = (TEMPORAL, HISTORY)
 
     def __init__(self, ctx, width: int, height: int, source: PlaneSpec,
-                 settings: TemporalSettings = TemporalSettings(), confidence=None, depth_max=None):
+                 settings: TemporalSettings = TemporalSettings(), confidence=None, depth_max=None,
+                 auto_exposure: bool | None = None):
         if confidence is not None and depth_max is None:
             raise ValueError("a confidence model needs the frame's depth_max buffer")
         self.ctx, self.width, self.height = ctx, width, height
@@ -213,7 +215,7 @@ class TemporalPass(ComputePass):
                         for entry, bindings in ENTRY_BINDINGS.items()}
         # A confidence model trained with the exposure step reads the frame and its history at one key.
         self.confidence_exposure = (RadianceExposurePass(ctx, width, height, CONFIDENCE_KEY, source)
-                                    if trained_auto_exposure(confidence) else None)
+                                    if confidence is not None and reads_at_one_key(confidence, auto_exposure) else None)
         self.pack_confidence = (PackConfidencePass(ctx, width, height, source, REPROJECTED, depth_max,
                                                    getattr(self.confidence_exposure, "result", None))
                                 if confidence is not None else None)
