@@ -83,8 +83,9 @@ time OMP_NUM_THREADS=2 $TRAIN denoiser \
     --epochs "${FINETUNE_EPOCHS:-300}" --batch 4 --crop 64 128 --widths 16 32 64 128 --lr 5e-4 \
     --curriculum 1 --ssim-space display --validate-every 10
 # Since session 42 `wgpu-rt train` trains every network with the exposure step (--auto-exposure on, the default):
-# this predictor reads its probe, the confidence models below their frames, at one key; the shipped two were
-# trained before and read their input as it is (their files say nothing; BENCHMARKS.md §41).
+# this predictor reads its probe, the confidence models below their frames, at one key. The shipped predictor is
+# this step's (rendered and trained anew so, BENCHMARKS.md §41); the shipped confidence model was trained before
+# and reads its frames as they are (its file says nothing).
 time $TRAIN error-predictor --epochs "${HEATMAP_EPOCHS:-60}" --batch 4 --crop 64 128 --lr 3e-3
 # The confidence model learns on what the temporal pass feeds it, the *denoised* frame: $OUT/denoiser.onnx
 # (above) makes it, so this runs after the denoiser. Its frame pairs: DATA's, plus two datasets of nothing

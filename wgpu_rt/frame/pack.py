@@ -28,8 +28,8 @@ network (chroma hold, low band, post filter) read the frame at STEPS_KEY by it (
 The two small networks read log1p radiance, not demodulated; a model whose file says it was trained with the
 step reads it at one key too, found by the same pass without albedo (``RadianceExposurePass``): the error
 predictor its 1-spp probe at PROBE_KEY, the confidence model the denoised frame and its history at
-CONFIDENCE_KEY, both by the frame's key (BENCHMARKS.md §41: the shipped ones, trained without, lose their
-savings and their history at other scales of the light).
+CONFIDENCE_KEY, both by the frame's key (BENCHMARKS.md §41: trained without, they lose their savings and their
+history at other scales of the light; the shipped error predictor is trained with it).
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ STEPS_KEY = 0.1                    # the key the chroma hold, low band and post 
                                    # and σ were tuned on the built-ins, whose keys are 0.09–0.15
 KEY_RATIO = EXPOSURE_KEY / STEPS_KEY
 PROBE_KEY = 0.3                    # the radiance key an error predictor trained with the step reads its 1-spp probe
-                                   # at (0.03–3 tried on the shipped one, BENCHMARKS.md §41)
+                                   # at (0.03–3 tried on the one before, BENCHMARKS.md §41)
 CONFIDENCE_KEY = 0.1               # the radiance key a confidence model trained with the step reads its frames at:
                                    # near the median of the training worlds' keys (0.09–0.10, §41)
 AS_TUNED = 1.0 / KEY_RATIO         # the exposure scale of a frame at STEPS_KEY, which those steps read as it is
