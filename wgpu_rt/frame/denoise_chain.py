@@ -16,9 +16,9 @@ from .planes import DENOISED, DENOISER_INPUT
 from .unpack import UnpackPass
 
 
-# The ONNX metadata key that says whether a denoiser (or error predictor) was trained on inputs brought to one
-# exposure (frame/pack.py's exposure_scale, probe_exposure): "on" or "off"; models from before it say nothing
-# and read "off".
+# The ONNX metadata key that says whether a network (denoiser, error predictor, confidence model) was trained on
+# inputs brought to one exposure (frame/pack.py's exposure_scale, radiance_exposure): "on" or "off"; models from
+# before it say nothing and read "off".
 INPUT_EXPOSURE = "wgpu_rt.auto_exposure"
 
 

@@ -268,7 +268,8 @@ class WhiteBalancePass(ComputePass):
     ``balance``), times its exposure scale where ``exposure`` (``white_balance_gains``), then that scale
     itself (``frame_exposure``), found by frame/balance.wgsl: per-tile sums, then one workgroup's
     reduction; not a per-pixel plane, so the pass owns it; the denoiser's packing and unpacking passes read
-    the gains, the chroma hold, low band and post filter the scale."""
+    the gains, the chroma hold, low band and post filter the scale. ``key``: the key the scale brings the
+    frame to; without ``demodulate`` it is the colour's own key, not its irradiance's (RadianceExposurePass)."""
 
     inputs = (RADIANCE, ALBEDO)
 

@@ -11,8 +11,8 @@
 //                   KEY_FLOOR, over KEY, summed in the same shares and tree; balance[3] is that scale
 //                   whether or not the gains carry it (the low band, chroma hold and post filter read the
 //                   frame at one key with it).
-// Without DEMODULATE the key is the radiance's own (the error predictor's probe exposure, PROBE_KEY as KEY):
-// albedo is then not read (its binding is handed the colour).
+// Without DEMODULATE the key is the colour's own, not its irradiance's (pack.py's RadianceExposurePass: the error
+// predictor's probe, the confidence model's frame): albedo is then not read (its binding is handed the colour).
 // #import frame/common.wgsl
 // #import frame/albedo.wgsl
 
