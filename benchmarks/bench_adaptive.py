@@ -99,9 +99,9 @@ def parse_args():
     parser.add_argument("--oracle-renders", type=int, default=64,
                         help="independent 1-spp renders behind the oracle's per-pixel variance")
     parser.add_argument("--denoised", action="store_true", help="also measure the denoised output's relMSE")
-    parser.add_argument("--stops", type=float, nargs="+", default=[0.0],
+    parser.add_argument("--stops", type=float, nargs="*", default=[],
                         help="also run the heat sampler on the scene with 2^stops times its light (its units "
-                             "changed), scored after dividing back: one row each (0, the default: as it is)")
+                             "changed), scored after dividing back: one row each")
     parser.add_argument("--max-depth", type=int, default=8)
     parser.add_argument("--pass-cost", action="store_true",
                         help="only time the targeted pass against a uniform pass of the same samples")
@@ -417,7 +417,7 @@ def main() -> None:
     print(f"size {size[0]}x{size[1]}, budgets {args.budgets}, uniform curve {args.uniform}, {args.seeds} "
           f"seed(s), gold {args.gold_spp} spp, max depth {args.max_depth}")
     samplers = [("heat", k, share, pool) for k in args.k for share in args.uniform_share for pool in args.pool_sigma]
-    samplers += [(f"heat at {stops:+g} stops", k, share, pool) for stops in args.stops if stops
+    samplers += [(f"heat at {stops:+g} stops", k, share, pool) for stops in args.stops
                  for k, share, pool in itertools.product(args.k, args.uniform_share, args.pool_sigma)]
     samplers += [("variance", k, share, None) for k in args.variance_k for share in args.uniform_share]
     if args.oracle:

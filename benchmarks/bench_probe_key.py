@@ -17,6 +17,7 @@ predictor reading every scale alike, at key K. The last table is the geometric m
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 
 import numpy as np
@@ -64,6 +65,7 @@ def main() -> None:
     name = session.get_inputs()[0].name
 
     def importance(scene, key, stops):
+        @functools.cache   # one probe and heat a seed, shared by the budgets
         def model(seed):
             probe = render(scene, spp=1, size=args.size, max_depth=args.max_depth, seed=seed, aovs=()).color
             probe = probe * np.float32(2.0 ** stops)
@@ -79,9 +81,10 @@ def main() -> None:
         probe = render(scene, spp=1, size=args.size, max_depth=args.max_depth, seed=0, aovs=()).color
         rows = []
         for label, (key, stops) in zip(labels, args.variants):
+            model = importance(scene, key, stops)
             for budget in args.budgets:
                 measured = sampler_errors(scene, args.size, args, gold, AdaptiveSettings(sampler="heat", budget=budget),
-                                          importance(scene, key, stops))
+                                          model)
                 rows.append([label, budget, *(savings(fits[m], measured[m], budget) for m in RAW_METRICS)])
                 summary.append([scene.name, label, 0, 0, 0, budget, *rows[-1][2:]])
         print_table(f"{scene.name} (radiance key {radiance_exposure(probe, 1.0):.4g}): savings",

@@ -122,6 +122,12 @@ def probe_exposure(color: np.ndarray) -> float:
     return radiance_exposure(color, PROBE_KEY)
 
 
+def gains_or_ones(ctx, gains=None):
+    """``gains`` (a RadianceExposurePass's result, read by a small network's packing), or where None a buffer of
+    gains 1: the input read as it is."""
+    return gains if gains is not None else ctx.upload(NO_BALANCE, label="read as it is")
+
+
 def exposure_scale(irradiance: np.ndarray, key: float = EXPOSURE_KEY) -> float:
     """(3, H, W) irradiance → the factor it is divided by so that its key becomes ``key``: the key is
     exp of the mean log of the mean luminance (the channels' mean) of each TILE×TILE tile (fewer pixels at
@@ -356,7 +362,7 @@ class PackErrorPass(ComputePass):
     outputs = (ERROR_INPUT,)
 
     def __init__(self, ctx, width: int, height: int, exposure=None):
-        self.exposure = exposure if exposure is not None else ctx.upload(NO_BALANCE, label="probe read as it is")
+        self.exposure = gains_or_ones(ctx, exposure)
         self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_error", ERROR_BINDINGS, width, height)
 
     def execute(self, encoder, buffers) -> None:
@@ -371,7 +377,7 @@ class PackConfidencePass(ComputePass):
 
     def __init__(self, ctx, width: int, height: int, color, reprojected, depth_max, exposure=None):
         self.color, self.reprojected, self.depth_max = color, reprojected, depth_max
-        self.exposure = exposure if exposure is not None else ctx.upload(NO_BALANCE, label="frame read as it is")
+        self.exposure = gains_or_ones(ctx, exposure)
         self.inputs = (color, reprojected, DEPTH)
         self.outputs = (CONFIDENCE_INPUT,)
         self.kernel = FrameKernel(ctx, "frame/pack.wgsl", "pack_confidence", CONFIDENCE_BINDINGS, width, height)

@@ -239,8 +239,7 @@ class FramePipeline:
             # An error predictor trained with the exposure step reads its probe at one key (as the denoiser does).
             self.probe_exposure = (RadianceExposurePass(ctx, width, height) if adaptive.sampler == "heat"
                                    and reads_at_one_key(error_predictor, auto_exposure) else None)
-            self.pack_error = PackErrorPass(ctx, width, height,
-                                            self.probe_exposure.result if self.probe_exposure is not None else None)
+            self.pack_error = PackErrorPass(ctx, width, height, getattr(self.probe_exposure, "result", None))
             self.half_buffer_error = HalfBufferErrorPass(ctx, width, height)
         self.color, self.hdr = color, hdr
         self.tonemap = (TonemapPass(ctx, width, height, color, operator, exposure, srgb, output)
