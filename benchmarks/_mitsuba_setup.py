@@ -42,14 +42,14 @@ def mitsuba(variant: str | None = None):
     return mi
 
 
-def timed_render(mi, scene, size, spp: int, max_depth: int, seed: int = 0):
-    """(image (H, W, 3) float32, seconds) of Mitsuba's path tracer on our ``scene``; the scene load is
-    not timed, the copy of the image to numpy (which waits for the JIT variants' kernels) is."""
+def timed_render(mi, scene, size, spp: int, max_depth: int, seed: int = 0, frame: int = 0):
+    """(image (H, W, 3) float32, seconds) of Mitsuba's path tracer on our ``scene`` at ``frame``; the scene
+    load is not timed, the copy of the image to numpy (which waits for the JIT variants' kernels) is."""
     import numpy as np
 
     from wgpu_rt.scene.mitsuba import to_mitsuba
 
-    loaded = mi.load_dict(to_mitsuba(scene, size[0], size[1], spp, max_depth, seed=seed))
+    loaded = mi.load_dict(to_mitsuba(scene, size[0], size[1], spp, max_depth, frame, seed=seed))
     started = time.perf_counter()
     image = np.array(mi.render(loaded, spp=spp, seed=seed), np.float32)[..., :3]
     return image, time.perf_counter() - started

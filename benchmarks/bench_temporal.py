@@ -1,6 +1,7 @@
-"""Temporal stability on the animated ``moving`` scene, and accumulation under a static camera.
+"""Temporal stability on animated scenes, and accumulation under a static camera.
 
-On ``moving`` (camera and a box move every frame), for per-frame ours (1 spp + denoiser), per-frame
+On each of --scenes (default ``moving``, whose camera and a box move every frame; ``world-SEED``: a generated
+world with its camera orbiting and one object drifting), for per-frame ours (1 spp + denoiser), per-frame
 OIDN (pyoidn, hdr=True, albedo + normal, on our 1-spp frames) and temporal ours (the fused pipeline
 with reprojection, clamping and the Confidence Predictor when the models folder has one):
 - flicker: mean |Δ| between consecutive output frames, on display values (Reinhard + gamma 2.2, as
@@ -10,12 +11,12 @@ with reprojection, clamping and the Confidence Predictor when the models folder 
 - relMSE over all pixels, for context.
 On a static camera (``cornell``): PSNR of the temporal output after --static-frames frames (the tracer
 accumulates 1 spp per frame, the mean is denoised and blended with itself by spp) minus the PSNR of one
-denoised frame. Gold: our own render of each frame at --gold-spp. --stops adds rows of temporal ours on
-``moving`` with 2^stops times its light (``Scene.with_light_scaled``: the scene in other units, which renders
+denoised frame. Gold: our own render of each frame at --gold-spp (Mitsuba's with --gold-renderer mitsuba,
+the motion vectors still ours). --stops adds rows of temporal ours on each scene with 2^stops times its light (``Scene.with_light_scaled``: the scene in other units, which renders
 exactly scaled), divided back before scoring: a pipeline that reads every scale alike repeats the first row.
 
-    python3 benchmarks/bench_temporal.py [--quick] [--size 96x96] [--frames 16] [--gold-spp 4096]
-        [--gold-cache DIR]
+    python3 benchmarks/bench_temporal.py [--quick] [--scenes moving world-SEED ...] [--size 96x96] [--frames 16]
+        [--gold-spp 4096] [--gold-cache DIR] [--gold-renderer ours|mitsuba] [--static-frames 16]
         [--clamp none|box|variance] [--gamma 1.0] [--stops -8 8]
         [--models DIR | --seed-models]
 """
@@ -40,12 +41,14 @@ QUICK = {"size": "32x32", "frames": 8, "gold_spp": 1024, "static_frames": 16}
 
 def parse_args():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default="moving")
+    parser.add_argument("--scenes", nargs="+", default=["moving"],
+                        help="animated scenes: built-ins, scene files, or world-SEED (a generated world, its camera "
+                             "and one object moving over --frames frames); a mean row follows when there are several")
     parser.add_argument("--static-scene", default="cornell",
-                        help="a built-in scene, a scene file or world-SEED (a generated world); so is --scene")
+                        help="a built-in scene, a scene file or world-SEED (a generated world)")
     parser.add_argument("--size", type=image_size, default="96x96")
     parser.add_argument("--frames", type=int, default=16)
-    parser.add_argument("--static-frames", type=int, default=16)
+    parser.add_argument("--static-frames", type=int, default=16, help="0: no static-camera run")
     add_gold_arguments(parser, default_spp=4096)
     parser.add_argument("--max-depth", type=int, default=8)
     parser.add_argument("--clamp", choices=CLAMP_MODES, default=TemporalSettings.clamp,
@@ -76,11 +79,31 @@ def main() -> None:
     args = parse_args()
     resolve_models(args)
     print_header(args)
+    settings = TemporalSettings(clamp=args.clamp, gamma=args.gamma, confidence_floor=args.confidence_floor)
+    means = {}
+    scenes = load_scenes(args.scenes, world_frames=args.frames)
+    for scene in scenes:
+        for name, row in animated_rows(scene, args, settings).items():
+            means.setdefault(name, []).append(row)
+    if len(scenes) > 1:
+        print_table(f"mean over the {len(scenes)} animated scenes (ghosting: over those with disoccluded pixels)",
+                    ["method", "flicker", "ghosting relMSE", "relMSE"],
+                    [[name, *(mean_of_finite(column) for column in zip(*rows))] for name, rows in means.items()])
+    if args.static_frames > 0:
+        static_accumulation(args, settings)
+
+
+def mean_of_finite(values) -> float:
+    finite = [v for v in values if np.isfinite(v)]
+    return float(np.mean(finite)) if finite else float("nan")
+
+
+def animated_rows(scene, args, settings) -> dict[str, list[float]]:
+    """Score each method on ``scene``'s frames (printing the table); {method: [flicker, ghosting, relMSE]}."""
     size = args.size
-    (scene,) = load_scenes([args.scene])
     frames = range(min(args.frames, scene.frame_count))
-    print(f"{scene.name}: {len(frames)} frames at {size[0]}x{size[1]}, gold {args.gold_spp} spp, "
-          f"max depth {args.max_depth}")
+    print(f"{scene.name}: {len(frames)} frames at {size[0]}x{size[1]}, gold {args.gold_spp} spp"
+          f"{' (Mitsuba)' if args.gold_renderer == 'mitsuba' else ''}, max depth {args.max_depth}")
 
     gold, motion = zip(*(gold_frame(scene, size, args, f) for f in frames))
     masks = [np.zeros(size[::-1], np.float32)] + [
@@ -92,7 +115,6 @@ def main() -> None:
         return oidn(one.color, one.aovs["albedo"], one.aovs["normal"])
 
     per_frame = hdr_pipeline(scene, size, args, denoise=True)
-    settings = TemporalSettings(clamp=args.clamp, gamma=args.gamma, confidence_floor=args.confidence_floor)
     temporal = hdr_pipeline(scene, size, args, denoise=True, temporal=settings)
     print("temporal confidence network: " + ("yes" if temporal.pipeline.temporal.confidence else "no (none in models)"))
     sequences = {"per-frame ours": [linear_frame(per_frame, f) for f in frames],
@@ -103,22 +125,26 @@ def main() -> None:
         lit = hdr_pipeline(scene.with_light_scaled(scale), size, args, denoise=True, temporal=settings)
         sequences[f"temporal ours at {stops:+g} stops"] = [linear_frame(lit, f) / scale for f in frames]
     gold_flicker = flicker(gold)
-    rows, ghosting_by_frame = [], {}
+    rows, ghosting_by_frame = {}, {}
     for name, sequence in sequences.items():
         ghosting = [masked_rel_mse(g, o, m) for g, o, m in zip(gold[1:], sequence[1:], masks[1:])]
         ghosting = ghosting_by_frame[name] = [v for v in ghosting if v is not None]
-        rows.append([name, flicker(sequence) - gold_flicker, float(np.mean(ghosting)) if ghosting else None,
-                     float(np.mean([metrics.rel_mse(g, o) for g, o in zip(gold, sequence)]))])
+        rows[name] = [flicker(sequence) - gold_flicker, float(np.mean(ghosting)) if ghosting else float("nan"),
+                      float(np.mean([metrics.rel_mse(g, o) for g, o in zip(gold, sequence)]))]
     print_table(f"{scene.name}: flicker (gold's own {gold_flicker:.4g} subtracted), ghosting, error "
                 f"(disoccluded: {np.mean([m.mean() for m in masks[1:]]):.1%} of pixels)",
-                ["method", "flicker", "ghosting relMSE", "relMSE"], rows)
+                ["method", "flicker", "ghosting relMSE", "relMSE"], [[name, *row] for name, row in rows.items()])
 
     difference = np.subtract(ghosting_by_frame["temporal ours"], ghosting_by_frame["per-frame ours"])
     if len(difference) > 1:   # paired by frame: is temporal's disocclusion error really above per-frame's?
         print(f"ghosting, temporal − per-frame ours: {difference.mean():+.4f} ± "
               f"{difference.std(ddof=1) / np.sqrt(len(difference)):.4f} (mean ± standard error over "
               f"{len(difference)} frames)")
+    return rows
 
+
+def static_accumulation(args, settings) -> None:
+    size = args.size
     (static,) = load_scenes([args.static_scene])
     static_gold = gold_render(static, size, args)
     single = linear_frame(hdr_pipeline(static, size, args, denoise=True), 0)

@@ -30,6 +30,7 @@ GOLD_SEED = 12345
 GOLD_TWIN_SEED = 54321   # the second gold of --gold-twin
 TRIM_QUANTILE = 0.999
 MITSUBA_PASS_SPP = 512   # a Mitsuba gold renders in passes of at most this many samples (its wavefront's memory)
+MITSUBA_MOTION_SPP = 64  # samples of our tracer behind a Mitsuba gold frame's motion vectors
 
 
 def image_size(text: str) -> tuple[int, int]:
@@ -88,10 +89,11 @@ def resolve_models(args) -> None:
         args.models = str(export_seed_models(tempfile.mkdtemp(prefix="wgpu-rt-seed-models-")))
 
 
-def load_scenes(names: list[str]) -> list:
+def load_scenes(names: list[str], world_frames: int = 1) -> list:
     """The scenes named (built-ins; ``bunny``: the mesh scene with ../shared/meshes' Stanford bunny,
     skipped with a message when the file is absent; ``world-SEED``: the generated world of that seed, as
-    the dataset names them, e.g. world-2147483648 is the held-out family's first; a scene file, e.g.
+    the dataset names them, e.g. world-2147483648 is the held-out family's first, with its camera and an
+    object moving over ``world_frames`` frames when that is above 1; a scene file, e.g.
     benchmarks/scenes/*.toml, skipped with a message when it names a mesh file that is absent)."""
     from wgpu_rt.dataset.worlds import generate_world
     from wgpu_rt.scene import SCENE_SUFFIXES, load_scene
@@ -106,7 +108,7 @@ def load_scenes(names: list[str]) -> list:
             scenes.append(load_scene(name))
             continue
         if name.startswith("world-") and name[len("world-"):].isdigit():
-            scene = generate_world(int(name[len("world-"):]))
+            scene = generate_world(int(name[len("world-"):]), frames=world_frames)
             scene.name = name
         elif name == MESH_SCENE:
             if not BUNNY.exists():
@@ -151,35 +153,45 @@ def add_gold_arguments(parser, default_spp: int) -> None:
 
 
 def gold_render(scene, size, args, seed: int = GOLD_SEED, spp: int | None = None) -> np.ndarray:
-    """(H, W, 3) radiance of our own render (or Mitsuba's, with --gold-renderer mitsuba: passes of at most
-    MITSUBA_PASS_SPP samples, seeds ``seed``, ``seed`` + 1, …, averaged) at ``spp`` samples a pixel (default
-    ``args.gold_spp``) with seed 12345 (no other run uses that seed, so the gold's noise is independent of
-    every image measured against it; the twin's: seed GOLD_TWIN_SEED), from ``args.gold_cache`` when it
-    holds one."""
+    """(H, W, 3) radiance of our own render (or Mitsuba's, with --gold-renderer mitsuba: ``mitsuba_gold``)
+    at ``spp`` samples a pixel (default ``args.gold_spp``) with seed 12345 (no other run uses that seed, so
+    the gold's noise is independent of every image measured against it; the twin's: seed GOLD_TWIN_SEED),
+    from ``args.gold_cache`` when it holds one."""
     from wgpu_rt.renderer import render
 
-    by_mitsuba = getattr(args, "gold_renderer", "ours") == "mitsuba"
+    by_mitsuba = _gold_by_mitsuba(args)
     spp = args.gold_spp if spp is None else spp
 
     def compute():
         if by_mitsuba:
-            try:
-                mi, _ = mitsuba()
-            except ImportError as err:
-                print(f"--gold-renderer mitsuba: Mitsuba 3 does not load here ({err}); pip install mitsuba, or "
-                      "leave the gold to our tracer", file=sys.stderr)
-                raise SystemExit(2) from None
-            passes = -(-spp // MITSUBA_PASS_SPP)
-            counts = [spp // passes + (k < spp % passes) for k in range(passes)]
-            total = sum(count * mitsuba_render(mi, scene, size, count, args.max_depth, seed + k)[0].astype(np.float64)
-                        for k, count in enumerate(counts))
-            return {"color": (total / spp).astype(np.float32)}
+            return {"color": mitsuba_gold(scene, size, spp, args.max_depth, seed)}
         return {"color": render(scene, spp=spp, size=size, max_depth=args.max_depth, seed=seed,
                                 aovs=()).color}
 
     key = (f"{scene.name}_{size[0]}x{size[1]}_{spp}spp_depth{args.max_depth}"
            + ("" if seed == GOLD_SEED else f"_seed{seed}") + ("_mitsuba" if by_mitsuba else ""))
     return _cached(args, key, compute, ["color"])["color"]
+
+
+def _gold_by_mitsuba(args) -> bool:
+    return getattr(args, "gold_renderer", "ours") == "mitsuba"
+
+
+def mitsuba_gold(scene, size, spp: int, max_depth: int, seed: int, frame: int = 0) -> np.ndarray:
+    """(H, W, 3) float32: Mitsuba's render of ``scene`` at ``frame``, in passes of at most MITSUBA_PASS_SPP
+    samples seeded ``seed``, ``seed`` + 1, …, averaged by their sample counts; exit status 2 with a one-line
+    message when Mitsuba 3 does not load."""
+    try:
+        mi, _ = mitsuba()
+    except ImportError as err:
+        print(f"--gold-renderer mitsuba: Mitsuba 3 does not load here ({err}); pip install mitsuba, or "
+              "leave the gold to our tracer", file=sys.stderr)
+        raise SystemExit(2) from None
+    passes = -(-spp // MITSUBA_PASS_SPP)
+    counts = [spp // passes + (k < spp % passes) for k in range(passes)]
+    total = sum(count * mitsuba_render(mi, scene, size, count, max_depth, seed + k, frame)[0].astype(np.float64)
+                for k, count in enumerate(counts))
+    return (total / spp).astype(np.float32)
 
 
 def twin_corrected_psnr(gold, twin, image) -> float:
@@ -195,15 +207,23 @@ def twin_corrected_psnr(gold, twin, image) -> float:
 
 def gold_frame(scene, size, args, frame: int) -> tuple[np.ndarray, np.ndarray]:
     """(radiance (H, W, 3), motion (H, W, 2)) of frame ``frame`` of an animated scene at ``args.gold_spp``
-    (seed 12345 + frame), cached like ``gold_render``."""
+    (seed 12345 + frame), cached like ``gold_render``. With --gold-renderer mitsuba the radiance is
+    Mitsuba's (seeds 12345 + 1000 × frame + pass) and the motion our tracer's at MITSUBA_MOTION_SPP (Mitsuba
+    has no motion vectors; a pixel's motion is a mean over its footprint, which that many samples settle)."""
     from wgpu_rt.renderer import render
 
-    def compute():
-        result = render(scene, spp=args.gold_spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED,
-                        frames=frame, aovs=("motion",))   # frame f is seeded GOLD_SEED + f
-        return {"color": result.color, "motion": result.aovs["motion"]}
+    by_mitsuba = _gold_by_mitsuba(args)
 
-    key = f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}_frame{frame}"
+    def compute():
+        spp = MITSUBA_MOTION_SPP if by_mitsuba else args.gold_spp
+        result = render(scene, spp=spp, size=size, max_depth=args.max_depth, seed=GOLD_SEED,
+                        frames=frame, aovs=("motion",))   # frame f is seeded GOLD_SEED + f
+        color = (mitsuba_gold(scene, size, args.gold_spp, args.max_depth, GOLD_SEED + 1000 * frame, frame)
+                 if by_mitsuba else result.color)
+        return {"color": color, "motion": result.aovs["motion"]}
+
+    key = (f"{scene.name}_{size[0]}x{size[1]}_{args.gold_spp}spp_depth{args.max_depth}_frame{frame}"
+           + ("_mitsuba" if by_mitsuba else ""))
     images = _cached(args, key, compute, ["color", "motion"])
     return images["color"], images["motion"]
 
@@ -372,8 +392,9 @@ def mitsuba():
     return mi, mi.variant()
 
 
-def mitsuba_render(mi, scene, size, spp: int, max_depth: int, seed: int = 0):
-    """(image (H, W, 3), seconds) of Mitsuba's path tracer on ``scene``; the scene load is not timed."""
+def mitsuba_render(mi, scene, size, spp: int, max_depth: int, seed: int = 0, frame: int = 0):
+    """(image (H, W, 3), seconds) of Mitsuba's path tracer on ``scene`` at ``frame``; the scene load is not
+    timed."""
     from _mitsuba_setup import timed_render
 
-    return timed_render(mi, scene, size, spp, max_depth, seed)
+    return timed_render(mi, scene, size, spp, max_depth, seed, frame)

@@ -101,7 +101,7 @@ def test_a_mitsuba_gold_is_the_sample_weighted_mean_of_its_passes(common, monkey
     12347, weighed by their counts; cached under a key of its own."""
     calls = []
 
-    def fake_render(mi, scene, size, spp, max_depth, seed):
+    def fake_render(mi, scene, size, spp, max_depth, seed, frame):
         calls.append((spp, seed))
         return np.full((size[1], size[0], 3), float(seed - common.GOLD_SEED), np.float32), 0.0
 
@@ -119,3 +119,44 @@ def test_a_mitsuba_gold_is_the_sample_weighted_mean_of_its_passes(common, monkey
     np.testing.assert_allclose(gold, (367 * 0 + 367 * 1 + 366 * 2) / 1100, rtol=1e-6)
     assert (tmp_path / "box_4x2_1100spp_depth8_mitsuba.npy").exists()
     assert common.gold_render(Scene(), (4, 2), Args()).shape == (2, 4, 3) and len(calls) == 3, "read back"
+
+
+def test_a_mitsuba_gold_frame_is_mitsubas_radiance_at_that_frame_with_our_motion(common, monkeypatch, tmp_path):
+    """Frame 2 of an animated scene: Mitsuba renders that frame (seeds 12345 + 2000 + pass), our tracer only
+    the motion vectors (MITSUBA_MOTION_SPP samples, frame 2); cached apart from our own gold of the frame."""
+    import wgpu_rt.renderer
+
+    mitsuba_calls, our_calls = [], []
+
+    def fake_mitsuba(mi, scene, size, spp, max_depth, seed, frame):
+        mitsuba_calls.append((spp, seed, frame))
+        return np.full((size[1], size[0], 3), 0.5, np.float32), 0.0
+
+    def fake_ours(scene, spp, size, max_depth, seed, frames, aovs):
+        our_calls.append((spp, frames, aovs))
+        motion = np.full((size[1], size[0], 2), 0.25, np.float32)
+        return type("Result", (), {"color": np.zeros((size[1], size[0], 3), np.float32), "aovs": {"motion": motion}})
+
+    monkeypatch.setattr(common, "mitsuba", lambda: (None, "fake"))
+    monkeypatch.setattr(common, "mitsuba_render", fake_mitsuba)
+    monkeypatch.setattr(wgpu_rt.renderer, "render", fake_ours)
+
+    class Args:
+        gold_renderer, gold_spp, max_depth, gold_cache = "mitsuba", 600, 8, str(tmp_path)
+
+    class Scene:
+        name = "box"
+
+    color, motion = common.gold_frame(Scene(), (4, 2), Args(), 2)
+    assert mitsuba_calls == [(300, 14345, 2), (300, 14346, 2)]
+    assert our_calls == [(common.MITSUBA_MOTION_SPP, 2, ("motion",))]
+    np.testing.assert_allclose(color, 0.5) and np.testing.assert_allclose(motion, 0.25)
+    assert (tmp_path / "box_4x2_600spp_depth8_frame2_mitsuba.npy").exists()
+    assert (tmp_path / "box_4x2_600spp_depth8_frame2_mitsuba_motion.npy").exists()
+
+
+def test_a_world_named_in_a_benchmark_moves_over_the_frames_asked(common):
+    [still] = common.load_scenes(["world-2147483700"])
+    [moving] = common.load_scenes(["world-2147483700"], world_frames=4)
+    assert still.frame_count == 1 and moving.frame_count == 4
+    assert not np.allclose(moving.camera_at(0).origin, moving.camera_at(3).origin)
