@@ -12,8 +12,9 @@ with reprojection, clamping and the Confidence Predictor when the models folder 
 On a static camera (``cornell``): PSNR of the temporal output after --static-frames frames (the tracer
 accumulates 1 spp per frame, the mean is denoised and blended with itself by spp) minus the PSNR of one
 denoised frame. Gold: our own render of each frame at --gold-spp (Mitsuba's with --gold-renderer mitsuba,
-the motion vectors still ours). --stops adds rows of temporal ours on each scene with 2^stops times its light (``Scene.with_light_scaled``: the scene in other units, which renders
-exactly scaled), divided back before scoring: a pipeline that reads every scale alike repeats the first row.
+the motion vectors still ours). --stops adds rows of temporal ours on each scene with 2^stops times its light
+(``Scene.with_light_scaled``: the scene in other units, which renders exactly scaled), divided back before
+scoring: a pipeline that reads every scale alike repeats the first row.
 
     python3 benchmarks/bench_temporal.py [--quick] [--scenes moving world-SEED ...] [--size 96x96] [--frames 16]
         [--gold-spp 4096] [--gold-cache DIR] [--gold-renderer ours|mitsuba] [--static-frames 16]
@@ -93,9 +94,10 @@ def main() -> None:
         static_accumulation(args, settings)
 
 
-def mean_of_finite(values) -> float:
+def mean_of_finite(values) -> float | None:
+    """The mean of the finite values (a scene without disoccluded pixels has no ghosting); None if none is."""
     finite = [v for v in values if np.isfinite(v)]
-    return float(np.mean(finite)) if finite else float("nan")
+    return float(np.mean(finite)) if finite else None
 
 
 def animated_rows(scene, args, settings) -> dict[str, list[float]]:
@@ -133,7 +135,8 @@ def animated_rows(scene, args, settings) -> dict[str, list[float]]:
                       float(np.mean([metrics.rel_mse(g, o) for g, o in zip(gold, sequence)]))]
     print_table(f"{scene.name}: flicker (gold's own {gold_flicker:.4g} subtracted), ghosting, error "
                 f"(disoccluded: {np.mean([m.mean() for m in masks[1:]]):.1%} of pixels)",
-                ["method", "flicker", "ghosting relMSE", "relMSE"], [[name, *row] for name, row in rows.items()])
+                ["method", "flicker", "ghosting relMSE", "relMSE"],
+                [[name, *(v if np.isfinite(v) else None for v in row)] for name, row in rows.items()])
 
     difference = np.subtract(ghosting_by_frame["temporal ours"], ghosting_by_frame["per-frame ours"])
     if len(difference) > 1:   # paired by frame: is temporal's disocclusion error really above per-frame's?
@@ -144,6 +147,7 @@ def animated_rows(scene, args, settings) -> dict[str, list[float]]:
 
 
 def static_accumulation(args, settings) -> None:
+    """The static camera's table: --static-frames temporal frames of --static-scene against one denoised frame."""
     size = args.size
     (static,) = load_scenes([args.static_scene])
     static_gold = gold_render(static, size, args)
