@@ -150,7 +150,8 @@ def test_a_mitsuba_gold_frame_is_mitsubas_radiance_at_that_frame_with_our_motion
     color, motion = common.gold_frame(Scene(), (4, 2), Args(), 2)
     assert mitsuba_calls == [(300, 14345, 2), (300, 14346, 2)]
     assert our_calls == [(common.MITSUBA_MOTION_SPP, 2, ("motion",))]
-    np.testing.assert_allclose(color, 0.5) and np.testing.assert_allclose(motion, 0.25)
+    np.testing.assert_allclose(color, 0.5)
+    np.testing.assert_allclose(motion, 0.25)
     assert (tmp_path / "box_4x2_600spp_depth8_frame2_mitsuba.npy").exists()
     assert (tmp_path / "box_4x2_600spp_depth8_frame2_mitsuba_motion.npy").exists()
 
