@@ -5,7 +5,7 @@ mean (brute force at the same spp), the denoised mean, the blend mix(denoised, m
 constant k, the n-only rule that shipped before (k = max(32, 2048 / n)) and the shipped per-pixel rule
 (wgpu_rt.frame.converge: the mean's error, from how its first half and the whole differ, against the
 denoiser's, capped at n² / (n² + CAP_SCALE), squared differences weighed by how they show on screen and
-neighbours by how alike they look, in a 7×7 window; the
+neighbours by how alike they look, in a (2·CONVERGE_RADIUS + 1)² window; the
 first half is a render of n // 2 spp with the same seed, the very samples the pipeline copies), and that
 rule as it was before BENCHMARKS.md §11 ("linear": a 5×5 window of unweighed sums). Then, for each
 blend, its mean PSNR, its mean loss to the best constant k of each row, its worst row against the raw

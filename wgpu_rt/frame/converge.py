@@ -16,17 +16,20 @@ import numpy as np
 from ..metrics import DISPLAY_GAMMA, to_display
 from ..passes import RADIANCE, SPP, ComputePass, PlaneSpec
 from .adaptive import HALF_RADIANCE
-from .kernel import FrameKernel, nonnegative_finite
+from .kernel import FrameKernel, ceil_div, nonnegative_finite
 from .planes import DENOISED
 
 CONVERGED = PlaneSpec("converged", 3)
 HALF_SPP = PlaneSpec("half_spp", 1, "u32")   # the samples HALF_RADIANCE holds
-# Fitted with benchmarks/bench_converge.py (BENCHMARKS.md §8, §11): 64², 2–256 spp, 4096-spp gold,
-# cornell, cornell-glossy, sun-room and twelve held-out worlds. The cap's scale of 1024 (the mean gets at
-# most 4/(4 + 256) of a 4-spp frame, 0.8 of a 64-spp one) was chosen on a numpy prototype among scales
-# 256–4096; the window grew from 5×5 to 7×7 when its neighbours came to be weighed by likeness (§11).
-CONVERGE_RADIUS = 3      # a const in the kernel (its workgroup tile is sized by it); parity tests hold them equal
-CONVERGE_CAP_SCALE = 1024.0
+# The window's radius and the cap's scale: first fitted with benchmarks/bench_converge.py (BENCHMARKS.md §8, §11:
+# 64², 7×7 window, scale 1024), then refitted at 256² (§43: the 24 held-out worlds and four built-ins, 16 and 64
+# spp, Mitsuba's 4096-spp gold): a 15×15 window averages the mean's split and the difference over enough
+# pixels that a split which happens to agree no longer reads as a converged mean (…650 at 16 spp lost 2.4 dB
+# to the 7×7 window), and with that steadier estimate the cap can let the mean in sooner (scale 384: at most
+# 16/(16 + 384) of a 4-spp frame, 0.4 of a 16-spp one, 0.91 of a 64-spp one).
+CONVERGE_RADIUS = 7      # a const in the kernel (its workgroup tile is sized by it); parity tests hold them equal
+CONVERGE_CAP_SCALE = 384.0
+CONVERGE_TILE = (8, 4)   # the kernel's workgroup: with its RADIUS-wide halo it fits 16 KiB of workgroup memory
 # A neighbour counts in the window by how alike its denoised value looks on screen: weight
 # exp(−Δ² / 2τ²) of the difference Δ of display values (BENCHMARKS.md §11: one bright pixel whose
 # halves disagree, a caustic, no longer makes its whole window keep the denoised frame).
@@ -129,6 +132,8 @@ class ConvergePass(ComputePass):
                                    "SLOPE_GAMMA": SLOPE_GAMMA, "SLOPE_FLOOR": SLOPE_FLOOR})
 
     def execute(self, encoder, buffers) -> None:
+        groups = (ceil_div(buffers.width, CONVERGE_TILE[0]), ceil_div(buffers.height, CONVERGE_TILE[1]))
         self.kernel.dispatch(encoder, {"denoised": buffers.get(self.source), "samples_mean": buffers.get(RADIANCE),
                                        "spp": buffers.get(SPP), "half_mean": buffers.get(HALF_RADIANCE),
-                                       "half_spp": buffers.get(HALF_SPP), "converged": buffers.get(CONVERGED)})
+                                       "half_spp": buffers.get(HALF_SPP), "converged": buffers.get(CONVERGED)},
+                             groups)

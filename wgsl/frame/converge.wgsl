@@ -18,15 +18,19 @@
 // while one whose parts disagree (a firefly) leaves the denoised value. The cap keeps the mean out at
 // a few spp, where an estimate from so few samples cannot be trusted. Only pixels with samples after
 // the copy (n > h) have an estimate: the window's averages leave the others out, and such a pixel
-// keeps its denoised value. Fitted with benchmarks/bench_converge.py (wgpu_rt/frame/converge.py).
-// Each 8×8 workgroup first works out, once per pixel of its tile and the tile's RADIUS-wide halo, what
+// keeps its denoised value. Fitted with benchmarks/bench_converge.py, refitted at 256² (wgpu_rt/frame/converge.py).
+// Each 8×4 workgroup first works out, once per pixel of its tile and the tile's RADIUS-wide halo, what
 // the window sums need (display value, weighed squared split and difference, whether it took samples
-// after the copy) in workgroup memory; the windows then read only that.
+// after the copy) in workgroup memory; the windows then read only that. The tile is 8×4, not the frame
+// passes' 8×8, so that with its halo it fits WebGPU's default 16 KiB of workgroup memory (15,840 bytes).
 // #import frame/common.wgsl
 
-const RADIUS: i32 = 3;                          // CONVERGE_RADIUS in wgpu_rt/frame/converge.py
-const SPAN: u32 = TILE + 2u * u32(RADIUS);      // the tile and its halo, per side
-override CAP_SCALE: f32 = 1024.0;
+const RADIUS: i32 = 7;                          // CONVERGE_RADIUS in wgpu_rt/frame/converge.py
+const TILE_X: u32 = 8u;                         // CONVERGE_TILE in wgpu_rt/frame/converge.py
+const TILE_Y: u32 = 4u;
+const SPAN_X: u32 = TILE_X + 2u * u32(RADIUS);  // the tile and its halo
+const SPAN_Y: u32 = TILE_Y + 2u * u32(RADIUS);
+override CAP_SCALE: f32 = 384.0;
 override TAU: f32 = 0.05;
 override SLOPE_GAMMA: f32 = 2.2;
 override SLOPE_FLOOR: f32 = 1e-4;
@@ -38,13 +42,20 @@ override SLOPE_FLOOR: f32 = 1e-4;
 @group(0) @binding(4) var<storage, read> half_spp: array<u32>;
 @group(0) @binding(5) var<storage, read_write> converged: array<f32>;
 
-// Per pixel of the tile and halo, per channel: display value of the denoised frame, the weighed squared
-// split of the mean (its variance term) and squared difference denoised − mean; and 1 where the pixel is
-// in the frame and took samples after the copy, else 0.
-var<workgroup> tile_value: array<vec3f, SPAN * SPAN>;
-var<workgroup> tile_variance: array<vec3f, SPAN * SPAN>;
-var<workgroup> tile_difference: array<vec3f, SPAN * SPAN>;
-var<workgroup> tile_estimated: array<f32, SPAN * SPAN>;
+// Per pixel of the tile and halo, nine floats: per channel the display value of the denoised frame
+// (offset VALUE), the weighed squared split of the mean (its variance term, VARIANCE) and the squared
+// difference denoised − mean (DIFFERENCE); flat floats, since a vec3f's stride is 16 bytes. And 1 where the
+// pixel is in the frame and took samples after the copy, else 0.
+const VALUE: u32 = 0u;
+const VARIANCE: u32 = 3u;
+const DIFFERENCE: u32 = 6u;
+var<workgroup> tile: array<f32, 9u * SPAN_X * SPAN_Y>;
+var<workgroup> tile_estimated: array<f32, SPAN_X * SPAN_Y>;
+
+fn tile_vec3(k: u32, offset: u32) -> vec3f {
+    let at = 9u * k + offset;
+    return vec3f(tile[at], tile[at + 1u], tile[at + 2u]);
+}
 
 // (x / (1 + x))^(1/γ) of x ≥ 0: the display value.
 fn display_value(x: f32) -> f32 {
@@ -61,7 +72,7 @@ fn display_slope2(value: f32, shown: f32) -> f32 {
 
 fn load_tile_pixel(k: u32, origin: vec2i) {
     let n = pixel_count();
-    let p = origin + vec2i(i32(k % SPAN), i32(k / SPAN));
+    let p = origin + vec2i(i32(k % SPAN_X), i32(k / SPAN_X));
     var value = vec3f(0.0);
     var variance = vec3f(0.0);
     var difference = vec3f(0.0);
@@ -84,33 +95,35 @@ fn load_tile_pixel(k: u32, origin: vec2i) {
             }
         }
     }
-    tile_value[k] = value;
-    tile_variance[k] = variance;
-    tile_difference[k] = difference;
+    for (var c = 0u; c < 3u; c++) {
+        tile[9u * k + VALUE + c] = value[c];
+        tile[9u * k + VARIANCE + c] = variance[c];
+        tile[9u * k + DIFFERENCE + c] = difference[c];
+    }
     tile_estimated[k] = estimated;
 }
 
-@compute @workgroup_size(8, 8)
+@compute @workgroup_size(8, 4)
 fn main(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation_id) local: vec3u,
         @builtin(local_invocation_index) local_index: u32, @builtin(workgroup_id) group: vec3u) {
-    let origin = vec2i(group.xy * TILE) - RADIUS;
-    for (var k = local_index; k < SPAN * SPAN; k += TILE * TILE) { load_tile_pixel(k, origin); }
+    let origin = vec2i(group.xy * vec2u(TILE_X, TILE_Y)) - RADIUS;
+    for (var k = local_index; k < SPAN_X * SPAN_Y; k += TILE_X * TILE_Y) { load_tile_pixel(k, origin); }
     workgroupBarrier();
     if (!in_frame(id)) { return; }
     let n = pixel_count();
     let i = pixel_index(id);
-    let centre = tile_value[(local.y + u32(RADIUS)) * SPAN + local.x + u32(RADIUS)];
+    let centre = tile_vec3((local.y + u32(RADIUS)) * SPAN_X + local.x + u32(RADIUS), VALUE);
     var variance = vec3f(0.0);
     var difference = vec3f(0.0);
     var window = vec3f(0.0);
     for (var y = 0u; y <= 2u * u32(RADIUS); y++) {
         for (var x = 0u; x <= 2u * u32(RADIUS); x++) {
-            let k = (local.y + y) * SPAN + local.x + x;
-            let alike = tile_value[k] - centre;
+            let k = (local.y + y) * SPAN_X + local.x + x;
+            let alike = tile_vec3(k, VALUE) - centre;
             let w = tile_estimated[k] * exp(-alike * alike / (2.0 * TAU * TAU));
             window += w;
-            variance += w * tile_variance[k];
-            difference += w * tile_difference[k];
+            variance += w * tile_vec3(k, VARIANCE);
+            difference += w * tile_vec3(k, DIFFERENCE);
         }
     }
     let estimated = spp[i] > half_spp[i];
