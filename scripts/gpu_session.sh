@@ -71,6 +71,10 @@
 # default (each frame's irradiance brought to one key, §40) and writes that into the ONNX file, which
 # `--auto-exposure auto` follows when the model runs; the shipped model is a 100-minute CPU fine-tune with
 # it (§40), so call 1's fine-tune continues in the same convention.
+# Sessions 42–44 had no GPU. Since session 44 the converge pass (the hand-over above 1 spp, and temporal mode's
+# static camera) averages over a 15×15 window, 225 taps of three likeness weights where it had 49 (§43: 6× its
+# lavapipe time); `frame`'s pipeline rows (cornell's static camera: the `temporal` stage holds it) and
+# `adaptive_cost` give its first GPU time at 1080p, to set against the network's.
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
