@@ -11,12 +11,15 @@ rule as it was before BENCHMARKS.md §11 ("linear": a 5×5 window of unweighed s
 blend, its mean PSNR, its mean loss to the best constant k of each row, its worst row against the raw
 mean (issue 12 wants ≥ 0) and how many rows are below it, and whether the shipped rule's PSNR rises
 with n in every scene. --radius and --cap-scale try other settings of the per-pixel rule.
+--pass-cost times the shipped pass alone on this adapter instead: the kernel at --size on a frame of 16 spp
+(device timestamps, median of --repeats; BENCHMARKS.md §43 priced its 15×15 window so).
 Denoiser: the model in --models (numpy packing, our WGSL engine); gold: our own render at --gold-spp
 (--gold-cache shares it with the other benchmarks).
 
     python3 benchmarks/bench_converge.py [--scenes cornell cornell-glossy sun-room world-2147483648 ...]
         [--size 64x64] [--spp 2 4 8 16 64 256] [--k 8 32 128 512 2048] [--radius 2] [--cap-scale 1024]
         [--gold-spp 4096] [--gold-cache DIR] [--models DIR]
+    python3 benchmarks/bench_converge.py --pass-cost --size 1920x1080 [--repeats 7]
 """
 
 from __future__ import annotations
@@ -42,6 +45,9 @@ def parse_args():
     parser.add_argument("--radius", type=int, default=CONVERGE_RADIUS)
     parser.add_argument("--cap-scale", type=float, default=CONVERGE_CAP_SCALE)
     parser.add_argument("--max-depth", type=int, default=8)
+    parser.add_argument("--pass-cost", action="store_true",
+                        help="time the shipped converge pass alone at --size instead of fitting (needs timestamps)")
+    parser.add_argument("--repeats", type=int, default=7, help="timed passes with --pass-cost")
     add_gold_arguments(parser, default_spp=4096)
     add_model_arguments(parser)
     return parser.parse_args()
@@ -51,8 +57,48 @@ def mix(denoised, mean, weight):
     return denoised + weight * (mean - denoised)
 
 
+def pass_cost(size: tuple[int, int], repeats: int) -> float:
+    """Median device ms of the shipped converge pass on a (width, height) frame of 16 spp whose denoised
+    frame, mean and half mean are random (the pass's work does not depend on the values)."""
+    from wgpu_rt.frame.adaptive import HALF_RADIANCE
+    from wgpu_rt.frame.converge import HALF_SPP, ConvergePass
+    from wgpu_rt.frame.pipeline import StageTimer
+    from wgpu_rt.frame.planes import DENOISED, write_plane
+    from wgpu_rt.gpu import get_context
+    from wgpu_rt.passes import RADIANCE, SPP, FrameBuffers
+
+    ctx = get_context()
+    if not ctx.has_timestamps:
+        raise SystemExit("--pass-cost needs timestamp queries, which this adapter lacks")
+    width, height = size
+    rng = np.random.default_rng(0)
+    buffers = FrameBuffers(ctx, width, height)
+    mean = rng.gamma(2.0, 0.3, (height, width, 3)).astype(np.float32)
+    for plane, image in ((DENOISED, mean * 1.1), (RADIANCE, mean), (HALF_RADIANCE, mean * 0.9)):
+        write_plane(buffers, plane, image)
+    write_plane(buffers, SPP, np.full((height, width), 16, np.uint32))
+    write_plane(buffers, HALF_SPP, np.full((height, width), 8, np.uint32))
+    converge_pass, timer = ConvergePass(ctx, width, height), StageTimer(ctx, capacity=2)
+    times = []
+    for _ in range(repeats + 1):   # the first compiles the kernel
+        encoder = ctx.device.create_command_encoder()
+        timer.start()
+        timer.mark(encoder, "start")
+        converge_pass.execute(encoder, buffers)
+        timer.mark(encoder, "converge")
+        encoder.resolve_query_set(timer.query_set, 0, 2, timer.resolved, 0)
+        ctx.device.queue.submit([encoder.finish()])
+        times.append(timer.stage_ms(timer.names, ctx.device.queue.read_buffer(timer.resolved, 0, 16))["converge"])
+    return float(np.median(times[1:]))
+
+
 def main() -> None:
     args = parse_args()
+    if args.pass_cost:
+        print_header(args)
+        print(f"converge pass at {args.size[0]}x{args.size[1]} (window {2 * CONVERGE_RADIUS + 1}², cap scale "
+              f"{CONVERGE_CAP_SCALE:g}): {pass_cost(args.size, args.repeats):.2f} ms, median of {args.repeats}")
+        return
     resolve_models(args)
     print_header(args)
     size = args.size

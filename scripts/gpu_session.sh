@@ -73,8 +73,7 @@
 # it (§40), so call 1's fine-tune continues in the same convention.
 # Sessions 42–44 had no GPU. Since session 44 the converge pass (the hand-over above 1 spp, and temporal mode's
 # static camera) averages over a 15×15 window, 225 taps of three likeness weights where it had 49 (§43: 6× its
-# lavapipe time); `frame`'s pipeline rows (cornell's static camera: the `temporal` stage holds it) and
-# `adaptive_cost` give its first GPU time at 1080p, to set against the network's.
+# lavapipe time); `frame`'s converge_cost part times it alone at 1080p, to set against the network's.
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
@@ -241,6 +240,8 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
         # invocations instead of one invocation's loop)
         part adaptive_cost python3 benchmarks/bench_adaptive.py --pass-cost --size ${W}x${H} --budgets 4 \
             --scenes cornell sun-room --repeats 5 --batch-items 0 2097152 --item-samples 0 1
+        # session 44: the hand-over's 15×15 window (§43), the pass alone
+        part converge_cost python3 benchmarks/bench_converge.py --pass-cost --size ${W}x${H} --repeats 7
         part moving python3 benchmarks/bench_moving.py --scene moving --size $SQUARE --frames 40 --denoise
         part moving_bunny python3 benchmarks/bench_moving.py --scene bunny --size $SQUARE --frames 40 --denoise ;;
     heldout)

@@ -161,3 +161,13 @@ def test_a_world_named_in_a_benchmark_moves_over_the_frames_asked(common):
     [moving] = common.load_scenes(["world-2147483700"], world_frames=4)
     assert still.frame_count == 1 and moving.frame_count == 4
     assert not np.allclose(moving.camera_at(0).origin, moving.camera_at(3).origin)
+
+
+def test_the_converge_pass_cost_is_timed_on_the_device(gpu, monkeypatch):
+    """bench_converge.py --pass-cost (the GPU session's converge_cost part): the shipped pass alone, a positive
+    device time where the adapter has timestamps."""
+    if not gpu.has_timestamps:
+        pytest.skip("this adapter has no timestamp queries")
+    monkeypatch.syspath_prepend(str(REPO / "benchmarks"))
+    bench_converge = importlib.import_module("bench_converge")
+    assert 0 < bench_converge.pass_cost((24, 20), repeats=2) < 60_000
