@@ -61,9 +61,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, denoiser_options, gold_render, hdr_pipeline, image_size,
-                    linear_frame, load_scenes, parse_with_quick_defaults, print_header, print_table, resolve_models,
-                    save_array, save_figure, trimmed_rel_mse)
+from common import (add_gold_arguments, add_model_arguments, denoiser_options, device_ms, gold_render, hdr_pipeline,
+                    image_size, linear_frame, load_scenes, parse_with_quick_defaults, print_header, print_table,
+                    resolve_models, save_array, save_figure, trimmed_rel_mse)
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.adaptive import EXTRA_SAMPLES, MAX_HEAT_SAMPLES, AdaptiveSettings
@@ -335,15 +335,8 @@ def timed_list_build(trace, buffers, timer, schedule) -> float:
     from wgpu_rt.passes import SPP
 
     work = trace.work_list
-    encoder = trace.ctx.device.create_command_encoder()
-    timer.start()
-    timer.mark(encoder, "start")
-    work.record_build(encoder, schedule.sample_counts, buffers.get(SPP),
-                      work.batches(schedule.samples, schedule.total_samples))
-    timer.mark(encoder, "build")
-    encoder.resolve_query_set(timer.query_set, 0, 2, timer.resolved, 0)
-    trace.ctx.device.queue.submit([encoder.finish()])
-    return timer.stage_ms(timer.names, trace.ctx.device.queue.read_buffer(timer.resolved, 0, 16))["build"]
+    return device_ms(trace.ctx, timer, lambda encoder: work.record_build(
+        encoder, schedule.sample_counts, buffers.get(SPP), work.batches(schedule.samples, schedule.total_samples)))
 
 
 def pass_cost_row(trace, counts, settings: AdaptiveSettings, extra: int, repeats: int) -> list[float]:

@@ -27,8 +27,8 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import (add_gold_arguments, add_model_arguments, denoiser_options, gold_render, image_size, load_scenes,
-                    print_header, print_table, resolve_models)
+from common import (add_gold_arguments, add_model_arguments, denoiser_options, device_ms, gold_render, image_size,
+                    load_scenes, print_header, print_table, resolve_models)
 
 from wgpu_rt import metrics
 from wgpu_rt.frame.converge import CONVERGE_CAP_SCALE, CONVERGE_RADIUS, converge, half_count
@@ -79,16 +79,8 @@ def pass_cost(size: tuple[int, int], repeats: int) -> float:
     write_plane(buffers, SPP, np.full((height, width), 16, np.uint32))
     write_plane(buffers, HALF_SPP, np.full((height, width), 8, np.uint32))
     converge_pass, timer = ConvergePass(ctx, width, height), StageTimer(ctx, capacity=2)
-    times = []
-    for _ in range(repeats + 1):   # the first compiles the kernel
-        encoder = ctx.device.create_command_encoder()
-        timer.start()
-        timer.mark(encoder, "start")
-        converge_pass.execute(encoder, buffers)
-        timer.mark(encoder, "converge")
-        encoder.resolve_query_set(timer.query_set, 0, 2, timer.resolved, 0)
-        ctx.device.queue.submit([encoder.finish()])
-        times.append(timer.stage_ms(timer.names, ctx.device.queue.read_buffer(timer.resolved, 0, 16))["converge"])
+    times = [device_ms(ctx, timer, lambda encoder: converge_pass.execute(encoder, buffers))
+             for _ in range(repeats + 1)]   # the first compiles the kernel
     return float(np.median(times[1:]))
 
 

@@ -274,6 +274,19 @@ def hdr_pipeline(scene, size, args, **settings):
                     models_dir=args.models, aovs=(), **settings)
 
 
+def device_ms(ctx, timer, record) -> float:
+    """Device ms, from ``timer``'s timestamp queries (a wgpu_rt StageTimer of capacity ≥ 2), of what
+    ``record(encoder)`` records, submitted alone and waited for."""
+    encoder = ctx.device.create_command_encoder()
+    timer.start()
+    timer.mark(encoder, "start")
+    record(encoder)
+    timer.mark(encoder, "recorded")
+    encoder.resolve_query_set(timer.query_set, 0, 2, timer.resolved, 0)
+    ctx.device.queue.submit([encoder.finish()])
+    return timer.stage_ms(timer.names, ctx.device.queue.read_buffer(timer.resolved, 0, 16))["recorded"]
+
+
 def linear_frame(renderer, frame: int = 0) -> np.ndarray:
     """One rendered frame of an ``hdr_pipeline`` as (H, W, 3) radiance."""
     return next(renderer.frames(frame)).color

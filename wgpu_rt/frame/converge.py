@@ -130,10 +130,10 @@ class ConvergePass(ComputePass):
                                   ("denoised", "samples_mean", "spp", "half_mean", "half_spp", "converged"),
                                   width, height, {"CAP_SCALE": CONVERGE_CAP_SCALE, "TAU": CONVERGE_TAU,
                                    "SLOPE_GAMMA": SLOPE_GAMMA, "SLOPE_FLOOR": SLOPE_FLOOR})
+        self.groups = (ceil_div(width, CONVERGE_TILE[0]), ceil_div(height, CONVERGE_TILE[1]))   # 8×4 tiles
 
     def execute(self, encoder, buffers) -> None:
-        groups = (ceil_div(buffers.width, CONVERGE_TILE[0]), ceil_div(buffers.height, CONVERGE_TILE[1]))
         self.kernel.dispatch(encoder, {"denoised": buffers.get(self.source), "samples_mean": buffers.get(RADIANCE),
                                        "spp": buffers.get(SPP), "half_mean": buffers.get(HALF_RADIANCE),
                                        "half_spp": buffers.get(HALF_SPP), "converged": buffers.get(CONVERGED)},
-                             groups)
+                             self.groups)
