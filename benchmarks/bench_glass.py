@@ -20,12 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from _mitsuba_setup import mitsuba, render_mitsuba
 from bench_mitsuba import rel_mse
 from common import print_header
 
 from wgpu_rt.renderer import render
-from wgpu_rt.scene.mitsuba import to_mitsuba
+from wgpu_rt.scene.mitsuba import load_mitsuba, timed_render, to_mitsuba
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_glass_reference import glass_block_scene  # noqa: E402  (the scene the tests use)
@@ -56,7 +55,7 @@ def main() -> int:
     parser.add_argument("--size", type=int, default=48)
     args = parser.parse_args()
     print_header(args)
-    mi = mitsuba()
+    mi = load_mitsuba()
     size = (args.size, args.size)
     ok = True
     for lift in (0.0, 0.001):
@@ -65,8 +64,8 @@ def main() -> int:
         ours = render(scene, spp=args.spp, size=size, max_depth=8, aovs=()).color
         ours_s = time.perf_counter() - started
         started = time.perf_counter()
-        mi_a = render_mitsuba(mi, scene, size, args.spp, 8, seed=1)
-        mi_b = render_mitsuba(mi, scene, size, args.spp, 8, seed=2)
+        mi_a = timed_render(mi, scene, size, args.spp, 8, seed=1)[0]
+        mi_b = timed_render(mi, scene, size, args.spp, 8, seed=2)[0]
         mi_s = (time.perf_counter() - started) / 2
         block = block_pixels(mi, scene, size)
         means = {name: image[block].mean(0) for name, image in (("ours", ours), ("mitsuba", mi_a), ("seed 2", mi_b))}

@@ -20,11 +20,11 @@ import sys
 
 import numpy as np
 
-from _mitsuba_setup import timed_render
 from common import load_scenes, print_header
 from peers import mitsuba_peer, time_mitsuba
 
 from wgpu_rt.renderer import render
+from wgpu_rt.scene.mitsuba import timed_render
 
 
 HOT_PIXEL = 100.0

@@ -22,10 +22,11 @@ import argparse
 
 import numpy as np
 from common import (add_gold_arguments, add_model_arguments, crossing, errors, gold_render, hdr_pipeline, image_size,
-                    linear_frame, load_scenes, mitsuba, mitsuba_render, oidn, parse_with_quick_defaults, print_header,
+                    linear_frame, load_scenes, mitsuba, oidn, parse_with_quick_defaults, print_header,
                     print_table, resolve_models, save_figure, steady)
 
 from wgpu_rt.renderer import render
+from wgpu_rt.scene.mitsuba import timed_render
 from wgpu_rt.trace.trace_pass import AUX_SAMPLES
 
 TARGET_SPP = (64, 256, 1024)
@@ -59,9 +60,9 @@ def measure(scene, size, args, mi) -> dict[str, list[dict]]:
         result = render(scene, spp=spp, size=size, max_depth=args.max_depth, seed=0, aovs=())
         add("ours brute force", spp, result.seconds, result.color)
     if mi is not None:
-        mitsuba_render(mi, scene, size, 1, args.max_depth)                      # JIT warm-up
+        timed_render(mi, scene, size, 1, args.max_depth)                        # JIT warm-up
         for spp in sorted(args.spp):
-            image, seconds = mitsuba_render(mi, scene, size, spp, args.max_depth)
+            image, seconds = timed_render(mi, scene, size, spp, args.max_depth)
             add(f"Mitsuba brute force ({mi.variant()})", spp, seconds, image)
     pipeline = hdr_pipeline(scene, size, args, denoise=True)
     image, seconds = steady(lambda: linear_frame(pipeline), repeats=3)

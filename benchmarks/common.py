@@ -29,7 +29,6 @@ MESH_SCENE = "bunny"
 GOLD_SEED = 12345
 GOLD_TWIN_SEED = 54321   # the second gold of --gold-twin
 TRIM_QUANTILE = 0.999
-MITSUBA_PASS_SPP = 512   # a Mitsuba gold renders in passes of at most this many samples (its wavefront's memory)
 MITSUBA_MOTION_SPP = 64  # samples of our tracer behind a Mitsuba gold frame's motion vectors
 
 
@@ -178,20 +177,18 @@ def _gold_by_mitsuba(args) -> bool:
 
 
 def mitsuba_gold(scene, size, spp: int, max_depth: int, seed: int, frame: int = 0) -> np.ndarray:
-    """(H, W, 3) float32: Mitsuba's render of ``scene`` at ``frame``, in passes of at most MITSUBA_PASS_SPP
-    samples seeded ``seed``, ``seed`` + 1, …, averaged by their sample counts; exit status 2 with a one-line
-    message when Mitsuba 3 does not load."""
+    """(H, W, 3) float32: Mitsuba's render of ``scene`` at ``frame`` (wgpu_rt.scene.mitsuba.render_in_passes:
+    passes seeded ``seed``, ``seed`` + 1, …); exit status 2 with a one-line message when Mitsuba 3 does not
+    load."""
+    from wgpu_rt.scene.mitsuba import render_in_passes
+
     try:
         mi, _ = mitsuba()
     except ImportError as err:
         print(f"--gold-renderer mitsuba: Mitsuba 3 does not load here ({err}); pip install mitsuba, or "
               "leave the gold to our tracer", file=sys.stderr)
         raise SystemExit(2) from None
-    passes = -(-spp // MITSUBA_PASS_SPP)
-    counts = [spp // passes + (k < spp % passes) for k in range(passes)]
-    total = sum(count * mitsuba_render(mi, scene, size, count, max_depth, seed + k, frame)[0].astype(np.float64)
-                for k, count in enumerate(counts))
-    return (total / spp).astype(np.float32)
+    return render_in_passes(mi, scene, size, spp, max_depth, seed, frame)
 
 
 def twin_corrected_psnr(gold, twin, image) -> float:
@@ -398,16 +395,8 @@ def save_figure(figure, name: str) -> Path:
 
 def mitsuba():
     """Mitsuba 3 in its fastest variant here (cuda_ad_rgb with a CUDA GPU, else llvm_ad_rgb with LLVM 19,
-    else scalar_rgb; chosen by benchmarks/_mitsuba_setup.py) and that variant's name."""
-    from _mitsuba_setup import mitsuba as set_up
+    else scalar_rgb; wgpu_rt.scene.mitsuba.variant_choice) and that variant's name."""
+    from wgpu_rt.scene.mitsuba import load_mitsuba
 
-    mi = set_up()
+    mi = load_mitsuba()
     return mi, mi.variant()
-
-
-def mitsuba_render(mi, scene, size, spp: int, max_depth: int, seed: int = 0, frame: int = 0):
-    """(image (H, W, 3), seconds) of Mitsuba's path tracer on ``scene`` at ``frame``; the scene load is not
-    timed."""
-    from _mitsuba_setup import timed_render
-
-    return timed_render(mi, scene, size, spp, max_depth, seed, frame)

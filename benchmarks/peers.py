@@ -9,7 +9,7 @@ so that one script prints the same rows on lavapipe and, unchanged, on a machine
 - Intel Open Image Denoise through pyoidn (the RT filter, HDR colour with albedo and normal guides) at
   quality fast / balanced / high: on the CPU, and on CUDA where torch sees a CUDA device and OIDN's
   CUDA backend supports it (its images are then torch CUDA tensors and it runs on torch's stream).
-- Mitsuba 3 in its fastest variant here (benchmarks/_mitsuba_setup.py: cuda_ad_rgb, else llvm_ad_rgb,
+- Mitsuba 3 in its fastest variant here (wgpu_rt/scene/mitsuba.py's variant_choice: cuda_ad_rgb, else llvm_ad_rgb,
   else scalar_rgb).
 
 Discovery never raises: a peer that is missing or cannot run here comes back as one
@@ -97,10 +97,10 @@ def mitsuba_peer():
     """(the mitsuba module set to the fastest variant here, or None; a skipped line for each faster
     variant that is absent, or for Mitsuba itself)."""
     try:
-        from _mitsuba_setup import mitsuba, variant_choice
+        from wgpu_rt.scene.mitsuba import load_mitsuba, variant_choice
 
         variant, lines = variant_choice()
-        return mitsuba(variant), lines
+        return load_mitsuba(variant), lines
     except Exception as err:  # not installed, or Dr.Jit failing to load its libraries
         return None, [skipped("Mitsuba", f"{type(err).__name__}: {err}")]
 
@@ -379,7 +379,7 @@ def time_oidn(device: str, quality: str, height: int, width: int, repeats: int) 
 def time_mitsuba(mi, scene, size, spp: int, max_depth: int, seed: int = 0) -> tuple[np.ndarray, float]:
     """(image, seconds) of one Mitsuba render after a 1-spp warm-up (Dr.Jit compiles its kernels then;
     renders at other sample counts reuse them); the scene load is not timed."""
-    from _mitsuba_setup import timed_render
+    from wgpu_rt.scene.mitsuba import timed_render
 
     timed_render(mi, scene, size, 1, max_depth, seed)
     return timed_render(mi, scene, size, spp, max_depth, seed)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import wgpu_rt.scene.mitsuba
 from wgpu_rt import metrics
 
 REPO = Path(__file__).resolve().parents[1]
@@ -97,7 +98,7 @@ def test_a_scene_file_whose_mesh_is_absent_is_skipped_by_name(common, tmp_path, 
 
 
 def test_a_mitsuba_gold_is_the_sample_weighted_mean_of_its_passes(common, monkeypatch, tmp_path):
-    """1100 samples in passes of at most MITSUBA_PASS_SPP (512): 367 + 367 + 366, seeds 12345, 12346,
+    """1100 samples in passes of at most PASS_SPP (512): 367 + 367 + 366, seeds 12345, 12346,
     12347, weighed by their counts; cached under a key of its own."""
     calls = []
 
@@ -106,7 +107,7 @@ def test_a_mitsuba_gold_is_the_sample_weighted_mean_of_its_passes(common, monkey
         return np.full((size[1], size[0], 3), float(seed - common.GOLD_SEED), np.float32), 0.0
 
     monkeypatch.setattr(common, "mitsuba", lambda: (None, "fake"))
-    monkeypatch.setattr(common, "mitsuba_render", fake_render)
+    monkeypatch.setattr(wgpu_rt.scene.mitsuba, "timed_render", fake_render)
 
     class Args:
         gold_renderer, gold_spp, max_depth, gold_cache = "mitsuba", 1100, 8, str(tmp_path)
@@ -138,7 +139,7 @@ def test_a_mitsuba_gold_frame_is_mitsubas_radiance_at_that_frame_with_our_motion
         return type("Result", (), {"color": np.zeros((size[1], size[0], 3), np.float32), "aovs": {"motion": motion}})
 
     monkeypatch.setattr(common, "mitsuba", lambda: (None, "fake"))
-    monkeypatch.setattr(common, "mitsuba_render", fake_mitsuba)
+    monkeypatch.setattr(wgpu_rt.scene.mitsuba, "timed_render", fake_mitsuba)
     monkeypatch.setattr(wgpu_rt.renderer, "render", fake_ours)
 
     class Args:

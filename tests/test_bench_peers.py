@@ -98,7 +98,7 @@ def test_oidn_devices_pick_cuda_when_torch_and_oidn_support_it(peers, monkeypatc
 
 def test_mitsuba_variant_is_cuda_when_drjit_finds_a_device(peers, monkeypatch):
     """The variant choice follows Dr.Jit's CUDA backend, then LLVM (stand-in modules: no GPU here)."""
-    setup = importlib.import_module("_mitsuba_setup")
+    import wgpu_rt.scene.mitsuba as setup
     backends = {"CUDA": True}
     drjit = types.SimpleNamespace(JitBackend=types.SimpleNamespace(CUDA="CUDA"),
                                   has_backend=lambda backend: backends[backend])

@@ -8,7 +8,7 @@ import pytest
 from dataset_fakes import fake_render
 
 from wgpu_rt.dataset import DatasetConfig, DatasetError, TruthEngine, load_views, plan_views
-from wgpu_rt.dataset.truth import frame_file
+from wgpu_rt.dataset.truth import GOLD_AOV_SPP, frame_file
 from wgpu_rt.dataset.variety import HELD_OUT_SHAPES, TRAINING_SHAPES, catmull_rom, vary_scene
 from wgpu_rt.io import read_exr, write_exr
 from wgpu_rt.train.targets import disocclusion_mask, error_heatmap, reproject, runtime_history
@@ -101,6 +101,33 @@ def test_every_noisy_render_gets_the_aux_pass_and_gold_none(tmp_path):
                            sequence_fraction=0.0)
     TruthEngine(config, tmp_path, renderer=recording).run(progress=False)
     assert calls == [(1, 3), (4, 3), (4, 0)]
+
+
+def test_a_mitsuba_gold_takes_its_colour_from_mitsuba_and_its_g_buffers_from_our_tracer(tmp_path):
+    """--gold-renderer mitsuba: the gold file's colour is gold_color's at the gold's spp, seed and frame; its
+    G-buffers come from our tracer at GOLD_AOV_SPP (without the aux pass); the noisy renders stay ours. The
+    setting is recorded, and a dataset rendered with our golds refuses to resume with Mitsuba's."""
+    ours, mitsuba = [], []
+    recording = lambda *a, **k: ours.append((k["spp"], k["seed"])) or fake_render(*a, **k)  # noqa: E731
+
+    def gold_color(scene, size, spp, max_depth, seed, frame):
+        mitsuba.append((spp, seed, frame))
+        return np.full((size[1], size[0], 3), 7.0, np.float32)
+
+    config = DatasetConfig(scenes=("cornell",), views=1, size=8, spp=(1, 4), gold=4096, gold_renderer="mitsuba",
+                           sequence_fraction=0.0)
+    TruthEngine(config, tmp_path / "m", renderer=recording, gold_color=gold_color).run(progress=False)
+    assert [spp for spp, _ in ours] == [1, 4, GOLD_AOV_SPP]
+    assert mitsuba == [(4096, ours[-1][1], 0)]
+    gold = read_exr(tmp_path / "m" / "views" / "v00000" / frame_file(0, "gold"))
+    assert np.all(gold["color"] == 7.0) and {"albedo", "normal", "depth", "motion"} <= set(gold)
+    assert json.loads((tmp_path / "m" / "config.json").read_text())["gold_renderer"] == "mitsuba"
+    ours_config = DatasetConfig(**{**config.__dict__, "gold_renderer": "ours"})
+    TruthEngine(ours_config, tmp_path / "o", renderer=fake_render).run(progress=False)
+    with pytest.raises(DatasetError, match="gold_renderer='ours'"):
+        TruthEngine(config, tmp_path / "o", renderer=fake_render, gold_color=gold_color).run(progress=False)
+    with pytest.raises(DatasetError, match="--gold-renderer must be one of ours, mitsuba"):
+        DatasetConfig(scenes=("cornell",), gold_renderer="blender")
 
 
 def test_noisy_copies_extend_a_finished_dataset_with_new_noise_only(tmp_path):

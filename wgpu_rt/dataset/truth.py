@@ -25,6 +25,10 @@ tenth before them ``val``. ``worlds`` N adds N generated worlds (``worlds.genera
 each: of the ``training`` family, the last tenth are ``val`` and the rest ``train``; of the
 ``held_out`` family, all are ``test``.
 
+``gold_renderer`` "mitsuba" leaves the gold's colour to Mitsuba 3 (``wgpu_rt.scene.mitsuba.render_in_passes``:
+the same light transport, several times faster on a CPU than our tracer on lavapipe), and its G-buffers
+(motion for sequences) to our tracer at GOLD_AOV_SPP samples.
+
 Every setting is checked, every scene loaded and every mesh of ``mesh_dir`` read before the folder or
 its config.json is created, so a rejected run leaves nothing behind. A config.json whose dataset holds
 no rendered image yet does not bind a rerun.
@@ -53,8 +57,10 @@ GBUFFERS = ("albedo", "normal", "depth", "motion")
 # (trace_pass.GUIDE_ALBEDO, worlds.WORLDS_VERSION), recorded beside them.
 CONFIG_KEYS_THAT_MUST_MATCH = ("scenes", "views", "size", "spp", "gold", "seed", "max_depth",
                                "sequence_length", "sequence_fraction", "mesh_dir", "worlds", "family",
-                               "aux_samples", "guide_albedo", "worlds_version")
+                               "aux_samples", "gold_renderer", "guide_albedo", "worlds_version")
 MAX_WORLDS = 2 ** 20     # world numbers of one dataset seed stay distinct (see plan_views)
+GOLD_RENDERERS = ("ours", "mitsuba")
+GOLD_AOV_SPP = 64        # samples of our tracer behind a Mitsuba gold's G-buffers (a pixel's mean settles)
 
 
 class DatasetError(WgpuRtError):
@@ -80,6 +86,7 @@ class DatasetConfig:
     # does (TracePass.execute_aux), so training sees what inference feeds; 0: the tracer's own (datasets
     # rendered before the aux pass lack the key and mean 0).
     aux_samples: int = 0
+    gold_renderer: str = "ours"          # who renders the gold's colour: our tracer or Mitsuba 3
 
     def __post_init__(self):
         """Refuse settings that cannot make a dataset, naming the command-line flag."""
@@ -96,6 +103,8 @@ class DatasetConfig:
             raise DatasetError("nothing to render: give --scenes, --worlds N or both")
         if self.worlds > MAX_WORLDS:
             raise DatasetError(f"--worlds must be at most {MAX_WORLDS}, got {self.worlds}")
+        if self.gold_renderer not in GOLD_RENDERERS:
+            raise DatasetError(f"--gold-renderer must be one of {', '.join(GOLD_RENDERERS)}, got {self.gold_renderer!r}")
         if self.family not in FAMILIES:
             raise DatasetError(f"--family must be one of {', '.join(FAMILIES)}, got {self.family!r}")
         if not (math.isfinite(self.sequence_fraction) and 0 <= self.sequence_fraction <= 1):
@@ -255,13 +264,18 @@ def is_finished(out: Path, view: ViewPlan, config: DatasetConfig) -> bool:
 class TruthEngine:
     """Renders planned views into a dataset folder (see the module docstring)."""
 
-    def __init__(self, config: DatasetConfig, out: str | Path, renderer=None):
-        """``renderer`` has ``wgpu_rt.renderer.render``'s signature (the default); tests pass a fake."""
+    def __init__(self, config: DatasetConfig, out: str | Path, renderer=None, gold_color=None):
+        """``renderer`` has ``wgpu_rt.renderer.render``'s signature (the default); ``gold_color(scene, size,
+        spp, max_depth, seed, frame)`` renders a gold's colour with ``config.gold_renderer`` "mitsuba" (default:
+        Mitsuba in its fastest variant here, loaded now); tests pass fakes."""
         if renderer is None:
             from ..renderer import render as renderer
         from ..scene import load_scene
 
         self.render = renderer
+        self.gold_color = gold_color
+        if config.gold_renderer == "mitsuba" and gold_color is None:
+            self.gold_color = _mitsuba_gold_color()
         self.config = config
         self.out = Path(out)
         # Load everything a view may draw now: a bad scene or mesh fails before any file is written.
@@ -294,10 +308,14 @@ class TruthEngine:
             if not path.exists():
                 # the noisy renders get the noise-free aux pass whatever their spp; gold needs none
                 gold = name == frame_file(salt[0], "gold")
-                result = self.render(scene, spp=spp, size=size, max_depth=cfg.max_depth,
-                                     seed=_render_seed(cfg, view, *salt), frames=salt[0], aovs=GBUFFERS,
+                by_mitsuba = gold and cfg.gold_renderer == "mitsuba"
+                seed = _render_seed(cfg, view, *salt)
+                result = self.render(scene, spp=GOLD_AOV_SPP if by_mitsuba else spp, size=size,
+                                     max_depth=cfg.max_depth, seed=seed, frames=salt[0], aovs=GBUFFERS,
                                      aux_samples=0 if gold else cfg.aux_samples)
-                write_exr(path, _finite(result.color), {k: _finite(result.aovs[k]) for k in GBUFFERS})
+                color = (self.gold_color(scene, size, spp, cfg.max_depth, seed, salt[0]) if by_mitsuba
+                         else result.color)
+                write_exr(path, _finite(color), {k: _finite(result.aovs[k]) for k in GBUFFERS})
         previous = folder / "view.json"
         seconds = time.perf_counter() - started
         if previous.exists():   # a view extended with more copies: its time is the sum of both runs
@@ -324,6 +342,21 @@ class TruthEngine:
         finally:   # interrupted too (Ctrl-C, SIGTERM: wgpu_rt.cli), the manifest lists every view finished
             write_manifest(self.out)
         return done
+
+
+def _mitsuba_gold_color():
+    """``render_in_passes`` bound to Mitsuba in its fastest variant here; a DatasetError when it does not
+    load (before any file is written)."""
+    from functools import partial
+
+    from ..scene.mitsuba import load_mitsuba, render_in_passes
+
+    try:
+        mi = load_mitsuba()
+    except (ImportError, RuntimeError, OSError) as err:
+        raise DatasetError(f"--gold-renderer mitsuba: Mitsuba 3 does not load here ({err}); pip install "
+                           "'wgpu-rt[bench]', or leave the gold to our tracer") from None
+    return partial(render_in_passes, mi)
 
 
 def _finite(array) -> np.ndarray:

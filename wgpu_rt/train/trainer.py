@@ -567,7 +567,9 @@ class Trainer:
                 f"adapter: {content}; {dataset.get('size')}² px; noisy at "
                 f"{dataset.get('spp')} spp"
                 + (f" ({copies} independent renders of each frame at {min(dataset['spp'])} spp)" if copies > 1 else "")
-                + f"; gold at {dataset.get('gold')} spp; max depth {dataset.get('max_depth')}; "
+                + f"; gold at {dataset.get('gold')} spp"
+                + (" by Mitsuba 3" if dataset.get("gold_renderer") == "mitsuba" else "")
+                + f"; max depth {dataset.get('max_depth')}; "
                 + _older_guide_albedo(int(dataset.get("guide_albedo", 1)))
                 + f"{len(manifest['views'])} views rendered in {render_minutes:.1f} min")
 
