@@ -130,6 +130,19 @@ def test_a_mitsuba_gold_takes_its_colour_from_mitsuba_and_its_g_buffers_from_our
         DatasetConfig(scenes=("cornell",), gold_renderer="blender")
 
 
+def test_mitsuba_golds_without_mitsuba_fail_before_anything_is_written(tmp_path, monkeypatch):
+    import wgpu_rt.scene.mitsuba
+
+    def missing(variant=None):
+        raise ImportError("No module named 'mitsuba'")
+
+    monkeypatch.setattr(wgpu_rt.scene.mitsuba, "load_mitsuba", missing)
+    config = DatasetConfig(scenes=("cornell",), views=1, size=8, spp=(1,), gold=4, gold_renderer="mitsuba")
+    with pytest.raises(DatasetError, match="--gold-renderer mitsuba: Mitsuba 3 does not load here"):
+        TruthEngine(config, tmp_path / "data", renderer=fake_render)
+    assert not (tmp_path / "data").exists()
+
+
 def test_noisy_copies_extend_a_finished_dataset_with_new_noise_only(tmp_path):
     """Raising noisy_copies on a finished dataset renders just the copies (1-spp, fresh seeds), leaves
     every earlier file as it was, and the reader hands them out beside the frame's first render."""
