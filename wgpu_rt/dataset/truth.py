@@ -104,7 +104,8 @@ class DatasetConfig:
         if self.worlds > MAX_WORLDS:
             raise DatasetError(f"--worlds must be at most {MAX_WORLDS}, got {self.worlds}")
         if self.gold_renderer not in GOLD_RENDERERS:
-            raise DatasetError(f"--gold-renderer must be one of {', '.join(GOLD_RENDERERS)}, got {self.gold_renderer!r}")
+            raise DatasetError(f"--gold-renderer must be one of {', '.join(GOLD_RENDERERS)}, "
+                               f"got {self.gold_renderer!r}")
         if self.family not in FAMILIES:
             raise DatasetError(f"--family must be one of {', '.join(FAMILIES)}, got {self.family!r}")
         if not (math.isfinite(self.sequence_fraction) and 0 <= self.sequence_fraction <= 1):
