@@ -130,7 +130,7 @@ def test_lights_picked_by_their_irradiance_match_mitsuba(gpu):
 
 def test_a_dataset_with_mitsuba_golds_matches_our_transport(gpu, tmp_path):
     """`wgpu-rt dataset --gold-renderer mitsuba`, end to end: the gold's colour (Mitsuba's, in two passes)
-    has our tracer's channel means, and its G-buffers are ours."""
+    has our tracer's channel means on the same view, and the file holds every G-buffer beside it."""
     from wgpu_rt.cli import main
     from wgpu_rt.dataset import DatasetConfig, TruthEngine, plan_views
     from wgpu_rt.io import read_exr
@@ -141,8 +141,7 @@ def test_a_dataset_with_mitsuba_golds_matches_our_transport(gpu, tmp_path):
     assert main(["dataset", "--scenes", "cornell", "--views", "1", "--size", "16", "--spp", "1", "--gold", "768",
                  "--sequence-fraction", "0", "--gold-renderer", "mitsuba", "--quiet", "-o", str(out)]) == 0
     gold = read_exr(out / "views" / "v00000" / "f0_gold.exr")
-    ours = read_exr(out / "views" / "v00000" / "f0_spp1.exr")
-    np.testing.assert_array_equal(gold["normal"].shape, ours["normal"].shape)
+    assert {"albedo", "normal", "depth", "motion"} <= set(gold)
     assert np.isfinite(gold["color"]).all() and gold["color"].mean() > 1e-3
     # the view is a randomized cornell: its gold against our render of the same view
     config = DatasetConfig(scenes=("cornell",), views=1, size=16, spp=(1,), gold=768, sequence_fraction=0.0)
