@@ -474,7 +474,7 @@ def test_fine_tune_starts_from_another_runs_weights_and_credits_its_time(tiny_da
 
 def test_fine_tune_starts_from_an_exported_model(tiny_dataset, tmp_path):
     """--init-from an .onnx (e.g. the shipped denoiser): its weights, by the parameter names torch's export
-    keeps; a model of other widths is refused by name."""
+    keeps; a model neither wider nor narrower at every level is refused by name."""
     torch.manual_seed(3)
     source = UNet(widths=(4, 8))
     onnx_path = export_onnx(source, tmp_path / "exported.onnx")
@@ -484,7 +484,7 @@ def test_fine_tune_starts_from_an_exported_model(tiny_dataset, tmp_path):
     for name, weight in source.state_dict().items():
         assert torch.equal(tuned.model.state_dict()[name].cpu(), weight), name
     with pytest.raises(TrainingError, match="not a denoiser with these --widths"):
-        Trainer(TrainConfig(epochs=1, init_from=str(onnx_path), **{**base, "widths": (4, 16)}), progress=False)
+        Trainer(TrainConfig(epochs=1, init_from=str(onnx_path), **{**base, "widths": (2, 16)}), progress=False)
 
 
 def test_a_fine_tune_of_a_model_without_the_spp_plane_starts_as_that_model(tiny_dataset, tmp_path):
@@ -564,9 +564,41 @@ def test_a_fine_tune_into_narrower_widths_keeps_the_channels_that_matter(tiny_da
                     progress=False)
     with torch.no_grad():
         np.testing.assert_allclose(tuned.model.eval().cpu()(x).numpy(), narrow(x).numpy(), atol=1e-6)
-    with pytest.raises(TrainingError, match="not a denoiser with these --widths"):   # wider than the base
+    with pytest.raises(TrainingError, match="not a denoiser with these --widths"):   # wider at one level only
         Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out2"), epochs=1,
-                            batch=2, crop_min=12, crop_max=16, widths=(8, 8, 12), bottom_merge=bottom_merge,
+                            batch=2, crop_min=12, crop_max=16, widths=(8, 6, 8), bottom_merge=bottom_merge,
+                            init_from=str(onnx_path)), progress=False)
+
+
+@pytest.mark.parametrize("bottom_merge", ["concat", "add"])
+def test_a_fine_tune_into_wider_widths_starts_as_the_narrow_model_and_trains_the_new_channels(
+        tiny_dataset, tmp_path, bottom_merge):
+    """--widths wider than the base model's at some levels: the old channels keep their weights and
+    indices, the new channels are computed (fresh filters, not zero) but read by nothing, so the wide
+    network starts as exactly the narrow one, and the taps that would read the new channels get a
+    gradient at once."""
+    torch.manual_seed(9)
+    narrow = UNet(widths=(4, 6, 8), bottom_merge=bottom_merge).eval()
+    onnx_path = export_onnx(narrow, tmp_path / "narrow.onnx")
+    tuned = Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out"), epochs=1,
+                                batch=2, crop_min=12, crop_max=16, widths=(8, 6, 12), bottom_merge=bottom_merge,
+                                init_from=str(onnx_path)),
+                    progress=False)
+    wide = tuned.model.eval().cpu()
+    x = torch.rand(2, DENOISER.input_channels, 16, 16)
+    with torch.no_grad():
+        np.testing.assert_allclose(wide(x).numpy(), narrow(x).numpy(), atol=1e-6)
+        features = wide.down[0](x)
+    assert features[:, 4:].abs().sum() > 0                        # the new channels carry something
+    state = wide.state_dict()
+    assert torch.equal(state["down.0.0.weight"][:4], narrow.state_dict()["down.0.0.weight"])
+    assert not state["down.0.2.weight"][:, 4:].any() and not state["head.weight"][:, 4:].any()
+    wide.train()
+    wide(x).square().mean().backward()
+    assert wide.head.weight.grad[:, 4:].abs().sum() > 0
+    with pytest.raises(TrainingError, match="not a denoiser with these --widths"):   # and one level deeper
+        Trainer(TrainConfig(task="denoiser", data=str(tiny_dataset), out=str(tmp_path / "out2"), epochs=1,
+                            batch=2, crop_min=16, crop_max=16, widths=(8, 6, 12, 12), bottom_merge=bottom_merge,
                             init_from=str(onnx_path)), progress=False)
 
 

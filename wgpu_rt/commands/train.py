@@ -70,8 +70,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--init-from", metavar="CHECKPOINT",
                         help="fine-tune: start from another run's checkpoint (.pt) or an exported model (.onnx, "
                              "e.g. the shipped one) of the same task and widths (or, for the denoiser, --widths with "
-                             "one level more: it starts as the shallower model; or narrower at every level: each "
-                             "layer keeps its heaviest channels), with a fresh optimizer and "
+                             "one level more: it starts as the shallower model; narrower at every level: each "
+                             "layer keeps its heaviest channels; or wider at some levels: the new channels start "
+                             "unread), with a fresh optimizer and "
                              "schedule; give this run its own --checkpoints folder")
     parser.add_argument("--validate-every", type=int, default=1, metavar="N",
                         help="validate every N epochs and after the last (validation is slow on a CPU)")

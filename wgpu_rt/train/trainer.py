@@ -321,7 +321,8 @@ class Trainer:
         except Exception as err:  # onnx raises several types for missing or corrupt files
             raise TrainingError(f"{path}: cannot read this ONNX model ({err})") from None
         expected = self.model.state_dict()
-        weights = _narrowed(_deepened(_with_new_input_channels(weights, expected), expected), expected)
+        weights = _deepened(_with_new_input_channels(weights, expected), expected)
+        weights = _widened(_narrowed(weights, expected), expected)
         wrong = [name for name, tensor in expected.items()
                  if name not in weights or tuple(weights[name].shape) != tuple(tensor.shape)]
         if wrong:
@@ -829,6 +830,59 @@ def _narrowed(weights: dict, expected: dict) -> dict:
             narrowed[f"{layer}.weight"] = weight[outputs][:, inputs]
         narrowed[f"{layer}.bias"] = bias[outputs]
     return narrowed
+
+
+
+def _widened(weights: dict, expected: dict) -> dict:
+    """``weights`` of a U-Net with the levels of ``expected``'s but narrower ones (at least one level) set
+    into the wider network so that it computes exactly the same function: every old channel keeps its index
+    (a concat merge's skip half starts at the new width), a new channel's own filters keep their fresh
+    initialisation, and every filter's taps on a new input channel start at zero, so nothing reads the new
+    channels until training gives them weight (those taps get a gradient at once: the new channels are
+    not zero). Anything else is returned as it is, for the shape check to report."""
+    levels = len({name.split(".")[1] for name in expected if name.startswith("down.")})
+    names = [f"down.{level}.2.weight" for level in range(levels)]
+    if any(name not in weights or weights[name].ndim != 4 for name in names):
+        return weights
+    old = [weights[name].shape[0] for name in names]
+    new = [expected[name].shape[0] for name in names]
+    inputs = weights["down.0.0.weight"].shape[1]
+    if old == new or any(n < o for n, o in zip(new, old)) or inputs != expected["down.0.0.weight"].shape[1]:
+        return weights
+    read = {}    # layer → where its old input channels sit in the new input
+    for level in range(levels):
+        read[f"down.{level}.0"] = np.arange(inputs if level == 0 else old[level - 1])
+        read[f"down.{level}.2"] = np.arange(old[level])
+    for j in range(levels - 1):
+        level = levels - 2 - j
+        read[f"up.{j}"] = np.arange(old[level + 1])
+        if f"merge.{j}.0.weight" in expected:      # cat([from below, skip])
+            read[f"merge.{j}.0"] = np.concatenate([np.arange(old[level]), new[level] + np.arange(old[level])])
+            read[f"merge.{j}.2"] = np.arange(old[level])
+    read["head"] = np.arange(old[0])
+    widened = dict(weights)
+    for layer, positions in read.items():
+        if f"{layer}.weight" not in weights or f"{layer}.bias" not in weights:
+            return weights
+        weight, bias = weights[f"{layer}.weight"], weights[f"{layer}.bias"]
+        fresh = expected[f"{layer}.weight"].detach().cpu().numpy().copy()
+        fresh_bias = expected[f"{layer}.bias"].detach().cpu().numpy().copy()
+        if weight.ndim != 4:
+            return weights
+        transposed = layer.startswith("up.")      # ConvTranspose2d: (in, out, kh, kw)
+        if transposed:
+            fresh = fresh.transpose(1, 0, 2, 3)
+            weight = weight.transpose(1, 0, 2, 3)
+        if weight.shape[1] != len(positions) or fresh.shape[0] < weight.shape[0] or \
+                fresh.shape[1] <= positions.max(initial=-1):
+            return weights
+        unread = np.setdiff1d(np.arange(fresh.shape[1]), positions)
+        fresh[:, unread] = 0.0
+        fresh[np.ix_(np.arange(weight.shape[0]), positions)] = weight
+        fresh_bias[:bias.shape[0]] = bias
+        widened[f"{layer}.weight"] = fresh.transpose(1, 0, 2, 3) if transposed else fresh
+        widened[f"{layer}.bias"] = fresh_bias
+    return widened
 
 
 def train(config: TrainConfig, progress: bool = True) -> dict | None:
