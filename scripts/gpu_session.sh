@@ -77,7 +77,7 @@
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
-# nn_widths (the same architecture at narrower widths, untrained, profiled at 1080p), nn_variants (§21's:
+# nn_widths (the same architecture at other widths, untrained, profiled at 1080p), nn_variants (§21's:
 # with naga's bounds checks, with each weight fetch and as the autotuner picks), trace
 # (samples/s against Mitsuba cuda_ad_rgb with the threaded and the wide BVH and the measured choice; closest-hit rays/s of each
 # walk on 100k random triangles and the bunny; cornell also with bounds checks; what the watertight tests
@@ -119,7 +119,8 @@ TRAIN_MINUTES=${TRAIN_MINUTES:-$([ $small = 1 ] && echo 0.5 || echo 2.5)}
 # TRAIN_INIT: the ONNX the fine-tune starts from (default the shipped denoiser; an earlier session's
 # $OUT/model/denoiser.onnx, carried in, continues its training). TRAIN_FLAGS: more `wgpu-rt train` flags
 # (e.g. --permute-colours, §23). TRAIN_WIDTHS: the fine-tune's U-Net widths; narrower ones start from
-# the shipped model's heaviest channels (§22: "12 24 48 96 96", 0.57× its FLOPs). TRAIN_WORLDS: training
+# the shipped model's heaviest channels (§22: "12 24 48 96 96", 0.57× its FLOPs), wider ones as the shipped
+# model with the new channels unread (§45: "32 32 64 128 128", 1.81× its FLOPs). TRAIN_WORLDS: training
 # worlds at 256² (and as many at 96²). TRAIN_BATCH, TRAIN_LR: §25's CUDA steps took 21 ms at batch 8
 # (48 steps/s), while the U-Net's work in a step (~67 GFLOP forward and backward, crops of ~192²) is a
 # few percent of that on an H200: the step's time is the host launching kernels, so a larger batch
@@ -183,9 +184,10 @@ for what in "$@"; do
     half_math)   # session 32: the denoised images in each math against onnxruntime's (§26 measured lavapipe's)
         part half_math python3 benchmarks/bench_half_math.py --size ${VIEW}x${VIEW} --scenes cornell \
             cornell-glossy sun-room world-2147483648 world-2147483651 world-2147483662 world-2147483667 ;;
-    nn_widths)   # issue 12 item 5 / issue 13's denoiser target: the shipped architecture at narrower widths
-                 # (untrained: the speed is the architecture's), profiled as the default picks
-        for widths in "16 32 64 128 128" "12 24 48 96 96" "8 16 32 64 64"; do
+    nn_widths)   # issue 12 item 5 / issue 13's denoiser target: the shipped architecture at other widths
+                 # (untrained: the speed is the architecture's), profiled as the default picks; session 46's
+                 # wider full-resolution level (§45) beside the narrower ones
+        for widths in "16 32 64 128 128" "32 32 64 128 128" "12 24 48 96 96" "8 16 32 64 64"; do
             name=unet_$(echo $widths | tr ' ' _)
             part export_$name env PYTHONSAFEPATH=1 python3 -c "import sys; from wgpu_rt.train.networks import UNet, export_onnx
 export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.argv[1])" "$OUT/$name.onnx" $widths
