@@ -832,7 +832,6 @@ def _narrowed(weights: dict, expected: dict) -> dict:
     return narrowed
 
 
-
 def _widened(weights: dict, expected: dict) -> dict:
     """``weights`` of a U-Net with the levels of ``expected``'s but narrower ones (at least one level) set
     into the wider network so that it computes exactly the same function: every old channel keeps its index
