@@ -766,6 +766,18 @@ def _deepened(weights: dict, expected: dict) -> dict:
                     "merge.0.2.weight": second, "merge.0.2.bias": zeros}
 
 
+def _level_widths(weights: dict, expected: dict) -> tuple[list | None, list]:
+    """Each level's width in ``weights`` and in ``expected`` (U-Nets of the same levels and input channels),
+    or None for the first where ``weights`` is not such a U-Net."""
+    levels = len({name.split(".")[1] for name in expected if name.startswith("down.")})
+    names = [f"down.{level}.2.weight" for level in range(levels)]
+    new = [expected[name].shape[0] for name in names]
+    if any(name not in weights or weights[name].ndim != 4 for name in names + ["down.0.0.weight"]) or \
+            weights["down.0.0.weight"].shape[1] != expected["down.0.0.weight"].shape[1]:
+        return None, new
+    return [weights[name].shape[0] for name in names], new
+
+
 def _narrowed(weights: dict, expected: dict) -> dict:
     """``weights`` of a U-Net with the levels of ``expected``'s but wider ones, cut down to its widths by
     keeping at each activation the channels whose filters weigh most (L1 norm; pruning to start a
@@ -774,18 +786,10 @@ def _narrowed(weights: dict, expected: dict) -> dict:
     comes up (whose channels are chosen by both producers' filters together); a concat merge reads the
     transposed conv's kept channels, then the skip's. A network whose dropped channels were all zero
     computes what it did. Anything else is returned as it is, for the shape check to report."""
-    def width(name: str, axis: int = 0) -> int | None:
-        return weights[name].shape[axis] if name in weights else None
-
-    levels = len({name.split(".")[1] for name in expected if name.startswith("down.")})
-    names = [f"down.{level}.2.weight" for level in range(levels)]
-    if any(name not in weights or weights[name].ndim != 4 for name in names):
+    old, new = _level_widths(weights, expected)
+    if old is None or old == new or any(n > o for n, o in zip(new, old)):
         return weights
-    old = [width(name) for name in names]
-    new = [expected[name].shape[0] for name in names]
-    if old == new or any(n > o for n, o in zip(new, old)) or width("down.0.0.weight", 1) != expected[
-            "down.0.0.weight"].shape[1]:
-        return weights
+    levels = len(new)
 
     def strongest(norms: np.ndarray, count: int) -> np.ndarray:
         return np.sort(np.argsort(-norms, kind="stable")[:count])
@@ -804,7 +808,7 @@ def _narrowed(weights: dict, expected: dict) -> dict:
         if add_merge and level == summed:
             norms = norms + out_norms("up.0.weight", transposed=True)
         out[f"down.{level}.2"] = strongest(norms, new[level])
-        kept_in[f"down.{level}.0"] = (np.arange(width("down.0.0.weight", 1)) if level == 0
+        kept_in[f"down.{level}.0"] = (np.arange(weights["down.0.0.weight"].shape[1]) if level == 0
                                       else out[f"down.{level - 1}.2"])
         kept_in[f"down.{level}.2"] = out[f"down.{level}.0"]
     below = out[f"down.{levels - 1}.2"]
@@ -839,15 +843,10 @@ def _widened(weights: dict, expected: dict) -> dict:
     initialisation, and every filter's taps on a new input channel start at zero, so nothing reads the new
     channels until training gives them weight (those taps get a gradient at once: the new channels are
     not zero). Anything else is returned as it is, for the shape check to report."""
-    levels = len({name.split(".")[1] for name in expected if name.startswith("down.")})
-    names = [f"down.{level}.2.weight" for level in range(levels)]
-    if any(name not in weights or weights[name].ndim != 4 for name in names):
+    old, new = _level_widths(weights, expected)
+    if old is None or old == new or any(n < o for n, o in zip(new, old)):
         return weights
-    old = [weights[name].shape[0] for name in names]
-    new = [expected[name].shape[0] for name in names]
-    inputs = weights["down.0.0.weight"].shape[1]
-    if old == new or any(n < o for n, o in zip(new, old)) or inputs != expected["down.0.0.weight"].shape[1]:
-        return weights
+    levels, inputs = len(new), weights["down.0.0.weight"].shape[1]
     read = {}    # layer → where its old input channels sit in the new input
     for level in range(levels):
         read[f"down.{level}.0"] = np.arange(inputs if level == 0 else old[level - 1])
