@@ -1,10 +1,13 @@
 """``wgpu-rt render``: outputs for good arguments, one clear error, exit 2 and no file for bad ones."""
 
+import re
+
 import numpy as np
 import pytest
 
 from wgpu_rt.cli import main
 from wgpu_rt.io import read_exr
+from wgpu_rt.scene import BUILTIN_SCENES
 
 
 def test_exr_holds_color_and_requested_aovs(gpu, tmp_path):
@@ -80,6 +83,14 @@ def test_unknown_scene_name(tmp_path, capsys):
     assert main(["render", "no-such-scene", "--out", str(out)]) == 2
     assert "no-such-scene" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_help_names_every_built_in_scene(capsys):
+    with pytest.raises(SystemExit):
+        main(["render", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    for name in BUILTIN_SCENES:
+        assert re.search(rf"[( ]{re.escape(name)}[,)]", help_text), name
 
 
 @pytest.mark.parametrize("args, message", [
