@@ -30,8 +30,8 @@ def inputs(tmp_path):
 
 # (argv with IN for the inputs folder, what the one line must name, what it must say)
 CASES = {
-    "denoise --out .png": (["denoise", "IN/in.exr", "--out", "IN/x.png"], "--out IN/x.png", "must end in .exr"),
-    "denoise --out .txt": (["denoise", "IN/in.exr", "--out", "IN/x.txt"], "--out IN/x.txt", "must end in .exr"),
+    "denoise --out .txt": (["denoise", "IN/in.exr", "--out", "IN/x.txt"], "--out IN/x.txt",
+                           "must end in .exr or .png"),
     "denoise --out a folder": (["denoise", "IN/in.exr", "--out", "IN/taken.exr"], "--out IN/taken.exr",
                                "is a folder"),
     "denoise --out inside a file": (["denoise", "IN/in.exr", "--out", "IN/file/o.exr"], "--out IN/file/o.exr",

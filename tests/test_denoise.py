@@ -314,6 +314,24 @@ def test_quality_high_averages_four_turned_passes(gpu, tmp_path, capsys):
     np.testing.assert_allclose(read_exr(tmp_path / "out.exr")["color"], expected, rtol=1e-3, atol=1e-4)
 
 
+def test_a_png_output_is_the_denoised_exr_tone_mapped_for_display(gpu, tmp_path, capsys):
+    """`--out x.png` writes the colour the EXR output holds, through ACES and sRGB as `render --out x.png` does."""
+    from PIL import Image
+
+    from wgpu_rt.frame.tonemap import tonemap
+
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    write_exr(tmp_path / "in.exr", color, layers, attributes=AUX_ALBEDO)
+    for out in ("out.exr", "out.png"):
+        assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / out), "--model", str(model)]) == 0
+    assert "out.png" in capsys.readouterr().out
+    png = np.asarray(Image.open(tmp_path / "out.png"), dtype=np.float32) / 255
+    expected = tonemap(read_exr(tmp_path / "out.exr")["color"], "aces", output="f32")[..., :3]
+    assert png.shape == color.shape and np.abs(png - expected).max() <= 0.5 / 255 + 1e-6
+
+
 class NumpyPath:
     """The same network without ``record``: ``denoise`` then takes the numpy references of every pass."""
 

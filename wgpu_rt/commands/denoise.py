@@ -20,8 +20,9 @@ NO_HIT_DEPTH = 1e9   # a depth this far is a miss: Blender's Z pass writes 1e10 
 
 def add_arguments(parser) -> None:
     parser.add_argument("input", metavar="IN.exr", help="noisy render with albedo, normal and depth layers")
-    parser.add_argument("-o", "--out", required=True, metavar="OUT.exr",
-                        help="denoised EXR (other layers and the header's text and integer attributes kept)")
+    parser.add_argument("-o", "--out", required=True, metavar="OUT.exr|OUT.png",
+                        help="denoised EXR (other layers and the header's text and integer attributes kept), or "
+                             "a PNG of it tone-mapped for display as `wgpu-rt render` writes one (ACES, sRGB)")
     parser.add_argument("--model", help="denoiser ONNX (default: the shipped denoiser.onnx)")
     add_denoiser_flags(parser, "image")
     parser.add_argument("--layer", action="append", default=[], metavar="ROLE=NAME",
@@ -49,9 +50,10 @@ def run(args) -> int:
 
     from ..frame.area_albedo import area_averaged_albedo
     from ..frame.denoise import denoise, escaped_albedo, load_model
-    from ..io import check_output_path, read_exr, write_exr
+    from ..frame.tonemap import tonemap
+    from ..io import check_output_path, read_exr, write_exr, write_png
 
-    check_output_path(args.out, "--out", (".exr",))
+    png = check_output_path(args.out, "--out", (".exr", ".png")).suffix.lower() == ".png"
     named = layer_names(args.layer)
     file_layers = read_exr(args.input)
     channel_names, attributes = file_layers.channels, file_layers.attributes
@@ -69,8 +71,11 @@ def run(args) -> int:
     color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp, **denoiser_options(args),
                     half=None if half is None else (images["half_radiance"], half))
     seconds = time.perf_counter() - started
-    write_exr(args.out, *denoised_file(file_layers, named.get("color", "color"), color),
-              channel_names=channel_names, attributes=attributes)
+    if png:
+        write_png(args.out, tonemap(color, "aces", output="f32")[..., :3])
+    else:
+        write_exr(args.out, *denoised_file(file_layers, named.get("color", "color"), color),
+                  channel_names=channel_names, attributes=attributes)
     height, width = color.shape[:2]
     print(f"wrote {args.out} ({width}×{height}, {model.precision.name}, {args.quality}, {seconds:.2f} s)")
     return 0
