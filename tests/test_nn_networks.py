@@ -242,6 +242,30 @@ def test_frames_over_the_buffer_limit_run_in_bands_with_identical_results(tmp_pa
     np.testing.assert_array_equal(banded(x), WgslModel(path, ctx=gpu, conv_tiling=tiling)(x))
 
 
+def test_bands_past_the_binding_limit_alone_take_two_bindings_for_the_largest_activation(tmp_path, gpu,
+                                                                                          monkeypatch):
+    """Where only one storage binding is too small (max-buffer-size is not), a conv reads its largest input
+    through two windows, so the bands are sized for half the largest activation in one binding: fewer, taller
+    bands than for all of it (the size ``rows_in_one_pass`` gives a caller that bands a frame itself), and
+    they still equal the whole frame."""
+    from wgpu_rt.gpu import GpuContext
+    from wgpu_rt.nn import WgslModel, model
+
+    torch.manual_seed(4)
+    path = export_onnx(UNet(widths=(16, 32)), tmp_path / "unet.onnx")
+    small = GpuContext(gpu.adapter, gpu.device, gpu.features)
+    small.__dict__["limits"] = {**gpu.limits, "max-storage-buffer-binding-size": 850_000}
+    tried = []
+    bands = model.WgslModel._bands
+    monkeypatch.setattr(model.WgslModel, "_bands", lambda self, *args: tried.append(args[2]) or bands(self, *args))
+    banded = WgslModel(path, ctx=small)
+    plan = banded.plan(403, 45)
+    assert len(plan.bands) == 2 and len(tried) == 1   # the first size tried ran (sized for all of it: 4 bands)
+    assert max(band.valid_rows for band in plan.bands) <= banded.rows_in_one_pass(45)
+    x = np.random.default_rng(9).uniform(0, 1, (1, DENOISER.input_channels, 403, 45)).astype(np.float32)
+    np.testing.assert_array_equal(banded(x), WgslModel(path, ctx=gpu)(x))
+
+
 @pytest.mark.parametrize("tiling", ["register", "staged", "loop"])
 def test_frames_over_the_binding_limit_bind_windows_and_split_inputs(tmp_path, gpu, monkeypatch, tiling):
     """A frame whose tensors fit max-buffer-size but not one storage binding (the 1080p U-Net on

@@ -32,7 +32,7 @@ from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, ComputePass, prepare_
 from .kernel import TILE, FrameKernel, ceil_div, nonnegative_finite
 from .pack import (AS_TUNED, KEY_RATIO, PackLevelPass, block_mean, exposure_or_as_tuned, level_sample_counts,
                    pack_level_input, steps_scale)
-from .planes import DENOISED, DENOISER_INPUT
+from .planes import DENOISED, DENOISER_INPUT, INVERSE_SQRT_SPP, SAMPLES_PLANE
 from .unpack import UnpackPass, unpack_denoiser_output
 
 LOW_BAND_EPSILON = 1e-3    # radiance added to both low bands: a black level, so near-black blocks keep F;
@@ -127,14 +127,14 @@ def low_band_denoise(run, denoised, color, albedo, normal, depth, spp, levels: i
 class LowBandPass(ComputePass):
     """One step on a width×height level: ``fine`` (its denoised radiance, rewritten), ``coarse`` (the next
     coarser level's radiance) and ``fine_input`` (the level's packed denoiser input, whose 1/sqrt(spp)
-    plane gives w) are buffers given to ``execute``; ``exposure``: a WhiteBalancePass's result, whose
-    fourth value is the frame's exposure scale (None: pack.AS_TUNED, ε as it is)."""
+    plane, its ``samples_plane``, gives w) are buffers given to ``execute``; ``exposure``: a
+    WhiteBalancePass's result, whose fourth value is the frame's exposure scale (None: pack.AS_TUNED, ε as it is)."""
 
-    def __init__(self, ctx, width: int, height: int, exposure=None):
+    def __init__(self, ctx, width: int, height: int, exposure=None, samples_plane: int = SAMPLES_PLANE):
         self.exposure = exposure_or_as_tuned(ctx, exposure)
         self.blocks = (ceil_div(width, 4), ceil_div(height, 4))
         self.means_buffer = ctx.storage(4 * 7 * self.blocks[0] * self.blocks[1], label="low band means")
-        constants = {"EPSILON": LOW_BAND_EPSILON, "KEY_RATIO": KEY_RATIO}
+        constants = {"EPSILON": LOW_BAND_EPSILON, "KEY_RATIO": KEY_RATIO, "SAMPLES_PLANE": samples_plane}
         self.means = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_means",
                                  ("fine", "coarse", "fine_input", "means"), width, height, constants)
         self.apply = FrameKernel(ctx, "frame/lowband.wgsl", "low_band_apply", ("fine", "means", "exposure"),
@@ -151,22 +151,26 @@ class LowBand(ComputePass):
     """The low band of a frame's denoised radiance on the device (``low_band_denoise``'s steps): for each of
     ``levels`` coarser levels its pack (``self.packs``), ``denoiser`` on that canvas and an unpack into the
     level's own radiance buffer; then, from the coarsest up, a LowBandPass per level, the last on the
-    frame's denoised plane in place (read against the frame's packed input, DENOISER_INPUT). ``depth_max``
-    and ``balance`` are the full frame's (pack.DepthMaxPass's and pack.WhiteBalancePass's results: its
-    gains, and its exposure scale for the steps' ε)."""
+    frame's denoised plane in place (read against the frame's packed input, DENOISER_INPUT, or where
+    ``in_bands`` the 1/sqrt(spp) plane of it that frame/bands.py keeps). ``depth_max`` and ``balance`` are the
+    full frame's (pack.DepthMaxPass's and pack.WhiteBalancePass's results: its gains, and its exposure scale
+    for the steps' ε)."""
 
-    inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP, DENOISER_INPUT, DENOISED)
     outputs = (DENOISED,)
 
-    def __init__(self, ctx, width: int, height: int, depth_max, balance, denoiser, levels: int):
+    def __init__(self, ctx, width: int, height: int, depth_max, balance, denoiser, levels: int,
+                 in_bands: bool = False):
         self.denoiser = denoiser
+        self.samples = INVERSE_SQRT_SPP if in_bands else DENOISER_INPUT
+        self.inputs = (RADIANCE, ALBEDO, NORMAL, DEPTH, SPP, self.samples, DENOISED)
         self.packs = [PackLevelPass(ctx, width, height, depth_max, balance, 2 ** level)
                       for level in range(1, levels + 1)]
         self.unpacks = [UnpackPass(ctx, *pack.size, balance, albedo_plane=3) for pack in self.packs]
         self.radiance = [ctx.storage(DENOISED.nbytes(*pack.size), label=f"denoised, level {level}")
                          for level, pack in enumerate(self.packs, 1)]
         sizes = [(width, height)] + [pack.size for pack in self.packs[:-1]]
-        self.steps = [LowBandPass(ctx, *size, balance) for size in sizes]
+        self.steps = [LowBandPass(ctx, *size, balance, 0 if level == 0 and in_bands else SAMPLES_PLANE)
+                      for level, size in enumerate(sizes)]
 
     def prepare(self) -> None:
         """Build ahead the denoiser's plans for the coarser levels (see DenoiseChain.prepare)."""
@@ -180,6 +184,6 @@ class LowBand(ComputePass):
             width, height = pack.size
             unpack.unpack(encoder, self.denoiser.record(encoder, pack.result, height, width), pack.result, radiance)
         fines = [buffers.get(DENOISED)] + self.radiance[:-1]
-        inputs = [buffers.get(DENOISER_INPUT)] + [pack.result for pack in self.packs[:-1]]
+        inputs = [buffers.get(self.samples)] + [pack.result for pack in self.packs[:-1]]
         for step, fine, coarse, fine_input in reversed(list(zip(self.steps, fines, self.radiance, inputs))):
             step.execute(encoder, fine, coarse, fine_input)

@@ -14,6 +14,8 @@ DENOISER_INPUT = PlaneSpec("denoiser_input", DENOISER.input_channels)
 ERROR_INPUT = PlaneSpec("error_input", ERROR_PREDICTOR.input_channels)
 CONFIDENCE_INPUT = PlaneSpec("confidence_input", CONFIDENCE.input_channels)
 DENOISED = PlaneSpec("denoised", 3)
+SAMPLES_PLANE = 10   # DENOISER_INPUT's 1/sqrt(spp) plane, its last (frame/pack.wgsl)
+INVERSE_SQRT_SPP = PlaneSpec("inverse_sqrt_spp", 1)   # that plane alone, for a frame denoised in bands
 
 
 def to_planar(image: np.ndarray) -> np.ndarray:

@@ -456,13 +456,35 @@ class WgslModel:
         except _BandsNeeded:
             limit = min(self.ctx.limits["max-storage-buffer-binding-size"], self.ctx.limits["max-buffer-size"])
             largest = max(self._root_bytes(shapes).values())
-            bands, rows = self._bands(height, canvas[0], largest, limit, out_shape)
-            network = self._network_plan(*self._canvas_shapes(rows, width))
+            # A conv reads a tensor wider than one binding through two windows (_bound_view), so bands sized
+            # for half the largest activation in one binding mostly run; where they do not, bands for all of it.
+            for share in (2, 1):
+                bands, rows = self._bands(height, canvas[0], largest / share, limit, out_shape)
+                try:
+                    network = self._network_plan(*self._canvas_shapes(rows, width))
+                    break
+                except _BandsNeeded:
+                    if share == 1:
+                        raise
         flops = sum(layer.flops_per_pixel * shapes[layer.output].height * shapes[layer.output].width
                     for layer in self.graph.layers)
         return Plan(height, width, crop, network, bands, flops)
 
-    def _bands(self, height: int, canvas_rows: int, largest: int, limit: int, out_shape: Shape):
+    def _fitting_rows(self, canvas_rows: int, largest: float, limit: int) -> int:
+        """The rows (a multiple of the pooling multiple) of a band whose largest activation, ``largest``
+        bytes on a canvas ``canvas_rows`` high, takes at most 95 % of ``limit``."""
+        multiple = self.graph.multiple
+        return int(limit * 0.95 * canvas_rows / largest) // multiple * multiple
+
+    def rows_in_one_pass(self, width: int) -> int:
+        """About the most rows of a frame ``width`` pixels wide that the network runs in one pass, without
+        bands of its own (the first size its bands try), for a caller that cuts a frame into bands itself."""
+        rows = 64 * self.graph.multiple   # activations grow with the rows, so any height gives the ratio
+        canvas, shapes = self._canvas_shapes(rows, width)
+        limit = min(self.ctx.limits["max-storage-buffer-binding-size"], self.ctx.limits["max-buffer-size"])
+        return self._fitting_rows(canvas[0], max(self._root_bytes(shapes).values()) / 2, limit)
+
+    def _bands(self, height: int, canvas_rows: int, largest: float, limit: int, out_shape: Shape):
         """Split a frame whose largest activation exceeds one storage binding into bands of rows that
         fit, each with ``receptive_radius`` rows of context above and below (rounded up to the pooling
         multiple so the pooling grid stays aligned): the kept rows then equal the whole-frame result."""
@@ -472,7 +494,7 @@ class WgslModel:
                                    f"device's {limit / 2**20:.0f} MiB storage binding, and a network whose "
                                    "output is resized cannot be split into bands")
         halo = groups_of(self.graph.receptive_radius, multiple) * multiple
-        fitting_rows = int(limit * 0.95 * canvas_rows / largest) // multiple * multiple
+        fitting_rows = self._fitting_rows(canvas_rows, largest, limit)
         if fitting_rows - 2 * halo < multiple:
             raise DeviceLimitError(f"{self.path}: even a band of {fitting_rows} rows leaves no room inside "
                                    f"the {limit / 2**20:.0f} MiB storage binding limit ({halo} rows of context)")

@@ -15,10 +15,12 @@
 
 override EPSILON: f32;                 // radiance added to both low bands (LOW_BAND_EPSILON) at STEPS_KEY
 override KEY_RATIO: f32;               // pack.py's: exposure[3] · KEY_RATIO is the frame's key over STEPS_KEY
+override SAMPLES_PLANE: u32 = 10u;     // fine_input's 1/sqrt(spp) plane: pack_denoiser's last (0: a plane of its own)
 
 @group(0) @binding(0) var<storage, read_write> fine: array<f32>;     // F, 3 planes of the level
 @group(0) @binding(1) var<storage, read> coarse: array<f32>;         // C, 3 planes at half the size
-@group(0) @binding(2) var<storage, read> fine_input: array<f32>;     // the level's packed denoiser input
+@group(0) @binding(2) var<storage, read> fine_input: array<f32>;     // the level's packed denoiser input, or its
+                                                                     // 1/sqrt(spp) plane alone (a frame in bands)
 @group(0) @binding(3) var<storage, read_write> means: array<f32>;
 @group(0) @binding(4) var<storage, read> exposure: array<f32, 4>;    // [3]: the frame's (frame/balance.wgsl)
 
@@ -38,7 +40,7 @@ fn low_band_means(@builtin(global_invocation_id) id: vec3u) {
         for (var x = first.x; x < last.x; x++) {
             let i = y * WIDTH + x;
             for (var c = 0u; c < 3u; c++) { low_fine[c] += fine[c * n + i] * share; }
-            let inverse_sqrt_spp = fine_input[10u * n + i];   // pack_denoiser's 1/sqrt(spp) plane
+            let inverse_sqrt_spp = fine_input[SAMPLES_PLANE * n + i];
             weight_mean += inverse_sqrt_spp * inverse_sqrt_spp * share;
         }
     }
