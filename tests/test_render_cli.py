@@ -101,6 +101,8 @@ def test_help_names_every_built_in_scene(capsys):
     (["--frames", "0:2", "--out", "x_{frame[0]}.exr"], "--out"),
     (["--frames", "0:2", "--out", "x_{frame:q}.exr"], "--out"),
     (["--frames", "0:3000000", "--out", "f/{frame:07d}.exr"], "3,000,000"),
+    (["--denoise", "--models", "nowhere"], "--models nowhere: no such folder"),
+    (["--models", "."], "no network runs without --denoise"),
 ])
 def test_every_path_checks_its_flags_before_work(tmp_path, capsys, monkeypatch, args, message):
     """The same flags are checked the same way with or without --denoise, before anything is loaded or
@@ -110,6 +112,29 @@ def test_every_path_checks_its_flags_before_work(tmp_path, capsys, monkeypatch, 
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+def test_models_from_a_folder_replace_the_shipped_ones(gpu, tmp_path, capsys):
+    """`--models DIR` runs DIR's networks, as `wgpu-rt train --out DIR` writes them: a denoiser of its own there
+    changes the image; a network the render needs that DIR lacks is named, before anything is written."""
+    import torch
+
+    from wgpu_rt.train.networks import UNet, export_onnx
+
+    torch.manual_seed(0)
+    export_onnx(UNet(widths=(4, 8)), tmp_path / "denoiser.onnx")
+    images = {}
+    for name, flags in (("shipped", []), ("own", ["--models", str(tmp_path)])):
+        out = tmp_path / f"{name}.exr"
+        assert main(["render", "cornell", "--size", "16x16", "--denoise", "--aov", "", *flags, "--out", str(out)]) == 0
+        images[name] = read_exr(out)["color"]
+    assert not np.allclose(images["own"], images["shipped"], atol=1e-3)
+    capsys.readouterr()
+    out = tmp_path / "adaptive.exr"
+    assert main(["render", "cornell", "--size", "16x16", "--adaptive", "2", "--models", str(tmp_path),
+                 "--out", str(out)]) == 2
+    assert f"{tmp_path / 'error_predictor.onnx'}: no such model file" in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_frames_beyond_an_animated_scene_are_refused(tmp_path, capsys):

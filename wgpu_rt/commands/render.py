@@ -33,6 +33,9 @@ def add_arguments(parser) -> None:
                         help="adaptive sampling guided by models/error_predictor.onnx at BUDGET mean spp")
     parser.add_argument("--temporal", action="store_true",
                         help="temporal accumulation over --frames (reprojection, clamping, confidence)")
+    parser.add_argument("--models", metavar="DIR",
+                        help="folder of the networks to run instead of the shipped ones (denoiser.onnx, "
+                             "error_predictor.onnx, confidence.onnx, as `wgpu-rt train --out DIR` writes them)")
     parser.add_argument("--aux-samples", type=int, metavar="N",
                         help="re-estimate the albedo layer from N delta-chain paths per pixel, 2·N where they "
                              "meet glass or mirrors, so it is noise-free there (default: 4 with --denoise, else "
@@ -102,6 +105,13 @@ def run(args) -> int:
     fused = args.denoise or args.adaptive is not None or args.temporal
     if not args.denoise:
         check_denoiser_flags(args, small_networks=args.adaptive is not None or args.temporal)
+    if args.models is not None:
+        from pathlib import Path
+
+        if not fused:
+            raise WgpuRtError(f"--models {args.models}: no network runs without --denoise, --adaptive or --temporal")
+        if not Path(args.models).is_dir():
+            raise WgpuRtError(f"--models {args.models}: no such folder")
     if args.spp is not None and args.adaptive is not None:
         raise WgpuRtError("--spp with --adaptive: the adaptive budget sets the samples (mean spp)")
     spp = args.spp if args.spp is not None else (1 if fused else 64)
@@ -110,7 +120,7 @@ def run(args) -> int:
                         temporal=args.temporal, max_depth=args.max_depth, seed=args.seed,
                         aovs=() if png else aovs, tonemap="aces" if png else None, display="f32",
                         precision=args.precision, mesh=args.mesh, progress=True, aux_samples=args.aux_samples,
-                        hdr=not png, quality=args.quality, **denoiser_options(args))
+                        hdr=not png, quality=args.quality, models_dir=args.models, **denoiser_options(args))
     mean_spp = args.adaptive if args.adaptive is not None else spp
     for result in renderer.frames(frames):
         path = output_path(args.out, result.frame)
