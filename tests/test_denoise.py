@@ -2,6 +2,7 @@
 model under onnxruntime; exported models in the WGSL engine match onnxruntime (parity)."""
 
 import gc
+import re
 
 import numpy as np
 import pytest
@@ -330,6 +331,60 @@ def test_a_png_output_is_the_denoised_exr_tone_mapped_for_display(gpu, tmp_path,
     png = np.asarray(Image.open(tmp_path / "out.png"), dtype=np.float32) / 255
     expected = tonemap(read_exr(tmp_path / "out.exr")["color"], "aces", output="f32")[..., :3]
     assert png.shape == color.shape and np.abs(png - expected).max() <= 0.5 / 255 + 1e-6
+
+
+def test_the_python_call_gives_what_the_command_writes(gpu, tmp_path):
+    """`wgpu_rt.denoise(color, albedo, normal, depth, spp)` on arrays equals `wgpu-rt denoise` on the same layers
+    in a file (another renderer's: its albedo smoothed by the colour's samples), with a sample-count map and
+    the half layers; a second call loads nothing again."""
+    import wgpu_rt
+    from wgpu_rt import renderer
+
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    spp = np.random.default_rng(1).integers(2, 9, size=color.shape[:2] + (1,)).astype(np.float32)
+    half = color * np.float32(0.9)
+    write_exr(tmp_path / "in.exr", color, {**layers, "spp": spp, "half_radiance": half, "half_spp": spp // 2})
+    assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.exr"), "--model", str(model)]) == 0
+    given = [layers["albedo"], layers["normal"], layers["depth"][..., 0]]
+    called = wgpu_rt.denoise(color, *given, spp[..., 0], half=(half, spp[..., 0] // 2), model=model)
+    np.testing.assert_allclose(called, read_exr(tmp_path / "out.exr")["color"], rtol=1e-5, atol=1e-6)
+    loaded = len(renderer._DENOISERS)
+    again = wgpu_rt.denoise(color, *given, spp, half=(half, spp // 2), model=model)
+    assert len(renderer._DENOISERS) == loaded and np.array_equal(again, called)
+
+
+@pytest.mark.parametrize("change, says", [
+    ({"color": np.zeros((4, 4))}, "color must be (H, W, 3), got shape (4, 4)"),
+    ({"albedo": np.zeros((5, 4, 3))}, "albedo is 4×5, the colour 28×20"),
+    ({"depth": "deep"}, "depth must be an image"),
+    ({"spp": 0}, "spp must be a sample count ≥ 1"),
+    ({"spp": np.ones((20, 27))}, "spp must be a sample count or an (H, W) map"),
+    ({"half": np.zeros((20, 28, 3))}, "half must be (mean, counts)"),
+    ({"quality": "best"}, "quality 'best'"),
+    ({"albedo_samples": -1}, "albedo_samples must be"),
+])
+def test_the_python_call_names_a_bad_argument_before_any_work(change, says):
+    import wgpu_rt
+    from wgpu_rt.errors import WgpuRtError
+
+    color, layers = _render_like()
+    arguments = {"color": color, "albedo": layers["albedo"], "normal": layers["normal"], "depth": layers["depth"],
+                 **change}
+    with pytest.raises(WgpuRtError, match=re.escape(says)):
+        wgpu_rt.denoise(**arguments)
+
+
+def test_the_python_call_turns_nan_and_inf_into_a_finite_image(gpu, tmp_path):
+    import wgpu_rt
+
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    color[2, 3], color[5, 6, 1], layers["normal"][1, 1] = np.nan, np.inf, -np.inf
+    out = wgpu_rt.denoise(color, layers["albedo"], layers["normal"], layers["depth"], 4, model=model)
+    assert out.shape == color.shape and out.dtype == np.float32 and np.all(np.isfinite(out)) and out.min() >= 0
 
 
 class NumpyPath:

@@ -454,6 +454,9 @@ def test_readme_python_example_runs(gpu):
     assert result.image.shape == (24, 32, 4) and result.image.dtype == np.uint8
     assert result.aovs["spp"].mean() == pytest.approx(4.0, abs=0.01)
     assert set(result.aovs) == {"albedo", "normal", "depth", "motion", "spp"}
+    noisy = wgpu_rt.render("cornell", spp=4, size=(32, 24), aovs=("albedo", "normal", "depth"))
+    clean = wgpu_rt.denoise(noisy.color, noisy.aovs["albedo"], noisy.aovs["normal"], noisy.aovs["depth"][..., 0], spp=4)
+    assert clean.shape == (24, 32, 3) and np.all(np.isfinite(clean)) and not np.allclose(clean, noisy.color)
 
 
 def test_a_frame_of_several_samples_hands_over_from_the_denoiser_to_their_mean(gpu, scene):

@@ -3,14 +3,15 @@ hand-written WGSL kernels on the same device."""
 
 __version__ = "0.1.0"
 
-__all__ = ["render"]
+__all__ = ["denoise", "render"]
 
 
 def __getattr__(name: str):
-    # `render` pulls in wgpu and numpy; importing it lazily keeps `import wgpu_rt` (and `--help`) light.
-    if name == "render":
-        from .renderer import render
+    # `render` and `denoise` pull in wgpu and numpy; importing them lazily keeps `import wgpu_rt` (and `--help`)
+    # light.
+    if name in __all__:
+        from . import renderer
 
-        globals()["render"] = render
-        return render
+        globals()[name] = getattr(renderer, name)
+        return globals()[name]
     raise AttributeError(f"module 'wgpu_rt' has no attribute {name!r}")

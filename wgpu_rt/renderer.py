@@ -31,7 +31,7 @@ FLATTEN_PLACED_TRIANGLES = 100_000
 PRECISION_CHOICES = ("auto", "fp32", "fp16")
 MAX_SIZE = 16384
 
-__all__ = ["DEFAULT_AOVS", "RenderResult", "Renderer", "render", "render_frames"]
+__all__ = ["DEFAULT_AOVS", "RenderResult", "Renderer", "denoise", "render", "render_frames"]
 
 
 def parse_size(size) -> tuple[int, int]:
@@ -69,6 +69,24 @@ def check_int(name: str, value, low: int, high: int | None = None) -> int:
         bound = f"in {low}..{high}" if high is not None else f"at least {low}"
         raise WgpuRtError(f"{name} must be an integer {bound}, got {value!r}")
     return int(value)
+
+
+def check_denoiser_settings(width: int, height: int, precision: str, quality: str, low_band, chroma, post_filter,
+                            white_balance, auto_exposure) -> None:
+    """A WgpuRtError naming the first of the denoiser's settings (``render``'s and ``denoise``'s) that is bad."""
+    from .frame.denoise import QUALITIES
+    from .frame.lowband import uses_low_band
+
+    if precision not in PRECISION_CHOICES:
+        raise WgpuRtError(f"precision {precision!r}: choose one of {', '.join(PRECISION_CHOICES)}")
+    if quality not in QUALITIES:
+        raise WgpuRtError(f"quality {quality!r}: choose one of {', '.join(QUALITIES)}")
+    uses_low_band(width, height, low_band)   # checks the setting
+    for name, value in (("chroma", chroma), ("post_filter", post_filter), ("white_balance", white_balance)):
+        if not isinstance(value, bool):
+            raise WgpuRtError(f"{name} must be True or False, got {value!r}")
+    if auto_exposure is not None and not isinstance(auto_exposure, bool):
+        raise WgpuRtError(f"auto_exposure must be True, False or None, got {auto_exposure!r}")
 
 
 def _frame_list(frames, frame_count: int, animated: bool) -> list[int]:
@@ -116,20 +134,8 @@ class Renderer:
         self.aovs = check_aovs(aovs)
         # The denoiser gets a noise-free albedo by default (OIDN's advice for auxiliary features).
         aux_samples = (AUX_SAMPLES if denoise else 0) if aux_samples is None else check_int("aux_samples", aux_samples, 0)
-        if precision not in PRECISION_CHOICES:
-            raise WgpuRtError(f"precision {precision!r}: choose one of {', '.join(PRECISION_CHOICES)}")
-        from .frame.denoise import QUALITIES
-
-        if quality not in QUALITIES:
-            raise WgpuRtError(f"quality {quality!r}: choose one of {', '.join(QUALITIES)}")
-        from .frame.lowband import uses_low_band
-
-        uses_low_band(self.width, self.height, low_band)   # checks the setting
-        for name, value in (("chroma", chroma), ("post_filter", post_filter), ("white_balance", white_balance)):
-            if not isinstance(value, bool):
-                raise WgpuRtError(f"{name} must be True or False, got {value!r}")
-        if auto_exposure is not None and not isinstance(auto_exposure, bool):
-            raise WgpuRtError(f"auto_exposure must be True, False or None, got {auto_exposure!r}")
+        check_denoiser_settings(self.width, self.height, precision, quality, low_band, chroma, post_filter,
+                                white_balance, auto_exposure)
         if tonemap is not None:
             check_settings(tonemap, display, exposure)
         check_readback(hdr, tonemap, self.aovs)
@@ -300,3 +306,92 @@ def render_frames(scene, frames: Iterable[int] | None = None, **options) -> Iter
     of the scene). Same options as ``render``."""
     renderer = Renderer(scene, **options)
     yield from renderer.frames(range(renderer.scene.frame_count) if frames is None else frames)
+
+
+# The denoisers ``denoise`` has loaded, by (ONNX path, precision, quality, device): a second call builds nothing.
+_DENOISERS: dict = {}
+
+
+def denoise(color, albedo, normal, depth, spp=1, *, albedo_samples=None, half=None, model=None,
+            precision: str = "auto", quality: str = "balanced", low_band: bool | None = None, chroma: bool = True,
+            post_filter: bool = True, white_balance: bool = True, auto_exposure: bool | None = None,
+            ctx=None):
+    """Denoise images you already have (another renderer's, or ours read back): (H, W, 3) linear HDR ``color``
+    of ``spp`` samples a pixel (a count, or an (H, W[, 1]) map) with its (H, W, 3) ``albedo``, (H, W, 3)
+    ``normal`` and (H, W[, 1]) ``depth`` (0 where nothing was hit) → the denoised (H, W, 3) float32 colour,
+    as `wgpu-rt denoise` gives for the same layers. On the device with the shipped denoiser, or ``model`` (an
+    ONNX path); loaded once per model and settings.
+
+    - ``albedo_samples``: point samples a pixel that the albedo averages (it is smoothed over each pixel's
+      area first, as the network was trained on); 0 for an albedo already averaged so, as
+      ``render(aux_samples=N)`` writes it; None: the colour's samples, as another renderer's albedo holds.
+    - ``half``: (the mean after the first part of the samples, its (H, W) counts): each pixel then hands over
+      to the samples' own mean where that has converged.
+    - ``precision``, ``quality``, ``low_band``, ``chroma``, ``post_filter``, ``white_balance``,
+      ``auto_exposure``: as for ``render``. NaN and Inf in the inputs count as 0.
+    """
+    import numpy as np
+
+    from .frame.denoise import denoise_render, load_model
+    from .gpu import get_context
+
+    color = _finite_image("color", color, 3)
+    height, width = color.shape[:2]
+    albedo, normal = (_finite_image(name, image, 3, (height, width)) for name, image in (("albedo", albedo),
+                                                                                      ("normal", normal)))
+    depth = _finite_image("depth", depth, 1, (height, width))
+    check_denoiser_settings(width, height, precision, quality, low_band, chroma, post_filter, white_balance,
+                            auto_exposure)
+    spp = _sample_counts("spp", spp, (height, width))
+    if albedo_samples is not None and not (isinstance(albedo_samples, numbers.Real) and albedo_samples >= 0):
+        raise WgpuRtError(f"albedo_samples must be a number of samples ≥ 0 or None, got {albedo_samples!r}")
+    if half is not None:
+        try:
+            mean, counts = half
+        except (TypeError, ValueError):
+            raise WgpuRtError("half must be (mean, counts): the colour after the first part of the samples "
+                              "and how many it holds") from None
+        counts = _sample_counts("half's counts", counts, (height, width))
+        half = (_finite_image("half's mean", mean, 3, (height, width)),
+                np.broadcast_to(np.reshape(counts, np.shape(counts)[:2]), (height, width)))
+    ctx = ctx or get_context()
+    key = (str(model), precision, quality, id(ctx))
+    if key not in _DENOISERS:
+        _DENOISERS[key] = load_model("denoiser", precision, path=model, ctx=ctx, quality=quality)
+    return denoise_render(_DENOISERS[key], color, albedo, normal, depth, spp, albedo_samples, half=half,
+                          low_band=low_band, chroma=chroma, post_filter=post_filter, white_balance=white_balance,
+                          auto_exposure=auto_exposure)
+
+
+def _finite_image(name: str, image, channels: int, shape: tuple[int, int] | None = None):
+    """``image`` as a float32 (H, W, channels) array (a one-channel one may come as (H, W)), NaN and Inf as 0,
+    of ``shape`` where given; else a WgpuRtError naming it."""
+    import numpy as np
+
+    try:
+        array = np.asarray(image, dtype=np.float32)
+    except (TypeError, ValueError):
+        raise WgpuRtError(f"{name} must be an image (an array of numbers), got {type(image).__name__}") from None
+    if array.ndim == 2 and channels == 1:
+        array = array[..., None]
+    if array.ndim != 3 or array.shape[2] != channels or min(array.shape[:2]) < 1:
+        raise WgpuRtError(f"{name} must be (H, W, {channels}), got shape {array.shape}")
+    if shape is not None and array.shape[:2] != shape:
+        raise WgpuRtError(f"{name} is {array.shape[1]}×{array.shape[0]}, the colour {shape[1]}×{shape[0]}")
+    return np.nan_to_num(array, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def _sample_counts(name: str, spp, shape: tuple[int, int]):
+    """A sample count ≥ 1, or an (H, W[, 1]) map of counts ≥ 0 (as an (H, W, 1) array); else a WgpuRtError."""
+    import numpy as np
+
+    if np.ndim(spp) == 0:
+        if not isinstance(spp, numbers.Real) or isinstance(spp, bool) or not spp >= 1 or spp == float("inf"):
+            raise WgpuRtError(f"{name} must be a sample count ≥ 1 or an (H, W) map of counts, got {spp!r}")
+        return spp
+    counts = np.asarray(spp, dtype=np.float64)
+    counts = counts[..., None] if counts.ndim == 2 else counts
+    if counts.shape != (*shape, 1) or not np.all(np.isfinite(counts)) or counts.min() < 0:
+        raise WgpuRtError(f"{name} must be a sample count or an (H, W) map of finite counts ≥ 0 as large as "
+                          f"the colour, got shape {counts.shape}")
+    return counts

@@ -48,8 +48,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     import time
 
-    from ..frame.area_albedo import area_averaged_albedo
-    from ..frame.denoise import denoise, escaped_albedo, load_model
+    from ..frame.denoise import denoise_render, load_model
     from ..frame.tonemap import tonemap
     from ..io import check_output_path, read_exr, write_exr, write_png
 
@@ -61,15 +60,13 @@ def run(args) -> int:
     images = network_inputs(file_layers, named, args.input)
     spp = sample_counts(images, args, blender_samples(attributes, named))
     half = half_layers(images, args.input)
-    albedo_samples = point_samples_in_albedo(args, attributes, spp)
+    albedo_samples = point_samples_in_albedo(args, attributes)
     model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
     file_layers = finite_layers(file_layers, args.input)   # what the network reads, and what is written back
     images = network_inputs(file_layers, named, args.input)
-    albedo = escaped_albedo(images["albedo"], images["color"], images["depth"])
-    images["albedo"] = area_averaged_albedo(albedo, albedo_samples)
     started = time.perf_counter()
-    color = denoise(model, *(images[name] for name in REQUIRED_LAYERS), spp, **denoiser_options(args),
-                    half=None if half is None else (images["half_radiance"], half))
+    color = denoise_render(model, *(images[name] for name in REQUIRED_LAYERS), spp, albedo_samples,
+                           **denoiser_options(args), half=None if half is None else (images["half_radiance"], half))
     seconds = time.perf_counter() - started
     if png:
         write_png(args.out, tonemap(color, "aces", output="f32")[..., :3])
@@ -209,11 +206,9 @@ def sample_counts(images: dict, args, header_samples: int | None = None):
     return layer
 
 
-def point_samples_in_albedo(args, attributes: dict, spp) -> float:
+def point_samples_in_albedo(args, attributes: dict) -> float | None:
     """How many point samples a pixel the albedo averages: --albedo-samples; else 0 for a file whose albedo
-    came from our aux pass (its AUX_SAMPLES_ATTRIBUTE), else the colour's samples (the median of a map)."""
-    import numpy as np
-
+    came from our aux pass (its AUX_SAMPLES_ATTRIBUTE), else None: the colour's samples (denoise_render)."""
     from ..io import AUX_SAMPLES_ATTRIBUTE
     from ..renderer import check_int
 
@@ -221,7 +216,7 @@ def point_samples_in_albedo(args, attributes: dict, spp) -> float:
         return check_int("--albedo-samples", args.albedo_samples, 0)
     if attributes.get(AUX_SAMPLES_ATTRIBUTE, 0) > 0:
         return 0
-    return float(np.median(spp))
+    return None
 
 
 def half_layers(images: dict, path):

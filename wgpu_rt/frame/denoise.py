@@ -22,6 +22,7 @@ from ..errors import ModelError
 from ..models import network_named
 from ..passes import ALBEDO, DEPTH, NORMAL, RADIANCE, SPP, FrameBuffers
 from .adaptive import HALF_RADIANCE
+from .area_albedo import area_averaged_albedo
 from .atrous import atrous_filter
 from .chroma import match_sample_chroma
 from .converge import HALF_SPP, converge
@@ -116,6 +117,17 @@ def denoise(model, color, albedo, normal, depth, spp=1, low_band=None, chroma: b
         return denoised
     samples = np.broadcast_to(np.asarray(spp)[..., 0] if np.ndim(spp) == 3 else spp, (height, width))
     return converge(denoised, color, samples, half[0], np.asarray(half[1]).reshape(height, width))
+
+
+def denoise_render(model, color, albedo, normal, depth, spp=1, albedo_samples=None, **options) -> np.ndarray:
+    """``denoise()`` of an image as a renderer wrote it: its albedo taken from the colour where paths escaped
+    with a black albedo (``escaped_albedo``), then averaged over each pixel's area from ``albedo_samples`` point
+    samples a pixel (frame/area_albedo.py; 0: already such a mean, as our aux pass writes it; None: the
+    colour's samples, the median of a map, as another renderer's albedo holds)."""
+    if albedo_samples is None:
+        albedo_samples = float(np.median(spp))
+    albedo = area_averaged_albedo(escaped_albedo(albedo, color, depth), albedo_samples)
+    return denoise(model, color, albedo, normal, depth, spp, **options)
 
 
 def device_sample_counts(spp, shape: tuple[int, int]) -> np.ndarray | None:
