@@ -30,3 +30,16 @@ def test_package_data_covers_every_resource_file():
         covered = {p for pattern in patterns for p in folder.glob(pattern)}
         shipped = {p for p in folder.rglob("*") if p.suffix in (".wgsl", ".onnx", ".md")}
         assert shipped <= covered, f"{resource_package}: package-data misses {sorted(map(str, shipped - covered))}"
+
+
+def test_the_command_line_says_its_version(capsys):
+    import pytest
+
+    from wgpu_rt import __version__
+    from wgpu_rt.cli import main
+
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    with pytest.raises(SystemExit) as exit_status:
+        main(["--version"])
+    assert exit_status.value.code == 0 and capsys.readouterr().out == f"wgpu-rt {__version__}\n"
+    assert __version__ == config["version"]

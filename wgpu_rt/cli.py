@@ -17,13 +17,14 @@ import pkgutil
 import sys
 import threading
 
-from . import commands, termination
+from . import __version__, commands, termination
 from .errors import WgpuRtError
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="wgpu-rt", description="Path trace on WebGPU and denoise with WGSL neural networks, on one device.")
+    parser.add_argument("--version", action="version", version=f"wgpu-rt {__version__}")
     parser.add_argument("--adapter", help="use the adapter whose name contains this text "
                         "(default: $WGPU_RT_ADAPTER, else the best: a real GPU before lavapipe)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
