@@ -661,6 +661,13 @@ def test_confidence_needs_sequences(tmp_path):
                 progress=False)
 
 
+def test_a_dataset_too_small_to_hold_back_validation_views_says_how_to_fix_it(tmp_path):
+    config = DatasetConfig(scenes=("cornell",), views=2, size=8, spp=(1,), gold=4, sequence_fraction=0.0)
+    TruthEngine(config, tmp_path / "data", renderer=fake_render).run(progress=False)
+    with pytest.raises(TrainingError, match="no val samples for denoiser .*from 3 of them up: render more"):
+        Trainer(TrainConfig(task="denoiser", data=str(tmp_path / "data"), out=str(tmp_path / "out")), progress=False)
+
+
 def test_denoiser_batches_draw_every_noisy_copy_at_1_spp_only(tmp_path):
     from wgpu_rt.dataset import load_views
     from wgpu_rt.frame.pack import pack_denoiser_input

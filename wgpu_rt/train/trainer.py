@@ -198,6 +198,9 @@ class Trainer:
         for name, subset in (("train", self.train_set), ("val", self.val_set)):
             if not subset.items:
                 need = " (the confidence model needs temporal sequences)" if config.task == "confidence" else ""
+                if name == "val" and not need:
+                    need = (" (`wgpu-rt dataset` holds back a tenth of a dataset's worlds or views for validation, "
+                            "from 3 of them up: render more, or add a dataset that has some with --extra-data)")
                 raise TrainingError(f"{', '.join(folders)}: no {name} samples for {config.task}{need}")
         frame = min(min(view.frames[0].gold["color"].shape[:2]) for view in self.train_set.views)
         if frame // self.multiple * self.multiple < self.smallest_crop:
