@@ -355,6 +355,25 @@ def test_the_python_call_gives_what_the_command_writes(gpu, tmp_path):
     assert len(renderer._DENOISERS) == loaded and np.array_equal(again, called)
 
 
+def test_a_file_without_depth_is_denoised_with_one_warning(gpu, tmp_path, capfd):
+    """OIDN's three inputs (colour, albedo, normal) are enough: the command says once that it reads no depth, and
+    writes what `wgpu_rt.denoise(..., depth=None)` gives, which is not what it gives with the file's depth."""
+    import wgpu_rt
+
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    color, layers = _render_like()
+    write_exr(tmp_path / "in.exr", color, {"albedo": layers["albedo"], "normal": layers["normal"]})
+    assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.exr"), "--model", str(model),
+                 "--spp", "2"]) == 0
+    err = capfd.readouterr().err
+    assert err.count("warning") == 1 and f"{tmp_path / 'in.exr'}: no 'depth' layer; denoised without one" in err
+    without = wgpu_rt.denoise(color, layers["albedo"], layers["normal"], None, 2, model=model)
+    np.testing.assert_allclose(read_exr(tmp_path / "out.exr")["color"], without, rtol=1e-5, atol=1e-6)
+    with_depth = wgpu_rt.denoise(color, layers["albedo"], layers["normal"], layers["depth"], 2, model=model)
+    assert not np.allclose(with_depth, without, atol=1e-4)
+
+
 @pytest.mark.parametrize("change, says", [
     ({"color": np.zeros((4, 4))}, "color must be (H, W, 3), got shape (4, 4)"),
     ({"albedo": np.zeros((5, 4, 3))}, "albedo is 4×5, the colour 28×20"),

@@ -318,7 +318,8 @@ def denoise(color, albedo, normal, depth, spp=1, *, albedo_samples=None, half=No
             ctx=None):
     """Denoise images you already have (another renderer's, or ours read back): (H, W, 3) linear HDR ``color``
     of ``spp`` samples a pixel (a count, or an (H, W[, 1]) map) with its (H, W, 3) ``albedo``, (H, W, 3)
-    ``normal`` and (H, W[, 1]) ``depth`` (0 where nothing was hit) → the denoised (H, W, 3) float32 colour,
+    ``normal`` and (H, W[, 1]) ``depth`` (0 where nothing was hit; None, for a renderer that writes OIDN's three
+    inputs only, costs 0.2 dB on the mean, BENCHMARKS.md §46) → the denoised (H, W, 3) float32 colour,
     as `wgpu-rt denoise` gives for the same layers. On the device with the shipped denoiser, or ``model`` (an
     ONNX path); loaded once per model and settings.
 
@@ -339,7 +340,7 @@ def denoise(color, albedo, normal, depth, spp=1, *, albedo_samples=None, half=No
     height, width = color.shape[:2]
     albedo, normal = (_finite_image(name, image, 3, (height, width)) for name, image in (("albedo", albedo),
                                                                                       ("normal", normal)))
-    depth = _finite_image("depth", depth, 1, (height, width))
+    depth = None if depth is None else _finite_image("depth", depth, 1, (height, width))
     check_denoiser_settings(width, height, precision, quality, low_band, chroma, post_filter, white_balance,
                             auto_exposure)
     spp = _sample_counts("spp", spp, (height, width))
