@@ -308,7 +308,8 @@ def render_frames(scene, frames: Iterable[int] | None = None, **options) -> Iter
     yield from renderer.frames(range(renderer.scene.frame_count) if frames is None else frames)
 
 
-# The denoisers ``denoise`` has loaded, by (ONNX path, precision, quality, device): a second call builds nothing.
+# The denoisers ``denoise`` has loaded, by (ONNX path, precision, quality, device id), each beside its device (an id
+# can be reused once a context is gone): a second call builds nothing.
 _DENOISERS: dict = {}
 
 
@@ -357,9 +358,9 @@ def denoise(color, albedo, normal, depth, spp=1, *, albedo_samples=None, half=No
                 np.broadcast_to(np.reshape(counts, np.shape(counts)[:2]), (height, width)))
     ctx = ctx or get_context()
     key = (str(model), precision, quality, id(ctx))
-    if key not in _DENOISERS:
-        _DENOISERS[key] = load_model("denoiser", precision, path=model, ctx=ctx, quality=quality)
-    return denoise_render(_DENOISERS[key], color, albedo, normal, depth, spp, albedo_samples, half=half,
+    if key not in _DENOISERS or _DENOISERS[key][0] is not ctx:
+        _DENOISERS[key] = ctx, load_model("denoiser", precision, path=model, ctx=ctx, quality=quality)
+    return denoise_render(_DENOISERS[key][1], color, albedo, normal, depth, spp, albedo_samples, half=half,
                           low_band=low_band, chroma=chroma, post_filter=post_filter, white_balance=white_balance,
                           auto_exposure=auto_exposure)
 
