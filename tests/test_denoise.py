@@ -374,6 +374,56 @@ def test_a_file_without_depth_is_denoised_with_one_warning(gpu, tmp_path, capfd)
     assert not np.allclose(with_depth, without, atol=1e-4)
 
 
+def test_several_inputs_are_denoised_with_the_model_loaded_once(gpu, tmp_path, capfd, monkeypatch):
+    """A sequence's frames in one command: each output ({name}: the input's stem) equals the file denoised alone,
+    the model is loaded once, and a warning that holds for every input is said once."""
+    from wgpu_rt.commands import denoise as command
+    from wgpu_rt.frame import denoise as frame_denoise
+
+    torch.manual_seed(0)
+    model = export_onnx(UNet(widths=(4, 8)), tmp_path / "tiny.onnx")
+    for k in range(3):
+        color, layers = _render_like(seed=k)
+        write_exr(tmp_path / f"f{k}.exr", color, layers)
+    loads = []
+    load_model = frame_denoise.load_model
+    monkeypatch.setattr(frame_denoise, "load_model", lambda *a, **k: loads.append(1) or load_model(*a, **k))
+    inputs = [str(tmp_path / f"f{k}.exr") for k in range(3)]
+    assert main(["denoise", *inputs, "--out", str(tmp_path / "out" / "{name}_clean.exr"), "--model", str(model)]) == 0
+    err = capfd.readouterr().err
+    assert len(loads) == 1 and err.count("no 'spp' layer") == 1 and "and for any other input like it" in err
+    for k in (0, 2):
+        assert main(["denoise", inputs[k], "--out", str(tmp_path / "alone.exr"), "--model", str(model)]) == 0
+        np.testing.assert_array_equal(read_exr(tmp_path / "out" / f"f{k}_clean.exr")["color"],
+                                      read_exr(tmp_path / "alone.exr")["color"])
+    assert command.output_paths(["a/x.exr"], "{name}.png")[0].name == "x.png"
+
+
+@pytest.mark.parametrize("outputs, says", [
+    (["OUT/clean.exr"], "several inputs need a {name} field"),
+    (["OUT/{name}.exr"], "two inputs would both write"),
+    (["IN/{name}.exr"], "would overwrite its input"),
+    (["OUT/{name}{nam}.exr"], "bad format field"),
+])
+def test_several_inputs_refuse_outputs_that_clash_before_any_work(outputs, says, tmp_path, capfd):
+    color, layers = _render_like()
+    (tmp_path / "a").mkdir()
+    for path in (tmp_path / "x.exr", tmp_path / "a" / "x.exr"):
+        write_exr(path, color, layers)
+    inputs = [str(tmp_path / "x.exr"), str(tmp_path / "a" / "x.exr")]
+    out = outputs[0].replace("OUT", str(tmp_path / "out")).replace("IN", str(tmp_path))
+    assert main(["denoise", *inputs, "--out", out]) == 2
+    assert says in capfd.readouterr().err and not (tmp_path / "out").exists()
+
+
+def test_a_missing_input_among_several_stops_before_any_output(tmp_path, capfd):
+    color, layers = _render_like()
+    write_exr(tmp_path / "f0.exr", color, layers)
+    assert main(["denoise", str(tmp_path / "f0.exr"), str(tmp_path / "f1.exr"), "--out",
+                 str(tmp_path / "out" / "{name}.exr")]) == 2
+    assert f"{tmp_path / 'f1.exr'}: no such file" in capfd.readouterr().err and not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("change, says", [
     ({"color": np.zeros((4, 4))}, "color must be (H, W, 3), got shape (4, 4)"),
     ({"albedo": np.zeros((5, 4, 3))}, "albedo is 4×5, the colour 28×20"),

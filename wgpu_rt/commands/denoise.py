@@ -19,10 +19,14 @@ NO_HIT_DEPTH = 1e9   # a depth this far is a miss: Blender's Z pass writes 1e10 
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("input", metavar="IN.exr", help="noisy render with albedo, normal and (best) depth layers")
+    parser.add_argument("inputs", nargs="+", metavar="IN.exr",
+                        help="noisy render with albedo, normal and (best) depth layers; several (a sequence's "
+                             "frames) are denoised one after another with the model loaded once")
     parser.add_argument("-o", "--out", required=True, metavar="OUT.exr|OUT.png",
                         help="denoised EXR (other layers and the header's text and integer attributes kept), or "
-                             "a PNG of it tone-mapped for display as `wgpu-rt render` writes one (ACES, sRGB)")
+                             "a PNG of it tone-mapped for display as `wgpu-rt render` writes one (ACES, sRGB); "
+                             "{name} stands for the input's file name without its suffix, which several inputs "
+                             "need, e.g. clean/{name}.exr")
     parser.add_argument("--model", help="denoiser ONNX (default: the shipped denoiser.onnx)")
     add_denoiser_flags(parser, "image")
     parser.add_argument("--layer", action="append", default=[], metavar="ROLE=NAME",
@@ -46,42 +50,93 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    import sys
+    from pathlib import Path
+
+    from ..errors import ImageError
+
+    outputs = output_paths(args.inputs, args.out)
+    missing = next((path for path in args.inputs if not Path(path).is_file()), None)
+    if missing is not None:
+        raise ImageError(f"{missing}: no such file")
+    named = layer_names(args.layer)
+    warned: set[str] = set()
+    model = None
+
+    def warn(kind: str, message: str) -> None:
+        """A warning line of ``kind`` (what it is about), said once for all the inputs."""
+        import sys
+
+        if kind not in warned:
+            warned.add(kind)
+            also = " (and for any other input like it)" if len(args.inputs) > 1 else ""
+            print(f"wgpu-rt denoise: warning: {message}{also}", file=sys.stderr)
+
+    for path, out in zip(args.inputs, outputs):
+        model = denoise_file(path, out, args, named, model, warn)
+    return 0
+
+
+def output_paths(inputs: list[str], pattern: str) -> list:
+    """Each input's output path from --out (its {name} field the input's file name without suffix), checked
+    before any work: several inputs need the field, no two may share an output, none may overwrite an input."""
+    from pathlib import Path
+
+    from ..errors import WgpuRtError
+    from ..io import check_output_path
+
+    if len(inputs) > 1 and "{name}" not in pattern:
+        raise WgpuRtError(f"--out {pattern}: several inputs need a {{name}} field, e.g. clean/{{name}}.exr")
+    try:
+        outputs = [Path(pattern.format(name=Path(path).stem)) for path in inputs]
+    except (KeyError, IndexError, ValueError, AttributeError) as err:
+        raise WgpuRtError(f"--out {pattern}: bad format field ({type(err).__name__}: {err}); only {{name}} is "
+                          "known") from None
+    for path, out in zip(inputs, outputs):
+        check_output_path(out, "--out", (".exr", ".png"))
+        if out.resolve() == Path(path).resolve():
+            raise WgpuRtError(f"--out {pattern}: would overwrite its input {path}")
+    if len(set(outputs)) < len(outputs):
+        twice = next(out for out in outputs if outputs.count(out) > 1)
+        raise WgpuRtError(f"--out {pattern}: two inputs would both write {twice}")
+    return outputs
+
+
+def denoise_file(path: str, out, args, named: dict, model, warn):
+    """Denoise one input file into ``out`` with ``model`` (loaded here on the first file, after its checks)
+    and return the model."""
     import time
 
     from ..frame.denoise import denoise_render, load_model
     from ..frame.tonemap import tonemap
-    from ..io import check_output_path, read_exr, write_exr, write_png
+    from ..io import read_exr, write_exr, write_png
 
-    png = check_output_path(args.out, "--out", (".exr", ".png")).suffix.lower() == ".png"
-    named = layer_names(args.layer)
-    file_layers = read_exr(args.input)
+    file_layers = read_exr(path)
     channel_names, attributes = file_layers.channels, file_layers.attributes
-    named = blender_layer_names(file_layers, named, args.input)
-    images = network_inputs(file_layers, named, args.input)
+    named = blender_layer_names(file_layers, named, path)
+    images = network_inputs(file_layers, named, path)
     if "depth" not in images:   # OIDN's three inputs: denoised all the same, a little less well
-        print(f"wgpu-rt denoise: warning: {args.input}: no 'depth' layer; denoised without one (read as one "
-              "distance everywhere: 0.2 dB lower on the mean of nine of our scenes, up to 0.9; --layer depth=NAME "
-              "reads it from another layer)", file=sys.stderr)
-    spp = sample_counts(images, args, blender_samples(attributes, named))
-    half = half_layers(images, args.input)
+        warn("depth", f"{path}: no 'depth' layer; denoised without one (read as one distance everywhere: 0.2 dB "
+             "lower on the mean of nine of our scenes, up to 0.9; --layer depth=NAME reads it from another layer)")
+    spp = sample_counts(images, args, path, warn, blender_samples(attributes, named))
+    half = half_layers(images, path)
     albedo_samples = point_samples_in_albedo(args, attributes)
-    model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
-    file_layers = finite_layers(file_layers, args.input)   # what the network reads, and what is written back
-    images = network_inputs(file_layers, named, args.input)
+    if model is None:
+        model = load_model("denoiser", args.precision, path=args.model, quality=args.quality)
+    file_layers = finite_layers(file_layers, path)   # what the network reads, and what is written back
+    images = network_inputs(file_layers, named, path)
     started = time.perf_counter()
     color = denoise_render(model, *(images[name] for name in REQUIRED_LAYERS), images.get("depth"), spp,
                            albedo_samples, **denoiser_options(args),
                            half=None if half is None else (images["half_radiance"], half))
     seconds = time.perf_counter() - started
-    if png:
-        write_png(args.out, tonemap(color, "aces", output="f32")[..., :3])
+    if out.suffix.lower() == ".png":
+        write_png(out, tonemap(color, "aces", output="f32")[..., :3])
     else:
-        write_exr(args.out, *denoised_file(file_layers, named.get("color", "color"), color),
+        write_exr(out, *denoised_file(file_layers, named.get("color", "color"), color),
                   channel_names=channel_names, attributes=attributes)
     height, width = color.shape[:2]
-    print(f"wrote {args.out} ({width}×{height}, {model.precision.name}, {args.quality}, {seconds:.2f} s)")
-    return 0
+    print(f"wrote {out} ({width}×{height}, {model.precision.name}, {args.quality}, {seconds:.2f} s)", flush=True)
+    return model
 
 
 def layer_names(flags: list[str]) -> dict[str, str]:
@@ -187,11 +242,9 @@ def denoised_file(file_layers: dict, color_layer: str, color) -> tuple:
     return top, layers
 
 
-def sample_counts(images: dict, args, header_samples: int | None = None):
+def sample_counts(images: dict, args, path, warn, header_samples: int | None = None):
     """The colour's samples per pixel: --spp, else the input's one-channel 'spp' layer, else the count its
-    header gives (``header_samples``), else 1 (with a warning)."""
-    import sys
-
+    header gives (``header_samples``), else 1 (with a ``warn``ing)."""
     import numpy as np
 
     from ..errors import ImageError
@@ -203,11 +256,10 @@ def sample_counts(images: dict, args, header_samples: int | None = None):
     if layer is None and header_samples is not None:
         return header_samples
     if layer is None:   # the count sets the network's noise level and the albedo's smoothing: say what is assumed
-        print(f"wgpu-rt denoise: warning: {args.input}: no 'spp' layer; taken as 1 sample a pixel (--spp N to say "
-              "how many)", file=sys.stderr)
+        warn("spp", f"{path}: no 'spp' layer; taken as 1 sample a pixel (--spp N to say how many)")
         return 1
     if layer.shape[2] != 1 or not np.all(np.isfinite(layer)) or layer.min() < 0:
-        raise ImageError(f"{args.input}: layer 'spp' must be one channel of sample counts ≥ 0 "
+        raise ImageError(f"{path}: layer 'spp' must be one channel of sample counts ≥ 0 "
                          "(pass --spp N to override it)")
     return layer
 
