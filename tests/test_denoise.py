@@ -574,6 +574,11 @@ def test_denoise_runs_on_the_device_as_the_numpy_references_do(gpu, tmp_path):
     assert not denoise_module.DenoiseOnDevice._made[model]
     denoise(model, *small, 2)
     assert len(DenoiseOnDevice._made[model]) == 1
+    for size in range(4, 4 + denoise_module.KEPT_SIZES + 1):   # only the sizes used last stay set up
+        denoise(model, *[image[:size, :size] for image in (color, *aux)], 2)
+    assert [key[:2] for key in made] == [(size, size) for size in range(5, 5 + denoise_module.KEPT_SIZES)]
+    denoise(model, *[image[:5, :5] for image in (color, *aux)], 2)   # used again: now the last to go
+    assert list(made)[-1][:2] == (5, 5)
     del model, made
     gc.collect()
     assert not [m for m in DenoiseOnDevice._made if m.path.endswith("on_device.onnx")]   # the cache let it go

@@ -145,13 +145,18 @@ def device_sample_counts(spp, shape: tuple[int, int]) -> np.ndarray | None:
     return counts.astype(np.uint32)
 
 
+# How many sizes and settings ``DenoiseOnDevice.for_model`` keeps set up per model: a run over images of many sizes
+# (a folder of renders) holds the planes of the last few, not of every size it met.
+KEPT_SIZES = 4
+
+
 class DenoiseOnDevice:
     """``denoise`` for a model of the WGSL engine at one image size: the frame loop's depth maximum and
     denoise chain (frame/denoise_chain.py: the low band's ``levels``, the hand-over to converged samples
     where ``converging``) in one command buffer over uploaded planes, the result read back. ``for_model``
-    keeps one per model and setting, so that a benchmark's images of one size reuse the passes; they hold
-    the model by a weak proxy, so that the cache does not keep a model alive (nor its device buffers)
-    once its user lets it go."""
+    keeps one per model and setting (the KEPT_SIZES used last), so that a benchmark's images of one size
+    reuse the passes; they hold the model by a weak proxy, so that the cache does not keep a model alive
+    (nor its device buffers) once its user lets it go."""
 
     _made: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # model -> {settings: DenoiseOnDevice}
 
@@ -161,8 +166,11 @@ class DenoiseOnDevice:
         made = cls._made.setdefault(model, {})
         key = (width, height, levels, chroma, post_filter, converging, white_balance, auto_exposure)
         if key not in made:
+            while len(made) >= KEPT_SIZES:   # the longest unused goes, with its device buffers
+                del made[next(iter(made))]
             made[key] = cls(weakref.proxy(model), width, height, levels, chroma, post_filter, converging,
                             white_balance, auto_exposure)
+        made[key] = made.pop(key)   # now the most recently used
         return made[key]
 
     def __init__(self, model, width: int, height: int, levels: int, chroma: bool, post_filter: bool,
