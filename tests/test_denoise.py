@@ -331,6 +331,11 @@ def test_a_png_output_is_the_denoised_exr_tone_mapped_for_display(gpu, tmp_path,
     png = np.asarray(Image.open(tmp_path / "out.png"), dtype=np.float32) / 255
     expected = tonemap(read_exr(tmp_path / "out.exr")["color"], "aces", output="f32")[..., :3]
     assert png.shape == color.shape and np.abs(png - expected).max() <= 0.5 / 255 + 1e-6
+    assert main(["denoise", str(tmp_path / "in.exr"), "--out", str(tmp_path / "out.png"), "--model", str(model),
+                 "--tonemap", "reinhard", "--exposure", "2"]) == 0
+    png = np.asarray(Image.open(tmp_path / "out.png"), dtype=np.float32) / 255
+    expected = tonemap(read_exr(tmp_path / "out.exr")["color"], "reinhard", 2.0, output="f32")[..., :3]
+    assert np.abs(png - expected).max() <= 0.5 / 255 + 1e-6
 
 
 def test_the_python_call_gives_what_the_command_writes(gpu, tmp_path):

@@ -102,6 +102,9 @@ def test_help_names_every_built_in_scene(capsys):
     (["--frames", "0:2", "--out", "x_{frame:q}.exr"], "--out"),
     (["--frames", "0:3000000", "--out", "f/{frame:07d}.exr"], "3,000,000"),
     (["--denoise", "--models", "nowhere"], "--models nowhere: no such folder"),
+    (["--exposure", "1", "--out", "x.exr"], "--exposure is for a .png output"),
+    (["--tonemap", "reinhard", "--out", "x.exr"], "--tonemap is for a .png output"),
+    (["--exposure", "100", "--out", "x.png"], "--exposure 100.0: exposure 100.0 must be a number of stops"),
     (["--models", "."], "no network runs without --denoise"),
 ])
 def test_every_path_checks_its_flags_before_work(tmp_path, capsys, monkeypatch, args, message):
@@ -112,6 +115,21 @@ def test_every_path_checks_its_flags_before_work(tmp_path, capsys, monkeypatch, 
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_png_shows_the_radiance_through_the_exposure_and_tone_curve_asked_for(gpu, tmp_path):
+    from PIL import Image
+
+    from wgpu_rt.frame.tonemap import tonemap
+
+    assert main(["render", "cornell", "--size", "16x16", "--spp", "2", "--aov", "", "--out", str(tmp_path / "c.exr")]) == 0
+    radiance = read_exr(tmp_path / "c.exr")["color"]
+    for flags, operator, stops in (([], "aces", 0.0), (["--exposure", "1.5"], "aces", 1.5),
+                                   (["--tonemap", "reinhard", "--exposure", "-1"], "reinhard", -1.0)):
+        assert main(["render", "cornell", "--size", "16x16", "--spp", "2", *flags, "--out", str(tmp_path / "c.png")]) == 0
+        shown = np.asarray(Image.open(tmp_path / "c.png"), np.float32)[..., :3] / 255
+        expected = tonemap(radiance, operator, stops, output="f32")[..., :3]
+        assert np.abs(shown - expected).max() <= 1.01 / 255, flags
 
 
 def test_models_from_a_folder_replace_the_shipped_ones(gpu, tmp_path, capsys):

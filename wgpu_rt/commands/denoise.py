@@ -4,6 +4,7 @@ run by the WGSL network engine."""
 from __future__ import annotations
 
 from ._denoiser_flags import add_denoiser_flags, denoiser_options
+from ._display_flags import add_display_flags, display_settings
 
 HELP = "denoise an EXR that carries colour plus albedo, normal and (best) depth layers (and its sample count)"
 
@@ -27,6 +28,7 @@ def add_arguments(parser) -> None:
                              "a PNG of it tone-mapped for display as `wgpu-rt render` writes one (ACES, sRGB); "
                              "{name} stands for the input's file name without its suffix, which several inputs "
                              "need, e.g. clean/{name}.exr")
+    add_display_flags(parser)
     parser.add_argument("--model", help="denoiser ONNX (default: the shipped denoiser.onnx)")
     add_denoiser_flags(parser, "image")
     parser.add_argument("--layer", action="append", default=[], metavar="ROLE=NAME",
@@ -55,6 +57,7 @@ def run(args) -> int:
     from ..errors import ImageError
 
     outputs = output_paths(args.inputs, args.out)
+    display = display_settings(args, all(out.suffix.lower() == ".png" for out in outputs))
     missing = next((path for path in args.inputs if not Path(path).is_file()), None)
     if missing is not None:
         raise ImageError(f"{missing}: no such file")
@@ -72,7 +75,7 @@ def run(args) -> int:
             print(f"wgpu-rt denoise: warning: {message}{also}", file=sys.stderr)
 
     for path, out in zip(args.inputs, outputs):
-        model = denoise_file(path, out, args, named, model, warn)
+        model = denoise_file(path, out, args, named, model, warn, display)
     return 0
 
 
@@ -101,9 +104,9 @@ def output_paths(inputs: list[str], pattern: str) -> list:
     return outputs
 
 
-def denoise_file(path: str, out, args, named: dict, model, warn):
+def denoise_file(path: str, out, args, named: dict, model, warn, display: tuple[str, float]):
     """Denoise one input file into ``out`` with ``model`` (loaded here on the first file, after its checks)
-    and return the model."""
+    and return the model; a .png shows it through ``display``'s (operator, exposure)."""
     import time
 
     from ..frame.denoise import denoise_render, load_model
@@ -130,7 +133,7 @@ def denoise_file(path: str, out, args, named: dict, model, warn):
                            half=None if half is None else (images["half_radiance"], half))
     seconds = time.perf_counter() - started
     if out.suffix.lower() == ".png":
-        write_png(out, tonemap(color, "aces", output="f32")[..., :3])
+        write_png(out, tonemap(color, display[0], display[1], output="f32")[..., :3])
     else:
         write_exr(out, *denoised_file(file_layers, named.get("color", "color"), color),
                   channel_names=channel_names, attributes=attributes)

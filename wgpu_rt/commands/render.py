@@ -3,6 +3,7 @@ adaptively and accumulate over time on the device, and write an EXR (linear HDR 
 a PNG (the tone-mapped display image) per frame. Every flag means the same with or without ``--denoise``."""
 
 from ._denoiser_flags import add_denoiser_flags, check_denoiser_flags, denoiser_options
+from ._display_flags import add_display_flags, display_settings
 
 HELP = "path trace a scene (built-in name or scene file) to .exr (color + AOVs) or .png"
 
@@ -11,8 +12,8 @@ FRAMES_WITHOUT_CONFIRMATION = 100_000   # more output files than this need --max
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("scene", help="built-in scene (cornell, cornell-glossy, sun-room, painted, mesh, moving) "
-                        "or a .json/.toml scene file")
+    parser.add_argument("scene", help="built-in scene (cornell, cornell-glossy, sun-room, painted, mesh, "
+                        "moving) or a .json/.toml scene file")
     parser.add_argument("--spp", type=int, default=None,
                         help="samples per pixel per frame (default 64; 1 with --denoise; not with --adaptive)")
     parser.add_argument("--size", default="256x256", help="WIDTHxHEIGHT (default 256x256)")
@@ -27,6 +28,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--mesh", help="mesh file for the built-in 'mesh' scene")
     parser.add_argument("-o", "--out", default="render.exr",
                         help="output .exr or .png; may hold {frame}, e.g. out/{frame:04d}.exr")
+    add_display_flags(parser)
     parser.add_argument("--denoise", action="store_true",
                         help="denoise on the device with models/denoiser.onnx")
     parser.add_argument("--adaptive", type=float, metavar="BUDGET",
@@ -102,6 +104,7 @@ def run(args) -> int:
                           f"{FRAMES_WITHOUT_CONFIRMATION:,} frames per run")
     check_pattern(args.out, frames)
     png = output_path(args.out, frames[0]).suffix.lower() == ".png"
+    operator, exposure = display_settings(args, png)
     fused = args.denoise or args.adaptive is not None or args.temporal
     if not args.denoise:
         check_denoiser_flags(args, small_networks=args.adaptive is not None or args.temporal)
@@ -118,7 +121,7 @@ def run(args) -> int:
     # A PNG is the display image alone: neither the HDR colour nor any AOV is read back for it.
     renderer = Renderer(args.scene, spp, size, denoise=args.denoise, adaptive=args.adaptive,
                         temporal=args.temporal, max_depth=args.max_depth, seed=args.seed,
-                        aovs=() if png else aovs, tonemap="aces" if png else None, display="f32",
+                        aovs=() if png else aovs, tonemap=operator if png else None, exposure=exposure, display="f32",
                         precision=args.precision, mesh=args.mesh, progress=True, aux_samples=args.aux_samples,
                         hdr=not png, quality=args.quality, models_dir=args.models, **denoiser_options(args))
     mean_spp = args.adaptive if args.adaptive is not None else spp
