@@ -459,6 +459,21 @@ def test_readme_python_example_runs(gpu):
     assert clean.shape == (24, 32, 3) and np.all(np.isfinite(clean)) and not np.allclose(clean, noisy.color)
 
 
+def test_the_radiance_aov_is_the_samples_mean_before_the_denoiser(gpu):
+    """AOV "radiance": what the tracer's samples averaged to, the denoiser's input; a frame nothing denoises
+    gives it as its colour too (each array its own)."""
+    from wgpu_rt.frame.denoise import load_model
+
+    options = dict(spp=2, size=(24, 16), seed=4, ctx=gpu)
+    plain = render("cornell", aovs=("radiance",), **options)
+    np.testing.assert_array_equal(plain.aovs["radiance"], plain.color)
+    assert plain.aovs["radiance"] is not plain.color
+    denoised = render("cornell", denoise=True, aovs=("radiance", "albedo"),
+                      networks={"denoiser": load_model("denoiser", ctx=gpu)}, **options)
+    np.testing.assert_allclose(denoised.aovs["radiance"], plain.color, rtol=1e-6)   # (another build of the tracer)
+    assert not np.allclose(denoised.color, plain.color, atol=1e-3)
+
+
 def test_a_frame_of_several_samples_hands_over_from_the_denoiser_to_their_mean(gpu, scene):
     """denoise at n > 1 spp: the converge pass blends the denoised frame with the mean (a black
     denoiser's frame is the mean scaled by the mean's weight: at most n² / (n² + CAP_SCALE)); at 1 spp the

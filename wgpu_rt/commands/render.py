@@ -22,8 +22,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="sampling seed (same seed, same image; frame f uses seed+f)")
     parser.add_argument("--aov", default="albedo,normal,depth,motion,spp",
                         help="comma-separated AOV layers for .exr output: albedo, normal, depth, motion, spp, "
-                        "half_radiance and half_spp (the mean after half the samples, for `wgpu-rt denoise`) "
-                        "('' for none)")
+                        "half_radiance and half_spp (the mean after half the samples, for `wgpu-rt denoise`), "
+                        "radiance (the samples' mean before --denoise) ('' for none)")
     parser.add_argument("--frames", help="A:B renders frames A..B-1 (the output needs a {frame} field)")
     parser.add_argument("--mesh", help="mesh file for the built-in 'mesh' scene")
     parser.add_argument("-o", "--out", default="render.exr",

@@ -40,7 +40,8 @@ from .tonemap import TonemapPass
 
 # half_radiance and half_spp: the mean after the first half of the samples (see frame/converge.py),
 # so that `wgpu-rt denoise` can hand over to an EXR's own mean as a denoised render does.
-AOV_PLANES = {plane.name: plane for plane in (ALBEDO, NORMAL, DEPTH, MOTION, SPP, HALF_RADIANCE, HALF_SPP)}
+# (RADIANCE: the samples' mean before the denoiser, the colour itself when nothing denoises it)
+AOV_PLANES = {plane.name: plane for plane in (ALBEDO, NORMAL, DEPTH, MOTION, SPP, HALF_RADIANCE, HALF_SPP, RADIANCE)}
 SAMPLES_PER_SUBMIT = 1 << 21   # pixel samples per command buffer (a fraction of a second on lavapipe)
 PROGRESS_SECONDS = 0.25        # how often a long frame waits for the device to tell its progress
 
@@ -242,11 +243,12 @@ class FramePipeline:
             self.pack_error = PackErrorPass(ctx, width, height, getattr(self.probe_exposure, "result", None))
             self.half_buffer_error = HalfBufferErrorPass(ctx, width, height)
         self.color, self.hdr = color, hdr
+        self.color_is_an_aov = color.name in aovs   # (the radiance AOV of a frame nothing denoises)
         self.tonemap = (TonemapPass(ctx, width, height, color, operator, exposure, srgb, output)
                         if operator is not None else None)
         check_wiring(self._stages(), written=TracePass.outputs)
         self.timer = StageTimer(ctx) if (ctx.has_timestamps if timings is None else timings) else None
-        read_back = ([color] if hdr else []) + [AOV_PLANES[name] for name in aovs]
+        read_back = list(dict.fromkeys(([color] if hdr else []) + [AOV_PLANES[name] for name in aovs]))
         self.layout = self._layout(read_back)
         self.interleave = {plane.name: InterleavePass(ctx, width, height, plane)
                            for plane in read_back if interleaves(plane)}
@@ -499,7 +501,9 @@ class FramePipeline:
                         if self.timer else {})
         finally:
             pending.readback.unmap()
-        color = planes.pop(self.color.name) if self.hdr else None
+        color = None
+        if self.hdr:
+            color = planes[self.color.name].copy() if self.color_is_an_aov else planes.pop(self.color.name)
         mean_spp = self.spp if self.adaptive is None else (self.adaptive.budget or self.adaptive.probe_samples)
         samples = mean_spp * self.width * self.height
         return RenderResult(pending.frame, color, planes, image, stage_ms, time.perf_counter() - pending.started,
