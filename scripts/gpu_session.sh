@@ -74,6 +74,9 @@
 # Sessions 42–44 had no GPU. Since session 44 the converge pass (the hand-over above 1 spp, and temporal mode's
 # static camera) averages over a 15×15 window, 225 taps of three likeness weights where it had 49 (§43: 6× its
 # lavapipe time); `frame`'s converge_cost part times it alone at 1080p, to set against the network's.
+# Sessions 45–47 had no GPU. Since session 47 a frame whose packed denoiser input is wider than one storage binding
+# denoises in bands of rows (frame/bands.py, §46); a GPU binds gigabytes, so there only frames far past 4K take
+# them, and `tests` checks them under a shrunken limit.
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
