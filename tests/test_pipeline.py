@@ -353,6 +353,22 @@ def test_next_frame_runs_while_the_caller_holds_a_frame(gpu, scene, monkeypatch)
     for result in out:
         np.testing.assert_array_equal(result.color, pipeline.render(scene, result.frame).color)
 
+def test_frames_in_flight_do_not_count_the_same_seconds_twice(gpu):
+    """Each frame's seconds run from its recording, or from the previous frame's hand-over where it was
+    recorded while that one ran, to its readback: over a run they sum to no more than its wall time after
+    set-up (counted from each recording, overlapping frames summed to more, about twice a frame's time)."""
+    from wgpu_rt.frame.denoise import load_model
+
+    renderer = Renderer("cornell", 1, (96, 64), ctx=gpu, denoise=True, aovs=(),
+                        networks={"denoiser": load_model("denoiser", ctx=gpu)})
+    started = time.perf_counter()
+    results = list(renderer.frames(range(4)))
+    wall = time.perf_counter() - started
+    assert all(result.seconds > 0 for result in results)
+    prepared = results[0].setup_seconds - renderer.setup_seconds   # (the rest was the renderer's, before the run)
+    assert sum(result.seconds for result in results) + prepared <= wall
+
+
 def submits_while_recording(pipeline, scene, frame, monkeypatch) -> int:
     """How many command buffers ``pipeline`` submits while recording ``frame`` (then it is submitted and
     read back as usual)."""

@@ -56,7 +56,9 @@ class RenderResult:
     aovs: dict[str, np.ndarray] = field(default_factory=dict)   # name → (H, W, C) float32
     image: np.ndarray | None = None                     # (H, W, 4) display image when tone-mapped
     stage_ms: dict[str, float] = field(default_factory=dict)    # GPU time per stage (timestamp queries)
-    seconds: float = 0.0                                # this frame: recording to readback
+    seconds: float = 0.0                                # this frame's share of the run: from its recording,
+                                                        # or the previous frame's hand-over where frames
+                                                        # overlap, to its readback (they sum to the wall time)
     setup_seconds: float = 0.0                          # scene, BVH, kernels, networks (first frame only)
     samples: int = 0                                    # pixel samples taken (planned, for adaptive)
 
@@ -257,6 +259,7 @@ class FramePipeline:
                            for i in range(2)]
         self._recorded = 0
         self.previous_frame: int | None = None
+        self.handed_over = 0.0   # when the last frame was read back (perf_counter)
         self.seed_frame = 0
         # Under a static camera (temporal mode) the planes accumulate: samples per pixel they hold, and
         # how many the converge pass's copy of them holds (it is taken again once the samples since the
@@ -506,7 +509,10 @@ class FramePipeline:
             color = planes[self.color.name].copy() if self.color_is_an_aov else planes.pop(self.color.name)
         mean_spp = self.spp if self.adaptive is None else (self.adaptive.budget or self.adaptive.probe_samples)
         samples = mean_spp * self.width * self.height
-        return RenderResult(pending.frame, color, planes, image, stage_ms, time.perf_counter() - pending.started,
+        # A frame recorded while the one before it ran counts from that one's hand-over, so that frames in
+        # flight do not count the same seconds twice.
+        started, self.handed_over = max(pending.started, self.handed_over), time.perf_counter()
+        return RenderResult(pending.frame, color, planes, image, stage_ms, self.handed_over - started,
                             samples=int(round(samples)))
 
     def render(self, scene, frame: int) -> RenderResult:
