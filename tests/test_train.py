@@ -252,9 +252,12 @@ def test_batches_hold_frames_of_one_crop_limit(tmp_path, monkeypatch):
             f"to 32 px" in trainer.model_card())
 
 
-def test_the_progress_bar_shows_the_loss_every_so_many_steps(tiny_dataset, tmp_path, monkeypatch):
-    """The bar shows a step's loss once every PROGRESS_LOSS_STEPS steps within an epoch (reading it waits
-    for the device), then the epoch's mean; nothing is read for a bar that is off."""
+def test_the_progress_bar_shows_the_loss_every_so_many_steps(tiny_dataset, tmp_path, monkeypatch, capsys):
+    """On a terminal the bar shows a step's loss once every PROGRESS_LOSS_STEPS steps within an epoch (reading
+    it waits for the device), then the epoch's mean; piped into a log there is no bar and nothing is read for
+    one, and each epoch is still a line."""
+    import sys
+
     import tqdm
 
     from wgpu_rt.train import trainer as trainer_module
@@ -263,10 +266,16 @@ def test_the_progress_bar_shows_the_loss_every_so_many_steps(tiny_dataset, tmp_p
     monkeypatch.setattr(tqdm.tqdm, "set_postfix", lambda bar, **values: shown.append(values))
     monkeypatch.setattr(trainer_module, "PROGRESS_LOSS_STEPS", 2)
     config = dict(task="error-predictor", data=str(tiny_dataset), epochs=1, batch=2, crop_min=8, crop_max=16)
-    trainer = Trainer(TrainConfig(out=str(tmp_path / "a"), **config), progress=True)
-    trainer.run()
-    assert trainer.steps_per_epoch >= 4 and len(shown) == trainer.steps_per_epoch // 2 + 1
-    assert all(set(values) == {"loss", "spp"} for values in shown)
+    for terminal in (True, False):
+        monkeypatch.setattr(sys.stderr, "isatty", lambda: terminal)
+        shown.clear()
+        trainer = Trainer(TrainConfig(out=str(tmp_path / str(terminal)), **config), progress=True)
+        trainer.run()
+        steps = trainer.steps_per_epoch
+        assert steps >= 4 and len(shown) == (steps // 2 + 1 if terminal else 1)
+        assert all(set(values) == {"loss", "spp"} for values in shown)
+        printed = capsys.readouterr()
+        assert printed.out.startswith("epoch 1: train_loss") and ("train error-predictor" in printed.err) == terminal
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA torch (a lent GPU's test run)")

@@ -328,14 +328,18 @@ class TruthEngine:
         return record
 
     def run(self, shard: tuple[int, int] = (0, 1), progress: bool = True) -> list[ViewRecord]:
-        """Render every unfinished view of ``shard``; returns the records of the views rendered now."""
+        """Render every unfinished view of ``shard``; returns the records of the views rendered now. ``progress``:
+        a bar, where stderr is a terminal (piped into a log it would be noise)."""
+        import sys
+
         from tqdm import tqdm
 
         check_config(self.out, self.config)
         todo = [v for v in plan_views(self.config, shard) if not is_finished(self.out, v, self.config)]
         done = []
         try:
-            with tqdm(todo, desc=f"views (shard {shard[0]}/{shard[1]})", unit="view", disable=not progress) as bar:
+            with tqdm(todo, desc=f"views (shard {shard[0]}/{shard[1]})", unit="view",
+                      disable=not (progress and sys.stderr.isatty())) as bar:
                 for view in bar:
                     bar.set_postfix_str(f"{view.view_id} {view.scene} {view.split} ×{view.frames}")
                     done.append(self.render_view(view))

@@ -173,13 +173,17 @@ def confidence_aucs(confidence, mask, tested) -> dict[str, float]:
 
 class Trainer:
     def __init__(self, config: TrainConfig, progress: bool = True, context: TrainContext | None = None):
-        """``context``: where to train (default: ``training_context(config.device)``)."""
+        """``context``: where to train (default: ``training_context(config.device)``). ``progress``: a line per
+        epoch, and where stderr is a terminal progress bars (piped into a log they would be noise)."""
+        import sys
+
         import torch
 
         config.check()
         self.config = config
         self.context = context or training_context(config.device)
         self.progress = progress and self.context.main
+        self.bars = self.progress and sys.stderr.isatty()
         torch.manual_seed(config.seed)
         self.model = build_model(config).to(self.context.device)
         self.multiple = getattr(self.model, "multiple", 1)
@@ -420,10 +424,10 @@ class Trainer:
         available = sorted(set.intersection(*(set(view.spp) for view in self.train_set.views)))
         session_started = time.perf_counter()
         if self.context.keep_data:
-            self.train_set.preload(every_spp=self.config.task == "denoiser", progress=self.progress)
+            self.train_set.preload(every_spp=self.config.task == "denoiser", progress=self.bars)
         epoch_ends = [time.perf_counter()]   # the training's start, then each epoch's end (checkpoint included)
         with tqdm(total=self.total_steps, initial=self.step, desc=f"train {self.config.task}", unit="step",
-                  disable=not self.progress) as bar:
+                  disable=not self.bars) as bar:
             while self.epoch < self.config.epochs:
                 started = time.perf_counter()
                 order = self.context.broadcast(self.rng.permutation(len(self.train_set.items))
@@ -437,7 +441,7 @@ class Trainer:
                     items = [self.train_set.items[i] for i in order[first:first + self.config.batch]]
                     losses.append(self.train_step(items, spp))
                     bar.update(1)
-                    if self.progress and len(losses) % PROGRESS_LOSS_STEPS == 0:   # one wait per that many steps
+                    if self.bars and len(losses) % PROGRESS_LOSS_STEPS == 0:   # one wait per that many steps
                         bar.set_postfix(loss=f"{float(losses[-1]):.4f}", spp=spp)
                 losses = self._epoch_losses(losses, first_step)
                 bar.set_postfix(loss=f"{np.mean(losses):.4f}", spp=spp)
@@ -455,7 +459,7 @@ class Trainer:
                 self.history.append({"epoch": self.epoch, "step": self.step, "spp": spp,
                                      "train_loss": float(np.mean(losses)), "steps_seconds": steps_seconds,
                                      **metrics, **self.throughput()})
-                if self.progress:
+                if self.progress:   # (tqdm.write keeps a bar below the line; without one it prints)
                     bar.write(f"epoch {self.epoch}: " + ", ".join(
                         f"{k} {v:.4g}" for k, v in self.history[-1].items() if isinstance(v, float)))
                 if self._checkpoint_due():
