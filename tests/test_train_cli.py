@@ -115,3 +115,26 @@ def test_a_malformed_manifest_is_one_line_naming_it(change, tiny_dataset, tmp_pa
     status, err = train_cli(capsys, data, tmp_path / "models")
     assert status == 2 and len(err) == 1 and f"{data / 'manifest.json'}: " in err[0], err
     assert not (tmp_path / "models").exists()
+
+
+def test_a_fine_tune_keeps_the_models_architecture_and_takes_smaller_steps(tiny_dataset, tmp_path,  # noqa: F811
+                                                                         monkeypatch):
+    """`--init-from MODEL` without --widths and --bottom-merge takes the model's (the shipped denoiser's
+    16 32 64 128 128 with the deepest level added), and without --lr a tenth of a fresh run's; flags still win."""
+    from wgpu_rt.commands import train as command
+    from wgpu_rt.models import DENOISER, ERROR_PREDICTOR
+    from wgpu_rt.train import trainer
+
+    shipped_model = str(DENOISER.path())
+    configs = []
+    monkeypatch.setattr("wgpu_rt.train.train", lambda config, progress: configs.append(config))
+    base = ["train", "denoiser", "--data", str(tiny_dataset), "--out", str(tmp_path), "--quiet"]
+    assert main([*base, "--init-from", shipped_model]) == 0
+    assert main([*base, "--init-from", shipped_model, "--widths", "32", "32", "64", "128", "128",
+                 "--lr", "3e-4"]) == 0
+    assert main(base) == 0
+    shipped, wider, fresh = configs
+    assert (shipped.widths, shipped.bottom_merge, shipped.lr) == ((16, 32, 64, 128, 128), "add", command.FINE_TUNE_LR)
+    assert (wider.widths, wider.bottom_merge, wider.lr) == ((32, 32, 64, 128, 128), "add", 3e-4)
+    assert (fresh.widths, fresh.bottom_merge, fresh.lr) == ((32, 64, 128), "concat", command.FRESH_LR)
+    assert trainer.base_architecture(ERROR_PREDICTOR.path()) == {} == trainer.base_architecture(tmp_path)

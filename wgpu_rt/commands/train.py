@@ -4,6 +4,9 @@ from ..models import NETWORKS
 
 HELP = "train the denoiser, error predictor or confidence model on a dataset and export ONNX + model card"
 
+FRESH_LR = 1e-3       # a run from fresh weights (TrainConfig's default)
+FINE_TUNE_LR = 1e-4   # a run --init-from a model: the shipped fine-tunes took 7e-5 to 2e-4 (BENCHMARKS.md §31–§45)
+
 
 def _curriculum_stage(text: str) -> int | str:
     """A --curriculum stage: a sample count (TrainConfig checks it), or 'any'."""
@@ -27,16 +30,18 @@ def add_arguments(parser) -> None:
     parser.add_argument("-o", "--out", default="models", help="where the .onnx and .md go (default: %(default)s)")
     parser.add_argument("--epochs", type=int, default=20, help="default: %(default)s")
     parser.add_argument("--batch", type=int, default=4, help="default: %(default)s")
-    parser.add_argument("--lr", type=float, default=1e-3, help="peak learning rate (default: %(default)s)")
+    parser.add_argument("--lr", type=float,
+                        help=f"peak learning rate (default: {FRESH_LR}; {FINE_TUNE_LR} with --init-from)")
     parser.add_argument("--crop", type=int, nargs=2, default=(128, 256), metavar=("MIN", "MAX"),
                         help="random crop size range in pixels (default: 128 256)")
-    parser.add_argument("--widths", type=int, nargs="+", default=(32, 64, 128),
-                        help="denoiser UNet level widths (default: 32 64 128); the engine's fast 3×3 kernels take "
-                             "multiples of 8 channels, other widths run on its loop kernel, several times slower "
-                             "on a GPU")
-    parser.add_argument("--bottom-merge", choices=["concat", "add"], default="concat",
+    parser.add_argument("--widths", type=int, nargs="+",
+                        help="denoiser UNet level widths (default: 32 64 128, or with --init-from the model's own); "
+                             "the engine's fast 3×3 kernels take multiples of 8 channels, other widths run on its "
+                             "loop kernel, several times slower on a GPU")
+    parser.add_argument("--bottom-merge", choices=["concat", "add"],
                         help="denoiser: the deepest level's upsampled output is concatenated with the skip above "
-                             "it and merged by two 3×3 convs, or added to it (cheaper; default: %(default)s)")
+                             "it and merged by two 3×3 convs, or added to it (cheaper; default: concat, or with "
+                             "--init-from the model's own)")
     parser.add_argument("--residual", action="store_true",
                         help="denoiser predicts a correction to its noisy input's log1p colour")
     parser.add_argument("--curriculum", type=_curriculum_stage, nargs="+", default=(16, 4, 1), metavar="SPP",
@@ -90,13 +95,19 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from ..train import TrainConfig, train
     from ..train.context import end_data_parallel_process
+    from ..train.trainer import base_architecture
 
+    # a fine-tune keeps the model's architecture and takes smaller steps, unless told otherwise
+    base = base_architecture(args.init_from) if args.init_from and args.task == "denoiser" else {}
+    widths = args.widths or base.get("widths", (32, 64, 128))
+    bottom_merge = args.bottom_merge or base.get("bottom_merge", "concat")
+    lr = args.lr if args.lr is not None else FINE_TUNE_LR if args.init_from else FRESH_LR
     config = TrainConfig(task=args.task, data=args.data, out=args.out, epochs=args.epochs, batch=args.batch,
-                         lr=args.lr, seed=args.seed, crop_min=args.crop[0], crop_max=args.crop[1],
+                         lr=lr, seed=args.seed, crop_min=args.crop[0], crop_max=args.crop[1],
                          pixel_loss=args.pixel_loss, ssim_space=args.ssim_space, lowpass=args.lowpass,
                          log_mse=args.log_mse, edge=args.edge,
                          permute_colours=args.permute_colours, auto_exposure=args.auto_exposure == "on",
-                         widths=tuple(args.widths), residual=args.residual, bottom_merge=args.bottom_merge,
+                         widths=tuple(widths), residual=args.residual, bottom_merge=bottom_merge,
                          curriculum=tuple(args.curriculum), resume=args.resume,
                          extra_data=tuple(args.extra_data), max_views=args.max_views,
                          checkpoints=args.checkpoints, init_from=args.init_from,

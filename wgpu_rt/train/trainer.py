@@ -20,6 +20,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import math
+import re
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -771,6 +772,30 @@ def _deepened(weights: dict, expected: dict) -> dict:
     zeros = np.zeros(bottom_width, np.float32)
     return moved | {"merge.0.0.weight": first, "merge.0.0.bias": zeros,
                     "merge.0.2.weight": second, "merge.0.2.bias": zeros}
+
+
+def base_architecture(path) -> dict:
+    """The U-Net widths and bottom merge of the denoiser in ``path`` (an exported .onnx or a checkpoint), as
+    {"widths": (…), "bottom_merge": "add" | "concat"}, for a fine-tune that keeps them; {} where the file is not
+    such a model (the fine-tune's loading then says why)."""
+    path = Path(path)
+    try:
+        if path.suffix.lower() == ".onnx":
+            import onnx
+
+            names = {i.name: tuple(i.dims) for i in onnx.load(str(path), load_external_data=False).graph.initializer}
+        else:
+            import torch
+
+            state = torch.load(path, map_location="cpu", weights_only=False)
+            names = {name: tuple(tensor.shape) for name, tensor in state["model"].items()}
+    except Exception:  # onnx and torch raise many types for missing or corrupt files; loading reports them
+        return {}
+    levels = sorted({int(name.split(".")[1]) for name in names if re.fullmatch(r"down\.\d+\.2\.weight", name)})
+    if not levels or levels != list(range(len(levels))):
+        return {}
+    return {"widths": tuple(names[f"down.{level}.2.weight"][0] for level in levels),
+            "bottom_merge": "concat" if "merge.0.0.weight" in names else "add"}
 
 
 def _level_widths(weights: dict, expected: dict) -> tuple[list | None, list]:
