@@ -162,7 +162,8 @@ class GpuContext:
         if nbytes > limit:
             raise DeviceLimitError(
                 f"{what} needs {nbytes / 2**20:.1f} MiB in one storage buffer, over this device's "
-                f"max-storage-buffer-binding-size of {limit / 2**20:.1f} MiB ({self.label})")
+                f"max-storage-buffer-binding-size of {limit / 2**20:.1f} MiB ({self.label}); a smaller frame or "
+                "scene fits, or an adapter that binds more (a GPU's binds gigabytes: `wgpu-rt info` lists them)")
 
     # -- buffers -------------------------------------------------------------------------------------
     def upload(self, array: np.ndarray, usage=0, label: str = "") -> object:
