@@ -11,6 +11,7 @@ the first call of anything that compiles kernels is a warm-up and is not timed.
 from __future__ import annotations
 
 import os
+import re
 import shlex
 import sys
 import tempfile
@@ -92,13 +93,14 @@ def load_scenes(names: list[str], world_frames: int = 1) -> list:
     """The scenes named (built-ins; ``bunny``: the mesh scene with ../shared/meshes' Stanford bunny,
     skipped with a message when the file is absent; ``world-SEED``: the generated world of that seed, as
     the dataset names them, e.g. world-2147483648 is the held-out family's first, with its camera and an
-    object moving over ``world_frames`` frames when that is above 1; a scene file, e.g.
+    object moving over ``world_frames`` frames when that is above 1; ``world-A..B``: the worlds of seeds A to B,
+    B included, e.g. world-2147483648..2147483671 for §42's 24 held-out worlds; a scene file, e.g.
     benchmarks/scenes/*.toml, skipped with a message when it names a mesh file that is absent)."""
     from wgpu_rt.dataset.worlds import generate_world
     from wgpu_rt.scene import SCENE_SUFFIXES, load_scene
 
     scenes = []
-    for name in names:
+    for name in [one for given in names for one in world_range(given)]:
         if Path(name).suffix.lower() in SCENE_SUFFIXES:
             missing = missing_mesh_files(Path(name))
             if missing:
@@ -119,6 +121,17 @@ def load_scenes(names: list[str], world_frames: int = 1) -> list:
             scene = load_scene(name)
         scenes.append(scene)
     return scenes
+
+
+def world_range(name: str) -> list[str]:
+    """``world-A..B`` as the names world-A … world-B (B included); any other name as it is."""
+    match = re.fullmatch(r"world-(\d+)\.\.(\d+)", name)
+    if match is None:
+        return [name]
+    first, last = int(match[1]), int(match[2])
+    if last < first:
+        raise SystemExit(f"{name}: the range's last seed is below its first")
+    return [f"world-{seed}" for seed in range(first, last + 1)]
 
 
 def missing_mesh_files(scene_file: Path) -> list[Path]:

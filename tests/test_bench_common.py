@@ -164,6 +164,16 @@ def test_a_world_named_in_a_benchmark_moves_over_the_frames_asked(common):
     assert not np.allclose(moving.camera_at(0).origin, moving.camera_at(3).origin)
 
 
+def test_a_range_of_worlds_names_each_seed_in_it(common):
+    assert common.world_range("world-2147483648..2147483650") == [f"world-{s}" for s in (2147483648, 2147483649,
+                                                                                          2147483650)]
+    assert common.world_range("cornell") == ["cornell"] and common.world_range("world-7") == ["world-7"]
+    assert [scene.name for scene in common.load_scenes(["cornell", "world-2147483700..2147483701"])] == [
+        "cornell", "world-2147483700", "world-2147483701"]
+    with pytest.raises(SystemExit, match="below its first"):
+        common.world_range("world-9..8")
+
+
 def test_the_converge_pass_cost_is_timed_on_the_device(gpu, monkeypatch):
     """bench_converge.py --pass-cost (the GPU session's converge_cost part): the shipped pass alone, a positive
     device time where the adapter has timestamps."""
