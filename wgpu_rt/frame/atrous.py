@@ -36,6 +36,7 @@ SIGMA_ALBEDO = 0.05          # Euclidean distance of albedo RGB
 SIGMA_NORMAL = 0.1           # Euclidean distance of the normal planes
 SIGMA_DEPTH = 0.02           # depth difference relative to the centre's depth (floored at DEPTH_FLOOR)
 DEPTH_FLOOR = 1e-3
+GUIDE_BYTES = 32             # a pixel's guides in the pass's buffer: 8 floats, the widest plane it holds
 DISPLAY_GAMMA = 2.2
 FILTER_LIMIT = 1e30          # radiance and depth clamped to this before filtering
 LUMINANCE_FACTOR_LIMIT = 1e8   # at most this factor on radiance ≤ FILTER_LIMIT, so its product stays finite
@@ -109,7 +110,7 @@ class AtrousPass(ComputePass):
         self.exposure = exposure_or_as_tuned(ctx, exposure)
         pixels = width * height
         self.work = [ctx.storage(16 * pixels, label=f"a-trous work {k}") for k in range(2)]
-        self.guides = ctx.storage(32 * pixels, label="a-trous guides")
+        self.guides = ctx.storage(GUIDE_BYTES * pixels, label="a-trous guides")
         constants = {"SIGMA_LUMINANCE": SIGMA_LUMINANCE, "FADE_SPP": FADE_SPP, "SIGMA_ALBEDO": SIGMA_ALBEDO,
                      "SIGMA_NORMAL": SIGMA_NORMAL, "SIGMA_DEPTH": SIGMA_DEPTH, "DEPTH_FLOOR": DEPTH_FLOOR,
                      "FILTER_LIMIT": FILTER_LIMIT, "KEY_RATIO": KEY_RATIO,

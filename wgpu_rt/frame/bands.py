@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from ..errors import DeviceLimitError
 from ..passes import DTYPE_BYTES, ComputePass, FrameBuffers, PlaneSpec, prepare_network
-from .atrous import STEPS, AtrousPass
+from .atrous import GUIDE_BYTES, STEPS, AtrousPass
 from .kernel import ceil_div
 from .pack import PackDenoiserPass
 from .planes import DENOISED, DENOISER_INPUT, INVERSE_SQRT_SPP, SAMPLES_PLANE
@@ -77,33 +77,43 @@ def needs_bands(ctx, width: int, height: int) -> bool:
     return DENOISER_INPUT.nbytes(width, height) > limit
 
 
-class _BandPasses:
-    """The passes of one band height: its planes, pack, unpack and post filter."""
+class _NetworkBand:
+    """The passes of one network band height: its planes, pack and unpack."""
 
-    def __init__(self, ctx, width: int, rows: int, depth_max, balance, post_filter: bool):
+    def __init__(self, ctx, width: int, rows: int, depth_max, balance):
         self.buffers = FrameBuffers(ctx, width, rows)
         self.pack = PackDenoiserPass(ctx, width, rows, depth_max, balance)
         self.unpack = UnpackPass(ctx, width, rows, balance)
-        self.post_filter = AtrousPass(ctx, width, rows, balance) if post_filter else None
+
+
+class _FilterBand:
+    """The passes of one post filter band height: its planes and the filter."""
+
+    def __init__(self, ctx, width: int, rows: int, balance):
+        self.buffers = FrameBuffers(ctx, width, rows)
+        self.post_filter = AtrousPass(ctx, width, rows, balance)
 
 
 class InBands:
     """The chain's full-resolution steps for a width×height frame in bands: ``network`` (pack, ``denoiser``,
     unpack into DENOISED, and the packed 1/sqrt(spp) plane into INVERSE_SQRT_SPP for the low band) and, where
-    ``post_filter``, a pass of that name (DENOISED smoothed, through FILTERED). ``depth_max`` and ``balance``
-    are the whole frame's."""
+    ``post_filter``, a pass of that name (DENOISED smoothed, through FILTERED), each in bands of its own: the
+    network's with its receptive radius of context, the post filter's (whose widest plane, its guides, holds 8
+    floats a pixel, so its bands are taller) with its reach. ``depth_max`` and ``balance`` are the whole frame's."""
 
     def __init__(self, ctx, width: int, height: int, denoiser, depth_max, balance, post_filter: bool):
         self.width, self.height, self.denoiser = width, height, denoiser
         multiple = denoiser.graph.multiple
-        halo = ceil_div(max(denoiser.graph.receptive_radius, ATROUS_REACH), multiple) * multiple
         limit = min(ctx.limits["max-storage-buffer-binding-size"], ctx.limits["max-buffer-size"])
         rows = limit // DENOISER_INPUT.nbytes(width, 1)
         if hasattr(denoiser, "rows_in_one_pass"):   # bands the network runs whole, not in bands of its own
             rows = min(rows, denoiser.rows_in_one_pass(width))
-        self.bands = plan_bands(height, rows, halo, multiple)
-        self.passes = {band.rows: _BandPasses(ctx, width, band.rows, depth_max, balance, post_filter)
-                       for band in self.bands}
+        self.bands = plan_bands(height, rows, ceil_div(denoiser.graph.receptive_radius, multiple) * multiple,
+                                multiple)
+        self.passes = {band.rows: _NetworkBand(ctx, width, band.rows, depth_max, balance) for band in self.bands}
+        self.filter_bands = plan_bands(height, limit // (GUIDE_BYTES * width), ATROUS_REACH, 1) \
+            if post_filter else []
+        self.filter_passes = {band.rows: _FilterBand(ctx, width, band.rows, balance) for band in self.filter_bands}
         self.post_filter = _PostFilterInBands(self) if post_filter else None
 
     def prepare(self) -> None:
@@ -111,8 +121,7 @@ class InBands:
         for rows, passes in self.passes.items():
             prepare_network(self.denoiser, passes.buffers.get(DENOISER_INPUT), rows, self.width)
 
-    def _load(self, encoder, buffers, band: Band, specs) -> FrameBuffers:
-        held = self.passes[band.rows].buffers
+    def _load(self, encoder, buffers, band: Band, held: FrameBuffers, specs) -> FrameBuffers:
         for spec in specs:
             copy_rows(encoder, spec, self.width, buffers.get(spec), self.height, band.top, held.get(spec), band.rows,
                       0, band.rows)
@@ -125,7 +134,7 @@ class InBands:
     def network(self, encoder, buffers) -> None:
         for band in self.bands:
             passes = self.passes[band.rows]
-            held = self._load(encoder, buffers, band, NETWORK_INPUTS)
+            held = self._load(encoder, buffers, band, passes.buffers, NETWORK_INPUTS)
             passes.pack.execute(encoder, held)
             output = self.denoiser.record(encoder, held.get(DENOISER_INPUT), band.rows, self.width)
             passes.unpack.execute(encoder, held, output)
@@ -134,9 +143,10 @@ class InBands:
                        channels=[(SAMPLES_PLANE, 0)])
 
     def filter(self, encoder, buffers) -> None:
-        for band in self.bands:
-            held = self._load(encoder, buffers, band, AtrousPass.inputs)
-            self.passes[band.rows].post_filter.execute(encoder, held)
+        for band in self.filter_bands:
+            passes = self.filter_passes[band.rows]
+            held = self._load(encoder, buffers, band, passes.buffers, AtrousPass.inputs)
+            passes.post_filter.execute(encoder, held)
             self._keep(encoder, band, DENOISED, held, buffers.get(FILTERED))
         encoder.copy_buffer_to_buffer(buffers.get(FILTERED), 0, buffers.get(DENOISED), 0,
                                       DENOISED.nbytes(self.width, self.height))
