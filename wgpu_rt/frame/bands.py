@@ -5,10 +5,10 @@ fit one storage binding (11 planes of f32: 44 bytes a pixel, so on lavapipe's 12
 Only the steps that hold wide per-pixel planes run in bands: pack → network → unpack (DENOISER_INPUT), and the
 post filter (its 8-plane guides). The frame's white balance and exposure, its depth maximum, the low band (at
 half and quarter resolution), the chroma hold and the hand-over read whole-frame planes of at most three
-channels, so they run on the whole frame as before. Each band reads its rows with ``halo`` rows of context
-above and below (at least the network's receptive radius and the post filter's reach, in whole multiples of
-the network's pooling multiple, so that every band's pooling grid lies on the frame's) and keeps only its own
-rows: the kept rows are what the whole frame would give. Rows move between the frame's planes and a band's
+channels, so they run on the whole frame as before. Each band reads its rows with rows of context above and
+below (the network's: its receptive radius in whole multiples of its pooling multiple, so that every band's
+pooling grid lies on the frame's; the post filter's, in taller bands of its own: its reach) and keeps only its
+own rows: the kept rows are what the whole frame would give. Rows move between the frame's planes and a band's
 with buffer copies, one per channel (planes are planar, so a channel's rows are contiguous)."""
 
 from __future__ import annotations
