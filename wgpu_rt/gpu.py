@@ -136,6 +136,11 @@ class GpuContext:
     def limits(self) -> dict:
         return dict(self.device.limits)
 
+    @property
+    def binding_limit(self) -> int:
+        """The most bytes one storage binding can hold: its own limit, or a buffer's where that is lower."""
+        return min(self.limits["max-storage-buffer-binding-size"], self.limits["max-buffer-size"])
+
     @cached_property
     def subgroup_sizes(self) -> np.ndarray | None:
         """Each invocation's subgroup size in a 1-D workgroup of 64 (wgsl/subgroup_probe.wgsl), or None
@@ -158,7 +163,7 @@ class GpuContext:
 
     def check_buffer_size(self, nbytes: int, what: str) -> None:
         """Raise a DeviceLimitError naming ``what`` if one storage binding cannot hold ``nbytes``."""
-        limit = min(self.limits["max-storage-buffer-binding-size"], self.limits["max-buffer-size"])
+        limit = self.binding_limit
         if nbytes > limit:
             raise DeviceLimitError(
                 f"{what} needs {nbytes / 2**20:.1f} MiB in one storage buffer, over this device's "

@@ -290,7 +290,7 @@ class GeometryBuffers:
         """Direction-ordered node copies to upload: ORDERINGS, or 1 (the walk then takes copy 0 for every
         direction: correct, just less culling) when ORDERINGS copies exceed one storage binding."""
         node_bytes = self.bvh.node_count * THREADED_NODE_DTYPE.itemsize
-        limit = min(ctx.limits["max-storage-buffer-binding-size"], ctx.limits["max-buffer-size"])
+        limit = ctx.binding_limit
         return ORDERINGS if ORDERINGS * node_bytes <= limit else 1
 
     def packed_arrays(self, orderings: int = ORDERINGS) -> list[np.ndarray]:
@@ -576,7 +576,7 @@ class InstancedGeometry:
     def orderings(self, ctx) -> int:
         """Direction-ordered copies of each threaded bottom level to upload: ORDERINGS, or 1 where that
         many exceed one storage binding (as GeometryBuffers.orderings); wide ones have none."""
-        limit = min(ctx.limits["max-storage-buffer-binding-size"], ctx.limits["max-buffer-size"])
+        limit = ctx.binding_limit
         fits = self.node_count() * THREADED_NODE_DTYPE.itemsize <= limit
         return ORDERINGS if fits and self.layout == "threaded" else 1
 

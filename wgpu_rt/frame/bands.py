@@ -73,7 +73,7 @@ def copy_rows(encoder, spec: PlaneSpec, width: int, source, source_height: int, 
 
 def needs_bands(ctx, width: int, height: int) -> bool:
     """Whether a width×height frame's packed denoiser input is too large for one storage binding."""
-    limit = min(ctx.limits["max-storage-buffer-binding-size"], ctx.limits["max-buffer-size"])
+    limit = ctx.binding_limit
     return DENOISER_INPUT.nbytes(width, height) > limit
 
 
@@ -104,7 +104,7 @@ class InBands:
     def __init__(self, ctx, width: int, height: int, denoiser, depth_max, balance, post_filter: bool):
         self.width, self.height, self.denoiser = width, height, denoiser
         multiple = denoiser.graph.multiple
-        limit = min(ctx.limits["max-storage-buffer-binding-size"], ctx.limits["max-buffer-size"])
+        limit = ctx.binding_limit
         rows = limit // DENOISER_INPUT.nbytes(width, 1)
         if hasattr(denoiser, "rows_in_one_pass"):   # bands the network runs whole, not in bands of its own
             rows = min(rows, denoiser.rows_in_one_pass(width))

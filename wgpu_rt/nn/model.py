@@ -454,7 +454,7 @@ class WgslModel:
         try:
             network = self._network_plan(canvas, shapes)
         except _BandsNeeded:
-            limit = min(self.ctx.limits["max-storage-buffer-binding-size"], self.ctx.limits["max-buffer-size"])
+            limit = self.ctx.binding_limit
             largest = max(self._root_bytes(shapes).values())
             # A conv reads a tensor wider than one binding through two windows (_bound_view), so bands sized
             # for half the largest activation in one binding mostly run; where they do not, bands for all of it.
@@ -481,7 +481,7 @@ class WgslModel:
         bands of its own (the first size its bands try), for a caller that cuts a frame into bands itself."""
         rows = 64 * self.graph.multiple   # activations grow with the rows, so any height gives the ratio
         canvas, shapes = self._canvas_shapes(rows, width)
-        limit = min(self.ctx.limits["max-storage-buffer-binding-size"], self.ctx.limits["max-buffer-size"])
+        limit = self.ctx.binding_limit
         return self._fitting_rows(canvas[0], max(self._root_bytes(shapes).values()) / 2, limit)
 
     def _bands(self, height: int, canvas_rows: int, largest: float, limit: int, out_shape: Shape):
