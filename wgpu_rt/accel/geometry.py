@@ -161,6 +161,44 @@ def _mesh_colors(mesh) -> np.ndarray:
     return (codes[:, 0] | codes[:, 1] << 8 | codes[:, 2] << 16)[faces]
 
 
+NO_TEXTURE = 0xFFFFFFFF   # a triangle record's texture index where its mesh has none
+TEXTURE_RECORD_WORDS = 8  # per triangle: texture index, (u, v) of its three vertices, one spare word
+
+
+def _mesh_texture_records(mesh, textures: dict[int, int]) -> np.ndarray:
+    """(F, TEXTURE_RECORD_WORDS) u32 per face: its mesh's texture's index in ``textures`` (image id → index;
+    NO_TEXTURE without one) and its vertices' texture coordinates as float32 bits (SceneError where a
+    texture or its coordinates are malformed, naming the mesh)."""
+    faces = np.asarray(mesh.faces, np.int64)
+    records = np.zeros((len(faces), TEXTURE_RECORD_WORDS), np.uint32)
+    if (mesh.texture is None) != (mesh.uvs is None):
+        raise SceneError(f"mesh {mesh.name!r}: a texture needs its coordinates (uvs) and coordinates a texture")
+    if mesh.texture is None:
+        records[:, 0] = NO_TEXTURE
+        return records
+    image, uvs = np.asarray(mesh.texture), np.asarray(mesh.uvs)
+    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) == 0:
+        raise SceneError(f"mesh {mesh.name!r}: texture must be an (H, W, 3) uint8 sRGB image, got "
+                         f"{image.dtype} {image.shape}")
+    if uvs.shape != (len(mesh.vertices), 2) or not np.all(np.isfinite(uvs)):
+        raise SceneError(f"mesh {mesh.name!r}: uvs must be finite, one (u, v) a vertex "
+                         f"({len(mesh.vertices)}, 2), got shape {uvs.shape}")
+    if mesh.colors is not None:
+        raise SceneError(f"mesh {mesh.name!r}: has both vertex colours and a texture; give it one of them")
+    records[:, 0] = textures[id(mesh.texture)]
+    records[:, 1:7] = uvs.astype(np.float32)[faces].reshape(len(faces), 6).view(np.uint32)
+    return records
+
+
+def _scene_texture_records(scene: Scene, meshes) -> np.ndarray | None:
+    """Per triangle of ``meshes`` (indices into scene.meshes, in order) its texture record
+    (_mesh_texture_records), or None where the scene has no texture."""
+    textures = {id(image): index for index, image in enumerate(scene.textures())}
+    if not textures and all(scene.meshes[i].uvs is None for i in meshes):
+        return None
+    return np.concatenate([_mesh_texture_records(scene.meshes[i], textures) for i in meshes])
+
+
 def _mesh_triangles(mesh, transform: np.ndarray, face_normals: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """``mesh``'s triangles (F, 3, 3) and per-vertex shading normals (F, 3, 3), both mapped by
     ``transform`` (object → the space they are stored in). A mesh without vertex normals gets its face
@@ -209,6 +247,7 @@ class GeometryBuffers:
     material_ids: np.ndarray       # (T,) u32 index into scene_material_names(scene)
     object_ids: np.ndarray         # (T,) u32 index into scene.meshes
     object_motion: np.ndarray      # (O, 4, 4) f32 world at this frame → world at the previous frame
+    texture_records: np.ndarray | None   # (T, TEXTURE_RECORD_WORDS) u32 (_mesh_texture_records), None: no texture
     bvh: Bvh
     layout: str = "threaded"       # binding 0's node layout: a key of BVH_LAYOUTS
     row_loads: bool = False        # kernels fetch nodes and positions as rows (ROW_LOADS)
@@ -251,9 +290,10 @@ class GeometryBuffers:
         all_triangles = _check_triangles(scene, triangles)
         bvh = build_bvh(all_triangles, leaf_traversal_cost(small_leaves))
         order = bvh.order
+        textures = _scene_texture_records(scene, range(len(scene.meshes)))
         return cls(all_triangles[order], np.concatenate(normals)[order], np.concatenate(colors)[order],
-                   np.concatenate(materials)[order], np.concatenate(objects)[order], object_motion(scene, frame), bvh,
-                   small_leaves=small_leaves)
+                   np.concatenate(materials)[order], np.concatenate(objects)[order], object_motion(scene, frame),
+                   None if textures is None else textures[order], bvh, small_leaves=small_leaves)
 
     def as_variant(self, variant: str) -> "GeometryBuffers":
         """This geometry laid out and fetched as ``variant`` (bvh_variants): the same BVH, or where the
@@ -274,8 +314,8 @@ class GeometryBuffers:
             rebuilt[small_leaves] = dataclasses.replace(
                 self, triangles=self.triangles[order], shading_normals=self.shading_normals[order],
                 vertex_colors=self.vertex_colors[order], material_ids=self.material_ids[order],
-                object_ids=self.object_ids[order], bvh=bvh,
-                small_leaves=small_leaves)
+                object_ids=self.object_ids[order], bvh=bvh, small_leaves=small_leaves,
+                texture_records=None if self.texture_records is None else self.texture_records[order])
         return rebuilt[small_leaves]
 
     @property
@@ -431,7 +471,7 @@ class InstancedGeometry:
         self.instance_meshes = ([None] if in_world else []) + [mesh for group in placed for mesh in group]
         self.instance_levels = np.repeat(np.arange(len(self.levels)),
                                          ([1] if in_world else []) + [len(group) for group in placed])
-        stored, normals, colors, materials, objects, self._bvhs = ([] for _ in range(6))
+        stored, normals, colors, materials, objects, self._bvhs, textures = ([] for _ in range(7))
         for meshes, world_space in self.levels:
             level = [_mesh_triangles(scene.meshes[i], scene.meshes[i].transform_at(frame) if world_space
                                      else np.eye(4), face_normals=False) for i in meshes]
@@ -443,6 +483,8 @@ class InstancedGeometry:
             colors.append(np.concatenate([_mesh_colors(scene.meshes[i]) for i in meshes])[order])
             materials.append(np.repeat([material_ids[i] for i in meshes], [len(t) for t, _ in level])[order])
             objects.append(np.repeat(meshes, [len(t) for t, _ in level])[order])
+            records = _scene_texture_records(scene, meshes)
+            textures.append(None if records is None else records[order])
             self._bvhs.append(bvh)
         self._level_sizes = np.array([len(t) for t in stored], np.int64)
         self._first_triangles = np.cumsum(self._level_sizes) - self._level_sizes
@@ -457,6 +499,8 @@ class InstancedGeometry:
         self.vertex_colors = np.concatenate(colors)          # (T, 3) u32 (_mesh_colors)
         self.stored_material_ids = np.concatenate(materials).astype(np.uint32)
         self.stored_object_ids = np.concatenate(objects).astype(np.uint32)
+        # (T, TEXTURE_RECORD_WORDS) u32 per stored triangle, None where no mesh has a texture
+        self.texture_records = None if textures[0] is None else np.concatenate(textures)
 
         counts = self._level_sizes[self.instance_levels]     # placed triangles per instance
         self.first_prims = np.cumsum(counts) - counts

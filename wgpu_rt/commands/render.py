@@ -12,7 +12,7 @@ FRAMES_WITHOUT_CONFIRMATION = 100_000   # more output files than this need --max
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("scene", help="built-in scene (cornell, cornell-glossy, sun-room, painted, mesh, "
+    parser.add_argument("scene", help="built-in scene (cornell, cornell-glossy, sun-room, painted, textured, mesh, "
                         "moving) or a .json/.toml scene file")
     parser.add_argument("--spp", type=int, default=None,
                         help="samples per pixel per frame (default 64; 1 with --denoise; not with --adaptive)")

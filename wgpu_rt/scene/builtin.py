@@ -12,6 +12,8 @@
   turns, for temporal filtering and motion vectors.
 - ``painted``: the Cornell box with textures as vertex colours (none in any training world): a checkered
   floor, a blotched back wall, a striped and a marbled sphere in place of the boxes.
+- ``textured``: the Cornell box with colour textures detailed to the pixel: tiles with thin grout on the
+  floor, stripes over blotches on the back wall, wood grain on the two boxes.
 """
 
 from __future__ import annotations
@@ -214,8 +216,48 @@ def painted() -> Scene:
     return Scene(_cornell_camera(), meshes, materials, name="painted")
 
 
+def _image(t: np.ndarray, one, other) -> np.ndarray:
+    """(H, W) weights → an (H, W, 3) uint8 sRGB image: linear colour ``one`` where t is 1, ``other`` where 0."""
+    from .model import srgb8
+
+    return srgb8(mix_colors(t.ravel(), one, other)).reshape(*t.shape, 3)
+
+
+def _face_uvs(vertices: np.ndarray) -> np.ndarray:
+    """The cube primitive's texture coordinates: each face's four corners (0, 0), (1, 0), (1, 1), (0, 1)."""
+    return np.tile(np.float32([[0, 0], [1, 0], [1, 1], [0, 1]]), (len(vertices) // 4, 1))
+
+
+def textured() -> Scene:
+    """The Cornell box with colour textures detailed down to the pixel (at 512², the default render size's
+    scale): tiles with thin grout on the floor, fine stripes over blotches on the back wall, wood grain on
+    the boxes (each face the whole image)."""
+    scene = cornell()
+    scene.materials["white-base"] = Material("diffuse", reflectance=(1.0, 1.0, 1.0))
+    rows, columns = np.meshgrid(np.arange(512) + 0.5, np.arange(512) + 0.5, indexing="ij")
+    points = np.stack([columns / 512, rows / 512, np.zeros_like(rows)], -1).reshape(-1, 3)
+    tile = np.minimum(columns % 128, rows % 128)
+    floor = _image((tile >= 3) * (0.75 + 0.25 * np.sin(0.7 * np.floor(columns / 128) + np.floor(rows / 128))),
+                   (0.8, 0.72, 0.6), (0.05, 0.05, 0.06))
+    blotches = 0.5 + 0.6 * _waves(points * 6, 3.0).reshape(rows.shape)
+    stripes = (columns % 16 < 2) * 0.35
+    wall = _image(np.clip(blotches - stripes, 0, 1), (0.75, 0.6, 0.35), (0.1, 0.25, 0.3))
+    grain = 0.5 + 0.5 * np.sin(columns / 512 * 60 + 3 * _waves(points * 4, 2.5).reshape(rows.shape))
+    wood = _image(grain, (0.75, 0.5, 0.28), (0.42, 0.24, 0.1))
+    for mesh in scene.meshes:
+        if mesh.name in ("floor", "back"):
+            mesh.material = "white-base"
+            mesh.texture = floor if mesh.name == "floor" else wall
+            mesh.uvs = ((mesh.vertices[:, :2] + 1) * (1.5 if mesh.name == "floor" else 0.5)).astype(np.float32)
+        elif mesh.name.endswith("box"):
+            mesh.material = "white-base"
+            mesh.texture, mesh.uvs = wood, _face_uvs(mesh.vertices)
+    scene.name = "textured"
+    return scene
+
+
 BUILTIN_SCENES = {"cornell": cornell, "cornell-glossy": cornell_glossy, "sun-room": sun_room,
-                  "mesh": mesh_room, "moving": moving, "painted": painted}
+                  "mesh": mesh_room, "moving": moving, "painted": painted, "textured": textured}
 
 
 def builtin_scene(name: str, mesh=None) -> Scene:

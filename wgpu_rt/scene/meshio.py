@@ -5,8 +5,8 @@ geometry becomes one ``Mesh`` whose ``transform`` is its node's world transform,
 A geometry placed at several nodes is read once: its placements are instances of one shape
 (``Mesh.instance``), sharing their arrays, as a scene file's ``instances`` would make them. Vertex
 normals are kept when the file has them (trimesh keeps loaded normals in its cache; without them we
-leave ``normals`` None and the tracer shades flat), and so are its vertex colours (or its texture,
-sampled at the vertices), which multiply the material's reflectance. Files are loaded with
+leave ``normals`` None and the tracer shades flat), and so are its vertex colours or its colour texture
+(image and per-vertex coordinates), which multiply the material's reflectance. Files are loaded with
 ``process=False`` so vertices are neither merged nor reordered. Every problem is a SceneError naming
 the file.
 """
@@ -42,27 +42,46 @@ def validate_mesh_arrays(vertices: np.ndarray, faces: np.ndarray, where: str) ->
 
 
 def file_vertex_colors(geometry: trimesh.Trimesh) -> np.ndarray | None:
-    """A geometry's colour per vertex as linear RGB: the file's vertex (or face) colours, or its texture image
-    sampled at each vertex's UV (trimesh's ``to_color``); None where the file gives neither (a material's
-    single colour is not read: the scene file's material says that)."""
+    """A geometry's colour per vertex as linear RGB: the file's vertex (or face) colours; None where the
+    file gives none (a material's single colour is not read: the scene file's material says that)."""
     from .model import linear_from_srgb8
 
     visual = geometry.visual
-    if getattr(visual, "kind", None) == "texture":
-        material = getattr(visual, "material", None)
-        image = getattr(material, "image", None) or getattr(material, "baseColorTexture", None)
-        if image is None or getattr(visual, "uv", None) is None:
-            return None
-        try:
-            visual = visual.to_color()
-        except Exception:   # trimesh raises many types for an image or UVs it cannot sample
-            return None
     if getattr(visual, "kind", None) not in ("vertex", "face"):
         return None
     rgba = np.asarray(visual.vertex_colors)
     if rgba.shape != (len(geometry.vertices), 4):
         return None
     return linear_from_srgb8(rgba[:, :3])
+
+
+def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict) -> tuple[np.ndarray, np.ndarray] | None:
+    """A geometry's colour texture: ((H, W, 3) uint8 sRGB image, (V, 2) float32 coordinates per vertex),
+    from an OBJ material's image or a glTF material's base colour texture; None where it has none or its
+    coordinates are missing, misshapen or not finite. ``decoded`` maps the file's images (by identity) to
+    their arrays, so geometries that share an image share one array. An image that cannot be decoded is
+    a SceneError naming ``where``."""
+    visual = geometry.visual
+    if getattr(visual, "kind", None) != "texture":
+        return None
+    material = getattr(visual, "material", None)
+    image = getattr(material, "image", None)
+    if image is None:
+        image = getattr(material, "baseColorTexture", None)
+    uvs = getattr(visual, "uv", None)
+    if image is None or uvs is None:
+        return None
+    uvs = np.asarray(uvs, np.float64)
+    if uvs.shape != (len(geometry.vertices), 2) or not np.all(np.isfinite(uvs)):
+        return None
+    if id(image) not in decoded:
+        try:
+            pixels = np.ascontiguousarray(np.asarray(image.convert("RGB"), np.uint8))
+        except Exception as err:   # PIL raises many types for an image it cannot decode
+            raise SceneError(f"{where}: cannot read its texture image ({type(err).__name__}: {err})") from err
+        decoded[id(image)] = (pixels if pixels.ndim == 3 and min(pixels.shape[:2]) > 0 else None, image)
+    pixels = decoded[id(image)][0]
+    return None if pixels is None else (pixels, uvs.astype(np.float32))
 
 
 def load_mesh_file(path: Path, material: str, name: str | None = None, vertex_colors: bool = True) -> list:
@@ -85,6 +104,7 @@ def load_mesh_file(path: Path, material: str, name: str | None = None, vertex_co
     base = name or path.stem
     meshes = []
     first_placement: dict[str, Mesh] = {}      # geometry name → the Mesh of its first node
+    decoded: dict[int, tuple] = {}              # the file's texture images (file_texture)
     for node in scene.graph.nodes_geometry:
         transform, geometry_name = scene.graph[node]
         geometry = scene.geometry[geometry_name]
@@ -96,16 +116,19 @@ def load_mesh_file(path: Path, material: str, name: str | None = None, vertex_co
             continue
         vertices = np.asarray(geometry.vertices, np.float64)
         faces = np.asarray(geometry.faces, np.int64)
-        validate_mesh_arrays(vertices, faces, f"{path} (geometry {geometry_name!r})")
+        where = f"{path} (geometry {geometry_name!r})"
+        validate_mesh_arrays(vertices, faces, where)
         normals = None
         if _has_file_normals(geometry):
             normals = np.asarray(geometry.vertex_normals, np.float32)
             if normals.shape != vertices.shape or not np.all(np.isfinite(normals)):
                 normals = None
+        texture, uvs = (file_texture(geometry, where, decoded) if vertex_colors else None) or (None, None)
+        colors = file_vertex_colors(geometry) if vertex_colors and texture is None else None
         first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
                                               material, normals=normals,
-                                              transform=np.asarray(transform, np.float32),
-                                              colors=file_vertex_colors(geometry) if vertex_colors else None)
+                                              transform=np.asarray(transform, np.float32), colors=colors,
+                                              texture=texture, uvs=uvs)
         meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")

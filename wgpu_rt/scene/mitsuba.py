@@ -7,6 +7,8 @@ BSDF its material maps to:
 - diffuse → ``diffuse``; conductor → ``conductor`` (roughness 0) or ``roughconductor`` (GGX,
   alpha = roughness) with eta, k and specular_reflectance; dielectric → ``dielectric`` or
   ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1.
+- a mesh's vertex colours become a "vertex_color" mesh attribute its BSDF's reflectance reads, a texture a
+  ``bitmap`` (bilinear, repeat) of the image times the reflectance, read at the mesh's texture coordinates.
 - diffuse and conductor BSDFs are wrapped in ``twosided``: our tracer shades both faces of them alike
   (wgsl/trace/trace.wgsl), while Mitsuba's are black seen from behind. Back faces show wherever a one-sided
   rectangle is seen from outside, e.g. the outer sides of sun-room's crate.
@@ -31,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import DirectionalLight, Material, PointLight, Scene, vertex_colors_as_rendered
+from .model import DirectionalLight, Material, PointLight, Scene, linear_from_srgb8, vertex_colors_as_rendered
 from .transforms import transform_normals, transform_points
 
 
@@ -44,10 +46,21 @@ def _rgb(value) -> dict:
 VERTEX_REFLECTANCE = {"type": "mesh_attribute", "name": "vertex_color"}
 
 
-def material_to_bsdf(material: Material, vertex_colored: bool = False) -> dict:
+def textured_reflectance(mi, texture: np.ndarray, reflectance: np.ndarray) -> dict:
+    """A ``bitmap`` texture of ``texture`` (sRGB8, as the tracer decodes it) times ``reflectance``, filtered and
+    wrapped as the tracer samples it (wgpu_rt.scene.model.sample_texture): the product is linear already,
+    so the bitmap is read raw."""
+    linear = linear_from_srgb8(texture) * np.asarray(reflectance, np.float32)
+    return {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(linear, np.float32)), "raw": True,
+            "filter_type": "bilinear", "wrap_mode": "repeat"}
+
+
+def material_to_bsdf(material: Material, vertex_colored: bool = False, reflectance: dict | None = None) -> dict:
     """The Mitsuba BSDF dict for ``material``, as seen from its front face; ``vertex_colored``: its
-    reflectance read from the mesh's "vertex_color" attribute (VERTEX_REFLECTANCE)."""
-    reflectance = VERTEX_REFLECTANCE if vertex_colored else _rgb(material.reflectance)
+    reflectance read from the mesh's "vertex_color" attribute (VERTEX_REFLECTANCE); ``reflectance``: a
+    texture dict that replaces it (``textured_reflectance``)."""
+    if reflectance is None:
+        reflectance = VERTEX_REFLECTANCE if vertex_colored else _rgb(material.reflectance)
     if material.kind == "diffuse":
         return {"type": "diffuse", "reflectance": reflectance}
     if material.kind == "conductor":
@@ -62,23 +75,29 @@ def material_to_bsdf(material: Material, vertex_colored: bool = False) -> dict:
     return bsdf
 
 
-def surface_bsdf(material: Material, vertex_colored: bool = False) -> dict:
+def surface_bsdf(material: Material, vertex_colored: bool = False, reflectance: dict | None = None) -> dict:
     """``material_to_bsdf`` made two-sided where our tracer is (every kind but dielectric)."""
-    bsdf = material_to_bsdf(material, vertex_colored)
+    bsdf = material_to_bsdf(material, vertex_colored, reflectance)
     return bsdf if material.kind == "dielectric" else {"type": "twosided", "bsdf": bsdf}
 
 
-def _mitsuba_mesh(mi, name: str, vertices, faces, normals, bsdf: dict, emission, vertex_reflectance=None):
+def _mitsuba_mesh(mi, name: str, vertices, faces, normals, bsdf: dict, emission, vertex_reflectance=None,
+                  uvs=None):
+    """An ``mi.Mesh``; ``uvs`` in our convention (v = 1 at the image's top) become Mitsuba's (row 0 at v = 0)."""
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf)
     if emission is not None:
         props["emitter"] = mi.load_dict({"type": "area", "radiance": _rgb(emission)})
-    mesh = mi.Mesh(name, len(vertices), len(faces), props=props, has_vertex_normals=normals is not None)
+    mesh = mi.Mesh(name, len(vertices), len(faces), props=props, has_vertex_normals=normals is not None,
+                   has_vertex_texcoords=uvs is not None)
     params = mi.traverse(mesh)
     params["vertex_positions"] = np.ascontiguousarray(vertices, np.float32).ravel()
     params["faces"] = np.ascontiguousarray(faces, np.uint32).ravel()
     if normals is not None:
         params["vertex_normals"] = np.ascontiguousarray(normals, np.float32).ravel()
+    if uvs is not None:
+        flipped = np.asarray(uvs, np.float64) * [1, -1] + [0, 1]
+        params["vertex_texcoords"] = np.ascontiguousarray(flipped, np.float32).ravel()
     params.update()
     if vertex_reflectance is not None:
         mesh.add_attribute("vertex_color", 3, np.ascontiguousarray(vertex_reflectance, np.float32).ravel())
@@ -138,10 +157,12 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         normals = None if mesh.normals is None else transform_normals(transform, mesh.normals)
         key = f"mesh{index:04d}-" + re.sub(r"[^A-Za-z0-9_-]", "_", mesh.name)
         colors = vertex_colors_as_rendered(mesh)
+        textured = None if mesh.texture is None else textured_reflectance(mi, mesh.texture, material.reflectance)
         result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
-                                    surface_bsdf(material, colors is not None),
+                                    surface_bsdf(material, colors is not None, textured),
                                     material.emission if material.is_emissive else None,
-                                    None if colors is None else colors * material.reflectance)
+                                    None if colors is None else colors * material.reflectance,
+                                    None if mesh.texture is None else mesh.uvs)
     for index, light in enumerate(scene.lights):
         if isinstance(light, PointLight):
             result[f"light{index:03d}"] = {"type": "point", "position": [float(x) for x in light.position],

@@ -134,9 +134,16 @@ class Mesh:
     transform: np.ndarray = field(default_factory=lambda: np.eye(4, dtype=np.float32))
     keyframes: dict[int, np.ndarray] = field(default_factory=dict)
     # (V, 3) linear RGB in [0, 1] per vertex, interpolated across each triangle, multiplying the material's
-    # reflectance (a mesh file's vertex colours, or a texture sampled at its vertices); stored on the GPU as
-    # 8-bit sRGB (``srgb8``), so every renderer of the scene reads ``vertex_colors_as_rendered``.
+    # reflectance (a mesh file's vertex or face colours); stored on the GPU as 8-bit sRGB (``srgb8``), so
+    # every renderer of the scene reads ``vertex_colors_as_rendered``.
     colors: np.ndarray | None = None
+    # A colour texture: (H, W, 3) uint8 sRGB codes, row 0 the image's top, and (V, 2) float32 coordinates
+    # per vertex (trimesh's convention: v = 1 at the image's top; repeated outside [0, 1]), interpolated
+    # across each triangle; its bilinear sample (texels decoded to linear first, ``sample_texture``)
+    # multiplies the material's reflectance. A mesh has ``colors`` or a texture, not both. Meshes may share
+    # one image array (it is stored once).
+    texture: np.ndarray | None = None
+    uvs: np.ndarray | None = None
 
     def transform_at(self, frame: int) -> np.ndarray:
         return _interpolate(self.keyframes, frame, self.transform)
@@ -148,18 +155,19 @@ class Mesh:
     @property
     def shape_key(self) -> tuple[int, int, int]:
         """Equal for meshes that share their arrays (instances of one shape), else different."""
-        return id(self.vertices), id(self.faces), id(self.normals), id(self.colors)
+        return id(self.vertices), id(self.faces), id(self.normals), id(self.colors), id(self.texture), id(self.uvs)
 
     def instance(self, name: str, material: str | None = None, transform=None, keyframes=None) -> Mesh:
         """Another placement of this mesh's shape (its arrays shared, not copied, and made read-only so
         that an edit cannot move every instance at once), with its own name, material (default: this
         mesh's), transform (default: identity) and keyframes (default: none)."""
-        for array in (self.vertices, self.faces, self.normals, self.colors):
+        for array in (self.vertices, self.faces, self.normals, self.colors, self.texture, self.uvs):
             if array is not None:
                 array.flags.writeable = False
         placement = np.eye(4) if transform is None else transform
         return Mesh(name, self.vertices, self.faces, self.material if material is None else material,
-                    self.normals, np.asarray(placement, np.float32), dict(keyframes or {}), self.colors)
+                    self.normals, np.asarray(placement, np.float32), dict(keyframes or {}), self.colors,
+                    self.texture, self.uvs)
 
 
 def srgb8(colors: np.ndarray) -> np.ndarray:
@@ -178,6 +186,25 @@ def linear_from_srgb8(codes: np.ndarray) -> np.ndarray:
 def vertex_colors_as_rendered(mesh: "Mesh") -> np.ndarray | None:
     """``mesh.colors`` as the tracer reads them (through 8-bit sRGB), or None."""
     return None if mesh.colors is None else linear_from_srgb8(srgb8(mesh.colors))
+
+
+def sample_texture(texture: np.ndarray, uvs: np.ndarray) -> np.ndarray:
+    """(N, 3) float32 linear RGB: the (H, W, 3) sRGB8 ``texture`` at (N, 2) coordinates ``uvs`` as the tracer
+    samples it (wgsl/trace/surface_textures.wgsl) and Mitsuba's bitmap with bilinear filtering and repeat
+    wrapping does: coordinates wrapped to [0, 1), v = 1 at the image's top, texel centres at half-integers,
+    texels decoded to linear and blended bilinearly."""
+    height, width = texture.shape[:2]
+    linear = linear_from_srgb8(texture).astype(np.float64)
+    uvs = np.asarray(uvs, np.float64)
+    x = (uvs[:, 0] - np.floor(uvs[:, 0])) * width - 0.5
+    y = (1.0 - uvs[:, 1] - np.floor(1.0 - uvs[:, 1])) * height - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
+    texel = lambda col, row: linear[row % height, col % width]  # noqa: E731
+    top = (1 - fx) * texel(x0, y0) + fx * texel(x0 + 1, y0)
+    bottom = (1 - fx) * texel(x0, y0 + 1) + fx * texel(x0 + 1, y0 + 1)
+    return ((1 - fy) * top + fy * bottom).astype(np.float32)
 
 
 @dataclass
@@ -222,6 +249,11 @@ class Scene:
         mix = lambda x, y: ((1 - w) * x + w * y).astype(np.float32)  # noqa: E731
         return Camera(mix(a.origin, b.origin), mix(a.target, b.target), mix(a.up, b.up),
                       (1 - w) * a.fov + w * b.fov, a.fov_axis)
+
+    def textures(self) -> list[np.ndarray]:
+        """The meshes' texture images, each distinct array once, in order of first appearance (a mesh's
+        texture's index in this list is the one the tracer stores for its triangles)."""
+        return list({id(m.texture): m.texture for m in self.meshes if m.texture is not None}.values())
 
     def shapes(self) -> list[list[int]]:
         """Indices into ``meshes`` grouped by shape (``Mesh.shape_key``), in order of first appearance:

@@ -1,5 +1,6 @@
-"""Packing the shading side of a scene for the kernel: materials, the emitter table and the frame
-parameters (bind group 1; record layouts as in wgsl/trace/material.wgsl and wgsl/trace/trace_bindings.wgsl).
+"""Packing the shading side of a scene for the kernel: materials, the emitter table, the frame
+parameters and the surface textures (bind group 1; record layouts as in wgsl/trace/material.wgsl,
+wgsl/trace/trace_bindings.wgsl and wgsl/trace/surface_textures.wgsl).
 
 Next-event estimation picks a light in two steps. The table's entries fall into *emitter groups*: the
 emissive triangles of one mesh, each point light, the sun, the background. At each shading point a
@@ -71,6 +72,32 @@ def pack_materials(materials: list[Material]) -> np.ndarray:
         out[i] = (m.reflectance, MATERIAL_KIND_CODES[m.kind], m.emission, m.roughness, m.eta, m.ior, m.k,
                   int(m.is_emissive))
     return out
+
+
+TEXTURE_HEADER_WORDS = 4   # where the triangle records start, the texture count, two spare words
+TEXTURE_ENTRY_WORDS = 4    # per texture: its first texel's word, width, height, a spare word
+
+
+def pack_textures(textures: list[np.ndarray], records: np.ndarray | None) -> np.ndarray:
+    """The surface-texture buffer (bind group 1, binding 5; wgsl/trace/surface_textures.wgsl) as u32 words:
+    a header (where the triangle records start, the texture count), an entry per texture of ``textures``
+    ((H, W, 3) uint8 sRGB images), the per-triangle ``records`` (wgpu_rt.accel.geometry's texture
+    records, in the geometry's stored order), then every texture's texels as packed sRGB8 (R in the low
+    byte), row 0 the image's top. Without records (a scene with no texture), a header alone."""
+    header = np.zeros(TEXTURE_HEADER_WORDS, np.uint32)
+    if records is None:
+        return header
+    entries = np.zeros((len(textures), TEXTURE_ENTRY_WORDS), np.uint32)
+    header[0] = TEXTURE_HEADER_WORDS + entries.size
+    header[1] = len(textures)
+    start = header[0] + records.size
+    texels = []
+    for entry, image in zip(entries, textures):
+        codes = np.asarray(image, np.uint32)
+        entry[:3] = start, image.shape[1], image.shape[0]
+        texels.append((codes[..., 0] | codes[..., 1] << 8 | codes[..., 2] << 16).ravel())
+        start += texels[-1].size
+    return np.concatenate([header, entries.ravel(), np.asarray(records, np.uint32).ravel(), *texels])
 
 
 def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -46,6 +46,7 @@ from .scene_data import (
     camera_vectors,
     emissive_triangles,
     pack_materials,
+    pack_textures,
 )
 
 TILE = 8   # a workgroup traces TILE × TILE pixels (wgsl/trace/trace.wgsl)
@@ -119,7 +120,8 @@ def trace_layout(ctx, geometry_bindings: int, placement: BufferPlacement = Buffe
     no longer reads, and then one set of bind groups could not serve every specialization.
     Group 0 is the geometry's buffers (read-only storage; the first two uniform with
     ``placement.geometry``), group 1 the frame uniform, the material and emitter tables (uniform or
-    read-only storage) and two read-only tables, group 2 the six output planes; with ``work_list``
+    read-only storage) and three read-only tables (triangle emitter entries, sample counts, surface textures),
+    group 2 the six output planes; with ``work_list``
     (wgsl/trace/targeted.wgsl) group 3 is the work list's entries and totals (read-only) and the
     per-item sums and their entries."""
     import wgpu
@@ -137,7 +139,7 @@ def trace_layout(ctx, geometry_bindings: int, placement: BufferPlacement = Buffe
         words = uniform if placement.geometry else read_only
         # one set of group layouts for both pipeline layouts, so one set of bind groups serves both
         _group_layouts[key] = [group([words] * 2 + [read_only] * (geometry_bindings - 2)),
-                               group([uniform, tables, tables, read_only, read_only]),
+                               group([uniform, tables, tables, read_only, read_only, read_only]),
                                group([storage] * len(TracePass.outputs)),
                                group([read_only, read_only, storage, storage])]
     groups = _group_layouts[key]
@@ -400,6 +402,9 @@ class TracePass(ComputePass):
             self._materials = ctx.upload(material_records, label="materials")
             self._emitters = ctx.upload(emitters.records, label="emitters")
         self._triangle_entry = ctx.upload(emitters.triangle_entry, label="triangle emitter entries")
+        textures = pack_textures(scene.textures(), geometry.texture_records)
+        ctx.check_buffer_size(textures.nbytes, f"scene {scene.name!r}: surface textures")
+        self._textures = ctx.upload(textures, label="surface textures")
         self.set_frame(scene, frame, seed)
         self._no_counts = ctx.storage(16, label="no sample counts")
         self._param_buffers: dict[tuple, list] = {}
@@ -506,7 +511,7 @@ class TracePass(ComputePass):
                 constants={**self.features.constants(), "AUX_SAMPLES": samples, "AUX_DELTA_SAMPLES": delta_samples},
                 label=f"aux {self.features}", layout=trace_layout(self.ctx, geometry_bindings, placement))
         shading = self._bind_group(1, [self._params_buffer(SampleSchedule()), self._materials, self._emitters,
-                                       self._triangle_entry, self._no_counts])
+                                       self._triangle_entry, self._no_counts, self._textures])
         compute = encoder.begin_compute_pass(label="aux")
         compute.set_pipeline(pipeline)
         compute.set_bind_group(0, self._geometry_group)
@@ -524,7 +529,8 @@ class TracePass(ComputePass):
         """Record the dispatches that add ``schedule``'s samples to ``buffers``."""
         uniform = self._params_buffer(schedule)
         counts = schedule.sample_counts if schedule.sample_counts is not None else self._no_counts
-        shading = self._bind_group(1, [uniform, self._materials, self._emitters, self._triangle_entry, counts])
+        shading = self._bind_group(1, [uniform, self._materials, self._emitters, self._triangle_entry, counts,
+                                       self._textures])
         planes = self._bind_group(2, [buffers.get(spec) for spec in self.outputs])
         if schedule.sample_counts is not None:
             self._execute_targeted(encoder, buffers, schedule, uniform, shading, planes)

@@ -67,7 +67,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
         if sampling {
             var sample_done = true;
             if hit.prim != NO_HIT {
-                let material = vertex_colored(materials[tri_material(hit.prim)], hit);
+                let material = surface_colored(materials[tri_material(hit.prim)], hit);
                 let delta = material_is_delta(material);
                 met_delta = met_delta || delta;
                 if !delta {

@@ -6,12 +6,14 @@
 // #import trace/features.wgsl
 // #import accel/bvh.wgsl
 // #import trace/material.wgsl
+// #import trace/surface_textures.wgsl
 
-// A hit's material (its triangle's) with the reflectance tinted by the mesh's vertex colours there.
-fn vertex_colored(material: Material, hit: Hit) -> Material {
+// A hit's material (its triangle's) with the reflectance tinted by its mesh's vertex colours or texture
+// there (each white where the mesh has none).
+fn surface_colored(material: Material, hit: Hit) -> Material {
     var tinted = material;
-    if HAS_VERTEX_COLORS {
-        tinted.reflectance *= tri_color(hit.prim, hit.u, hit.v);
+    if HAS_SURFACE_COLORS {
+        tinted.reflectance *= tri_color(hit.prim, hit.u, hit.v) * texture_color(hit.prim, hit.u, hit.v);
     }
     return tinted;
 }

@@ -115,7 +115,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     }
     let geometric_normal = traced.geometric_normal;
     let position = origin + hit.t * dir;
-    let material = vertex_colored(materials[tri_material(hit.prim)], hit);
+    let material = surface_colored(materials[tri_material(hit.prim)], hit);
     let cos_front = -dot(geometric_normal, dir);
 
     if HAS_AREA_LIGHTS && material.is_emissive != 0u && cos_front > 0.0 {
