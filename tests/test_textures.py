@@ -181,3 +181,80 @@ def test_malformed_textures_are_refused_by_name(change, message):
         setattr(tile, key, value)
     with pytest.raises(SceneError, match=f"mesh 'tile'.*{message}"):
         GeometryBuffers.build(_scene(tile))
+
+
+# -- scene files: a mesh entry's `texture` and `texture_repeat` ------------------------------------------------
+def _scene_file(tmp_path, **entry):
+    from wgpu_rt.scene.loader import parse_scene
+
+    data = {"camera": {"origin": [0, 0, 1], "target": [0, 0, 0], "fov": 90},
+            "materials": {"paint": {"kind": "diffuse", "reflectance": REFLECTANCE},
+                          "lamp": {"kind": "diffuse", "emission": 1.0}},
+            "meshes": [{"shape": "rectangle", "material": "paint", **entry},
+                       {"shape": "rectangle", "material": "lamp", "transform": {"translate": [0, 0, 5]}}]}
+    return parse_scene(data, "scene.json", tmp_path)
+
+
+def test_a_scene_files_texture_on_a_rectangle_shows_upright(gpu, tmp_path):
+    """The image file's top row at the rectangle's top seen from its front, repeated as told."""
+    pixels = _texture(seed=7)
+    Image.fromarray(pixels).save(tmp_path / "paint.png")
+    scene = _scene_file(tmp_path, texture="paint.png")
+    np.testing.assert_array_equal(scene.meshes[0].texture, pixels)
+    albedo = _albedo(gpu, scene)
+    expected = REFLECTANCE * sample_texture(pixels, _pixel_centre_uvs()).reshape(SIZE, SIZE, 3)
+    assert np.median(np.abs(albedo - expected)) < 0.01
+    repeated = _scene_file(tmp_path, texture="paint.png", texture_repeat=[2, 3])
+    np.testing.assert_allclose(repeated.meshes[0].uvs, scene.meshes[0].uvs * [2, 3])
+
+
+def test_every_cube_face_shows_the_whole_image_upright():
+    from wgpu_rt.scene.primitives import primitive, primitive_uvs
+
+    vertices = primitive("cube")[0].reshape(6, 4, 3)
+    uvs = primitive_uvs("cube").reshape(6, 4, 2)
+    for face, coordinates in zip(vertices, uvs):
+        normal = face.mean(0)
+        assert sorted(map(tuple, coordinates)) == [(0, 0), (0, 1), (1, 0), (1, 1)]
+        if abs(normal[1]) < 0.5:      # a side face: v rises with y, u to the right seen from outside
+            np.testing.assert_allclose(coordinates[:, 1], (face[:, 1] + 1) / 2)
+            right = np.cross([0, 1, 0], normal)
+            np.testing.assert_allclose(coordinates[:, 0], (face @ right + 1) / 2)
+
+
+@pytest.mark.parametrize("entry, message", [
+    (dict(texture="missing.png"), r"meshes\[0\]\.texture: .*missing\.png: texture image not found"),
+    (dict(texture="bad.png"), r"meshes\[0\]\.texture: .*bad\.png: cannot read texture image"),
+    (dict(texture=3), r"meshes\[0\]\.texture: expected a string"),
+    (dict(shape="sphere", texture="paint.png"), r"meshes\[0\]\.texture: a sphere has no texture coordinates"),
+    (dict(texture="paint.png", texture_repeat=0), r"meshes\[0\]\.texture_repeat: expected counts in"),
+    (dict(texture="paint.png", texture_repeat=[1, 2, 3]), r"meshes\[0\]\.texture_repeat: expected a number or a list"),
+    (dict(texture_repeat=2), r"meshes\[0\]\.texture_repeat: the mesh has no texture to repeat"),
+])
+def test_bad_texture_entries_are_refused_by_field(tmp_path, entry, message):
+    Image.fromarray(_texture()).save(tmp_path / "paint.png")
+    (tmp_path / "bad.png").write_bytes(b"not a png")
+    with pytest.raises(SceneError, match=message):
+        _scene_file(tmp_path, **entry)
+
+
+def test_a_texture_on_a_mesh_file_reads_the_files_coordinates(tmp_path):
+    """A file with coordinates but no image of its own takes the entry's image at them; one without
+    coordinates is refused, naming the file."""
+    from wgpu_rt.scene.loader import parse_scene
+
+    box = trimesh.creation.box()
+    uvs = np.random.default_rng(8).uniform(0, 1, (len(box.vertices), 2))
+    box.visual = trimesh.visual.TextureVisuals(uv=uvs)
+    box.export(tmp_path / "uv-box.obj")
+    trimesh.creation.box().export(tmp_path / "plain-box.obj")
+    pixels = _texture(seed=9)
+    Image.fromarray(pixels).save(tmp_path / "paint.png")
+    data = {"camera": {"origin": [0, 0, 5], "target": [0, 0, 0]}, "materials": {"paint": {"kind": "diffuse"}},
+            "meshes": [{"file": "uv-box.obj", "material": "paint", "texture": "paint.png"}]}
+    (mesh,) = parse_scene(data, "scene.json", tmp_path).meshes
+    np.testing.assert_array_equal(mesh.texture, pixels)
+    assert mesh.uvs.shape == (len(mesh.vertices), 2)
+    data["meshes"][0]["file"] = "plain-box.obj"
+    with pytest.raises(SceneError, match=r"meshes\[0\]\.file: .*plain-box\.obj.*has no texture coordinates"):
+        parse_scene(data, "scene.json", tmp_path)

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from .meshio import load_mesh_file
+from .meshio import load_mesh_file, read_texture_image
 from .model import FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight, Scene
-from .primitives import PRIMITIVES, primitive
+from .primitives import PRIMITIVES, primitive, primitive_uvs
 from .transforms import compose, rotate, scale, translate
 
 SCENE_SUFFIXES = (".json", ".toml")
@@ -28,6 +28,7 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 # lengths (triangle normals) in float32, so surfaces lose their normals beyond about 4e9 (measured: a
 # cube of half-size 3e9 renders without its emission, one of 1e9 exactly as one of 1).
 WORLD_LIMIT = 1e9
+MAX_TEXTURE_REPEAT = 1e4   # beyond it float32 coordinates (24-bit mantissa) no longer resolve a texel of a 1k image
 _MISSING = object()
 
 
@@ -304,6 +305,17 @@ def _place(mesh: Mesh, fields: _Fields, transform: np.ndarray, keyframes: dict,
     _check_blends(keyframe_fields or fields, mesh)
 
 
+def _texture(fields: _Fields, folder: Path) -> np.ndarray | None:
+    """An entry's ``texture`` image (a path relative to the scene file), or None."""
+    if not fields.has("texture"):
+        return None
+    file = fields.string("texture")
+    try:
+        return read_texture_image(Path(file) if Path(file).is_absolute() else folder / file)
+    except SceneError as err:
+        fields.fail(str(err), "texture")
+
+
 def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
     material = _material_name(fields, materials)
     has_file, has_shape = fields.has("file"), fields.has("shape")
@@ -312,11 +324,17 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
     name = fields.string("name", "")
     transform, keyframes = _placement(fields)
     instances = fields.tables("instances") if fields.has("instances") else None
+    texture = _texture(fields, folder)
     if has_shape:
         kind = fields.string("shape", choices=PRIMITIVES)
         vertices, faces, normals = primitive(kind)
         base = name or kind
         parts = [Mesh(base, vertices, faces, material, normals=normals)]
+        if texture is not None:
+            uvs = primitive_uvs(kind)
+            if uvs is None:
+                fields.fail(f"a {kind} has no texture coordinates; give a mesh file that has them", "texture")
+            parts[0].texture, parts[0].uvs = texture, uvs
     else:
         file = fields.string("file")
         path = Path(file) if Path(file).is_absolute() else folder / file
@@ -325,9 +343,18 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         if not isinstance(colors, bool):
             fields.fail(f"expected true or false, got {_show(colors)}", "vertex_colors")
         try:
-            parts = load_mesh_file(path, material, base, vertex_colors=colors)
+            parts = load_mesh_file(path, material, base, vertex_colors=colors, texture=texture)
         except SceneError as err:
             fields.fail(str(err), "file")
+    if fields.has("texture_repeat"):
+        repeat = fields.vector("texture_repeat", length=2, broadcast=True)
+        if np.any(repeat <= 0) or np.any(repeat > MAX_TEXTURE_REPEAT):
+            fields.fail(f"expected counts in (0, {MAX_TEXTURE_REPEAT:g}], got {repeat.tolist()}", "texture_repeat")
+        if all(part.uvs is None for part in parts):
+            fields.fail("the mesh has no texture to repeat (give 'texture', or a mesh file with one)", "texture_repeat")
+        for part in parts:
+            if part.uvs is not None:
+                part.uvs = (part.uvs * repeat).astype(np.float32)
     fields.done()
     if instances is None:
         for part in parts:

@@ -68,11 +68,8 @@ def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict) -> tuple[
     image = getattr(material, "image", None)
     if image is None:
         image = getattr(material, "baseColorTexture", None)
-    uvs = getattr(visual, "uv", None)
+    uvs = file_uvs(geometry)
     if image is None or uvs is None:
-        return None
-    uvs = np.asarray(uvs, np.float64)
-    if uvs.shape != (len(geometry.vertices), 2) or not np.all(np.isfinite(uvs)):
         return None
     if id(image) not in decoded:
         try:
@@ -81,12 +78,42 @@ def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict) -> tuple[
             raise SceneError(f"{where}: cannot read its texture image ({type(err).__name__}: {err})") from err
         decoded[id(image)] = (pixels if pixels.ndim == 3 and min(pixels.shape[:2]) > 0 else None, image)
     pixels = decoded[id(image)][0]
-    return None if pixels is None else (pixels, uvs.astype(np.float32))
+    return None if pixels is None else (pixels, uvs)
 
 
-def load_mesh_file(path: Path, material: str, name: str | None = None, vertex_colors: bool = True) -> list:
+def read_texture_image(path: Path) -> np.ndarray:
+    """The image file at ``path`` (PNG, JPEG, anything Pillow reads) as an (H, W, 3) uint8 sRGB texture (an
+    alpha dropped, grey expanded); SceneError naming the file if it is missing or cannot be decoded."""
+    from PIL import Image
+
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"{path}: texture image not found")
+    try:
+        with Image.open(path) as image:
+            pixels = np.asarray(image.convert("RGB"), np.uint8)
+    except Exception as err:   # Pillow raises many types for a file it cannot decode
+        raise SceneError(f"{path}: cannot read texture image ({type(err).__name__}: {err})") from err
+    return np.ascontiguousarray(pixels)
+
+
+def file_uvs(geometry: trimesh.Trimesh) -> np.ndarray | None:
+    """A geometry's texture coordinates per vertex (float32), None where it has none (or not finite)."""
+    uvs = getattr(geometry.visual, "uv", None)
+    if uvs is None:
+        return None
+    uvs = np.asarray(uvs, np.float64)
+    if uvs.shape != (len(geometry.vertices), 2) or not np.all(np.isfinite(uvs)):
+        return None
+    return uvs.astype(np.float32)
+
+
+def load_mesh_file(path: Path, material: str, name: str | None = None, vertex_colors: bool = True,
+                   texture: np.ndarray | None = None) -> list:
     """The meshes of the file at ``path``, all with ``material``, named ``name`` (default: file stem), with
-    the file's vertex colours (``file_vertex_colors``) unless ``vertex_colors`` is False."""
+    the file's vertex colours or texture (``file_vertex_colors``, ``file_texture``) unless ``vertex_colors``
+    is False; ``texture`` (an (H, W, 3) uint8 image) replaces the file's images at the file's texture
+    coordinates (a SceneError where a geometry has none)."""
     from .model import Mesh
 
     path = Path(path)
@@ -123,12 +150,17 @@ def load_mesh_file(path: Path, material: str, name: str | None = None, vertex_co
             normals = np.asarray(geometry.vertex_normals, np.float32)
             if normals.shape != vertices.shape or not np.all(np.isfinite(normals)):
                 normals = None
-        texture, uvs = (file_texture(geometry, where, decoded) if vertex_colors else None) or (None, None)
-        colors = file_vertex_colors(geometry) if vertex_colors and texture is None else None
+        if texture is not None:
+            image, uvs = texture, file_uvs(geometry)
+            if uvs is None:
+                raise SceneError(f"{where}: has no texture coordinates for the texture to be read at")
+        else:
+            image, uvs = (file_texture(geometry, where, decoded) if vertex_colors else None) or (None, None)
+        colors = file_vertex_colors(geometry) if vertex_colors and image is None else None
         first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
                                               material, normals=normals,
                                               transform=np.asarray(transform, np.float32), colors=colors,
-                                              texture=texture, uvs=uvs)
+                                              texture=image, uvs=uvs)
         meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")
