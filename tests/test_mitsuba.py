@@ -180,3 +180,15 @@ def test_textures_match_mitsuba(gpu):
 
     distance, flipped_distance = _matches_mitsuba(textured(False), textured(True))
     assert flipped_distance > 2 * distance
+
+
+def test_thin_lens_matches_mitsuba(gpu):
+    """cornell through a thin lens focused on the short box's front (2.9 units ahead), aperture radius 0.15:
+    the light and the back wall blur as in Mitsuba's thinlens sensor, which a pinhole must be told from."""
+    def lens(aperture_radius: float):
+        scene = load_scene("cornell")
+        scene.camera.aperture_radius, scene.camera.focus_distance = aperture_radius, 2.9
+        return scene
+
+    distance, pinhole_distance = _matches_mitsuba(lens(0.15), lens(0.0))
+    assert pinhole_distance > 2 * distance

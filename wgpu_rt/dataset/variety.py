@@ -196,7 +196,9 @@ def _jittered_camera(base: Camera, rng: np.random.Generator, amount: float) -> C
     origin = base.target + direction * distance * float(rng.uniform(0.75, 1.15))
     target = base.target + rng.normal(0, amount * 0.5 * distance, 3)
     fov = float(np.clip(base.fov * rng.uniform(0.8, 1.2), 10.0, 100.0))
-    return Camera(origin.astype(np.float32), target.astype(np.float32), base.up, fov, base.fov_axis)
+    # a lens keeps its aperture and focuses on the new target
+    return Camera(origin.astype(np.float32), target.astype(np.float32), base.up, fov, base.fov_axis,
+                  base.aperture_radius)
 
 
 def catmull_rom(points: np.ndarray, samples: int) -> np.ndarray:
@@ -228,7 +230,8 @@ def randomize_camera(scene: Scene, rng: np.random.Generator, frames: int, jitter
     origins = start_o + (origins - start_o) * 0.15
     targets = start_t + (targets - start_t) * 0.15
     scene.camera_keyframes = {f: Camera(origins[f].astype(np.float32), targets[f].astype(np.float32),
-                                        base.up, controls[0].fov, base.fov_axis) for f in range(frames)}
+                                        base.up, controls[0].fov, base.fov_axis, base.aperture_radius)
+                              for f in range(frames)}
     scene.camera = scene.camera_keyframes[0]
 
 

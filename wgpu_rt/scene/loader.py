@@ -266,10 +266,16 @@ def _camera(fields: _Fields, base: Camera | None = None) -> Camera:
         fields.fail("origin and target must differ")
     if not np.linalg.norm(np.cross(forward, up)) > 1e-9 * np.linalg.norm(forward) * max(np.linalg.norm(up), 1e-30):
         fields.fail("up must not be parallel to the view direction", "up")
+    aperture = fields.number("aperture_radius") if fields.has("aperture_radius") else (
+        base.aperture_radius if base else 0.0)
+    focus = fields.number("focus_distance") if fields.has("focus_distance") else None
+    if focus is None and base is not None and not (fields.has("origin") or fields.has("target")):
+        focus = base.focus_distance   # a keyframe that keeps the base camera's place keeps its focus
     try:
-        return Camera(origin, target, up, fov, fov_axis)
+        return Camera(origin, target, up, fov, fov_axis, aperture, focus)
     except ValueError as err:
-        fields.fail(str(err))
+        fields.fail(str(err), "aperture_radius" if "aperture" in str(err) else
+                    "focus_distance" if "focus" in str(err) else None)
 
 
 def _frame_of(fields: _Fields) -> int:

@@ -15,8 +15,8 @@ BSDF its material maps to:
 - emissive materials add a one-sided ``area`` emitter; point/directional lights and a non-black
   background (``constant``) map to their Mitsuba plugins.
 
-The sensor is a ``perspective`` camera with a box pixel filter and an ``independent`` sampler seeded
-with ``seed``; the integrator is ``path`` with the same ``max_depth``. Needs the ``bench`` extra.
+The sensor is a ``perspective`` camera (``thinlens`` with an aperture) with a box pixel filter and an
+``independent`` sampler seeded with ``seed``; the integrator is ``path`` with the same ``max_depth``. Needs the ``bench`` extra.
 
 ``load_mitsuba`` sets Mitsuba to the fastest variant this machine has (``variant_choice``: cuda_ad_rgb where
 Dr.Jit finds a CUDA GPU, else llvm_ad_rgb when Debian's LLVM 19 is installed (`apt-get install -y libllvm19`;
@@ -137,11 +137,13 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
     if use_variant(mi) is None:
         raise RuntimeError(f"no Mitsuba variant of {CROSS_CHECK_VARIANTS} loads in this build")
     camera = scene.camera_at(frame)
+    lens = {"type": "thinlens", "aperture_radius": camera.aperture_radius,
+            "focus_distance": camera.focus_distance} if camera.aperture_radius > 0 else {"type": "perspective"}
     result = {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": int(max_depth)},
         "sensor": {
-            "type": "perspective", "fov": float(camera.fov), "fov_axis": camera.fov_axis,
+            **lens, "fov": float(camera.fov), "fov_axis": camera.fov_axis,
             "near_clip": 1e-4, "far_clip": 1e7,
             "to_world": mi.ScalarTransform4f().look_at(origin=[float(x) for x in camera.origin],
                                                        target=[float(x) for x in camera.target],

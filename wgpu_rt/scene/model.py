@@ -72,13 +72,18 @@ class Material:
 
 @dataclass
 class Camera:
-    """A pinhole look-at camera (Mitsuba's ``perspective`` sensor with a box filter)."""
+    """A look-at camera with a box filter: a pinhole (Mitsuba's ``perspective`` sensor), or with an
+    ``aperture_radius`` above 0 a thin lens (Mitsuba's ``thinlens``): rays leave a disc of that radius
+    about ``origin`` across the view direction and meet where the pinhole's would on the plane
+    ``focus_distance`` ahead of it (default: the target's distance), so only that plane is sharp."""
 
     origin: np.ndarray
     target: np.ndarray
     up: np.ndarray = field(default_factory=lambda: np.array([0, 1, 0], np.float32))
     fov: float = 39.3077
     fov_axis: str = "smaller"
+    aperture_radius: float = 0.0
+    focus_distance: float | None = None
 
     def __post_init__(self):
         self.origin = np.asarray(self.origin, np.float32)
@@ -88,6 +93,13 @@ class Camera:
             raise ValueError(f"unknown fov_axis {self.fov_axis!r}; expected one of {FOV_AXES}")
         if not (MIN_FOV <= float(self.fov) < 180.0):
             raise ValueError(f"fov must be in [{MIN_FOV:g}, 180) degrees, got {self.fov}")
+        if not (np.isfinite(self.aperture_radius) and float(self.aperture_radius) >= 0.0):
+            raise ValueError(f"aperture_radius must be finite and not negative, got {self.aperture_radius}")
+        if self.focus_distance is None:
+            self.focus_distance = float(np.linalg.norm(self.target.astype(np.float64) - self.origin))
+        if not (np.isfinite(self.focus_distance) and float(self.focus_distance) > 0.0):
+            raise ValueError(f"focus_distance must be finite and positive, got {self.focus_distance}")
+        self.aperture_radius, self.focus_distance = float(self.aperture_radius), float(self.focus_distance)
 
     def basis(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Unit (right, up, forward) vectors. Image +x goes along ``right`` and image +y (rows, top
@@ -248,7 +260,8 @@ class Scene:
         w = (frame - lo) / (hi - lo)
         mix = lambda x, y: ((1 - w) * x + w * y).astype(np.float32)  # noqa: E731
         return Camera(mix(a.origin, b.origin), mix(a.target, b.target), mix(a.up, b.up),
-                      (1 - w) * a.fov + w * b.fov, a.fov_axis)
+                      (1 - w) * a.fov + w * b.fov, a.fov_axis, (1 - w) * a.aperture_radius + w * b.aperture_radius,
+                      (1 - w) * a.focus_distance + w * b.focus_distance)
 
     def textures(self) -> list[np.ndarray]:
         """The meshes' texture images, each distinct array once, in order of first appearance (a mesh's

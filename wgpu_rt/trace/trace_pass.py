@@ -461,6 +461,8 @@ class TracePass(ComputePass):
         params["emitter_group_count"] = len(emitters.groups)
         params["emitter_groups"][:len(emitters.groups)] = emitters.groups
         params["background"] = scene.background
+        camera = scene.camera_at(frame)
+        params["lens_radius"], params["focus_distance"] = camera.aperture_radius, camera.focus_distance
         return params
 
     # A frame allocates nothing: one parameter buffer per kind of pass (its schedule's shape), rewritten

@@ -45,8 +45,9 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
     let pixel = select(0u, xy.y * params.width + xy.x, inside);
     let seed = params.seed ^ AUX_SEED_SALT;
     var sampler = sampler_start(pixel, 0u, seed);
-    var origin = params.camera_origin;
-    var dir = camera_ray_direction(vec2f(xy) + next_2d(&sampler));
+    var ray = camera_ray(vec2f(xy) + next_2d(&sampler), &sampler);
+    var origin = ray.origin;
+    var dir = ray.dir;
     var depth = 0u;
     var index = 0u;
     var sum = vec3f(0.0);
@@ -110,8 +111,9 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                 sampling = index < select(AUX_SAMPLES, AUX_DELTA_SAMPLES, met_delta)
                            && loop_passes < AUX_LOOP_BUDGET;
                 sampler = sampler_start(pixel, index, seed);
-                origin = params.camera_origin;
-                dir = camera_ray_direction(vec2f(xy) + next_2d(&sampler));
+                ray = camera_ray(vec2f(xy) + next_2d(&sampler), &sampler);
+                origin = ray.origin;
+                dir = ray.dir;
                 depth = 0u;
                 weight = 1.0;
                 met_glass = false;

@@ -88,13 +88,13 @@ fn next_2d(s: ptr<function, Sampler>) -> vec2f {
 
 // -- warps from the unit square ---------------------------------------------------------------------
 
-fn square_to_cosine_hemisphere(u: vec2f) -> vec3f {
-    // concentric disk mapping (Shirley-Chiu), lifted to the hemisphere
+// A point uniform over the unit disc: the concentric mapping (Shirley-Chiu), which keeps strata compact.
+fn square_to_uniform_disk(u: vec2f) -> vec2f {
     let p = 2.0 * u - 1.0;
     var r: f32;
     var phi: f32;
     if p.x == 0.0 && p.y == 0.0 {
-        return vec3f(0.0, 0.0, 1.0);
+        return vec2f(0.0);
     }
     if abs(p.x) > abs(p.y) {
         r = p.x;
@@ -103,7 +103,12 @@ fn square_to_cosine_hemisphere(u: vec2f) -> vec3f {
         r = p.y;
         phi = (PI / 2.0) - (PI / 4.0) * (p.x / p.y);
     }
-    let d = r * vec2f(cos(phi), sin(phi));
+    return r * vec2f(cos(phi), sin(phi));
+}
+
+fn square_to_cosine_hemisphere(u: vec2f) -> vec3f {
+    // the uniform disc lifted to the hemisphere
+    let d = square_to_uniform_disk(u);
     return vec3f(d, sqrt(max(0.0, 1.0 - dot(d, d))));
 }
 

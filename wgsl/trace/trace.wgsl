@@ -84,7 +84,8 @@ fn shadow_ray_to_light(position: vec3f, geometric_normal: vec3f, light: EmitterS
 
 fn start_path(sampler: ptr<function, Sampler>, pixel_corner: vec2f) -> Path {
     let film = pixel_corner + next_2d(sampler);
-    return Path(params.camera_origin, 0u, camera_ray_direction(film), 1.0, vec3f(1.0), 0.0, params.camera_origin,
+    let ray = camera_ray(film, sampler);
+    return Path(ray.origin, 0u, ray.dir, 1.0, vec3f(1.0), 0.0, ray.origin,
                 0.0, vec3f(0.0), true, vec3f(0.0), WRITE_AOVS, vec3f(0.0), 0.0, film, vec2f(0.0));
 }
 

@@ -27,6 +27,9 @@ struct FrameParams {
     pass_samples: u32,        // the count each pixel takes in a uniform pass
     emitter_group_count: u32,
     background_group: u32,
+    lens_radius: f32,         // the thin lens's aperture radius (0: a pinhole; trace/camera.wgsl)
+    focus_distance: f32,      // along camera_forward, to the plane in focus
+    _pad: vec2u,
     emitter_groups: array<EmitterGroup, 16>,   // wgpu_rt.trace.scene_data.MAX_EMITTER_GROUPS
 }
 

@@ -1,0 +1,72 @@
+"""The thin-lens camera: rays from an aperture disc that meet on the plane in focus, so that plane stays as
+sharp as a pinhole sees it and everything off it blurs by the circle of confusion; a pinhole's images stay
+as they were; bad lens settings refused by field. Mitsuba's agreement is in tests/test_mitsuba.py."""
+
+import numpy as np
+import pytest
+from test_textures import _albedo, _scene, _texture, _tile
+
+from wgpu_rt.errors import SceneError
+from wgpu_rt.scene.model import Camera
+
+
+def _tile_scene(aperture_radius=0.0, focus_distance=None):
+    scene = _scene(_tile(_texture(32, 32, seed=12)))
+    scene.camera.aperture_radius, scene.camera.focus_distance = aperture_radius, focus_distance or 1.0
+    return scene
+
+
+def test_the_plane_in_focus_stays_sharp_and_the_rest_blurs(gpu):
+    """The tile 1 unit ahead, a texel a pixel: focused on it, a wide aperture sees the texture as the pinhole
+    does (every ray of a pixel meets the tile at the pinhole ray's point); focused at half the distance, an
+    aperture of radius 0.1 spreads each pixel's rays over a disc of radius 0.1 on the tile (1.6 px at the
+    image's 16 px a unit), so the texels' contrast drops."""
+    pinhole = _albedo(gpu, _tile_scene(), spp=16)
+    focused = _albedo(gpu, _tile_scene(0.2, 1.0), spp=16)
+    blurred = _albedo(gpu, _tile_scene(0.1, 0.5), spp=64)
+    np.testing.assert_allclose(focused, pinhole, atol=2e-3)
+    inner = (slice(4, -4), slice(4, -4))
+    assert np.std(blurred[inner]) < 0.6 * np.std(pinhole[inner])
+    assert abs(float(blurred[inner].mean() - pinhole[inner].mean())) < 0.02     # blurred, not darkened
+
+
+def test_a_pinhole_keeps_its_image_bit_for_bit(gpu):
+    """An aperture of 0 takes the pinhole's rays: the same as before the lens existed, whatever the focus."""
+    np.testing.assert_array_equal(_albedo(gpu, _tile_scene(0.0, 0.3)), _albedo(gpu, _tile_scene(0.0, 7.0)))
+
+
+def test_lens_settings_interpolate_between_keyframes():
+    from wgpu_rt.scene.model import Scene
+
+    a = Camera([0, 0, 1], [0, 0, 0], aperture_radius=0.0)
+    b = Camera([0, 0, 3], [0, 0, 0], aperture_radius=0.2, focus_distance=5.0)
+    scene = Scene(a, [], {}, camera_keyframes={0: a, 4: b})
+    halfway = scene.camera_at(2)
+    assert halfway.aperture_radius == pytest.approx(0.1) and halfway.focus_distance == pytest.approx(3.0)
+    assert a.focus_distance == pytest.approx(1.0)      # the target's distance by default
+
+
+@pytest.mark.parametrize("camera, message", [
+    ({"aperture_radius": -0.1}, r"camera\.aperture_radius: aperture_radius must be finite and not negative"),
+    ({"aperture_radius": 0.1, "focus_distance": 0}, r"camera\.focus_distance: focus_distance must be finite"),
+    ({"aperture_radius": "wide"}, r"camera\.aperture_radius: expected a number"),
+])
+def test_bad_lens_settings_are_refused_by_field(tmp_path, camera, message):
+    from wgpu_rt.scene.loader import parse_scene
+
+    data = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0], **camera},
+            "materials": {"lamp": {"emission": 1.0}}, "meshes": [{"shape": "cube", "material": "lamp"}]}
+    with pytest.raises(SceneError, match=message):
+        parse_scene(data, "scene.json", tmp_path)
+
+
+def test_a_keyframe_that_moves_the_camera_refocuses_on_its_target(tmp_path):
+    from wgpu_rt.scene.loader import parse_scene
+
+    data = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0], "aperture_radius": 0.1, "focus_distance": 2.0,
+                       "keyframes": [{"frame": 0}, {"frame": 1, "fov": 30}, {"frame": 2, "origin": [0, 0, 5]},
+                                     {"frame": 3, "origin": [0, 0, 5], "focus_distance": 4.5}]},
+            "materials": {"lamp": {"emission": 1.0}}, "meshes": [{"shape": "cube", "material": "lamp"}]}
+    scene = parse_scene(data, "scene.json", tmp_path)
+    assert [scene.camera_at(f).focus_distance for f in range(4)] == pytest.approx([2.0, 2.0, 5.0, 4.5])
+    assert all(scene.camera_at(f).aperture_radius == pytest.approx(0.1) for f in range(4))
