@@ -62,9 +62,15 @@ USER_SCENES = [REPO / "benchmarks" / "scenes" / f"{name}.toml"
 
 
 def test_the_user_scenes_exist():
-    """The three user scenes, and the corridor of twenty lamps (light picks, BENCHMARKS.md §30)."""
+    """The three user scenes, the corridor of twenty lamps (light picks, BENCHMARKS.md §30) and the paved plaza
+    through a thin lens (§47)."""
     assert all(path in SCENE_FILES for path in USER_SCENES)
-    assert [p.stem for p in SCENE_FILES if p not in USER_SCENES] == ["corridor-lamps"]
+    assert [p.stem for p in SCENE_FILES if p not in USER_SCENES] == ["corridor-lamps", "plaza-lens"]
+
+
+def test_the_lens_scene_loads_with_its_texture_and_aperture(common):
+    [scene] = common.load_scenes([str(REPO / "benchmarks" / "scenes" / "plaza-lens.toml")])
+    assert scene.camera.aperture_radius > 0 and any(m.texture is not None for m in scene.meshes)
 
 
 def test_the_corridor_scene_loads_with_its_twenty_lamps(common):

@@ -300,7 +300,7 @@ def test_transform_order_and_matrix(tmp_path):
      r"camera.keyframes\[0\]: unknown key 'origni'"),
     (lambda d: d.pop("camera"), "scene.json: camera: required field is missing"),
     (lambda d: d["camera"].update(up=[0, 0, 1]), "scene.json: camera.up: up must not be parallel"),
-    (lambda d: d.update(lights=[{"type": "spot"}]), r"scene.json: lights\[0\].type: expected one of"),
+    (lambda d: d.update(lights=[{"type": "area"}]), r"scene.json: lights\[0\].type: expected one of"),
     (lambda d: d.update(lights=[{"type": "point", "position": [0, 0, 0], "intensity": True}]),
      r"scene.json: lights\[0\].intensity: expected a number or a list of 3 numbers"),
     (lambda d: d.update(meshes="cube"), "scene.json: meshes: expected a list"),

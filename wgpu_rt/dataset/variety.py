@@ -14,6 +14,7 @@ its scene exactly. Variations (all copies; the input scene is never mutated):
 from __future__ import annotations
 
 import copy
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -142,7 +143,7 @@ def randomize_lighting(scene: Scene, rng: np.random.Generator) -> None:
             lights.append(DirectionalLight((-toward_sun).astype(np.float32),
                                            blackbody_tint(rng.uniform(3500, 7500)) * strength))
         else:
-            lights.append(PointLight(light.position, np.asarray(light.intensity) * scale))
+            lights.append(replace(light, intensity=np.asarray(light.intensity) * scale))   # a spot stays a spot
     lo, hi = scene_bounds(scene)
     extent = float(np.max(hi - lo))
     for _ in range(int(rng.integers(0, 3))):

@@ -11,7 +11,7 @@ from pathlib import Path
 from ..errors import SceneError
 from .builtin import BUILTIN_SCENES, builtin_scene
 from .loader import SCENE_SUFFIXES, load_scene_file
-from .model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene
+from .model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene, SpotLight
 
 
 def load_scene(spec, mesh=None) -> Scene:
@@ -32,5 +32,5 @@ def load_scene(spec, mesh=None) -> Scene:
                      f"nor a .json/.toml scene file")
 
 
-__all__ = ["BUILTIN_SCENES", "Camera", "DirectionalLight", "Material", "Mesh", "PointLight", "Scene",
+__all__ = ["BUILTIN_SCENES", "Camera", "DirectionalLight", "Material", "Mesh", "PointLight", "Scene", "SpotLight",
            "load_scene"]

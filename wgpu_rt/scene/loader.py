@@ -17,7 +17,8 @@ import numpy as np
 
 from ..errors import SceneError
 from .meshio import load_mesh_file, read_texture_image
-from .model import FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight, Scene
+from .model import (FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight, Scene,
+                    SpotLight)
 from .primitives import PRIMITIVES, primitive, primitive_uvs
 from .transforms import compose, rotate, scale, translate
 
@@ -405,10 +406,26 @@ def _instances(fields: _Fields, entries: list[_Fields], parts: list[Mesh], base:
 
 
 def _light(fields: _Fields):
-    kind = fields.string("type", choices=("point", "directional"))
+    kind = fields.string("type", choices=("point", "spot", "directional"))
     if kind == "point":
         light = PointLight(fields.vector("position", position=True).astype(np.float32),
                            fields.vector("intensity", broadcast=True, non_negative=True).astype(np.float32))
+    elif kind == "spot":
+        position = fields.vector("position", position=True).astype(np.float32)
+        if fields.has("direction") == fields.has("target"):
+            fields.fail("give exactly one of 'direction' (3 numbers) or 'target' (a point the spot aims at)")
+        aim = "direction" if fields.has("direction") else "target"
+        direction = (fields.vector("direction") if aim == "direction"
+                     else fields.vector("target", position=True) - position)
+        if not np.linalg.norm(direction) > 0:
+            fields.fail("must not be zero" if aim == "direction" else "must differ from the position", aim)
+        intensity = fields.vector("intensity", broadcast=True, non_negative=True).astype(np.float32)
+        cutoff = fields.number("cutoff_angle", 20.0)
+        beam = fields.number("beam_width") if fields.has("beam_width") else None
+        try:
+            light = SpotLight(position, intensity, direction, cutoff, beam)
+        except ValueError as err:
+            fields.fail(str(err), "cutoff_angle" if str(err).startswith("cutoff") else "beam_width")
     else:
         direction = fields.vector("direction")
         if not np.linalg.norm(direction) > 0:

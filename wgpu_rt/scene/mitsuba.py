@@ -12,7 +12,7 @@ BSDF its material maps to:
 - diffuse and conductor BSDFs are wrapped in ``twosided``: our tracer shades both faces of them alike
   (wgsl/trace/trace.wgsl), while Mitsuba's are black seen from behind. Back faces show wherever a one-sided
   rectangle is seen from outside, e.g. the outer sides of sun-room's crate.
-- emissive materials add a one-sided ``area`` emitter; point/directional lights and a non-black
+- emissive materials add a one-sided ``area`` emitter; point, spot and directional lights and a non-black
   background (``constant``) map to their Mitsuba plugins.
 
 The sensor is a ``perspective`` camera (``thinlens`` with an aperture) with a box pixel filter and an
@@ -33,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .model import DirectionalLight, Material, PointLight, Scene, linear_from_srgb8, vertex_colors_as_rendered
+from .model import (DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8,
+                    vertex_colors_as_rendered)
 from .transforms import transform_normals, transform_points
 
 
@@ -166,7 +167,16 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
                                     None if colors is None else colors * material.reflectance,
                                     None if mesh.texture is None else mesh.uvs)
     for index, light in enumerate(scene.lights):
-        if isinstance(light, PointLight):
+        if isinstance(light, SpotLight):
+            axis = np.asarray(light.direction, np.float64)
+            up = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])
+            result[f"light{index:03d}"] = {
+                "type": "spot", "intensity": _rgb(light.intensity), "cutoff_angle": light.cutoff_angle,
+                "beam_width": light.beam_width,
+                "to_world": mi.ScalarTransform4f().look_at(origin=[float(x) for x in light.position],
+                                                           target=[float(x) for x in light.position + axis],
+                                                           up=[float(x) for x in up])}
+        elif isinstance(light, PointLight):
             result[f"light{index:03d}"] = {"type": "point", "position": [float(x) for x in light.position],
                                            "intensity": _rgb(light.intensity)}
         elif isinstance(light, DirectionalLight):

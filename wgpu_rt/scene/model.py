@@ -226,6 +226,36 @@ class PointLight:
 
 
 @dataclass
+class SpotLight(PointLight):
+    """A point light shining into a cone (Mitsuba's ``spot``): ``intensity`` along ``direction`` and out to
+    ``beam_width`` degrees from it, falling off linearly in angle to 0 at ``cutoff_angle`` degrees."""
+
+    direction: np.ndarray = field(default_factory=lambda: np.array([0, 0, 1], np.float32))
+    cutoff_angle: float = 20.0
+    beam_width: float | None = None   # default: three quarters of cutoff_angle, as Mitsuba's
+
+    def __post_init__(self):
+        direction = np.asarray(self.direction, np.float64)
+        if not (np.all(np.isfinite(direction)) and np.linalg.norm(direction) > 0):
+            raise ValueError(f"direction must be finite and not zero, got {direction.tolist()}")
+        self.direction = (direction / np.linalg.norm(direction)).astype(np.float32)
+        if not 0.0 < float(self.cutoff_angle) <= 90.0:
+            raise ValueError(f"cutoff_angle must be in (0, 90] degrees, got {self.cutoff_angle}")
+        if self.beam_width is None:
+            self.beam_width = 0.75 * float(self.cutoff_angle)
+        if not 0.0 <= float(self.beam_width) < float(self.cutoff_angle):
+            raise ValueError(f"beam_width must be in [0, cutoff_angle) degrees, got {self.beam_width}")
+        self.cutoff_angle, self.beam_width = float(self.cutoff_angle), float(self.beam_width)
+
+    def falloff(self, directions: np.ndarray) -> np.ndarray:
+        """(N,) the share of ``intensity`` sent along (N, 3) unit ``directions`` from the light (numpy
+        reference of wgsl/trace/emitters.wgsl's spot_falloff)."""
+        angle = np.degrees(np.arccos(np.clip(np.asarray(directions, np.float64) @ self.direction, -1, 1)))
+        ramp = np.clip((self.cutoff_angle - angle) / (self.cutoff_angle - self.beam_width), 0.0, 1.0)
+        return np.where(angle <= self.beam_width, 1.0, ramp)
+
+
+@dataclass
 class DirectionalLight:
     direction: np.ndarray           # direction the light travels (from the light toward the scene)
     irradiance: np.ndarray          # W·m⁻² per channel on a surface facing it
@@ -238,7 +268,7 @@ class Scene:
     camera: Camera
     meshes: list[Mesh]
     materials: dict[str, Material]
-    lights: list = field(default_factory=list)          # PointLight | DirectionalLight
+    lights: list = field(default_factory=list)          # PointLight (or SpotLight) | DirectionalLight
     background: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     camera_keyframes: dict[int, Camera] = field(default_factory=dict)
     frame_count: int = 1

@@ -15,8 +15,9 @@ one). A scene of more than MAX_EMITTER_GROUPS groups has its lights other than s
 in space (``_clustered``); a kernel with one group is compiled without the group code
 (``emitter_group_count``, trace/features.py). BENCHMARKS.md §30 measures all this.
 
-Power: point lights 4π·intensity, a directional light its irradiance through a disc, the constant
-background its radiance over a sphere. The disc and the sphere have the radius of the region the camera
+Power: point lights 4π·intensity (a spot light its cone's solid angle, to halfway through its fall-off,
+times its intensity), a directional light its irradiance through a disc, the constant background its
+radiance over a sphere. The disc and the sphere have the radius of the region the camera
 frames at its target's distance (``view_radius``), at most the scene's bounding radius (at least
 VIEW_RADIUS_FLOOR of it, so that a sun is never dropped for a camera at its target): through
 the bounding sphere, a large ground plane made a sun and a sky so powerful that a small point light
@@ -30,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.model import DirectionalLight, Material, PointLight, Scene
+from ..scene.model import DirectionalLight, Material, PointLight, Scene, SpotLight
 
 MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2}
 EMITTER_TRIANGLE, EMITTER_POINT, EMITTER_DIRECTIONAL, EMITTER_BACKGROUND = range(4)
@@ -254,22 +255,27 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
     emission = material_emission[triangle_material].reshape(-1, 3)
     triangle_power = np.pi * area * (emission @ LUMINANCE)
 
-    lights = []  # (kind, position, edge1, radiance, power, group kind, importance power)
+    lights = []  # (kind, position, edge1, radiance, power, group kind, importance power, edge2)
     radius = min(scene_radius, max(view_radius(scene.camera), VIEW_RADIUS_FLOOR * scene_radius))
     for light in scene.lights:
         if isinstance(light, PointLight):
             intensity = np.asarray(light.intensity, np.float64)
-            lights.append((EMITTER_POINT, light.position, 0, intensity, 4 * np.pi * LUMINANCE @ intensity,
-                           GROUP_POINT, LUMINANCE @ intensity))
+            spot = isinstance(light, SpotLight)
+            # a spot's power: its cone's solid angle to halfway through the fall-off
+            solid_angle = (2 * np.pi * (1 - np.cos(np.radians((light.cutoff_angle + light.beam_width) / 2)))
+                           if spot else 4 * np.pi)
+            lights.append((EMITTER_POINT, light.position, light.direction if spot else 0, intensity,
+                           solid_angle * LUMINANCE @ intensity, GROUP_POINT, LUMINANCE @ intensity,
+                           np.radians([light.cutoff_angle, light.beam_width, 0]) if spot else 0))
         elif isinstance(light, DirectionalLight):
             irradiance = np.asarray(light.irradiance, np.float64)
             lights.append((EMITTER_DIRECTIONAL, 0, light.direction, irradiance,
-                           np.pi * radius ** 2 * LUMINANCE @ irradiance, GROUP_CONSTANT, LUMINANCE @ irradiance))
+                           np.pi * radius ** 2 * LUMINANCE @ irradiance, GROUP_CONSTANT, LUMINANCE @ irradiance, 0))
     background = np.asarray(scene.background, np.float64)
     if np.any(background > 0):
         luminance = max(float(LUMINANCE @ background), 1e-6)
         lights.append((EMITTER_BACKGROUND, 0, 0, background, 4 * np.pi ** 2 * radius ** 2 * luminance,
-                       GROUP_CONSTANT, np.pi * luminance))
+                       GROUP_CONSTANT, np.pi * luminance, 0))
     lights = [light for light in lights if light[4] > 0]
 
     triangle_count = len(numbers)
@@ -279,9 +285,10 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
     records["position"][:triangle_count] = tri[:, 0]
     records["edge1"][:triangle_count], records["edge2"][:triangle_count] = edge1, edge2
     records["area"][:triangle_count], records["radiance"][:triangle_count] = area, emission
-    for i, (kind, position, direction, value, *_) in enumerate(lights, start=triangle_count):
+    for i, (kind, position, direction, value, *_, cone) in enumerate(lights, start=triangle_count):
         records["kind"][i], records["position"][i], records["edge1"][i], records["radiance"][i] = (
             kind, position, direction, value)
+        records["edge2"][i] = cone
     power = np.concatenate([triangle_power, [light[4] for light in lights]])
 
     # groups: (first, count, kind, center, normal, radius, importance power)
@@ -291,7 +298,7 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
         span = slice(first, first + n)
         groups.append((first, n, *_triangle_group(tri[span], edge1[span], edge2[span], area[span],
                                                   triangle_power[span])))
-    for i, (kind, position, *_, group_kind, lit) in enumerate(lights, start=triangle_count):
+    for i, (kind, position, *_, group_kind, lit, _) in enumerate(lights, start=triangle_count):
         groups.append((i, 1, group_kind, position if kind == EMITTER_POINT else 0, 0, 0, lit))
     record_triangle = np.concatenate([numbers, np.full(len(lights), -1)])   # scene triangle of each record
     if count == 0:

@@ -128,6 +128,19 @@ fn sample_triangle_emitter(e: Emitter, pmf: f32, x: vec3f, u: vec2f) -> EmitterS
     return EmitterSample(dir, dist, e.radiance / pdf, pdf);
 }
 
+// The share of a point light's intensity it sends along unit direction `out`: 1 for a point light (no
+// axis); for a spot light (Mitsuba's spot) 1 within its beam width of its axis, falling linearly in angle to 0
+// at its cutoff angle (numpy reference: wgpu_rt.scene.model.SpotLight.falloff).
+fn spot_falloff(e: Emitter, out: vec3f) -> f32 {
+    if all(e.edge1 == vec3f(0.0)) {
+        return 1.0;
+    }
+    let angle = acos(clamp(dot(out, e.edge1), -1.0, 1.0));
+    let cutoff = e.edge2.x;
+    let beam = e.edge2.y;
+    return select(clamp((cutoff - angle) / (cutoff - beam), 0.0, 1.0), 1.0, angle <= beam);
+}
+
 // A point on the entry `pick` took, seen from x.
 fn sample_emitter(pick: EmitterPick, x: vec3f, u: vec2f) -> EmitterSample {
     let e = emitters[pick.index];
@@ -139,7 +152,7 @@ fn sample_emitter(pick: EmitterPick, x: vec3f, u: vec2f) -> EmitterSample {
         let offset = e.position - x;
         let dist2 = dot(offset, offset);
         let dist = sqrt(dist2);
-        return EmitterSample(offset / dist, dist, e.radiance / (pmf * dist2), 0.0);
+        return EmitterSample(offset / dist, dist, e.radiance * spot_falloff(e, -offset / dist) / (pmf * dist2), 0.0);
     }
     if e.kind == EMITTER_DIRECTIONAL {
         return EmitterSample(-normalize(e.edge1), FAR_AWAY, e.radiance / pmf, 0.0);

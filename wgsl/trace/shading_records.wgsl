@@ -14,9 +14,9 @@ const EMITTER_BACKGROUND: u32 = 3u;
 struct Emitter {
     position: vec3f,      // triangle: vertex 0; point light: position
     kind: u32,
-    edge1: vec3f,         // triangle: v1 - v0; directional light: direction of travel
+    edge1: vec3f,         // triangle: v1 - v0; directional light: direction of travel; spot light: its axis
     share: f32,           // probability that a pick within its group takes this entry
-    edge2: vec3f,         // triangle: v2 - v0
+    edge2: vec3f,         // triangle: v2 - v0; spot light: cutoff angle, beam width (radians)
     area: f32,
     radiance: vec3f,      // radiance, intensity or irradiance by kind
     alias_threshold: f32,
