@@ -70,3 +70,16 @@ def test_a_keyframe_that_moves_the_camera_refocuses_on_its_target(tmp_path):
     scene = parse_scene(data, "scene.json", tmp_path)
     assert [scene.camera_at(f).focus_distance for f in range(4)] == pytest.approx([2.0, 2.0, 5.0, 4.5])
     assert all(scene.camera_at(f).aperture_radius == pytest.approx(0.1) for f in range(4))
+
+
+def test_the_aux_pass_takes_more_samples_through_a_lens(gpu, monkeypatch):
+    """Out of focus a pixel's albedo mixes what the aperture's points see: AUX_LENS_FACTOR times the samples
+    bring the aux pass's albedo closer to a converged one than the pinhole's count does."""
+    from wgpu_rt.trace import trace_pass
+
+    scene = _tile_scene(0.1, 0.5)
+    converged = _albedo(gpu, scene, spp=1, aux_samples=256)
+    near = np.abs(_albedo(gpu, scene, spp=1, aux_samples=4) - converged).mean()
+    monkeypatch.setattr(trace_pass, "AUX_LENS_FACTOR", 1)
+    far = np.abs(_albedo(gpu, scene, spp=1, aux_samples=4) - converged).mean()
+    assert near < 0.6 * far, (near, far)

@@ -46,7 +46,8 @@ def add_arguments(parser) -> None:
                         help="noisy sample counts, comma-separated (default: 1,4,16)")
     parser.add_argument("--aux-samples", type=int, metavar="N",
                         help="re-estimate the noisy renders' albedo from N delta-chain paths per pixel, 2·N where "
-                             "they meet glass or mirrors (0: the tracer's own; default: as a denoising render does)")
+                             "they meet glass or mirrors, 4 times those through a thin lens (0: the tracer's own; "
+                             "default: as a denoising render does)")
     parser.add_argument("--noisy-copies", type=int, default=1, metavar="N",
                         help="independent renders per frame at the lowest --spp: N noise realizations of each view "
                              "for training, each costing 1/gold of the gold render; raise it on a finished "

@@ -40,8 +40,8 @@ def add_arguments(parser) -> None:
                              "error_predictor.onnx, confidence.onnx, as `wgpu-rt train --out DIR` writes them)")
     parser.add_argument("--aux-samples", type=int, metavar="N",
                         help="re-estimate the albedo layer from N delta-chain paths per pixel, 2·N where they "
-                             "meet glass or mirrors, so it is noise-free there (default: 4 with --denoise, else "
-                             "0: the tracer's own)")
+                             "meet glass or mirrors, so it is noise-free there, 4 times those through a thin lens "
+                             "(default: 4 with --denoise, else 0: the tracer's own)")
     add_denoiser_flags(parser, "frame")
 
 

@@ -78,6 +78,10 @@ CHUNK_START_OFFSET = FRAME_PARAMS_DTYPE.fields["chunk_start"][1]
 # twice the aux pass on glass scenes (§15): kept for quality, the first saving to take where it weighs.
 AUX_SAMPLES = 4
 AUX_DELTA_FACTOR = 2
+# Through a thin lens every pixel's albedo mixes what each point of the aperture sees, and out of focus
+# those differ (the blur itself), so AUX_SAMPLES leave it noisy: the paved plaza of
+# benchmarks/scenes/plaza-lens.toml denoised 2.6 dB behind OIDN at 1 spp with 4 samples, 0.6 with 16 (§47).
+AUX_LENS_FACTOR = 4
 # What the albedo plane holds (wgsl/trace/guide_albedo.wgsl): where a path escapes, since version 2 the
 # background's radiance, at most 1 (in 1, datasets rendered before, 0); on an emitter, since version 3 at
 # least 0.5 grey (in 1 and 2 its reflectance, 0 for a black lamp). A dataset records its version.
@@ -503,8 +507,10 @@ class TracePass(ComputePass):
         shows the reflected or the refracted surface at random. Pixels whose first paths meet a mirror
         or smooth glass take ``delta_samples`` (default ``AUX_DELTA_FACTOR × samples``; never fewer
         than ``samples``), which share the first glass bounce's two lobes by Fresnel weight instead of
-        picking one at random."""
+        picking one at random. Through a thin lens both counts are AUX_LENS_FACTOR times as many."""
         delta_samples = max(samples, AUX_DELTA_FACTOR * samples if delta_samples is None else delta_samples)
+        if self._params["lens_radius"] > 0:
+            samples, delta_samples = AUX_LENS_FACTOR * samples, AUX_LENS_FACTOR * delta_samples
         pipeline = self._aux_pipelines.get((samples, delta_samples))
         if pipeline is None:
             traversal, placement, geometry_modules, geometry_bindings = self._kernel_options
