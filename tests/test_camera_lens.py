@@ -83,3 +83,42 @@ def test_the_aux_pass_takes_more_samples_through_a_lens(gpu, monkeypatch):
     monkeypatch.setattr(trace_pass, "AUX_LENS_FACTOR", 1)
     far = np.abs(_albedo(gpu, scene, spp=1, aux_samples=4) - converged).mean()
     assert near < 0.6 * far, (near, far)
+
+
+def test_through_a_lens_the_aux_pass_also_averages_normals_and_depth(gpu):
+    """A tile half a unit nearer than a tilted one, out of focus: at 1 spp the tracer's normal and depth planes
+    hold one sample's first hit (one tile's or the other's), the aux pass's the means over its samples, which
+    blend the two across the blurred step between them."""
+    import copy
+
+    from wgpu_rt.accel.geometry import GeometryBuffers
+    from wgpu_rt.passes import FrameBuffers
+    from wgpu_rt.scene.transforms import rotate
+    from wgpu_rt.trace import SampleSchedule, TracePass
+
+    near = _tile(_texture(seed=13))
+    far = copy.copy(near)
+    far.name, far.transform = "far", np.asarray(rotate([0, 1, 0], 20), np.float32)
+    near.transform = np.diag([0.5, 2, 1, 1]).astype(np.float32)
+    near.transform[:3, 3] = [-0.5, 0, 0.5]           # the left half, half a unit nearer
+    scene = _scene(near, far)
+    scene.camera.aperture_radius, scene.camera.focus_distance = 0.2, 0.2
+
+    def planes(aux: bool):
+        trace = TracePass(gpu, scene, GeometryBuffers.build(scene), 32, 32, max_depth=2, seed=3)
+        buffers = FrameBuffers(gpu, 32, 32)
+        encoder = gpu.device.create_command_encoder()
+        trace.clear(encoder, buffers)
+        trace.execute(encoder, buffers, SampleSchedule(1))
+        if aux:
+            trace.execute_aux(encoder, buffers, 16)
+        gpu.device.queue.submit([encoder.finish()])
+        return buffers.read("normal")[0, :, 12:20], buffers.read("depth").reshape(32, 32)[:, 12:20]
+
+    (normal_x, depth), (averaged_x, averaged_depth) = planes(False), planes(True)
+    sin = np.sin(np.radians(20))                       # the tilted tile's normal's x
+    assert np.all(np.isclose(np.abs(normal_x), 0, atol=1e-5) | np.isclose(np.abs(normal_x), sin, atol=1e-3))
+    assert np.mean((np.abs(averaged_x) > 0.1 * sin) & (np.abs(averaged_x) < 0.9 * sin)) > 0.3
+    one_hit = np.isclose(depth, 0.5, atol=0.01) | (depth > 0.6) | (depth == 0)   # near, tilted, or a miss
+    assert np.all(one_hit) and np.mean(np.isclose(depth, 0.5, atol=0.01)) > 0.2
+    assert np.mean((averaged_depth > 0.55) & (averaged_depth < 0.9)) > 0.3        # means between the two

@@ -507,7 +507,8 @@ class TracePass(ComputePass):
         shows the reflected or the refracted surface at random. Pixels whose first paths meet a mirror
         or smooth glass take ``delta_samples`` (default ``AUX_DELTA_FACTOR × samples``; never fewer
         than ``samples``), which share the first glass bounce's two lobes by Fresnel weight instead of
-        picking one at random. Through a thin lens both counts are AUX_LENS_FACTOR times as many."""
+        picking one at random. Through a thin lens both counts are AUX_LENS_FACTOR times as many, and the
+        normal and depth planes are overwritten with the samples' means as well."""
         delta_samples = max(samples, AUX_DELTA_FACTOR * samples if delta_samples is None else delta_samples)
         if self._params["lens_radius"] > 0:
             samples, delta_samples = AUX_LENS_FACTOR * samples, AUX_LENS_FACTOR * delta_samples

@@ -22,6 +22,9 @@
 // the tracer (LOOP_BUDGET in trace/trace.wgsl), an invocation starts no new sample once its loops have
 // gone round AUX_LOOP_BUDGET times (lavapipe ends loops at 65535 turns per dispatch) and averages the
 // samples it completed.
+// Through a thin lens (params.lens_radius > 0) a pixel out of focus mixes what the aperture's points see,
+// its first hits' normals and depths as much as its albedo, so the pass also overwrites the normal and depth
+// planes with its samples' means (the tracer's at its own few samples are as noisy as its albedo).
 
 // #import trace/features.wgsl
 // #import trace/trace_bindings.wgsl
@@ -56,6 +59,9 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
     var loop_passes = 0u;
     var weight = 1.0;          // of the current sample's albedo: its first glass lobe's share
     var met_glass = false;     // has the current sample met smooth glass yet?
+    let lens = params.lens_radius > 0.0;
+    var normal_sum = vec3f(0.0);   // of the samples' first hits (through a lens)
+    var depth_sum = 0.0;
     // Every invocation stays in the loop until its whole subgroup is done (the subgroup traversal walks
     // the BVH as one packet); finished ones query with t_max 0.
     loop {
@@ -70,6 +76,11 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
             if hit.prim != NO_HIT {
                 let material = surface_colored(materials[tri_material(hit.prim)], hit);
                 let delta = material_is_delta(material);
+                if lens && depth == 0u {   // as the tracer's normal and depth planes take the first hit
+                    normal_sum += shading_normal_at(hit, traced.geometric_normal, material,
+                                                    -dot(traced.geometric_normal, dir));
+                    depth_sum += dot(origin + hit.t * dir - params.camera_origin, params.camera_forward);
+                }
                 met_delta = met_delta || delta;
                 if !delta {
                     sum += weight * surface_albedo(material);
@@ -127,5 +138,13 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
     let albedo = sum / f32(index);
     for (var c = 0u; c < 3u; c += 1u) {
         out_albedo[c * plane + pixel] = albedo[c];
+    }
+    if lens {
+        let magnitude = length(normal_sum);
+        let normal = select(vec3f(0.0), normal_sum / magnitude, magnitude > 0.0);
+        for (var c = 0u; c < 3u; c += 1u) {
+            out_normal[c * plane + pixel] = normal[c];
+        }
+        out_depth[pixel] = depth_sum / f32(index);
     }
 }
