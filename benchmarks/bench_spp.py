@@ -7,6 +7,7 @@ never falls below brute force at the same spp.
         --oidn-quality balanced --scenes benchmarks/scenes/*.toml     # issue 12's scenes as a user builds them
     python3 benchmarks/bench_spp.py --size 256 --spp 1 4 --seeds 2 --oidn-quality balanced high --all-metrics \
         --brute-spp 16 64 256 --scenes world-2147483648 …   # issue 12's measurement of record
+    python3 benchmarks/bench_spp.py … --lens 0.02    # the same scenes through a thin lens (depth of field)
 
 --oidn-quality takes one or more qualities; "ours − OIDN" is against the first. --all-metrics adds a table of
 PSNR, SSIM, FLIP and relMSE for brute force, ours and each OIDN quality (means over the seeds), with each
@@ -24,6 +25,15 @@ from common import (GOLD_TWIN_SEED, add_gold_arguments, add_model_arguments, den
                     resolve_models, twin_corrected_psnr)
 
 from wgpu_rt import metrics
+
+
+def through_lens(scene, fraction: float) -> None:
+    """``scene`` seen through a thin lens: each camera (and keyframe) gets an aperture radius of ``fraction``
+    times its distance to its target and focuses on the target; the name gains "+lens{fraction}"."""
+    for camera in [scene.camera, *scene.camera_keyframes.values()]:
+        distance = float(np.linalg.norm(camera.target.astype(np.float64) - camera.origin))
+        camera.aperture_radius, camera.focus_distance = fraction * distance, distance
+    scene.name += f"+lens{fraction:g}"
 
 
 def main():
@@ -44,6 +54,10 @@ def main():
                         help="also a table of PSNR, SSIM, FLIP, relMSE and equivalent spp of every method")
     parser.add_argument("--brute-spp", type=int, nargs="*", default=[],
                         help="brute-force counts added to --spp's for --all-metrics' equivalent spp")
+    parser.add_argument("--lens", type=float, default=0.0, metavar="FRACTION",
+                        help="see every scene through a thin lens of aperture radius FRACTION times its camera's "
+                             "distance to the target, focused on the target (each scene's name gains "
+                             "'+lensFRACTION', so its gold is cached apart from the pinhole's)")
     add_gold_arguments(parser, 4096)
     add_model_arguments(parser)
     args = parse_with_quick_defaults(parser, {"size": 48, "spp": [1, 4, 16], "gold_spp": 512})
@@ -57,6 +71,8 @@ def main():
     oidn_names = [f"OIDN {quality}" for quality in args.oidn_quality]
     rows, metric_rows = [], []
     for scene in load_scenes(args.scenes):
+        if args.lens:
+            through_lens(scene, args.lens)
         gold = gold_render(scene, size, args)
         twin = gold_render(scene, size, args, seed=GOLD_TWIN_SEED) if args.gold_twin else None
         measured = {}   # (method, spp) → each seed's metrics
