@@ -24,9 +24,11 @@ def worlds():
 def _arrays(scene):
     """Every number in a scene, by where it sits, for exact comparison."""
     out = {"camera": np.concatenate([scene.camera.origin, scene.camera.target, [scene.camera.fov]]),
+           "lens": np.array([scene.camera.aperture_radius, scene.camera.focus_distance]),
            "background": scene.background}
     for f, camera in scene.camera_keyframes.items():
         out[f"camera@{f}"] = np.concatenate([camera.origin, camera.target])
+        out[f"lens@{f}"] = np.array([camera.aperture_radius, camera.focus_distance])
     for mesh in scene.meshes:
         out[f"{mesh.name}.vertices"], out[f"{mesh.name}.faces"] = mesh.vertices, mesh.faces
         out[f"{mesh.name}.transform"] = mesh.transform
@@ -216,6 +218,41 @@ def test_painting_leaves_every_other_choice_and_the_held_out_family_alone(monkey
         for key in expected:
             np.testing.assert_array_equal(kept[key], expected[key], err_msg=f"{seed}: {key}")
     assert painted_meshes >= 12
+
+
+def test_a_lens_leaves_every_other_choice_and_the_held_out_family_alone(monkeypatch):
+    """The lens draws from a random stream of its own: a training world with one is the world without it
+    but for its cameras' aperture and focus (every keyframe's alike); a held-out world is never given one."""
+    from wgpu_rt.dataset import worlds as worlds_module
+
+    lenses = 0
+    for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
+        for frames in (1, 3):
+            monkeypatch.setattr(worlds_module, "LENS_SHARE", 1.0)
+            through = generate_world(seed, frames=frames)
+            monkeypatch.setattr(worlds_module, "LENS_SHARE", 0.0)
+            plain = generate_world(seed, frames=frames)
+            cameras = [through.camera, *through.camera_keyframes.values()]
+            if family_of(seed) == "held_out":
+                assert all(camera.aperture_radius == 0 for camera in cameras)
+                continue
+            lenses += 1
+            for camera in cameras:
+                distance = np.linalg.norm(camera.target - camera.origin)
+                assert 0.003 <= camera.aperture_radius / distance <= 0.03
+                assert 0.7 <= camera.focus_distance / distance <= 1.3
+            ours, theirs = _arrays(through), _arrays(plain)
+            assert ours.keys() == theirs.keys()
+            for key in theirs:
+                if not key.startswith("lens"):
+                    np.testing.assert_array_equal(ours[key], theirs[key], err_msg=f"{seed}: {key}")
+    assert lenses == 24
+
+
+def test_a_quarter_of_the_training_worlds_look_through_a_lens(worlds):
+    from wgpu_rt.dataset.worlds import LENS_SHARE
+
+    assert abs(np.mean([w.camera.aperture_radius > 0 for w in worlds]) - LENS_SHARE) < 0.08
 
 
 def test_about_half_the_training_worlds_are_painted(worlds):

@@ -21,7 +21,10 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
 - in the training family only, sometimes painted surfaces (``PAINTED_SHARE``): set surfaces and objects
   given textures as vertex colours (checkers, stripes, blotches, fine mottling, ``paint_surfaces``) that
   tint their materials, so the denoiser sees albedos that vary across a surface, as every textured scene a
-  user brings has; also from a stream of their own (``WORLDS_VERSION`` 3).
+  user brings has; also from a stream of their own (``WORLDS_VERSION`` 3);
+- in the training family only, sometimes a thin-lens camera (``LENS_SHARE``): depth of field, an aperture of
+  0.3–3 % of the camera's distance to its target, focused near the target, so the denoiser sees the blur
+  and the guides a lens gives (BENCHMARKS.md §47); from a stream of its own as well (``WORLDS_VERSION`` 4).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -73,10 +76,12 @@ METALS = {
 UP = np.array([0.0, 1.0, 0.0])
 CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, metres
 # What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
-# worlds may hold lamps in view; 3: painted surfaces.
-WORLDS_VERSION = 3
+# worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera.
+WORLDS_VERSION = 4
 LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
 PAINTED_SHARE = 0.5         # of the training worlds
+LENS_SHARE = 0.25           # of the training worlds
+LENS_APERTURES = (0.003, 0.03)   # aperture radius over the camera's distance to its target, log-uniform
 PATTERNS = ("checker", "stripes", "blotches", "mottle")
 PAINT_EDGE = 0.02           # surfaces are subdivided until their edges are at most this share of the set's size
 
@@ -119,6 +124,8 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
         world.paint_surfaces(np.random.default_rng(np.random.SeedSequence([int(seed), 0x9A17])))
     if frames > 1:
         world.animate(frames)
+    if family == "training":
+        world.add_lens(np.random.default_rng(np.random.SeedSequence([int(seed), 0x1E25])))
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
 
 
@@ -387,6 +394,17 @@ class _World:
             mesh.vertices, mesh.faces, mesh.normals = _subdivided(mesh.vertices, mesh.faces, mesh.normals,
                                                                   PAINT_EDGE * extent / max(world_scale, 1e-6))
             mesh.colors = painted_colors(rng, mesh.vertices * world_scale)
+
+    def add_lens(self, rng: np.random.Generator) -> None:
+        """With probability LENS_SHARE, the camera and its keyframes look through a thin lens: an aperture
+        radius of LENS_APERTURES of the distance to the target, focused at 0.7–1.3 times that distance."""
+        if rng.uniform() >= LENS_SHARE:
+            return
+        aperture = float(np.exp(rng.uniform(*np.log(LENS_APERTURES))))
+        focus = float(rng.uniform(0.7, 1.3))
+        for camera in [self.camera, *self.keyframes.values()]:
+            distance = float(np.linalg.norm(camera.target.astype(np.float64) - camera.origin))
+            camera.aperture_radius, camera.focus_distance = aperture * distance, focus * distance
 
     def _point(self, position, dim: float = 1.0) -> None:
         target, _ = self.cluster()
