@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from .meshio import load_mesh_file, read_texture_image
+from .meshio import load_mesh_file, read_environment_image, read_texture_image
 from .model import (FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight, Scene,
                     SpotLight)
 from .primitives import PRIMITIVES, primitive, primitive_uvs
@@ -312,15 +312,16 @@ def _place(mesh: Mesh, fields: _Fields, transform: np.ndarray, keyframes: dict,
     _check_blends(keyframe_fields or fields, mesh)
 
 
-def _texture(fields: _Fields, folder: Path) -> np.ndarray | None:
-    """An entry's ``texture`` image (a path relative to the scene file), or None."""
-    if not fields.has("texture"):
+def _image_file(fields: _Fields, key: str, folder: Path, read) -> np.ndarray | None:
+    """The image that ``key`` names (a path relative to the scene file) as ``read`` (a meshio reader) gives
+    it, or None without the key; its SceneError names the field."""
+    if not fields.has(key):
         return None
-    file = fields.string("texture")
+    file = fields.string(key)
     try:
-        return read_texture_image(Path(file) if Path(file).is_absolute() else folder / file)
+        return read(Path(file) if Path(file).is_absolute() else folder / file)
     except SceneError as err:
-        fields.fail(str(err), "texture")
+        fields.fail(str(err), key)
 
 
 def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
@@ -331,7 +332,7 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
     name = fields.string("name", "")
     transform, keyframes = _placement(fields)
     instances = fields.tables("instances") if fields.has("instances") else None
-    texture = _texture(fields, folder)
+    texture = _image_file(fields, "texture", folder, read_texture_image)
     if has_shape:
         kind = fields.string("shape", choices=PRIMITIVES)
         vertices, faces, normals = primitive(kind)
@@ -461,7 +462,9 @@ def parse_scene(data, source: str, folder: Path) -> Scene:
     if not meshes:
         top.fail("at least one mesh is required", "meshes")
     lights = [_light(entry) for entry in top.tables("lights")]
-    background = top.vector("background", [0.0, 0.0, 0.0], broadcast=True, non_negative=True)
+    environment = _image_file(top, "environment", folder, read_environment_image)
+    background = top.vector("background", [0.0, 0.0, 0.0] if environment is None else [1.0, 1.0, 1.0],
+                            broadcast=True, non_negative=True)
     last_key = max([*camera_keyframes, *(f for m in meshes for f in m.keyframes)], default=0)
     frame_count = top.integer("frame_count", last_key + 1)
     if frame_count < 1:
@@ -469,7 +472,7 @@ def parse_scene(data, source: str, folder: Path) -> Scene:
     name = top.string("name", Path(source).stem)
     top.done()
     return Scene(camera, meshes, materials, lights=lights, background=background.astype(np.float32),
-                 camera_keyframes=camera_keyframes, frame_count=frame_count, name=name)
+                 camera_keyframes=camera_keyframes, frame_count=frame_count, name=name, environment=environment)
 
 
 def read_scene_file(path) -> dict:

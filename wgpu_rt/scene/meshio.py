@@ -97,6 +97,37 @@ def read_texture_image(path: Path) -> np.ndarray:
     return np.ascontiguousarray(pixels)
 
 
+def read_environment_image(path: Path) -> np.ndarray:
+    """The latitude-longitude image at ``path`` as (H, W, 3) float32 linear radiance: an OpenEXR file's colour
+    (its first three channels), or any image Pillow reads, decoded from sRGB. SceneError naming the file if it
+    is missing, unreadable, smaller than 2×3 pixels or holds a negative, NaN or infinite value."""
+    from ..errors import ImageError
+    from ..io import read_exr
+    from .model import linear_from_srgb8
+
+    path = Path(path)
+    if path.suffix.lower() == ".exr":
+        try:
+            layers = read_exr(path)
+        except ImageError as err:
+            raise SceneError(str(err)) from err
+        color = layers.get("color")
+        if color is None or color.shape[-1] < 3:
+            raise SceneError(f"{path}: an environment map needs R, G and B channels")
+        image = np.ascontiguousarray(color[..., :3], np.float32)
+    else:
+        image = linear_from_srgb8(read_texture_image(path))
+    if image.shape[0] < 3 or image.shape[1] < 2:
+        raise SceneError(f"{path}: an environment map must be at least 2 pixels wide and 3 high, "
+                         f"got {image.shape[1]}×{image.shape[0]}")
+    bad = ~np.isfinite(image) | (image < 0)
+    if np.any(bad):
+        row, column = np.argwhere(bad.any(-1))[0]
+        raise SceneError(f"{path}: {int(bad.any(-1).sum())} pixels are negative, NaN or infinite "
+                         f"(first: row {row}, column {column})")
+    return image
+
+
 def file_uvs(geometry: trimesh.Trimesh) -> np.ndarray | None:
     """A geometry's texture coordinates per vertex (float32), None where it has none (or not finite)."""
     uvs = getattr(geometry.visual, "uv", None)

@@ -13,10 +13,12 @@ BSDF its material maps to:
   (wgsl/trace/trace.wgsl), while Mitsuba's are black seen from behind. Back faces show wherever a one-sided
   rectangle is seen from outside, e.g. the outer sides of sun-room's crate.
 - emissive materials add a one-sided ``area`` emitter; point, spot and directional lights and a non-black
-  background (``constant``) map to their Mitsuba plugins.
+  background (``constant``, or ``envmap`` of the environment map times the background) map to their Mitsuba
+  plugins.
 
 The sensor is a ``perspective`` camera (``thinlens`` with an aperture) with a box pixel filter and an
-``independent`` sampler seeded with ``seed``; the integrator is ``path`` with the same ``max_depth``. Needs the ``bench`` extra.
+``independent`` sampler seeded with ``seed``; the integrator is ``path`` with the same ``max_depth``. Needs the
+``bench`` extra.
 
 ``load_mitsuba`` sets Mitsuba to the fastest variant this machine has (``variant_choice``: cuda_ad_rgb where
 Dr.Jit finds a CUDA GPU, else llvm_ad_rgb when Debian's LLVM 19 is installed (`apt-get install -y libllvm19`;
@@ -185,7 +187,10 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
                                            "irradiance": _rgb(light.irradiance)}
         else:
             raise TypeError(f"unknown light type {type(light).__name__}")
-    if np.any(np.asarray(scene.background) > 0):
+    if scene.environment is not None:
+        scaled = np.asarray(scene.environment, np.float32) * np.asarray(scene.background, np.float32)
+        result["background"] = {"type": "envmap", "bitmap": mi.Bitmap(np.ascontiguousarray(scaled))}
+    elif np.any(np.asarray(scene.background) > 0):
         result["background"] = {"type": "constant", "radiance": _rgb(scene.background)}
     return result
 

@@ -219,6 +219,31 @@ def sample_texture(texture: np.ndarray, uvs: np.ndarray) -> np.ndarray:
     return ((1 - fy) * top + fy * bottom).astype(np.float32)
 
 
+def environment_uv(directions: np.ndarray) -> np.ndarray:
+    """(N, 2) latitude-longitude coordinates of (N, 3) unit ``directions`` (Mitsuba's envmap convention, +y up):
+    u = atan2(x, -z) / 2π, v = acos(y) / π (0 straight up)."""
+    d = np.asarray(directions, np.float64)
+    return np.stack([np.arctan2(d[:, 0], -d[:, 2]) / (2 * np.pi), np.arccos(np.clip(d[:, 1], -1, 1)) / np.pi], -1)
+
+
+def sample_environment(image: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """(N, 3) float32: the (H, W, 3) linear latitude-longitude ``image`` seen along (N, 3) unit ``directions``,
+    as the tracer (wgsl/trace/environment.wgsl) and Mitsuba's envmap read it: columns centred at
+    u = (j + ½) / W and periodic, rows at v = i / (H − 1) (the first and last on the poles), bilinear."""
+    image = np.asarray(image, np.float64)
+    height, width = image.shape[:2]
+    uv = environment_uv(directions)
+    x = (uv[:, 0] - 0.5 / width) % 1.0 * width
+    y = uv[:, 1] * (height - 1)
+    x0 = np.minimum(np.floor(x), width - 1).astype(np.int64)
+    y0 = np.minimum(np.floor(y), height - 2).astype(np.int64)
+    wx, wy = (x - x0)[:, None], (y - y0)[:, None]
+    x1 = (x0 + 1) % width
+    top = (1 - wx) * image[y0, x0] + wx * image[y0, x1]
+    bottom = (1 - wx) * image[y0 + 1, x0] + wx * image[y0 + 1, x1]
+    return ((1 - wy) * top + wy * bottom).astype(np.float32)
+
+
 @dataclass
 class PointLight:
     position: np.ndarray
@@ -273,6 +298,20 @@ class Scene:
     camera_keyframes: dict[int, Camera] = field(default_factory=dict)
     frame_count: int = 1
     name: str = "scene"
+    # An environment map: an (H, W, 3) float32 linear latitude-longitude image (at least 2×3; row 0 straight
+    # up, +y; ``sample_environment``), the sky's radiance along each direction times ``background`` (then a
+    # per-channel scale). None: the sky is ``background`` everywhere.
+    environment: np.ndarray | None = None
+
+    def background_mean(self) -> np.ndarray:
+        """(3,) the sky's radiance averaged over all directions (``background`` itself without an environment)."""
+        background = np.asarray(self.background, np.float64)
+        if self.environment is None:
+            return background
+        height = self.environment.shape[0]
+        weights = np.sin(np.pi * np.arange(height) / (height - 1))[:, None, None]
+        weighted = (np.asarray(self.environment, np.float64) * weights).sum((0, 1))
+        return background * weighted / (weights.sum() * self.environment.shape[1])
 
     def camera_at(self, frame: int) -> Camera:
         if not self.camera_keyframes:

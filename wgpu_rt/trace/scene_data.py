@@ -102,6 +102,20 @@ def pack_textures(textures: list[np.ndarray], records: np.ndarray | None) -> np.
     return np.concatenate([header, entries.ravel(), np.asarray(records, np.uint32).ravel(), *texels])
 
 
+ENVIRONMENT_HEADER_WORDS = 4   # width, height, two spare words
+
+
+def pack_environment(image: np.ndarray | None) -> np.ndarray:
+    """The environment buffer (bind group 1, binding 6; wgsl/trace/environment.wgsl) as u32 words: its width
+    and height, then its texels as float32 RGB bits, row by row from the top. Without an environment a
+    header of zeros (the kernels then read the constant background)."""
+    header = np.zeros(ENVIRONMENT_HEADER_WORDS, np.uint32)
+    if image is None:
+        return header
+    header[0], header[1] = image.shape[1], image.shape[0]
+    return np.concatenate([header, np.ascontiguousarray(image, np.float32).reshape(-1).view(np.uint32)])
+
+
 def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Vose's alias table for ``weights`` (> 0): per slot, the threshold below which the slot keeps
     itself, and the slot it defers to otherwise. Picking slot floor(u·N) then testing frac(u·N) against
@@ -271,8 +285,8 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
             irradiance = np.asarray(light.irradiance, np.float64)
             lights.append((EMITTER_DIRECTIONAL, 0, light.direction, irradiance,
                            np.pi * radius ** 2 * LUMINANCE @ irradiance, GROUP_CONSTANT, LUMINANCE @ irradiance, 0))
-    background = np.asarray(scene.background, np.float64)
-    if np.any(background > 0):
+    background = scene.background_mean()   # an environment map's mean over the sphere
+    if np.any(np.asarray(scene.background) > 0):
         luminance = max(float(LUMINANCE @ background), 1e-6)
         lights.append((EMITTER_BACKGROUND, 0, 0, background, 4 * np.pi ** 2 * radius ** 2 * luminance,
                        GROUP_CONSTANT, np.pi * luminance, 0))

@@ -45,6 +45,7 @@ from .scene_data import (
     build_emitter_table,
     camera_vectors,
     emissive_triangles,
+    pack_environment,
     pack_materials,
     pack_textures,
 )
@@ -124,7 +125,8 @@ def trace_layout(ctx, geometry_bindings: int, placement: BufferPlacement = Buffe
     no longer reads, and then one set of bind groups could not serve every specialization.
     Group 0 is the geometry's buffers (read-only storage; the first two uniform with
     ``placement.geometry``), group 1 the frame uniform, the material and emitter tables (uniform or
-    read-only storage) and three read-only tables (triangle emitter entries, sample counts, surface textures),
+    read-only storage) and four read-only tables (triangle emitter entries, sample counts, surface textures,
+    the environment map),
     group 2 the six output planes; with ``work_list``
     (wgsl/trace/targeted.wgsl) group 3 is the work list's entries and totals (read-only) and the
     per-item sums and their entries."""
@@ -143,7 +145,7 @@ def trace_layout(ctx, geometry_bindings: int, placement: BufferPlacement = Buffe
         words = uniform if placement.geometry else read_only
         # one set of group layouts for both pipeline layouts, so one set of bind groups serves both
         _group_layouts[key] = [group([words] * 2 + [read_only] * (geometry_bindings - 2)),
-                               group([uniform, tables, tables, read_only, read_only, read_only]),
+                               group([uniform, tables, tables, read_only, read_only, read_only, read_only]),
                                group([storage] * len(TracePass.outputs)),
                                group([read_only, read_only, storage, storage])]
     groups = _group_layouts[key]
@@ -409,6 +411,9 @@ class TracePass(ComputePass):
         textures = pack_textures(scene.textures(), geometry.texture_records)
         ctx.check_buffer_size(textures.nbytes, f"scene {scene.name!r}: surface textures")
         self._textures = ctx.upload(textures, label="surface textures")
+        environment = pack_environment(scene.environment)
+        ctx.check_buffer_size(environment.nbytes, f"scene {scene.name!r}: environment map")
+        self._environment = ctx.upload(environment, label="environment map")
         self.set_frame(scene, frame, seed)
         self._no_counts = ctx.storage(16, label="no sample counts")
         self._param_buffers: dict[tuple, list] = {}
@@ -520,7 +525,7 @@ class TracePass(ComputePass):
                 constants={**self.features.constants(), "AUX_SAMPLES": samples, "AUX_DELTA_SAMPLES": delta_samples},
                 label=f"aux {self.features}", layout=trace_layout(self.ctx, geometry_bindings, placement))
         shading = self._bind_group(1, [self._params_buffer(SampleSchedule()), self._materials, self._emitters,
-                                       self._triangle_entry, self._no_counts, self._textures])
+                                       self._triangle_entry, self._no_counts, self._textures, self._environment])
         compute = encoder.begin_compute_pass(label="aux")
         compute.set_pipeline(pipeline)
         compute.set_bind_group(0, self._geometry_group)
@@ -539,7 +544,7 @@ class TracePass(ComputePass):
         uniform = self._params_buffer(schedule)
         counts = schedule.sample_counts if schedule.sample_counts is not None else self._no_counts
         shading = self._bind_group(1, [uniform, self._materials, self._emitters, self._triangle_entry, counts,
-                                       self._textures])
+                                       self._textures, self._environment])
         planes = self._bind_group(2, [buffers.get(spec) for spec in self.outputs])
         if schedule.sample_counts is not None:
             self._execute_targeted(encoder, buffers, schedule, uniform, shading, planes)

@@ -115,7 +115,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                     }
                 }
             } else {
-                sum += weight * background_albedo();
+                sum += weight * background_albedo(dir);
             }
             if sample_done {
                 index += 1u;

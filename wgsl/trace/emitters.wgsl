@@ -3,13 +3,14 @@
 // the numpy reference), then an entry within the group with its alias table (in proportion to power),
 // then a point on it: area-uniform on a triangle (one-sided: its front face, the side its winding's
 // normal points to), the position of a point light, the direction of a directional light, a uniform
-// direction for the constant background. Also the solid-angle pdfs with which the estimate at a point
+// direction for the background (its radiance there: constant, or an environment map's). Also the solid-angle pdfs with which the estimate at a point
 // would have sampled what a BSDF-sampled ray from there met (a triangle, the background), for multiple
 // importance sampling.
 
 // #import trace/features.wgsl
 // #import trace/trace_bindings.wgsl
 // #import trace/sampling.wgsl
+// #import trace/environment.wgsl
 
 struct EmitterSample {
     direction: vec3f,
@@ -159,7 +160,7 @@ fn sample_emitter(pick: EmitterPick, x: vec3f, u: vec2f) -> EmitterSample {
     }
     let dir = square_to_uniform_sphere(u);
     let pdf = pmf * INV_FOUR_PI;
-    return EmitterSample(dir, FAR_AWAY, e.radiance / pdf, pdf);
+    return EmitterSample(dir, FAR_AWAY, background_radiance(dir) / pdf, pdf);
 }
 
 // Solid-angle pdf with which the estimate at x (importance_total: its pick's) would pick the point a ray

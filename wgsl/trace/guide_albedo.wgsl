@@ -13,6 +13,7 @@
 
 // #import trace/trace_bindings.wgsl
 // #import trace/bsdf.wgsl
+// #import trace/environment.wgsl
 
 const EMITTER_ALBEDO_FLOOR: f32 = 0.5;
 
@@ -30,7 +31,7 @@ fn surface_albedo(m: Material) -> vec3f {
     return m.reflectance;
 }
 
-// A path that escapes the scene.
-fn background_albedo() -> vec3f {
-    return clamp(params.background, vec3f(0.0), vec3f(1.0));
+// A path that escapes the scene along `dir`.
+fn background_albedo(dir: vec3f) -> vec3f {
+    return clamp(background_radiance(dir), vec3f(0.0), vec3f(1.0));
 }

@@ -99,7 +99,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     let depth = (*path).depth;
     if hit.prim == NO_HIT {
         if WRITE_AOVS && (*path).albedo_pending {
-            (*path).albedo = background_albedo();
+            (*path).albedo = background_albedo(dir);
         }
         if HAS_ANALYTIC_LIGHTS && params.background_share > 0.0 {
             var weight = 1.0;
@@ -107,7 +107,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
                 let light_pdf = background_emitter_pdf((*path).previous_position, (*path).previous_importance);
                 weight = power_heuristic((*path).previous_pdf, light_pdf);
             }
-            (*path).radiance += (*path).throughput * params.background * weight;
+            (*path).radiance += (*path).throughput * background_radiance(dir) * weight;
         }
         if WRITE_AOVS && HAS_MOTION && depth == 0u {
             (*path).motion = previous_film_position(dir, (*path).film) - (*path).film;

@@ -1,0 +1,125 @@
+"""Environment maps: a latitude-longitude image as the sky (Mitsuba's envmap convention and filtering), seen
+directly and lighting the scene through the background's next-event estimate; scene files' `environment`; bad
+images refused by name. Mitsuba's agreement is in tests/test_mitsuba.py."""
+
+import numpy as np
+import pytest
+
+from wgpu_rt.errors import SceneError
+from wgpu_rt.renderer import render
+from wgpu_rt.scene.model import (Camera, Material, Mesh, Scene, environment_uv, linear_from_srgb8,
+                                  sample_environment)
+from wgpu_rt.scene.primitives import rectangle
+from wgpu_rt.scene.transforms import compose, scale, translate
+
+SIZE = 32
+
+
+def smooth_sky(height=24, width=48) -> np.ndarray:
+    """Smooth in both directions, so a pixel's mean is its centre's value, and different in every direction."""
+    theta = np.pi * np.arange(height) / (height - 1)
+    phi = 2 * np.pi * (np.arange(width) + 0.5) / width
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    return np.stack([1 + 0.5 * np.cos(t), 1 + 0.4 * np.sin(p) * np.sin(t), 0.6 + 0.3 * np.cos(2 * p) * np.sin(t)],
+                    -1).astype(np.float32)
+
+
+def sky_scene(environment, camera) -> Scene:
+    """Nothing in view but the sky: one small tile far behind the camera."""
+    tile = Mesh("tile", *rectangle()[:2], "grey", transform=compose(translate([0, 0, 1e3]), scale(0.01)))
+    return Scene(camera, [tile], {"grey": Material()}, background=np.ones(3, np.float32), environment=environment,
+                 name="sky")
+
+
+def test_texel_centres_and_the_seam():
+    sky = smooth_sky(25, 48)                                         # row 12 on the horizon
+    height, width = sky.shape[:2]
+    rows, columns = np.meshgrid(np.arange(height), np.arange(width), indexing="ij")
+    theta, phi = np.pi * rows / (height - 1), 2 * np.pi * (columns + 0.5) / width
+    directions = np.stack([np.sin(phi) * np.sin(theta), np.cos(theta), -np.cos(phi) * np.sin(theta)], -1).reshape(-1, 3)
+    np.testing.assert_allclose(environment_uv(directions)[:, 1], (rows / (height - 1)).ravel(), atol=1e-9)
+    np.testing.assert_allclose(sample_environment(sky, directions), sky.reshape(-1, 3), atol=1e-5)
+    seam = np.array([[-1e-7, 0, -1.0], [1e-7, 0, -1.0]])            # u just below and above 0 (straight along −z)
+    left, right = sample_environment(sky, seam)
+    np.testing.assert_allclose(left, right, atol=1e-5)
+    np.testing.assert_allclose(left, 0.5 * (sky[height // 2, 0] + sky[height // 2, -1]), atol=0.02)
+
+
+@pytest.mark.parametrize("target", [[0, 0, -1], [1, 0.5, 0], [0, 1, 0.01]])
+def test_the_sky_seen_directly_is_the_map(gpu, target):
+    """Each pixel's radiance is the map along its centre's direction (horizon, sideways, the zenith)."""
+    camera = Camera([0, 0, 0], target, up=[0, 1, 0] if abs(target[1]) < 0.9 else [0, 0, -1], fov=60)
+    sky = smooth_sky()
+    ours = render(sky_scene(sky, camera), spp=16, size=(SIZE, SIZE), max_depth=1, aovs=()).color
+    right, up, forward = (v.astype(np.float64) for v in camera.basis())
+    tan_x, tan_y = camera.tan_half_fov(SIZE, SIZE)
+    centres = (np.arange(SIZE) + 0.5) / SIZE * 2 - 1
+    ndc_x, ndc_y = np.meshgrid(centres, -centres)
+    rays = forward + ndc_x[..., None] * tan_x * right + ndc_y[..., None] * tan_y * up
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    expected = sample_environment(sky, rays.reshape(-1, 3)).reshape(SIZE, SIZE, 3)
+    relative = np.abs(ours - expected) / expected
+    assert np.median(relative) < 0.005 and relative.max() < 0.05, (np.median(relative), relative.max())
+
+
+def test_a_white_furnace_under_a_constant_map_is_the_constant_background(gpu):
+    """A constant map of 1 times a background of 0.5 lights the Cornell box as a constant background of 0.5."""
+    from wgpu_rt.scene import load_scene
+
+    constant = load_scene("cornell")
+    constant.background = np.full(3, 0.5, np.float32)
+    mapped = load_scene("cornell")
+    mapped.background, mapped.environment = np.full(3, 0.5, np.float32), np.ones((6, 8, 3), np.float32)
+    a = render(constant, spp=64, size=(24, 24), max_depth=4, aovs=()).color
+    b = render(mapped, spp=64, size=(24, 24), max_depth=4, aovs=()).color
+    np.testing.assert_allclose(b, a, rtol=1e-4, atol=1e-5)
+
+
+def test_the_background_mean_weighs_rows_by_their_solid_angle():
+    sky = np.zeros((5, 4, 3), np.float32)
+    sky[2] = 1.0                                                     # the horizon row alone
+    scene = sky_scene(sky, Camera([0, 0, 0], [0, 0, -1]))
+    weights = np.sin(np.pi * np.arange(5) / 4)
+    np.testing.assert_allclose(scene.background_mean(), weights[2] / weights.sum(), rtol=1e-6)
+
+
+def _scene_file(tmp_path, **top):
+    from wgpu_rt.scene.loader import parse_scene
+
+    data = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]}, "materials": {"white": {}},
+            "meshes": [{"shape": "rectangle", "material": "white"}], **top}
+    return parse_scene(data, "scene.json", tmp_path)
+
+
+def test_a_scene_file_reads_an_exr_or_an_image(tmp_path):
+    from PIL import Image
+
+    from wgpu_rt.io import write_exr
+
+    sky = smooth_sky(6, 8)
+    write_exr(tmp_path / "sky.exr", sky)
+    scene = _scene_file(tmp_path, environment="sky.exr")
+    np.testing.assert_allclose(scene.environment, sky)
+    np.testing.assert_array_equal(scene.background, 1.0)             # the map as it is
+    assert _scene_file(tmp_path, environment="sky.exr", background=0.25).background.tolist() == [0.25] * 3
+    Image.fromarray(np.full((4, 6, 3), 188, np.uint8)).save(tmp_path / "sky.png")
+    np.testing.assert_allclose(_scene_file(tmp_path, environment="sky.png").environment,
+                               linear_from_srgb8(np.uint8([188]))[0], rtol=1e-6)   # decoded from sRGB
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda path: None, r"environment: .*missing\.exr: no such file"),
+    (lambda path: path.write_bytes(b"no exr"), r"environment: .*missing\.exr: not a readable OpenEXR file"),
+    (lambda path: _write(path, np.full((6, 8, 3), -1, np.float32)), "6 pixels are negative|48 pixels are negative"),
+    (lambda path: _write(path, np.full((2, 8, 3), 1, np.float32)), "at least 2 pixels wide and 3 high"),
+])
+def test_bad_environment_maps_are_refused_by_field(tmp_path, make, message):
+    make(tmp_path / "missing.exr")
+    with pytest.raises(SceneError, match=message):
+        _scene_file(tmp_path, environment="missing.exr")
+
+
+def _write(path, image):
+    from wgpu_rt.io import write_exr
+
+    write_exr(path, image)
