@@ -102,18 +102,44 @@ def pack_textures(textures: list[np.ndarray], records: np.ndarray | None) -> np.
     return np.concatenate([header, entries.ravel(), np.asarray(records, np.uint32).ravel(), *texels])
 
 
-ENVIRONMENT_HEADER_WORDS = 4   # width, height, two spare words
+ENVIRONMENT_HEADER_WORDS = 4   # width, height, the sampling weights' total, a spare word
 
 
-def pack_environment(image: np.ndarray | None) -> np.ndarray:
-    """The environment buffer (bind group 1, binding 6; wgsl/trace/environment.wgsl) as u32 words: its width
-    and height, then its texels as float32 RGB bits, row by row from the top. Without an environment a
-    header of zeros (the kernels then read the constant background)."""
+def environment_cells(image: np.ndarray) -> np.ndarray:
+    """(H − 1, W) float64 sampling weights of an environment map's cells, the patches of the sphere between
+    two neighbouring rows and columns of texels (wgsl/trace/environment.wgsl blends those four corners
+    there): the corners' mean luminance times the sine of the cell's middle polar angle, so that a direction
+    is drawn about in proportion to its radiance per unit solid angle, and never with probability 0 where
+    the map is not black."""
+    luminance = np.asarray(image, np.float64) @ LUMINANCE
+    corners = luminance[:-1] + luminance[1:]
+    corners = corners + np.roll(corners, -1, axis=1)
+    height = len(luminance)
+    return 0.25 * corners * np.sin(np.pi * (np.arange(height - 1) + 0.5) / (height - 1))[:, None]
+
+
+def pack_environment(image: np.ndarray | None, importance: bool = True) -> np.ndarray:
+    """The environment buffer (bind group 1, binding 6; wgsl/trace/environment.wgsl) as u32 words: a header
+    (width, height, the cells' total weight), the texels as float32 RGB bits row by row from the top, then
+    for importance sampling (``environment_cells``) each cell's weight, the rows' cumulative distribution and
+    each row's cumulative distribution over its cells (float32). Without an environment a header of zeros
+    (the kernels then read the constant background); with a total of 0 (a black map, or ``importance``
+    False, which measures what the sampling buys) the sky is sampled uniformly over the sphere."""
     header = np.zeros(ENVIRONMENT_HEADER_WORDS, np.uint32)
     if image is None:
         return header
-    header[0], header[1] = image.shape[1], image.shape[0]
-    return np.concatenate([header, np.ascontiguousarray(image, np.float32).reshape(-1).view(np.uint32)])
+    height, width = image.shape[:2]
+    header[0], header[1] = width, height
+    weights = environment_cells(image)
+    rows = weights.sum(1)
+    total = float(rows.sum())
+    header[2] = np.float32(total if importance else 0.0).view(np.uint32)
+    row_cdf = np.cumsum(rows) / (total if total > 0 else 1.0)
+    within = np.cumsum(weights, axis=1) / np.where(rows > 0, rows, 1.0)[:, None]
+    row_cdf[-1], within[:, -1] = 1.0, 1.0
+    floats = [np.asarray(image, np.float32).ravel(), weights.astype(np.float32).ravel(),
+              row_cdf.astype(np.float32), within.astype(np.float32).ravel()]
+    return np.concatenate([header, *(part.view(np.uint32) for part in floats)])
 
 
 def alias_table(weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

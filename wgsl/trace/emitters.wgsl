@@ -2,10 +2,10 @@
 // it gives at the shading point, mixed with picks by power (trace/scene_data.py's group_probabilities is
 // the numpy reference), then an entry within the group with its alias table (in proportion to power),
 // then a point on it: area-uniform on a triangle (one-sided: its front face, the side its winding's
-// normal points to), the position of a point light, the direction of a directional light, a uniform
-// direction for the background (its radiance there: constant, or an environment map's). Also the solid-angle pdfs with which the estimate at a point
-// would have sampled what a BSDF-sampled ray from there met (a triangle, the background), for multiple
-// importance sampling.
+// normal points to), the position of a point light, the direction of a directional light, a direction
+// toward the background (uniform for a constant one, by an environment map's radiance: environment.wgsl).
+// Also the solid-angle pdfs with which the estimate at a point would have sampled what a BSDF-sampled ray
+// from there met (a triangle, the background), for multiple importance sampling.
 
 // #import trace/features.wgsl
 // #import trace/trace_bindings.wgsl
@@ -158,9 +158,12 @@ fn sample_emitter(pick: EmitterPick, x: vec3f, u: vec2f) -> EmitterSample {
     if e.kind == EMITTER_DIRECTIONAL {
         return EmitterSample(-normalize(e.edge1), FAR_AWAY, e.radiance / pmf, 0.0);
     }
-    let dir = square_to_uniform_sphere(u);
-    let pdf = pmf * INV_FOUR_PI;
-    return EmitterSample(dir, FAR_AWAY, background_radiance(dir) / pdf, pdf);
+    let sky = sample_sky(u);
+    let pdf = pmf * sky.pdf;
+    if pdf <= 0.0 {
+        return EmitterSample(sky.dir, FAR_AWAY, vec3f(0.0), 0.0);
+    }
+    return EmitterSample(sky.dir, FAR_AWAY, background_radiance(sky.dir) / pdf, pdf);
 }
 
 // Solid-angle pdf with which the estimate at x (importance_total: its pick's) would pick the point a ray
@@ -177,6 +180,6 @@ fn triangle_emitter_pdf(x: vec3f, importance_total: f32, prim: u32, t: f32, cos_
 
 // Solid-angle pdf with which the estimate at x (importance_total: its pick's) would pick a direction to
 // the background.
-fn background_emitter_pdf(x: vec3f, importance_total: f32) -> f32 {
-    return group_probability(x, importance_total, params.background_group) * params.background_share * INV_FOUR_PI;
+fn background_emitter_pdf(x: vec3f, importance_total: f32, dir: vec3f) -> f32 {
+    return group_probability(x, importance_total, params.background_group) * params.background_share * sky_pdf(dir);
 }

@@ -104,7 +104,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
         if HAS_ANALYTIC_LIGHTS && params.background_share > 0.0 {
             var weight = 1.0;
             if !(*path).previous_delta {
-                let light_pdf = background_emitter_pdf((*path).previous_position, (*path).previous_importance);
+                let light_pdf = background_emitter_pdf((*path).previous_position, (*path).previous_importance, dir);
                 weight = power_heuristic((*path).previous_pdf, light_pdf);
             }
             (*path).radiance += (*path).throughput * background_radiance(dir) * weight;
