@@ -249,6 +249,33 @@ def test_a_lens_leaves_every_other_choice_and_the_held_out_family_alone(monkeypa
     assert lenses == 24
 
 
+def test_a_sky_map_leaves_every_other_choice_and_the_held_out_family_alone(monkeypatch):
+    """The sky map draws from a random stream of its own: a training world with one is the world without it
+    plus the map (finite, positive, brighter on the mean above the horizon than below); a held-out world
+    never gets one, nor does a world without a sky."""
+    from wgpu_rt.dataset import worlds as worlds_module
+
+    maps = 0
+    for seed in [world_seed("training", n) for n in range(16)] + [world_seed("held_out", n) for n in range(8)]:
+        monkeypatch.setattr(worlds_module, "SKY_MAP_SHARE", 1.0)
+        mapped = generate_world(seed)
+        monkeypatch.setattr(worlds_module, "SKY_MAP_SHARE", 0.0)
+        plain = generate_world(seed)
+        assert plain.environment is None
+        if family_of(seed) == "held_out" or not np.any(plain.background > 0):
+            assert mapped.environment is None
+            continue
+        maps += 1
+        sky = mapped.environment
+        assert sky.shape == (*worlds_module.SKY_MAP_SIZE, 3) and np.all(np.isfinite(sky)) and sky.min() > 0
+        assert sky[: len(sky) // 2].mean() > sky[-3:].mean()
+        ours, theirs = _arrays(mapped), _arrays(plain)
+        assert ours.keys() == theirs.keys()
+        for key in theirs:
+            np.testing.assert_array_equal(ours[key], theirs[key], err_msg=f"{seed}: {key}")
+    assert maps >= 3
+
+
 def test_a_quarter_of_the_training_worlds_look_through_a_lens(worlds):
     from wgpu_rt.dataset.worlds import LENS_SHARE
 

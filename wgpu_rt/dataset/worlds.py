@@ -24,7 +24,10 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
   user brings has; also from a stream of their own (``WORLDS_VERSION`` 3);
 - in the training family only, sometimes a thin-lens camera (``LENS_SHARE``): depth of field, an aperture of
   0.3–3 % of the camera's distance to its target, focused near the target, so the denoiser sees the blur
-  and the guides a lens gives (BENCHMARKS.md §47); from a stream of its own as well (``WORLDS_VERSION`` 4).
+  and the guides a lens gives (BENCHMARKS.md §47); from a stream of its own as well (``WORLDS_VERSION`` 4);
+- in the training family only, half of the worlds with a sky see it as an environment map (``SKY_MAP_SHARE``,
+  ``procedural_sky``): brighter toward the horizon, a glow around the sun, dark ground below, so the sky
+  varies with direction as a photographed one does; from a stream of its own (``WORLDS_VERSION`` 5).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -76,12 +79,14 @@ METALS = {
 UP = np.array([0.0, 1.0, 0.0])
 CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, metres
 # What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
-# worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera.
-WORLDS_VERSION = 4
+# worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera; 5: skies as environment maps.
+WORLDS_VERSION = 5
 LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
 PAINTED_SHARE = 0.5         # of the training worlds
 LENS_SHARE = 0.25           # of the training worlds
 LENS_APERTURES = (0.003, 0.03)   # aperture radius over the camera's distance to its target, log-uniform
+SKY_MAP_SHARE = 0.5         # of the training worlds with a sky
+SKY_MAP_SIZE = (32, 64)     # a procedural sky's rows and columns
 PATTERNS = ("checker", "stripes", "blotches", "mottle")
 PAINT_EDGE = 0.02           # surfaces are subdivided until their edges are at most this share of the set's size
 
@@ -126,6 +131,7 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
         world.animate(frames)
     if family == "training":
         world.add_lens(np.random.default_rng(np.random.SeedSequence([int(seed), 0x1E25])))
+        world.add_sky_map(np.random.default_rng(np.random.SeedSequence([int(seed), 0x5C1E])))
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
 
 
@@ -139,6 +145,7 @@ class _World:
         self.materials: dict[str, Material] = {}
         self.lights: list = []
         self.background = np.zeros(3)
+        self.environment: np.ndarray | None = None   # a sky map (add_sky_map), which background then scales
         self.objects: list[tuple[Mesh, np.ndarray, float]] = []   # (mesh, centre, radius) of each object
         self.camera: Camera | None = None
         self.keyframes: dict[int, Camera] = {}
@@ -406,6 +413,14 @@ class _World:
             distance = float(np.linalg.norm(camera.target.astype(np.float64) - camera.origin))
             camera.aperture_radius, camera.focus_distance = aperture * distance, focus * distance
 
+    def add_sky_map(self, rng: np.random.Generator) -> None:
+        """With probability SKY_MAP_SHARE, a world with a sky sees it as a procedural environment map around
+        the sun (its directional light, which stays the sun), scaled by the sky colour it had."""
+        if not np.any(np.asarray(self.background) > 0) or rng.uniform() >= SKY_MAP_SHARE:
+            return
+        sun = next((light for light in self.lights if isinstance(light, DirectionalLight)), None)
+        self.environment = procedural_sky(rng, None if sun is None else -np.asarray(sun.direction, np.float64))
+
     def _point(self, position, dim: float = 1.0) -> None:
         target, _ = self.cluster()
         distance2 = max(float(np.sum((np.asarray(position, np.float64) - target) ** 2)), 0.25)
@@ -456,7 +471,7 @@ class _World:
 
     def scene(self, name: str, frames: int) -> Scene:
         return Scene(self.keyframes.get(0, self.camera), self.meshes, self.materials, self.lights,
-                     np.asarray(self.background, np.float32), self.keyframes, max(frames, 1), name)
+                     np.asarray(self.background, np.float32), self.keyframes, max(frames, 1), name, self.environment)
 
 
 def _subdivided(vertices, faces, normals, longest: float, most: int = 60_000):
@@ -496,6 +511,29 @@ def painted_colors(rng: np.random.Generator, points: np.ndarray) -> np.ndarray:
     colours = [np.array(colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0, 0.9), rng.uniform(0.05, 1.0)))
                for _ in range(2)]
     return mix_colors(t, np.ones(3) if rng.uniform() < 0.5 else colours[1], colours[0])
+
+
+def procedural_sky(rng: np.random.Generator, toward_sun: np.ndarray | None) -> np.ndarray:
+    """A (SKY_MAP_SIZE, 3) float32 latitude-longitude sky, about 1 on the mean above the horizon (a scale for
+    the world's sky colour): from the zenith to a horizon 1.5–4 times as bright and warmer, a glow around
+    ``toward_sun`` (unit, toward the sun; none without one), ground of 0.05–0.4 below, softened across the
+    horizon."""
+    height, width = SKY_MAP_SIZE
+    theta = np.pi * np.arange(height) / (height - 1)
+    phi = 2 * np.pi * (np.arange(width) + 0.5) / width
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    directions = np.stack([np.sin(p) * np.sin(t), np.cos(t), -np.cos(p) * np.sin(t)], -1)
+    up = np.clip(directions[..., 1], 0.0, 1.0)
+    horizon = np.array([1.0, rng.uniform(0.85, 1.0), rng.uniform(0.6, 0.9)]) * rng.uniform(1.5, 4.0)
+    zenith = np.full(3, rng.uniform(0.4, 0.9))
+    blend = (1 - up[..., None]) ** rng.uniform(2.0, 6.0)
+    sky = zenith + (horizon - zenith) * blend
+    if toward_sun is not None:
+        cosine = np.clip(directions @ toward_sun, -1.0, 1.0)
+        sky = sky + rng.uniform(0.5, 4.0) * np.exp((cosine - 1) * rng.uniform(4.0, 20.0))[..., None]
+    ground = np.array(colorsys.hsv_to_rgb(rng.uniform(0.05, 0.15), rng.uniform(0.1, 0.5), rng.uniform(0.05, 0.4)))
+    over = np.clip(directions[..., 1] * 20 + 0.5, 0.0, 1.0)[..., None]        # soft across the horizon
+    return (over * sky + (1 - over) * ground).astype(np.float32)
 
 
 # -- materials ----------------------------------------------------------------------------------------
