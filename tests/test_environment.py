@@ -137,7 +137,7 @@ def test_a_scene_file_reads_an_exr_or_an_image(tmp_path):
     (lambda path: None, r"environment: .*missing\.exr: no such file"),
     (lambda path: path.write_bytes(b"no exr"), r"environment: .*missing\.exr: not a readable OpenEXR file"),
     (lambda path: _write(path, np.full((6, 8, 3), -1, np.float32)), "6 pixels are negative|48 pixels are negative"),
-    (lambda path: _write(path, np.full((2, 8, 3), 1, np.float32)), "at least 2 pixels wide and 3 high"),
+    (lambda path: _write(path, np.full((2, 8, 3), 1, np.float32)), r"at least 2 pixels wide and 3 high"),
 ])
 def test_bad_environment_maps_are_refused_by_field(tmp_path, make, message):
     make(tmp_path / "missing.exr")
@@ -149,3 +149,11 @@ def _write(path, image):
     from wgpu_rt.io import write_exr
 
     write_exr(path, image)
+
+
+@pytest.mark.parametrize("image", [np.ones((2, 8, 3), np.float32), np.ones((6, 8), np.float32),
+                                   np.full((6, 8, 3), np.nan, np.float32)])
+def test_a_bad_map_given_in_python_is_refused_before_any_work(gpu, image):
+    scene = sky_scene(image, Camera([0, 0, 0], [0, 0, -1]))
+    with pytest.raises(SceneError, match="scene 'sky': environment map: "):
+        render(scene, spp=1, size=(8, 8))

@@ -117,15 +117,22 @@ def read_environment_image(path: Path) -> np.ndarray:
         image = np.ascontiguousarray(color[..., :3], np.float32)
     else:
         image = linear_from_srgb8(read_texture_image(path))
-    if image.shape[0] < 3 or image.shape[1] < 2:
-        raise SceneError(f"{path}: an environment map must be at least 2 pixels wide and 3 high, "
-                         f"got {image.shape[1]}×{image.shape[0]}")
+    check_environment(image, str(path))
+    return image
+
+
+def check_environment(image: np.ndarray, where: str) -> None:
+    """SceneError (prefixed by ``where``) unless ``image`` is an environment map the tracer can read: (H, W, 3)
+    with H ≥ 3 and W ≥ 2 (Mitsuba's least), every value finite and not negative."""
+    image = np.asarray(image)
+    if image.ndim != 3 or image.shape[2] != 3 or image.shape[0] < 3 or image.shape[1] < 2:
+        raise SceneError(f"{where}: an environment map must be an (H, W, 3) image at least 2 pixels wide and 3 "
+                         f"high, got shape {image.shape}")
     bad = ~np.isfinite(image) | (image < 0)
     if np.any(bad):
         row, column = np.argwhere(bad.any(-1))[0]
-        raise SceneError(f"{path}: {int(bad.any(-1).sum())} pixels are negative, NaN or infinite "
+        raise SceneError(f"{where}: {int(bad.any(-1).sum())} pixels are negative, NaN or infinite "
                          f"(first: row {row}, column {column})")
-    return image
 
 
 def file_uvs(geometry: trimesh.Trimesh) -> np.ndarray | None:

@@ -1,6 +1,7 @@
 """Packing the shading side of a scene for the kernel: materials, the emitter table, the frame
-parameters and the surface textures (bind group 1; record layouts as in wgsl/trace/material.wgsl,
-wgsl/trace/trace_bindings.wgsl and wgsl/trace/surface_textures.wgsl).
+parameters, the surface textures and the environment map (bind group 1; record layouts as in
+wgsl/trace/material.wgsl, wgsl/trace/trace_bindings.wgsl, wgsl/trace/surface_textures.wgsl and
+wgsl/trace/environment.wgsl).
 
 Next-event estimation picks a light in two steps. The table's entries fall into *emitter groups*: the
 emissive triangles of one mesh, each point light, the sun, the background. At each shading point a

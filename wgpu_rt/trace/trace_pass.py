@@ -37,6 +37,7 @@ from ..passes import (
     ComputePass,
     FrameBuffers,
 )
+from ..scene.meshio import check_environment
 from ..scene.model import Scene
 from ..shaders import compose
 from .features import SceneFeatures
@@ -358,6 +359,8 @@ class TracePass(ComputePass):
         # tile rows traced in a scattered order on CPU drivers (wgsl/trace/camera.wgsl), else in order
         self._tile_row_stride = tile_row_stride(-(-height // TILE)) if scatters_tile_rows(ctx) else 1
         self.features = features or SceneFeatures.of(scene)
+        if scene.environment is not None:
+            check_environment(scene.environment, f"scene {scene.name!r}: environment map")
         materials = [scene.materials[n] for n in scene_material_names(scene)]
         emissive = emissive_triangles(geometry.material_ids, materials)
         emitters = build_emitter_table(scene, emissive, geometry.triangles[emissive], geometry.material_ids,
