@@ -165,16 +165,23 @@ def test_some_training_worlds_hold_small_lamps_the_camera_sees(worlds):
     assert black > 0
 
 
+def _with_and_without(monkeypatch, share: str, seed: int, frames: int = 1):
+    """The world of ``seed`` generated with the module's ``share`` set to 1 and to 0 (a choice drawn from a
+    random stream of its own, always and never taken)."""
+    from wgpu_rt.dataset import worlds as worlds_module
+
+    monkeypatch.setattr(worlds_module, share, 1.0)
+    taken = generate_world(seed, frames=frames)
+    monkeypatch.setattr(worlds_module, share, 0.0)
+    return taken, generate_world(seed, frames=frames)
+
+
 def test_lamps_in_view_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):
     """The lamps draw from a random stream of their own: a training world with them is the world without
     them plus the lamps, and a held-out world never gets any (its gold images stay valid)."""
-    from wgpu_rt.dataset import worlds as worlds_module
 
     for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
-        monkeypatch.setattr(worlds_module, "LAMPS_IN_VIEW_SHARE", 1.0)
-        lit = generate_world(seed)
-        monkeypatch.setattr(worlds_module, "LAMPS_IN_VIEW_SHARE", 0.0)
-        plain = generate_world(seed)
+        lit, plain = _with_and_without(monkeypatch, "LAMPS_IN_VIEW_SHARE", seed)
         assert bool(_lamps_in_view(lit)) == (family_of(seed) == "training" and not lit.name.endswith("/indirect"))
         lamps = {m.name for m in _lamps_in_view(lit)} | {m.material for m in _lamps_in_view(lit)}
         without = {key: value for key, value in _arrays(lit).items()
@@ -189,14 +196,10 @@ def test_painting_leaves_every_other_choice_and_the_held_out_family_alone(monkey
     """Painted surfaces draw from a random stream of their own: a painted training world is the world without
     paint, its painted meshes subdivided (the same bounds) and given vertex colours in [0, 1] (never glass or
     an emitter); a held-out world is never painted (its gold images stay valid)."""
-    from wgpu_rt.dataset import worlds as worlds_module
 
     painted_meshes = 0
     for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
-        monkeypatch.setattr(worlds_module, "PAINTED_SHARE", 1.0)
-        painted = generate_world(seed)
-        monkeypatch.setattr(worlds_module, "PAINTED_SHARE", 0.0)
-        plain = generate_world(seed)
+        painted, plain = _with_and_without(monkeypatch, "PAINTED_SHARE", seed)
         colored = [mesh for mesh in painted.meshes if mesh.colors is not None]
         assert not colored or family_of(seed) == "training"
         painted_meshes += len(colored)
@@ -223,15 +226,11 @@ def test_painting_leaves_every_other_choice_and_the_held_out_family_alone(monkey
 def test_a_lens_leaves_every_other_choice_and_the_held_out_family_alone(monkeypatch):
     """The lens draws from a random stream of its own: a training world with one is the world without it
     but for its cameras' aperture and focus (every keyframe's alike); a held-out world is never given one."""
-    from wgpu_rt.dataset import worlds as worlds_module
 
     lenses = 0
     for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
         for frames in (1, 3):
-            monkeypatch.setattr(worlds_module, "LENS_SHARE", 1.0)
-            through = generate_world(seed, frames=frames)
-            monkeypatch.setattr(worlds_module, "LENS_SHARE", 0.0)
-            plain = generate_world(seed, frames=frames)
+            through, plain = _with_and_without(monkeypatch, "LENS_SHARE", seed, frames)
             cameras = [through.camera, *through.camera_keyframes.values()]
             if family_of(seed) == "held_out":
                 assert all(camera.aperture_radius == 0 for camera in cameras)
@@ -257,10 +256,7 @@ def test_a_sky_map_leaves_every_other_choice_and_the_held_out_family_alone(monke
 
     maps = 0
     for seed in [world_seed("training", n) for n in range(16)] + [world_seed("held_out", n) for n in range(8)]:
-        monkeypatch.setattr(worlds_module, "SKY_MAP_SHARE", 1.0)
-        mapped = generate_world(seed)
-        monkeypatch.setattr(worlds_module, "SKY_MAP_SHARE", 0.0)
-        plain = generate_world(seed)
+        mapped, plain = _with_and_without(monkeypatch, "SKY_MAP_SHARE", seed)
         assert plain.environment is None
         if family_of(seed) == "held_out" or not np.any(plain.background > 0):
             assert mapped.environment is None
