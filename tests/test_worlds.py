@@ -179,7 +179,6 @@ def _with_and_without(monkeypatch, share: str, seed: int, frames: int = 1):
 def test_lamps_in_view_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):
     """The lamps draw from a random stream of their own: a training world with them is the world without
     them plus the lamps, and a held-out world never gets any (its gold images stay valid)."""
-
     for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
         lit, plain = _with_and_without(monkeypatch, "LAMPS_IN_VIEW_SHARE", seed)
         assert bool(_lamps_in_view(lit)) == (family_of(seed) == "training" and not lit.name.endswith("/indirect"))
@@ -196,7 +195,6 @@ def test_painting_leaves_every_other_choice_and_the_held_out_family_alone(monkey
     """Painted surfaces draw from a random stream of their own: a painted training world is the world without
     paint, its painted meshes subdivided (the same bounds) and given vertex colours in [0, 1] (never glass or
     an emitter); a held-out world is never painted (its gold images stay valid)."""
-
     painted_meshes = 0
     for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
         painted, plain = _with_and_without(monkeypatch, "PAINTED_SHARE", seed)
@@ -226,7 +224,6 @@ def test_painting_leaves_every_other_choice_and_the_held_out_family_alone(monkey
 def test_a_lens_leaves_every_other_choice_and_the_held_out_family_alone(monkeypatch):
     """The lens draws from a random stream of its own: a training world with one is the world without it
     but for its cameras' aperture and focus (every keyframe's alike); a held-out world is never given one."""
-
     lenses = 0
     for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
         for frames in (1, 3):
