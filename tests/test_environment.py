@@ -45,19 +45,24 @@ def test_texel_centres_and_the_seam():
     np.testing.assert_allclose(left, 0.5 * (sky[height // 2, 0] + sky[height // 2, -1]), atol=0.02)
 
 
-@pytest.mark.parametrize("target", [[0, 0, -1], [1, 0.5, 0], [0, 1, 0.01]])
-def test_the_sky_seen_directly_is_the_map(gpu, target):
-    """Each pixel's radiance is the map along its centre's direction (horizon, sideways, the zenith)."""
+@pytest.mark.parametrize("target, rotation", [([0, 0, -1], 0), ([1, 0.5, 0], 0), ([0, 1, 0.01], 0), ([1, 0.5, 0], 70)])
+def test_the_sky_seen_directly_is_the_map(gpu, target, rotation):
+    """Each pixel's radiance is the map along its centre's direction (horizon, sideways, the zenith), turned
+    about +y by the scene's rotation (the direction turned back into the map's frame)."""
     camera = Camera([0, 0, 0], target, up=[0, 1, 0] if abs(target[1]) < 0.9 else [0, 0, -1], fov=60)
     sky = smooth_sky()
-    ours = render(sky_scene(sky, camera), spp=16, size=(SIZE, SIZE), max_depth=1, aovs=()).color
+    scene = sky_scene(sky, camera)
+    scene.environment_rotation = rotation
+    ours = render(scene, spp=16, size=(SIZE, SIZE), max_depth=1, aovs=()).color
     right, up, forward = (v.astype(np.float64) for v in camera.basis())
     tan_x, tan_y = camera.tan_half_fov(SIZE, SIZE)
     centres = (np.arange(SIZE) + 0.5) / SIZE * 2 - 1
     ndc_x, ndc_y = np.meshgrid(centres, -centres)
     rays = forward + ndc_x[..., None] * tan_x * right + ndc_y[..., None] * tan_y * up
     rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
-    expected = sample_environment(sky, rays.reshape(-1, 3)).reshape(SIZE, SIZE, 3)
+    c, s = np.cos(np.radians(rotation)), np.sin(np.radians(rotation))
+    in_map = rays @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])                # Rᵀ·d for each row d
+    expected = sample_environment(sky, in_map.reshape(-1, 3)).reshape(SIZE, SIZE, 3)
     relative = np.abs(ours - expected) / expected
     assert np.median(relative) < 0.005 and relative.max() < 0.05, (np.median(relative), relative.max())
 
@@ -128,6 +133,9 @@ def test_a_scene_file_reads_an_exr_or_an_image(tmp_path):
     np.testing.assert_allclose(scene.environment, sky)
     np.testing.assert_array_equal(scene.background, 1.0)             # the map as it is
     assert _scene_file(tmp_path, environment="sky.exr", background=0.25).background.tolist() == [0.25] * 3
+    assert _scene_file(tmp_path, environment="sky.exr", environment_rotate=-30).environment_rotation == -30
+    with pytest.raises(SceneError, match="environment_rotate: turns an environment map: give 'environment' too"):
+        _scene_file(tmp_path, environment_rotate=30)
     Image.fromarray(np.full((4, 6, 3), 188, np.uint8)).save(tmp_path / "sky.png")
     np.testing.assert_allclose(_scene_file(tmp_path, environment="sky.png").environment,
                                linear_from_srgb8(np.uint8([188]))[0], rtol=1e-6)   # decoded from sRGB

@@ -230,3 +230,7 @@ def test_environment_map_matches_mitsuba(gpu):
 
     distance, turned_distance = _matches_mitsuba(sky(0), sky(8))
     assert turned_distance > 2 * distance
+    turned = sky(0)
+    turned.environment_rotation = 90.0                                # a quarter turn about +y, as to_world
+    rotated_distance, unturned_distance = _matches_mitsuba(turned, sky(0))
+    assert unturned_distance > 2 * rotated_distance

@@ -463,6 +463,9 @@ def parse_scene(data, source: str, folder: Path) -> Scene:
         top.fail("at least one mesh is required", "meshes")
     lights = [_light(entry) for entry in top.tables("lights")]
     environment = _image_file(top, "environment", folder, read_environment_image)
+    rotation = top.number("environment_rotate", 0.0)
+    if rotation and environment is None:
+        top.fail("turns an environment map: give 'environment' too", "environment_rotate")
     background = top.vector("background", [0.0, 0.0, 0.0] if environment is None else [1.0, 1.0, 1.0],
                             broadcast=True, non_negative=True)
     last_key = max([*camera_keyframes, *(f for m in meshes for f in m.keyframes)], default=0)
@@ -472,7 +475,8 @@ def parse_scene(data, source: str, folder: Path) -> Scene:
     name = top.string("name", Path(source).stem)
     top.done()
     return Scene(camera, meshes, materials, lights=lights, background=background.astype(np.float32),
-                 camera_keyframes=camera_keyframes, frame_count=frame_count, name=name, environment=environment)
+                 camera_keyframes=camera_keyframes, frame_count=frame_count, name=name, environment=environment,
+                 environment_rotation=rotation)
 
 
 def read_scene_file(path) -> dict:

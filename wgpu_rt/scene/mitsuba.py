@@ -189,7 +189,8 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
             raise TypeError(f"unknown light type {type(light).__name__}")
     if scene.environment is not None:
         scaled = np.asarray(scene.environment, np.float32) * np.asarray(scene.background, np.float32)
-        result["background"] = {"type": "envmap", "bitmap": mi.Bitmap(np.ascontiguousarray(scaled))}
+        turn = mi.ScalarTransform4f().rotate([0, 1, 0], float(scene.environment_rotation))
+        result["background"] = {"type": "envmap", "bitmap": mi.Bitmap(np.ascontiguousarray(scaled)), "to_world": turn}
     elif np.any(np.asarray(scene.background) > 0):
         result["background"] = {"type": "constant", "radiance": _rgb(scene.background)}
     return result

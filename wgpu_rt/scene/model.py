@@ -302,6 +302,7 @@ class Scene:
     # up, +y; ``sample_environment``), the sky's radiance along each direction times ``background`` (then a
     # per-channel scale). None: the sky is ``background`` everywhere.
     environment: np.ndarray | None = None
+    environment_rotation: float = 0.0   # degrees the map is turned about +y (Mitsuba's envmap to_world)
 
     def background_mean(self) -> np.ndarray:
         """(3,) the sky's radiance averaged over all directions (``background`` itself without an environment)."""

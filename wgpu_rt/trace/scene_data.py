@@ -64,7 +64,8 @@ FRAME_PARAMS_DTYPE = np.dtype([
     ("emitter_count", "<u4"), ("previous_up", "<f4", 3), ("tile_row_stride", "<u4"),
     ("previous_forward", "<f4", 3), ("background_share", "<f4"), ("background", "<f4", 3),
     ("chunk_start", "<u4"), ("chunk_size", "<u4"), ("pass_samples", "<u4"), ("emitter_group_count", "<u4"),
-    ("background_group", "<u4"), ("lens_radius", "<f4"), ("focus_distance", "<f4"), ("pad", "<u4", 2),
+    ("background_group", "<u4"), ("lens_radius", "<f4"), ("focus_distance", "<f4"),
+    ("environment_turn", "<f4", 2),
     ("emitter_groups", EMITTER_GROUP_DTYPE, MAX_EMITTER_GROUPS)])
 
 

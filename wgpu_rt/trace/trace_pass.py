@@ -475,6 +475,8 @@ class TracePass(ComputePass):
         params["background"] = scene.background
         camera = scene.camera_at(frame)
         params["lens_radius"], params["focus_distance"] = camera.aperture_radius, camera.focus_distance
+        turn = np.radians(scene.environment_rotation)
+        params["environment_turn"] = np.cos(turn), np.sin(turn)
         return params
 
     # A frame allocates nothing: one parameter buffer per kind of pass (its schedule's shape), rewritten

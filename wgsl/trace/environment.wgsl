@@ -21,12 +21,24 @@ fn environment_texel(width: u32, column: u32, row: u32) -> vec3f {
     return vec3f(bitcast<f32>(environment[at]), bitcast<f32>(environment[at + 1u]), bitcast<f32>(environment[at + 2u]));
 }
 
-// Radiance arriving from the sky along unit direction `dir` (the direction a ray travels).
-fn background_radiance(dir: vec3f) -> vec3f {
+// A world direction in the map's own frame (the map turned about +y by params.environment_turn), and back.
+fn to_map(dir: vec3f) -> vec3f {
+    let turn = params.environment_turn;
+    return vec3f(turn.x * dir.x - turn.y * dir.z, dir.y, turn.y * dir.x + turn.x * dir.z);
+}
+
+fn from_map(dir: vec3f) -> vec3f {
+    let turn = params.environment_turn;
+    return vec3f(turn.x * dir.x + turn.y * dir.z, dir.y, turn.x * dir.z - turn.y * dir.x);
+}
+
+// Radiance arriving from the sky along unit direction `world_dir` (the direction a ray travels).
+fn background_radiance(world_dir: vec3f) -> vec3f {
     let width = environment[0];
     if width == 0u {
         return params.background;
     }
+    let dir = to_map(world_dir);
     let height = environment[1];
     let u = atan2(dir.x, -dir.z) * (0.5 / PI);
     let v = acos(clamp(dir.y, -1.0, 1.0)) / PI;
@@ -96,14 +108,15 @@ fn sample_sky(u: vec2f) -> SkySample {
     let phi = 2.0 * PI * (f32(column) + along_u + 0.5) / f32(t.width);   // cells start half a texel on
     let sin_theta = sin(theta);
     let dir = vec3f(sin(phi) * sin_theta, cos(theta), -cos(phi) * sin_theta);
-    return SkySample(dir, sky_cell_pdf(t, row * t.width + column, sin_theta));
+    return SkySample(from_map(dir), sky_cell_pdf(t, row * t.width + column, sin_theta));
 }
 
-// The solid-angle pdf with which sample_sky draws unit direction `dir`.
-fn sky_pdf(dir: vec3f) -> f32 {
+// The solid-angle pdf with which sample_sky draws unit direction `world_dir`.
+fn sky_pdf(world_dir: vec3f) -> f32 {
     if environment[0] == 0u || environment_float(2u) <= 0.0 {
         return INV_FOUR_PI;
     }
+    let dir = to_map(world_dir);
     let t = sky_tables();
     let u = atan2(dir.x, -dir.z) * (0.5 / PI);
     let v = acos(clamp(dir.y, -1.0, 1.0)) / PI;

@@ -29,7 +29,7 @@ struct FrameParams {
     background_group: u32,
     lens_radius: f32,         // the thin lens's aperture radius (0: a pinhole; trace/camera.wgsl)
     focus_distance: f32,      // along camera_forward, to the plane in focus
-    _pad: vec2u,
+    environment_turn: vec2f,  // cos, sin of the angle the environment map is turned about +y
     emitter_groups: array<EmitterGroup, 16>,   // wgpu_rt.trace.scene_data.MAX_EMITTER_GROUPS
 }
 
