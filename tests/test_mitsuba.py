@@ -234,3 +234,19 @@ def test_environment_map_matches_mitsuba(gpu):
     turned.environment_rotation = 90.0                                # a quarter turn about +y, as to_world
     rotated_distance, unturned_distance = _matches_mitsuba(turned, sky(0))
     assert unturned_distance > 2 * rotated_distance
+
+
+@pytest.mark.parametrize("ior", [1.5, 1.33])
+def test_plastic_matches_mitsuba(gpu, ior):
+    """cornell-glossy with its walls, floor and boxes made plastic (their colours under a smooth coat): the
+    coat's mirror reflections and the dimmed, Fresnel-weighted diffuse base as Mitsuba's linear plastic; the
+    same scene left diffuse is told apart."""
+    def coated(kind: str):
+        scene = load_scene("cornell-glossy")
+        for name, material in scene.materials.items():
+            if material.kind == "diffuse" and not material.is_emissive:
+                material.kind, material.ior = kind, ior
+        return scene
+
+    distance, diffuse_distance = _matches_mitsuba(coated("plastic"), coated("diffuse"))
+    assert diffuse_distance > 2 * distance

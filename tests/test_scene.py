@@ -285,7 +285,7 @@ def test_transform_order_and_matrix(tmp_path):
     (lambda d: d["camera"].update(fov="wide"), "scene.json: camera.fov: expected a number, got 'wide'"),
     (lambda d: d.update(colour=[1, 2, 3]), "scene.json: (top level): unknown key 'colour'"),
     (lambda d: d["materials"]["white"].update(shine=1), "scene.json: materials.white: unknown key 'shine'"),
-    (lambda d: d["materials"]["white"].update(kind="plastic"), "scene.json: materials.white.kind: expected one of"),
+    (lambda d: d["materials"]["white"].update(kind="velvet"), "scene.json: materials.white.kind: expected one of"),
     (lambda d: d["materials"]["white"].update(roughness=3), "scene.json: materials.white: roughness must be in"),
     (lambda d: d["meshes"][0].update(transform={"matrix": [[1, 0], [0, 1]]}),
      "scene.json: meshes[0].transform.matrix: expected a 4×4"),
@@ -798,3 +798,17 @@ def test_a_scene_with_its_light_scaled_renders_scaled(gpu):
     assert dim.meshes is scene.meshes and dim.camera is scene.camera
     options = dict(size=(12, 10), max_depth=3, ctx=gpu, aovs=())
     np.testing.assert_array_equal(render(dim, **options).color * 32, render(scene, **options).color)
+
+
+def test_a_plastic_coat_is_smooth(tmp_path):
+    """Mitsuba's plastic has a smooth coat; a rough one is refused by field rather than rendered smooth."""
+    from wgpu_rt.scene.loader import parse_scene
+
+    data = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]},
+            "materials": {"coated": {"kind": "plastic", "reflectance": 0.4, "ior": 1.4}},
+            "meshes": [{"shape": "cube", "material": "coated"}], "lights": [{"type": "point", "position": [0, 2, 2],
+                                                                           "intensity": 1}]}
+    assert parse_scene(data, "scene.json", tmp_path).materials["coated"].kind == "plastic"
+    data["materials"]["coated"]["roughness"] = 0.2
+    with pytest.raises(SceneError, match=r"materials\.coated: a plastic's coat is smooth"):
+        parse_scene(data, "scene.json", tmp_path)

@@ -4,8 +4,9 @@ Every mesh becomes an ``mi.Mesh`` built from its world-space arrays at ``frame``
 loaded files, animation and instances, each placement one mesh, all go through one path), with the
 BSDF its material maps to:
 
-- diffuse → ``diffuse``; conductor → ``conductor`` (roughness 0) or ``roughconductor`` (GGX,
-  alpha = roughness) with eta, k and specular_reflectance; dielectric → ``dielectric`` or
+- diffuse → ``diffuse``; plastic → ``plastic`` (int_ior = ior, ext_ior = 1, linear); conductor →
+  ``conductor`` (roughness 0) or ``roughconductor`` (GGX, alpha = roughness) with eta, k and
+  specular_reflectance; dielectric → ``dielectric`` or
   ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1.
 - a mesh's vertex colours become a "vertex_color" mesh attribute its BSDF's reflectance reads, a texture a
   ``bitmap`` (bilinear, repeat) of the image times the reflectance, read at the mesh's texture coordinates.
@@ -66,6 +67,9 @@ def material_to_bsdf(material: Material, vertex_colored: bool = False, reflectan
         reflectance = VERTEX_REFLECTANCE if vertex_colored else _rgb(material.reflectance)
     if material.kind == "diffuse":
         return {"type": "diffuse", "reflectance": reflectance}
+    if material.kind == "plastic":
+        return {"type": "plastic", "diffuse_reflectance": reflectance, "int_ior": float(material.ior),
+                "ext_ior": 1.0, "nonlinear": False}
     if material.kind == "conductor":
         bsdf = {"type": "conductor", "eta": _rgb(material.eta), "k": _rgb(material.k),
                 "specular_reflectance": reflectance}

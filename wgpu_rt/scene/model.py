@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-MATERIAL_KINDS = ("diffuse", "conductor", "dielectric")
+MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "plastic")
 FOV_AXES = ("x", "y", "smaller", "larger")
 # Narrower than this, float32 ray directions no longer tell neighbouring pixels apart (tan(fov/2) / 128
 # is float32's epsilon at 256 pixels); towards 0 the 1/tan(fov/2) of the motion vectors overflows.
@@ -41,6 +41,8 @@ class Material:
       ``reflectance`` (Mitsuba's specular_reflectance); ``roughness`` is the GGX alpha (0 = mirror).
       The default eta=0, k=1 is a perfect mirror, as Mitsuba's material 'none'.
     - ``dielectric``: glass with interior ``ior`` over exterior 1.0; ``roughness`` 0 = smooth.
+    - ``plastic``: Lambertian ``reflectance`` under a smooth dielectric coat of ``ior`` (Mitsuba's ``plastic``,
+      linear): Fresnel-weighted mirror reflection at the coat, the rest diffuse, each way through it.
     Any material may also emit ``emission`` (radiance, front side only, as Mitsuba's area emitter).
     """
 
@@ -64,6 +66,8 @@ class Material:
             raise ValueError(f"roughness must be in [0, 1], got {self.roughness}")
         if not float(self.ior) > 0.0:
             raise ValueError(f"ior must be positive, got {self.ior}")
+        if self.kind == "plastic" and float(self.roughness) != 0.0:
+            raise ValueError(f"a plastic's coat is smooth: roughness must be 0, got {self.roughness}")
 
     @property
     def is_emissive(self) -> bool:

@@ -34,7 +34,7 @@ import numpy as np
 
 from ..scene.model import DirectionalLight, Material, PointLight, Scene, SpotLight
 
-MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2}
+MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "plastic": 3}
 EMITTER_TRIANGLE, EMITTER_POINT, EMITTER_DIRECTIONAL, EMITTER_BACKGROUND = range(4)
 # how a group's irradiance estimate is reckoned (wgsl/trace/emitters.wgsl's group_importance)
 GROUP_CONSTANT, GROUP_POINT, GROUP_SOLID, GROUP_FLAT = range(4)

@@ -2,7 +2,7 @@
 // override constants; code under a false switch is constant-folded away when the pipeline is created,
 // so a diffuse-only scene never pays for glass, metal, light-type branching or motion vectors.
 
-override HAS_DIELECTRIC: bool = true;       // any smooth or rough glass
+override HAS_DIELECTRIC: bool = true;       // any smooth or rough glass, or a plastic's coat
 override HAS_CONDUCTOR: bool = true;        // any smooth or rough metal
 override HAS_AREA_LIGHTS: bool = true;      // any emissive triangle
 override HAS_ANALYTIC_LIGHTS: bool = true;  // any point or directional light, or a non-black background

@@ -1,5 +1,5 @@
 // The material record shared by the BSDF modules: one struct for every kind (diffuse, conductor,
-// dielectric), as packed by wgpu_rt.trace.scene_data. Roughness is the GGX alpha; below
+// dielectric, plastic), as packed by wgpu_rt.trace.scene_data. Roughness is the GGX alpha; below
 // DELTA_ROUGHNESS a lobe is treated as perfectly specular (a Dirac delta).
 
 // #import trace/features.wgsl
@@ -7,6 +7,7 @@
 const MATERIAL_DIFFUSE: u32 = 0u;
 const MATERIAL_CONDUCTOR: u32 = 1u;
 const MATERIAL_DIELECTRIC: u32 = 2u;
+const MATERIAL_PLASTIC: u32 = 3u;      // compiled with the glass (HAS_DIELECTRIC): its coat is one
 const DELTA_ROUGHNESS: f32 = 1e-4;
 
 struct Material {
@@ -38,7 +39,9 @@ struct BsdfEval {
 
 fn material_is_delta(m: Material) -> bool {
     // without glass or metal in the kernel, nothing is delta (and kind/roughness are never fetched)
-    return (HAS_CONDUCTOR || HAS_DIELECTRIC) && m.kind != MATERIAL_DIFFUSE && m.roughness < DELTA_ROUGHNESS;
+    // (a plastic has a diffuse lobe under its mirror-smooth coat: never delta as a whole)
+    return (HAS_CONDUCTOR || HAS_DIELECTRIC) && m.kind != MATERIAL_DIFFUSE && m.kind != MATERIAL_PLASTIC
+           && m.roughness < DELTA_ROUGHNESS;
 }
 
 fn no_sample() -> BsdfSample {
