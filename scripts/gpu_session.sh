@@ -77,9 +77,9 @@
 # Sessions 45–47 had no GPU. Since session 47 a frame whose packed denoiser input is wider than one storage binding
 # denoises in bands of rows (frame/bands.py, §46); a GPU binds gigabytes, so there only frames far past 4K take
 # them, and `tests` checks them under a shrunken limit. Session 48 had no GPU; since then the training worlds are
-# worlds_version 5 (§47: a quarter of the cameras through a thin lens, half the skies as environment maps), so
-# call 1's renders are the first with either; train_eval should also score benchmarks/scenes/plaza-lens.toml
-# and examples/sky-courtyard.toml (bench_spp.py), whose golds are the lens's and the map's.
+# worlds_version 6 (§47: a quarter of the cameras through a thin lens, half the skies as environment maps, three
+# in ten matte materials coated as plastic), so call 1's renders are the first with any of them; train_eval should
+# also score benchmarks/scenes/plaza-lens.toml and examples/sky-courtyard.toml (bench_spp.py).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),

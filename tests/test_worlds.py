@@ -269,6 +269,28 @@ def test_a_sky_map_leaves_every_other_choice_and_the_held_out_family_alone(monke
     assert maps >= 3
 
 
+def test_coats_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):
+    """Coated materials draw from a random stream of their own: a training world with them is the world
+    without them but for some matte materials turned plastic of the same colour; a held-out world has none."""
+    coated = 0
+    for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
+        with_coats, plain = _with_and_without(monkeypatch, "PLASTIC_SHARE", seed)
+        kinds = {name: m.kind for name, m in with_coats.materials.items()}
+        if family_of(seed) == "held_out":
+            assert "plastic" not in kinds.values()
+        for name, material in with_coats.materials.items():
+            before = plain.materials[name]
+            if material.kind == "plastic":
+                coated += 1
+                assert before.kind == "diffuse" and not before.is_emissive and 1.3 <= material.ior <= 1.7
+                np.testing.assert_array_equal(material.reflectance, before.reflectance)
+        ours, theirs = _arrays(with_coats), _arrays(plain)
+        for key in theirs:
+            if not (key.startswith("material ") and kinds[key[len("material "):]] == "plastic"):
+                np.testing.assert_array_equal(ours[key], theirs[key], err_msg=f"{seed}: {key}")
+    assert coated >= 12
+
+
 def test_a_quarter_of_the_training_worlds_look_through_a_lens(worlds):
     from wgpu_rt.dataset.worlds import LENS_SHARE
 

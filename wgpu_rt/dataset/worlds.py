@@ -27,7 +27,10 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
   and the guides a lens gives (BENCHMARKS.md §47); from a stream of its own as well (``WORLDS_VERSION`` 4);
 - in the training family only, half of the worlds with a sky see it as an environment map (``SKY_MAP_SHARE``,
   ``procedural_sky``): brighter toward the horizon, a glow around the sun, dark ground below, so the sky
-  varies with direction as a photographed one does; from a stream of its own (``WORLDS_VERSION`` 5).
+  varies with direction as a photographed one does; from a stream of its own (``WORLDS_VERSION`` 5);
+- in the training family only, a share of the matte materials coated (``PLASTIC_SHARE``: Mitsuba's smooth
+  plastic, a clear coat of index 1.3–1.7 over the same colour), so the denoiser sees mirror images of lights
+  and objects on painted and plastic things; from a stream of its own (``WORLDS_VERSION`` 6).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -79,14 +82,16 @@ METALS = {
 UP = np.array([0.0, 1.0, 0.0])
 CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, metres
 # What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
-# worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera; 5: skies as environment maps.
-WORLDS_VERSION = 5
+# worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera; 5: skies as environment maps;
+# 6: coated (plastic) materials.
+WORLDS_VERSION = 6
 LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
 PAINTED_SHARE = 0.5         # of the training worlds
 LENS_SHARE = 0.25           # of the training worlds
 LENS_APERTURES = (0.003, 0.03)   # aperture radius over the camera's distance to its target, log-uniform
 SKY_MAP_SHARE = 0.5         # of the training worlds with a sky
 SKY_MAP_SIZE = (32, 64)     # a procedural sky's rows and columns
+PLASTIC_SHARE = 0.3         # of the training worlds' matte materials (not emitters)
 PATTERNS = ("checker", "stripes", "blotches", "mottle")
 PAINT_EDGE = 0.02           # surfaces are subdivided until their edges are at most this share of the set's size
 
@@ -132,6 +137,7 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
     if family == "training":
         world.add_lens(np.random.default_rng(np.random.SeedSequence([int(seed), 0x1E25])))
         world.add_sky_map(np.random.default_rng(np.random.SeedSequence([int(seed), 0x5C1E])))
+        world.coat_materials(np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0A7])))
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
 
 
@@ -420,6 +426,17 @@ class _World:
             return
         sun = next((light for light in self.lights if isinstance(light, DirectionalLight)), None)
         self.environment = procedural_sky(rng, None if sun is None else -np.asarray(sun.direction, np.float64))
+
+    def coat_materials(self, rng: np.random.Generator) -> None:
+        """Each matte material that does not emit becomes, with probability PLASTIC_SHARE, the same colour
+        under a smooth clear coat (plastic) of index 1.3–1.7."""
+        for name in sorted(self.materials):
+            material = self.materials[name]
+            if material.kind != "diffuse" or material.is_emissive:
+                continue
+            coat, ior = rng.uniform() < PLASTIC_SHARE, float(rng.uniform(1.3, 1.7))
+            if coat:
+                self.materials[name] = Material("plastic", reflectance=material.reflectance, ior=ior)
 
     def _point(self, position, dim: float = 1.0) -> None:
         target, _ = self.cluster()
