@@ -250,3 +250,18 @@ def test_plastic_matches_mitsuba(gpu, ior):
 
     distance, diffuse_distance = _matches_mitsuba(coated("plastic"), coated("diffuse"))
     assert diffuse_distance > 2 * distance
+
+
+def test_plastic_with_vertex_colours_is_refused_for_mitsuba_by_name():
+    """Mitsuba's plastic takes the mean of its diffuse texture, which a mesh attribute does not have: the
+    conversion says so, naming the mesh, rather than failing inside Mitsuba."""
+    from wgpu_rt.errors import SceneError
+
+    scene = load_scene("cornell")
+    scene.materials["white"].kind = "plastic"
+    floor = next(m for m in scene.meshes if m.name == "floor")
+    floor.colors = np.ones((len(floor.vertices), 3), np.float32)
+    if use_variant(mi) is None:
+        pytest.skip("no Mitsuba variant loads in this build")
+    with pytest.raises(SceneError, match="mesh 'floor': Mitsuba's plastic cannot read vertex colours"):
+        to_mitsuba(scene, 8, 8, 4, 4)

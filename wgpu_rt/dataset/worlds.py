@@ -429,13 +429,15 @@ class _World:
 
     def coat_materials(self, rng: np.random.Generator) -> None:
         """Each matte material that does not emit becomes, with probability PLASTIC_SHARE, the same colour
-        under a smooth clear coat (plastic) of index 1.3–1.7."""
+        under a smooth clear coat (plastic) of index 1.3–1.7; not one a painted mesh wears (Mitsuba's
+        plastic, the golds' renderer, cannot read vertex colours)."""
+        painted = {mesh.material for mesh in self.meshes if mesh.colors is not None}
         for name in sorted(self.materials):
             material = self.materials[name]
             if material.kind != "diffuse" or material.is_emissive:
                 continue
             coat, ior = rng.uniform() < PLASTIC_SHARE, float(rng.uniform(1.3, 1.7))
-            if coat:
+            if coat and name not in painted:
                 self.materials[name] = Material("plastic", reflectance=material.reflectance, ior=ior)
 
     def _point(self, position, dim: float = 1.0) -> None:

@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import SceneError
 from .model import (DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8,
                     vertex_colors_as_rendered)
 from .transforms import transform_normals, transform_points
@@ -166,6 +167,9 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         normals = None if mesh.normals is None else transform_normals(transform, mesh.normals)
         key = f"mesh{index:04d}-" + re.sub(r"[^A-Za-z0-9_-]", "_", mesh.name)
         colors = vertex_colors_as_rendered(mesh)
+        if colors is not None and material.kind == "plastic":
+            raise SceneError(f"mesh {mesh.name!r}: Mitsuba's plastic cannot read vertex colours (its sampling "
+                             f"weight needs a texture's mean); give the mesh a texture or another material")
         textured = None if mesh.texture is None else textured_reflectance(mi, mesh.texture, material.reflectance)
         result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
                                     surface_bsdf(material, colors is not None, textured),
