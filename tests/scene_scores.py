@@ -14,14 +14,21 @@ SUBPIXELS = 4
 SEEDS = (0, 1, 2, 3)   # the 1-spp renders a test scores, a mean over them
 
 
+def camera_rays(camera, size: int, subpixels: int = 1) -> np.ndarray:
+    """(size·subpixels, size·subpixels, 3) unit directions of a pinhole ``camera``'s rays through the centres
+    of a square image's pixels (or of their subpixels × subpixels parts), rows from the top, as
+    wgsl/trace/camera.wgsl aims them."""
+    view = camera_vectors(camera, size, size)
+    film = (np.arange(size * subpixels) + 0.5) / subpixels
+    film_y, film_x = np.meshgrid(film, film, indexing="ij")
+    dirs = (view["forward"] + (2 * film_x / size - 1)[..., None] * view["right"]
+            + (1 - 2 * film_y / size)[..., None] * view["up"])
+    return dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)
+
+
 def first_materials(ctx, scene, size: int) -> np.ndarray:
     """(size, size, SUBPIXELS²) names of the material each camera ray meets first, "" where it escapes."""
-    view = camera_vectors(scene.camera, size, size)
-    film = (np.arange(size * SUBPIXELS) + 0.5) / SUBPIXELS
-    film_y, film_x = (f.ravel() for f in np.meshgrid(film, film, indexing="ij"))
-    dirs = (view["forward"] + (2 * film_x / size - 1)[:, None] * view["right"]
-            + (1 - 2 * film_y / size)[:, None] * view["up"])
-    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    dirs = camera_rays(scene.camera, size, SUBPIXELS).reshape(-1, 3)
     geometry = GeometryBuffers.build(scene, 0)
     origins = np.broadcast_to(scene.camera.origin, dirs.shape)
     hits, surfaces = RayQuery(ctx, geometry).intersect(query_rays(origins, dirs))

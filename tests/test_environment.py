@@ -4,6 +4,7 @@ images refused by name. Mitsuba's agreement is in tests/test_mitsuba.py."""
 
 import numpy as np
 import pytest
+from scene_scores import camera_rays
 
 from wgpu_rt.errors import SceneError
 from wgpu_rt.renderer import render
@@ -54,12 +55,7 @@ def test_the_sky_seen_directly_is_the_map(gpu, target, rotation):
     scene = sky_scene(sky, camera)
     scene.environment_rotation = rotation
     ours = render(scene, spp=16, size=(SIZE, SIZE), max_depth=1, aovs=()).color
-    right, up, forward = (v.astype(np.float64) for v in camera.basis())
-    tan_x, tan_y = camera.tan_half_fov(SIZE, SIZE)
-    centres = (np.arange(SIZE) + 0.5) / SIZE * 2 - 1
-    ndc_x, ndc_y = np.meshgrid(centres, -centres)
-    rays = forward + ndc_x[..., None] * tan_x * right + ndc_y[..., None] * tan_y * up
-    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    rays = camera_rays(camera, SIZE)
     c, s = np.cos(np.radians(rotation)), np.sin(np.radians(rotation))
     in_map = rays @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])                # Rᵀ·d for each row d
     expected = sample_environment(sky, in_map.reshape(-1, 3)).reshape(SIZE, SIZE, 3)

@@ -4,6 +4,7 @@ their errors; Mitsuba's agreement is in tests/test_mitsuba.py."""
 
 import numpy as np
 import pytest
+from scene_scores import camera_rays
 
 from wgpu_rt.errors import SceneError
 from wgpu_rt.renderer import render
@@ -34,11 +35,7 @@ def test_direct_light_on_a_floor_is_the_closed_form(gpu):
     scene = Scene(camera, [floor], {"floor": Material(reflectance=FLOOR)}, [spot], name="spot floor")
     ours = render(scene, spp=16, size=(SIZE, SIZE), max_depth=2, aovs=()).color
 
-    right, up, forward = (v.astype(np.float64) for v in camera.basis())
-    tan_x, tan_y = camera.tan_half_fov(SIZE, SIZE)
-    centres = (np.arange(SIZE) + 0.5) / SIZE * 2 - 1
-    ndc_x, ndc_y = np.meshgrid(centres, -centres)
-    rays = forward + ndc_x[..., None] * tan_x * right + ndc_y[..., None] * tan_y * up
+    rays = camera_rays(camera, SIZE).astype(np.float64)
     points = camera.origin + rays * (-camera.origin[1] / rays[..., 1:2])          # on the plane y = 0
     offset = points - spot.position
     distance = np.linalg.norm(offset, axis=-1)
