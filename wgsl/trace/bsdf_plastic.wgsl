@@ -24,7 +24,9 @@ fn fresnel_diffuse_reflectance(eta: f32) -> f32 {
 fn plastic_specular_probability(m: Material, f_i: f32) -> f32 {
     let weight = 1.0 / (1.0 + (m.reflectance.x + m.reflectance.y + m.reflectance.z) / 3.0);
     let specular = f_i * weight;
-    return specular / (specular + (1.0 - f_i) * (1.0 - weight));
+    let total = specular + (1.0 - f_i) * (1.0 - weight);
+    // both lobes empty (a black base under a coat of index 1): sample the (black) base
+    return select(0.0, specular / total, total > 0.0);
 }
 
 // The diffuse lobe's f·cos θo (before the 1 / π and the cosine, which the callers apply).
