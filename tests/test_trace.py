@@ -482,4 +482,3 @@ def test_vertex_colors_tint_the_albedo_the_denoiser_sees(gpu, aux_samples):
     scene.meshes[0].colors = np.float32([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]])[:len(scene.meshes[0].vertices)]
     varied = _albedo(gpu, scene, 4, aux_samples)[front]
     assert np.ptp(varied[:, 0]) > 0.3 and np.ptp(varied[:, 1]) > 0.3
-
