@@ -16,9 +16,13 @@
 
 const ENVIRONMENT_HEADER_WORDS: u32 = 4u;   // == wgpu_rt.trace.scene_data.ENVIRONMENT_HEADER_WORDS
 
+fn environment_float(at: u32) -> f32 {
+    return bitcast<f32>(environment[at]);
+}
+
 fn environment_texel(width: u32, column: u32, row: u32) -> vec3f {
     let at = ENVIRONMENT_HEADER_WORDS + 3u * (row * width + column);
-    return vec3f(bitcast<f32>(environment[at]), bitcast<f32>(environment[at + 1u]), bitcast<f32>(environment[at + 2u]));
+    return vec3f(environment_float(at), environment_float(at + 1u), environment_float(at + 2u));
 }
 
 // A world direction in the map's own frame (the map turned about +y by params.environment_turn), and back.
@@ -32,29 +36,38 @@ fn from_map(dir: vec3f) -> vec3f {
     return vec3f(turn.x * dir.x + turn.y * dir.z, dir.y, turn.x * dir.z - turn.y * dir.x);
 }
 
+// Where unit direction `world_dir` falls on a map of `width` columns and `rows` + 1 rows, in texels (x from
+// the first column's centre, periodic; y from the top row), and the cell it is in (the texels at its top
+// left corner: the four corners the radiance blends, and the cell the sky's sampling draws it in).
+struct MapPosition { at: vec2f, cell: vec2u }
+
+fn map_position(world_dir: vec3f, width: u32, rows: u32) -> MapPosition {
+    let dir = to_map(world_dir);
+    let u = atan2(dir.x, -dir.z) * (0.5 / PI);
+    let v = acos(clamp(dir.y, -1.0, 1.0)) / PI;
+    let at = vec2f(fract(u - 0.5 / f32(width)) * f32(width), v * f32(rows));
+    return MapPosition(at, min(vec2u(at), vec2u(width - 1u, rows - 1u)));
+}
+
 // Radiance arriving from the sky along unit direction `world_dir` (the direction a ray travels).
 fn background_radiance(world_dir: vec3f) -> vec3f {
     let width = environment[0];
     if width == 0u {
         return params.background;
     }
-    let dir = to_map(world_dir);
-    let height = environment[1];
-    let u = atan2(dir.x, -dir.z) * (0.5 / PI);
-    let v = acos(clamp(dir.y, -1.0, 1.0)) / PI;
-    let x = fract(u - 0.5 / f32(width)) * f32(width);
-    let y = v * f32(height - 1u);
-    let x0 = min(u32(x), width - 1u);
-    let y0 = min(u32(y), height - 2u);
-    let weight = vec2f(x - f32(x0), y - f32(y0));
+    let position = map_position(world_dir, width, environment[1] - 1u);
+    let x0 = position.cell.x;
+    let y0 = position.cell.y;
+    let weight = position.at - vec2f(position.cell);
     let x1 = (x0 + 1u) % width;
     let top = mix(environment_texel(width, x0, y0), environment_texel(width, x1, y0), weight.x);
     let bottom = mix(environment_texel(width, x0, y0 + 1u), environment_texel(width, x1, y0 + 1u), weight.x);
     return params.background * mix(top, bottom, weight.y);
 }
 
-fn environment_float(at: u32) -> f32 {
-    return bitcast<f32>(environment[at]);
+// Whether sky directions are drawn uniformly: a constant background, or a map with no weight (black).
+fn sky_is_uniform() -> bool {
+    return environment[0] == 0u || environment_float(2u) <= 0.0;
 }
 
 // The first of the `count` increasing values from word `first` on that exceeds x (the last if none does).
@@ -91,7 +104,7 @@ struct SkySample { dir: vec3f, pdf: f32 }   // pdf per unit solid angle
 
 // A direction toward the sky from two uniform numbers, with its solid-angle pdf.
 fn sample_sky(u: vec2f) -> SkySample {
-    if environment[0] == 0u || environment_float(2u) <= 0.0 {
+    if sky_is_uniform() {
         return SkySample(square_to_uniform_sphere(u), INV_FOUR_PI);
     }
     let t = sky_tables();
@@ -113,14 +126,10 @@ fn sample_sky(u: vec2f) -> SkySample {
 
 // The solid-angle pdf with which sample_sky draws unit direction `world_dir`.
 fn sky_pdf(world_dir: vec3f) -> f32 {
-    if environment[0] == 0u || environment_float(2u) <= 0.0 {
+    if sky_is_uniform() {
         return INV_FOUR_PI;
     }
-    let dir = to_map(world_dir);
     let t = sky_tables();
-    let u = atan2(dir.x, -dir.z) * (0.5 / PI);
-    let v = acos(clamp(dir.y, -1.0, 1.0)) / PI;
-    let column = min(u32(fract(u - 0.5 / f32(t.width)) * f32(t.width)), t.width - 1u);
-    let row = min(u32(v * f32(t.rows)), t.rows - 1u);
-    return sky_cell_pdf(t, row * t.width + column, length(dir.xz));
+    let cell = map_position(world_dir, t.width, t.rows).cell;
+    return sky_cell_pdf(t, cell.y * t.width + cell.x, length(world_dir.xz));   // sin θ: the turn keeps y
 }
