@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import SceneError
 from .meshio import load_mesh_file
 from .model import Camera, Material, Mesh, Scene
-from .primitives import primitive
+from .primitives import primitive, primitive_uvs
 from .transforms import compose, rotate, scale, transform_points, translate
 
 CORNELL_WHITE = (0.885809, 0.698859, 0.666422)
@@ -223,15 +223,10 @@ def _image(t: np.ndarray, one, other) -> np.ndarray:
     return srgb8(mix_colors(t.ravel(), one, other)).reshape(*t.shape, 3)
 
 
-def _face_uvs(vertices: np.ndarray) -> np.ndarray:
-    """The cube primitive's texture coordinates: each face's four corners (0, 0), (1, 0), (1, 1), (0, 1)."""
-    return np.tile(np.float32([[0, 0], [1, 0], [1, 1], [0, 1]]), (len(vertices) // 4, 1))
-
-
 def textured() -> Scene:
     """The Cornell box with colour textures detailed down to the pixel (at 512², the default render size's
     scale): tiles with thin grout on the floor, fine stripes over blotches on the back wall, wood grain on
-    the boxes (each face the whole image)."""
+    the boxes (each face the whole image, upright: primitives.primitive_uvs)."""
     scene = cornell()
     scene.materials["white-base"] = Material("diffuse", reflectance=(1.0, 1.0, 1.0))
     rows, columns = np.meshgrid(np.arange(512) + 0.5, np.arange(512) + 0.5, indexing="ij")
@@ -248,10 +243,10 @@ def textured() -> Scene:
         if mesh.name in ("floor", "back"):
             mesh.material = "white-base"
             mesh.texture = floor if mesh.name == "floor" else wall
-            mesh.uvs = ((mesh.vertices[:, :2] + 1) * (1.5 if mesh.name == "floor" else 0.5)).astype(np.float32)
+            mesh.uvs = primitive_uvs("rectangle") * (3.0 if mesh.name == "floor" else 1.0)
         elif mesh.name.endswith("box"):
             mesh.material = "white-base"
-            mesh.texture, mesh.uvs = wood, _face_uvs(mesh.vertices)
+            mesh.texture, mesh.uvs = wood, primitive_uvs("cube")
     scene.name = "textured"
     return scene
 

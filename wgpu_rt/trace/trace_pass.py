@@ -457,7 +457,8 @@ class TracePass(ComputePass):
 
     def _frame_params(self, scene, frame, max_depth, seed, emitters) -> np.ndarray:
         w, h = self.width, self.height
-        now = camera_vectors(scene.camera_at(frame), w, h)
+        camera = scene.camera_at(frame)
+        now = camera_vectors(camera, w, h)
         before = camera_vectors(scene.camera_at(frame - 1), w, h)
         tan_x, tan_y = before["tan"]
         params = np.zeros((), FRAME_PARAMS_DTYPE)
@@ -473,7 +474,6 @@ class TracePass(ComputePass):
         params["emitter_group_count"] = len(emitters.groups)
         params["emitter_groups"][:len(emitters.groups)] = emitters.groups
         params["background"] = scene.background
-        camera = scene.camera_at(frame)
         params["lens_radius"], params["focus_distance"] = camera.aperture_radius, camera.focus_distance
         turn = np.radians(scene.environment_rotation)
         params["environment_turn"] = np.cos(turn), np.sin(turn)
