@@ -114,12 +114,13 @@ def sun_room() -> Scene:
 
 
 def mesh_room(path) -> Scene:
-    """The Cornell room (without its boxes) with the mesh at ``path`` standing on the floor."""
+    """The Cornell room (without its boxes) with the mesh at ``path`` standing on the floor, in the file's own
+    materials where it has them (glTF's, an OBJ file's MTL), grey clay elsewhere."""
     if path is None:
         raise SceneError("the 'mesh' scene needs a mesh file: load_scene('mesh', mesh=PATH) or --mesh PATH")
     materials, meshes = _cornell_room()
     materials["clay"] = Material("diffuse", reflectance=(0.7, 0.7, 0.7))
-    loaded = load_mesh_file(Path(path), material="clay")
+    loaded = load_mesh_file(Path(path), material="clay", materials=materials)
     placed = [transform_points(m.transform, m.vertices) for m in loaded]   # a file's nodes place its parts
     lo = np.min([v.min(axis=0) for v in placed], axis=0).astype(np.float64)
     hi = np.max([v.max(axis=0) for v in placed], axis=0).astype(np.float64)

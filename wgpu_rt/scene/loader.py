@@ -228,8 +228,8 @@ def _check_blends(fields: _Fields, mesh: Mesh) -> None:
                                     f"{frame}, between keyframes {lo} and {hi}: add keyframes", "keyframes")
 
 
-def _material_name(fields: _Fields, materials: dict, default=_MISSING) -> str:
-    material = fields.string("material", default)
+def _material_name(fields: _Fields, materials: dict) -> str:
+    material = fields.string("material")
     if material not in materials:
         fields.fail(f"unknown material {material!r}", "material")
     return material
@@ -325,10 +325,12 @@ def _image_file(fields: _Fields, key: str, folder: Path, read) -> np.ndarray | N
 
 
 def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
-    material = _material_name(fields, materials)
+    """A mesh entry's meshes. A file's entry without 'material' takes the file's own materials (glTF's or an OBJ
+    file's MTL), added to ``materials`` as '<name>/<material>'."""
     has_file, has_shape = fields.has("file"), fields.has("shape")
     if has_file == has_shape:
         fields.fail("give exactly one of 'file' (a mesh file) or 'shape' (" + ", ".join(PRIMITIVES) + ")")
+    material = _material_name(fields, materials) if has_shape or fields.has("material") else None
     name = fields.string("name", "")
     transform, keyframes = _placement(fields)
     instances = fields.tables("instances") if fields.has("instances") else None
@@ -350,10 +352,15 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         colors = fields.raw("vertex_colors", True)
         if not isinstance(colors, bool):
             fields.fail(f"expected true or false, got {_show(colors)}", "vertex_colors")
+        own: dict | None = {} if material is None else None
         try:
-            parts = load_mesh_file(path, material, base, vertex_colors=colors, texture=texture)
+            parts = load_mesh_file(path, material, base, vertex_colors=colors, texture=texture, materials=own)
         except SceneError as err:
             fields.fail(str(err), "file")
+        for name in own or {}:
+            if name in materials:
+                fields.fail(f"the file's material {name!r} has the name of another material: name the mesh", "file")
+        materials.update(own or {})
     if fields.has("texture_repeat"):
         repeat = fields.vector("texture_repeat", length=2, broadcast=True)
         if np.any(repeat <= 0) or np.any(repeat > MAX_TEXTURE_REPEAT):
@@ -386,7 +393,7 @@ def _instances(fields: _Fields, entries: list[_Fields], parts: list[Mesh], base:
         _check_matrix(fields, key, matrix, what)
     placed = []
     for i, entry in enumerate(entries):
-        material = _material_name(entry, materials, parts[0].material)
+        material = _material_name(entry, materials) if entry.has("material") else None   # None: each part's own
         label = entry.string("name", f"{base}[{i}]")
         where, moves = _placement(entry)
         if moves and keyframes:

@@ -146,12 +146,15 @@ def file_uvs(geometry: trimesh.Trimesh) -> np.ndarray | None:
     return uvs.astype(np.float32)
 
 
-def load_mesh_file(path: Path, material: str, name: str | None = None, vertex_colors: bool = True,
-                   texture: np.ndarray | None = None) -> list:
+def load_mesh_file(path: Path, material: str | None, name: str | None = None, vertex_colors: bool = True,
+                   texture: np.ndarray | None = None, materials: dict | None = None) -> list:
     """The meshes of the file at ``path``, all with ``material``, named ``name`` (default: file stem), with
     the file's vertex colours or texture (``file_vertex_colors``, ``file_texture``) unless ``vertex_colors``
     is False; ``texture`` (an (H, W, 3) uint8 image) replaces the file's images at the file's texture
-    coordinates (a SceneError where a geometry has none)."""
+    coordinates (a SceneError where a geometry has none). Where the dict ``materials`` is given, each geometry
+    that has a material of its own in the file (glTF's, an OBJ file's MTL: ``file_materials``) takes it, added
+    to ``materials`` under its name, and the others ``material`` (a SceneError where that is None)."""
+    from .file_materials import FileMaterials
     from .model import Mesh
 
     path = Path(path)
@@ -170,6 +173,7 @@ def load_mesh_file(path: Path, material: str, name: str | None = None, vertex_co
     meshes = []
     first_placement: dict[str, Mesh] = {}      # geometry name → the Mesh of its first node
     decoded: dict[int, tuple] = {}              # the file's texture images (file_texture)
+    own = FileMaterials(path, base) if materials is not None else None
     for node in scene.graph.nodes_geometry:
         transform, geometry_name = scene.graph[node]
         geometry = scene.geometry[geometry_name]
@@ -195,11 +199,16 @@ def load_mesh_file(path: Path, material: str, name: str | None = None, vertex_co
         else:
             image, uvs = (file_texture(geometry, where, decoded) if vertex_colors else None) or (None, None)
         colors = file_vertex_colors(geometry) if vertex_colors and image is None else None
+        surface = (own.material_of(geometry, geometry_name) if own else None) or material
+        if surface is None:
+            raise SceneError(f"{where}: has no material of its own; give the mesh entry a 'material'")
         first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
-                                              material, normals=normals,
+                                              surface, normals=normals,
                                               transform=np.asarray(transform, np.float32), colors=colors,
                                               texture=image, uvs=uvs)
         meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")
+    if own is not None:
+        materials.update(own.materials)
     return meshes

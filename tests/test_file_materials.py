@@ -1,0 +1,173 @@
+"""A mesh file's own materials (wgpu_rt/scene/file_materials.py): glTF's metallic-roughness with its
+transmission, ior and emissive-strength extensions, and OBJ's MTL, each onto the tracer's kinds."""
+
+import json
+import struct
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+from trimesh.visual.material import PBRMaterial
+
+from wgpu_rt.errors import SceneError
+from wgpu_rt.scene import load_scene
+from wgpu_rt.scene.file_materials import SMOOTH_COAT_ROUGHNESS, pbr_material
+
+
+@pytest.mark.parametrize("description, kind", [
+    (dict(metallic=0.0, roughness=0.8), "diffuse"),
+    (dict(metallic=0.0, roughness=SMOOTH_COAT_ROUGHNESS), "plastic"),
+    (dict(metallic=1.0, roughness=0.8), "conductor"),
+    (dict(metallic=1.0, roughness=0.1, transmission=1.0), "dielectric"),
+])
+def test_each_description_becomes_the_kind_that_carries_its_look(description, kind):
+    material = pbr_material((0.2, 0.4, 0.6), **description)
+    assert material.kind == kind
+    if kind != "dielectric":
+        np.testing.assert_allclose(material.reflectance, [0.2, 0.4, 0.6], rtol=1e-6)
+    if kind in ("conductor", "dielectric"):
+        assert material.roughness == pytest.approx(description["roughness"] ** 2)   # glTF's alpha = r²
+    if kind == "conductor":     # Fresnel 1: the base colour is what it reflects head-on
+        assert material.eta.tolist() == [0, 0, 0] and material.k.tolist() == [1, 1, 1]
+
+
+def _glb(tmp_path, materials: list, name="thing.glb", edit=None):
+    """A .glb of one box per entry of ``materials`` (trimesh PBRMaterials, None for none), its JSON passed
+    through ``edit`` (a function of the materials list) before it is written."""
+    scene = trimesh.Scene()
+    for i, material in enumerate(materials):
+        box = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+        box.apply_translation((i, 0, 0))
+        if material is not None:
+            box.visual = trimesh.visual.TextureVisuals(material=material)
+        scene.add_geometry(box, node_name=f"part{i}")
+    data = scene.export(file_type="glb")
+    if edit is not None:
+        length = struct.unpack_from("<I", data, 12)[0]
+        tree = json.loads(data[20:20 + length])
+        edit(tree["materials"])
+        text = json.dumps(tree).encode()
+        text += b" " * (-len(text) % 4)
+        body = struct.pack("<I4s", len(text), b"JSON") + text + data[20 + length:]
+        data = b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
+    (tmp_path / name).write_bytes(data)
+    return tmp_path / name
+
+
+def _scene_file(tmp_path, *entries, materials=None):
+    scene = {"camera": {"origin": [0, 1, 5], "target": [0, 0, 0]},
+             "materials": materials or {"white": {"reflectance": 0.8}},
+             "meshes": [{"shape": "rectangle", "material": "white"}, *entries]}
+    (tmp_path / "scene.json").write_text(json.dumps(scene))
+    return tmp_path / "scene.json"
+
+
+def _extend(materials):
+    materials[0]["extensions"] = {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                                  "KHR_materials_ior": {"ior": 1.33}}
+    materials[1]["emissiveFactor"] = [1.0, 0.5, 0.25]
+    materials[1]["extensions"] = {"KHR_materials_emissive_strength": {"emissiveStrength": 8.0}}
+
+
+def test_a_gltf_files_materials_name_kind_and_values(tmp_path):
+    gold = PBRMaterial(name="gold", baseColorFactor=[1.0, 0.8, 0.3, 1.0], metallicFactor=1.0, roughnessFactor=0.3)
+    water = PBRMaterial(name="water", metallicFactor=0.0, roughnessFactor=0.1)
+    lamp = PBRMaterial(name="lamp", baseColorFactor=[0.9, 0.9, 0.9, 1.0], metallicFactor=0.0, roughnessFactor=0.9)
+    unnamed = PBRMaterial(baseColorFactor=[0.2, 0.4, 0.6, 1.0], metallicFactor=0.0, roughnessFactor=0.0)
+    path = _glb(tmp_path, [water, lamp, gold, unnamed], edit=_extend)
+    scene = load_scene(_scene_file(tmp_path, {"file": path.name}))
+    names = {mesh.name: mesh.material for mesh in scene.meshes[1:]}
+    assert [names[f"thing/part{i}"] for i in range(4)][:3] == ["thing/water", "thing/lamp", "thing/gold"]
+    assert names["thing/part3"].startswith("thing/material")     # unnamed: by its index in the file
+    water, lamp, gold, unnamed = (scene.materials[names[f"thing/part{i}"]] for i in range(4))
+    assert (water.kind, water.ior, water.roughness) == ("dielectric", pytest.approx(1.33), pytest.approx(0.01))
+    assert lamp.kind == "diffuse"
+    np.testing.assert_allclose(lamp.emission, [8.0, 4.0, 2.0])
+    assert gold.kind == "conductor" and gold.roughness == pytest.approx(0.09)
+    np.testing.assert_allclose(gold.reflectance, [1.0, 0.8, 0.3], atol=1 / 255)
+    assert unnamed.kind == "plastic" and unnamed.ior == pytest.approx(1.5)
+    np.testing.assert_allclose(unnamed.reflectance, [0.2, 0.4, 0.6], atol=1 / 255)
+
+
+def test_a_materials_metallic_roughness_texture_counts_by_its_mean(tmp_path):
+    # Green (roughness) 0.2 and blue (metalness) 1 over the whole image: a smooth metal from rough factors.
+    image = Image.new("RGB", (4, 4), (0, 51, 255))
+    shiny = PBRMaterial(name="shiny", metallicFactor=1.0, roughnessFactor=1.0, metallicRoughnessTexture=image)
+    box = trimesh.creation.box()
+    box.visual = trimesh.visual.TextureVisuals(uv=np.zeros((len(box.vertices), 2)), material=shiny)
+    box.export(tmp_path / "shiny.glb")
+    scene = load_scene(_scene_file(tmp_path, {"file": "shiny.glb"}))
+    material = scene.materials["shiny/shiny"]
+    assert material.kind == "conductor" and material.roughness == pytest.approx(0.04, abs=1e-3)
+
+
+def test_an_entrys_material_overrides_the_files_and_instances_keep_their_parts_own(tmp_path):
+    path = _glb(tmp_path, [PBRMaterial(name="a", metallicFactor=1.0), PBRMaterial(name="b", metallicFactor=0.0)])
+    scene = load_scene(_scene_file(tmp_path, {"file": path.name, "material": "white"}))
+    assert {mesh.material for mesh in scene.meshes} == {"white"} and set(scene.materials) == {"white"}
+    scene = load_scene(_scene_file(tmp_path, {"file": path.name, "instances": [{}, {"material": "white"}]}))
+    assert sorted(mesh.material for mesh in scene.meshes[1:]) == ["thing/a", "thing/b", "white", "white"]
+
+
+def test_an_obj_files_mtl_statements(tmp_path):
+    (tmp_path / "parts.obj").write_text("mtllib parts.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+                                        "usemtl clay\nf 1 2 3\nusemtl glass\nf 2 4 3\nusemtl steel\nf 1 2 4\n"
+                                        "usemtl lamp\nf 1 3 4\n")
+    (tmp_path / "parts.mtl").write_text("newmtl clay\nKd 0.8 0.1 0.1\nKs 0.5 0.5 0.5\nNs 250\nillum 2\n"
+                                        "newmtl glass\nNi 1.45\nillum 4\nPr 0.2\n"
+                                        "newmtl steel\nKd 0.6 0.6 0.6\nPm 1\nPr 0.5\n"
+                                        "newmtl lamp\nKd 0.9 0.9 0.9\nKe 5 5 4\n")
+    scene = load_scene(_scene_file(tmp_path, {"file": "parts.obj"}))
+    materials = {name.split("/")[1]: scene.materials[name] for name in scene.materials if "/" in name}
+    assert materials["clay"].kind == "diffuse"   # Ns 250 is Blender's roughness 0.5: too rough for a coat
+    np.testing.assert_allclose(materials["clay"].reflectance, [0.8, 0.1, 0.1])
+    assert (materials["glass"].kind, materials["glass"].ior) == ("dielectric", pytest.approx(1.45))
+    assert materials["glass"].roughness == pytest.approx(0.04)
+    assert materials["steel"].kind == "conductor" and materials["steel"].roughness == pytest.approx(0.25)
+    np.testing.assert_allclose(materials["lamp"].emission, [5, 5, 4])
+
+
+def test_the_mesh_scene_takes_the_files_materials_and_clay_where_it_has_none(tmp_path):
+    path = _glb(tmp_path, [PBRMaterial(name="gold", metallicFactor=1.0, roughnessFactor=0.2), None])
+    scene = load_scene("mesh", mesh=path)
+    assert {mesh.name: mesh.material for mesh in scene.meshes if mesh.name.startswith("thing")} == {
+        "thing/part0": "thing/gold", "thing/part1": "clay"}
+
+
+def _bad_metal(materials):
+    materials[0]["pbrMetallicRoughness"]["metallicFactor"] = 2
+
+
+def _bad_ior(materials):
+    materials[0]["extensions"] = {"KHR_materials_ior": {"ior": 0.5}}
+
+
+@pytest.mark.parametrize("edit, message", [
+    (_bad_metal, r"material 'gold': metallicFactor must be in \[0, 1\], got 2"),
+    (_bad_ior, r"material 'gold': ior must be in \[1, inf\], got 0.5"),
+])
+def test_a_gltf_materials_bad_values_are_refused_by_file_and_material(tmp_path, edit, message):
+    path = _glb(tmp_path, [PBRMaterial(name="gold", metallicFactor=1.0)], edit=edit)
+    with pytest.raises(SceneError, match=r"scene.json: meshes\[1\].file: .*thing.glb: " + message):
+        load_scene(_scene_file(tmp_path, {"file": path.name}))
+
+
+def test_a_file_without_materials_needs_the_entrys(tmp_path):
+    trimesh.creation.box().export(tmp_path / "box.ply")
+    with pytest.raises(SceneError, match=r"meshes\[1\].file: .*box.ply.*has no material of its own; give the mesh "
+                                         r"entry a 'material'"):
+        load_scene(_scene_file(tmp_path, {"file": "box.ply"}))
+
+
+def test_a_files_material_may_not_take_another_materials_name(tmp_path):
+    path = _glb(tmp_path, [PBRMaterial(name="gold", metallicFactor=1.0)])
+    with pytest.raises(SceneError, match=r"'thing/gold' has the name of another material"):
+        load_scene(_scene_file(tmp_path, {"file": path.name}, materials={"white": {}, "thing/gold": {}}))
+
+
+def test_an_obj_materials_bad_value_is_refused_by_name(tmp_path):
+    (tmp_path / "tri.obj").write_text("mtllib tri.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl odd\nf 1 2 3\n")
+    (tmp_path / "tri.mtl").write_text("newmtl odd\nKd 0.5 0.5 0.5\nNi 0.5\nillum 4\n")
+    with pytest.raises(SceneError, match=r"tri.obj: material 'odd': ni must be in \[1, inf\]"):
+        load_scene(_scene_file(tmp_path, {"file": "tri.obj"}))

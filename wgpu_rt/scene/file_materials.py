@@ -1,0 +1,219 @@
+"""A mesh file's own materials → ``Material``: glTF's metallic-roughness model (with its transmission, ior and
+emissive-strength extensions) and OBJ's MTL statements, mapped onto the tracer's four kinds.
+
+Both formats describe a surface by a base colour, how metallic it is, a perceptual roughness ``r`` (the GGX
+alpha is r², as glTF defines it), how much light it transmits and what it emits. The tracer has no blend of
+them, so each material becomes the one kind that carries most of its look:
+
+- transmission ≥ 0.5: ``dielectric`` of the file's ior (untinted: the tracer's glass has no colour);
+- else metallic ≥ 0.5: ``conductor`` whose Fresnel term is 1, tinted by the base colour (glTF's metals reflect
+  their base colour head-on and rise to white only at grazing angles, which this leaves out);
+- else r ≤ ``SMOOTH_COAT_ROUGHNESS``: ``plastic``, the base colour under a smooth coat of the file's ior
+  (glTF's non-metals are exactly a diffuse base under a specular layer of F0 = 0.04, ior 1.5);
+- else ``diffuse``: the specular layer of a rough non-metal is left out, since the tracer's coat is smooth.
+
+Emission is the emissive colour times its strength. A material's metallic-roughness or emissive texture counts
+by its mean (the tracer keeps one value per material); the base colour texture is read per texel, as before
+(``meshio.file_texture``). Values outside glTF's ranges are a SceneError naming the file and the material.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneError
+from .model import Material, linear_from_srgb8
+
+# Perceptual roughness at or below which a non-metal keeps its specular layer, as a smooth coat (alpha 0.0625).
+SMOOTH_COAT_ROUGHNESS = 0.25
+# OBJ illumination models that mean refraction (4: glass, 6, 7: refraction with Fresnel, 9: glass, no ray trace).
+OBJ_GLASS_ILLUMS = {4, 6, 7, 9}
+GLTF_SUFFIXES = (".glb", ".gltf")
+
+
+def pbr_material(base_color, metallic: float, roughness: float, transmission: float = 0.0, ior: float = 1.5,
+                 emission=(0.0, 0.0, 0.0)) -> Material:
+    """The tracer's material for a metallic-roughness description (see the module's doc)."""
+    alpha, emission = float(roughness) ** 2, np.asarray(emission, np.float32)
+    if transmission >= 0.5:
+        return Material("dielectric", ior=ior, roughness=alpha, emission=emission)
+    if metallic >= 0.5:
+        return Material("conductor", reflectance=base_color, roughness=alpha, eta=0.0, k=1.0, emission=emission)
+    if roughness <= SMOOTH_COAT_ROUGHNESS:
+        return Material("plastic", reflectance=base_color, ior=ior, emission=emission)
+    return Material("diffuse", reflectance=base_color, emission=emission)
+
+
+class _Reader:
+    """One material's fields, each checked against its range, errors naming the file and the material."""
+
+    def __init__(self, where: str, data: dict):
+        self.where, self.data = where, data
+
+    def fail(self, message: str):
+        raise SceneError(f"{self.where}: {message}")
+
+    def numbers(self, key: str, default, length: int | None = None, low: float = 0.0, high: float = 1.0):
+        """The field ``key`` (``default`` where absent): one number, or with ``length`` the first ``length`` of
+        at least that many (a single one stands for all); each finite and in [low, high]."""
+        value = self.data.get(key, default)
+        try:
+            array = np.asarray(value, np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            self.fail(f"{key} must be numbers, got {value!r}")
+        wanted = length or 1
+        if len(array) == 1:
+            array = np.broadcast_to(array, (wanted,))
+        if len(array) < wanted or (length is None and len(array) != 1):
+            self.fail(f"{key} must be {'a number' if length is None else f'1 or {length} numbers'}, got {value!r}")
+        array = array[:wanted]
+        if not np.all(np.isfinite(array)) or np.any(array < low) or np.any(array > high):
+            self.fail(f"{key} must be in [{low:g}, {high:g}], got {value!r}")
+        return array if length is not None else float(array[0])
+
+
+def _texture_mean(image, where: str, srgb: bool) -> np.ndarray:
+    """The mean of a PIL image's RGB, linear (decoded from sRGB where ``srgb``), as float64."""
+    try:
+        pixels = np.asarray(image.convert("RGB"), np.uint8).reshape(-1, 3)
+    except Exception as err:   # PIL raises many types for an image it cannot decode
+        raise SceneError(f"{where}: cannot read a texture image ({type(err).__name__}: {err})") from err
+    if len(pixels) == 0:
+        return np.ones(3)
+    values = linear_from_srgb8(pixels) if srgb else pixels / 255.0
+    return np.asarray(values, np.float64).mean(axis=0)
+
+
+def gltf_json(path: Path) -> dict:
+    """The JSON of a .gltf file or of a .glb's first chunk."""
+    data = Path(path).read_bytes()
+    try:
+        if data[:4] == b"glTF":
+            length, kind = struct.unpack_from("<I4s", data, 12)
+            if kind != b"JSON":
+                raise ValueError("its first chunk is not JSON")
+            data = data[20:20 + length]
+        tree = json.loads(data)
+    except (ValueError, struct.error, UnicodeDecodeError) as err:
+        raise SceneError(f"{path}: cannot read the glTF file's JSON ({err})") from err
+    if not isinstance(tree, dict):
+        raise SceneError(f"{path}: the glTF file's JSON is not an object")
+    return tree
+
+
+def gltf_material(entry: dict, where: str, trimesh_material=None) -> Material:
+    """The tracer's material for one entry of a glTF file's ``materials`` list; ``trimesh_material`` (trimesh's
+    PBRMaterial of it) lends its decoded textures for their means."""
+    if not isinstance(entry, dict):
+        raise SceneError(f"{where}: expected an object, got {entry!r}")
+    pbr = _Reader(where, entry.get("pbrMetallicRoughness") or {})
+    extensions = entry.get("extensions") or {}
+    base = pbr.numbers("baseColorFactor", [1.0, 1.0, 1.0, 1.0], length=4)[:3]
+    metallic = pbr.numbers("metallicFactor", 1.0)
+    roughness = pbr.numbers("roughnessFactor", 1.0)
+    top = _Reader(where, entry)
+    emission = top.numbers("emissiveFactor", [0.0, 0.0, 0.0], length=3)
+    strength = _Reader(where, extensions.get("KHR_materials_emissive_strength") or {})
+    emission = emission * strength.numbers("emissiveStrength", 1.0, high=np.inf)
+    transmission = _Reader(where, extensions.get("KHR_materials_transmission") or {})
+    transmission = transmission.numbers("transmissionFactor", 0.0)
+    ior = _Reader(where, extensions.get("KHR_materials_ior") or {}).numbers("ior", 1.5, low=1.0, high=np.inf)
+    textures = trimesh_material
+    if getattr(textures, "metallicRoughnessTexture", None) is not None:
+        # glTF: roughness in the green channel, metalness in the blue, both linear.
+        mean = _texture_mean(textures.metallicRoughnessTexture, where, srgb=False)
+        roughness, metallic = roughness * mean[1], metallic * mean[2]
+    if getattr(textures, "emissiveTexture", None) is not None and np.any(emission > 0):
+        emission = emission * _texture_mean(textures.emissiveTexture, where, srgb=True)
+    return pbr_material(base, metallic, roughness, transmission, ior, emission)
+
+
+def obj_material(simple, where: str) -> Material:
+    """The tracer's material for an OBJ file's MTL material (trimesh's SimpleMaterial): ``Kd`` the base
+    colour, ``Ke`` emission, ``Pm``/``Pr`` (the MTL PBR extension) metalness and roughness, else the roughness
+    Blender writes as ``Ns`` (r = 1 − √(Ns/1000)) where ``Ks`` is not black, rough otherwise; glass where
+    ``illum`` is 4, 6, 7 or 9 or the dissolve ``d`` is below 1 (``Tr`` above 0), of index ``Ni``."""
+    fields = _Reader(where, {key.lower(): value for key, value in (getattr(simple, "kwargs", None) or {}).items()})
+    base = fields.numbers("kd", 0.8, length=3)
+    if "pr" in fields.data:
+        roughness = fields.numbers("pr", 1.0)
+    elif np.any(fields.numbers("ks", 0.0, length=3) > 0):
+        roughness = 1.0 - np.sqrt(min(fields.numbers("ns", 0.0, high=np.inf), 1000.0) / 1000.0)
+    else:
+        roughness = 1.0
+    dissolve = fields.numbers("d", 1.0) if "d" in fields.data else 1.0 - fields.numbers("tr", 0.0)
+    glass = int(fields.numbers("illum", 2, high=10)) in OBJ_GLASS_ILLUMS or dissolve < 1.0
+    ior = fields.numbers("ni", 1.5, low=1.0, high=np.inf) if glass else 1.5
+    return pbr_material(base, fields.numbers("pm", 0.0), roughness, float(glass), ior,
+                        fields.numbers("ke", 0.0, length=3, high=np.inf))
+
+
+class FileMaterials:
+    """The materials of one mesh file, named ``<base>/<material name>`` (``<base>/material<i>`` when unnamed),
+    each made once however many geometries use it. ``material_of(geometry)`` is a geometry's material's name
+    (None where it has none); ``materials`` maps every name used to its Material."""
+
+    def __init__(self, path: Path, base: str):
+        self.path, self.base = Path(path), base
+        self.gltf = self.path.suffix.lower() in GLTF_SUFFIXES
+        self.entries = []
+        if self.gltf:
+            entries = gltf_json(self.path).get("materials") or []
+            if not isinstance(entries, list):
+                raise SceneError(f"{self.path}: the glTF file's materials are not a list")
+            self.entries = entries
+        self.materials: dict[str, Material] = {}
+
+    def _gltf_index(self, trimesh_material) -> int | None:
+        """The index in the file's materials list of trimesh's reading of one: by name, else by its factors."""
+        name = getattr(trimesh_material, "name", None)
+        named = [i for i, entry in enumerate(self.entries) if isinstance(entry, dict) and entry.get("name") == name]
+        if name and named:
+            return named[0]
+        for i, entry in enumerate(self.entries):
+            if isinstance(entry, dict) and not entry.get("name") and self._same_factors(entry, trimesh_material):
+                return i
+        return None
+
+    @staticmethod
+    def _same_factors(entry: dict, trimesh_material) -> bool:
+        pbr = entry.get("pbrMetallicRoughness") or {}
+        ours = (pbr.get("metallicFactor"), pbr.get("roughnessFactor"))
+        theirs = (getattr(trimesh_material, "metallicFactor", None), getattr(trimesh_material, "roughnessFactor", None))
+        if any((a is None) != (b is None) or (a is not None and abs(float(a) - float(b)) > 1e-6)
+               for a, b in zip(ours, theirs)):
+            return False
+        colour = getattr(trimesh_material, "baseColorFactor", None)
+        factor = pbr.get("baseColorFactor")
+        if (colour is None) != (factor is None):
+            return False
+        # trimesh keeps the colour as 8-bit codes of the linear factor.
+        return colour is None or np.allclose(np.asarray(colour[:3]) / 255.0, np.asarray(factor[:3], float),
+                                             atol=0.6 / 255)
+
+    def material_of(self, geometry, geometry_name: str) -> str | None:
+        """The name of ``geometry``'s material in the file, None where the file gives it none."""
+        trimesh_material = getattr(geometry.visual, "material", None)
+        if trimesh_material is None:
+            return None
+        if self.gltf:
+            index = self._gltf_index(trimesh_material)
+            if index is None:
+                raise SceneError(f"{self.path} (geometry {geometry_name!r}): its material is not among the file's")
+            entry = self.entries[index]
+            label = entry.get("name") or f"material{index}"
+            return self._add(label, lambda: gltf_material(entry, f"{self.path}: material {label!r}", trimesh_material))
+        if not hasattr(trimesh_material, "kwargs"):
+            return None
+        label = trimesh_material.name or "material"
+        return self._add(label, lambda: obj_material(trimesh_material, f"{self.path}: material {label!r}"))
+
+    def _add(self, label: str, make) -> str:
+        name = f"{self.base}/{label}"
+        if name not in self.materials:
+            self.materials[name] = make()
+        return name
