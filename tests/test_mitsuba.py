@@ -182,6 +182,29 @@ def test_textures_match_mitsuba(gpu):
     assert flipped_distance > 2 * distance
 
 
+def test_normal_maps_match_mitsuba(gpu):
+    """Coarse normal maps (each texel tilted 35° in a random direction) on cornell-glossy's walls, floor, rough gold
+    box and glass sphere: the tilt in the frame of the surface's u direction, mirrored where the ray arrives
+    behind the tilted normal, and the shadowing that follows the tilt, as Mitsuba's normalmap; the maps
+    mirrored across (their x turned round) must be told apart (0.048 against 0.017 on lavapipe)."""
+    def mapped(mirror: bool):
+        rng = np.random.default_rng(6)
+        scene = load_scene("cornell-glossy")
+        for mesh in scene.meshes:
+            if mesh.name == "light":
+                continue
+            phi, tilt = rng.uniform(0, 2 * np.pi, (4, 4)), np.radians(35)
+            normal = np.stack([np.sin(tilt) * np.cos(phi), np.sin(tilt) * np.sin(phi), np.full_like(phi, np.cos(tilt))],
+                              -1)
+            normal[..., 0] *= -1 if mirror else 1
+            mesh.normal_map = np.round((normal + 1) / 2 * 255).astype(np.uint8)
+            mesh.uvs = (0.75 * (mesh.vertices[:, :2] + mesh.vertices[:, 2:]) + 0.5).astype(np.float32)
+        return scene
+
+    distance, mirrored_distance = _matches_mitsuba(mapped(False), mapped(True))
+    assert mirrored_distance > 2 * distance
+
+
 def test_thin_lens_matches_mitsuba(gpu):
     """cornell through a thin lens focused on the short box's front (2.9 units ahead), aperture radius 0.15:
     the light and the back wall blur as in Mitsuba's thinlens sensor, which a pinhole must be told from."""

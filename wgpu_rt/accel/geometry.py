@@ -161,31 +161,42 @@ def _mesh_colors(mesh) -> np.ndarray:
     return (codes[:, 0] | codes[:, 1] << 8 | codes[:, 2] << 16)[faces]
 
 
-NO_TEXTURE = 0xFFFFFFFF   # a triangle record's texture index where its mesh has none
-TEXTURE_RECORD_WORDS = 8  # per triangle: texture index, (u, v) of its three vertices, one spare word
+NO_TEXTURE = 0xFFFFFFFF   # a triangle record's texture (or normal map) index where its mesh has none
+TEXTURE_RECORD_WORDS = 8  # per triangle: texture index, (u, v) of its three vertices, normal map index
+
+
+def _check_image(mesh, image, what: str) -> None:
+    image = np.asarray(image)
+    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) == 0:
+        raise SceneError(f"mesh {mesh.name!r}: {what} must be an (H, W, 3) uint8 image, got {image.dtype} "
+                         f"{image.shape}")
 
 
 def _mesh_texture_records(mesh, textures: dict[int, int]) -> np.ndarray:
-    """(F, TEXTURE_RECORD_WORDS) u32 per face: its mesh's texture's index in ``textures`` (image id → index;
-    NO_TEXTURE without one) and its vertices' texture coordinates as float32 bits (SceneError where a
-    texture or its coordinates are malformed, naming the mesh)."""
+    """(F, TEXTURE_RECORD_WORDS) u32 per face: the index in ``textures`` (image id → index; NO_TEXTURE without
+    one) of its mesh's texture, its vertices' texture coordinates as float32 bits, and the index of its mesh's
+    normal map (SceneError where an image or the coordinates are malformed, naming the mesh)."""
     faces = np.asarray(mesh.faces, np.int64)
     records = np.zeros((len(faces), TEXTURE_RECORD_WORDS), np.uint32)
-    if (mesh.texture is None) != (mesh.uvs is None):
-        raise SceneError(f"mesh {mesh.name!r}: a texture needs its coordinates (uvs) and coordinates a texture")
-    if mesh.texture is None:
-        records[:, 0] = NO_TEXTURE
+    records[:, [0, 7]] = NO_TEXTURE
+    has_image = mesh.texture is not None or mesh.normal_map is not None
+    if has_image != (mesh.uvs is not None):
+        raise SceneError(f"mesh {mesh.name!r}: a texture or normal map needs its coordinates (uvs), and coordinates "
+                         f"one of them")
+    if not has_image:
         return records
-    image, uvs = np.asarray(mesh.texture), np.asarray(mesh.uvs)
-    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) == 0:
-        raise SceneError(f"mesh {mesh.name!r}: texture must be an (H, W, 3) uint8 sRGB image, got "
-                         f"{image.dtype} {image.shape}")
+    uvs = np.asarray(mesh.uvs)
     if uvs.shape != (len(mesh.vertices), 2) or not np.all(np.isfinite(uvs)):
         raise SceneError(f"mesh {mesh.name!r}: uvs must be finite, one (u, v) a vertex "
                          f"({len(mesh.vertices)}, 2), got shape {uvs.shape}")
-    if mesh.colors is not None:
-        raise SceneError(f"mesh {mesh.name!r}: has both vertex colours and a texture; give it one of them")
-    records[:, 0] = textures[id(mesh.texture)]
+    if mesh.texture is not None:
+        _check_image(mesh, mesh.texture, "texture")
+        if mesh.colors is not None:
+            raise SceneError(f"mesh {mesh.name!r}: has both vertex colours and a texture; give it one of them")
+        records[:, 0] = textures[id(mesh.texture)]
+    if mesh.normal_map is not None:
+        _check_image(mesh, mesh.normal_map, "normal_map")
+        records[:, 7] = textures[id(mesh.normal_map)]
     records[:, 1:7] = uvs.astype(np.float32)[faces].reshape(len(faces), 6).view(np.uint32)
     return records
 

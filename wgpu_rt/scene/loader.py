@@ -335,16 +335,18 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
     transform, keyframes = _placement(fields)
     instances = fields.tables("instances") if fields.has("instances") else None
     texture = _image_file(fields, "texture", folder, read_texture_image)
+    normal_map = _image_file(fields, "normal_map", folder, read_texture_image)
     if has_shape:
         kind = fields.string("shape", choices=PRIMITIVES)
         vertices, faces, normals = primitive(kind)
         base = name or kind
         parts = [Mesh(base, vertices, faces, material, normals=normals)]
-        if texture is not None:
+        if texture is not None or normal_map is not None:
             uvs = primitive_uvs(kind)
             if uvs is None:
-                fields.fail(f"a {kind} has no texture coordinates; give a mesh file that has them", "texture")
-            parts[0].texture, parts[0].uvs = texture, uvs
+                key = "texture" if texture is not None else "normal_map"
+                fields.fail(f"a {kind} has no texture coordinates; give a mesh file that has them", key)
+            parts[0].texture, parts[0].normal_map, parts[0].uvs = texture, normal_map, uvs
     else:
         file = fields.string("file")
         path = Path(file) if Path(file).is_absolute() else folder / file
@@ -354,7 +356,8 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
             fields.fail(f"expected true or false, got {_show(colors)}", "vertex_colors")
         own: dict | None = {} if material is None else None
         try:
-            parts = load_mesh_file(path, material, base, vertex_colors=colors, texture=texture, materials=own)
+            parts = load_mesh_file(path, material, base, vertex_colors=colors, texture=texture, materials=own,
+                                   normal_map=normal_map)
         except SceneError as err:
             fields.fail(str(err), "file")
         for name in own or {}:
@@ -366,7 +369,8 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         if np.any(repeat <= 0) or np.any(repeat > MAX_TEXTURE_REPEAT):
             fields.fail(f"expected counts in (0, {MAX_TEXTURE_REPEAT:g}], got {repeat.tolist()}", "texture_repeat")
         if all(part.uvs is None for part in parts):
-            fields.fail("the mesh has no texture to repeat (give 'texture', or a mesh file with one)", "texture_repeat")
+            fields.fail("the mesh has no texture to repeat (give 'texture' or 'normal_map', or a mesh file with one)",
+                        "texture_repeat")
         for part in parts:
             if part.uvs is not None:
                 part.uvs = (part.uvs * repeat).astype(np.float32)

@@ -58,9 +58,8 @@ def file_vertex_colors(geometry: trimesh.Trimesh) -> np.ndarray | None:
 def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict) -> tuple[np.ndarray, np.ndarray] | None:
     """A geometry's colour texture: ((H, W, 3) uint8 sRGB image, (V, 2) float32 coordinates per vertex),
     from an OBJ material's image or a glTF material's base colour texture; None where it has none or its
-    coordinates are missing, misshapen or not finite. ``decoded`` maps the file's images (by identity) to
-    their arrays, so geometries that share an image share one array. An image that cannot be decoded is
-    a SceneError naming ``where``."""
+    coordinates are missing, misshapen or not finite. ``decoded``: see ``_decode``; geometries that share an
+    image share one array. An image that cannot be decoded is a SceneError naming ``where``."""
     visual = geometry.visual
     if getattr(visual, "kind", None) != "texture":
         return None
@@ -71,14 +70,28 @@ def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict) -> tuple[
     uvs = file_uvs(geometry)
     if image is None or uvs is None:
         return None
+    pixels = _decode(image, decoded, f"{where}: cannot read its texture image")
+    return None if pixels is None else (pixels, uvs)
+
+
+def _decode(image, decoded: dict, failure: str) -> np.ndarray | None:
+    """A PIL image of a mesh file as (H, W, 3) uint8 codes (None where it is empty), decoded once per file:
+    ``decoded`` maps images (by identity) to their arrays. An image that cannot be decoded is a SceneError
+    that starts with ``failure``."""
     if id(image) not in decoded:
         try:
             pixels = np.ascontiguousarray(np.asarray(image.convert("RGB"), np.uint8))
         except Exception as err:   # PIL raises many types for an image it cannot decode
-            raise SceneError(f"{where}: cannot read its texture image ({type(err).__name__}: {err})") from err
+            raise SceneError(f"{failure} ({type(err).__name__}: {err})") from err
         decoded[id(image)] = (pixels if pixels.ndim == 3 and min(pixels.shape[:2]) > 0 else None, image)
-    pixels = decoded[id(image)][0]
-    return None if pixels is None else (pixels, uvs)
+    return decoded[id(image)][0]
+
+
+def file_normal_map(geometry: trimesh.Trimesh, where: str, decoded: dict) -> np.ndarray | None:
+    """A geometry's normal map: its glTF material's normal texture as (H, W, 3) uint8 codes (``decoded`` shares
+    one array among the geometries that use an image, as ``file_texture``); None where it has none."""
+    image = getattr(getattr(geometry.visual, "material", None), "normalTexture", None)
+    return None if image is None else _decode(image, decoded, f"{where}: cannot read its normal map")
 
 
 def read_texture_image(path: Path) -> np.ndarray:
@@ -147,13 +160,16 @@ def file_uvs(geometry: trimesh.Trimesh) -> np.ndarray | None:
 
 
 def load_mesh_file(path: Path, material: str | None, name: str | None = None, vertex_colors: bool = True,
-                   texture: np.ndarray | None = None, materials: dict | None = None) -> list:
+                   texture: np.ndarray | None = None, materials: dict | None = None,
+                   normal_map: np.ndarray | None = None) -> list:
     """The meshes of the file at ``path``, all with ``material``, named ``name`` (default: file stem), with
     the file's vertex colours or texture (``file_vertex_colors``, ``file_texture``) unless ``vertex_colors``
     is False; ``texture`` (an (H, W, 3) uint8 image) replaces the file's images at the file's texture
     coordinates (a SceneError where a geometry has none). Where the dict ``materials`` is given, each geometry
     that has a material of its own in the file (glTF's, an OBJ file's MTL: ``file_materials``) takes it, added
-    to ``materials`` under its name, and the others ``material`` (a SceneError where that is None)."""
+    to ``materials`` under its name, and the others ``material`` (a SceneError where that is None). A geometry's
+    normal map is the file's (a glTF material's normal texture), or ``normal_map`` in its place, read at the
+    same coordinates."""
     from .file_materials import FileMaterials
     from .model import Mesh
 
@@ -199,13 +215,17 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         else:
             image, uvs = (file_texture(geometry, where, decoded) if vertex_colors else None) or (None, None)
         colors = file_vertex_colors(geometry) if vertex_colors and image is None else None
+        bumps = normal_map if normal_map is not None else file_normal_map(geometry, where, decoded)
+        uvs = file_uvs(geometry) if uvs is None and bumps is not None else uvs
+        if bumps is not None and uvs is None:
+            raise SceneError(f"{where}: has no texture coordinates for the normal map to be read at")
         surface = (own.material_of(geometry, geometry_name) if own else None) or material
         if surface is None:
             raise SceneError(f"{where}: has no material of its own; give the mesh entry a 'material'")
         first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
                                               surface, normals=normals,
                                               transform=np.asarray(transform, np.float32), colors=colors,
-                                              texture=image, uvs=uvs)
+                                              texture=image, uvs=uvs, normal_map=bumps)
         meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")

@@ -9,7 +9,9 @@ BSDF its material maps to:
   specular_reflectance; dielectric → ``dielectric`` or
   ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1.
 - a mesh's vertex colours become a "vertex_color" mesh attribute its BSDF's reflectance reads, a texture a
-  ``bitmap`` (bilinear, repeat) of the image times the reflectance, read at the mesh's texture coordinates.
+  ``bitmap`` (bilinear, repeat) of the image times the reflectance, read at the mesh's texture coordinates, a
+  normal map a ``normalmap`` around the BSDF (inside ``twosided``: on a back face Mitsuba mirrors the tilt
+  through the surface where the tracer turns it round, as a thin sheet's far side would be).
 - diffuse and conductor BSDFs are wrapped in ``twosided``: our tracer shades both faces of them alike
   (wgsl/trace/trace.wgsl), while Mitsuba's are black seen from behind. Back faces show wherever a one-sided
   rectangle is seen from outside, e.g. the outer sides of sun-room's crate.
@@ -32,6 +34,7 @@ from __future__ import annotations
 import os
 import re
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -60,6 +63,15 @@ def textured_reflectance(mi, texture: np.ndarray, reflectance: np.ndarray) -> di
             "filter_type": "bilinear", "wrap_mode": "repeat"}
 
 
+def normal_mapped_bsdf(mi, normal_map: np.ndarray, bsdf: dict) -> dict:
+    """``bsdf`` under Mitsuba's ``normalmap`` of ``normal_map`` (raw 8-bit codes), filtered and wrapped as the
+    tracer samples it (wgsl/trace/surface_textures.wgsl's normal_mapped)."""
+    raw = np.ascontiguousarray(np.asarray(normal_map, np.float32) / 255.0)
+    return {"type": "normalmap", "bsdf": bsdf,
+            "normalmap": {"type": "bitmap", "bitmap": mi.Bitmap(raw), "raw": True, "filter_type": "bilinear",
+                          "wrap_mode": "repeat"}}
+
+
 def material_to_bsdf(material: Material, vertex_colored: bool = False, reflectance: dict | None = None) -> dict:
     """The Mitsuba BSDF dict for ``material``, as seen from its front face; ``vertex_colored``: its
     reflectance read from the mesh's "vertex_color" attribute (VERTEX_REFLECTANCE); ``reflectance``: a
@@ -83,9 +95,13 @@ def material_to_bsdf(material: Material, vertex_colored: bool = False, reflectan
     return bsdf
 
 
-def surface_bsdf(material: Material, vertex_colored: bool = False, reflectance: dict | None = None) -> dict:
-    """``material_to_bsdf`` made two-sided where our tracer is (every kind but dielectric)."""
+def surface_bsdf(material: Material, vertex_colored: bool = False, reflectance: dict | None = None,
+                 wrap=None) -> dict:
+    """``material_to_bsdf`` made two-sided where our tracer is (every kind but dielectric), after ``wrap`` (a
+    function of a BSDF dict, e.g. a normal map's) wraps it: inside ``twosided``, which flips a back face's
+    directions first, the normal map tilts the normal as the tracer does on a front face."""
     bsdf = material_to_bsdf(material, vertex_colored, reflectance)
+    bsdf = bsdf if wrap is None else wrap(bsdf)
     return bsdf if material.kind == "dielectric" else {"type": "twosided", "bsdf": bsdf}
 
 
@@ -171,11 +187,11 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
             raise SceneError(f"mesh {mesh.name!r}: Mitsuba's plastic cannot read vertex colours (its sampling "
                              f"weight needs a texture's mean); give the mesh a texture or another material")
         textured = None if mesh.texture is None else textured_reflectance(mi, mesh.texture, material.reflectance)
+        tilted = None if mesh.normal_map is None else partial(normal_mapped_bsdf, mi, mesh.normal_map)
+        bsdf = surface_bsdf(material, colors is not None, textured, tilted)
         result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
-                                    surface_bsdf(material, colors is not None, textured),
-                                    material.emission if material.is_emissive else None,
-                                    None if colors is None else colors * material.reflectance,
-                                    None if mesh.texture is None else mesh.uvs)
+                                    bsdf, material.emission if material.is_emissive else None,
+                                    None if colors is None else colors * material.reflectance, mesh.uvs)
     for index, light in enumerate(scene.lights):
         if isinstance(light, SpotLight):
             axis = np.asarray(light.direction, np.float64)

@@ -160,6 +160,11 @@ class Mesh:
     # one image array (it is stored once).
     texture: np.ndarray | None = None
     uvs: np.ndarray | None = None
+    # A tangent-space normal map at the same coordinates: (H, W, 3) uint8 codes of (n + 1) / 2, read raw
+    # (not sRGB) and bilinearly as the texture is; x along the direction of increasing u, y along increasing
+    # v, z along the interpolated normal (OpenGL's and glTF's convention; Mitsuba's ``normalmap``): the
+    # shading normal there becomes ``mapped_normal``.
+    normal_map: np.ndarray | None = None
 
     def transform_at(self, frame: int) -> np.ndarray:
         return _interpolate(self.keyframes, frame, self.transform)
@@ -171,19 +176,20 @@ class Mesh:
     @property
     def shape_key(self) -> tuple[int, int, int]:
         """Equal for meshes that share their arrays (instances of one shape), else different."""
-        return id(self.vertices), id(self.faces), id(self.normals), id(self.colors), id(self.texture), id(self.uvs)
+        return (id(self.vertices), id(self.faces), id(self.normals), id(self.colors), id(self.texture), id(self.uvs),
+                id(self.normal_map))
 
     def instance(self, name: str, material: str | None = None, transform=None, keyframes=None) -> Mesh:
         """Another placement of this mesh's shape (its arrays shared, not copied, and made read-only so
         that an edit cannot move every instance at once), with its own name, material (default: this
         mesh's), transform (default: identity) and keyframes (default: none)."""
-        for array in (self.vertices, self.faces, self.normals, self.colors, self.texture, self.uvs):
+        for array in (self.vertices, self.faces, self.normals, self.colors, self.texture, self.uvs, self.normal_map):
             if array is not None:
                 array.flags.writeable = False
         placement = np.eye(4) if transform is None else transform
         return Mesh(name, self.vertices, self.faces, self.material if material is None else material,
                     self.normals, np.asarray(placement, np.float32), dict(keyframes or {}), self.colors,
-                    self.texture, self.uvs)
+                    self.texture, self.uvs, self.normal_map)
 
 
 def srgb8(colors: np.ndarray) -> np.ndarray:
@@ -204,13 +210,14 @@ def vertex_colors_as_rendered(mesh: "Mesh") -> np.ndarray | None:
     return None if mesh.colors is None else linear_from_srgb8(srgb8(mesh.colors))
 
 
-def sample_texture(texture: np.ndarray, uvs: np.ndarray) -> np.ndarray:
+def sample_texture(texture: np.ndarray, uvs: np.ndarray, srgb: bool = True) -> np.ndarray:
     """(N, 3) float32 linear RGB: the (H, W, 3) sRGB8 ``texture`` at (N, 2) coordinates ``uvs`` as the tracer
     samples it (wgsl/trace/surface_textures.wgsl) and Mitsuba's bitmap with bilinear filtering and repeat
     wrapping does: coordinates wrapped to [0, 1), v = 1 at the image's top, texel centres at half-integers,
-    texels decoded to linear and blended bilinearly."""
+    texels decoded to linear and blended bilinearly. ``srgb=False`` reads the codes raw (code / 255: a normal
+    map's)."""
     height, width = texture.shape[:2]
-    linear = linear_from_srgb8(texture).astype(np.float64)
+    linear = (linear_from_srgb8(texture) if srgb else np.asarray(texture) / 255.0).astype(np.float64)
     uvs = np.asarray(uvs, np.float64)
     x = (uvs[:, 0] - np.floor(uvs[:, 0])) * width - 0.5
     y = (1.0 - uvs[:, 1] - np.floor(1.0 - uvs[:, 1])) * height - 0.5
@@ -221,6 +228,20 @@ def sample_texture(texture: np.ndarray, uvs: np.ndarray) -> np.ndarray:
     top = (1 - fx) * texel(x0, y0) + fx * texel(x0 + 1, y0)
     bottom = (1 - fx) * texel(x0, y0 + 1) + fx * texel(x0 + 1, y0 + 1)
     return ((1 - fy) * top + fy * bottom).astype(np.float32)
+
+
+def mapped_normal(normal: np.ndarray, dp_du: np.ndarray, texel: np.ndarray) -> np.ndarray:
+    """(N, 3) unit shading normals where a normal map's (N, 3) raw samples ``texel`` (``sample_texture``, srgb
+    False) tilt the (N, 3) unit interpolated ``normal``, as the tracer (wgsl/trace/surface_textures.wgsl) and
+    Mitsuba's ``normalmap`` do: 2·texel − 1 in the frame of the normal, its tangent ``dp_du`` (the surface's
+    derivative along u) made perpendicular to it, and their cross product n × s."""
+    n = np.asarray(normal, np.float64)
+    du = np.asarray(dp_du, np.float64)
+    s = du - n * np.sum(n * du, axis=-1, keepdims=True)
+    s = s / np.linalg.norm(s, axis=-1, keepdims=True)
+    local = 2.0 * np.asarray(texel, np.float64) - 1.0
+    mapped = local[:, :1] * s + local[:, 1:2] * np.cross(n, s) + local[:, 2:] * n
+    return (mapped / np.linalg.norm(mapped, axis=-1, keepdims=True)).astype(np.float32)
 
 
 def environment_uv(directions: np.ndarray) -> np.ndarray:
@@ -338,9 +359,10 @@ class Scene:
                       (1 - w) * a.focus_distance + w * b.focus_distance)
 
     def textures(self) -> list[np.ndarray]:
-        """The meshes' texture images, each distinct array once, in order of first appearance (a mesh's
-        texture's index in this list is the one the tracer stores for its triangles)."""
-        return list({id(m.texture): m.texture for m in self.meshes if m.texture is not None}.values())
+        """The meshes' texture images and normal maps, each distinct array once, in order of first appearance (a
+        mesh's image's index in this list is the one the tracer stores for its triangles)."""
+        images = [image for m in self.meshes for image in (m.texture, m.normal_map) if image is not None]
+        return list({id(image): image for image in images}.values())
 
     def shapes(self) -> list[list[int]]:
         """Indices into ``meshes`` grouped by shape (``Mesh.shape_key``), in order of first appearance:

@@ -84,10 +84,11 @@ TEXTURE_ENTRY_WORDS = 4    # per texture: its first texel's word, width, height,
 
 def pack_textures(textures: list[np.ndarray], records: np.ndarray | None) -> np.ndarray:
     """The surface-texture buffer (bind group 1, binding 5; wgsl/trace/surface_textures.wgsl) as u32 words:
-    a header (where the triangle records start, the texture count), an entry per texture of ``textures``
-    ((H, W, 3) uint8 sRGB images), the per-triangle ``records`` (wgpu_rt.accel.geometry's texture
-    records, in the geometry's stored order), then every texture's texels as packed sRGB8 (R in the low
-    byte), row 0 the image's top. Without records (a scene with no texture), a header alone."""
+    a header (where the triangle records start, the image count), an entry per image of ``textures``
+    ((H, W, 3) uint8 codes: sRGB textures, raw normal maps), the per-triangle ``records``
+    (wgpu_rt.accel.geometry's texture records, in the geometry's stored order), then every image's codes
+    packed (R in the low byte), row 0 the image's top. Without records (no texture or normal map), a header
+    alone."""
     header = np.zeros(TEXTURE_HEADER_WORDS, np.uint32)
     if records is None:
         return header

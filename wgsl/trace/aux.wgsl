@@ -77,8 +77,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                 let material = surface_colored(materials[tri_material(hit.prim)], hit);
                 let delta = material_is_delta(material);
                 if lens && depth == 0u {   // as the tracer's normal and depth planes take the first hit
-                    normal_sum += shading_normal_at(hit, traced.geometric_normal, material,
-                                                    -dot(traced.geometric_normal, dir));
+                    normal_sum += shading_normal_at(hit, traced.geometric_normal, material, dir);
                     depth_sum += dot(origin + hit.t * dir - params.camera_origin, params.camera_forward);
                 }
                 met_delta = met_delta || delta;
@@ -86,8 +85,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                     sum += weight * surface_albedo(material);
                 } else if depth + 1u < params.max_depth {
                     let geometric_normal = traced.geometric_normal;
-                    let cos_front = -dot(geometric_normal, dir);
-                    let frame = frame_from_normal(shading_normal_at(hit, geometric_normal, material, cos_front));
+                    let frame = frame_from_normal(shading_normal_at(hit, geometric_normal, material, dir));
                     let wi = to_local(frame, -dir);
                     var take_reflection = true;   // a mirror's only lobe
                     if HAS_DIELECTRIC && material.kind == MATERIAL_DIELECTRIC {

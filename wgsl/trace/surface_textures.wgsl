@@ -1,10 +1,11 @@
-// Colour textures (bind group 1, binding 5; laid out by wgpu_rt.trace.scene_data.pack_textures): a
-// header (where the triangle records start, the texture count), an entry per texture (its first texel's
-// word, width, height), a record per stored triangle (its texture, or NO_TEXTURE, and its vertices'
-// texture coordinates as f32 bits), then the texels as packed 8-bit sRGB, row 0 the image's top.
-// A texture is sampled as Mitsuba's bitmap with bilinear filtering and repeat wrapping: coordinates
-// wrapped to [0, 1), v = 1 at the top, texel centres at half-integers, the four texels decoded to linear
-// and blended (numpy reference: wgpu_rt.scene.model.sample_texture).
+// Colour textures and normal maps (bind group 1, binding 5; laid out by wgpu_rt.trace.scene_data.pack_textures):
+// a header (where the triangle records start, the image count), an entry per image (its first texel's word,
+// width, height), a record per stored triangle (its texture, or NO_TEXTURE, its vertices' texture
+// coordinates as f32 bits, its normal map, or NO_TEXTURE), then the texels as packed 8-bit codes, row 0 the
+// image's top. An image is sampled as Mitsuba's bitmap with bilinear filtering and repeat wrapping:
+// coordinates wrapped to [0, 1), v = 1 at the top, texel centres at half-integers, the four texels decoded
+// (a texture's from sRGB, a normal map's raw) and blended (numpy reference: wgpu_rt.scene.model.sample_texture;
+// a normal map's tilt: mapped_normal).
 
 // #import accel/bvh.wgsl
 
@@ -20,25 +21,26 @@ fn texture_uv(record: u32, k: u32) -> vec2f {
                  bitcast<f32>(surface_textures[record + 2u + 2u * k]));
 }
 
-// Texel (column, row) of the texture whose texels start at `first`, both wrapped into the image.
-fn texel(first: u32, size: vec2i, column: i32, row: i32) -> vec3f {
-    let wrapped = (vec2i(column, row) % size + size) % size;
-    return srgb8_to_linear(surface_textures[first + u32(wrapped.y * size.x + wrapped.x)]);
+// The first word of placed triangle `prim`'s record.
+fn texture_record(prim: u32) -> u32 {
+    return surface_textures[0] + TEXTURE_RECORD_WORDS * placed_triangle(prim).stored;
 }
 
-// The texture colour at barycentrics (u, v) of placed triangle `prim`: white where its mesh has none, or
-// the scene has no texture (the buffer is a header alone, its texture count 0: vertex colours only).
-fn texture_color(prim: u32, u: f32, v: f32) -> vec3f {
-    if surface_textures[1] == 0u {
-        return vec3f(1.0);
-    }
-    let record = surface_textures[0] + TEXTURE_RECORD_WORDS * placed_triangle(prim).stored;
-    let texture = surface_textures[record];
-    if texture == NO_TEXTURE {
-        return vec3f(1.0);
-    }
-    let uv = (1.0 - u - v) * texture_uv(record, 0u) + u * texture_uv(record, 1u) + v * texture_uv(record, 2u);
-    let entry = TEXTURE_HEADER_WORDS + TEXTURE_ENTRY_WORDS * texture;
+fn record_uv(record: u32, u: f32, v: f32) -> vec2f {
+    return (1.0 - u - v) * texture_uv(record, 0u) + u * texture_uv(record, 1u) + v * texture_uv(record, 2u);
+}
+
+// Texel (column, row) of the image whose texels start at `first`, both wrapped into the image; decoded from
+// sRGB to linear where `srgb`, else read raw (code / 255).
+fn texel(first: u32, size: vec2i, column: i32, row: i32, srgb: bool) -> vec3f {
+    let wrapped = (vec2i(column, row) % size + size) % size;
+    let word = surface_textures[first + u32(wrapped.y * size.x + wrapped.x)];
+    return select(unpack4x8unorm(word).xyz, srgb8_to_linear(word), srgb);
+}
+
+// Image `image` at coordinates `uv`, bilinearly.
+fn sample_image(image: u32, uv: vec2f, srgb: bool) -> vec3f {
+    let entry = TEXTURE_HEADER_WORDS + TEXTURE_ENTRY_WORDS * image;
     let first = surface_textures[entry];
     let size = vec2i(i32(surface_textures[entry + 1u]), i32(surface_textures[entry + 2u]));
     let position = vec2f(fract(uv.x), fract(1.0 - uv.y)) * vec2f(size) - 0.5;
@@ -46,7 +48,52 @@ fn texture_color(prim: u32, u: f32, v: f32) -> vec3f {
     let weight = position - corner;
     let x = i32(corner.x);
     let y = i32(corner.y);
-    let top = mix(texel(first, size, x, y), texel(first, size, x + 1, y), weight.x);
-    let bottom = mix(texel(first, size, x, y + 1), texel(first, size, x + 1, y + 1), weight.x);
+    let top = mix(texel(first, size, x, y, srgb), texel(first, size, x + 1, y, srgb), weight.x);
+    let bottom = mix(texel(first, size, x, y + 1, srgb), texel(first, size, x + 1, y + 1, srgb), weight.x);
     return mix(top, bottom, weight.y);
+}
+
+// The texture colour at barycentrics (u, v) of placed triangle `prim`: white where its mesh has none, or
+// the scene has no image (the buffer is a header alone, its image count 0: vertex colours only).
+fn texture_color(prim: u32, u: f32, v: f32) -> vec3f {
+    if surface_textures[1] == 0u {
+        return vec3f(1.0);
+    }
+    let record = texture_record(prim);
+    let texture = surface_textures[record];
+    if texture == NO_TEXTURE {
+        return vec3f(1.0);
+    }
+    return sample_image(texture, record_uv(record, u, v), true);
+}
+
+// The unit shading normal `normal` at barycentrics (u, v) of placed triangle `prim` tilted by its mesh's
+// normal map, as Mitsuba's normalmap: 2·texel − 1 in the frame of `normal`, the surface's direction of
+// increasing u (from the triangle's world vertices and coordinates) made perpendicular to it, and their
+// cross product. Unchanged where the mesh has no normal map or its coordinates do not span the triangle.
+fn normal_mapped(prim: u32, u: f32, v: f32, normal: vec3f) -> vec3f {
+    if surface_textures[1] == 0u {
+        return normal;
+    }
+    let record = texture_record(prim);
+    let map = surface_textures[record + 7u];
+    if map == NO_TEXTURE {
+        return normal;
+    }
+    let p = tri_vertices(prim);
+    let duv0 = texture_uv(record, 1u) - texture_uv(record, 0u);
+    let duv1 = texture_uv(record, 2u) - texture_uv(record, 0u);
+    let det = duv0.x * duv1.y - duv0.y * duv1.x;
+    // dp/du up to the positive factor 1 / |det|: only its direction is used.
+    let dp_du = sign(det) * (duv1.y * (p[1] - p[0]) - duv0.y * (p[2] - p[0]));
+    let along = dp_du - normal * dot(normal, dp_du);
+    let length2 = dot(along, along);
+    if !(length2 > 1e-12 * dot(dp_du, dp_du)) || det == 0.0 {
+        return normal;
+    }
+    let s = along * inverseSqrt(length2);
+    let local = 2.0 * sample_image(map, record_uv(record, u, v), false) - 1.0;
+    let mapped = local.x * s + local.y * cross(normal, s) + local.z * normal;
+    let mapped2 = dot(mapped, mapped);
+    return select(normal, mapped * inverseSqrt(mapped2), mapped2 > 1e-12);
 }

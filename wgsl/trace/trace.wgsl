@@ -129,7 +129,8 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
         (*path).radiance += (*path).throughput * material.emission * weight;
     }
 
-    let shading_normal = shading_normal_at(hit, geometric_normal, material, cos_front);
+    let normals = shading_normals_at(hit, geometric_normal, material, dir);
+    let shading_normal = normals.mapped;
     if WRITE_AOVS {
         if depth == 0u {
             (*path).normal = shading_normal;
@@ -160,22 +161,24 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
         if any(light.value > vec3f(0.0)) {
             let wo = to_local(frame, light.direction);
             let f = bsdf_eval(material, wi, wo);
-            if any(f.value > vec3f(0.0)) {
+            let mapped = normal_map_weight(normals, light.direction);
+            if any(f.value > vec3f(0.0)) && mapped > 0.0 {
                 let weight = select(power_heuristic(light.pdf, f.pdf), 1.0, light.pdf == 0.0);
                 *shadow = shadow_ray_to_light(position, geometric_normal, light,
-                                              (*path).throughput * f.value * light.value * weight);
+                                              (*path).throughput * f.value * light.value * (weight * mapped));
             }
         }
     }
 
     let u_lobe = next_1d(sampler);
     let bs = bsdf_sample(material, wi, u_lobe, next_2d(sampler));
-    if all(bs.weight == vec3f(0.0)) {
+    let next_dir = normalize(to_world(frame, bs.wo));
+    let mapped = normal_map_weight(normals, next_dir);
+    if all(bs.weight == vec3f(0.0)) || mapped == 0.0 {
         return false;
     }
-    var throughput = (*path).throughput * bs.weight;
+    var throughput = (*path).throughput * bs.weight * mapped;
     let eta_scale = (*path).eta_scale * bs.eta;
-    let next_dir = normalize(to_world(frame, bs.wo));
     (*path).dir = next_dir;
     (*path).origin = offset_ray_origin(position, geometric_normal, next_dir);
     (*path).previous_pdf = bs.pdf;

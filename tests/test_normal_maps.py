@@ -1,0 +1,144 @@
+"""Normal maps: a mesh's tangent-space normals read raw at its texture coordinates and tilting its shading
+normal in the frame of the surface's u direction (numpy reference ``scene.model.mapped_normal``; Mitsuba's
+agreement, with the mirroring and shadowing that go with it, is in tests/test_mitsuba.py)."""
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+from trimesh.visual.material import PBRMaterial
+
+from wgpu_rt.accel.geometry import GeometryBuffers, InstancedGeometry
+from wgpu_rt.errors import SceneError
+from wgpu_rt.passes import FrameBuffers
+from wgpu_rt.scene import load_scene
+from wgpu_rt.scene.model import Camera, Material, Mesh, Scene, mapped_normal, sample_texture
+from wgpu_rt.scene.primitives import rectangle
+from wgpu_rt.trace import SampleSchedule, TracePass
+
+SIZE = 32
+
+
+def _normal_map(seed=0, tilt_degrees=35.0, height=4, width=6) -> np.ndarray:
+    """Codes of unit normals tilted by ``tilt_degrees`` in random directions, one a texel."""
+    phi = np.random.default_rng(seed).uniform(0, 2 * np.pi, (height, width))
+    tilt = np.radians(tilt_degrees)
+    normal = np.stack([np.sin(tilt) * np.cos(phi), np.sin(tilt) * np.sin(phi), np.full_like(phi, np.cos(tilt))], -1)
+    return np.round((normal + 1) / 2 * 255).astype(np.uint8)
+
+
+def _pixel_centre_uvs() -> np.ndarray:
+    centres = (np.arange(SIZE) + 0.5) / SIZE
+    u, v = np.meshgrid(centres, 1 - centres)
+    return np.stack([u, v], -1).reshape(-1, 2)
+
+
+def _tile(normal_map, turned: bool = False) -> Mesh:
+    """The [-1, 1]² rectangle facing +z (the camera), its u along +x, or along −y where ``turned``."""
+    vertices, faces, _ = rectangle()
+    uvs = (vertices[:, :2] + 1) / 2
+    if turned:
+        uvs = np.stack([1 - uvs[:, 1], uvs[:, 0]], -1)
+    return Mesh("tile", vertices, faces, "paint", uvs=uvs.astype(np.float32), normal_map=normal_map)
+
+
+def _scene(*meshes) -> Scene:
+    camera = Camera(origin=[0, 0, 1], target=[0, 0, 0], up=[0, 1, 0], fov=90)
+    return Scene(camera, list(meshes), {"paint": Material(reflectance=0.8)}, name="normal-mapped tile")
+
+
+def _normals(gpu, scene, geometry=None, spp=16) -> np.ndarray:
+    trace = TracePass(gpu, scene, geometry or GeometryBuffers.build(scene), SIZE, SIZE, max_depth=2, seed=3)
+    buffers = FrameBuffers(gpu, SIZE, SIZE)
+    encoder = gpu.device.create_command_encoder()
+    trace.clear(encoder, buffers)
+    trace.execute(encoder, buffers, SampleSchedule(spp))
+    gpu.device.queue.submit([encoder.finish()])
+    normals = buffers.read("normal").transpose(1, 2, 0).reshape(-1, 3)
+    return normals / np.linalg.norm(normals, axis=-1, keepdims=True)
+
+
+def test_the_reference_tilts_in_the_frame_of_u():
+    up = np.array([[0.0, 0.0, 1.0]])
+    along_u = np.array([[0.0, 1.0, 0.0]])                       # u runs along +y here
+    flat = np.array([[128, 128, 255]]) / 255.0
+    np.testing.assert_allclose(mapped_normal(up, along_u, flat), up, atol=0.01)
+    toward_u = mapped_normal(up, along_u, np.array([[1.0, 0.5, 1.0]]))  # local (1, 0, 1): 45° toward +u
+    np.testing.assert_allclose(toward_u, [[0, np.sqrt(0.5), np.sqrt(0.5)]], atol=0.01)
+    toward_v = mapped_normal(up, along_u, np.array([[0.5, 1.0, 1.0]]))  # local (0, 1, 1): toward n × s = −x
+    np.testing.assert_allclose(toward_v, [[-np.sqrt(0.5), 0, np.sqrt(0.5)]], atol=0.01)
+
+
+@pytest.mark.parametrize("turned", [False, True])
+def test_the_normal_plane_is_the_tilted_normal_where_the_tile_is_seen(gpu, turned):
+    """Each texel covers several pixels, so a pixel's mean normal is near its centre's; with the coordinates
+    turned a quarter, u runs along −y and the same map tilts the other way."""
+    normal_map = _normal_map()
+    normals = _normals(gpu, _scene(_tile(normal_map, turned)))
+    uvs = _pixel_centre_uvs()
+    if turned:
+        uvs = np.stack([1 - uvs[:, 1], uvs[:, 0]], -1)
+    dp_du = np.tile([0.0, -1.0, 0.0] if turned else [1.0, 0.0, 0.0], (len(uvs), 1))
+    expected = mapped_normal(np.tile([0.0, 0.0, 1.0], (len(uvs), 1)), dp_du, sample_texture(normal_map, uvs, srgb=False))
+    error = np.linalg.norm(normals - expected, axis=-1)
+    assert np.median(error) < 0.02 and np.percentile(error, 90) < 0.06, (np.median(error), error.max())
+    other = mapped_normal(np.tile([0.0, 0.0, 1.0], (len(uvs), 1)), -dp_du, sample_texture(normal_map, uvs, srgb=False))
+    assert np.median(np.linalg.norm(normals - other, axis=-1)) > 5 * np.median(error)   # the frame is seen
+
+
+def test_two_levels_tilt_as_one(gpu):
+    normal_map = _normal_map(seed=2)
+    tile = _tile(normal_map)
+    single = _normals(gpu, _scene(_tile(normal_map)), spp=4)
+    behind = np.eye(4, dtype=np.float32)
+    behind[2, 3] = 5
+    scene = _scene(tile, tile.instance("copy", transform=behind))
+    np.testing.assert_allclose(_normals(gpu, scene, InstancedGeometry(scene), spp=4), single, atol=1e-4)
+
+
+def test_a_flat_map_changes_nothing(gpu):
+    flat = np.full((2, 2, 3), [128, 128, 255], np.uint8)
+    plain = _normals(gpu, _scene(Mesh("tile", *rectangle()[:2], "paint")), spp=4)
+    assert np.max(np.linalg.norm(_normals(gpu, _scene(_tile(flat)), spp=4) - plain, axis=-1)) < 0.01
+
+
+def _scene_file(tmp_path, **entry):
+    Image.fromarray(_normal_map()).save(tmp_path / "bumps.png")
+    data = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]}, "materials": {"paint": {}},
+            "meshes": [{"material": "paint", **entry}]}
+    (tmp_path / "scene.json").write_text(json.dumps(data))
+    return tmp_path / "scene.json"
+
+
+def test_a_scene_files_normal_map_on_a_shape_and_on_a_mesh_file(tmp_path):
+    (mesh,) = load_scene(_scene_file(tmp_path, shape="rectangle", normal_map="bumps.png",
+                                     texture_repeat=3)).meshes
+    np.testing.assert_array_equal(mesh.normal_map, _normal_map())
+    assert mesh.texture is None and mesh.uvs.max() == pytest.approx(3.0)
+    box = trimesh.creation.box()
+    box.visual = trimesh.visual.TextureVisuals(uv=np.random.default_rng(0).random((len(box.vertices), 2)))
+    box.export(tmp_path / "box.glb")
+    meshes = load_scene(_scene_file(tmp_path, file="box.glb", normal_map="bumps.png")).meshes
+    assert all(m.normal_map is not None and m.uvs is not None for m in meshes)
+
+
+@pytest.mark.parametrize("entry, message", [
+    (dict(shape="sphere", normal_map="bumps.png"), r"normal_map: a sphere has no texture coordinates"),
+    (dict(shape="cube", normal_map="missing.png"), r"normal_map: .*missing.png: texture image not found"),
+])
+def test_bad_normal_map_entries_are_refused_by_field(tmp_path, entry, message):
+    with pytest.raises(SceneError, match=message):
+        load_scene(_scene_file(tmp_path, **entry))
+
+
+def test_a_gltf_materials_normal_texture_is_its_meshes_normal_map(tmp_path):
+    bumps = _normal_map(seed=4)
+    box = trimesh.creation.box()
+    box.visual = trimesh.visual.TextureVisuals(uv=np.random.default_rng(1).random((len(box.vertices), 2)),
+                                               material=PBRMaterial(normalTexture=Image.fromarray(bumps)))
+    box.export(tmp_path / "bumpy.glb")
+    (mesh,) = load_scene(_scene_file(tmp_path, file="bumpy.glb")).meshes
+    np.testing.assert_array_equal(mesh.normal_map, bumps)
+    assert mesh.texture is None and mesh.colors is None
