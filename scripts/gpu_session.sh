@@ -78,8 +78,9 @@
 # denoises in bands of rows (frame/bands.py, §46); a GPU binds gigabytes, so there only frames far past 4K take
 # them, and `tests` checks them under a shrunken limit. Session 48 had no GPU; since then the training worlds are
 # worlds_version 6 (§47: a quarter of the cameras through a thin lens, half the skies as environment maps, three
-# in ten matte materials coated as plastic), so call 1's renders are the first with any of them; train_eval should
-# also score benchmarks/scenes/plaza-lens.toml and examples/sky-courtyard.toml (bench_spp.py).
+# in ten matte materials coated as plastic); session 49 made it 7 (§48: normal maps on some worlds' floors and
+# walls), so call 1's renders are the first with any of them; train_eval should also score
+# benchmarks/scenes/plaza-lens.toml, examples/sky-courtyard.toml and examples/still-life.toml (bench_spp.py).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),

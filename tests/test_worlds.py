@@ -295,6 +295,32 @@ def test_coats_leave_every_other_choice_and_the_held_out_family_alone(monkeypatc
     assert coated >= 12
 
 
+def test_normal_maps_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):
+    """Normal maps draw from a random stream of their own: a training world with them is the world without them
+    but for some flat set surfaces given coordinates in their own plane and a seamless map of moderate tilts;
+    a held-out world never has one."""
+    from wgpu_rt.dataset.worlds import RELIEF_SIZE, SET_RECTANGLES
+
+    mapped_surfaces = 0
+    for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
+        mapped, plain = _with_and_without(monkeypatch, "NORMAL_MAP_SHARE", seed)
+        with_maps = [mesh for mesh in mapped.meshes if mesh.normal_map is not None]
+        assert not with_maps or family_of(seed) == "training"
+        assert all(mesh.normal_map is None and mesh.uvs is None for mesh in plain.meshes)
+        for mesh in with_maps:
+            mapped_surfaces += 1
+            assert mesh.name in SET_RECTANGLES and not mapped.materials[mesh.material].is_emissive
+            assert mesh.normal_map.shape == (RELIEF_SIZE, RELIEF_SIZE, 3) and mesh.uvs.shape == (len(mesh.vertices), 2)
+            normals = mesh.normal_map / 255.0 * 2 - 1
+            tilts = np.degrees(np.arccos(np.clip(normals[..., 2] / np.linalg.norm(normals, axis=-1), -1, 1)))
+            assert 5 <= np.percentile(tilts, 95) <= 50, (seed, mesh.name)
+        ours, theirs = _arrays(mapped), _arrays(plain)
+        assert ours.keys() == theirs.keys()
+        for key in theirs:
+            np.testing.assert_array_equal(ours[key], theirs[key], err_msg=f"{seed}: {key}")
+    assert mapped_surfaces >= 6
+
+
 def test_a_quarter_of_the_training_worlds_look_through_a_lens(worlds):
     from wgpu_rt.dataset.worlds import LENS_SHARE
 

@@ -30,7 +30,11 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
   varies with direction as a photographed one does; from a stream of its own (``WORLDS_VERSION`` 5);
 - in the training family only, a share of the matte materials coated (``PLASTIC_SHARE``: Mitsuba's smooth
   plastic, a clear coat of index 1.3–1.7 over the same colour), so the denoiser sees mirror images of lights
-  and objects on painted and plastic things; from a stream of its own (``WORLDS_VERSION`` 6).
+  and objects on painted and plastic things; from a stream of its own (``WORLDS_VERSION`` 6);
+- in the training family only, sometimes flat set surfaces (floors, walls, the ground) with a normal map
+  (``NORMAL_MAP_SHARE``, ``relief_normal_map``: tiles, planks, bumps or ripples a few centimetres to a metre
+  across), so the denoiser sees shading detail that the albedo does not show but the normal plane does; from
+  a stream of its own (``WORLDS_VERSION`` 7).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -83,8 +87,8 @@ UP = np.array([0.0, 1.0, 0.0])
 CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, metres
 # What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
 # worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera; 5: skies as environment maps;
-# 6: coated (plastic) materials.
-WORLDS_VERSION = 6
+# 6: coated (plastic) materials; 7: normal maps on set surfaces.
+WORLDS_VERSION = 7
 LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
 PAINTED_SHARE = 0.5         # of the training worlds
 LENS_SHARE = 0.25           # of the training worlds
@@ -92,7 +96,12 @@ LENS_APERTURES = (0.003, 0.03)   # aperture radius over the camera's distance to
 SKY_MAP_SHARE = 0.5         # of the training worlds with a sky
 SKY_MAP_SIZE = (32, 64)     # a procedural sky's rows and columns
 PLASTIC_SHARE = 0.3         # of the training worlds' matte materials (not emitters)
+SET_RECTANGLES = ("ground", "floor", "ceiling", "back", "front", "left", "right")   # build_set's flat surfaces
 PATTERNS = ("checker", "stripes", "blotches", "mottle")
+NORMAL_MAP_SHARE = 0.4      # of the training worlds; each flat set surface of those then has one with odds 1/2
+RELIEFS = ("tiles", "planks", "bumps", "ripples")
+RELIEF_SIZE = 64            # texels a side of a normal map (it repeats)
+RELIEF_PERIODS = (0.05, 1.0)   # metres one repeat of a normal map spans, log-uniform
 PAINT_EDGE = 0.02           # surfaces are subdivided until their edges are at most this share of the set's size
 
 
@@ -138,6 +147,7 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
         world.add_lens(np.random.default_rng(np.random.SeedSequence([int(seed), 0x1E25])))
         world.add_sky_map(np.random.default_rng(np.random.SeedSequence([int(seed), 0x5C1E])))
         world.coat_materials(np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0A7])))
+        world.add_normal_maps(np.random.default_rng(np.random.SeedSequence([int(seed), 0xB0B5])))
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
 
 
@@ -440,6 +450,24 @@ class _World:
             if coat and name not in painted:
                 self.materials[name] = Material("plastic", reflectance=material.reflectance, ior=ior)
 
+    def add_normal_maps(self, rng: np.random.Generator) -> None:
+        """With probability NORMAL_MAP_SHARE, each flat set surface (a rectangle: floor, ceiling, walls, the
+        ground) that is not an emitter gets with odds one half a normal map (``relief_normal_map``) repeating
+        every RELIEF_PERIODS metres, at coordinates from its own plane (painted ones too: their subdivided
+        vertices stay in it)."""
+        if rng.uniform() >= NORMAL_MAP_SHARE:
+            return
+        for mesh in self.meshes:
+            if mesh.name not in SET_RECTANGLES or self.materials[mesh.material].is_emissive:
+                continue
+            taken, period = rng.uniform() < 0.5, float(np.exp(rng.uniform(*np.log(RELIEF_PERIODS))))
+            image = relief_normal_map(rng)
+            if not taken:
+                continue
+            half_sizes = np.linalg.norm(mesh.transform[:3, :2].astype(np.float64), axis=0)
+            mesh.uvs = ((mesh.vertices[:, :2] + 1.0) * half_sizes / period).astype(np.float32)
+            mesh.normal_map = image
+
     def _point(self, position, dim: float = 1.0) -> None:
         target, _ = self.cluster()
         distance2 = max(float(np.sum((np.asarray(position, np.float64) - target) ** 2)), 0.25)
@@ -530,6 +558,36 @@ def painted_colors(rng: np.random.Generator, points: np.ndarray) -> np.ndarray:
     colours = [np.array(colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0, 0.9), rng.uniform(0.05, 1.0)))
                for _ in range(2)]
     return mix_colors(t, np.ones(3) if rng.uniform() < 0.5 else colours[1], colours[0])
+
+
+def relief_normal_map(rng: np.random.Generator) -> np.ndarray:
+    """A RELIEF_SIZE² tangent-space normal map (uint8 codes) of one of RELIEFS, seamless when repeated: the
+    gradient of a periodic height field, scaled so that its steepest twentieth tilts by 10–45°."""
+    kind = RELIEFS[int(rng.integers(len(RELIEFS)))]
+    n = RELIEF_SIZE
+    y, x = np.mgrid[0:n, 0:n] / n
+    to_edge = lambda t: np.minimum(t % 1.0, 1.0 - t % 1.0)  # noqa: E731
+    if kind == "tiles":          # square tiles, bevelled toward the grout
+        count = int(rng.integers(1, 5))
+        height = np.clip(np.minimum(to_edge(x * count), to_edge(y * count)) / 0.06, 0, 1)
+    elif kind == "planks":       # boards side by side, each column's joints at its own height
+        count = int(rng.integers(2, 7))
+        shift = rng.uniform(0, 1, count)[np.floor(x * count).astype(int)]
+        height = np.clip(np.minimum(to_edge(x * count) / 0.08, to_edge(y + shift) / 0.04), 0, 1)
+    else:
+        waves = int(rng.integers(2, 6)) if kind == "bumps" else 1
+        height = np.zeros((n, n))
+        for _ in range(waves):
+            fx, fy = rng.integers(-4, 5, 2) if kind == "bumps" else rng.integers(1, 9, 2)
+            height += np.sin(2 * np.pi * (fx * x + fy * y + rng.uniform())) / waves
+    # x along u (columns), y along v (up the image: rows run down).
+    dh_du = (np.roll(height, -1, axis=1) - np.roll(height, 1, axis=1)) / 2
+    dh_dv = (np.roll(height, 1, axis=0) - np.roll(height, -1, axis=0)) / 2
+    steepest = max(float(np.percentile(np.hypot(dh_du, dh_dv), 95)), 1e-9)
+    slope = np.tan(np.radians(rng.uniform(10.0, 45.0))) / steepest     # the 95th percentile's tilt
+    normal = np.stack([-slope * dh_du, -slope * dh_dv, np.ones((n, n))], -1)
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+    return np.round((normal + 1.0) / 2.0 * 255.0).astype(np.uint8)
 
 
 def procedural_sky(rng: np.random.Generator, toward_sun: np.ndarray | None) -> np.ndarray:
