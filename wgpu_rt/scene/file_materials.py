@@ -181,6 +181,15 @@ class FileMaterials:
 
     @staticmethod
     def _same_factors(entry: dict, trimesh_material) -> bool:
+        """Whether trimesh's reading has an unnamed entry's factors (the first such entry is taken: two unnamed
+        materials alike in them but not in their extensions are not told apart)."""
+        try:
+            return FileMaterials._factors_match(entry, trimesh_material)
+        except (TypeError, ValueError, IndexError):   # a malformed entry: gltf_material names what is wrong
+            return False
+
+    @staticmethod
+    def _factors_match(entry: dict, trimesh_material) -> bool:
         pbr = entry.get("pbrMetallicRoughness") or {}
         ours = (pbr.get("metallicFactor"), pbr.get("roughnessFactor"))
         theirs = (getattr(trimesh_material, "metallicFactor", None), getattr(trimesh_material, "roughnessFactor", None))
