@@ -49,15 +49,20 @@ def _scene(*meshes) -> Scene:
     return Scene(camera, list(meshes), {"paint": Material(reflectance=0.8)}, name="normal-mapped tile")
 
 
-def _normals(gpu, scene, geometry=None, spp=16) -> np.ndarray:
+def _planes(gpu, scene, geometry=None, spp=16) -> tuple[np.ndarray, np.ndarray]:
+    """The albedo and the unit normal plane, each (SIZE², 3)."""
     trace = TracePass(gpu, scene, geometry or GeometryBuffers.build(scene), SIZE, SIZE, max_depth=2, seed=3)
     buffers = FrameBuffers(gpu, SIZE, SIZE)
     encoder = gpu.device.create_command_encoder()
     trace.clear(encoder, buffers)
     trace.execute(encoder, buffers, SampleSchedule(spp))
     gpu.device.queue.submit([encoder.finish()])
-    normals = buffers.read("normal").transpose(1, 2, 0).reshape(-1, 3)
-    return normals / np.linalg.norm(normals, axis=-1, keepdims=True)
+    albedo, normals = (buffers.read(name).transpose(1, 2, 0).reshape(-1, 3) for name in ("albedo", "normal"))
+    return albedo, normals / np.linalg.norm(normals, axis=-1, keepdims=True)
+
+
+def _normals(gpu, scene, geometry=None, spp=16) -> np.ndarray:
+    return _planes(gpu, scene, geometry, spp)[1]
 
 
 def test_the_reference_tilts_in_the_frame_of_u():
@@ -88,14 +93,22 @@ def test_the_normal_plane_is_the_tilted_normal_where_the_tile_is_seen(gpu, turne
     assert np.median(np.linalg.norm(normals - other, axis=-1)) > 5 * np.median(error)   # the frame is seen
 
 
-def test_two_levels_tilt_as_one(gpu):
-    normal_map = _normal_map(seed=2)
-    tile = _tile(normal_map)
-    single = _normals(gpu, _scene(_tile(normal_map)), spp=4)
+def test_two_levels_read_their_maps_as_one(gpu):
+    """The tile (a colour texture and a normal map) placed twice, a second placement behind the camera, is a
+    two-level scene whose triangles and records are stored once: the same albedo, the same normals."""
+    def tile():
+        mesh = _tile(_normal_map(seed=2))
+        mesh.texture = np.random.default_rng(2).integers(0, 256, (4, 6, 3), dtype=np.uint8)
+        return mesh
+
+    single = _planes(gpu, _scene(tile()), spp=4)
     behind = np.eye(4, dtype=np.float32)
     behind[2, 3] = 5
-    scene = _scene(tile, tile.instance("copy", transform=behind))
-    np.testing.assert_allclose(_normals(gpu, scene, InstancedGeometry(scene), spp=4), single, atol=1e-4)
+    first = tile()
+    scene = _scene(first, first.instance("copy", transform=behind))
+    assert scene.has_instances
+    for plane, expected in zip(_planes(gpu, scene, InstancedGeometry(scene), spp=4), single):
+        np.testing.assert_allclose(plane, expected, atol=1e-4)
 
 
 def test_a_flat_map_changes_nothing(gpu):

@@ -90,21 +90,6 @@ def test_coordinates_outside_the_unit_square_repeat(gpu):
     assert np.median(np.abs(tiled - expected)) < 0.02
 
 
-def test_two_levels_sample_as_one(gpu):
-    """The tile placed twice (a second placement behind the camera) is a two-level scene whose triangles are
-    stored once: the same records, the same albedo."""
-    from wgpu_rt.accel.geometry import InstancedGeometry
-
-    texture = _texture(seed=2)
-    tile = _tile(texture)
-    single = _albedo(gpu, _scene(_tile(texture)), spp=4)
-    behind = np.eye(4, dtype=np.float32)
-    behind[2, 3] = 5
-    scene = _scene(tile, tile.instance("copy", transform=behind))
-    assert scene.has_instances
-    np.testing.assert_allclose(_albedo(gpu, scene, spp=4, geometry=InstancedGeometry(scene)), single, atol=1e-5)
-
-
 def test_an_untextured_mesh_beside_a_textured_one_keeps_its_reflectance(gpu):
     texture = np.full((2, 2, 3), 255, np.uint8)
     texture[..., 1:] = 0                                               # pure red
