@@ -2,11 +2,11 @@
 transmission, ior and emissive-strength extensions, and OBJ's MTL, each onto the tracer's kinds."""
 
 import json
-import struct
 
 import numpy as np
 import pytest
 import trimesh
+from gltf_files import edit_glb_json
 from PIL import Image
 from trimesh.visual.material import PBRMaterial
 
@@ -44,13 +44,7 @@ def _glb(tmp_path, materials: list, name="thing.glb", edit=None):
         scene.add_geometry(box, node_name=f"part{i}")
     data = scene.export(file_type="glb")
     if edit is not None:
-        length = struct.unpack_from("<I", data, 12)[0]
-        tree = json.loads(data[20:20 + length])
-        edit(tree["materials"])
-        text = json.dumps(tree).encode()
-        text += b" " * (-len(text) % 4)
-        body = struct.pack("<I4s", len(text), b"JSON") + text + data[20 + length:]
-        data = b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
+        data = edit_glb_json(data, lambda tree: edit(tree["materials"]))
     (tmp_path / name).write_bytes(data)
     return tmp_path / name
 

@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 import trimesh
+from gltf_files import edit_glb_json
 from PIL import Image
 from trimesh.visual.material import PBRMaterial
 
@@ -155,3 +156,22 @@ def test_a_gltf_materials_normal_texture_is_its_meshes_normal_map(tmp_path):
     (mesh,) = load_scene(_scene_file(tmp_path, file="bumpy.glb")).meshes
     np.testing.assert_array_equal(mesh.normal_map, bumps)
     assert mesh.texture is None and mesh.colors is None
+
+
+def test_a_gltf_normal_textures_scale_scales_its_tilts(tmp_path):
+    """glTF: the normal is normalize((2·texel − 1) · (scale, scale, 1)); a scale of 0 flattens the map."""
+    from wgpu_rt.scene.meshio import load_mesh_file
+
+    bumps = _normal_map(seed=5, tilt_degrees=30)
+    box = trimesh.creation.box()
+    box.visual = trimesh.visual.TextureVisuals(uv=np.random.default_rng(1).random((len(box.vertices), 2)),
+                                               material=PBRMaterial(name="bumpy", normalTexture=Image.fromarray(bumps)))
+    data = box.export(file_type="glb")
+    for scale, tilt in ((0.5, np.degrees(np.arctan(0.5 * np.tan(np.radians(30))))), (0.0, 0.0)):
+        def rescale(tree, scale=scale):
+            tree["materials"][0]["normalTexture"]["scale"] = scale
+        (tmp_path / "scaled.glb").write_bytes(edit_glb_json(data, rescale))
+        (mesh,) = load_mesh_file(tmp_path / "scaled.glb", "paint")
+        normals = mesh.normal_map / 255.0 * 2 - 1
+        tilts = np.degrees(np.arctan2(np.hypot(normals[..., 0], normals[..., 1]), normals[..., 2]))
+        np.testing.assert_allclose(tilts, tilt, atol=0.6)

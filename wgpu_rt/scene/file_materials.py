@@ -160,13 +160,18 @@ class FileMaterials:
     def __init__(self, path: Path, base: str):
         self.path, self.base = Path(path), base
         self.gltf = self.path.suffix.lower() in GLTF_SUFFIXES
-        self.entries = []
-        if self.gltf:
-            entries = gltf_json(self.path).get("materials") or []
+        self._entries: list | None = None
+        self.materials: dict[str, Material] = {}
+
+    @property
+    def entries(self) -> list:
+        """A glTF file's ``materials`` list (read when first asked for)."""
+        if self._entries is None:
+            entries = (gltf_json(self.path).get("materials") or []) if self.gltf else []
             if not isinstance(entries, list):
                 raise SceneError(f"{self.path}: the glTF file's materials are not a list")
-            self.entries = entries
-        self.materials: dict[str, Material] = {}
+            self._entries = entries
+        return self._entries
 
     def _gltf_index(self, trimesh_material) -> int | None:
         """The index in the file's materials list of trimesh's reading of one: by name, else by its factors."""
@@ -203,6 +208,18 @@ class FileMaterials:
         # trimesh keeps the colour as 8-bit codes of the linear factor.
         return colour is None or np.allclose(np.asarray(colour[:3]) / 255.0, np.asarray(factor[:3], float),
                                              atol=0.6 / 255)
+
+    def normal_scale(self, geometry) -> float:
+        """The ``scale`` of the normal texture of ``geometry``'s glTF material (1 where it gives none)."""
+        trimesh_material = getattr(geometry.visual, "material", None)
+        if not self.gltf or getattr(trimesh_material, "normalTexture", None) is None:
+            return 1.0
+        index = self._gltf_index(trimesh_material)
+        texture = None if index is None else self.entries[index].get("normalTexture")
+        if not isinstance(texture, dict):
+            return 1.0
+        label = self.entries[index].get("name") or f"material{index}"
+        return _Reader(f"{self.path}: material {label!r}: normalTexture", texture).numbers("scale", 1.0, high=np.inf)
 
     def material_of(self, geometry, geometry_name: str) -> str | None:
         """The name of ``geometry``'s material in the file, None where the file gives it none."""

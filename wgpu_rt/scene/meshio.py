@@ -87,11 +87,21 @@ def _decode(image, decoded: dict, failure: str) -> np.ndarray | None:
     return decoded[id(image)][0]
 
 
-def file_normal_map(geometry: trimesh.Trimesh, where: str, decoded: dict) -> np.ndarray | None:
+def file_normal_map(geometry: trimesh.Trimesh, where: str, decoded: dict, scale: float = 1.0) -> np.ndarray | None:
     """A geometry's normal map: its glTF material's normal texture as (H, W, 3) uint8 codes (``decoded`` shares
-    one array among the geometries that use an image, as ``file_texture``); None where it has none."""
+    one array among the geometries that use an image, as ``file_texture``), its tilts scaled by ``scale`` as
+    glTF's normal texture ``scale`` does (x and y times it, then normalized); None where it has none."""
     image = getattr(getattr(geometry.visual, "material", None), "normalTexture", None)
-    return None if image is None else _decode(image, decoded, f"{where}: cannot read its normal map")
+    pixels = None if image is None else _decode(image, decoded, f"{where}: cannot read its normal map")
+    if pixels is None or scale == 1.0:
+        return pixels
+    key = ("scaled", id(image), scale)
+    if key not in decoded:
+        normals = pixels / 255.0 * 2.0 - 1.0
+        normals[..., :2] *= scale
+        normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
+        decoded[key] = (np.round((normals + 1.0) / 2.0 * 255.0).astype(np.uint8), image)
+    return decoded[key][0]
 
 
 def read_texture_image(path: Path) -> np.ndarray:
@@ -189,7 +199,7 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
     meshes = []
     first_placement: dict[str, Mesh] = {}      # geometry name → the Mesh of its first node
     decoded: dict[int, tuple] = {}              # the file's texture images (file_texture)
-    own = FileMaterials(path, base) if materials is not None else None
+    own = FileMaterials(path, base)     # the file's materials: taken where ``materials`` asks, else for scales
     for node in scene.graph.nodes_geometry:
         transform, geometry_name = scene.graph[node]
         geometry = scene.geometry[geometry_name]
@@ -215,11 +225,12 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         else:
             image, uvs = (file_texture(geometry, where, decoded) if vertex_colors else None) or (None, None)
         colors = file_vertex_colors(geometry) if vertex_colors and image is None else None
-        bumps = normal_map if normal_map is not None else file_normal_map(geometry, where, decoded)
+        bumps = normal_map if normal_map is not None else file_normal_map(geometry, where, decoded,
+                                                                          own.normal_scale(geometry))
         uvs = file_uvs(geometry) if uvs is None and bumps is not None else uvs
         if bumps is not None and uvs is None:
             raise SceneError(f"{where}: has no texture coordinates for the normal map to be read at")
-        surface = (own.material_of(geometry, geometry_name) if own else None) or material
+        surface = (own.material_of(geometry, geometry_name) if materials is not None else None) or material
         if surface is None:
             raise SceneError(f"{where}: has no material of its own; give the mesh entry a 'material'")
         first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
@@ -229,6 +240,6 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")
-    if own is not None:
+    if materials is not None:
         materials.update(own.materials)
     return meshes
