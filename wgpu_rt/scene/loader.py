@@ -360,9 +360,9 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
                                    normal_map=normal_map)
         except SceneError as err:
             fields.fail(str(err), "file")
-        for name in own or {}:
-            if name in materials:
-                fields.fail(f"the file's material {name!r} has the name of another material: name the mesh", "file")
+        for taken in own or {}:
+            if taken in materials:
+                fields.fail(f"the file's material {taken!r} has the name of another material: name the mesh", "file")
         materials.update(own or {})
     if fields.has("texture_repeat"):
         repeat = fields.vector("texture_repeat", length=2, broadcast=True)

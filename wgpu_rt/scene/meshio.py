@@ -198,7 +198,7 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
     base = name or path.stem
     meshes = []
     first_placement: dict[str, Mesh] = {}      # geometry name → the Mesh of its first node
-    decoded: dict[int, tuple] = {}              # the file's texture images (file_texture)
+    decoded: dict = {}                          # the file's images, decoded (_decode)
     own = FileMaterials(path, base)     # the file's materials: taken where ``materials`` asks, else for scales
     for node in scene.graph.nodes_geometry:
         transform, geometry_name = scene.graph[node]
@@ -225,10 +225,10 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         else:
             image, uvs = (file_texture(geometry, where, decoded) if vertex_colors else None) or (None, None)
         colors = file_vertex_colors(geometry) if vertex_colors and image is None else None
-        bumps = normal_map if normal_map is not None else file_normal_map(geometry, where, decoded,
-                                                                          own.normal_scale(geometry))
-        uvs = file_uvs(geometry) if uvs is None and bumps is not None else uvs
-        if bumps is not None and uvs is None:
+        relief = normal_map if normal_map is not None else file_normal_map(geometry, where, decoded,
+                                                                           own.normal_scale(geometry))
+        uvs = file_uvs(geometry) if uvs is None and relief is not None else uvs
+        if relief is not None and uvs is None:
             raise SceneError(f"{where}: has no texture coordinates for the normal map to be read at")
         surface = (own.material_of(geometry, geometry_name) if materials is not None else None) or material
         if surface is None:
@@ -236,7 +236,7 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
                                               surface, normals=normals,
                                               transform=np.asarray(transform, np.float32), colors=colors,
-                                              texture=image, uvs=uvs, normal_map=bumps)
+                                              texture=image, uvs=uvs, normal_map=relief)
         meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")

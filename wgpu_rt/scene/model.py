@@ -174,7 +174,7 @@ class Mesh:
         return len({m.tobytes() for m in self.keyframes.values()}) > 1
 
     @property
-    def shape_key(self) -> tuple[int, int, int]:
+    def shape_key(self) -> tuple[int, ...]:
         """Equal for meshes that share their arrays (instances of one shape), else different."""
         return (id(self.vertices), id(self.faces), id(self.normals), id(self.colors), id(self.texture), id(self.uvs),
                 id(self.normal_map))
