@@ -87,10 +87,11 @@ def test_the_normal_plane_is_the_tilted_normal_where_the_tile_is_seen(gpu, turne
     if turned:
         uvs = np.stack([1 - uvs[:, 1], uvs[:, 0]], -1)
     dp_du = np.tile([0.0, -1.0, 0.0] if turned else [1.0, 0.0, 0.0], (len(uvs), 1))
-    expected = mapped_normal(np.tile([0.0, 0.0, 1.0], (len(uvs), 1)), dp_du, sample_texture(normal_map, uvs, srgb=False))
+    up, texels = np.tile([0.0, 0.0, 1.0], (len(uvs), 1)), sample_texture(normal_map, uvs, srgb=False)
+    expected = mapped_normal(up, dp_du, texels)
     error = np.linalg.norm(normals - expected, axis=-1)
     assert np.median(error) < 0.02 and np.percentile(error, 90) < 0.06, (np.median(error), error.max())
-    other = mapped_normal(np.tile([0.0, 0.0, 1.0], (len(uvs), 1)), -dp_du, sample_texture(normal_map, uvs, srgb=False))
+    other = mapped_normal(up, -dp_du, texels)
     assert np.median(np.linalg.norm(normals - other, axis=-1)) > 5 * np.median(error)   # the frame is seen
 
 
@@ -175,3 +176,29 @@ def test_a_gltf_normal_textures_scale_scales_its_tilts(tmp_path):
         normals = mesh.normal_map / 255.0 * 2 - 1
         tilts = np.degrees(np.arctan2(np.hypot(normals[..., 0], normals[..., 1]), normals[..., 2]))
         np.testing.assert_allclose(tilts, tilt, atol=0.6)
+
+
+def _obj_with(tmp_path, statements: str):
+    (tmp_path / "tri.obj").write_text("mtllib tri.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                      "usemtl m\nf 1/1 2/2 3/3\n")
+    (tmp_path / "tri.mtl").write_text("newmtl m\nKd 0.5 0.5 0.5\n" + statements)
+    return tmp_path / "tri.obj"
+
+
+def test_an_obj_materials_normal_map(tmp_path):
+    """MTL's ``norm``, or a ``map_Bump`` whose image is a normal map (bluish; a grey height map is not read),
+    with its ``-bm`` scale; a missing image names the statement."""
+    from wgpu_rt.scene.meshio import load_mesh_file
+
+    Image.fromarray(_normal_map(seed=6, tilt_degrees=30)).save(tmp_path / "normals.png")
+    Image.fromarray(np.full((4, 4, 3), 90, np.uint8)).save(tmp_path / "height.png")
+    (mesh,) = load_mesh_file(_obj_with(tmp_path, "norm normals.png\n"), "paint")
+    np.testing.assert_array_equal(mesh.normal_map, _normal_map(seed=6, tilt_degrees=30))
+    (mesh,) = load_mesh_file(_obj_with(tmp_path, "map_Bump -bm 0.5 normals.png\n"), "paint")
+    normals = mesh.normal_map / 255.0 * 2 - 1
+    tilts = np.degrees(np.arctan2(np.hypot(normals[..., 0], normals[..., 1]), normals[..., 2]))
+    np.testing.assert_allclose(tilts, np.degrees(np.arctan(0.5 * np.tan(np.radians(30)))), atol=0.6)
+    (mesh,) = load_mesh_file(_obj_with(tmp_path, "map_Bump height.png\n"), "paint")
+    assert mesh.normal_map is None
+    with pytest.raises(SceneError, match=r"tri.obj.*its material's norm: .*gone.png: texture image not found"):
+        load_mesh_file(_obj_with(tmp_path, "norm gone.png\n"), "paint")

@@ -87,21 +87,66 @@ def _decode(image, decoded: dict, failure: str) -> np.ndarray | None:
     return decoded[id(image)][0]
 
 
-def file_normal_map(geometry: trimesh.Trimesh, where: str, decoded: dict, scale: float = 1.0) -> np.ndarray | None:
-    """A geometry's normal map: its glTF material's normal texture as (H, W, 3) uint8 codes (``decoded`` shares
-    one array among the geometries that use an image, as ``file_texture``), its tilts scaled by ``scale`` as
-    glTF's normal texture ``scale`` does (x and y times it, then normalized); None where it has none."""
-    image = getattr(getattr(geometry.visual, "material", None), "normalTexture", None)
-    pixels = None if image is None else _decode(image, decoded, f"{where}: cannot read its normal map")
+def file_normal_map(geometry: trimesh.Trimesh, where: str, decoded: dict, scale: float = 1.0,
+                    folder: Path | None = None) -> np.ndarray | None:
+    """A geometry's normal map as (H, W, 3) uint8 codes, None where it has none: its glTF material's normal
+    texture, its tilts scaled by ``scale`` as glTF's normal texture ``scale`` does (x and y times it, then
+    normalized), or its OBJ material's (``obj_normal_map``, its files relative to ``folder``). ``decoded``
+    shares one array among the geometries that use an image, as ``file_texture``."""
+    material = getattr(geometry.visual, "material", None)
+    image = getattr(material, "normalTexture", None)
+    if image is None and folder is not None and getattr(material, "kwargs", None):
+        image, scale = obj_normal_map(material.kwargs, folder, where, decoded)
+        pixels = image
+    else:
+        pixels = None if image is None else _decode(image, decoded, f"{where}: cannot read its normal map")
     if pixels is None or scale == 1.0:
         return pixels
-    key = ("scaled", id(image), scale)
+    key = ("scaled", id(pixels), scale)
     if key not in decoded:
         normals = pixels / 255.0 * 2.0 - 1.0
         normals[..., :2] *= scale
         normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
-        decoded[key] = (np.round((normals + 1.0) / 2.0 * 255.0).astype(np.uint8), image)
+        decoded[key] = (np.round((normals + 1.0) / 2.0 * 255.0).astype(np.uint8), pixels)
     return decoded[key][0]
+
+
+# MTL texture options and how many values each takes (the rest of a statement is the file's name).
+MTL_OPTIONS = {"-bm": 1, "-clamp": 1, "-blendu": 1, "-blendv": 1, "-boost": 1, "-mm": 2, "-o": 3, "-s": 3, "-t": 3,
+               "-texres": 1, "-imfchan": 1, "-cc": 1, "-type": 1}
+
+
+def obj_normal_map(statements: dict, folder: Path, where: str, decoded: dict) -> tuple[np.ndarray | None, float]:
+    """An OBJ material's normal map and its ``-bm`` scale: its ``norm`` image, else a ``map_Bump``/``bump``
+    image that is one (bluish on the mean, as tangent-space normal maps are; a grey height map is not read:
+    the tracer does no bump mapping), its file relative to ``folder``; (None, 1) without one."""
+    for key in ("norm", "map_bump", "bump"):
+        tokens = statements.get(key)
+        if not isinstance(tokens, (list, tuple)) or not tokens:
+            continue
+        tokens, scale, i = [str(t) for t in tokens], 1.0, 0
+        while i < len(tokens) and tokens[i].lower() in MTL_OPTIONS:
+            count = MTL_OPTIONS[tokens[i].lower()]
+            if tokens[i].lower() == "-bm" and i + 1 < len(tokens):
+                try:
+                    scale = float(tokens[i + 1])
+                except ValueError:
+                    raise SceneError(f"{where}: {key} -bm {tokens[i + 1]!r}: expected a number") from None
+            i += 1 + count
+        name = " ".join(tokens[i:])
+        if not name:
+            continue
+        path = (folder / name).resolve()
+        if ("file", path) not in decoded:
+            try:
+                decoded[("file", path)] = (read_texture_image(path), None)
+            except SceneError as err:
+                raise SceneError(f"{where}: its material's {key}: {err}") from err
+        pixels = decoded[("file", path)][0]
+        mean = pixels.reshape(-1, 3).mean(0) / 255.0
+        if key == "norm" or (mean[2] > 0.6 and abs(mean[0] - 0.5) < 0.15 and abs(mean[1] - 0.5) < 0.15):
+            return pixels, scale
+    return None, 1.0
 
 
 def read_texture_image(path: Path) -> np.ndarray:
@@ -226,7 +271,7 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
             image, uvs = (file_texture(geometry, where, decoded) if vertex_colors else None) or (None, None)
         colors = file_vertex_colors(geometry) if vertex_colors and image is None else None
         relief = normal_map if normal_map is not None else file_normal_map(geometry, where, decoded,
-                                                                           own.normal_scale(geometry))
+                                                                           own.normal_scale(geometry), path.parent)
         uvs = file_uvs(geometry) if uvs is None and relief is not None else uvs
         if relief is not None and uvs is None:
             raise SceneError(f"{where}: has no texture coordinates for the normal map to be read at")
