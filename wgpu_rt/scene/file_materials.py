@@ -9,7 +9,7 @@ them, so each material becomes the one kind that carries most of its look:
 - else metallic ≥ 0.5: ``conductor`` whose Fresnel term is 1, tinted by the base colour (glTF's metals reflect
   their base colour head-on and rise to white only at grazing angles, which this leaves out);
 - else r ≤ ``SMOOTH_COAT_ROUGHNESS``: ``plastic``, the base colour under a smooth coat of the file's ior
-  (glTF's non-metals are exactly a diffuse base under a specular layer of F0 = 0.04, ior 1.5);
+  (glTF's non-metals are a diffuse base under a specular layer of ior 1.5, F0 = 0.04);
 - else ``diffuse``: the specular layer of a rough non-metal is left out, since the tracer's coat is smooth.
 
 Emission is the emissive colour times its strength. A material's metallic-roughness or emissive texture counts
