@@ -746,9 +746,9 @@ def test_a_mesh_files_colours_are_read_as_linear_vertex_colours_unless_turned_of
     expected = ([[255, 0, 0], [0, 255, 0], [0, 0, 255], [128, 128, 128]] if kind == "vertex"
                 else [[200, 100, 50]] * 4)
     np.testing.assert_allclose(scene.meshes[0].colors, linear_from_srgb8(np.array(expected)), rtol=1e-6)
-    assert SceneFeatures.of(scene).has_surface_attributes
+    assert SceneFeatures.of(scene).has_surface_colors
     off = load_scene(write_json(tmp_path, {**data, "meshes": [{**data["meshes"][0], "vertex_colors": False}]}))
-    assert off.meshes[0].colors is None and not SceneFeatures.of(off).has_surface_attributes
+    assert off.meshes[0].colors is None and not SceneFeatures.of(off).has_surface_colors
     assert load_scene(write_json(tmp_path, MINIMAL)).meshes[0].colors is None   # a primitive has none
 
 

@@ -25,7 +25,8 @@ class SceneFeatures:
     has_emitter_groups: bool = True   # lights in more than one emitter group (scene_data.emitter_group_count)
     has_motion: bool = True
     has_vertex_normals: bool = True   # any mesh with its own vertex normals (smooth shading)
-    has_surface_attributes: bool = True   # any mesh with vertex colours, a texture or a normal map
+    has_surface_colors: bool = True   # any mesh with vertex colours or a texture
+    has_normal_maps: bool = True      # any mesh with a normal map
     write_aovs: bool = True
 
     @classmethod
@@ -40,8 +41,8 @@ class SceneFeatures:
             has_emitter_groups=emitter_group_count(scene) > 1,
             has_motion=scene.has_motion,
             has_vertex_normals=any(mesh.normals is not None for mesh in scene.meshes),
-            has_surface_attributes=any(mesh.colors is not None or mesh.texture is not None
-                                       or mesh.normal_map is not None for mesh in scene.meshes),
+            has_surface_colors=any(mesh.colors is not None or mesh.texture is not None for mesh in scene.meshes),
+            has_normal_maps=any(mesh.normal_map is not None for mesh in scene.meshes),
             write_aovs=write_aovs,
         )
 

@@ -9,5 +9,6 @@ override HAS_ANALYTIC_LIGHTS: bool = true;  // any point or directional light, o
 override HAS_EMITTER_GROUPS: bool = true;   // lights in more than one emitter group (trace/emitters.wgsl)
 override HAS_MOTION: bool = true;           // camera or object motion between this frame and the last
 override HAS_VERTEX_NORMALS: bool = true;   // any mesh with vertex normals (else shading = geometric normal)
-override HAS_SURFACE_ATTRIBUTES: bool = true;   // any mesh with vertex colours, a texture or a normal map
+override HAS_SURFACE_COLORS: bool = true;   // any mesh with vertex colours or a texture (else the materials')
+override HAS_NORMAL_MAPS: bool = true;      // any mesh with a normal map
 override WRITE_AOVS: bool = true;           // albedo, normal, depth and motion planes are wanted

@@ -13,7 +13,7 @@
 // there (each white where the mesh has none).
 fn surface_colored(material: Material, hit: Hit) -> Material {
     var tinted = material;
-    if HAS_SURFACE_ATTRIBUTES {
+    if HAS_SURFACE_COLORS {
         tinted.reflectance *= tri_color(hit.prim, hit.u, hit.v) * texture_color(hit.prim, hit.u, hit.v);
     }
     return tinted;
@@ -30,7 +30,7 @@ fn shading_normals_at(hit: Hit, geometric_normal: vec3f, material: Material, dir
         interpolated = tri_shading_normal_or(hit.prim, hit.u, hit.v, geometric_normal);
     }
     var mapped = interpolated;
-    if HAS_SURFACE_ATTRIBUTES {
+    if HAS_NORMAL_MAPS {
         mapped = normal_mapped(hit.prim, hit.u, hit.v, interpolated);
         if dot(dir, mapped) * dot(dir, interpolated) < 0.0 {
             mapped = 2.0 * dot(mapped, interpolated) * interpolated - mapped;
@@ -50,7 +50,7 @@ fn shading_normal_at(hit: Hit, geometric_normal: vec3f, material: Material, dir:
 // surface whose roughness follows the tilt (Conty Estevez et al. 2019, for the shadow terminator):
 // G1 = 2 / (1 + sqrt(1 + a² tan²θ)), a² = tan²(tilt) / 8, θ from the interpolated normal; 1 without a tilt.
 fn normal_map_weight(normals: ShadingNormals, direction: vec3f) -> f32 {
-    if !HAS_SURFACE_ATTRIBUTES {
+    if !HAS_NORMAL_MAPS {
         return 1.0;
     }
     let cos_out = dot(direction, normals.interpolated);
