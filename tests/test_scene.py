@@ -96,6 +96,11 @@ def test_load_scene_dispatch(tmp_path):
         load_scene("no-such-scene")
     with pytest.raises(SceneError, match="missing.json: scene file not found"):
         load_scene(tmp_path / "missing.json")
+    trimesh.creation.box().export(tmp_path / "box.ply")      # a mesh file: the 'mesh' scene around it
+    assert [m.name for m in load_scene(tmp_path / "box.ply").meshes] == [
+        m.name for m in load_scene("mesh", mesh=tmp_path / "box.ply").meshes]
+    with pytest.raises(SceneError, match="gone.glb: mesh file not found"):
+        load_scene(tmp_path / "gone.glb")
 
 
 # -- cornell against Mitsuba 3 (fixture mi: conftest.py) ---------------------------------------------

@@ -5,7 +5,7 @@ a PNG (the tone-mapped display image) per frame. Every flag means the same with 
 from ._denoiser_flags import add_denoiser_flags, check_denoiser_flags, denoiser_options
 from ._display_flags import add_display_flags, display_settings
 
-HELP = "path trace a scene (built-in name or scene file) to .exr (color + AOVs) or .png"
+HELP = "path trace a scene (built-in name, scene file or mesh file) to .exr (color + AOVs) or .png"
 
 SUFFIXES = (".exr", ".png")
 FRAMES_WITHOUT_CONFIRMATION = 100_000   # more output files than this need --max-files
@@ -13,7 +13,8 @@ FRAMES_WITHOUT_CONFIRMATION = 100_000   # more output files than this need --max
 
 def add_arguments(parser) -> None:
     parser.add_argument("scene", help="built-in scene (cornell, cornell-glossy, sun-room, painted, textured, mesh, "
-                        "moving) or a .json/.toml scene file")
+                        "moving), a .json/.toml scene file, or a mesh file (.obj/.ply/.glb…: the 'mesh' scene "
+                        "around it, in its own materials)")
     parser.add_argument("--spp", type=int, default=None,
                         help="samples per pixel per frame (default 64; 1 with --denoise; not with --adaptive)")
     parser.add_argument("--size", default="256x256", help="WIDTHxHEIGHT (default 256x256)")

@@ -20,13 +20,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
+from ..scene.meshio import MESH_SUFFIXES
 from ..scene.model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene
 
 # Shapes the training views use; HELD_OUT_SHAPES appear only in test views, so the benchmark sees
 # geometry the networks never saw.
 TRAINING_SHAPES = ("box", "icosphere", "capsule", "cylinder", "cone")
 HELD_OUT_SHAPES = ("torus",)
-MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 
 
 def make_shape(kind: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

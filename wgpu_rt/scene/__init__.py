@@ -1,7 +1,8 @@
 """Scenes: the data model, loaders (scene files, meshes) and the built-in scenes.
 
 ``load_scene(spec, mesh=None)`` is the one entry point: ``spec`` is a built-in name (see
-``BUILTIN_SCENES``), a path to a .json/.toml scene file, or a ``Scene`` (returned as is).
+``BUILTIN_SCENES``), a path to a .json/.toml scene file, a mesh file (the built-in ``mesh`` scene around it, in
+its own materials), or a ``Scene`` (returned as is).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from pathlib import Path
 from ..errors import SceneError
 from .builtin import BUILTIN_SCENES, builtin_scene
 from .loader import SCENE_SUFFIXES, load_scene_file
+from .meshio import MESH_SUFFIXES
 from .model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene, SpotLight
 
 
@@ -26,10 +28,12 @@ def load_scene(spec, mesh=None) -> Scene:
         return spec
     if isinstance(spec, str) and spec in BUILTIN_SCENES:
         return builtin_scene(spec, mesh=mesh)
+    if Path(spec).suffix.lower() in MESH_SUFFIXES:
+        return builtin_scene("mesh", mesh=spec)
     if Path(spec).suffix.lower() in SCENE_SUFFIXES or Path(spec).exists():
         return load_scene_file(spec)
-    raise SceneError(f"{spec}: neither a built-in scene ({', '.join(sorted(BUILTIN_SCENES))}) "
-                     f"nor a .json/.toml scene file")
+    raise SceneError(f"{spec}: neither a built-in scene ({', '.join(sorted(BUILTIN_SCENES))}), "
+                     f"a .json/.toml scene file nor a mesh file ({', '.join(MESH_SUFFIXES)})")
 
 
 __all__ = ["BUILTIN_SCENES", "Camera", "DirectionalLight", "Material", "Mesh", "PointLight", "Scene", "SpotLight",

@@ -20,6 +20,8 @@ import trimesh
 
 from ..errors import SceneError
 
+MESH_SUFFIXES = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")   # the files a scene spec or a folder is read as meshes
+
 
 def _has_file_normals(mesh: trimesh.Trimesh) -> bool:
     """True when the loader supplied vertex normals (trimesh would otherwise compute them lazily)."""
