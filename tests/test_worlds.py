@@ -176,6 +176,16 @@ def _with_and_without(monkeypatch, share: str, seed: int, frames: int = 1):
     return taken, generate_world(seed, frames=frames)
 
 
+def _assert_alike_but(changed, plain, seed: int, allowed=lambda key: False) -> None:
+    """``changed`` holds every number of ``plain`` where it sits, equal, but at the keys ``allowed`` says may
+    differ (see ``_arrays``)."""
+    ours, theirs = _arrays(changed), _arrays(plain)
+    assert ours.keys() == theirs.keys()
+    for key in theirs:
+        if not allowed(key):
+            np.testing.assert_array_equal(ours[key], theirs[key], err_msg=f"{seed}: {key}")
+
+
 def test_lamps_in_view_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):
     """The lamps draw from a random stream of their own: a training world with them is the world without
     them plus the lamps, and a held-out world never gets any (its gold images stay valid)."""
@@ -241,11 +251,7 @@ def test_a_lens_leaves_every_other_choice_and_the_held_out_family_alone(monkeypa
                 distance = np.linalg.norm(camera.target - camera.origin)
                 assert 0.003 <= camera.aperture_radius / distance <= 0.03
                 assert 0.7 <= camera.focus_distance / distance <= 1.3
-            ours, theirs = _arrays(through), _arrays(plain)
-            assert ours.keys() == theirs.keys()
-            for key in theirs:
-                if not key.startswith("lens"):
-                    np.testing.assert_array_equal(ours[key], theirs[key], err_msg=f"{seed}: {key}")
+            _assert_alike_but(through, plain, seed, lambda key: key.startswith("lens"))
     assert lenses == 24
 
 
@@ -266,10 +272,7 @@ def test_a_sky_map_leaves_every_other_choice_and_the_held_out_family_alone(monke
         sky = mapped.environment
         assert sky.shape == (*worlds_module.SKY_MAP_SIZE, 3) and np.all(np.isfinite(sky)) and sky.min() > 0
         assert sky[: len(sky) // 2].mean() > sky[-3:].mean()
-        ours, theirs = _arrays(mapped), _arrays(plain)
-        assert ours.keys() == theirs.keys()
-        for key in theirs:
-            np.testing.assert_array_equal(ours[key], theirs[key], err_msg=f"{seed}: {key}")
+        _assert_alike_but(mapped, plain, seed)
     assert maps >= 3
 
 
@@ -288,10 +291,8 @@ def test_coats_leave_every_other_choice_and_the_held_out_family_alone(monkeypatc
                 coated += 1
                 assert before.kind == "diffuse" and not before.is_emissive and 1.3 <= material.ior <= 1.7
                 np.testing.assert_array_equal(material.reflectance, before.reflectance)
-        ours, theirs = _arrays(with_coats), _arrays(plain)
-        for key in theirs:
-            if not (key.startswith("material ") and kinds[key[len("material "):]] == "plastic"):
-                np.testing.assert_array_equal(ours[key], theirs[key], err_msg=f"{seed}: {key}")
+        _assert_alike_but(with_coats, plain, seed,
+                          lambda key: key.startswith("material ") and kinds[key[len("material "):]] == "plastic")
     assert coated >= 12
 
 
@@ -314,10 +315,7 @@ def test_normal_maps_leave_every_other_choice_and_the_held_out_family_alone(monk
             normals = mesh.normal_map / 255.0 * 2 - 1
             tilts = np.degrees(np.arccos(np.clip(normals[..., 2] / np.linalg.norm(normals, axis=-1), -1, 1)))
             assert 5 <= np.percentile(tilts, 95) <= 50, (seed, mesh.name)
-        ours, theirs = _arrays(mapped), _arrays(plain)
-        assert ours.keys() == theirs.keys()
-        for key in theirs:
-            np.testing.assert_array_equal(ours[key], theirs[key], err_msg=f"{seed}: {key}")
+        _assert_alike_but(mapped, plain, seed)
     assert mapped_surfaces >= 6
 
 
