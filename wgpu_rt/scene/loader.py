@@ -354,16 +354,16 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         colors = fields.raw("vertex_colors", True)
         if not isinstance(colors, bool):
             fields.fail(f"expected true or false, got {_show(colors)}", "vertex_colors")
-        own: dict | None = {} if material is None else None
+        own: dict = {}      # the file's materials, where the entry names none
         try:
-            parts = load_mesh_file(path, material, base, vertex_colors=colors, texture=texture, materials=own,
-                                   normal_map=normal_map)
+            parts = load_mesh_file(path, material, base, vertex_colors=colors, texture=texture,
+                                   materials=own if material is None else None, normal_map=normal_map)
         except SceneError as err:
             fields.fail(str(err), "file")
-        for taken in own or {}:
+        for taken in own:
             if taken in materials:
                 fields.fail(f"the file's material {taken!r} has the name of another material: name the mesh", "file")
-        materials.update(own or {})
+        materials.update(own)
     if fields.has("texture_repeat"):
         repeat = fields.vector("texture_repeat", length=2, broadcast=True)
         if np.any(repeat <= 0) or np.any(repeat > MAX_TEXTURE_REPEAT):
