@@ -97,11 +97,12 @@ def file_normal_map(geometry: trimesh.Trimesh, where: str, decoded: dict, scale:
     shares one array among the geometries that use an image, as ``file_texture``."""
     material = getattr(geometry.visual, "material", None)
     image = getattr(material, "normalTexture", None)
-    if image is None and folder is not None and getattr(material, "kwargs", None):
-        image, scale = obj_normal_map(material.kwargs, folder, where, decoded)
-        pixels = image
+    if image is not None:
+        pixels = _decode(image, decoded, f"{where}: cannot read its normal map")
+    elif folder is not None and getattr(material, "kwargs", None):
+        pixels, scale = obj_normal_map(material.kwargs, folder, where, decoded)
     else:
-        pixels = None if image is None else _decode(image, decoded, f"{where}: cannot read its normal map")
+        return None
     if pixels is None or scale == 1.0:
         return pixels
     key = ("scaled", id(pixels), scale)
