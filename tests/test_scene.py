@@ -805,15 +805,18 @@ def test_a_scene_with_its_light_scaled_renders_scaled(gpu):
     np.testing.assert_array_equal(render(dim, **options).color * 32, render(scene, **options).color)
 
 
-def test_a_plastic_coat_is_smooth(tmp_path):
-    """Mitsuba's plastic has a smooth coat; a rough one is refused by field rather than rendered smooth."""
+def test_a_plastic_coat_may_be_rough(tmp_path):
+    """A plastic's coat is smooth by default (Mitsuba's plastic) and takes a GGX roughness (its roughplastic);
+    one outside [0, 1] is refused by field."""
     from wgpu_rt.scene.loader import parse_scene
 
     data = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]},
             "materials": {"coated": {"kind": "plastic", "reflectance": 0.4, "ior": 1.4}},
             "meshes": [{"shape": "cube", "material": "coated"}], "lights": [{"type": "point", "position": [0, 2, 2],
                                                                            "intensity": 1}]}
-    assert parse_scene(data, "scene.json", tmp_path).materials["coated"].kind == "plastic"
+    assert parse_scene(data, "scene.json", tmp_path).materials["coated"].roughness == 0.0
     data["materials"]["coated"]["roughness"] = 0.2
-    with pytest.raises(SceneError, match=r"materials\.coated: a plastic's coat is smooth"):
+    assert parse_scene(data, "scene.json", tmp_path).materials["coated"].roughness == pytest.approx(0.2)
+    data["materials"]["coated"]["roughness"] = 1.5
+    with pytest.raises(SceneError, match=r"materials\.coated: roughness must be in \[0, 1\]"):
         parse_scene(data, "scene.json", tmp_path)

@@ -4,7 +4,8 @@ Every mesh becomes an ``mi.Mesh`` built from its world-space arrays at ``frame``
 loaded files, animation and instances, each placement one mesh, all go through one path), with the
 BSDF its material maps to:
 
-- diffuse → ``diffuse``; plastic → ``plastic`` (int_ior = ior, ext_ior = 1, linear); conductor →
+- diffuse → ``diffuse``; plastic → ``plastic`` (roughness 0) or ``roughplastic`` (GGX, alpha = roughness),
+  int_ior = ior, ext_ior = 1, linear; conductor →
   ``conductor`` (roughness 0) or ``roughconductor`` (GGX, alpha = roughness) with eta, k and
   specular_reflectance; dielectric → ``dielectric`` or
   ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1.
@@ -81,8 +82,11 @@ def material_to_bsdf(material: Material, vertex_colored: bool = False, reflectan
     if material.kind == "diffuse":
         return {"type": "diffuse", "reflectance": reflectance}
     if material.kind == "plastic":
-        return {"type": "plastic", "diffuse_reflectance": reflectance, "int_ior": float(material.ior),
+        bsdf = {"type": "plastic", "diffuse_reflectance": reflectance, "int_ior": float(material.ior),
                 "ext_ior": 1.0, "nonlinear": False}
+        if material.roughness > 0:
+            bsdf.update(type="roughplastic", distribution="ggx", alpha=float(material.roughness))
+        return bsdf
     if material.kind == "conductor":
         bsdf = {"type": "conductor", "eta": _rgb(material.eta), "k": _rgb(material.k),
                 "specular_reflectance": reflectance}

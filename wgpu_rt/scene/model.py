@@ -41,8 +41,9 @@ class Material:
       ``reflectance`` (Mitsuba's specular_reflectance); ``roughness`` is the GGX alpha (0 = mirror).
       The default eta=0, k=1 is a perfect mirror, as Mitsuba's material 'none'.
     - ``dielectric``: glass with interior ``ior`` over exterior 1.0; ``roughness`` 0 = smooth.
-    - ``plastic``: Lambertian ``reflectance`` under a smooth dielectric coat of ``ior`` (Mitsuba's ``plastic``,
-      linear): Fresnel-weighted mirror reflection at the coat, the rest diffuse, each way through it.
+    - ``plastic``: Lambertian ``reflectance`` under a dielectric coat of ``ior``, smooth at ``roughness`` 0
+      (Mitsuba's ``plastic``, linear: Fresnel-weighted mirror reflection at the coat, the rest diffuse, each way
+      through it), else a GGX coat of that alpha (Mitsuba's ``roughplastic``, linear).
     Any material may also emit ``emission`` (radiance, front side only, as Mitsuba's area emitter).
     """
 
@@ -66,8 +67,6 @@ class Material:
             raise ValueError(f"roughness must be in [0, 1], got {self.roughness}")
         if not float(self.ior) > 0.0:
             raise ValueError(f"ior must be positive, got {self.ior}")
-        if self.kind == "plastic" and float(self.roughness) != 0.0:
-            raise ValueError(f"a plastic's coat is smooth: roughness must be 0, got {self.roughness}")
 
     @property
     def is_emissive(self) -> bool:

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene.model import DirectionalLight, Material, PointLight, Scene, SpotLight
+from .coat import coat_words
 
 MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "plastic": 3}
 EMITTER_TRIANGLE, EMITTER_POINT, EMITTER_DIRECTIONAL, EMITTER_BACKGROUND = range(4)
@@ -42,6 +43,7 @@ MAX_EMITTER_GROUPS = 16       # the FrameParams array's length (wgsl/trace/trace
 DEFENSIVE_SHARE = 0.1         # of a shading point's picks, made by power alone
 FLAT_TOLERANCE = 1e-5         # a group is flat if its normals and vertices deviate less (relative)
 LUMINANCE = np.array([0.212671, 0.715160, 0.072169])
+DELTA_ROUGHNESS = 1e-4        # below it a lobe is a Dirac delta (wgsl/trace/material.wgsl)
 VIEW_RADIUS_FLOOR = 1e-6   # a framed region counts as at least this fraction of the bounding radius
 
 MATERIAL_DTYPE = np.dtype([
@@ -73,7 +75,10 @@ def pack_materials(materials: list[Material]) -> np.ndarray:
     """Material records in material-id order."""
     out = np.zeros(max(1, len(materials)), MATERIAL_DTYPE)
     for i, m in enumerate(materials):
-        out[i] = (m.reflectance, MATERIAL_KIND_CODES[m.kind], m.emission, m.roughness, m.eta, m.ior, m.k,
+        eta, k = m.eta, m.k
+        if m.kind == "plastic" and m.roughness >= DELTA_ROUGHNESS:     # a rough coat's table in their words
+            eta, k = np.split(coat_words(m.roughness, m.ior), 2)
+        out[i] = (m.reflectance, MATERIAL_KIND_CODES[m.kind], m.emission, m.roughness, eta, m.ior, k,
                   int(m.is_emissive))
     return out
 

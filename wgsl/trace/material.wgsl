@@ -15,9 +15,9 @@ struct Material {
     kind: u32,
     emission: vec3f,
     roughness: f32,
-    eta: vec3f,     // conductor: real part of the complex index of refraction
+    eta: vec3f,     // conductor: real part of the complex index of refraction; rough plastic: its coat's table
     ior: f32,       // dielectric: interior index over an exterior of 1
-    k: vec3f,       // conductor: imaginary part
+    k: vec3f,       // conductor: imaginary part; rough plastic: the rest of the table (trace/bsdf_plastic.wgsl)
     is_emissive: u32,
 }
 
@@ -39,7 +39,7 @@ struct BsdfEval {
 
 fn material_is_delta(m: Material) -> bool {
     // without glass or metal in the kernel, nothing is delta (and kind/roughness are never fetched)
-    // (a plastic has a diffuse lobe under its mirror-smooth coat: never delta as a whole)
+    // (a plastic has a diffuse lobe under its coat: never delta as a whole)
     return (HAS_CONDUCTOR || HAS_DIELECTRIC) && m.kind != MATERIAL_DIFFUSE && m.kind != MATERIAL_PLASTIC
            && m.roughness < DELTA_ROUGHNESS;
 }
