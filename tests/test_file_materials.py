@@ -12,12 +12,13 @@ from trimesh.visual.material import PBRMaterial
 
 from wgpu_rt.errors import SceneError
 from wgpu_rt.scene import load_scene
-from wgpu_rt.scene.file_materials import SMOOTH_COAT_ROUGHNESS, pbr_material
+from wgpu_rt.scene.file_materials import pbr_material
 
 
 @pytest.mark.parametrize("description, kind", [
-    (dict(metallic=0.0, roughness=0.8), "diffuse"),
-    (dict(metallic=0.0, roughness=SMOOTH_COAT_ROUGHNESS), "plastic"),
+    (dict(metallic=0.0, roughness=0.8, specular=False), "diffuse"),
+    (dict(metallic=0.0, roughness=0.0), "plastic"),
+    (dict(metallic=0.0, roughness=0.8), "plastic"),
     (dict(metallic=1.0, roughness=0.8), "conductor"),
     (dict(metallic=1.0, roughness=0.1, transmission=1.0), "dielectric"),
 ])
@@ -26,7 +27,7 @@ def test_each_description_becomes_the_kind_that_carries_its_look(description, ki
     assert material.kind == kind
     if kind != "dielectric":
         np.testing.assert_allclose(material.reflectance, [0.2, 0.4, 0.6], rtol=1e-6)
-    if kind in ("conductor", "dielectric"):
+    if kind != "diffuse":
         assert material.roughness == pytest.approx(description["roughness"] ** 2)   # glTF's alpha = r²
     if kind == "conductor":     # Fresnel 1: the base colour is what it reflects head-on
         assert material.eta.tolist() == [0, 0, 0] and material.k.tolist() == [1, 1, 1]
@@ -76,11 +77,11 @@ def test_a_gltf_files_materials_name_kind_and_values(tmp_path):
     assert names["thing/part3"].startswith("thing/material")     # unnamed: by its index in the file
     water, lamp, gold, unnamed = (scene.materials[names[f"thing/part{i}"]] for i in range(4))
     assert (water.kind, water.ior, water.roughness) == ("dielectric", pytest.approx(1.33), pytest.approx(0.01))
-    assert lamp.kind == "diffuse"
+    assert (lamp.kind, lamp.roughness) == ("plastic", pytest.approx(0.81))   # a rough coat
     np.testing.assert_allclose(lamp.emission, [8.0, 4.0, 2.0])
     assert gold.kind == "conductor" and gold.roughness == pytest.approx(0.09)
     np.testing.assert_allclose(gold.reflectance, [1.0, 0.8, 0.3], atol=1 / 255)
-    assert unnamed.kind == "plastic" and unnamed.ior == pytest.approx(1.5)
+    assert (unnamed.kind, unnamed.ior, unnamed.roughness) == ("plastic", pytest.approx(1.5), 0.0)   # smooth
     np.testing.assert_allclose(unnamed.reflectance, [0.2, 0.4, 0.6], atol=1 / 255)
 
 
@@ -114,8 +115,10 @@ def test_an_obj_files_mtl_statements(tmp_path):
                                         "newmtl lamp\nKd 0.9 0.9 0.9\nKe 5 5 4\n")
     scene = load_scene(_scene_file(tmp_path, {"file": "parts.obj"}))
     materials = {name.split("/")[1]: scene.materials[name] for name in scene.materials if "/" in name}
-    assert materials["clay"].kind == "diffuse"   # Ns 250 is Blender's roughness 0.5: too rough for a coat
+    assert materials["clay"].kind == "plastic"   # Ns 250 is Blender's roughness 0.5: alpha 0.25
+    assert materials["clay"].roughness == pytest.approx(0.25)
     np.testing.assert_allclose(materials["clay"].reflectance, [0.8, 0.1, 0.1])
+    assert materials["lamp"].kind == "diffuse"   # no Ks, no Pr: no specular layer
     assert (materials["glass"].kind, materials["glass"].ior) == ("dielectric", pytest.approx(1.45))
     assert materials["glass"].roughness == pytest.approx(0.04)
     assert materials["steel"].kind == "conductor" and materials["steel"].roughness == pytest.approx(0.25)

@@ -243,3 +243,51 @@ def test_a_texture_on_a_mesh_file_reads_the_files_coordinates(tmp_path):
     data["meshes"][0]["file"] = "plain-box.obj"
     with pytest.raises(SceneError, match=r"meshes\[0\]\.file: .*plain-box\.obj.*has no texture coordinates"):
         parse_scene(data, "scene.json", tmp_path)
+
+
+def _transformed_box(tmp_path, base_transform, normal_transform=None):
+    """A .glb box whose vertices' coordinates are the unit square's corners (in turn), with a base colour
+    texture (and a normal texture) under the KHR_texture_transforms given."""
+    from gltf_files import edit_glb_json
+    from trimesh.visual.material import PBRMaterial
+
+    box = trimesh.creation.box()
+    corners = np.float32([[0, 1], [1, 1], [0, 0], [1, 0]])        # ours: v up; glTF's (0, 0), (1, 0), (0, 1), (1, 1)
+    flat = np.full((4, 4, 3), [128, 128, 255], np.uint8)
+    material = PBRMaterial(name="tiled", baseColorTexture=Image.fromarray(_texture(4, 4, seed=2)),
+                           normalTexture=Image.fromarray(flat))
+    box.visual = trimesh.visual.TextureVisuals(uv=corners[np.arange(len(box.vertices)) % 4], material=material)
+
+    def add(tree):
+        entry = tree["materials"][0]
+        for info, transform in ((entry["pbrMetallicRoughness"]["baseColorTexture"], base_transform),
+                                (entry["normalTexture"], normal_transform)):
+            if transform is not None:
+                info["extensions"] = {"KHR_texture_transform": transform}
+    (tmp_path / "tiled.glb").write_bytes(edit_glb_json(box.export(file_type="glb"), add))
+    return tmp_path / "tiled.glb"
+
+
+def test_a_gltf_texture_transform_moves_the_coordinates(tmp_path):
+    """KHR_texture_transform, by its specification's example: offset (0, 1), a quarter turn and scale ½ read the
+    image's lower-left quadrant turned clockwise, glTF's (0, 0), (1, 0), (0, 1), (1, 1) going to (0, 1),
+    (0, ½), (½, 1), (½, ½); in the tracer's coordinates (v up) each v is 1 − v. The same transform on the
+    normal texture is welcome; a file without one keeps its coordinates."""
+    example = {"offset": [0, 1], "rotation": np.pi / 2, "scale": [0.5, 0.5]}
+    (mesh,) = load_mesh_file(_transformed_box(tmp_path, example, example), "paint")
+    expected = np.float32([[0, 0], [0, 0.5], [0.5, 0], [0.5, 0.5]])
+    np.testing.assert_allclose(mesh.uvs, expected[np.arange(len(mesh.uvs)) % 4], atol=1e-6)
+    (plain,) = load_mesh_file(_transformed_box(tmp_path, None), "paint")
+    np.testing.assert_allclose(plain.uvs, np.float32([[0, 1], [1, 1], [0, 0], [1, 0]])[np.arange(len(mesh.uvs)) % 4])
+
+
+@pytest.mark.parametrize("base, normal, message", [
+    ({"scale": [2, 2]}, {"scale": [3, 3]}, "material 'tiled': its base colour and normal textures have different"),
+    ({"rotation": "left"}, None, r"material 'tiled': baseColorTexture's KHR_texture_transform: rotation must be"),
+    ({"offset": [0, float("inf")]}, None, "KHR_texture_transform: offset must be in"),
+    ([1, 2], None, "baseColorTexture's KHR_texture_transform: expected an object"),
+])
+def test_bad_texture_transforms_are_refused_by_file_and_material(tmp_path, base, normal, message):
+    path = _transformed_box(tmp_path, base, normal)
+    with pytest.raises(SceneError, match=message):
+        load_mesh_file(path, "paint")

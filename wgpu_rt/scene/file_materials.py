@@ -8,9 +8,9 @@ them, so each material becomes the one kind that carries most of its look:
 - transmission ≥ 0.5: ``dielectric`` of the file's ior (untinted: the tracer's glass has no colour);
 - else metallic ≥ 0.5: ``conductor`` whose Fresnel term is 1, tinted by the base colour (glTF's metals reflect
   their base colour head-on and rise to white only at grazing angles, which this leaves out);
-- else r ≤ ``SMOOTH_COAT_ROUGHNESS``: ``plastic``, the base colour under a smooth coat of the file's ior
-  (glTF's non-metals are a diffuse base under a specular layer of ior 1.5, F0 = 0.04);
-- else ``diffuse``: the specular layer of a rough non-metal is left out, since the tracer's coat is smooth.
+- else ``plastic``: the base colour under a coat of the file's ior and GGX alpha r² (glTF's non-metals are a
+  diffuse base under a specular layer of ior 1.5, F0 = 0.04; smooth at r = 0, Mitsuba's roughplastic above);
+- an OBJ material that names no specular colour (black or absent ``Ks``) and no ``Pr``: ``diffuse``.
 
 Emission is the emissive colour times its strength. A material's metallic-roughness or emissive texture counts
 by its mean (the tracer keeps one value per material); the base colour texture is read per texel, as before
@@ -28,23 +28,22 @@ import numpy as np
 from ..errors import SceneError
 from .model import Material, linear_from_srgb8
 
-# Perceptual roughness at or below which a non-metal keeps its specular layer, as a smooth coat (alpha 0.0625).
-SMOOTH_COAT_ROUGHNESS = 0.25
 # OBJ illumination models that mean refraction (4: glass, 6, 7: refraction with Fresnel, 9: glass, no ray trace).
 OBJ_GLASS_ILLUMS = {4, 6, 7, 9}
 GLTF_SUFFIXES = (".glb", ".gltf")
 
 
 def pbr_material(base_color, metallic: float, roughness: float, transmission: float = 0.0, ior: float = 1.5,
-                 emission=(0.0, 0.0, 0.0)) -> Material:
-    """The tracer's material for a metallic-roughness description (see the module's doc)."""
+                 emission=(0.0, 0.0, 0.0), specular: bool = True) -> Material:
+    """The tracer's material for a metallic-roughness description (see the module's doc); without
+    ``specular`` a non-metal has no specular layer."""
     alpha, emission = float(roughness) ** 2, np.asarray(emission, np.float32)
     if transmission >= 0.5:
         return Material("dielectric", ior=ior, roughness=alpha, emission=emission)
     if metallic >= 0.5:
         return Material("conductor", reflectance=base_color, roughness=alpha, eta=0.0, k=1.0, emission=emission)
-    if roughness <= SMOOTH_COAT_ROUGHNESS:
-        return Material("plastic", reflectance=base_color, ior=ior, emission=emission)
+    if specular:
+        return Material("plastic", reflectance=base_color, ior=ior, roughness=alpha, emission=emission)
     return Material("diffuse", reflectance=base_color, emission=emission)
 
 
@@ -86,6 +85,26 @@ def _texture_mean(image, where: str, srgb: bool) -> np.ndarray:
         return np.ones(3)
     values = linear_from_srgb8(pixels) if srgb else pixels / 255.0
     return np.asarray(values, np.float64).mean(axis=0)
+
+
+def _uv_matrix(transform: _Reader) -> np.ndarray:
+    """glTF's KHR_texture_transform as a 3×3 matrix: offset · rotation · scale, the rotation turning the
+    coordinates counter-clockwise in glTF's frame (v down), so that the image turns clockwise."""
+    offset = transform.numbers("offset", [0.0, 0.0], length=2, low=-np.inf, high=np.inf)
+    scale = transform.numbers("scale", [1.0, 1.0], length=2, low=-np.inf, high=np.inf)
+    angle = transform.numbers("rotation", 0.0, low=-np.inf, high=np.inf)
+    cos, sin = np.cos(angle), np.sin(angle)
+    return np.array([[cos * scale[0], sin * scale[1], offset[0]],
+                     [-sin * scale[0], cos * scale[1], offset[1]],
+                     [0.0, 0.0, 1.0]])
+
+
+def transformed_uvs(uvs: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """Texture coordinates in the tracer's convention (v up, as trimesh reads them) through a glTF texture
+    transform (``_uv_matrix``, which works in glTF's, v down)."""
+    gltf = np.stack([uvs[:, 0], 1.0 - uvs[:, 1], np.ones(len(uvs))], -1).astype(np.float64)
+    moved = gltf @ matrix.T
+    return np.stack([moved[:, 0], 1.0 - moved[:, 1]], -1).astype(np.float32)
 
 
 def gltf_json(path: Path) -> dict:
@@ -135,13 +154,14 @@ def gltf_material(entry: dict, where: str, trimesh_material=None) -> Material:
 def obj_material(simple, where: str) -> Material:
     """The tracer's material for an OBJ file's MTL material (trimesh's SimpleMaterial): ``Kd`` the base
     colour, ``Ke`` emission, ``Pm``/``Pr`` (the MTL PBR extension) metalness and roughness, else the roughness
-    Blender writes as ``Ns`` (r = 1 − √(Ns/1000)) where ``Ks`` is not black, rough otherwise; glass where
+    Blender writes as ``Ns`` (r = 1 − √(Ns/1000)) where ``Ks`` is not black; without either, diffuse; glass where
     ``illum`` is 4, 6, 7 or 9 or the dissolve ``d`` is below 1 (``Tr`` above 0), of index ``Ni``."""
     fields = _Reader(where, {key.lower(): value for key, value in (getattr(simple, "kwargs", None) or {}).items()})
     base = fields.numbers("kd", 0.8, length=3)
+    specular = "pr" in fields.data or bool(np.any(fields.numbers("ks", 0.0, length=3) > 0))
     if "pr" in fields.data:
         roughness = fields.numbers("pr", 1.0)
-    elif np.any(fields.numbers("ks", 0.0, length=3) > 0):
+    elif specular:
         roughness = 1.0 - np.sqrt(min(fields.numbers("ns", 0.0, high=np.inf), 1000.0) / 1000.0)
     else:
         roughness = 1.0
@@ -149,7 +169,7 @@ def obj_material(simple, where: str) -> Material:
     glass = int(fields.numbers("illum", 2, high=10)) in OBJ_GLASS_ILLUMS or dissolve < 1.0
     ior = fields.numbers("ni", 1.5, low=1.0, high=np.inf) if glass else 1.5
     return pbr_material(base, fields.numbers("pm", 0.0), roughness, float(glass), ior,
-                        fields.numbers("ke", 0.0, length=3, high=np.inf))
+                        fields.numbers("ke", 0.0, length=3, high=np.inf), specular)
 
 
 class FileMaterials:
@@ -209,17 +229,44 @@ class FileMaterials:
         return colour is None or np.allclose(np.asarray(colour[:3]) / 255.0, np.asarray(factor[:3], float),
                                              atol=0.6 / 255)
 
+    def _texture_info(self, geometry, key: str) -> tuple[dict | None, str]:
+        """The textureInfo ``key`` (e.g. "normalTexture") of ``geometry``'s glTF material, None where it has none,
+        and the material's label for errors."""
+        trimesh_material = getattr(geometry.visual, "material", None)
+        index = self._gltf_index(trimesh_material) if self.gltf and trimesh_material is not None else None
+        if index is None:
+            return None, ""
+        entry = self.entries[index]
+        info = (entry.get("pbrMetallicRoughness") or {}).get(key) if key == "baseColorTexture" else entry.get(key)
+        return (info if isinstance(info, dict) else None), entry.get("name") or f"material{index}"
+
     def normal_scale(self, geometry) -> float:
         """The ``scale`` of the normal texture of ``geometry``'s glTF material (1 where it gives none)."""
-        trimesh_material = getattr(geometry.visual, "material", None)
-        if not self.gltf or getattr(trimesh_material, "normalTexture", None) is None:
+        if getattr(getattr(geometry.visual, "material", None), "normalTexture", None) is None:
             return 1.0
-        index = self._gltf_index(trimesh_material)
-        texture = None if index is None else self.entries[index].get("normalTexture")
-        if not isinstance(texture, dict):
+        texture, label = self._texture_info(geometry, "normalTexture")
+        if texture is None:
             return 1.0
-        label = self.entries[index].get("name") or f"material{index}"
         return _Reader(f"{self.path}: material {label!r}: normalTexture", texture).numbers("scale", 1.0, high=np.inf)
+
+    def texture_transform(self, geometry) -> np.ndarray | None:
+        """The 3×3 matrix (of glTF's texture coordinates, v down) of the ``KHR_texture_transform`` on
+        ``geometry``'s glTF material's base colour and normal textures, None where neither has one. The tracer
+        reads both at one set of coordinates, so two different transforms are a SceneError."""
+        matrices = {}
+        for key in ("baseColorTexture", "normalTexture"):
+            texture, label = self._texture_info(geometry, key)
+            transform = ((texture or {}).get("extensions") or {}).get("KHR_texture_transform")
+            if transform is None:
+                continue
+            where = f"{self.path}: material {label!r}: {key}'s KHR_texture_transform"
+            if not isinstance(transform, dict):
+                raise SceneError(f"{where}: expected an object, got {transform!r}")
+            matrices[key] = _uv_matrix(_Reader(where, transform))
+        if len(matrices) == 2 and not np.allclose(*matrices.values()):
+            raise SceneError(f"{self.path}: material {label!r}: its base colour and normal textures have different "
+                             "KHR_texture_transforms; the tracer reads both at one set of coordinates")
+        return next(iter(matrices.values()), None)
 
     def material_of(self, geometry, geometry_name: str) -> str | None:
         """The name of ``geometry``'s material in the file, None where the file gives it none."""

@@ -227,8 +227,8 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
     that has a material of its own in the file (glTF's, an OBJ file's MTL: ``file_materials``) takes it, added
     to ``materials`` under its name, and the others ``material`` (a SceneError where that is None). A geometry's
     normal map is the file's (a glTF material's normal texture), or ``normal_map`` in its place, read at the
-    same coordinates."""
-    from .file_materials import FileMaterials
+    same coordinates; where the file's own images are read, through the material's KHR_texture_transform."""
+    from .file_materials import FileMaterials, transformed_uvs
     from .model import Mesh
 
     path = Path(path)
@@ -278,6 +278,9 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         uvs = file_uvs(geometry) if uvs is None and relief is not None else uvs
         if relief is not None and uvs is None:
             raise SceneError(f"{where}: has no texture coordinates for the normal map to be read at")
+        file_images = (texture is None and image is not None) or (normal_map is None and relief is not None)
+        if file_images and (matrix := own.texture_transform(geometry)) is not None:
+            uvs = transformed_uvs(uvs, matrix)
         surface = (own.material_of(geometry, geometry_name) if materials is not None else None) or material
         if surface is None:
             raise SceneError(f"{where}: has no material of its own; give the mesh entry a 'material'")
