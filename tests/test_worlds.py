@@ -278,8 +278,9 @@ def test_a_sky_map_leaves_every_other_choice_and_the_held_out_family_alone(monke
 
 def test_coats_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):
     """Coated materials draw from a random stream of their own: a training world with them is the world
-    without them but for some matte materials turned plastic of the same colour; a held-out world has none."""
-    coated = 0
+    without them but for some matte materials turned plastic of the same colour, some of them under a rough coat;
+    a held-out world has none."""
+    coated = rough = 0
     for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
         with_coats, plain = _with_and_without(monkeypatch, "PLASTIC_SHARE", seed)
         kinds = {name: m.kind for name, m in with_coats.materials.items()}
@@ -291,9 +292,11 @@ def test_coats_leave_every_other_choice_and_the_held_out_family_alone(monkeypatc
                 coated += 1
                 assert before.kind == "diffuse" and not before.is_emissive and 1.3 <= material.ior <= 1.7
                 np.testing.assert_array_equal(material.reflectance, before.reflectance)
+                rough += material.roughness > 0
+                assert material.roughness == 0 or 0.02 <= material.roughness <= 0.6
         _assert_alike_but(with_coats, plain, seed,
                           lambda key: key.startswith("material ") and kinds[key[len("material "):]] == "plastic")
-    assert coated >= 12
+    assert coated >= 12 and 0.25 * coated <= rough <= 0.75 * coated
 
 
 def test_normal_maps_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):

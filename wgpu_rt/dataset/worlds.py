@@ -34,7 +34,10 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
 - in the training family only, sometimes flat set surfaces (floors, walls, the ground) with a normal map
   (``NORMAL_MAP_SHARE``, ``relief_normal_map``: tiles, planks, bumps or ripples a few centimetres to a metre
   across), so the denoiser sees shading detail that the albedo does not show but the normal plane does; from
-  a stream of its own (``WORLDS_VERSION`` 7).
+  a stream of its own (``WORLDS_VERSION`` 7);
+- in the training family only, a share of those coats rough (``ROUGH_COAT_SHARE``: Mitsuba's roughplastic, GGX
+  alpha 0.02–0.6, log-uniform), so the denoiser sees blurred highlights on glossy non-metals, as most of a glTF
+  file's non-metals now render (``file_materials``); from a stream of its own (``WORLDS_VERSION`` 8).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -87,8 +90,8 @@ UP = np.array([0.0, 1.0, 0.0])
 CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, metres
 # What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
 # worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera; 5: skies as environment maps;
-# 6: coated (plastic) materials; 7: normal maps on set surfaces.
-WORLDS_VERSION = 7
+# 6: coated (plastic) materials; 7: normal maps on set surfaces; 8: rough coats.
+WORLDS_VERSION = 8
 LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
 PAINTED_SHARE = 0.5         # of the training worlds
 LENS_SHARE = 0.25           # of the training worlds
@@ -96,6 +99,8 @@ LENS_APERTURES = (0.003, 0.03)   # aperture radius over the camera's distance to
 SKY_MAP_SHARE = 0.5         # of the training worlds with a sky
 SKY_MAP_SIZE = (32, 64)     # a procedural sky's rows and columns
 PLASTIC_SHARE = 0.3         # of the training worlds' matte materials (not emitters)
+ROUGH_COAT_SHARE = 0.5      # of those coats
+ROUGH_COAT_ALPHAS = (0.02, 0.6)   # a rough coat's GGX alpha, log-uniform
 SET_RECTANGLES = ("ground", "floor", "ceiling", "back", "front", "left", "right")   # build_set's flat surfaces
 PATTERNS = ("checker", "stripes", "blotches", "mottle")
 NORMAL_MAP_SHARE = 0.4      # of the training worlds; each flat set surface of those then has one with odds 1/2
@@ -146,7 +151,8 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
     if family == "training":
         world.add_lens(np.random.default_rng(np.random.SeedSequence([int(seed), 0x1E25])))
         world.add_sky_map(np.random.default_rng(np.random.SeedSequence([int(seed), 0x5C1E])))
-        world.coat_materials(np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0A7])))
+        world.coat_materials(np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0A7])),
+                             np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0A8])))
         world.add_normal_maps(np.random.default_rng(np.random.SeedSequence([int(seed), 0xB0B5])))
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
 
@@ -437,18 +443,22 @@ class _World:
         sun = next((light for light in self.lights if isinstance(light, DirectionalLight)), None)
         self.environment = procedural_sky(rng, None if sun is None else -np.asarray(sun.direction, np.float64))
 
-    def coat_materials(self, rng: np.random.Generator) -> None:
+    def coat_materials(self, rng: np.random.Generator, roughness_rng: np.random.Generator) -> None:
         """Each matte material that does not emit becomes, with probability PLASTIC_SHARE, the same colour
-        under a smooth clear coat (plastic) of index 1.3–1.7; not one a painted mesh wears (Mitsuba's
-        plastic, the golds' renderer, cannot read vertex colours)."""
+        under a clear coat (plastic) of index 1.3–1.7; not one a painted mesh wears (Mitsuba's plastic, the
+        golds' renderer, cannot read vertex colours). With probability ROUGH_COAT_SHARE, drawn from
+        ``roughness_rng`` (so that the coats and their indices are version 7's), a coat is rough."""
         painted = {mesh.material for mesh in self.meshes if mesh.colors is not None}
         for name in sorted(self.materials):
             material = self.materials[name]
             if material.kind != "diffuse" or material.is_emissive:
                 continue
             coat, ior = rng.uniform() < PLASTIC_SHARE, float(rng.uniform(1.3, 1.7))
+            rough, alpha = roughness_rng.uniform() < ROUGH_COAT_SHARE, float(np.exp(roughness_rng.uniform(
+                *np.log(ROUGH_COAT_ALPHAS))))
             if coat and name not in painted:
-                self.materials[name] = Material("plastic", reflectance=material.reflectance, ior=ior)
+                self.materials[name] = Material("plastic", reflectance=material.reflectance, ior=ior,
+                                                roughness=alpha if rough else 0.0)
 
     def add_normal_maps(self, rng: np.random.Generator) -> None:
         """With probability NORMAL_MAP_SHARE, each flat set surface (a rectangle: floor, ceiling, walls, the
