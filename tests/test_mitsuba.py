@@ -330,3 +330,15 @@ def test_plastic_with_vertex_colours_is_refused_for_mitsuba_by_name():
         pytest.skip("no Mitsuba variant loads in this build")
     with pytest.raises(SceneError, match="mesh 'floor': Mitsuba's plastic cannot read vertex colours"):
         to_mitsuba(scene, 8, 8, 4, 4)
+
+
+def test_cut_out_panels_match_mitsuba(gpu):
+    """A panel cut out by a checker's alpha over a floor, in front of a point light: its holes, and the light
+    through them on the floor, as Mitsuba's ``mask`` (opacity 0 or 1) under ``volpath``; the panel uncut is
+    told apart."""
+    from test_cutouts import _checker, _scene, _square
+
+    distance, whole_distance = _matches_mitsuba(_scene("cut", [_square("panel", "white", np.eye(4), _checker())]),
+                                                _scene("whole", [_square("panel", "white", np.eye(4),
+                                                                         _checker(alpha=False))]))
+    assert whole_distance > 2 * distance

@@ -25,3 +25,16 @@ def test_every_trace_specialization_builds(gpu):
 
     for features in SceneFeatures.all_combinations():
         assert trace_pipeline(gpu, features, geometry_bindings=4) is not None, features
+
+
+@pytest.mark.parametrize("walk", ["threaded", "wide"])
+def test_the_cut_out_kernel_builds_with_each_walk(gpu, walk):
+    """Scenes with cut-out surfaces swap trace/cutouts.wgsl into the walks' triangle test: the kernel builds so
+    with both walks, every feature on and every feature off."""
+    from wgpu_rt.accel.geometry import BVH_LAYOUTS, NO_CUTOUTS, THREADED_WALK
+    from wgpu_rt.trace.features import SceneFeatures
+    from wgpu_rt.trace.trace_pass import CUTOUTS, trace_pipeline
+
+    modules = {NO_CUTOUTS: CUTOUTS, THREADED_WALK: BVH_LAYOUTS[walk]}
+    for features in (SceneFeatures.everything(), SceneFeatures.all_combinations()[0]):
+        assert trace_pipeline(gpu, features, geometry_bindings=4, geometry_modules=modules) is not None

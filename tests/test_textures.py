@@ -156,8 +156,9 @@ def test_an_image_trimesh_cannot_decode_leaves_the_mesh_plain(tmp_path):
     (dict(texture=None), "needs its coordinates"),
     (dict(uvs=np.zeros((3, 2), np.float32)), "uvs must be finite"),
     (dict(uvs=np.full((4, 2), np.nan, np.float32)), "uvs must be finite"),
-    (dict(texture=np.zeros((4, 4), np.uint8)), r"\(H, W, 3\) uint8"),
-    (dict(texture=np.zeros((4, 4, 3), np.float32)), r"\(H, W, 3\) uint8"),
+    (dict(texture=np.zeros((4, 4), np.uint8)), r"\(H, W, 3\) or \(H, W, 4\) uint8"),
+    (dict(texture=np.zeros((4, 4, 3), np.float32)), r"\(H, W, 3\) or \(H, W, 4\) uint8"),
+    (dict(texture=np.zeros((4, 4, 5), np.uint8)), r"\(H, W, 3\) or \(H, W, 4\) uint8"),
     (dict(colors=np.ones((4, 3), np.float32)), "both vertex colours and a texture"),
 ])
 def test_malformed_textures_are_refused_by_name(change, message):

@@ -163,19 +163,33 @@ def _mesh_colors(mesh) -> np.ndarray:
 
 NO_TEXTURE = 0xFFFFFFFF   # a triangle record's texture (or normal map) index where its mesh has none
 TEXTURE_RECORD_WORDS = 8  # per triangle: texture index, (u, v) of its three vertices, normal map index
+CUTOUT_FLAG = 0x80000000  # on a record's texture index: its alpha cuts the surface away (wgsl/trace/cutouts.wgsl)
+# accel/walk_tree.wgsl imports NO_CUTOUTS; a path-tracing kernel of a scene with cut-out surfaces swaps in the
+# module that reads their textures (wgpu_rt.trace.trace_pass.CUTOUTS).
+NO_CUTOUTS = "accel/cutouts_none.wgsl"
 
 
-def _check_image(mesh, image, what: str) -> None:
+def _check_image(mesh, image, what: str, channels: tuple[int, ...] = (3,)) -> None:
     image = np.asarray(image)
-    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) == 0:
-        raise SceneError(f"mesh {mesh.name!r}: {what} must be an (H, W, 3) uint8 image, got {image.dtype} "
+    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] not in channels or min(image.shape[:2]) == 0:
+        shapes = " or ".join(f"(H, W, {c})" for c in channels)
+        raise SceneError(f"mesh {mesh.name!r}: {what} must be an {shapes} uint8 image, got {image.dtype} "
                          f"{image.shape}")
+
+
+def has_cutouts(records: np.ndarray | None) -> bool:
+    """Whether any of the texture ``records`` (_mesh_texture_records) cuts its surface away."""
+    if records is None:
+        return False
+    textures = records[:, 0]
+    return bool(np.any((textures != NO_TEXTURE) & (textures & CUTOUT_FLAG != 0)))
 
 
 def _mesh_texture_records(mesh, textures: dict[int, int]) -> np.ndarray:
     """(F, TEXTURE_RECORD_WORDS) u32 per face: the index in ``textures`` (image id → index; NO_TEXTURE without
-    one) of its mesh's texture, its vertices' texture coordinates as float32 bits, and the index of its mesh's
-    normal map (SceneError where an image or the coordinates are malformed, naming the mesh)."""
+    one) of its mesh's texture, with CUTOUT_FLAG where the texture has an alpha channel (which cuts the surface
+    away), its vertices' texture coordinates as float32 bits, and the index of its mesh's normal map
+    (SceneError where an image or the coordinates are malformed, naming the mesh)."""
     faces = np.asarray(mesh.faces, np.int64)
     records = np.zeros((len(faces), TEXTURE_RECORD_WORDS), np.uint32)
     records[:, [0, 7]] = NO_TEXTURE
@@ -190,10 +204,10 @@ def _mesh_texture_records(mesh, textures: dict[int, int]) -> np.ndarray:
         raise SceneError(f"mesh {mesh.name!r}: uvs must be finite, one (u, v) a vertex "
                          f"({len(mesh.vertices)}, 2), got shape {uvs.shape}")
     if mesh.texture is not None:
-        _check_image(mesh, mesh.texture, "texture")
+        _check_image(mesh, mesh.texture, "texture", channels=(3, 4))
         if mesh.colors is not None:
             raise SceneError(f"mesh {mesh.name!r}: has both vertex colours and a texture; give it one of them")
-        records[:, 0] = textures[id(mesh.texture)]
+        records[:, 0] = textures[id(mesh.texture)] | (CUTOUT_FLAG if mesh.texture.shape[2] == 4 else 0)
     if mesh.normal_map is not None:
         _check_image(mesh, mesh.normal_map, "normal_map")
         records[:, 7] = textures[id(mesh.normal_map)]
@@ -207,6 +221,11 @@ def _scene_texture_records(scene: Scene, meshes) -> np.ndarray | None:
     textures = {id(image): index for index, image in enumerate(scene.textures())}
     if not textures and all(scene.meshes[i].uvs is None for i in meshes):
         return None
+    for i in meshes:
+        mesh = scene.meshes[i]
+        if mesh.is_cut_out and scene.materials[mesh.material].is_emissive:
+            raise SceneError(f"mesh {mesh.name!r}: an emitter cannot be cut out (its light is sampled over whole "
+                             f"triangles); give its texture no alpha or its material no emission")
     return np.concatenate([_mesh_texture_records(scene.meshes[i], textures) for i in meshes])
 
 

@@ -11,12 +11,13 @@ import itertools
 import json
 import reprlib
 import tomllib
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SceneError
-from .meshio import load_mesh_file, read_environment_image, read_texture_image
+from .meshio import load_mesh_file, read_environment_image, read_texture_image, with_cutout
 from .model import (FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight, Scene,
                     SpotLight)
 from .primitives import PRIMITIVES, primitive, primitive_uvs
@@ -334,7 +335,15 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
     name = fields.string("name", "")
     transform, keyframes = _placement(fields)
     instances = fields.tables("instances") if fields.has("instances") else None
-    texture = _image_file(fields, "texture", folder, read_texture_image)
+    cutoff = fields.has("alpha_cutoff")
+    texture = _image_file(fields, "texture", folder, partial(read_texture_image, alpha=cutoff))
+    if cutoff:
+        value = fields.number("alpha_cutoff")
+        if not 0.0 <= value <= 1.0:
+            fields.fail(f"expected a number in [0, 1], got {value:g}", "alpha_cutoff")
+        if texture is None:
+            fields.fail("a cutout needs a 'texture', whose alpha says where the surface is", "alpha_cutoff")
+        texture = with_cutout(texture[..., :3], texture[..., 3], value)
     normal_map = _image_file(fields, "normal_map", folder, read_texture_image)
     if has_shape:
         kind = fields.string("shape", choices=PRIMITIVES)

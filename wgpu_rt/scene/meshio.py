@@ -73,7 +73,37 @@ def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict) -> tuple[
     if image is None or uvs is None:
         return None
     pixels = _decode(image, decoded, f"{where}: cannot read its texture image")
+    if pixels is not None and getattr(material, "alphaMode", None) == "MASK":
+        pixels = _cutout_texture(image, pixels, material, decoded)
     return None if pixels is None else (pixels, uvs)
+
+
+def _cutout_texture(image, pixels: np.ndarray, material, decoded: dict) -> np.ndarray:
+    """The texture of a glTF MASK material (trimesh's PBRMaterial) whose base colour ``image`` decoded to
+    ``pixels``: ``with_cutout`` of its alpha (the image's times the base colour factor's) at the material's
+    alphaCutoff (default ½)."""
+    factor = getattr(material, "baseColorFactor", None)
+    scale = 1.0 if factor is None else float(np.asarray(factor, np.float64)[3]) / 255.0
+    cutoff = getattr(material, "alphaCutoff", None)
+    cutoff = 0.5 if cutoff is None else float(cutoff)
+    key = ("cutout", id(image), scale, cutoff)
+    if key not in decoded:
+        alpha = np.asarray(image.convert("RGBA"), np.float64)[..., 3] * scale
+        decoded[key] = (with_cutout(pixels, alpha, cutoff), image)
+    return decoded[key][0]
+
+
+def with_cutout(pixels: np.ndarray, alpha: np.ndarray, cutoff: float) -> np.ndarray:
+    """The (H, W, 4) texture of (H, W, 3) ``pixels`` that cuts its surface away where the (H, W) ``alpha``
+    (codes, 0–255) is below ``cutoff`` (in [0, 1]), as glTF's MASK mode does: the alpha shifted so that the
+    cutoff falls at the tracer's CUTOUT_ALPHA, linearly, so a bilinear sample is kept exactly where glTF's
+    would be. ``pixels`` unchanged where no texel is cut away."""
+    from .model import CUTOUT_ALPHA
+
+    codes = np.clip(np.round(np.asarray(alpha, np.float64) + 255.0 * (CUTOUT_ALPHA - cutoff)), 0, 255)
+    if codes.shape != pixels.shape[:2] or not np.any(codes < 255 * CUTOUT_ALPHA):
+        return pixels
+    return np.ascontiguousarray(np.dstack([pixels, codes.astype(np.uint8)]))
 
 
 def _decode(image, decoded: dict, failure: str) -> np.ndarray | None:
@@ -152,9 +182,10 @@ def obj_normal_map(statements: dict, folder: Path, where: str, decoded: dict) ->
     return None, 1.0
 
 
-def read_texture_image(path: Path) -> np.ndarray:
+def read_texture_image(path: Path, alpha: bool = False) -> np.ndarray:
     """The image file at ``path`` (PNG, JPEG, anything Pillow reads) as an (H, W, 3) uint8 sRGB texture (an
-    alpha dropped, grey expanded); SceneError naming the file if it is missing or cannot be decoded."""
+    alpha dropped, grey expanded), or with ``alpha`` (H, W, 4) with its alpha (255 where it has none);
+    SceneError naming the file if it is missing or cannot be decoded."""
     from PIL import Image
 
     path = Path(path)
@@ -162,7 +193,7 @@ def read_texture_image(path: Path) -> np.ndarray:
         raise SceneError(f"{path}: texture image not found")
     try:
         with Image.open(path) as image:
-            pixels = np.asarray(image.convert("RGB"), np.uint8)
+            pixels = np.asarray(image.convert("RGBA" if alpha else "RGB"), np.uint8)
     except Exception as err:   # Pillow raises many types for a file it cannot decode
         raise SceneError(f"{path}: cannot read texture image ({type(err).__name__}: {err})") from err
     return np.ascontiguousarray(pixels)

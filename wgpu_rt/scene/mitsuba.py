@@ -9,6 +9,7 @@ BSDF its material maps to:
   ``conductor`` (roughness 0) or ``roughconductor`` (GGX, alpha = roughness) with eta, k and
   specular_reflectance; dielectric → ``dielectric`` or
   ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1.
+- a cut-out mesh's BSDF is wrapped in ``mask`` (``cutout_opacity``), and the integrator is then ``volpath``;
 - a mesh's vertex colours become a "vertex_color" mesh attribute its BSDF's reflectance reads, a texture a
   ``bitmap`` (bilinear, repeat) of the image times the reflectance, read at the mesh's texture coordinates, a
   normal map a ``normalmap`` around the BSDF (inside ``twosided``: on a back face Mitsuba mirrors the tilt
@@ -21,8 +22,8 @@ BSDF its material maps to:
   plugins.
 
 The sensor is a ``perspective`` camera (``thinlens`` with an aperture) with a box pixel filter and an
-``independent`` sampler seeded with ``seed``; the integrator is ``path`` with the same ``max_depth``. Needs the
-``bench`` extra.
+``independent`` sampler seeded with ``seed``; the integrator is ``path`` (``volpath`` with a cut-out surface)
+with the same ``max_depth``. Needs the ``bench`` extra.
 
 ``load_mitsuba`` sets Mitsuba to the fastest variant this machine has (``variant_choice``: cuda_ad_rgb where
 Dr.Jit finds a CUDA GPU, else llvm_ad_rgb when Debian's LLVM 19 is installed (`apt-get install -y libllvm19`;
@@ -41,8 +42,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from .model import (DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8,
-                    vertex_colors_as_rendered)
+from .model import (CUTOUT_ALPHA, DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8,
+                    sample_alpha, vertex_colors_as_rendered)
 from .transforms import transform_normals, transform_points
 
 
@@ -59,9 +60,27 @@ def textured_reflectance(mi, texture: np.ndarray, reflectance: np.ndarray) -> di
     """A ``bitmap`` texture of ``texture`` (sRGB8, as the tracer decodes it) times ``reflectance``, filtered and
     wrapped as the tracer samples it (wgpu_rt.scene.model.sample_texture): the product is linear already,
     so the bitmap is read raw."""
-    linear = linear_from_srgb8(texture) * np.asarray(reflectance, np.float32)
+    linear = linear_from_srgb8(np.asarray(texture)[..., :3]) * np.asarray(reflectance, np.float32)
     return {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(linear, np.float32)), "raw": True,
             "filter_type": "bilinear", "wrap_mode": "repeat"}
+
+
+CUTOUT_OVERSAMPLING = 4   # cutout_opacity's grid per texel and axis
+
+
+def cutout_opacity(mi, texture: np.ndarray) -> dict:
+    """Mitsuba's ``mask`` opacity for a cut-out (H, W, 4) ``texture``: 1 where the tracer keeps the surface (its
+    bilinear alpha at least CUTOUT_ALPHA), 0 where it cuts it away, on a grid up to CUTOUT_OVERSAMPLING times
+    finer than the texture's, read nearest (the mask takes an opacity between as a probability of passing,
+    where the tracer's edge is sharp)."""
+    height, width = texture.shape[:2]
+    factor = max(1, min(CUTOUT_OVERSAMPLING, 4096 // max(height, width)))
+    rows, columns = np.meshgrid((np.arange(height * factor) + 0.5) / (height * factor),
+                                (np.arange(width * factor) + 0.5) / (width * factor), indexing="ij")
+    uvs = np.stack([columns.ravel(), 1.0 - rows.ravel()], -1)
+    kept = (sample_alpha(texture, uvs) >= CUTOUT_ALPHA).astype(np.float32).reshape(rows.shape)
+    return {"type": "bitmap", "bitmap": mi.Bitmap(kept[..., None]), "raw": True, "filter_type": "nearest",
+            "wrap_mode": "repeat"}
 
 
 def normal_mapped_bsdf(mi, normal_map: np.ndarray, bsdf: dict) -> dict:
@@ -169,7 +188,10 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
             "focus_distance": camera.focus_distance} if camera.aperture_radius > 0 else {"type": "perspective"}
     result = {
         "type": "scene",
-        "integrator": {"type": "path", "max_depth": int(max_depth)},
+        # volpath passes paths and shadow rays through a mask's holes without counting a bounce; path would
+        # neither (its shadow rays stop at a mask)
+        "integrator": {"type": "volpath" if any(m.is_cut_out for m in scene.meshes) else "path",
+                       "max_depth": int(max_depth)},
         "sensor": {
             **lens, "fov": float(camera.fov), "fov_axis": camera.fov_axis,
             "near_clip": 1e-4, "far_clip": 1e7,
@@ -193,6 +215,8 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         textured = None if mesh.texture is None else textured_reflectance(mi, mesh.texture, material.reflectance)
         tilted = None if mesh.normal_map is None else partial(normal_mapped_bsdf, mi, mesh.normal_map)
         bsdf = surface_bsdf(material, colors is not None, textured, tilted)
+        if mesh.is_cut_out:
+            bsdf = {"type": "mask", "opacity": cutout_opacity(mi, mesh.texture), "bsdf": bsdf}
         result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
                                     bsdf, material.emission if material.is_emissive else None,
                                     None if colors is None else colors * material.reflectance, mesh.uvs)

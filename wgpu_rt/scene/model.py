@@ -18,6 +18,7 @@ FOV_AXES = ("x", "y", "smaller", "larger")
 # Narrower than this, float32 ray directions no longer tell neighbouring pixels apart (tan(fov/2) / 128
 # is float32's epsilon at 256 pixels); towards 0 the 1/tan(fov/2) of the motion vectors overflows.
 MIN_FOV = 1e-3
+CUTOUT_ALPHA = 0.5   # a texture's alpha below which its surface is cut away (wgsl/trace/cutouts.wgsl)
 
 
 def _rgb(value, what: str, highest: float = np.inf) -> np.ndarray:
@@ -156,7 +157,8 @@ class Mesh:
     # per vertex (trimesh's convention: v = 1 at the image's top; repeated outside [0, 1]), interpolated
     # across each triangle; its bilinear sample (texels decoded to linear first, ``sample_texture``)
     # multiplies the material's reflectance. A mesh has ``colors`` or a texture, not both. Meshes may share
-    # one image array (it is stored once).
+    # one image array (it is stored once). An (H, W, 4) texture's alpha (codes, read raw and bilinearly,
+    # ``sample_alpha``) cuts the surface away wherever it is below CUTOUT_ALPHA: leaves, fences.
     texture: np.ndarray | None = None
     uvs: np.ndarray | None = None
     # A tangent-space normal map at the same coordinates: (H, W, 3) uint8 codes of (n + 1) / 2, read raw
@@ -167,6 +169,11 @@ class Mesh:
 
     def transform_at(self, frame: int) -> np.ndarray:
         return _interpolate(self.keyframes, frame, self.transform)
+
+    @property
+    def is_cut_out(self) -> bool:
+        """Whether its texture's alpha cuts parts of it away."""
+        return self.texture is not None and np.ndim(self.texture) == 3 and np.shape(self.texture)[2] == 4
 
     @property
     def is_animated(self) -> bool:
@@ -209,24 +216,36 @@ def vertex_colors_as_rendered(mesh: "Mesh") -> np.ndarray | None:
     return None if mesh.colors is None else linear_from_srgb8(srgb8(mesh.colors))
 
 
-def sample_texture(texture: np.ndarray, uvs: np.ndarray, srgb: bool = True) -> np.ndarray:
-    """(N, 3) float32 linear RGB: the (H, W, 3) sRGB8 ``texture`` at (N, 2) coordinates ``uvs`` as the tracer
-    samples it (wgsl/trace/surface_textures.wgsl) and Mitsuba's bitmap with bilinear filtering and repeat
-    wrapping does: coordinates wrapped to [0, 1), v = 1 at the image's top, texel centres at half-integers,
-    texels decoded to linear and blended bilinearly. ``srgb=False`` reads the codes raw (code / 255: a normal
-    map's)."""
-    height, width = texture.shape[:2]
-    linear = (linear_from_srgb8(texture) if srgb else np.asarray(texture) / 255.0).astype(np.float64)
+def _bilinear(values: np.ndarray, uvs: np.ndarray) -> np.ndarray:
+    """(N, C) float64: the (H, W, C) ``values`` at (N, 2) coordinates ``uvs`` as the tracer samples an image
+    (wgsl/trace/surface_textures.wgsl) and Mitsuba's bitmap with bilinear filtering and repeat wrapping does:
+    coordinates wrapped to [0, 1), v = 1 at the image's top, texel centres at half-integers."""
+    height, width = values.shape[:2]
     uvs = np.asarray(uvs, np.float64)
     x = (uvs[:, 0] - np.floor(uvs[:, 0])) * width - 0.5
     y = (1.0 - uvs[:, 1] - np.floor(1.0 - uvs[:, 1])) * height - 0.5
     x0, y0 = np.floor(x), np.floor(y)
     fx, fy = (x - x0)[:, None], (y - y0)[:, None]
     x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
-    texel = lambda col, row: linear[row % height, col % width]  # noqa: E731
+    texel = lambda col, row: values[row % height, col % width]  # noqa: E731
     top = (1 - fx) * texel(x0, y0) + fx * texel(x0 + 1, y0)
     bottom = (1 - fx) * texel(x0, y0 + 1) + fx * texel(x0 + 1, y0 + 1)
-    return ((1 - fy) * top + fy * bottom).astype(np.float32)
+    return (1 - fy) * top + fy * bottom
+
+
+def sample_texture(texture: np.ndarray, uvs: np.ndarray, srgb: bool = True) -> np.ndarray:
+    """(N, 3) float32 linear RGB: the sRGB8 ``texture`` (its first three channels) at (N, 2) coordinates
+    ``uvs``, texels decoded to linear and blended bilinearly (``_bilinear``). ``srgb=False`` reads the codes
+    raw (code / 255: a normal map's)."""
+    rgb = np.asarray(texture)[..., :3]
+    linear = (linear_from_srgb8(rgb) if srgb else rgb / 255.0).astype(np.float64)
+    return _bilinear(linear, uvs).astype(np.float32)
+
+
+def sample_alpha(texture: np.ndarray, uvs: np.ndarray) -> np.ndarray:
+    """(N,) float32: an (H, W, 4) ``texture``'s alpha (code / 255) at (N, 2) coordinates ``uvs``, bilinearly,
+    as wgsl/trace/surface_textures.wgsl's sample_alpha; where it is below CUTOUT_ALPHA the surface is cut away."""
+    return _bilinear(np.asarray(texture)[..., 3:] / 255.0, uvs)[:, 0].astype(np.float32)
 
 
 def mapped_normal(normal: np.ndarray, dp_du: np.ndarray, texel: np.ndarray) -> np.ndarray:

@@ -90,7 +90,8 @@ TEXTURE_ENTRY_WORDS = 4    # per texture: its first texel's word, width, height,
 def pack_textures(textures: list[np.ndarray], records: np.ndarray | None) -> np.ndarray:
     """The surface-texture buffer (bind group 1, binding 5; wgsl/trace/surface_textures.wgsl) as u32 words:
     a header (where the triangle records start, the image count), an entry per image of ``textures``
-    ((H, W, 3) uint8 codes: sRGB textures, raw normal maps), the per-triangle ``records``
+    ((H, W, 3) uint8 codes: sRGB textures, raw normal maps; (H, W, 4): a texture with alpha, in the top
+    byte), the per-triangle ``records``
     (wgpu_rt.accel.geometry's texture records, in the geometry's stored order), then every image's codes
     packed (R in the low byte), row 0 the image's top. Without records (no texture or normal map), a header
     alone."""
@@ -105,7 +106,8 @@ def pack_textures(textures: list[np.ndarray], records: np.ndarray | None) -> np.
     for entry, image in zip(entries, textures):
         codes = np.asarray(image, np.uint32)
         entry[:3] = start, image.shape[1], image.shape[0]
-        texels.append((codes[..., 0] | codes[..., 1] << 8 | codes[..., 2] << 16).ravel())
+        alpha = codes[..., 3] << 24 if codes.shape[2] == 4 else 0
+        texels.append((codes[..., 0] | codes[..., 1] << 8 | codes[..., 2] << 16 | alpha).ravel())
         start += texels[-1].size
     return np.concatenate([header, entries.ravel(), np.asarray(records, np.uint32).ravel(), *texels])
 

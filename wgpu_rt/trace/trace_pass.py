@@ -22,9 +22,11 @@ import numpy as np
 
 from ..accel.geometry import (
     GEOMETRY_WORDS,
+    NO_CUTOUTS,
     UNIFORM_GEOMETRY_WORDS,
     InstancedGeometry,
     compose_with_traversal,
+    has_cutouts,
     scene_material_names,
 )
 from ..passes import (
@@ -90,6 +92,7 @@ AUX_LENS_FACTOR = 4
 GUIDE_ALBEDO = 3
 
 
+CUTOUTS = "trace/cutouts.wgsl"   # in place of accel/cutouts_none.wgsl where a scene cuts surfaces away
 STORAGE_TABLES = "trace/shading_tables_storage.wgsl"   # what trace/trace_bindings.wgsl imports
 UNIFORM_TABLES = "trace/shading_tables_uniform.wgsl"
 # Records per table in UNIFORM_TABLES (its array sizes): 16 KiB of materials, 40 KiB of emitters.
@@ -374,9 +377,11 @@ class TracePass(ComputePass):
         if (self.placement.tables and not fitting.tables) or (self.placement.geometry and not fitting.geometry):
             raise ValueError(f"{self.placement} asks for uniform buffers beyond their capacity ({fitting} fit)")
         geometry_buffers = geometry.upload(ctx, uniform_words=self.placement.geometry)
-        self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement,
-                                       geometry.kernel_modules)
-        self._kernel_options = (traversal, self.placement, geometry.kernel_modules, len(geometry_buffers))
+        modules = dict(geometry.kernel_modules)
+        if has_cutouts(geometry.texture_records):
+            modules[NO_CUTOUTS] = CUTOUTS
+        self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement, modules)
+        self._kernel_options = (traversal, self.placement, modules, len(geometry_buffers))
         self._aux_pipelines: dict[tuple[int, int], object] = {}
         # A two-level geometry (InstancedGeometry) follows the frame: set_frame rewrites its per-frame part.
         self._geometry, self._geometry_buffers = geometry, geometry_buffers

@@ -19,6 +19,7 @@
 
 // #import accel/geometry_bindings.wgsl
 // #import accel/traversal_lanes.wgsl
+// #import accel/cutouts_none.wgsl
 
 const NO_HIT: u32 = 0xffffffffu;
 const BVH_TINY_DIR: f32 = 1e-20;     // direction components below this are treated as this (no 1/0)
@@ -129,20 +130,27 @@ struct WalkState {
     loop_passes: u32,
 }
 
-// Tests the stored triangles first .. end (fetched by bvh_triangle) against both rays.
+// Tests the stored triangles first .. end (fetched by bvh_triangle) against both rays; where a triangle is
+// cut away at the point met (triangle_cut_away), the ray goes on.
 fn test_triangles(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray: TraversalRay,
                   shadow_length: f32, first: u32, end: u32, instance: u32) {
     (*state).loop_passes += end - first + 1u;   // the triangle loop goes round once even when empty
     for (var prim = first; prim < end; prim += 1u) {
         let p = bvh_triangle(prim);
         let h = triangle_hit(ray, p, (*state).hit.t);
-        if h.x < (*state).hit.t {
+        if h.x < (*state).hit.t && !triangle_cut_away(prim, h.y, h.z) {
             (*state).hit = Hit(h.x, h.y, h.z, prim);
             (*state).hit_triangle = p;
             (*state).hit_instance = instance;
         }
-        (*state).occluded = (*state).occluded || triangle_hit(shadow_ray, p, shadow_length).x < shadow_length;
+        (*state).occluded = (*state).occluded || blocks(shadow_ray, p, shadow_length, prim);
     }
+}
+
+// Whether stored triangle `prim` (positions `p`) stops `ray` within (0, length).
+fn blocks(ray: TraversalRay, p: TrianglePositions, length: f32, prim: u32) -> bool {
+    let h = triangle_hit(ray, p, length);
+    return h.x < length && !triangle_cut_away(prim, h.y, h.z);
 }
 
 // How the walk enters an instance: world → object, and where its bottom level's node copies are (copy

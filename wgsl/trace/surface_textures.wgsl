@@ -1,56 +1,32 @@
 // Colour textures and normal maps (bind group 1, binding 5; laid out by wgpu_rt.trace.scene_data.pack_textures):
 // a header (where the triangle records start, the image count), an entry per image (its first texel's word,
-// width, height), a record per stored triangle (its texture, or NO_TEXTURE, its vertices' texture
-// coordinates as f32 bits, its normal map, or NO_TEXTURE), then the texels as packed 8-bit codes, row 0 the
-// image's top. An image is sampled as Mitsuba's bitmap with bilinear filtering and repeat wrapping:
-// coordinates wrapped to [0, 1), v = 1 at the top, texel centres at half-integers, the four texels decoded
-// (a texture's from sRGB, a normal map's raw) and blended (numpy reference: wgpu_rt.scene.model.sample_texture;
-// a normal map's tilt: mapped_normal).
+// width, height), a record per stored triangle (its texture, or NO_TEXTURE, with CUTOUT_FLAG where the texture's
+// alpha cuts the surface away, trace/cutouts.wgsl; its vertices' texture coordinates as f32 bits; its normal map,
+// or NO_TEXTURE), then the texels as packed 8-bit codes (alpha, where an image has one, in the top byte), row 0
+// the image's top. An image is sampled as Mitsuba's bitmap with bilinear filtering and repeat wrapping:
+// coordinates wrapped to [0, 1), v = 1 at the top, texel centres at half-integers, the four texels decoded (a
+// texture's from sRGB, a normal map's raw) and blended (numpy reference: wgpu_rt.scene.model.sample_texture; a
+// normal map's tilt: mapped_normal).
 
 // #import accel/bvh.wgsl
-
-@group(1) @binding(5) var<storage, read> surface_textures: array<u32>;
-
-const NO_TEXTURE: u32 = 0xffffffffu;        // == wgpu_rt.accel.geometry.NO_TEXTURE
-const TEXTURE_RECORD_WORDS: u32 = 8u;       // == wgpu_rt.accel.geometry.TEXTURE_RECORD_WORDS
-const TEXTURE_HEADER_WORDS: u32 = 4u;       // == wgpu_rt.trace.scene_data.TEXTURE_HEADER_WORDS
-const TEXTURE_ENTRY_WORDS: u32 = 4u;        // == wgpu_rt.trace.scene_data.TEXTURE_ENTRY_WORDS
-
-fn texture_uv(record: u32, k: u32) -> vec2f {
-    return vec2f(bitcast<f32>(surface_textures[record + 1u + 2u * k]),
-                 bitcast<f32>(surface_textures[record + 2u + 2u * k]));
-}
+// #import trace/texture_images.wgsl
 
 // The first word of placed triangle `prim`'s record.
 fn texture_record(prim: u32) -> u32 {
     return surface_textures[0] + TEXTURE_RECORD_WORDS * placed_triangle(prim).stored;
 }
 
-fn record_uv(record: u32, u: f32, v: f32) -> vec2f {
-    return (1.0 - u - v) * texture_uv(record, 0u) + u * texture_uv(record, 1u) + v * texture_uv(record, 2u);
-}
-
-// Texel (column, row) of the image whose texels start at `first`, both wrapped into the image; decoded from
-// sRGB to linear where `srgb`, else read raw (code / 255).
-fn texel(first: u32, size: vec2i, column: i32, row: i32, srgb: bool) -> vec3f {
-    let wrapped = (vec2i(column, row) % size + size) % size;
-    let word = surface_textures[first + u32(wrapped.y * size.x + wrapped.x)];
+// A texel word's colour: decoded from sRGB to linear where `srgb`, else read raw (code / 255).
+fn texel_color(word: u32, srgb: bool) -> vec3f {
     return select(unpack4x8unorm(word).xyz, srgb8_to_linear(word), srgb);
 }
 
 // Image `image` at coordinates `uv`, bilinearly.
 fn sample_image(image: u32, uv: vec2f, srgb: bool) -> vec3f {
-    let entry = TEXTURE_HEADER_WORDS + TEXTURE_ENTRY_WORDS * image;
-    let first = surface_textures[entry];
-    let size = vec2i(i32(surface_textures[entry + 1u]), i32(surface_textures[entry + 2u]));
-    let position = vec2f(fract(uv.x), fract(1.0 - uv.y)) * vec2f(size) - 0.5;
-    let corner = floor(position);
-    let weight = position - corner;
-    let x = i32(corner.x);
-    let y = i32(corner.y);
-    let top = mix(texel(first, size, x, y, srgb), texel(first, size, x + 1, y, srgb), weight.x);
-    let bottom = mix(texel(first, size, x, y + 1, srgb), texel(first, size, x + 1, y + 1, srgb), weight.x);
-    return mix(top, bottom, weight.y);
+    let f = footprint(image, uv);
+    let top = mix(texel_color(f.top_left, srgb), texel_color(f.top_right, srgb), f.weight.x);
+    let bottom = mix(texel_color(f.bottom_left, srgb), texel_color(f.bottom_right, srgb), f.weight.x);
+    return mix(top, bottom, f.weight.y);
 }
 
 // The texture colour at barycentrics (u, v) of placed triangle `prim`: white where its mesh has none, or
@@ -64,7 +40,7 @@ fn texture_color(prim: u32, u: f32, v: f32) -> vec3f {
     if texture == NO_TEXTURE {
         return vec3f(1.0);
     }
-    return sample_image(texture, record_uv(record, u, v), true);
+    return sample_image(texture & ~CUTOUT_FLAG, record_uv(record, u, v), true);
 }
 
 // The unit shading normal `normal` at barycentrics (u, v) of placed triangle `prim` tilted by its mesh's

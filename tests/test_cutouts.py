@@ -1,0 +1,167 @@
+"""Cut-out surfaces: an (H, W, 4) texture's alpha cuts its mesh away where a bilinear sample of it is below one
+half (wgsl/trace/cutouts.wgsl, tested by the walks for closest-hit and shadow rays alike; numpy reference
+``sample_alpha``), loaded from glTF MASK materials and a scene file's ``alpha_cutoff``. Mitsuba's agreement
+(its ``mask`` under ``volpath``) is in tests/test_mitsuba.py."""
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+from trimesh.visual.material import PBRMaterial
+
+from wgpu_rt import renderer as renderer_module
+from wgpu_rt.errors import SceneError
+from wgpu_rt.renderer import render
+from wgpu_rt.scene import Camera, Material, Mesh, PointLight, Scene, load_scene
+from wgpu_rt.scene.meshio import load_mesh_file
+from wgpu_rt.scene.model import CUTOUT_ALPHA, sample_alpha
+from wgpu_rt.scene.primitives import primitive
+from wgpu_rt.scene.transforms import scale, translate
+
+CHECKER = 4     # texels a side
+
+
+def _square(name: str, material: str, transform, texture=None) -> Mesh:
+    """The rectangle primitive ([-1, 1]² at z = 0) placed by ``transform``, its coordinates (x + 1) / 2."""
+    vertices, faces, normals = primitive("rectangle")
+    uvs = None if texture is None else ((vertices[:, :2] + 1) / 2).astype(np.float32)
+    return Mesh(name, vertices, faces, material, normals=normals, transform=np.asarray(transform, np.float32),
+                texture=texture, uvs=uvs)
+
+
+def _checker(alpha: bool = True) -> np.ndarray:
+    """A white CHECKER² texture whose alpha keeps the texels with an even row + column."""
+    kept = (np.add.outer(np.arange(CHECKER), np.arange(CHECKER)) % 2) == 0
+    image = np.full((CHECKER, CHECKER, 4 if alpha else 3), 255, np.uint8)
+    if alpha:
+        image[..., 3] = np.where(kept, 255, 0)
+    return image
+
+
+def _scene(name: str, panels: list[Mesh]) -> Scene:
+    """``panels`` (white) over a red floor, lit by a point light in front, so the holes show the floor and
+    let light through onto it."""
+    floor = _square("floor", "red", translate([0, 0, -1]) @ scale(3))
+    materials = {"red": Material("diffuse", reflectance=[0.8, 0.2, 0.2]), "white": Material("diffuse", reflectance=0.8)}
+    return Scene(Camera([0.3, 0.4, 3], [0, 0, 0], fov=50), [floor, *panels], materials,
+                 lights=[PointLight(np.float32([0.5, 0.8, 2.5]), np.float32([8, 8, 8]))], name=name)
+
+
+def _kept_squares(placement) -> list[Mesh]:
+    """The checker's kept texels as squares of geometry, placed as the cut-out panel is by ``placement``."""
+    squares = []
+    for row in range(CHECKER):
+        for column in range(CHECKER):
+            if (row + column) % 2 == 0:
+                centre = [(column + 0.5) / CHECKER * 2 - 1, 1 - (row + 0.5) / CHECKER * 2, 0]   # row 0 at the top
+                squares.append(_square(f"kept{row}-{column}", "white",
+                                       placement @ translate(centre) @ scale(1 / CHECKER)))
+    return squares
+
+
+def test_a_cut_out_checkerboard_is_the_squares_it_keeps(gpu):
+    """Bilinear alpha of a 0/1 checker crosses one half exactly on the texel edges, so a panel cut out by it is
+    the kept squares as geometry: seen and casting its shadow alike, sample for sample; uncut, it is not."""
+    options = dict(spp=8, size=(48, 48), max_depth=3, aovs=())
+    cut = render(_scene("cut", [_square("panel", "white", np.eye(4), _checker())]), **options).color
+    squares = render(_scene("squares", _kept_squares(np.eye(4))), **options).color
+    whole = render(_scene("whole", [_square("panel", "white", np.eye(4), _checker(alpha=False))]), **options).color
+    assert np.all(np.isfinite(cut))
+    assert np.abs(cut - squares).mean() < 1e-4 * squares.mean()
+    assert np.abs(whole - squares).mean() > 0.1 * squares.mean()
+
+
+def test_instances_of_a_cut_out_panel_are_cut_alike(gpu, monkeypatch):
+    """Placed twice (a two-level scene: each placement walks the one stored shape), both placements are cut."""
+    monkeypatch.setattr(renderer_module, "FLATTEN_PLACED_TRIANGLES", 0)
+    left, right = translate([-0.6, 0, 0]) @ scale(0.5), translate([0.6, 0.1, 0.2]) @ scale(0.5)
+    panel = _square("panel", "white", left, _checker())
+    options = dict(spp=8, size=(48, 48), max_depth=3, aovs=())
+    cut = render(_scene("placed", [panel, panel.instance("again", transform=right)]), **options).color
+    squares = render(_scene("squares", _kept_squares(left) + _kept_squares(right)), **options).color
+    assert np.abs(cut - squares).mean() < 1e-3 * squares.mean()
+
+
+def test_the_albedo_shows_the_surface_where_the_reference_keeps_it(gpu):
+    """A panel that fills the view head-on, its alpha a ramp across and down: every pixel whose four corners
+    ``sample_alpha`` keeps shows the panel's albedo, every pixel whose corners it all cuts the black behind."""
+    size = 64
+    ramp = np.full((3, 5, 4), 255, np.uint8)
+    ramp[..., 3] = np.round(np.add.outer(np.linspace(0, 120, 3), np.linspace(0, 135, 5))).astype(np.uint8)
+    panel = _square("panel", "white", np.eye(4), ramp)
+    # fov along x: the panel's [-1, 1]² fills the film exactly from distance 1 / tan(fov / 2)
+    scene = Scene(Camera([0, 0, 2], [0, 0, 0], fov=float(2 * np.degrees(np.arctan(0.5))), fov_axis="x"), [panel],
+                  {"white": Material("diffuse", reflectance=0.8)}, lights=[PointLight(np.float32([0, 0, 2]),
+                                                                                    np.float32([1, 1, 1]))])
+    albedo = render(scene, spp=4, size=(size, size), max_depth=2, aovs=("albedo",)).aovs["albedo"][..., 0]
+    edges = np.linspace(0, 1, size + 1)
+    corners = sample_alpha(ramp, np.stack(np.meshgrid(edges, 1 - edges), -1).reshape(-1, 2)).reshape(size + 1,
+                                                                                                   size + 1)
+    kept = corners >= CUTOUT_ALPHA
+    whole = kept[:-1, :-1] & kept[1:, :-1] & kept[:-1, 1:] & kept[1:, 1:]
+    gone = ~(kept[:-1, :-1] | kept[1:, :-1] | kept[:-1, 1:] | kept[1:, 1:])
+    assert whole.sum() > 200 and gone.sum() > 200
+    np.testing.assert_allclose(albedo[whole], 0.8, atol=1e-4)
+    np.testing.assert_allclose(albedo[gone], 0.0, atol=1e-6)
+
+
+def test_an_emitter_may_not_be_cut_out():
+    scene = _scene("lamp", [_square("panel", "lamp", np.eye(4), _checker())])
+    scene.materials["lamp"] = Material("diffuse", emission=2.0)
+    with pytest.raises(SceneError, match="mesh 'panel': an emitter cannot be cut out"):
+        render(scene, spp=1, size=(8, 8), aovs=())
+
+
+def _leaf_glb(tmp_path, mode: str, cutoff=None, factor_alpha: float = 1.0):
+    """A .glb box with a base colour texture whose alpha ramps 0 … 255 in sixteen steps."""
+    rgba = np.zeros((4, 4, 4), np.uint8)
+    rgba[..., :3] = 200
+    rgba[..., 3] = np.arange(16).reshape(4, 4) * 17
+    material = PBRMaterial(name="leaf", baseColorTexture=Image.fromarray(rgba, "RGBA"), alphaMode=mode,
+                           alphaCutoff=cutoff, baseColorFactor=[1.0, 1.0, 1.0, factor_alpha])
+    box = trimesh.creation.box()
+    box.visual = trimesh.visual.TextureVisuals(uv=np.random.default_rng(1).random((8, 2)), material=material)
+    box.export(tmp_path / "leaf.glb")
+    return tmp_path / "leaf.glb", rgba[..., 3].astype(np.float64)
+
+
+@pytest.mark.parametrize("cutoff, factor_alpha", [(None, 1.0), (0.3, 1.0), (0.5, 0.6)])
+def test_a_gltf_mask_materials_alpha_cuts_at_its_cutoff(tmp_path, cutoff, factor_alpha):
+    """glTF MASK: kept where the texture's alpha times the base colour factor's reaches alphaCutoff (default ½),
+    shifted so that the cutoff falls at the tracer's one half; OPAQUE and BLEND keep the whole surface."""
+    path, alpha = _leaf_glb(tmp_path, "MASK", cutoff, factor_alpha)
+    (mesh,) = load_mesh_file(path, "paint")
+    assert mesh.is_cut_out
+    expected_kept = alpha / 255 * factor_alpha >= (0.5 if cutoff is None else cutoff) - 1e-3
+    np.testing.assert_array_equal(mesh.texture[..., 3] >= 255 * CUTOUT_ALPHA, expected_kept)
+    for mode in ("OPAQUE", "BLEND"):
+        path, _ = _leaf_glb(tmp_path, mode)
+        assert load_mesh_file(path, "paint")[0].texture.shape[2] == 3
+
+
+def test_a_scene_files_alpha_cutoff(tmp_path):
+    """A mesh entry's ``alpha_cutoff`` reads its texture's alpha; without a texture, or out of [0, 1], it is
+    refused by field."""
+    rgba = np.full((2, 2, 4), 255, np.uint8)
+    rgba[0, 0, 3] = 40
+    Image.fromarray(rgba, "RGBA").save(tmp_path / "leaf.png")
+    entry = {"shape": "rectangle", "material": "white", "texture": "leaf.png", "alpha_cutoff": 0.3}
+    data = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]}, "materials": {"white": {}}, "meshes": [entry]}
+
+    def load():
+        (tmp_path / "scene.json").write_text(json.dumps(data))
+        return load_scene(tmp_path / "scene.json")
+
+    texture = load().meshes[0].texture
+    assert texture.shape == (2, 2, 4) and texture[0, 0, 3] < 128 and np.all(texture.reshape(-1, 4)[1:, 3] >= 128)
+    entry["alpha_cutoff"] = 0.1                                         # 40 / 255 is above: nothing cut
+    assert load().meshes[0].texture.shape == (2, 2, 3)
+    entry["alpha_cutoff"] = 1.5
+    with pytest.raises(SceneError, match=r"meshes\[0\]\.alpha_cutoff: expected a number in \[0, 1\]"):
+        load()
+    del entry["texture"]
+    entry["alpha_cutoff"] = 0.5
+    with pytest.raises(SceneError, match=r"meshes\[0\]\.alpha_cutoff: a cutout needs a 'texture'"):
+        load()
