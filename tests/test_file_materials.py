@@ -67,7 +67,7 @@ def _extend(materials):
 
 def test_a_gltf_files_materials_name_kind_and_values(tmp_path):
     gold = PBRMaterial(name="gold", baseColorFactor=[1.0, 0.8, 0.3, 1.0], metallicFactor=1.0, roughnessFactor=0.3)
-    water = PBRMaterial(name="water", metallicFactor=0.0, roughnessFactor=0.1)
+    water = PBRMaterial(name="water", baseColorFactor=[0.6, 0.9, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=0.1)
     lamp = PBRMaterial(name="lamp", baseColorFactor=[0.9, 0.9, 0.9, 1.0], metallicFactor=0.0, roughnessFactor=0.9)
     unnamed = PBRMaterial(baseColorFactor=[0.2, 0.4, 0.6, 1.0], metallicFactor=0.0, roughnessFactor=0.0)
     path = _glb(tmp_path, [water, lamp, gold, unnamed], edit=_extend)
@@ -77,6 +77,7 @@ def test_a_gltf_files_materials_name_kind_and_values(tmp_path):
     assert names["thing/part3"].startswith("thing/material")     # unnamed: by its index in the file
     water, lamp, gold, unnamed = (scene.materials[names[f"thing/part{i}"]] for i in range(4))
     assert (water.kind, water.ior, water.roughness) == ("dielectric", pytest.approx(1.33), pytest.approx(0.01))
+    np.testing.assert_allclose(water.transmittance, [0.6, 0.9, 1.0], atol=1 / 255)   # the base colour tints it
     assert (lamp.kind, lamp.roughness) == ("plastic", pytest.approx(0.81))   # a rough coat
     np.testing.assert_allclose(lamp.emission, [8.0, 4.0, 2.0])
     assert gold.kind == "conductor" and gold.roughness == pytest.approx(0.09)

@@ -259,6 +259,20 @@ def test_environment_map_matches_mitsuba(gpu):
     assert unturned_distance > 2 * rotated_distance
 
 
+@pytest.mark.parametrize("roughness", [0.0, 0.2])
+def test_tinted_glass_matches_mitsuba(gpu, roughness):
+    """cornell-glossy's glass sphere tinted green at each crossing of its surface (smooth and rough), as Mitsuba's
+    specular_transmittance; the untinted sphere is told apart."""
+    def sphere(tint):
+        scene = load_scene("cornell-glossy")
+        scene.materials["glass"].roughness = roughness
+        scene.materials["glass"].transmittance = np.float32(tint)
+        return scene
+
+    distance, clear_distance = _matches_mitsuba(sphere([0.35, 0.85, 0.45]), sphere([1.0, 1.0, 1.0]))
+    assert clear_distance > 1.5 * distance
+
+
 def _coated(kind: str, ior: float, roughness: float = 0.0):
     """cornell-glossy with its walls, floor and boxes made ``kind`` (plastic: their colours under a coat)."""
     scene = load_scene("cornell-glossy")

@@ -805,6 +805,23 @@ def test_a_scene_with_its_light_scaled_renders_scaled(gpu):
     np.testing.assert_array_equal(render(dim, **options).color * 32, render(scene, **options).color)
 
 
+def test_glass_takes_a_transmittance(tmp_path):
+    """A dielectric's ``transmittance`` tints what crosses it (default white); above 1 it is refused by field."""
+    from wgpu_rt.scene.loader import parse_scene
+
+    data = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]},
+            "materials": {"bottle": {"kind": "dielectric", "transmittance": [0.3, 0.7, 0.4]},
+                          "clear": {"kind": "dielectric"}},
+            "meshes": [{"shape": "sphere", "material": "bottle"}, {"shape": "cube", "material": "clear"}],
+            "lights": [{"type": "point", "position": [0, 2, 2], "intensity": 1}]}
+    materials = parse_scene(data, "scene.json", tmp_path).materials
+    np.testing.assert_allclose(materials["bottle"].transmittance, [0.3, 0.7, 0.4])
+    np.testing.assert_array_equal(materials["clear"].transmittance, [1, 1, 1])
+    data["materials"]["bottle"]["transmittance"] = 1.2
+    with pytest.raises(SceneError, match=r"materials\.bottle: transmittance must be in \[0, 1\]"):
+        parse_scene(data, "scene.json", tmp_path)
+
+
 def test_a_plastic_coat_may_be_rough(tmp_path):
     """A plastic's coat is smooth by default (Mitsuba's plastic) and takes a GGX roughness (its roughplastic);
     one outside [0, 1] is refused by field."""

@@ -39,7 +39,8 @@ def _arrays(scene):
         for f, matrix in mesh.keyframes.items():
             out[f"{mesh.name}@{f}"] = matrix
     for name, m in scene.materials.items():
-        out[f"material {name}"] = np.concatenate([m.reflectance, m.eta, m.k, m.emission, [m.roughness, m.ior]])
+        out[f"material {name}"] = np.concatenate([m.reflectance, m.eta, m.k, m.emission, m.transmittance,
+                                                  [m.roughness, m.ior]])
     for i, light in enumerate(scene.lights):
         out[f"light {i}"] = np.concatenate([np.ravel(v) for v in vars(light).values()])
     return out
@@ -297,6 +298,22 @@ def test_coats_leave_every_other_choice_and_the_held_out_family_alone(monkeypatc
         _assert_alike_but(with_coats, plain, seed,
                           lambda key: key.startswith("material ") and kinds[key[len("material "):]] == "plastic")
     assert coated >= 12 and 0.25 * coated <= rough <= 0.75 * coated
+
+
+def test_tinted_glass_leaves_every_other_choice_and_the_held_out_family_alone(monkeypatch):
+    """Glass tints draw from a random stream of their own: a training world with them is the world without them
+    but for its glass's transmittance; a held-out world's glass stays clear."""
+    tinted = 0
+    for seed in [world_seed("training", n) for n in range(24)] + [world_seed("held_out", n) for n in range(6)]:
+        with_tints, plain = _with_and_without(monkeypatch, "TINTED_GLASS_SHARE", seed)
+        for name, material in with_tints.materials.items():
+            if np.any(material.transmittance < 1):
+                tinted += 1
+                assert family_of(seed) == "training" and material.kind == "dielectric"
+                assert 0.75 <= material.transmittance.max() <= 1 and material.transmittance.min() >= 0.25 * 0.75
+        _assert_alike_but(with_tints, plain, seed,
+                          lambda key: key.startswith("material ") and with_tints.materials[key[9:]].kind == "dielectric")
+    assert tinted >= 4
 
 
 def test_normal_maps_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):

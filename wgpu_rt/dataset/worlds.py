@@ -37,7 +37,9 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
   a stream of its own (``WORLDS_VERSION`` 7);
 - in the training family only, a share of those coats rough (``ROUGH_COAT_SHARE``: Mitsuba's roughplastic, GGX
   alpha 0.02–0.6, log-uniform), so the denoiser sees blurred highlights on glossy non-metals, as most of a glTF
-  file's non-metals now render (``file_materials``); from a stream of its own (``WORLDS_VERSION`` 8).
+  file's non-metals now render (``file_materials``); from a stream of its own (``WORLDS_VERSION`` 8);
+- in the training family only, some glass tinted (``TINTED_GLASS_SHARE``: a colour at each crossing of its
+  surface, as glTF's transmission tints by the base colour), from a stream of its own (also version 8).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -90,7 +92,7 @@ UP = np.array([0.0, 1.0, 0.0])
 CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, metres
 # What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
 # worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera; 5: skies as environment maps;
-# 6: coated (plastic) materials; 7: normal maps on set surfaces; 8: rough coats.
+# 6: coated (plastic) materials; 7: normal maps on set surfaces; 8: rough coats, tinted glass.
 WORLDS_VERSION = 8
 LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
 PAINTED_SHARE = 0.5         # of the training worlds
@@ -101,6 +103,7 @@ SKY_MAP_SIZE = (32, 64)     # a procedural sky's rows and columns
 PLASTIC_SHARE = 0.3         # of the training worlds' matte materials (not emitters)
 ROUGH_COAT_SHARE = 0.5      # of those coats
 ROUGH_COAT_ALPHAS = (0.02, 0.6)   # a rough coat's GGX alpha, log-uniform
+TINTED_GLASS_SHARE = 0.4    # of the training worlds' glass materials
 SET_RECTANGLES = ("ground", "floor", "ceiling", "back", "front", "left", "right")   # build_set's flat surfaces
 PATTERNS = ("checker", "stripes", "blotches", "mottle")
 NORMAL_MAP_SHARE = 0.4      # of the training worlds; each flat set surface of those then has one with odds 1/2
@@ -153,6 +156,7 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
         world.add_sky_map(np.random.default_rng(np.random.SeedSequence([int(seed), 0x5C1E])))
         world.coat_materials(np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0A7])),
                              np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0A8])))
+        world.tint_glass(np.random.default_rng(np.random.SeedSequence([int(seed), 0x71A7])))
         world.add_normal_maps(np.random.default_rng(np.random.SeedSequence([int(seed), 0xB0B5])))
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
 
@@ -459,6 +463,17 @@ class _World:
             if coat and name not in painted:
                 self.materials[name] = Material("plastic", reflectance=material.reflectance, ior=ior,
                                                 roughness=alpha if rough else 0.0)
+
+    def tint_glass(self, rng: np.random.Generator) -> None:
+        """Each glass material takes, with probability TINTED_GLASS_SHARE, a transmittance: a colour whose
+        brightest channel is 0.75–1 and whose others are 0.25–1 of it (bottle green, amber, blue-grey, ...)."""
+        for name in sorted(self.materials):
+            material = self.materials[name]
+            if material.kind != "dielectric":
+                continue
+            tinted, colour, peak = rng.uniform() < TINTED_GLASS_SHARE, rng.uniform(0.25, 1.0, 3), rng.uniform(0.75, 1)
+            if tinted:
+                material.transmittance = (colour / colour.max() * peak).astype(np.float32)
 
     def add_normal_maps(self, rng: np.random.Generator) -> None:
         """With probability NORMAL_MAP_SHARE, each flat set surface (a rectangle: floor, ceiling, walls, the

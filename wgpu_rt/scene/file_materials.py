@@ -5,7 +5,8 @@ Both formats describe a surface by a base colour, how metallic it is, a perceptu
 alpha is r², as glTF defines it), how much light it transmits and what it emits. The tracer has no blend of
 them, so each material becomes the one kind that carries most of its look:
 
-- transmission ≥ 0.5: ``dielectric`` of the file's ior (untinted: the tracer's glass has no colour);
+- transmission ≥ 0.5: ``dielectric`` of the file's ior, its transmittance the base colour (glTF tints what the
+  surface transmits by it; the tracer, as Mitsuba's specular_transmittance, at each crossing);
 - else metallic ≥ 0.5: ``conductor`` whose Fresnel term is 1, tinted by the base colour (glTF's metals reflect
   their base colour head-on and rise to white only at grazing angles, which this leaves out);
 - else ``plastic``: the base colour under a coat of the file's ior and GGX alpha r² (glTF's non-metals are a
@@ -39,7 +40,7 @@ def pbr_material(base_color, metallic: float, roughness: float, transmission: fl
     ``specular`` a non-metal has no specular layer."""
     alpha, emission = float(roughness) ** 2, np.asarray(emission, np.float32)
     if transmission >= 0.5:
-        return Material("dielectric", ior=ior, roughness=alpha, emission=emission)
+        return Material("dielectric", ior=ior, roughness=alpha, transmittance=base_color, emission=emission)
     if metallic >= 0.5:
         return Material("conductor", reflectance=base_color, roughness=alpha, eta=0.0, k=1.0, emission=emission)
     if specular:

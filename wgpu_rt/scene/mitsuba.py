@@ -112,7 +112,8 @@ def material_to_bsdf(material: Material, vertex_colored: bool = False, reflectan
         if material.roughness > 0:
             bsdf.update(type="roughconductor", distribution="ggx", alpha=float(material.roughness))
         return bsdf
-    bsdf = {"type": "dielectric", "int_ior": float(material.ior), "ext_ior": 1.0}
+    bsdf = {"type": "dielectric", "int_ior": float(material.ior), "ext_ior": 1.0,
+            "specular_transmittance": _rgb(material.transmittance)}
     if material.roughness > 0:
         bsdf.update(type="roughdielectric", distribution="ggx", alpha=float(material.roughness))
     return bsdf

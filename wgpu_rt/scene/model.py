@@ -41,7 +41,9 @@ class Material:
     - ``conductor``: GGX microfacet metal, complex IOR ``eta`` + i·``k`` per channel, tinted by
       ``reflectance`` (Mitsuba's specular_reflectance); ``roughness`` is the GGX alpha (0 = mirror).
       The default eta=0, k=1 is a perfect mirror, as Mitsuba's material 'none'.
-    - ``dielectric``: glass with interior ``ior`` over exterior 1.0; ``roughness`` 0 = smooth.
+    - ``dielectric``: glass with interior ``ior`` over exterior 1.0; ``roughness`` 0 = smooth; light that
+      crosses its surface (either way) is tinted by ``transmittance`` (Mitsuba's specular_transmittance: a
+      closed glass object tints what passes through it twice).
     - ``plastic``: Lambertian ``reflectance`` under a dielectric coat of ``ior``, smooth at ``roughness`` 0
       (Mitsuba's ``plastic``, linear: Fresnel-weighted mirror reflection at the coat, the rest diffuse, each way
       through it), else a GGX coat of that alpha (Mitsuba's ``roughplastic``, linear).
@@ -55,12 +57,14 @@ class Material:
     eta: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     k: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    transmittance: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
 
     def __post_init__(self):
         if self.kind not in MATERIAL_KINDS:
             raise ValueError(f"unknown material kind {self.kind!r}; expected one of {MATERIAL_KINDS}")
         # A reflectance above 1 would create energy.
         self.reflectance = _rgb(self.reflectance, "reflectance", highest=1.0)
+        self.transmittance = _rgb(self.transmittance, "transmittance", highest=1.0)
         self.eta = _rgb(self.eta, "eta")
         self.k = _rgb(self.k, "k")
         self.emission = _rgb(self.emission, "emission")

@@ -2,7 +2,8 @@
 // normal, so wi.z < 0 means the path is inside). Smooth: reflect with probability F, else refract
 // (Fresnel-weighted choice, so the weight is 1 or the radiance scale 1/eta²). Rough: Walter et al.'s
 // GGX microfacet BSDF with the visible normals of the incident side sampled, as Mitsuba's
-// roughdielectric (weight G1(wo), times 1/eta² for transmission).
+// roughdielectric (weight G1(wo), times 1/eta² for transmission). Transmission either way is tinted by
+// the material's transmittance (Mitsuba's specular_transmittance).
 
 // #import trace/material.wgsl
 // #import trace/microfacet.wgsl
@@ -26,6 +27,11 @@ fn fresnel_dielectric(cos_i: f32, ior: f32) -> Fresnel {
     let a_p = (eta_ti * ci - ct) / (eta_ti * ci + ct);
     let cos_t = select(ct, -ct, cos_i >= 0.0);
     return Fresnel(0.5 * (a_s * a_s + a_p * a_p), cos_t, eta_ti);
+}
+
+// The tint of light crossing the surface (wgpu_rt.trace.scene_data packs it in the record's eta).
+fn dielectric_transmittance(m: Material) -> vec3f {
+    return m.eta;
 }
 
 fn refract_about(wi: vec3f, m: vec3f, fr: Fresnel) -> vec3f {
@@ -60,7 +66,7 @@ fn dielectric_eval(m: Material, wi: vec3f, wo: vec3f) -> BsdfEval {
     let denom = dot_wi_h + eta * dot_wo_h;
     let value = abs((1.0 - f) * d * g * dot_wi_h * dot_wo_h / (cos_i * denom * denom));
     let pdf = (1.0 - f) * pdf_h * eta * eta * abs(dot_wo_h) / (denom * denom);
-    return BsdfEval(vec3f(value), pdf);
+    return BsdfEval(value * dielectric_transmittance(m), pdf);
 }
 
 fn dielectric_sample(m: Material, wi: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
@@ -73,7 +79,7 @@ fn dielectric_sample(m: Material, wi: vec3f, u_lobe: f32, u: vec2f) -> BsdfSampl
             return BsdfSample(vec3f(-wi.x, -wi.y, wi.z), 0.0, vec3f(1.0), 1.0, true);
         }
         let wo = vec3f(-wi.x / fr.eta_ti, -wi.y / fr.eta_ti, fr.cos_t);
-        return BsdfSample(wo, 0.0, vec3f(1.0 / (fr.eta_ti * fr.eta_ti)), fr.eta_ti, true);
+        return BsdfSample(wo, 0.0, dielectric_transmittance(m) / (fr.eta_ti * fr.eta_ti), fr.eta_ti, true);
     }
     let alpha = m.roughness;
     let side = sign(wi.z);
@@ -97,5 +103,5 @@ fn dielectric_sample(m: Material, wi: vec3f, u_lobe: f32, u: vec2f) -> BsdfSampl
     let denom = dot_wi_h + fr.eta_ti * dot_wo_h;
     let pdf = (1.0 - fr.reflectance) * pdf_h * fr.eta_ti * fr.eta_ti * abs(dot_wo_h) / (denom * denom);
     let weight = ggx_g1(wo, h, alpha) / (fr.eta_ti * fr.eta_ti);
-    return BsdfSample(wo, pdf, vec3f(weight), fr.eta_ti, false);
+    return BsdfSample(wo, pdf, weight * dielectric_transmittance(m), fr.eta_ti, false);
 }

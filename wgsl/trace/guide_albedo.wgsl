@@ -23,7 +23,7 @@ fn surface_albedo(m: Material) -> vec3f {
         return m.reflectance * fresnel_conductor(1.0, m.eta, m.k);
     }
     if HAS_DIELECTRIC && m.kind == MATERIAL_DIELECTRIC {
-        return vec3f(1.0);
+        return dielectric_transmittance(m);
     }
     if HAS_AREA_LIGHTS && m.is_emissive != 0u {
         return max(m.reflectance, vec3f(EMITTER_ALBEDO_FLOOR));

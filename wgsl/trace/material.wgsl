@@ -15,7 +15,8 @@ struct Material {
     kind: u32,
     emission: vec3f,
     roughness: f32,
-    eta: vec3f,     // conductor: real part of the complex index of refraction; rough plastic: its coat's table
+    eta: vec3f,     // conductor: real part of the complex index of refraction; rough plastic: its coat's table;
+                    // dielectric: the tint of light crossing it (dielectric_transmittance)
     ior: f32,       // dielectric: interior index over an exterior of 1
     k: vec3f,       // conductor: imaginary part; rough plastic: the rest of the table (trace/bsdf_plastic.wgsl)
     is_emissive: u32,
