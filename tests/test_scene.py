@@ -190,7 +190,9 @@ def test_to_mitsuba_converts_every_feature(mi, spec):
 
     scene = load_scene(spec)
     converted = to_mitsuba(scene, 8, 6, 2, max_depth=5, frame=scene.frame_count - 1, seed=3)
-    assert converted["integrator"] == {"type": "path", "max_depth": 5}
+    # volpath passes a mask's holes (a cut-out surface) as the tracer does; path otherwise
+    integrator = "volpath" if any(mesh.is_cut_out for mesh in scene.meshes) else "path"
+    assert converted["integrator"] == {"type": integrator, "max_depth": 5}
     assert converted["sensor"]["film"]["rfilter"] == {"type": "box"}
     image = np.array(mi.render(mi.load_dict(converted)))
     assert image.shape == (6, 8, 3) and np.all(np.isfinite(image)) and image.max() > 0
@@ -208,6 +210,10 @@ def test_to_mitsuba_material_mapping():
     assert material_to_bsdf(Material("conductor"))["type"] == "conductor"
     assert material_to_bsdf(Material("dielectric", ior=1.33))["int_ior"] == pytest.approx(1.33)
     assert material_to_bsdf(Material("dielectric", roughness=0.1))["type"] == "roughdielectric"
+    assert material_to_bsdf(Material("dielectric", transmittance=[0.2, 0.5, 1]))["specular_transmittance"] == {
+        "type": "rgb", "value": pytest.approx([0.2, 0.5, 1])}
+    assert material_to_bsdf(Material("plastic", roughness=0.2))["type"] == "roughplastic"
+    assert material_to_bsdf(Material("plastic"))["type"] == "plastic"
 
 
 # -- scene files -------------------------------------------------------------------------------------
