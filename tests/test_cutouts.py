@@ -165,3 +165,33 @@ def test_a_scene_files_alpha_cutoff(tmp_path):
     entry["alpha_cutoff"] = 0.5
     with pytest.raises(SceneError, match=r"meshes\[0\]\.alpha_cutoff: a cutout needs a 'texture'"):
         load()
+
+
+def _obj_with_mask(tmp_path, statements: str, mask: np.ndarray):
+    (tmp_path / "leaf.obj").write_text("mtllib leaf.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                       "usemtl m\nf 1/1 2/2 3/3\n")
+    (tmp_path / "leaf.mtl").write_text("newmtl m\nKd 0.5 0.5 0.5\n" + statements)
+    Image.fromarray(mask).save(tmp_path / "mask.png")
+    return tmp_path / "leaf.obj"
+
+
+def test_an_obj_materials_map_d_cuts_it_out(tmp_path):
+    """An OBJ material's ``map_d`` (its grey level, or an alpha channel where it has one) cuts the surface away
+    below one half, read at the colour image's size (white where the material has none); a missing file is
+    refused by name."""
+    grey = np.zeros((8, 8), np.uint8)
+    grey[:, 4:] = 255                                            # the right half kept
+    Image.fromarray(np.full((4, 4, 3), 200, np.uint8)).save(tmp_path / "colour.png")
+    (mesh,) = load_mesh_file(_obj_with_mask(tmp_path, "map_Kd colour.png\nmap_d -imfchan m mask.png\n", grey), "x")
+    assert mesh.texture.shape == (4, 4, 4)
+    np.testing.assert_array_equal(mesh.texture[..., :3], 200)
+    np.testing.assert_array_equal(mesh.texture[..., 3] >= 128, np.tile([False, False, True, True], (4, 1)))
+    (bare,) = load_mesh_file(_obj_with_mask(tmp_path, "map_d mask.png\n", grey), "x")
+    assert bare.texture.shape == (8, 8, 4) and np.all(bare.texture[..., :3] == 255)
+    rgba = np.zeros((2, 2, 4), np.uint8)
+    rgba[..., 3] = [[0, 255], [255, 255]]                         # alpha, where the image has one, not grey
+    (alpha,) = load_mesh_file(_obj_with_mask(tmp_path, "map_d mask.png\n", rgba), "x")
+    np.testing.assert_array_equal(alpha.texture[..., 3] >= 128, [[False, True], [True, True]])
+    (tmp_path / "mask.png").unlink()
+    with pytest.raises(SceneError, match=r"leaf\.obj.*its material's map_d: .*mask\.png: texture image not found"):
+        load_mesh_file(tmp_path / "leaf.obj", "x")

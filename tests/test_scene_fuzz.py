@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from PIL import Image
 
 from wgpu_rt.accel.geometry import GeometryBuffers, InstancedGeometry
 from wgpu_rt.errors import WgpuRtError
 from wgpu_rt.scene import load_scene
 
-# Every kind of field: camera keyframes, all material kinds, each transform form, a mesh file, mesh
-# keyframes, instances (still, in their own material, animated), both light types.
+# Every kind of field: camera keyframes, all material kinds, each transform form, a mesh file, a texture
+# that cuts its surface out, mesh keyframes, instances (still, in their own material, animated), both light types.
 VALID = {
     "name": "fuzz",
     "frame_count": 3,
@@ -25,7 +26,8 @@ VALID = {
         "white": {"kind": "diffuse", "reflectance": [0.8, 0.7, 0.6]},
         "lamp": {"reflectance": 0.5, "emission": [12, 11, 9]},
         "copper": {"kind": "conductor", "roughness": 0.15, "eta": [0.27, 0.68, 1.32], "k": [3.61, 2.63, 2.29]},
-        "glass": {"kind": "dielectric", "ior": 1.5, "roughness": 0.1},
+        "glass": {"kind": "dielectric", "ior": 1.5, "roughness": 0.1, "transmittance": [0.5, 0.8, 0.6]},
+        "coat": {"kind": "plastic", "ior": 1.4, "roughness": 0.3},
     },
     "meshes": [
         {"name": "floor", "shape": "rectangle", "material": "white",
@@ -37,6 +39,8 @@ VALID = {
         {"name": "box", "shape": "cube", "material": "glass",
          "keyframes": [{"frame": 0, "translate": [0.4, -0.7, 0.2], "scale": 0.3},
                        {"frame": 2, "translate": [0.4, -0.4, 0.2], "scale": 0.3}]},
+        {"name": "leaves", "shape": "rectangle", "material": "coat", "texture": "leaves.png", "alpha_cutoff": 0.4,
+         "texture_repeat": 2, "transform": {"translate": [-0.5, 0, -0.5], "scale": 0.3}},
         {"name": "pebble", "file": "tri.obj", "material": "white", "transform": {"scale": 0.1},
          "instances": [{"transform": {"translate": [-0.5, -0.9, 0.3]}},
                        {"name": "red", "material": "copper", "transform": {"rotate": {"axis": [0, 0, 1], "angle": 45}}},
@@ -99,6 +103,9 @@ def apply(data, path, replacement):
 def folder(tmp_path_factory):
     folder = tmp_path_factory.mktemp("fuzz")
     (folder / "tri.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    leaves = np.full((4, 4, 4), 200, np.uint8)
+    leaves[..., 3] = np.arange(16).reshape(4, 4) * 17
+    Image.fromarray(leaves, "RGBA").save(folder / "leaves.png")
     return folder
 
 
@@ -106,8 +113,9 @@ def test_the_unedited_scene_loads(folder):
     path = folder / "valid.json"
     path.write_text(json.dumps(VALID))
     scene = load_scene(path)
-    assert len(scene.meshes) == 7 and len(scene.lights) == 2 and scene.frame_count == 3
-    assert scene.shapes()[-1] == [4, 5, 6]
+    assert len(scene.meshes) == 8 and len(scene.lights) == 2 and scene.frame_count == 3
+    assert scene.shapes()[-1] == [5, 6, 7]
+    assert scene.meshes[4].is_cut_out
 
 
 @pytest.mark.filterwarnings("error::RuntimeWarning")     # a numpy overflow warning is a finding too

@@ -57,10 +57,13 @@ def file_vertex_colors(geometry: trimesh.Trimesh) -> np.ndarray | None:
     return linear_from_srgb8(rgba[:, :3])
 
 
-def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict) -> tuple[np.ndarray, np.ndarray] | None:
+def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict,
+                 folder: Path | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """A geometry's colour texture: ((H, W, 3) uint8 sRGB image, (V, 2) float32 coordinates per vertex),
     from an OBJ material's image or a glTF material's base colour texture; None where it has none or its
-    coordinates are missing, misshapen or not finite. ``decoded``: see ``_decode``; geometries that share an
+    coordinates are missing, misshapen or not finite. (H, W, 4), cutting the surface away (``with_cutout``),
+    for a glTF MASK material or an OBJ material with a ``map_d`` (``obj_cutout``, its file relative to
+    ``folder``; white where it has no image of its own). ``decoded``: see ``_decode``; geometries that share an
     image share one array. An image that cannot be decoded is a SceneError naming ``where``."""
     visual = geometry.visual
     if getattr(visual, "kind", None) != "texture":
@@ -70,12 +73,31 @@ def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict) -> tuple[
     if image is None:
         image = getattr(material, "baseColorTexture", None)
     uvs = file_uvs(geometry)
-    if image is None or uvs is None:
+    statements = getattr(material, "kwargs", None) or {}
+    mask = obj_cutout(statements, folder, where, decoded) if folder is not None and "map_d" in statements else None
+    if (image is None and mask is None) or uvs is None:
         return None
-    pixels = _decode(image, decoded, f"{where}: cannot read its texture image")
-    if pixels is not None and getattr(material, "alphaMode", None) == "MASK":
+    pixels = None if image is None else _decode(image, decoded, f"{where}: cannot read its texture image")
+    if mask is not None:
+        if pixels is None:
+            pixels = np.full((*mask.shape, 3), 255, np.uint8)
+        key = ("obj cutout", id(mask), id(pixels))
+        if key not in decoded:
+            decoded[key] = (with_cutout(pixels, _resized(mask, pixels.shape[:2]), OBJ_CUTOFF), mask)
+        pixels = decoded[key][0]
+    elif pixels is not None and getattr(material, "alphaMode", None) == "MASK":
         pixels = _cutout_texture(image, pixels, material, decoded)
     return None if pixels is None else (pixels, uvs)
+
+
+def _resized(alpha: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) ``alpha`` codes brought to ``shape`` (bilinearly), as float64."""
+    from PIL import Image
+
+    if alpha.shape == tuple(shape):
+        return alpha.astype(np.float64)
+    image = Image.fromarray(alpha.astype(np.float32), "F").resize((shape[1], shape[0]), Image.BILINEAR)
+    return np.asarray(image, np.float64)
 
 
 def _cutout_texture(image, pixels: np.ndarray, material, decoded: dict) -> np.ndarray:
@@ -147,6 +169,42 @@ def file_normal_map(geometry: trimesh.Trimesh, where: str, decoded: dict, scale:
 # MTL texture options and how many values each takes (the rest of a statement is the file's name).
 MTL_OPTIONS = {"-bm": 1, "-clamp": 1, "-blendu": 1, "-blendv": 1, "-boost": 1, "-mm": 2, "-o": 3, "-s": 3, "-t": 3,
                "-texres": 1, "-imfchan": 1, "-cc": 1, "-type": 1}
+OBJ_CUTOFF = 0.5   # a map_d's alpha below which the surface is cut away (as glTF's default alphaCutoff)
+
+
+def _mtl_texture(tokens) -> tuple[str, dict[str, list[str]]]:
+    """An MTL texture statement's file name and its options (each option's values)."""
+    tokens, options, i = [str(t) for t in tokens], {}, 0
+    while i < len(tokens) and tokens[i].lower() in MTL_OPTIONS:
+        count = MTL_OPTIONS[tokens[i].lower()]
+        options[tokens[i].lower()] = tokens[i + 1:i + 1 + count]
+        i += 1 + count
+    return " ".join(tokens[i:]), options
+
+
+def obj_cutout(statements: dict, folder: Path, where: str, decoded: dict) -> np.ndarray | None:
+    """An OBJ material's ``map_d`` (its file relative to ``folder``) as (H, W) uint8 alpha codes: the image's
+    alpha channel where it has one that is not all opaque, else its grey level; None without one."""
+    from PIL import Image
+
+    tokens = statements.get("map_d")
+    name = _mtl_texture(tokens)[0] if isinstance(tokens, (list, tuple)) else ""
+    if not name:
+        return None
+    path = (folder / name).resolve()
+    if ("alpha", path) not in decoded:
+        if not path.is_file():
+            raise SceneError(f"{where}: its material's map_d: {path}: texture image not found")
+        try:
+            with Image.open(path) as image:
+                rgba = np.asarray(image.convert("RGBA"), np.uint8)
+                grey = np.asarray(image.convert("L"), np.uint8)
+        except Exception as err:   # Pillow raises many types for a file it cannot decode
+            raise SceneError(f"{where}: its material's map_d: {path}: cannot read texture image "
+                             f"({type(err).__name__}: {err})") from err
+        alpha = rgba[..., 3] if np.any(rgba[..., 3] < 255) else grey
+        decoded[("alpha", path)] = (np.ascontiguousarray(alpha), None)
+    return decoded[("alpha", path)][0]
 
 
 def obj_normal_map(statements: dict, folder: Path, where: str, decoded: dict) -> tuple[np.ndarray | None, float]:
@@ -157,16 +215,13 @@ def obj_normal_map(statements: dict, folder: Path, where: str, decoded: dict) ->
         tokens = statements.get(key)
         if not isinstance(tokens, (list, tuple)) or not tokens:
             continue
-        tokens, scale, i = [str(t) for t in tokens], 1.0, 0
-        while i < len(tokens) and tokens[i].lower() in MTL_OPTIONS:
-            count = MTL_OPTIONS[tokens[i].lower()]
-            if tokens[i].lower() == "-bm" and i + 1 < len(tokens):
-                try:
-                    scale = float(tokens[i + 1])
-                except ValueError:
-                    raise SceneError(f"{where}: {key} -bm {tokens[i + 1]!r}: expected a number") from None
-            i += 1 + count
-        name = " ".join(tokens[i:])
+        name, options = _mtl_texture(tokens)
+        scale = 1.0
+        if options.get("-bm"):
+            try:
+                scale = float(options["-bm"][0])
+            except ValueError:
+                raise SceneError(f"{where}: {key} -bm {options['-bm'][0]!r}: expected a number") from None
         if not name:
             continue
         path = (folder / name).resolve()
@@ -302,7 +357,8 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
             if uvs is None:
                 raise SceneError(f"{where}: has no texture coordinates for the texture to be read at")
         else:
-            image, uvs = (file_texture(geometry, where, decoded) if vertex_colors else None) or (None, None)
+            textured = file_texture(geometry, where, decoded, path.parent) if vertex_colors else None
+            image, uvs = textured or (None, None)
         colors = file_vertex_colors(geometry) if vertex_colors and image is None else None
         relief = normal_map if normal_map is not None else file_normal_map(geometry, where, decoded,
                                                                            own.normal_scale(geometry), path.parent)
