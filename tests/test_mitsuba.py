@@ -356,3 +356,13 @@ def test_cut_out_panels_match_mitsuba(gpu):
                                                 _scene("whole", [_square("panel", "white", np.eye(4),
                                                                          _checker(alpha=False))]))
     assert whole_distance > 2 * distance
+
+
+def test_emission_textures_match_mitsuba(gpu):
+    """A lamp whose emission a 2×2 texture tints (red, white, near black, blue), seen and lighting a floor: where a
+    path meets it and where next-event estimation samples it, as Mitsuba's area emitter with a bitmap radiance;
+    the untextured lamp is told apart."""
+    from test_emission_textures import PATTERN, lamp_scene
+
+    distance, plain_distance = _matches_mitsuba(lamp_scene(PATTERN), lamp_scene(None))
+    assert plain_distance > 3 * distance

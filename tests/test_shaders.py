@@ -28,13 +28,19 @@ def test_every_trace_specialization_builds(gpu):
 
 
 @pytest.mark.parametrize("walk", ["threaded", "wide"])
-def test_the_cut_out_kernel_builds_with_each_walk(gpu, walk):
-    """Scenes with cut-out surfaces swap trace/cutouts.wgsl into the walks' triangle test: the kernel builds so
-    with both walks, every feature on and every feature off."""
+@pytest.mark.parametrize("swaps", ["cutouts", "emission textures", "both"])
+def test_the_kernels_of_cut_outs_and_emission_textures_build_with_each_walk(gpu, walk, swaps):
+    """Scenes with cut-out surfaces swap trace/cutouts.wgsl into the walks' triangle test, scenes whose lights have
+    emission textures trace/emission_textures.wgsl into the light sampling: the kernel builds so with both walks,
+    every feature on and every feature off."""
     from wgpu_rt.accel.geometry import BVH_LAYOUTS, NO_CUTOUTS, THREADED_WALK
     from wgpu_rt.trace.features import SceneFeatures
-    from wgpu_rt.trace.trace_pass import CUTOUTS, trace_pipeline
+    from wgpu_rt.trace.trace_pass import CUTOUTS, EMISSION_TEXTURES, PLAIN_EMISSION, trace_pipeline
 
-    modules = {NO_CUTOUTS: CUTOUTS, THREADED_WALK: BVH_LAYOUTS[walk]}
+    modules = {THREADED_WALK: BVH_LAYOUTS[walk]}
+    if swaps != "emission textures":
+        modules[NO_CUTOUTS] = CUTOUTS
+    if swaps != "cutouts":
+        modules[PLAIN_EMISSION] = EMISSION_TEXTURES
     for features in (SceneFeatures.everything(), SceneFeatures.all_combinations()[0]):
         assert trace_pipeline(gpu, features, geometry_bindings=4, geometry_modules=modules) is not None

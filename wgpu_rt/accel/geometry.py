@@ -193,10 +193,10 @@ def _mesh_texture_records(mesh, textures: dict[int, int]) -> np.ndarray:
     faces = np.asarray(mesh.faces, np.int64)
     records = np.zeros((len(faces), TEXTURE_RECORD_WORDS), np.uint32)
     records[:, [0, 7]] = NO_TEXTURE
-    has_image = mesh.texture is not None or mesh.normal_map is not None
+    has_image = mesh.texture is not None or mesh.normal_map is not None or mesh.emission_texture is not None
     if has_image != (mesh.uvs is not None):
-        raise SceneError(f"mesh {mesh.name!r}: a texture or normal map needs its coordinates (uvs), and coordinates "
-                         f"one of them")
+        raise SceneError(f"mesh {mesh.name!r}: a texture, normal map or emission texture needs its coordinates (uvs), "
+                         f"and coordinates one of them")
     if not has_image:
         return records
     uvs = np.asarray(mesh.uvs)
@@ -208,6 +208,8 @@ def _mesh_texture_records(mesh, textures: dict[int, int]) -> np.ndarray:
         if mesh.colors is not None:
             raise SceneError(f"mesh {mesh.name!r}: has both vertex colours and a texture; give it one of them")
         records[:, 0] = textures[id(mesh.texture)] | (CUTOUT_FLAG if mesh.texture.shape[2] == 4 else 0)
+    if mesh.emission_texture is not None:
+        _check_image(mesh, mesh.emission_texture, "emission_texture")
     if mesh.normal_map is not None:
         _check_image(mesh, mesh.normal_map, "normal_map")
         records[:, 7] = textures[id(mesh.normal_map)]

@@ -13,9 +13,10 @@ them, so each material becomes the one kind that carries most of its look:
   diffuse base under a specular layer of ior 1.5, F0 = 0.04; smooth at r = 0, Mitsuba's roughplastic above);
 - an OBJ material that names no specular colour (black or absent ``Ks``) and no ``Pr``: ``diffuse``.
 
-Emission is the emissive colour times its strength. A material's metallic-roughness or emissive texture counts
-by its mean (the tracer keeps one value per material); the base colour texture is read per texel, as before
-(``meshio.file_texture``). Values outside glTF's ranges are a SceneError naming the file and the material.
+Emission is the emissive colour times its strength (its emissive texture, read per texel, tints it:
+``meshio.file_emission_texture``). A material's metallic-roughness texture counts by its mean (the tracer keeps
+one roughness and metalness per material); the base colour texture is read per texel (``meshio.file_texture``).
+Values outside glTF's ranges are a SceneError naming the file and the material.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from .model import Material, linear_from_srgb8
+from .model import Material
 
 # OBJ illumination models that mean refraction (4: glass, 6, 7: refraction with Fresnel, 9: glass, no ray trace).
 OBJ_GLASS_ILLUMS = {4, 6, 7, 9}
@@ -76,16 +77,16 @@ class _Reader:
         return array if length is not None else float(array[0])
 
 
-def _texture_mean(image, where: str, srgb: bool) -> np.ndarray:
-    """The mean of a PIL image's RGB, linear (decoded from sRGB where ``srgb``), as float64."""
+def _texture_mean(image, where: str) -> np.ndarray:
+    """The mean of a PIL image's RGB codes over 255 (read raw, as glTF's metallic-roughness texture is), as
+    float64."""
     try:
         pixels = np.asarray(image.convert("RGB"), np.uint8).reshape(-1, 3)
     except Exception as err:   # PIL raises many types for an image it cannot decode
         raise SceneError(f"{where}: cannot read a texture image ({type(err).__name__}: {err})") from err
     if len(pixels) == 0:
         return np.ones(3)
-    values = linear_from_srgb8(pixels) if srgb else pixels / 255.0
-    return np.asarray(values, np.float64).mean(axis=0)
+    return pixels.mean(axis=0) / 255.0
 
 
 def _uv_matrix(transform: _Reader) -> np.ndarray:
@@ -145,10 +146,8 @@ def gltf_material(entry: dict, where: str, trimesh_material=None) -> Material:
     textures = trimesh_material
     if getattr(textures, "metallicRoughnessTexture", None) is not None:
         # glTF: roughness in the green channel, metalness in the blue, both linear.
-        mean = _texture_mean(textures.metallicRoughnessTexture, where, srgb=False)
+        mean = _texture_mean(textures.metallicRoughnessTexture, where)
         roughness, metallic = roughness * mean[1], metallic * mean[2]
-    if getattr(textures, "emissiveTexture", None) is not None and np.any(emission > 0):
-        emission = emission * _texture_mean(textures.emissiveTexture, where, srgb=True)
     return pbr_material(base, metallic, roughness, transmission, ior, emission)
 
 
@@ -252,10 +251,10 @@ class FileMaterials:
 
     def texture_transform(self, geometry) -> np.ndarray | None:
         """The 3×3 matrix (of glTF's texture coordinates, v down) of the ``KHR_texture_transform`` on
-        ``geometry``'s glTF material's base colour and normal textures, None where neither has one. The tracer
-        reads both at one set of coordinates, so two different transforms are a SceneError."""
+        ``geometry``'s glTF material's base colour, normal and emissive textures, None where none has one. The tracer
+        reads them at one set of coordinates, so two different transforms are a SceneError."""
         matrices = {}
-        for key in ("baseColorTexture", "normalTexture"):
+        for key in ("baseColorTexture", "normalTexture", "emissiveTexture"):
             texture, label = self._texture_info(geometry, key)
             transform = ((texture or {}).get("extensions") or {}).get("KHR_texture_transform")
             if transform is None:
@@ -264,9 +263,9 @@ class FileMaterials:
             if not isinstance(transform, dict):
                 raise SceneError(f"{where}: expected an object, got {transform!r}")
             matrices[key] = _uv_matrix(_Reader(where, transform))
-        if len(matrices) == 2 and not np.allclose(*matrices.values()):
-            raise SceneError(f"{self.path}: material {label!r}: its base colour and normal textures have different "
-                             "KHR_texture_transforms; the tracer reads both at one set of coordinates")
+        if any(not np.allclose(matrix, next(iter(matrices.values()))) for matrix in matrices.values()):
+            raise SceneError(f"{self.path}: material {label!r}: its textures have different KHR_texture_transforms "
+                             f"({', '.join(matrices)}); the tracer reads them at one set of coordinates")
         return next(iter(matrices.values()), None)
 
     def material_of(self, geometry, geometry_name: str) -> str | None:

@@ -345,17 +345,20 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
             fields.fail("a cutout needs a 'texture', whose alpha says where the surface is", "alpha_cutoff")
         texture = with_cutout(texture[..., :3], texture[..., 3], value)
     normal_map = _image_file(fields, "normal_map", folder, read_texture_image)
+    glow = _image_file(fields, "emission_texture", folder, read_texture_image)
     if has_shape:
         kind = fields.string("shape", choices=PRIMITIVES)
         vertices, faces, normals = primitive(kind)
         base = name or kind
         parts = [Mesh(base, vertices, faces, material, normals=normals)]
-        if texture is not None or normal_map is not None:
+        images = {"texture": texture, "normal_map": normal_map, "emission_texture": glow}
+        if any(image is not None for image in images.values()):
             uvs = primitive_uvs(kind)
             if uvs is None:
-                key = "texture" if texture is not None else "normal_map"
+                key = next(key for key, image in images.items() if image is not None)
                 fields.fail(f"a {kind} has no texture coordinates; give a mesh file that has them", key)
-            parts[0].texture, parts[0].normal_map, parts[0].uvs = texture, normal_map, uvs
+            parts[0].texture, parts[0].normal_map, parts[0].emission_texture = texture, normal_map, glow
+            parts[0].uvs = uvs
     else:
         file = fields.string("file")
         path = Path(file) if Path(file).is_absolute() else folder / file
@@ -366,7 +369,8 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         own: dict = {}      # the file's materials, where the entry names none
         try:
             parts = load_mesh_file(path, material, base, vertex_colors=colors, texture=texture,
-                                   materials=own if material is None else None, normal_map=normal_map)
+                                   materials=own if material is None else None, normal_map=normal_map,
+                                   emission_texture=glow)
         except SceneError as err:
             fields.fail(str(err), "file")
         for taken in own:
@@ -378,8 +382,8 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         if np.any(repeat <= 0) or np.any(repeat > MAX_TEXTURE_REPEAT):
             fields.fail(f"expected counts in (0, {MAX_TEXTURE_REPEAT:g}], got {repeat.tolist()}", "texture_repeat")
         if all(part.uvs is None for part in parts):
-            fields.fail("the mesh has no texture to repeat (give 'texture' or 'normal_map', or a mesh file with one)",
-                        "texture_repeat")
+            fields.fail("the mesh has no texture to repeat (give 'texture', 'normal_map' or 'emission_texture', or a "
+                        "mesh file with one)", "texture_repeat")
         for part in parts:
             if part.uvs is not None:
                 part.uvs = (part.uvs * repeat).astype(np.float32)

@@ -303,17 +303,40 @@ def file_uvs(geometry: trimesh.Trimesh) -> np.ndarray | None:
     return uvs.astype(np.float32)
 
 
+def file_emission_texture(geometry: trimesh.Trimesh, where: str, decoded: dict,
+                          folder: Path | None = None) -> np.ndarray | None:
+    """A geometry's emission texture as (H, W, 3) uint8 sRGB codes, None where it has none: its glTF material's
+    emissive texture, or its OBJ material's ``map_Ke`` (its file relative to ``folder``). ``decoded`` shares one
+    array among the geometries that use an image, as ``file_texture``."""
+    material = getattr(geometry.visual, "material", None)
+    image = getattr(material, "emissiveTexture", None)
+    if image is not None:
+        return _decode(image, decoded, f"{where}: cannot read its emissive texture")
+    tokens = (getattr(material, "kwargs", None) or {}).get("map_ke")
+    name = _mtl_texture(tokens)[0] if folder is not None and isinstance(tokens, (list, tuple)) else ""
+    if not name:
+        return None
+    path = (folder / name).resolve()
+    if ("file", path) not in decoded:
+        try:
+            decoded[("file", path)] = (read_texture_image(path), None)
+        except SceneError as err:
+            raise SceneError(f"{where}: its material's map_Ke: {err}") from err
+    return decoded[("file", path)][0]
+
+
 def load_mesh_file(path: Path, material: str | None, name: str | None = None, vertex_colors: bool = True,
                    texture: np.ndarray | None = None, materials: dict | None = None,
-                   normal_map: np.ndarray | None = None) -> list:
+                   normal_map: np.ndarray | None = None, emission_texture: np.ndarray | None = None) -> list:
     """The meshes of the file at ``path``, all with ``material``, named ``name`` (default: file stem), with
     the file's vertex colours or texture (``file_vertex_colors``, ``file_texture``) unless ``vertex_colors``
     is False; ``texture`` (an (H, W, 3) uint8 image) replaces the file's images at the file's texture
     coordinates (a SceneError where a geometry has none). Where the dict ``materials`` is given, each geometry
     that has a material of its own in the file (glTF's, an OBJ file's MTL: ``file_materials``) takes it, added
     to ``materials`` under its name, and the others ``material`` (a SceneError where that is None). A geometry's
-    normal map is the file's (a glTF material's normal texture), or ``normal_map`` in its place, read at the
-    same coordinates; where the file's own images are read, through the material's KHR_texture_transform."""
+    normal map is the file's (a glTF material's normal texture), or ``normal_map`` in its place, and its emission
+    texture likewise (``file_emission_texture``, or ``emission_texture``), read at the same coordinates; where the
+    file's own images are read, through the material's KHR_texture_transform."""
     from .file_materials import FileMaterials, transformed_uvs
     from .model import Mesh
 
@@ -362,10 +385,14 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         colors = file_vertex_colors(geometry) if vertex_colors and image is None else None
         relief = normal_map if normal_map is not None else file_normal_map(geometry, where, decoded,
                                                                            own.normal_scale(geometry), path.parent)
-        uvs = file_uvs(geometry) if uvs is None and relief is not None else uvs
-        if relief is not None and uvs is None:
-            raise SceneError(f"{where}: has no texture coordinates for the normal map to be read at")
-        file_images = (texture is None and image is not None) or (normal_map is None and relief is not None)
+        glow = emission_texture if emission_texture is not None else file_emission_texture(geometry, where, decoded,
+                                                                                           path.parent)
+        uvs = file_uvs(geometry) if uvs is None and (relief is not None or glow is not None) else uvs
+        for what, image_read in (("normal map", relief), ("emission texture", glow)):
+            if image_read is not None and uvs is None:
+                raise SceneError(f"{where}: has no texture coordinates for the {what} to be read at")
+        file_images = ((texture is None and image is not None) or (normal_map is None and relief is not None)
+                       or (emission_texture is None and glow is not None))
         if file_images and (matrix := own.texture_transform(geometry)) is not None:
             uvs = transformed_uvs(uvs, matrix)
         surface = (own.material_of(geometry, geometry_name) if materials is not None else None) or material
@@ -374,7 +401,7 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
                                               surface, normals=normals,
                                               transform=np.asarray(transform, np.float32), colors=colors,
-                                              texture=image, uvs=uvs, normal_map=relief)
+                                              texture=image, uvs=uvs, normal_map=relief, emission_texture=glow)
         meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")

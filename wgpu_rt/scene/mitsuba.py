@@ -17,7 +17,8 @@ BSDF its material maps to:
 - diffuse and conductor BSDFs are wrapped in ``twosided``: our tracer shades both faces of them alike
   (wgsl/trace/trace.wgsl), while Mitsuba's are black seen from behind. Back faces show wherever a one-sided
   rectangle is seen from outside, e.g. the outer sides of sun-room's crate.
-- emissive materials add a one-sided ``area`` emitter; point, spot and directional lights and a non-black
+- emissive materials add a one-sided ``area`` emitter (its radiance a ``bitmap`` of a mesh's emission texture times
+  the emission); point, spot and directional lights and a non-black
   background (``constant``, or ``envmap`` of the environment map times the background) map to their Mitsuba
   plugins.
 
@@ -135,7 +136,8 @@ def _mitsuba_mesh(mi, name: str, vertices, faces, normals, bsdf: dict, emission,
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf)
     if emission is not None:
-        props["emitter"] = mi.load_dict({"type": "area", "radiance": _rgb(emission)})
+        props["emitter"] = mi.load_dict({"type": "area", "radiance": emission if isinstance(emission, dict)
+                                         else _rgb(emission)})
     mesh = mi.Mesh(name, len(vertices), len(faces), props=props, has_vertex_normals=normals is not None,
                    has_vertex_texcoords=uvs is not None)
     params = mi.traverse(mesh)
@@ -218,8 +220,11 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         bsdf = surface_bsdf(material, colors is not None, textured, tilted)
         if mesh.is_cut_out:
             bsdf = {"type": "mask", "opacity": cutout_opacity(mi, mesh.texture), "bsdf": bsdf}
+        emission = material.emission if material.is_emissive else None
+        if emission is not None and mesh.emission_texture is not None:
+            emission = textured_reflectance(mi, mesh.emission_texture, emission)   # radiance, tinted alike
         result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
-                                    bsdf, material.emission if material.is_emissive else None,
+                                    bsdf, emission,
                                     None if colors is None else colors * material.reflectance, mesh.uvs)
     for index, light in enumerate(scene.lights):
         if isinstance(light, SpotLight):

@@ -170,6 +170,9 @@ class Mesh:
     # v, z along the interpolated normal (OpenGL's and glTF's convention; Mitsuba's ``normalmap``): the
     # shading normal there becomes ``mapped_normal``.
     normal_map: np.ndarray | None = None
+    # An emission texture at the same coordinates: (H, W, 3) uint8 sRGB codes, sampled as ``texture`` is, whose
+    # colour multiplies the emission of the mesh's material (glTF's emissiveTexture), seen and sampled alike.
+    emission_texture: np.ndarray | None = None
 
     def transform_at(self, frame: int) -> np.ndarray:
         return _interpolate(self.keyframes, frame, self.transform)
@@ -187,19 +190,20 @@ class Mesh:
     def shape_key(self) -> tuple[int, ...]:
         """Equal for meshes that share their arrays (instances of one shape), else different."""
         return (id(self.vertices), id(self.faces), id(self.normals), id(self.colors), id(self.texture), id(self.uvs),
-                id(self.normal_map))
+                id(self.normal_map), id(self.emission_texture))
 
     def instance(self, name: str, material: str | None = None, transform=None, keyframes=None) -> Mesh:
         """Another placement of this mesh's shape (its arrays shared, not copied, and made read-only so
         that an edit cannot move every instance at once), with its own name, material (default: this
         mesh's), transform (default: identity) and keyframes (default: none)."""
-        for array in (self.vertices, self.faces, self.normals, self.colors, self.texture, self.uvs, self.normal_map):
+        for array in (self.vertices, self.faces, self.normals, self.colors, self.texture, self.uvs, self.normal_map,
+                      self.emission_texture):
             if array is not None:
                 array.flags.writeable = False
         placement = np.eye(4) if transform is None else transform
         return Mesh(name, self.vertices, self.faces, self.material if material is None else material,
                     self.normals, np.asarray(placement, np.float32), dict(keyframes or {}), self.colors,
-                    self.texture, self.uvs, self.normal_map)
+                    self.texture, self.uvs, self.normal_map, self.emission_texture)
 
 
 def srgb8(colors: np.ndarray) -> np.ndarray:
@@ -381,9 +385,10 @@ class Scene:
                       (1 - w) * a.focus_distance + w * b.focus_distance)
 
     def textures(self) -> list[np.ndarray]:
-        """The meshes' texture images and normal maps, each distinct array once, in order of first appearance (a
-        mesh's image's index in this list is the one the tracer stores for its triangles)."""
-        images = [image for m in self.meshes for image in (m.texture, m.normal_map) if image is not None]
+        """The meshes' texture images, normal maps and emission textures, each distinct array once, in order of
+        first appearance (a mesh's image's index in this list is the one the tracer stores for its triangles)."""
+        images = [image for m in self.meshes for image in (m.texture, m.normal_map, m.emission_texture)
+                  if image is not None]
         return list({id(image): image for image in images}.values())
 
     def shapes(self) -> list[list[int]]:

@@ -32,7 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.model import DirectionalLight, Material, PointLight, Scene, SpotLight
+from ..accel.geometry import NO_TEXTURE
+from ..scene.model import DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8
 from .coat import coat_words
 
 MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "plastic": 3}
@@ -53,7 +54,7 @@ MATERIAL_DTYPE = np.dtype([
 EMITTER_DTYPE = np.dtype([
     ("position", "<f4", 3), ("kind", "<u4"), ("edge1", "<f4", 3), ("share", "<f4"),
     ("edge2", "<f4", 3), ("area", "<f4"), ("radiance", "<f4", 3), ("alias_threshold", "<f4"),
-    ("alias_index", "<u4"), ("group", "<u4"), ("pad", "<u4", 2)])
+    ("alias_index", "<u4"), ("group", "<u4"), ("triangle", "<u4"), ("emission_image", "<u4")])
 
 EMITTER_GROUP_DTYPE = np.dtype([
     ("center", "<f4", 3), ("kind", "<u4"), ("normal", "<f4", 3), ("radius", "<f4"),
@@ -305,7 +306,14 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
     triangle_material = np.asarray(material_ids, np.intp)[numbers]
     material_emission = np.array([m.emission for m in materials], np.float64).reshape(-1, 3)
     emission = material_emission[triangle_material].reshape(-1, 3)
-    triangle_power = np.pi * area * (emission @ LUMINANCE)
+    # an emission texture: its image's number, and its mean colour in the triangle's power (a pick's weight)
+    image_numbers = {id(image): i for i, image in enumerate(scene.textures())}
+    textures = [None if object_ids is None else mesh.emission_texture for mesh in scene.meshes]
+    triangle_image = np.array([NO_TEXTURE if textures[o] is None else image_numbers[id(textures[o])]
+                               for o in triangle_object] if textures else [], np.uint32).reshape(-1)
+    means = {i: linear_from_srgb8(t).reshape(-1, 3).mean(0) for i, t in enumerate(textures) if t is not None}
+    mean_colour = np.array([means.get(o, np.ones(3)) for o in triangle_object], np.float64).reshape(-1, 3)
+    triangle_power = np.pi * area * ((emission * mean_colour) @ LUMINANCE)
 
     lights = []  # (kind, position, edge1, radiance, power, group kind, importance power, edge2)
     radius = min(scene_radius, max(view_radius(scene.camera), VIEW_RADIUS_FLOOR * scene_radius))
@@ -337,6 +345,9 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
     records["position"][:triangle_count] = tri[:, 0]
     records["edge1"][:triangle_count], records["edge2"][:triangle_count] = edge1, edge2
     records["area"][:triangle_count], records["radiance"][:triangle_count] = area, emission
+    records["triangle"][:triangle_count] = numbers
+    records["emission_image"] = NO_TEXTURE
+    records["emission_image"][:triangle_count] = triangle_image
     for i, (kind, position, direction, value, *_, cone) in enumerate(lights, start=triangle_count):
         records["kind"][i], records["position"][i], records["edge1"][i], records["radiance"][i] = (
             kind, position, direction, value)

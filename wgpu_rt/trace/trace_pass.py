@@ -93,6 +93,8 @@ GUIDE_ALBEDO = 3
 
 
 CUTOUTS = "trace/cutouts.wgsl"   # in place of accel/cutouts_none.wgsl where a scene cuts surfaces away
+PLAIN_EMISSION = "trace/emission_plain.wgsl"              # what trace/emitters.wgsl imports
+EMISSION_TEXTURES = "trace/emission_textures.wgsl"        # in its place where a scene's lights have textures
 STORAGE_TABLES = "trace/shading_tables_storage.wgsl"   # what trace/trace_bindings.wgsl imports
 UNIFORM_TABLES = "trace/shading_tables_uniform.wgsl"
 # Records per table in UNIFORM_TABLES (its array sizes): 16 KiB of materials, 40 KiB of emitters.
@@ -380,6 +382,9 @@ class TracePass(ComputePass):
         modules = dict(geometry.kernel_modules)
         if has_cutouts(geometry.texture_records):
             modules[NO_CUTOUTS] = CUTOUTS
+        if any(mesh.emission_texture is not None and scene.materials[mesh.material].is_emissive
+               for mesh in scene.meshes):
+            modules[PLAIN_EMISSION] = EMISSION_TEXTURES
         self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement, modules)
         self._kernel_options = (traversal, self.placement, modules, len(geometry_buffers))
         self._aux_pipelines: dict[tuple[int, int], object] = {}

@@ -11,6 +11,7 @@
 // #import trace/trace_bindings.wgsl
 // #import trace/sampling.wgsl
 // #import trace/environment.wgsl
+// #import trace/emission_plain.wgsl
 
 struct EmitterSample {
     direction: vec3f,
@@ -126,7 +127,7 @@ fn sample_triangle_emitter(e: Emitter, pmf: f32, x: vec3f, u: vec2f) -> EmitterS
         return EmitterSample(dir, dist, vec3f(0.0), 0.0);
     }
     let pdf = pmf / e.area * dist2 / cos_light;
-    return EmitterSample(dir, dist, e.radiance / pdf, pdf);
+    return EmitterSample(dir, dist, e.radiance * emission_color(e.emission_image, e.triangle, b.x, b.y) / pdf, pdf);
 }
 
 // The share of a point light's intensity it sends along unit direction `out`: 1 for a point light (no

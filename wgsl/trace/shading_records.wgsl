@@ -22,8 +22,8 @@ struct Emitter {
     alias_threshold: f32,
     alias_index: u32,
     group: u32,           // the emitter group it belongs to
-    pad0: u32,
-    pad1: u32,
+    triangle: u32,        // triangle: the placed triangle it is
+    emission_image: u32,  // triangle: its mesh's emission texture (trace/surface_textures.wgsl), or NO_TEXTURE
 }
 
 const GROUP_CONSTANT: u32 = 0u;   // a sun, a sky, or the one group of everything

@@ -126,7 +126,8 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
                                                  hit.t, cos_front);
             weight = power_heuristic((*path).previous_pdf, light_pdf);
         }
-        (*path).radiance += (*path).throughput * material.emission * weight;
+        let emitted = material.emission * triangle_emission_color(hit.prim, hit.u, hit.v);
+        (*path).radiance += (*path).throughput * emitted * weight;
     }
 
     let normals = shading_normals_at(hit, geometric_normal, material, dir);
