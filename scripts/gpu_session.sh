@@ -79,7 +79,8 @@
 # them, and `tests` checks them under a shrunken limit. Session 48 had no GPU; since then the training worlds are
 # worlds_version 6 (§47: a quarter of the cameras through a thin lens, half the skies as environment maps, three
 # in ten matte materials coated as plastic); session 49 made it 7 (§48: normal maps on some worlds' floors and
-# walls) and session 50 8 (§49: half the coats rough), so call 1's renders are the first with any of them;
+# walls) and session 50 8 (§49: half the coats rough, some glass tinted, cut-out screens in view), so call 1's
+# renders are the first with any of them (the screens' golds render through Mitsuba's volpath);
 # train_eval should also score
 # benchmarks/scenes/plaza-lens.toml, examples/sky-courtyard.toml and examples/still-life.toml (bench_spp.py).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped

@@ -316,6 +316,44 @@ def test_tinted_glass_leaves_every_other_choice_and_the_held_out_family_alone(mo
     assert tinted >= 4
 
 
+def test_screens_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):
+    """Cut-out screens draw from a random stream of their own: a training world with one is the world without it
+    plus the screen, which stands in the view between the camera and its target, is cut out by its texture and
+    keeps clear of glass and lamps (none where it would not); a held-out world never has one."""
+    from wgpu_rt.scene.transforms import transform_points
+
+    screens = 0
+    for seed in [world_seed("training", n) for n in range(24)] + [world_seed("held_out", n) for n in range(6)]:
+        with_screen, plain = _with_and_without(monkeypatch, "SCREEN_SHARE", seed)
+        added = [mesh for mesh in with_screen.meshes if mesh.name == "screen"]
+        assert len(added) <= (family_of(seed) == "training")
+        if not added:
+            continue
+        corners = transform_points(added[0].transform, added[0].vertices)
+        for other in with_screen.meshes:
+            material = with_screen.materials[other.material]
+            if material.kind == "dielectric" or material.is_emissive:
+                points = transform_points(other.transform, other.vertices)
+                assert np.any(points.min(0) > corners.max(0)) or np.any(corners.min(0) > points.max(0)), other.name
+        screens += 1
+        (screen,) = added
+        assert screen.is_cut_out and screen.uvs is not None
+        kept = screen.texture[..., 3] >= 128
+        assert 0.1 < kept.mean() < 0.95
+        camera = with_screen.camera
+        right, up, forward = (axis.astype(np.float64) for axis in camera.basis())
+        offset = screen.transform[:3, 3].astype(np.float64) - camera.origin
+        distance = np.linalg.norm(camera.target.astype(np.float64) - camera.origin)
+        assert 0.25 * distance - 1e-4 <= offset @ forward <= 0.6 * distance + 1e-4
+        without = {key: value for key, value in _arrays(with_screen).items()
+                   if not key.startswith("screen.") and key != "material screen"}
+        expected = _arrays(plain)
+        assert without.keys() == expected.keys()
+        for key in expected:
+            np.testing.assert_array_equal(without[key], expected[key], err_msg=f"{seed}: {key}")
+    assert screens >= 3
+
+
 def test_normal_maps_leave_every_other_choice_and_the_held_out_family_alone(monkeypatch):
     """Normal maps draw from a random stream of their own: a training world with them is the world without them
     but for some flat set surfaces given coordinates in their own plane and a seamless map of moderate tilts;
@@ -327,7 +365,8 @@ def test_normal_maps_leave_every_other_choice_and_the_held_out_family_alone(monk
         mapped, plain = _with_and_without(monkeypatch, "NORMAL_MAP_SHARE", seed)
         with_maps = [mesh for mesh in mapped.meshes if mesh.normal_map is not None]
         assert not with_maps or family_of(seed) == "training"
-        assert all(mesh.normal_map is None and mesh.uvs is None for mesh in plain.meshes)
+        # (a screen has coordinates for its cut-out texture)
+        assert all(mesh.normal_map is None and (mesh.uvs is None or mesh.name == "screen") for mesh in plain.meshes)
         for mesh in with_maps:
             mapped_surfaces += 1
             assert mesh.name in SET_RECTANGLES and not mapped.materials[mesh.material].is_emissive

@@ -39,7 +39,11 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
   alpha 0.02–0.6, log-uniform), so the denoiser sees blurred highlights on glossy non-metals, as most of a glTF
   file's non-metals now render (``file_materials``); from a stream of its own (``WORLDS_VERSION`` 8);
 - in the training family only, some glass tinted (``TINTED_GLASS_SHARE``: a colour at each crossing of its
-  surface, as glTF's transmission tints by the base colour), from a stream of its own (also version 8).
+  surface, as glTF's transmission tints by the base colour), from a stream of its own (also version 8);
+- in the training family only, sometimes a screen between the camera and its target, cut out by a procedural
+  alpha (``SCREEN_SHARE``, ``screen_texture``: a lattice, a perforated sheet or leaves), so the denoiser sees
+  the sharp edges of holes and what shows and shines through them, as foliage and fences in users' files give
+  them; from a stream of its own (also version 8).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -92,7 +96,7 @@ UP = np.array([0.0, 1.0, 0.0])
 CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, metres
 # What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
 # worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera; 5: skies as environment maps;
-# 6: coated (plastic) materials; 7: normal maps on set surfaces; 8: rough coats, tinted glass.
+# 6: coated (plastic) materials; 7: normal maps on set surfaces; 8: rough coats, tinted glass, cut-out screens.
 WORLDS_VERSION = 8
 LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
 PAINTED_SHARE = 0.5         # of the training worlds
@@ -104,6 +108,9 @@ PLASTIC_SHARE = 0.3         # of the training worlds' matte materials (not emitt
 ROUGH_COAT_SHARE = 0.5      # of those coats
 ROUGH_COAT_ALPHAS = (0.02, 0.6)   # a rough coat's GGX alpha, log-uniform
 TINTED_GLASS_SHARE = 0.4    # of the training worlds' glass materials
+SCREEN_SHARE = 0.25         # of the training worlds
+SCREENS = ("lattice", "perforated", "leaves")
+SCREEN_SIZE = 64            # texels a side of a screen's texture (it repeats)
 SET_RECTANGLES = ("ground", "floor", "ceiling", "back", "front", "left", "right")   # build_set's flat surfaces
 PATTERNS = ("checker", "stripes", "blotches", "mottle")
 NORMAL_MAP_SHARE = 0.4      # of the training worlds; each flat set surface of those then has one with odds 1/2
@@ -158,6 +165,7 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
                              np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0A8])))
         world.tint_glass(np.random.default_rng(np.random.SeedSequence([int(seed), 0x71A7])))
         world.add_normal_maps(np.random.default_rng(np.random.SeedSequence([int(seed), 0xB0B5])))
+        world.add_screen(np.random.default_rng(np.random.SeedSequence([int(seed), 0x5C2E])))
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
 
 
@@ -493,6 +501,39 @@ class _World:
             mesh.uvs = ((mesh.vertices[:, :2] + 1.0) * half_sizes / period).astype(np.float32)
             mesh.normal_map = image
 
+    def add_screen(self, rng: np.random.Generator) -> None:
+        """With probability SCREEN_SHARE, a screen between the camera and its target: 25–60 % of the way there,
+        30–80 % of the view's half-width across, off the view's centre by up to half of it and turned by up to
+        30° from facing the camera, its texture (``screen_texture``, repeated 2–6 times across) cutting it out; none
+        where its bounds would meet a glass object's or a lamp's (a diffuse surface inside glass is a different
+        scene to each renderer: one such world came out 15–25 % apart from its Mitsuba gold)."""
+        if rng.uniform() >= SCREEN_SHARE:
+            return
+        origin, target = self.camera.origin.astype(np.float64), self.camera.target.astype(np.float64)
+        right, up, forward = (axis.astype(np.float64) for axis in self.camera.basis())
+        along = float(np.linalg.norm(target - origin)) * rng.uniform(0.25, 0.6)
+        reach = along * np.tan(np.radians(self.camera.fov) / 2)      # the view's half-width there
+        half_size, (x, y) = reach * rng.uniform(0.3, 0.8), rng.uniform(-0.5, 0.5, 2) * reach
+        facing = np.eye(4)
+        facing[:3, :3] = np.stack([right, up, -forward], 1)           # +z, the rectangle's normal, to the camera
+        placement = compose(translate(origin + along * forward + x * right + y * up), facing,
+                            rotate([0.0, 1.0, 0.0], rng.uniform(-30.0, 30.0)), scale(half_size))
+        repeat = int(rng.integers(2, 7))
+        image = screen_texture(rng)
+        colour = np.array(colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0.1, 0.8), rng.uniform(0.3, 0.9)))
+        rectangle = primitive("rectangle")
+        corners = transform_points(placement, rectangle[0])
+        low, high = corners.min(0), corners.max(0)
+        for other in self.meshes:   # a screen through glass or a lamp would leave the renderers' media undefined
+            material = self.materials[other.material]
+            if material.kind == "dielectric" or material.is_emissive:
+                points = transform_points(other.transform, other.vertices)
+                if np.all(points.min(0) <= high) and np.all(low <= points.max(0)):
+                    return
+        mesh = self.add("screen", rectangle, Material("diffuse", reflectance=colour), placement)
+        mesh.uvs = ((mesh.vertices[:, :2] + 1.0) / 2.0 * repeat).astype(np.float32)
+        mesh.texture = image
+
     def _point(self, position, dim: float = 1.0) -> None:
         target, _ = self.cluster()
         distance2 = max(float(np.sum((np.asarray(position, np.float64) - target) ** 2)), 0.25)
@@ -613,6 +654,38 @@ def relief_normal_map(rng: np.random.Generator) -> np.ndarray:
     normal = np.stack([-slope * dh_du, -slope * dh_dv, np.ones((n, n))], -1)
     normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
     return np.round((normal + 1.0) / 2.0 * 255.0).astype(np.uint8)
+
+
+def screen_texture(rng: np.random.Generator) -> np.ndarray:
+    """A SCREEN_SIZE² RGBA texture (uint8 codes), seamless when repeated, whose alpha cuts a screen out (kept at ½
+    and above, a texel-wide soft edge): one of SCREENS — a lattice of bars (square or diagonal), a sheet
+    perforated by round holes, or overlapping leaf shapes. Its colour varies a little around white (the
+    material's reflectance tints it)."""
+    kind = SCREENS[int(rng.integers(len(SCREENS)))]
+    n = SCREEN_SIZE
+    y, x = (np.mgrid[0:n, 0:n] + 0.5) / n
+    to_edge = lambda t: np.minimum(t % 1.0, 1.0 - t % 1.0)  # noqa: E731
+    count = int(rng.integers(2, 6))
+    if kind == "lattice":            # distance inside a bar, positive where kept
+        u, v = (x + y, x - y) if rng.uniform() < 0.5 else (x, y)
+        width = rng.uniform(0.08, 0.3) / 2
+        inside = width - np.minimum(to_edge(u * count), to_edge(v * count))
+    elif kind == "perforated":
+        radius = rng.uniform(0.15, 0.35)
+        inside = np.hypot(to_edge(x * count), to_edge(y * count)) - radius
+    else:                            # leaves: the union of rotated, pointed ellipses, wrapped around the tile
+        inside = np.full((n, n), -1.0)
+        for _ in range(int(rng.integers(25, 60))):
+            (cx, cy), length, angle = rng.uniform(0, 1, 2), rng.uniform(0.12, 0.3), rng.uniform(0, np.pi)
+            dx, dy = (x - cx + 0.5) % 1.0 - 0.5, (y - cy + 0.5) % 1.0 - 0.5
+            a = dx * np.cos(angle) + dy * np.sin(angle)
+            b = -dx * np.sin(angle) + dy * np.cos(angle)
+            half = length * rng.uniform(0.2, 0.3) * np.sqrt(np.clip(1 - (2 * a / length) ** 2, 0, 1))
+            inside = np.maximum(inside, np.where(np.abs(a) < length / 2, half - np.abs(b), -1.0))
+    alpha = np.clip(0.5 + inside * n / count * (1 if kind != "leaves" else count), 0.0, 1.0)
+    shade = 1.0 - 0.15 * rng.uniform(0, 1, (n, n, 1)) * np.ones(3)
+    rgba = np.concatenate([shade, alpha[..., None]], -1)
+    return np.round(rgba * 255).astype(np.uint8)
 
 
 def procedural_sky(rng: np.random.Generator, toward_sun: np.ndarray | None) -> np.ndarray:
