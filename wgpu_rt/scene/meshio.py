@@ -224,13 +224,7 @@ def obj_normal_map(statements: dict, folder: Path, where: str, decoded: dict) ->
                 raise SceneError(f"{where}: {key} -bm {options['-bm'][0]!r}: expected a number") from None
         if not name:
             continue
-        path = (folder / name).resolve()
-        if ("file", path) not in decoded:
-            try:
-                decoded[("file", path)] = (read_texture_image(path), None)
-            except SceneError as err:
-                raise SceneError(f"{where}: its material's {key}: {err}") from err
-        pixels = decoded[("file", path)][0]
+        pixels = _mtl_image(folder / name, key, where, decoded)
         mean = pixels.reshape(-1, 3).mean(0) / 255.0
         if key == "norm" or (mean[2] > 0.6 and abs(mean[0] - 0.5) < 0.15 and abs(mean[1] - 0.5) < 0.15):
             return pixels, scale
@@ -314,14 +308,18 @@ def file_emission_texture(geometry: trimesh.Trimesh, where: str, decoded: dict,
         return _decode(image, decoded, f"{where}: cannot read its emissive texture")
     tokens = (getattr(material, "kwargs", None) or {}).get("map_ke")
     name = _mtl_texture(tokens)[0] if folder is not None and isinstance(tokens, (list, tuple)) else ""
-    if not name:
-        return None
-    path = (folder / name).resolve()
+    return _mtl_image(folder / name, "map_Ke", where, decoded) if name else None
+
+
+def _mtl_image(path: Path, key: str, where: str, decoded: dict) -> np.ndarray:
+    """The image file an MTL statement ``key`` names (``read_texture_image``), read once per file into
+    ``decoded``; a SceneError naming ``where`` and the statement where it cannot be."""
+    path = Path(path).resolve()
     if ("file", path) not in decoded:
         try:
             decoded[("file", path)] = (read_texture_image(path), None)
         except SceneError as err:
-            raise SceneError(f"{where}: its material's map_Ke: {err}") from err
+            raise SceneError(f"{where}: its material's {key}: {err}") from err
     return decoded[("file", path)][0]
 
 
