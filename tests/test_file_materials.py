@@ -111,7 +111,7 @@ def test_an_obj_files_mtl_statements(tmp_path):
                                         "usemtl clay\nf 1 2 3\nusemtl glass\nf 2 4 3\nusemtl steel\nf 1 2 4\n"
                                         "usemtl lamp\nf 1 3 4\n")
     (tmp_path / "parts.mtl").write_text("newmtl clay\nKd 0.8 0.1 0.1\nKs 0.5 0.5 0.5\nNs 250\nillum 2\n"
-                                        "newmtl glass\nNi 1.45\nillum 4\nPr 0.2\n"
+                                        "newmtl glass\nNi 1.45\nillum 4\nPr 0.2\nTf 0.5 0.9 0.6\n"
                                         "newmtl steel\nKd 0.6 0.6 0.6\nPm 1\nPr 0.5\n"
                                         "newmtl lamp\nKd 0.9 0.9 0.9\nKe 5 5 4\n")
     scene = load_scene(_scene_file(tmp_path, {"file": "parts.obj"}))
@@ -122,6 +122,7 @@ def test_an_obj_files_mtl_statements(tmp_path):
     assert materials["lamp"].kind == "diffuse"   # no Ks, no Pr: no specular layer
     assert (materials["glass"].kind, materials["glass"].ior) == ("dielectric", pytest.approx(1.45))
     assert materials["glass"].roughness == pytest.approx(0.04)
+    np.testing.assert_allclose(materials["glass"].transmittance, [0.5, 0.9, 0.6])   # Tf, not the default Kd
     assert materials["steel"].kind == "conductor" and materials["steel"].roughness == pytest.approx(0.25)
     np.testing.assert_allclose(materials["lamp"].emission, [5, 5, 4])
 

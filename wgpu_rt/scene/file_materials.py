@@ -36,12 +36,14 @@ GLTF_SUFFIXES = (".glb", ".gltf")
 
 
 def pbr_material(base_color, metallic: float, roughness: float, transmission: float = 0.0, ior: float = 1.5,
-                 emission=(0.0, 0.0, 0.0), specular: bool = True) -> Material:
+                 emission=(0.0, 0.0, 0.0), specular: bool = True, transmittance=None) -> Material:
     """The tracer's material for a metallic-roughness description (see the module's doc); without
-    ``specular`` a non-metal has no specular layer."""
+    ``specular`` a non-metal has no specular layer; glass is tinted by ``transmittance`` (default: the base
+    colour, as glTF's transmission is)."""
     alpha, emission = float(roughness) ** 2, np.asarray(emission, np.float32)
     if transmission >= 0.5:
-        return Material("dielectric", ior=ior, roughness=alpha, transmittance=base_color, emission=emission)
+        tint = base_color if transmittance is None else transmittance
+        return Material("dielectric", ior=ior, roughness=alpha, transmittance=tint, emission=emission)
     if metallic >= 0.5:
         return Material("conductor", reflectance=base_color, roughness=alpha, eta=0.0, k=1.0, emission=emission)
     if specular:
@@ -154,7 +156,8 @@ def gltf_material(entry: dict, where: str, trimesh_material=None) -> Material:
 def obj_material(simple, where: str) -> Material:
     """The tracer's material for an OBJ file's MTL material (trimesh's SimpleMaterial): ``Kd`` the base
     colour, ``Ke`` emission, ``Pm``/``Pr`` (the MTL PBR extension) metalness and roughness, else the roughness
-    Blender writes as ``Ns`` (r = 1 − √(Ns/1000)) where ``Ks`` is not black; without either, diffuse; glass where
+    Blender writes as ``Ns`` (r = 1 − √(Ns/1000)) where ``Ks`` is not black; without either, diffuse; glass, tinted
+    by the transmission filter ``Tf`` (not by ``Kd``), where
     ``illum`` is 4, 6, 7 or 9 or the dissolve ``d`` is below 1 (``Tr`` above 0), of index ``Ni``."""
     fields = _Reader(where, {key.lower(): value for key, value in (getattr(simple, "kwargs", None) or {}).items()})
     base = fields.numbers("kd", 0.8, length=3)
@@ -169,7 +172,8 @@ def obj_material(simple, where: str) -> Material:
     glass = int(fields.numbers("illum", 2, high=10)) in OBJ_GLASS_ILLUMS or dissolve < 1.0
     ior = fields.numbers("ni", 1.5, low=1.0, high=np.inf) if glass else 1.5
     return pbr_material(base, fields.numbers("pm", 0.0), roughness, float(glass), ior,
-                        fields.numbers("ke", 0.0, length=3, high=np.inf), specular)
+                        fields.numbers("ke", 0.0, length=3, high=np.inf), specular,
+                        transmittance=fields.numbers("tf", 1.0, length=3))
 
 
 class FileMaterials:
