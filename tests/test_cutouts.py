@@ -1,6 +1,7 @@
 """Cut-out surfaces: an (H, W, 4) texture's alpha cuts its mesh away where a bilinear sample of it is below one
 half (wgsl/trace/cutouts.wgsl, tested by the walks for closest-hit and shadow rays alike; numpy reference
-``sample_alpha``), loaded from glTF MASK materials and a scene file's ``alpha_cutoff``. Mitsuba's agreement
+``sample_alpha``), or with ``alpha_mode`` "blend" is there with probability alpha; loaded from glTF MASK and BLEND
+materials, OBJ ``map_d`` and a scene file's ``alpha_mode``/``alpha_cutoff``. Mitsuba's agreement
 (its ``mask`` under ``volpath``) is in tests/test_mitsuba.py."""
 
 import json
@@ -107,6 +108,21 @@ def test_the_albedo_shows_the_surface_where_the_reference_keeps_it(gpu):
     np.testing.assert_allclose(albedo[gone], 0.0, atol=1e-6)
 
 
+def test_a_blended_surface_is_there_as_often_as_its_alpha(gpu):
+    """alpha_mode "blend": a point is there with probability alpha (a hash of the point decides), so a panel of
+    alpha 0.3 that fills the view head-on over black shows 0.3 of its albedo on the mean, in every quarter."""
+    texture = np.full((2, 2, 4), 255, np.uint8)
+    texture[..., 3] = round(0.3 * 255)
+    panel = _square("panel", "white", np.eye(4), texture)
+    panel.alpha_mode = "blend"
+    scene = Scene(Camera([0, 0, 2], [0, 0, 0], fov=float(2 * np.degrees(np.arctan(0.5))), fov_axis="x"), [panel],
+                  {"white": Material("diffuse", reflectance=0.8)},
+                  lights=[PointLight(np.float32([0, 0, 2]), np.float32([1, 1, 1]))])
+    albedo = render(scene, spp=16, size=(64, 64), max_depth=2, aovs=("albedo",)).aovs["albedo"][..., 0]
+    quarters = albedo.reshape(2, 32, 2, 32).mean((1, 3))
+    np.testing.assert_allclose(quarters, 0.8 * texture[0, 0, 3] / 255, rtol=0.03)
+
+
 def test_an_emitter_may_not_be_cut_out():
     scene = _scene("lamp", [_square("panel", "lamp", np.eye(4), _checker())])
     scene.materials["lamp"] = Material("diffuse", emission=2.0)
@@ -130,15 +146,20 @@ def _leaf_glb(tmp_path, mode: str, cutoff=None, factor_alpha: float = 1.0):
 @pytest.mark.parametrize("cutoff, factor_alpha", [(None, 1.0), (0.3, 1.0), (0.5, 0.6)])
 def test_a_gltf_mask_materials_alpha_cuts_at_its_cutoff(tmp_path, cutoff, factor_alpha):
     """glTF MASK: kept where the texture's alpha times the base colour factor's reaches alphaCutoff (default ½),
-    shifted so that the cutoff falls at the tracer's one half; OPAQUE and BLEND keep the whole surface."""
+    shifted so that the cutoff falls at the tracer's one half; BLEND: that alpha as it is, blended; OPAQUE keeps
+    the whole surface."""
     path, alpha = _leaf_glb(tmp_path, "MASK", cutoff, factor_alpha)
     (mesh,) = load_mesh_file(path, "paint")
     assert mesh.is_cut_out
     expected_kept = alpha / 255 * factor_alpha >= (0.5 if cutoff is None else cutoff) - 1e-3
     np.testing.assert_array_equal(mesh.texture[..., 3] >= 255 * CUTOUT_ALPHA, expected_kept)
-    for mode in ("OPAQUE", "BLEND"):
-        path, _ = _leaf_glb(tmp_path, mode)
-        assert load_mesh_file(path, "paint")[0].texture.shape[2] == 3
+    assert mesh.alpha_mode == "mask"
+    path, _ = _leaf_glb(tmp_path, "OPAQUE")
+    assert load_mesh_file(path, "paint")[0].texture.shape[2] == 3
+    path, alpha = _leaf_glb(tmp_path, "BLEND", factor_alpha=factor_alpha)
+    (blended,) = load_mesh_file(path, "paint")
+    assert blended.alpha_mode == "blend"
+    np.testing.assert_allclose(blended.texture[..., 3], alpha * factor_alpha, atol=1.0)
 
 
 def test_a_scene_files_alpha_cutoff(tmp_path):
@@ -161,9 +182,17 @@ def test_a_scene_files_alpha_cutoff(tmp_path):
     entry["alpha_cutoff"] = 1.5
     with pytest.raises(SceneError, match=r"meshes\[0\]\.alpha_cutoff: expected a number in \[0, 1\]"):
         load()
+    del entry["alpha_cutoff"]
+    entry["alpha_mode"] = "blend"                                       # the alpha as it is
+    blended = load().meshes[0]
+    assert blended.alpha_mode == "blend" and blended.texture[0, 0, 3] == 40
+    entry["alpha_cutoff"] = 0.5
+    with pytest.raises(SceneError, match=r"meshes\[0\]\.alpha_cutoff: a cutoff is for alpha_mode \"mask\""):
+        load()
+    entry["alpha_mode"] = "mask"
     del entry["texture"]
     entry["alpha_cutoff"] = 0.5
-    with pytest.raises(SceneError, match=r"meshes\[0\]\.alpha_cutoff: a cutout needs a 'texture'"):
+    with pytest.raises(SceneError, match=r"meshes\[0\]\.alpha_mode: a cutout needs a 'texture'"):
         load()
 
 

@@ -366,3 +366,20 @@ def test_emission_textures_match_mitsuba(gpu):
 
     distance, plain_distance = _matches_mitsuba(lamp_scene(PATTERN), lamp_scene(None))
     assert plain_distance > 3 * distance
+
+
+def test_blended_panels_match_mitsuba(gpu):
+    """A panel whose alpha ramps 0 … 1 across, blended (a point there with probability alpha), over a floor in
+    front of a point light: as Mitsuba's ``mask`` with that opacity under ``volpath``; the same alpha as a
+    cut-out (kept above one half) is told apart."""
+    from test_cutouts import _checker, _scene, _square
+
+    def panel(mode: str):
+        texture = _checker()
+        texture[..., 3] = np.round(np.tile(np.linspace(0, 255, 4), (4, 1))).astype(np.uint8)
+        mesh = _square("panel", "white", np.eye(4), texture)
+        mesh.alpha_mode = mode
+        return _scene(mode, [mesh])
+
+    distance, masked_distance = _matches_mitsuba(panel("blend"), panel("mask"))
+    assert masked_distance > 2 * distance

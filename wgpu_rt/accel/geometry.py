@@ -47,7 +47,7 @@ from .bvh import (
     wide_nodes,
 )
 from ..errors import SceneError
-from ..scene.model import Scene, srgb8
+from ..scene.model import ALPHA_MODES, Scene, srgb8
 from ..scene.transforms import transform_normals, transform_points
 
 
@@ -164,6 +164,7 @@ def _mesh_colors(mesh) -> np.ndarray:
 NO_TEXTURE = 0xFFFFFFFF   # a triangle record's texture (or normal map) index where its mesh has none
 TEXTURE_RECORD_WORDS = 8  # per triangle: texture index, (u, v) of its three vertices, normal map index
 CUTOUT_FLAG = 0x80000000  # on a record's texture index: its alpha cuts the surface away (wgsl/trace/cutouts.wgsl)
+BLEND_FLAG = 0x40000000   # with CUTOUT_FLAG: stochastically, alpha the probability of a surface there
 # accel/walk_tree.wgsl imports NO_CUTOUTS; a path-tracing kernel of a scene with cut-out surfaces swaps in the
 # module that reads their textures (wgpu_rt.trace.trace_pass.CUTOUTS).
 NO_CUTOUTS = "accel/cutouts_none.wgsl"
@@ -207,7 +208,10 @@ def _mesh_texture_records(mesh, textures: dict[int, int]) -> np.ndarray:
         _check_image(mesh, mesh.texture, "texture", channels=(3, 4))
         if mesh.colors is not None:
             raise SceneError(f"mesh {mesh.name!r}: has both vertex colours and a texture; give it one of them")
-        records[:, 0] = textures[id(mesh.texture)] | (CUTOUT_FLAG if mesh.texture.shape[2] == 4 else 0)
+        if mesh.alpha_mode not in ALPHA_MODES:
+            raise SceneError(f"mesh {mesh.name!r}: alpha_mode must be one of {ALPHA_MODES}, got {mesh.alpha_mode!r}")
+        flags = (CUTOUT_FLAG | (BLEND_FLAG if mesh.alpha_mode == "blend" else 0)) if mesh.is_cut_out else 0
+        records[:, 0] = textures[id(mesh.texture)] | flags
     if mesh.emission_texture is not None:
         _check_image(mesh, mesh.emission_texture, "emission_texture")
     if mesh.normal_map is not None:

@@ -18,8 +18,8 @@ import numpy as np
 
 from ..errors import SceneError
 from .meshio import load_mesh_file, read_environment_image, read_texture_image, with_cutout
-from .model import (FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight, Scene,
-                    SpotLight)
+from .model import (ALPHA_MODES, FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight,
+                    Scene, SpotLight)
 from .primitives import PRIMITIVES, primitive, primitive_uvs
 from .transforms import compose, rotate, scale, translate
 
@@ -335,15 +335,18 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
     name = fields.string("name", "")
     transform, keyframes = _placement(fields)
     instances = fields.tables("instances") if fields.has("instances") else None
-    cutoff = fields.has("alpha_cutoff")
-    texture = _image_file(fields, "texture", folder, partial(read_texture_image, alpha=cutoff))
-    if cutoff:
-        value = fields.number("alpha_cutoff")
-        if not 0.0 <= value <= 1.0:
-            fields.fail(f"expected a number in [0, 1], got {value:g}", "alpha_cutoff")
+    alpha_mode = fields.string("alpha_mode", "mask" if fields.has("alpha_cutoff") else "opaque",
+                               choices=("opaque", *ALPHA_MODES))
+    texture = _image_file(fields, "texture", folder, partial(read_texture_image, alpha=alpha_mode != "opaque"))
+    if fields.has("alpha_cutoff") and alpha_mode != "mask":
+        fields.fail("a cutoff is for alpha_mode \"mask\"", "alpha_cutoff")
+    if alpha_mode != "opaque":
+        cutoff = fields.number("alpha_cutoff", 0.5) if alpha_mode == "mask" else None
+        if cutoff is not None and not 0.0 <= cutoff <= 1.0:
+            fields.fail(f"expected a number in [0, 1], got {cutoff:g}", "alpha_cutoff")
         if texture is None:
-            fields.fail("a cutout needs a 'texture', whose alpha says where the surface is", "alpha_cutoff")
-        texture = with_cutout(texture[..., :3], texture[..., 3], value)
+            fields.fail("a cutout needs a 'texture', whose alpha says where the surface is", "alpha_mode")
+        texture = with_cutout(texture[..., :3], texture[..., 3], cutoff)
     normal_map = _image_file(fields, "normal_map", folder, read_texture_image)
     glow = _image_file(fields, "emission_texture", folder, read_texture_image)
     if has_shape:
@@ -377,6 +380,9 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
             if taken in materials:
                 fields.fail(f"the file's material {taken!r} has the name of another material: name the mesh", "file")
         materials.update(own)
+    if alpha_mode == "blend":
+        for part in parts:
+            part.alpha_mode = "blend"
     if fields.has("texture_repeat"):
         repeat = fields.vector("texture_repeat", length=2, broadcast=True)
         if np.any(repeat <= 0) or np.any(repeat > MAX_TEXTURE_REPEAT):

@@ -85,7 +85,7 @@ def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict,
         if key not in decoded:
             decoded[key] = (with_cutout(pixels, _resized(mask, pixels.shape[:2]), OBJ_CUTOFF), mask)
         pixels = decoded[key][0]
-    elif pixels is not None and getattr(material, "alphaMode", None) == "MASK":
+    elif pixels is not None and getattr(material, "alphaMode", None) in ("MASK", "BLEND"):
         pixels = _cutout_texture(image, pixels, material, decoded)
     return None if pixels is None else (pixels, uvs)
 
@@ -101,13 +101,13 @@ def _resized(alpha: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
 
 
 def _cutout_texture(image, pixels: np.ndarray, material, decoded: dict) -> np.ndarray:
-    """The texture of a glTF MASK material (trimesh's PBRMaterial) whose base colour ``image`` decoded to
-    ``pixels``: ``with_cutout`` of its alpha (the image's times the base colour factor's) at the material's
-    alphaCutoff (default ½)."""
+    """The texture of a glTF MASK or BLEND material (trimesh's PBRMaterial) whose base colour ``image`` decoded
+    to ``pixels``: ``with_cutout`` of its alpha (the image's times the base colour factor's) at the material's
+    alphaCutoff (default ½; none for BLEND)."""
     factor = getattr(material, "baseColorFactor", None)
     scale = 1.0 if factor is None else float(np.asarray(factor, np.float64)[3]) / 255.0
     cutoff = getattr(material, "alphaCutoff", None)
-    cutoff = 0.5 if cutoff is None else float(cutoff)
+    cutoff = None if material.alphaMode == "BLEND" else 0.5 if cutoff is None else float(cutoff)
     key = ("cutout", id(image), scale, cutoff)
     if key not in decoded:
         alpha = np.asarray(image.convert("RGBA"), np.float64)[..., 3] * scale
@@ -115,15 +115,18 @@ def _cutout_texture(image, pixels: np.ndarray, material, decoded: dict) -> np.nd
     return decoded[key][0]
 
 
-def with_cutout(pixels: np.ndarray, alpha: np.ndarray, cutoff: float) -> np.ndarray:
+def with_cutout(pixels: np.ndarray, alpha: np.ndarray, cutoff: float | None) -> np.ndarray:
     """The (H, W, 4) texture of (H, W, 3) ``pixels`` that cuts its surface away where the (H, W) ``alpha``
     (codes, 0–255) is below ``cutoff`` (in [0, 1]), as glTF's MASK mode does: the alpha shifted so that the
     cutoff falls at the tracer's CUTOUT_ALPHA, linearly, so a bilinear sample is kept exactly where glTF's
-    would be. ``pixels`` unchanged where no texel is cut away."""
+    would be. With ``cutoff`` None (a mesh of alpha_mode "blend"), the alpha as it is. ``pixels`` unchanged
+    where no texel is cut away (none is below the cutoff, or, blending, below 1)."""
     from .model import CUTOUT_ALPHA
 
-    codes = np.clip(np.round(np.asarray(alpha, np.float64) + 255.0 * (CUTOUT_ALPHA - cutoff)), 0, 255)
-    if codes.shape != pixels.shape[:2] or not np.any(codes < 255 * CUTOUT_ALPHA):
+    shift = 0.0 if cutoff is None else 255.0 * (CUTOUT_ALPHA - cutoff)
+    codes = np.clip(np.round(np.asarray(alpha, np.float64) + shift), 0, 255)
+    kept_whole = np.all(codes >= 255) if cutoff is None else not np.any(codes < 255 * CUTOUT_ALPHA)
+    if codes.shape != pixels.shape[:2] or kept_whole:
         return pixels
     return np.ascontiguousarray(np.dstack([pixels, codes.astype(np.uint8)]))
 
@@ -396,10 +399,12 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         surface = (own.material_of(geometry, geometry_name) if materials is not None else None) or material
         if surface is None:
             raise SceneError(f"{where}: has no material of its own; give the mesh entry a 'material'")
+        blended = texture is None and getattr(getattr(geometry.visual, "material", None), "alphaMode", None) == "BLEND"
         first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
                                               surface, normals=normals,
                                               transform=np.asarray(transform, np.float32), colors=colors,
-                                              texture=image, uvs=uvs, normal_map=relief, emission_texture=glow)
+                                              texture=image, uvs=uvs, normal_map=relief, emission_texture=glow,
+                                              alpha_mode="blend" if blended else "mask")
         meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")

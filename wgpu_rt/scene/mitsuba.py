@@ -69,11 +69,16 @@ def textured_reflectance(mi, texture: np.ndarray, reflectance: np.ndarray) -> di
 CUTOUT_OVERSAMPLING = 4   # cutout_opacity's grid per texel and axis
 
 
-def cutout_opacity(mi, texture: np.ndarray) -> dict:
-    """Mitsuba's ``mask`` opacity for a cut-out (H, W, 4) ``texture``: 1 where the tracer keeps the surface (its
-    bilinear alpha at least CUTOUT_ALPHA), 0 where it cuts it away, on a grid up to CUTOUT_OVERSAMPLING times
-    finer than the texture's, read nearest (the mask takes an opacity between as a probability of passing,
-    where the tracer's edge is sharp)."""
+def cutout_opacity(mi, texture: np.ndarray, alpha_mode: str = "mask") -> dict:
+    """Mitsuba's ``mask`` opacity for a cut-out (H, W, 4) ``texture``. Mode "blend": the alpha itself, bilinear
+    (the mask's opacity is the probability of a surface there, as the tracer's). Mode "mask": 1 where the tracer
+    keeps the surface (its bilinear alpha at least CUTOUT_ALPHA), 0 where it cuts it away, on a grid up to
+    CUTOUT_OVERSAMPLING times finer than the texture's, read nearest (an opacity between would be a
+    probability, where the tracer's edge is sharp)."""
+    if alpha_mode == "blend":
+        alpha = np.ascontiguousarray(np.asarray(texture)[..., 3:], np.float32) / 255.0
+        return {"type": "bitmap", "bitmap": mi.Bitmap(alpha), "raw": True, "filter_type": "bilinear",
+                "wrap_mode": "repeat"}
     height, width = texture.shape[:2]
     factor = max(1, min(CUTOUT_OVERSAMPLING, 4096 // max(height, width)))
     rows, columns = np.meshgrid((np.arange(height * factor) + 0.5) / (height * factor),
@@ -219,7 +224,7 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         tilted = None if mesh.normal_map is None else partial(normal_mapped_bsdf, mi, mesh.normal_map)
         bsdf = surface_bsdf(material, colors is not None, textured, tilted)
         if mesh.is_cut_out:
-            bsdf = {"type": "mask", "opacity": cutout_opacity(mi, mesh.texture), "bsdf": bsdf}
+            bsdf = {"type": "mask", "opacity": cutout_opacity(mi, mesh.texture, mesh.alpha_mode), "bsdf": bsdf}
         emission = material.emission if material.is_emissive else None
         if emission is not None and mesh.emission_texture is not None:
             emission = textured_reflectance(mi, mesh.emission_texture, emission)   # radiance, tinted alike

@@ -19,6 +19,7 @@ FOV_AXES = ("x", "y", "smaller", "larger")
 # is float32's epsilon at 256 pixels); towards 0 the 1/tan(fov/2) of the motion vectors overflows.
 MIN_FOV = 1e-3
 CUTOUT_ALPHA = 0.5   # a texture's alpha below which its surface is cut away (wgsl/trace/cutouts.wgsl)
+ALPHA_MODES = ("mask", "blend")   # how an (H, W, 4) texture's alpha cuts its surface (Mesh.alpha_mode)
 
 
 def _rgb(value, what: str, highest: float = np.inf) -> np.ndarray:
@@ -162,7 +163,8 @@ class Mesh:
     # across each triangle; its bilinear sample (texels decoded to linear first, ``sample_texture``)
     # multiplies the material's reflectance. A mesh has ``colors`` or a texture, not both. Meshes may share
     # one image array (it is stored once). An (H, W, 4) texture's alpha (codes, read raw and bilinearly,
-    # ``sample_alpha``) cuts the surface away wherever it is below CUTOUT_ALPHA: leaves, fences.
+    # ``sample_alpha``) cuts the surface away wherever it is below CUTOUT_ALPHA: leaves, fences; with
+    # ``alpha_mode`` "blend", a point is there with probability alpha (stochastic transparency, glTF's BLEND).
     texture: np.ndarray | None = None
     uvs: np.ndarray | None = None
     # A tangent-space normal map at the same coordinates: (H, W, 3) uint8 codes of (n + 1) / 2, read raw
@@ -173,6 +175,7 @@ class Mesh:
     # An emission texture at the same coordinates: (H, W, 3) uint8 sRGB codes, sampled as ``texture`` is, whose
     # colour multiplies the emission of the mesh's material (glTF's emissiveTexture), seen and sampled alike.
     emission_texture: np.ndarray | None = None
+    alpha_mode: str = "mask"
 
     def transform_at(self, frame: int) -> np.ndarray:
         return _interpolate(self.keyframes, frame, self.transform)
@@ -190,7 +193,7 @@ class Mesh:
     def shape_key(self) -> tuple[int, ...]:
         """Equal for meshes that share their arrays (instances of one shape), else different."""
         return (id(self.vertices), id(self.faces), id(self.normals), id(self.colors), id(self.texture), id(self.uvs),
-                id(self.normal_map), id(self.emission_texture))
+                id(self.normal_map), id(self.emission_texture), hash(self.alpha_mode))
 
     def instance(self, name: str, material: str | None = None, transform=None, keyframes=None) -> Mesh:
         """Another placement of this mesh's shape (its arrays shared, not copied, and made read-only so
@@ -203,7 +206,7 @@ class Mesh:
         placement = np.eye(4) if transform is None else transform
         return Mesh(name, self.vertices, self.faces, self.material if material is None else material,
                     self.normals, np.asarray(placement, np.float32), dict(keyframes or {}), self.colors,
-                    self.texture, self.uvs, self.normal_map, self.emission_texture)
+                    self.texture, self.uvs, self.normal_map, self.emission_texture, self.alpha_mode)
 
 
 def srgb8(colors: np.ndarray) -> np.ndarray:

@@ -9,6 +9,8 @@ const TEXTURE_RECORD_WORDS: u32 = 8u;       // == wgpu_rt.accel.geometry.TEXTURE
 const TEXTURE_HEADER_WORDS: u32 = 4u;       // == wgpu_rt.trace.scene_data.TEXTURE_HEADER_WORDS
 const TEXTURE_ENTRY_WORDS: u32 = 4u;        // == wgpu_rt.trace.scene_data.TEXTURE_ENTRY_WORDS
 const CUTOUT_FLAG: u32 = 0x80000000u;       // == wgpu_rt.accel.geometry.CUTOUT_FLAG (never on NO_TEXTURE)
+const BLEND_FLAG: u32 = 0x40000000u;        // == wgpu_rt.accel.geometry.BLEND_FLAG (with CUTOUT_FLAG)
+const TEXTURE_INDEX_MASK: u32 = 0x3fffffffu;   // a record's texture word without its flags
 
 fn texture_uv(record: u32, k: u32) -> vec2f {
     return vec2f(bitcast<f32>(surface_textures[record + 1u + 2u * k]),
