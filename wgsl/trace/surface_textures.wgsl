@@ -1,12 +1,12 @@
 // Colour textures and normal maps (bind group 1, binding 5; laid out by wgpu_rt.trace.scene_data.pack_textures):
 // a header (where the triangle records start, the image count), an entry per image (its first texel's word,
 // width, height), a record per stored triangle (its texture, or NO_TEXTURE, with CUTOUT_FLAG where the texture's
-// alpha cuts the surface away and BLEND_FLAG where it does so stochastically, trace/cutouts.wgsl; its vertices' texture coordinates as f32 bits; its normal map,
-// or NO_TEXTURE), then the texels as packed 8-bit codes (alpha, where an image has one, in the top byte), row 0
-// the image's top. An image is sampled as Mitsuba's bitmap with bilinear filtering and repeat wrapping:
-// coordinates wrapped to [0, 1), v = 1 at the top, texel centres at half-integers, the four texels decoded (a
-// texture's from sRGB, a normal map's raw) and blended (numpy reference: wgpu_rt.scene.model.sample_texture; a
-// normal map's tilt: mapped_normal).
+// alpha cuts the surface away and BLEND_FLAG where it does so stochastically, trace/cutouts.wgsl; its vertices'
+// texture coordinates as f32 bits; its normal map, or NO_TEXTURE), then the texels as packed 8-bit codes (alpha,
+// where an image has one, in the top byte), row 0 the image's top. An image is sampled as Mitsuba's bitmap with
+// bilinear filtering and repeat wrapping: coordinates wrapped to [0, 1), v = 1 at the top, texel centres at
+// half-integers, the four texels decoded (a texture's from sRGB, a normal map's raw) and blended (numpy
+// reference: wgpu_rt.scene.model.sample_texture; a normal map's tilt: mapped_normal).
 
 // #import accel/bvh.wgsl
 // #import trace/texture_images.wgsl
