@@ -62,8 +62,9 @@ def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict,
     """A geometry's colour texture: ((H, W, 3) uint8 sRGB image, (V, 2) float32 coordinates per vertex),
     from an OBJ material's image or a glTF material's base colour texture; None where it has none or its
     coordinates are missing, misshapen or not finite. (H, W, 4), cutting the surface away (``with_cutout``),
-    for a glTF MASK material or an OBJ material with a ``map_d`` (``obj_cutout``, its file relative to
-    ``folder``; white where it has no image of its own). ``decoded``: see ``_decode``; geometries that share an
+    for a glTF MASK or BLEND material with a base colour texture (a material's alpha without one is not read) or
+    an OBJ material with a ``map_d`` (``obj_cutout``, its file relative to ``folder``; white where it has no image
+    of its own). ``decoded``: see ``_decode``; geometries that share an
     image share one array. An image that cannot be decoded is a SceneError naming ``where``."""
     visual = geometry.visual
     if getattr(visual, "kind", None) != "texture":
