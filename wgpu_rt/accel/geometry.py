@@ -189,8 +189,9 @@ def has_cutouts(records: np.ndarray | None) -> bool:
 def _mesh_texture_records(mesh, textures: dict[int, int]) -> np.ndarray:
     """(F, TEXTURE_RECORD_WORDS) u32 per face: the index in ``textures`` (image id → index; NO_TEXTURE without
     one) of its mesh's texture, with CUTOUT_FLAG where the texture has an alpha channel (which cuts the surface
-    away), its vertices' texture coordinates as float32 bits, and the index of its mesh's normal map
-    (SceneError where an image or the coordinates are malformed, naming the mesh)."""
+    away; BLEND_FLAG too where the mesh's alpha_mode is "blend"), its vertices' texture coordinates as float32
+    bits, and the index of its mesh's normal map (SceneError where an image or the coordinates are malformed,
+    naming the mesh)."""
     faces = np.asarray(mesh.faces, np.int64)
     records = np.zeros((len(faces), TEXTURE_RECORD_WORDS), np.uint32)
     records[:, [0, 7]] = NO_TEXTURE
