@@ -224,3 +224,24 @@ def test_an_obj_materials_map_d_cuts_it_out(tmp_path):
     (tmp_path / "mask.png").unlink()
     with pytest.raises(SceneError, match=r"leaf\.obj.*its material's map_d: .*mask\.png: texture image not found"):
         load_mesh_file(tmp_path / "leaf.obj", "x")
+
+
+@pytest.mark.parametrize("mode, factor_alpha, kept", [("BLEND", 0.3, None), ("MASK", 0.3, False), ("MASK", 0.8, True)])
+def test_a_gltf_materials_own_alpha_cuts_it_without_a_texture(tmp_path, mode, factor_alpha, kept):
+    """A MASK or BLEND material with no base colour texture: its base colour factor's alpha, as a white 1×1
+    texture read anywhere (BLEND: there with that probability; MASK: cut away everywhere below the cutoff, the
+    whole surface kept above it, no texture then)."""
+    box = trimesh.creation.box()
+    box.visual = trimesh.visual.TextureVisuals(material=PBRMaterial(
+        name="pane", baseColorFactor=[0.8, 0.9, 1.0, factor_alpha], alphaMode=mode))
+    box.export(tmp_path / "pane.glb")
+    (mesh,) = load_mesh_file(tmp_path / "pane.glb", "x")
+    if kept:
+        assert mesh.texture is None
+        return
+    assert mesh.texture.shape == (1, 1, 4) and np.all(mesh.texture[..., :3] == 255)
+    assert mesh.alpha_mode == mode.lower() and mesh.uvs.shape == (len(mesh.vertices), 2)
+    if mode == "BLEND":
+        assert mesh.texture[0, 0, 3] == round(factor_alpha * 255)
+    else:
+        assert mesh.texture[0, 0, 3] < 255 * CUTOUT_ALPHA

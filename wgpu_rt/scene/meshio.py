@@ -62,8 +62,8 @@ def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict,
     """A geometry's colour texture: ((H, W, 3) uint8 sRGB image, (V, 2) float32 coordinates per vertex),
     from an OBJ material's image or a glTF material's base colour texture; None where it has none or its
     coordinates are missing, misshapen or not finite. (H, W, 4), cutting the surface away (``with_cutout``),
-    for a glTF MASK or BLEND material with a base colour texture (a material's alpha without one is not read) or
-    an OBJ material with a ``map_d`` (``obj_cutout``, its file relative to ``folder``; white where it has no image
+    for a glTF MASK or BLEND material (1×1 where it has no base colour texture: ``_factor_cutout``) or an OBJ
+    material with a ``map_d`` (``obj_cutout``, its file relative to ``folder``; white where it has no image
     of its own). ``decoded``: see ``_decode``; geometries that share an
     image share one array. An image that cannot be decoded is a SceneError naming ``where``."""
     visual = geometry.visual
@@ -76,7 +76,10 @@ def file_texture(geometry: trimesh.Trimesh, where: str, decoded: dict,
     uvs = file_uvs(geometry)
     statements = getattr(material, "kwargs", None) or {}
     mask = obj_cutout(statements, folder, where, decoded) if folder is not None and "map_d" in statements else None
-    if (image is None and mask is None) or uvs is None:
+    if image is None and mask is None:      # a glTF material's own alpha may still cut it, everywhere alike
+        solid = _factor_cutout(material)
+        return None if solid is None else (solid, np.zeros((len(geometry.vertices), 2), np.float32))
+    if uvs is None:
         return None
     pixels = None if image is None else _decode(image, decoded, f"{where}: cannot read its texture image")
     if mask is not None:
@@ -99,6 +102,19 @@ def _resized(alpha: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
         return alpha.astype(np.float64)
     image = Image.fromarray(alpha.astype(np.float32), "F").resize((shape[1], shape[0]), Image.BILINEAR)
     return np.asarray(image, np.float64)
+
+
+def _factor_cutout(material) -> np.ndarray | None:
+    """For a glTF MASK or BLEND material without a base colour texture (trimesh's PBRMaterial), the 1×1 texture
+    that its base colour factor's alpha gives (white: the factor's colour is the material's reflectance), read
+    anywhere; None where that alpha cuts nothing away."""
+    mode, factor = getattr(material, "alphaMode", None), getattr(material, "baseColorFactor", None)
+    if mode not in ("MASK", "BLEND") or factor is None:
+        return None
+    cutoff = getattr(material, "alphaCutoff", None)
+    cutoff = None if mode == "BLEND" else 0.5 if cutoff is None else float(cutoff)
+    solid = with_cutout(np.full((1, 1, 3), 255, np.uint8), np.full((1, 1), float(np.asarray(factor)[3])), cutoff)
+    return solid if solid.shape[2] == 4 else None
 
 
 def _cutout_texture(image, pixels: np.ndarray, material, decoded: dict) -> np.ndarray:
