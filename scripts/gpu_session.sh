@@ -82,7 +82,8 @@
 # walls) and session 50 8 (§49: half the coats rough, some glass tinted, cut-out screens in view), so call 1's
 # renders are the first with any of them (the screens' golds render through Mitsuba's volpath);
 # train_eval should also score
-# benchmarks/scenes/plaza-lens.toml, examples/sky-courtyard.toml and examples/still-life.toml (bench_spp.py).
+# benchmarks/scenes/plaza-lens.toml, examples/sky-courtyard.toml, examples/still-life.toml (rough coats since
+# session 50) and examples/leaf-screen.toml (cut-outs) (bench_spp.py).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
