@@ -44,6 +44,7 @@ from ..scene.model import Scene
 from ..shaders import compose
 from .features import SceneFeatures
 from .scene_data import (
+    DELTA_ROUGHNESS,
     FRAME_PARAMS_DTYPE,
     build_emitter_table,
     camera_vectors,
@@ -94,6 +95,8 @@ GUIDE_ALBEDO = 3
 
 CUTOUTS = "trace/cutouts.wgsl"   # in place of accel/cutouts_none.wgsl where a scene cuts surfaces away
 PLAIN_EMISSION = "trace/emission_plain.wgsl"              # what trace/emitters.wgsl imports
+SMOOTH_COATS = "trace/coats_smooth.wgsl"                  # what trace/bsdf_plastic.wgsl imports
+ROUGH_COATS = "trace/coats_rough.wgsl"                    # in its place where a scene has a rough coat
 EMISSION_TEXTURES = "trace/emission_textures.wgsl"        # in its place where a scene's lights have textures
 STORAGE_TABLES = "trace/shading_tables_storage.wgsl"   # what trace/trace_bindings.wgsl imports
 UNIFORM_TABLES = "trace/shading_tables_uniform.wgsl"
@@ -385,6 +388,8 @@ class TracePass(ComputePass):
         if any(mesh.emission_texture is not None and scene.materials[mesh.material].is_emissive
                for mesh in scene.meshes):
             modules[PLAIN_EMISSION] = EMISSION_TEXTURES
+        if any(m.kind == "plastic" and m.roughness >= DELTA_ROUGHNESS for m in materials):
+            modules[SMOOTH_COATS] = ROUGH_COATS
         self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement, modules)
         self._kernel_options = (traversal, self.placement, modules, len(geometry_buffers))
         self._aux_pipelines: dict[tuple[int, int], object] = {}

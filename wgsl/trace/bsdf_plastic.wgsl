@@ -14,6 +14,7 @@
 // #import trace/sampling.wgsl
 // #import trace/microfacet.wgsl
 // #import trace/bsdf_dielectric.wgsl
+// #import trace/coats_smooth.wgsl
 
 const COAT_KNOTS: u32 = 11u;    // wgpu_rt/trace/coat.py: t at cos θ = (i / 10)²; the twelfth half is Fint
 
@@ -25,10 +26,6 @@ fn fresnel_diffuse_reflectance(eta: f32) -> f32 {
         return 0.0636 * inv + eta * (eta * -1.4399 + 0.7099) + 0.6681;
     }
     return 0.919317 + inv * (-3.4793 + inv * (6.75335 + inv * (-7.80989 + inv * (4.98554 + inv * -1.36881))));
-}
-
-fn plastic_is_rough(m: Material) -> bool {
-    return m.roughness >= DELTA_ROUGHNESS;
 }
 
 // Half `i` (0 … 11) of a rough coat's table, packed two to a word in its eta and k.
