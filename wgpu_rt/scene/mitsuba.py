@@ -8,7 +8,7 @@ BSDF its material maps to:
   int_ior = ior, ext_ior = 1, linear; conductor →
   ``conductor`` (roughness 0) or ``roughconductor`` (GGX, alpha = roughness) with eta, k and
   specular_reflectance; dielectric → ``dielectric`` or
-  ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1.
+  ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1, specular_transmittance = transmittance.
 - a cut-out mesh's BSDF is wrapped in ``mask`` (``cutout_opacity``), and the integrator is then ``volpath``;
 - a mesh's vertex colours become a "vertex_color" mesh attribute its BSDF's reflectance reads, a texture a
   ``bitmap`` (bilinear, repeat) of the image times the reflectance, read at the mesh's texture coordinates, a
