@@ -24,12 +24,19 @@ from wgpu_rt.scene.transforms import scale, translate
 CHECKER = 4     # texels a side
 
 
-def _square(name: str, material: str, transform, texture=None) -> Mesh:
-    """The rectangle primitive ([-1, 1]² at z = 0) placed by ``transform``, its coordinates (x + 1) / 2."""
+def _square(name: str, material: str, transform, texture=None, emission_texture=None) -> Mesh:
+    """The rectangle primitive ([-1, 1]² at z = 0) placed by ``transform``, its coordinates (x + 1) / 2 where it
+    has an image."""
     vertices, faces, normals = primitive("rectangle")
-    uvs = None if texture is None else ((vertices[:, :2] + 1) / 2).astype(np.float32)
+    imaged = texture is not None or emission_texture is not None
     return Mesh(name, vertices, faces, material, normals=normals, transform=np.asarray(transform, np.float32),
-                texture=texture, uvs=uvs)
+                texture=texture, uvs=((vertices[:, :2] + 1) / 2).astype(np.float32) if imaged else None,
+                emission_texture=emission_texture)
+
+
+def _head_on() -> Camera:
+    """A camera from z = 2 whose view (fov along x) the untransformed ``_square`` fills exactly."""
+    return Camera([0, 0, 2], [0, 0, 0], fov=float(2 * np.degrees(np.arctan(0.5))), fov_axis="x")
 
 
 def _checker(alpha: bool = True) -> np.ndarray:
@@ -92,10 +99,8 @@ def test_the_albedo_shows_the_surface_where_the_reference_keeps_it(gpu):
     ramp = np.full((3, 5, 4), 255, np.uint8)
     ramp[..., 3] = np.round(np.add.outer(np.linspace(0, 120, 3), np.linspace(0, 135, 5))).astype(np.uint8)
     panel = _square("panel", "white", np.eye(4), ramp)
-    # fov along x: the panel's [-1, 1]² fills the film exactly from distance 1 / tan(fov / 2)
-    scene = Scene(Camera([0, 0, 2], [0, 0, 0], fov=float(2 * np.degrees(np.arctan(0.5))), fov_axis="x"), [panel],
-                  {"white": Material("diffuse", reflectance=0.8)}, lights=[PointLight(np.float32([0, 0, 2]),
-                                                                                    np.float32([1, 1, 1]))])
+    scene = Scene(_head_on(), [panel], {"white": Material("diffuse", reflectance=0.8)},
+                  lights=[PointLight(np.float32([0, 0, 2]), np.float32([1, 1, 1]))])
     albedo = render(scene, spp=4, size=(size, size), max_depth=2, aovs=("albedo",)).aovs["albedo"][..., 0]
     edges = np.linspace(0, 1, size + 1)
     corners = sample_alpha(ramp, np.stack(np.meshgrid(edges, 1 - edges), -1).reshape(-1, 2)).reshape(size + 1,
@@ -115,8 +120,7 @@ def test_a_blended_surface_is_there_as_often_as_its_alpha(gpu):
     texture[..., 3] = round(0.3 * 255)
     panel = _square("panel", "white", np.eye(4), texture)
     panel.alpha_mode = "blend"
-    scene = Scene(Camera([0, 0, 2], [0, 0, 0], fov=float(2 * np.degrees(np.arctan(0.5))), fov_axis="x"), [panel],
-                  {"white": Material("diffuse", reflectance=0.8)},
+    scene = Scene(_head_on(), [panel], {"white": Material("diffuse", reflectance=0.8)},
                   lights=[PointLight(np.float32([0, 0, 2]), np.float32([1, 1, 1]))])
     albedo = render(scene, spp=16, size=(64, 64), max_depth=2, aovs=("albedo",)).aovs["albedo"][..., 0]
     quarters = albedo.reshape(2, 32, 2, 32).mean((1, 3))

@@ -9,30 +9,24 @@ import numpy as np
 import pytest
 import trimesh
 from PIL import Image
+from test_cutouts import _head_on, _square
 from trimesh.visual.material import PBRMaterial
 
 from wgpu_rt.errors import SceneError
 from wgpu_rt.renderer import render
-from wgpu_rt.scene import Camera, Material, Mesh, Scene, load_scene
+from wgpu_rt.scene import Camera, Material, Scene, load_scene
 from wgpu_rt.scene.meshio import load_mesh_file
 from wgpu_rt.scene.model import linear_from_srgb8, sample_texture
-from wgpu_rt.scene.primitives import primitive
 from wgpu_rt.scene.transforms import rotate, scale, translate
 
 PATTERN = np.array([[[255, 40, 40], [255, 255, 255]], [[20, 20, 20], [40, 80, 255]]], np.uint8)
 
 
-def _square(name: str, material: str, transform, emission_texture=None) -> Mesh:
-    vertices, faces, normals = primitive("rectangle")
-    uvs = None if emission_texture is None else ((vertices[:, :2] + 1) / 2).astype(np.float32)
-    return Mesh(name, vertices, faces, material, normals=normals, transform=np.asarray(transform, np.float32),
-                uvs=uvs, emission_texture=emission_texture)
-
-
 def lamp_scene(texture, emission=6.0) -> Scene:
     """A floor lit by a tilted rectangular lamp the camera also sees, its emission tinted by ``texture``."""
     floor = _square("floor", "white", translate([0, -1, 0]) @ rotate([1, 0, 0], -90) @ scale(3))
-    lamp = _square("lamp", "lamp", translate([0, 0.6, -0.5]) @ rotate([1, 0, 0], 60) @ scale(0.7), texture)
+    lamp = _square("lamp", "lamp", translate([0, 0.6, -0.5]) @ rotate([1, 0, 0], 60) @ scale(0.7),
+                   emission_texture=texture)
     materials = {"white": Material("diffuse", reflectance=0.7),
                  "lamp": Material("diffuse", reflectance=0.2, emission=emission)}
     return Scene(Camera([0, 0.5, 3], [0, -0.3, 0], fov=55), [floor, lamp], materials, name="lamp")
@@ -52,9 +46,8 @@ def test_the_lamp_shows_its_texture_where_the_reference_samples_it(gpu):
     (away from the bilinear blends, where the texture is flat) is the emission times ``sample_texture`` there."""
     size = 64
     blocks = np.repeat(np.repeat(PATTERN, 4, axis=0), 4, axis=1)     # 8×8: each colour a 4×4 block
-    lamp = _square("lamp", "lamp", np.eye(4), blocks)
-    scene = Scene(Camera([0, 0, 2], [0, 0, 0], fov=float(2 * np.degrees(np.arctan(0.5))), fov_axis="x"), [lamp],
-                  {"lamp": Material("diffuse", emission=3.0)})
+    lamp = _square("lamp", "lamp", np.eye(4), emission_texture=blocks)
+    scene = Scene(_head_on(), [lamp], {"lamp": Material("diffuse", emission=3.0)})
     image = render(scene, spp=4, size=(size, size), max_depth=1, aovs=()).color
     centres = (np.arange(size) + 0.5) / size
     uvs = np.stack(np.meshgrid(centres, 1 - centres), -1).reshape(-1, 2)
