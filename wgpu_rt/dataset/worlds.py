@@ -626,20 +626,24 @@ def painted_colors(rng: np.random.Generator, points: np.ndarray) -> np.ndarray:
     return mix_colors(t, np.ones(3) if rng.uniform() < 0.5 else colours[1], colours[0])
 
 
+def _to_edge(t: np.ndarray) -> np.ndarray:
+    """The distance from t to the nearest whole number (0 on a repeating pattern's cell edges, ½ mid-cell)."""
+    return np.minimum(t % 1.0, 1.0 - t % 1.0)
+
+
 def relief_normal_map(rng: np.random.Generator) -> np.ndarray:
     """A RELIEF_SIZE² tangent-space normal map (uint8 codes) of one of RELIEFS, seamless when repeated: the
     gradient of a periodic height field, scaled so that its steepest twentieth tilts by 10–45°."""
     kind = RELIEFS[int(rng.integers(len(RELIEFS)))]
     n = RELIEF_SIZE
     y, x = np.mgrid[0:n, 0:n] / n
-    to_edge = lambda t: np.minimum(t % 1.0, 1.0 - t % 1.0)  # noqa: E731
     if kind == "tiles":          # square tiles, bevelled toward the grout
         count = int(rng.integers(1, 5))
-        height = np.clip(np.minimum(to_edge(x * count), to_edge(y * count)) / 0.06, 0, 1)
+        height = np.clip(np.minimum(_to_edge(x * count), _to_edge(y * count)) / 0.06, 0, 1)
     elif kind == "planks":       # boards side by side, each column's joints at its own height
         count = int(rng.integers(2, 7))
         shift = rng.uniform(0, 1, count)[np.floor(x * count).astype(int)]
-        height = np.clip(np.minimum(to_edge(x * count) / 0.08, to_edge(y + shift) / 0.04), 0, 1)
+        height = np.clip(np.minimum(_to_edge(x * count) / 0.08, _to_edge(y + shift) / 0.04), 0, 1)
     else:
         waves = int(rng.integers(2, 6)) if kind == "bumps" else 1
         height = np.zeros((n, n))
@@ -664,15 +668,14 @@ def screen_texture(rng: np.random.Generator) -> np.ndarray:
     kind = SCREENS[int(rng.integers(len(SCREENS)))]
     n = SCREEN_SIZE
     y, x = (np.mgrid[0:n, 0:n] + 0.5) / n
-    to_edge = lambda t: np.minimum(t % 1.0, 1.0 - t % 1.0)  # noqa: E731
     count = int(rng.integers(2, 6))
     if kind == "lattice":            # distance inside a bar, positive where kept
         u, v = (x + y, x - y) if rng.uniform() < 0.5 else (x, y)
         width = rng.uniform(0.08, 0.3) / 2
-        inside = width - np.minimum(to_edge(u * count), to_edge(v * count))
+        inside = width - np.minimum(_to_edge(u * count), _to_edge(v * count))
     elif kind == "perforated":
         radius = rng.uniform(0.15, 0.35)
-        inside = np.hypot(to_edge(x * count), to_edge(y * count)) - radius
+        inside = np.hypot(_to_edge(x * count), _to_edge(y * count)) - radius
     else:                            # leaves: the union of rotated, pointed ellipses, wrapped around the tile
         inside = np.full((n, n), -1.0)
         for _ in range(int(rng.integers(25, 60))):
