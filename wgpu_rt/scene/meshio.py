@@ -104,27 +104,31 @@ def _resized(alpha: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     return np.asarray(image, np.float64)
 
 
+def _gltf_alpha(material) -> tuple[float, float | None]:
+    """A glTF MASK or BLEND material's (trimesh's PBRMaterial) base colour factor's alpha (1 without one) and its
+    cutoff: alphaCutoff (default ½) for MASK, None for BLEND."""
+    factor = getattr(material, "baseColorFactor", None)
+    scale = 1.0 if factor is None else float(np.asarray(factor, np.float64)[3]) / 255.0
+    cutoff = getattr(material, "alphaCutoff", None)
+    return scale, None if material.alphaMode == "BLEND" else 0.5 if cutoff is None else float(cutoff)
+
+
 def _factor_cutout(material) -> np.ndarray | None:
     """For a glTF MASK or BLEND material without a base colour texture (trimesh's PBRMaterial), the 1×1 texture
     that its base colour factor's alpha gives (white: the factor's colour is the material's reflectance), read
     anywhere; None where that alpha cuts nothing away."""
-    mode, factor = getattr(material, "alphaMode", None), getattr(material, "baseColorFactor", None)
-    if mode not in ("MASK", "BLEND") or factor is None:
+    if getattr(material, "alphaMode", None) not in ("MASK", "BLEND"):
         return None
-    cutoff = getattr(material, "alphaCutoff", None)
-    cutoff = None if mode == "BLEND" else 0.5 if cutoff is None else float(cutoff)
-    solid = with_cutout(np.full((1, 1, 3), 255, np.uint8), np.full((1, 1), float(np.asarray(factor)[3])), cutoff)
+    scale, cutoff = _gltf_alpha(material)
+    solid = with_cutout(np.full((1, 1, 3), 255, np.uint8), np.full((1, 1), 255.0 * scale), cutoff)
     return solid if solid.shape[2] == 4 else None
 
 
 def _cutout_texture(image, pixels: np.ndarray, material, decoded: dict) -> np.ndarray:
     """The texture of a glTF MASK or BLEND material (trimesh's PBRMaterial) whose base colour ``image`` decoded
     to ``pixels``: ``with_cutout`` of its alpha (the image's times the base colour factor's) at the material's
-    alphaCutoff (default ½; none for BLEND)."""
-    factor = getattr(material, "baseColorFactor", None)
-    scale = 1.0 if factor is None else float(np.asarray(factor, np.float64)[3]) / 255.0
-    cutoff = getattr(material, "alphaCutoff", None)
-    cutoff = None if material.alphaMode == "BLEND" else 0.5 if cutoff is None else float(cutoff)
+    cutoff (``_gltf_alpha``)."""
+    scale, cutoff = _gltf_alpha(material)
     key = ("cutout", id(image), scale, cutoff)
     if key not in decoded:
         alpha = np.asarray(image.convert("RGBA"), np.float64)[..., 3] * scale
