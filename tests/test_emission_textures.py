@@ -88,3 +88,13 @@ def test_emission_textures_are_read_from_files(tmp_path):
     (tmp_path / "scene.json").write_text(json.dumps(data))
     with pytest.raises(SceneError, match=r"meshes\[0\]\.emission_texture: a sphere has no texture coordinates"):
         load_scene(tmp_path / "scene.json")
+
+
+def test_an_emission_textures_mean_from_code_counts_is_its_decoded_mean():
+    """The emitter table weighs a textured triangle's pick by its image's mean linear colour, taken from each
+    channel's counts of its 256 codes: the mean of every texel decoded."""
+    from wgpu_rt.trace.scene_data import srgb8_mean
+
+    image = np.random.default_rng(4).integers(0, 256, (37, 53, 3)).astype(np.uint8)
+    decoded = linear_from_srgb8(image).astype(np.float64).reshape(-1, 3).mean(0)
+    np.testing.assert_allclose(srgb8_mean(image), decoded, rtol=1e-6)
