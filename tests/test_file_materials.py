@@ -86,6 +86,27 @@ def test_a_gltf_files_materials_name_kind_and_values(tmp_path):
     np.testing.assert_allclose(unnamed.reflectance, [0.2, 0.4, 0.6], atol=1 / 255)
 
 
+def _volumes(materials):
+    for material, volume in zip(materials, [{"thicknessFactor": 0.2, "attenuationColor": [0.5, 1.0, 0.25],
+                                             "attenuationDistance": 2.0},
+                                            {"thicknessFactor": 0.0, "attenuationColor": [0.5, 1.0, 0.25],
+                                             "attenuationDistance": 2.0},
+                                            {"thicknessFactor": 0.2, "attenuationColor": [0.5, 1.0, 0.25]}]):
+        material["extensions"] = {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                                  "KHR_materials_volume": volume}
+
+
+def test_a_gltf_glass_volume_absorbs_as_its_attenuation_colour_and_distance_say(tmp_path):
+    """KHR_materials_volume: light crossing attenuationDistance keeps attenuationColor (absorption −ln(colour) /
+    distance per unit); a thickness of 0 is a thin wall and a distance left out infinite: neither absorbs."""
+    glasses = [PBRMaterial(name=name, metallicFactor=0.0) for name in ("thick", "thin", "endless")]
+    path = _glb(tmp_path, glasses, edit=_volumes)
+    materials = load_scene(_scene_file(tmp_path, {"file": path.name})).materials
+    np.testing.assert_allclose(materials["thing/thick"].absorption, np.log([2.0, 1.0, 4.0]) / 2.0, rtol=1e-6)
+    assert not materials["thing/thin"].absorbs and not materials["thing/endless"].absorbs
+    assert {materials[f"thing/{name}"].kind for name in ("thick", "thin", "endless")} == {"dielectric"}
+
+
 def test_a_materials_metallic_roughness_texture_counts_by_its_mean(tmp_path):
     # Green (roughness) 0.2 and blue (metalness) 1 over the whole image: a smooth metal from rough factors.
     image = Image.new("RGB", (4, 4), (0, 51, 255))
@@ -142,9 +163,14 @@ def _bad_ior(materials):
     materials[0]["extensions"] = {"KHR_materials_ior": {"ior": 0.5}}
 
 
+def _bad_volume(materials):
+    materials[0]["extensions"] = {"KHR_materials_volume": {"thicknessFactor": 1.0, "attenuationDistance": 0}}
+
+
 @pytest.mark.parametrize("edit, message", [
     (_bad_metal, r"material 'gold': metallicFactor must be in \[0, 1\], got 2"),
     (_bad_ior, r"material 'gold': ior must be in \[1, inf\], got 0.5"),
+    (_bad_volume, r"material 'gold': attenuationDistance must be above 0, got 0"),
 ])
 def test_a_gltf_materials_bad_values_are_refused_by_file_and_material(tmp_path, edit, message):
     path = _glb(tmp_path, [PBRMaterial(name="gold", metallicFactor=1.0)], edit=edit)

@@ -828,6 +828,25 @@ def test_glass_takes_a_transmittance(tmp_path):
         parse_scene(data, "scene.json", tmp_path)
 
 
+def test_glass_takes_an_absorption_and_nothing_else_does(tmp_path):
+    """A dielectric's ``absorption`` (per unit length, each channel ≥ 0; default none); a negative one, or one on
+    another kind of material, is refused by field."""
+    from wgpu_rt.scene.loader import parse_scene
+
+    data = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]},
+            "materials": {"bottle": {"kind": "dielectric", "absorption": [0.3, 2.0, 0.0]}, "clear": {"kind": "dielectric"}},
+            "meshes": [{"shape": "sphere", "material": "bottle"}, {"shape": "cube", "material": "clear"}]}
+    materials = parse_scene(data, "scene.json", tmp_path).materials
+    np.testing.assert_allclose(materials["bottle"].absorption, [0.3, 2.0, 0.0])
+    assert materials["bottle"].absorbs and not materials["clear"].absorbs
+    data["materials"]["bottle"]["absorption"] = -1
+    with pytest.raises(SceneError, match=r"materials\.bottle: absorption must be non-negative"):
+        parse_scene(data, "scene.json", tmp_path)
+    data["materials"]["bottle"] = {"kind": "plastic", "absorption": 1}
+    with pytest.raises(SceneError, match=r"materials\.bottle: absorption is a dielectric's .*not a plastic's"):
+        parse_scene(data, "scene.json", tmp_path)
+
+
 def test_a_plastic_coat_may_be_rough(tmp_path):
     """A plastic's coat is smooth by default (Mitsuba's plastic) and takes a GGX roughness (its roughplastic);
     one outside [0, 1] is refused by field."""

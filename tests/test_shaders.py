@@ -28,16 +28,17 @@ def test_every_trace_specialization_builds(gpu):
 
 
 @pytest.mark.parametrize("walk", ["threaded", "wide"])
-@pytest.mark.parametrize("swaps", ["cutouts", "emission textures", "rough coats", "all"])
-def test_the_kernels_of_cut_outs_emission_textures_and_rough_coats_build_with_each_walk(gpu, walk, swaps):
+@pytest.mark.parametrize("swaps", ["cutouts", "emission textures", "rough coats", "absorbing glass", "all"])
+def test_the_kernels_of_cut_outs_emission_textures_rough_coats_and_absorbing_glass_build_with_each_walk(gpu, walk,
+                                                                                                      swaps):
     """Scenes with cut-out surfaces swap trace/cutouts.wgsl into the walks' triangle test, scenes whose lights have
     emission textures trace/emission_textures.wgsl into the light sampling, scenes with a rough coat
-    trace/coats_rough.wgsl into the plastic: the kernel builds so with both walks, every feature on and every
-    feature off."""
+    trace/coats_rough.wgsl into the plastic, scenes with absorbing glass trace/interior_absorbing.wgsl into the path's
+    throughput: the kernel builds so with both walks, every feature on and every feature off."""
     from wgpu_rt.accel.geometry import BVH_LAYOUTS, NO_CUTOUTS, THREADED_WALK
     from wgpu_rt.trace.features import SceneFeatures
-    from wgpu_rt.trace.trace_pass import (CUTOUTS, EMISSION_TEXTURES, PLAIN_EMISSION, ROUGH_COATS, SMOOTH_COATS,
-                                          trace_pipeline)
+    from wgpu_rt.trace.trace_pass import (ABSORBING_INTERIORS, CLEAR_INTERIORS, CUTOUTS, EMISSION_TEXTURES,
+                                          PLAIN_EMISSION, ROUGH_COATS, SMOOTH_COATS, trace_pipeline)
 
     modules = {THREADED_WALK: BVH_LAYOUTS[walk]}
     if swaps in ("cutouts", "all"):
@@ -46,5 +47,7 @@ def test_the_kernels_of_cut_outs_emission_textures_and_rough_coats_build_with_ea
         modules[PLAIN_EMISSION] = EMISSION_TEXTURES
     if swaps in ("rough coats", "all"):
         modules[SMOOTH_COATS] = ROUGH_COATS
+    if swaps in ("absorbing glass", "all"):
+        modules[CLEAR_INTERIORS] = ABSORBING_INTERIORS
     for features in (SceneFeatures.everything(), SceneFeatures.all_combinations()[0]):
         assert trace_pipeline(gpu, features, geometry_bindings=4, geometry_modules=modules) is not None

@@ -1,12 +1,15 @@
-"""A mesh file's own materials → ``Material``: glTF's metallic-roughness model (with its transmission, ior and
-emissive-strength extensions) and OBJ's MTL statements, mapped onto the tracer's four kinds.
+"""A mesh file's own materials → ``Material``: glTF's metallic-roughness model (with its transmission, volume, ior
+and emissive-strength extensions) and OBJ's MTL statements, mapped onto the tracer's four kinds.
 
 Both formats describe a surface by a base colour, how metallic it is, a perceptual roughness ``r`` (the GGX
 alpha is r², as glTF defines it), how much light it transmits and what it emits. The tracer has no blend of
 them, so each material becomes the one kind that carries most of its look:
 
 - transmission ≥ 0.5: ``dielectric`` of the file's ior, its transmittance the base colour (glTF tints what the
-  surface transmits by it; the tracer, as Mitsuba's specular_transmittance, at each crossing);
+  surface transmits by it; the tracer, as Mitsuba's specular_transmittance, at each crossing); with a volume
+  (``KHR_materials_volume`` of a thickness above 0; 0 is glTF's thin wall, which has no inside) light inside it is
+  absorbed at −ln(attenuationColor) / attenuationDistance per unit of the file's world (Beer–Lambert, as glTF
+  defines it: what crosses that distance keeps the attenuation colour);
 - else metallic ≥ 0.5: ``conductor`` whose Fresnel term is 1, tinted by the base colour (glTF's metals reflect
   their base colour head-on and rise to white only at grazing angles, which this leaves out);
 - else ``plastic``: the base colour under a coat of the file's ior and GGX alpha r² (glTF's non-metals are a
@@ -36,14 +39,16 @@ GLTF_SUFFIXES = (".glb", ".gltf")
 
 
 def pbr_material(base_color, metallic: float, roughness: float, transmission: float = 0.0, ior: float = 1.5,
-                 emission=(0.0, 0.0, 0.0), specular: bool = True, transmittance=None) -> Material:
+                 emission=(0.0, 0.0, 0.0), specular: bool = True, transmittance=None,
+                 absorption=(0.0, 0.0, 0.0)) -> Material:
     """The tracer's material for a metallic-roughness description (see the module's doc); without
     ``specular`` a non-metal has no specular layer; glass is tinted by ``transmittance`` (default: the base
-    colour, as glTF's transmission is)."""
+    colour, as glTF's transmission is) and absorbs inside at ``absorption`` per unit length."""
     alpha, emission = float(roughness) ** 2, np.asarray(emission, np.float32)
     if transmission >= 0.5:
         tint = base_color if transmittance is None else transmittance
-        return Material("dielectric", ior=ior, roughness=alpha, transmittance=tint, emission=emission)
+        return Material("dielectric", ior=ior, roughness=alpha, transmittance=tint, emission=emission,
+                        absorption=absorption)
     if metallic >= 0.5:
         return Material("conductor", reflectance=base_color, roughness=alpha, eta=0.0, k=1.0, emission=emission)
     if specular:
@@ -145,12 +150,29 @@ def gltf_material(entry: dict, where: str, trimesh_material=None) -> Material:
     transmission = _Reader(where, extensions.get("KHR_materials_transmission") or {})
     transmission = transmission.numbers("transmissionFactor", 0.0)
     ior = _Reader(where, extensions.get("KHR_materials_ior") or {}).numbers("ior", 1.5, low=1.0, high=np.inf)
+    absorption = _volume_absorption(_Reader(where, extensions.get("KHR_materials_volume") or {}))
     textures = trimesh_material
     if getattr(textures, "metallicRoughnessTexture", None) is not None:
         # glTF: roughness in the green channel, metalness in the blue, both linear.
         mean = _texture_mean(textures.metallicRoughnessTexture, where)
         roughness, metallic = roughness * mean[1], metallic * mean[2]
-    return pbr_material(base, metallic, roughness, transmission, ior, emission)
+    return pbr_material(base, metallic, roughness, transmission, ior, emission, absorption=absorption)
+
+
+# An attenuation colour of 0 would absorb all at once; below this it absorbs as this does (e⁻²³ per distance).
+LEAST_ATTENUATION_COLOR = 1e-10
+
+
+def _volume_absorption(volume: _Reader) -> np.ndarray:
+    """The absorption per unit length of a glTF ``KHR_materials_volume`` (0 without one, or for a thin wall)."""
+    thickness = volume.numbers("thicknessFactor", 0.0, high=np.inf)
+    colour = volume.numbers("attenuationColor", [1.0, 1.0, 1.0], length=3)
+    if "attenuationDistance" not in volume.data or thickness == 0.0:      # glTF's default distance: infinite
+        return np.zeros(3, np.float32)
+    distance = volume.numbers("attenuationDistance", None, high=np.inf)
+    if distance == 0.0:
+        volume.fail("attenuationDistance must be above 0, got 0")
+    return (np.log(1.0 / np.maximum(colour, LEAST_ATTENUATION_COLOR)) / distance).astype(np.float32)
 
 
 def obj_material(simple, where: str) -> Material:

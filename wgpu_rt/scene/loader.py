@@ -239,7 +239,7 @@ def _material_name(fields: _Fields, materials: dict) -> str:
 def _material(fields: _Fields) -> Material:
     kind = fields.string("kind", "diffuse", choices=MATERIAL_KINDS)
     options = {"kind": kind}
-    for key in ("reflectance", "eta", "k", "emission", "transmittance"):
+    for key in ("reflectance", "eta", "k", "emission", "transmittance", "absorption"):
         if fields.has(key):
             options[key] = fields.vector(key, broadcast=True)
     for key in ("roughness", "ior"):

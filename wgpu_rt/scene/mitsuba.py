@@ -8,8 +8,10 @@ BSDF its material maps to:
   int_ior = ior, ext_ior = 1, linear; conductor →
   ``conductor`` (roughness 0) or ``roughconductor`` (GGX, alpha = roughness) with eta, k and
   specular_reflectance; dielectric → ``dielectric`` or
-  ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1, specular_transmittance = transmittance.
-- a cut-out mesh's BSDF is wrapped in ``mask`` (``cutout_opacity``), and the integrator is then ``volpath``;
+  ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1, specular_transmittance = transmittance; an absorbing
+  one's mesh has a ``homogeneous`` interior medium of sigma_t = absorption and albedo 0.
+- a cut-out mesh's BSDF is wrapped in ``mask`` (``cutout_opacity``);
+- with a cut-out or an interior medium the integrator is ``volpath``, else ``path``;
 - a mesh's vertex colours become a "vertex_color" mesh attribute its BSDF's reflectance reads, a texture a
   ``bitmap`` (bilinear, repeat) of the image times the reflectance, read at the mesh's texture coordinates, a
   normal map a ``normalmap`` around the BSDF (inside ``twosided``: on a back face Mitsuba mirrors the tilt
@@ -23,8 +25,7 @@ BSDF its material maps to:
   plugins.
 
 The sensor is a ``perspective`` camera (``thinlens`` with an aperture) with a box pixel filter and an
-``independent`` sampler seeded with ``seed``; the integrator is ``path`` (``volpath`` with a cut-out surface)
-with the same ``max_depth``. Needs the ``bench`` extra.
+``independent`` sampler seeded with ``seed``; the integrator (above) has the same ``max_depth``. Needs the ``bench`` extra.
 
 ``load_mitsuba`` sets Mitsuba to the fastest variant this machine has (``variant_choice``: cuda_ad_rgb where
 Dr.Jit finds a CUDA GPU, else llvm_ad_rgb when Debian's LLVM 19 is installed (`apt-get install -y libllvm19`;
@@ -136,10 +137,13 @@ def surface_bsdf(material: Material, vertex_colored: bool = False, reflectance: 
 
 
 def _mitsuba_mesh(mi, name: str, vertices, faces, normals, bsdf: dict, emission, vertex_reflectance=None,
-                  uvs=None):
-    """An ``mi.Mesh``; ``uvs`` in our convention (v = 1 at the image's top) become Mitsuba's (row 0 at v = 0)."""
+                  uvs=None, interior: dict | None = None):
+    """An ``mi.Mesh``; ``uvs`` in our convention (v = 1 at the image's top) become Mitsuba's (row 0 at v = 0);
+    ``interior`` a medium dict inside it."""
     props = mi.Properties()
     props["bsdf"] = mi.load_dict(bsdf)
+    if interior is not None:
+        props["interior"] = mi.load_dict(interior)
     if emission is not None:
         props["emitter"] = mi.load_dict({"type": "area", "radiance": emission if isinstance(emission, dict)
                                          else _rgb(emission)})
@@ -197,8 +201,9 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
     result = {
         "type": "scene",
         # volpath passes paths and shadow rays through a mask's holes without counting a bounce; path would
-        # neither (its shadow rays stop at a mask)
-        "integrator": {"type": "volpath" if any(m.is_cut_out for m in scene.meshes) else "path",
+        # neither (its shadow rays stop at a mask); and path ignores media
+        "integrator": {"type": "volpath" if any(m.is_cut_out or scene.materials[m.material].absorbs
+                                                for m in scene.meshes) else "path",
                        "max_depth": int(max_depth)},
         "sensor": {
             **lens, "fov": float(camera.fov), "fov_axis": camera.fov_axis,
@@ -228,9 +233,13 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         emission = material.emission if material.is_emissive else None
         if emission is not None and mesh.emission_texture is not None:
             emission = textured_reflectance(mi, mesh.emission_texture, emission)   # radiance, tinted alike
+        interior = None
+        if material.absorbs:      # its sigma_t texture holds reflectance-like values, at most 1: a scale carries the rest
+            peak = float(material.absorption.max())
+            interior = {"type": "homogeneous", "sigma_t": _rgb(material.absorption / peak), "scale": peak, "albedo": 0.0}
         result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
                                     bsdf, emission,
-                                    None if colors is None else colors * material.reflectance, mesh.uvs)
+                                    None if colors is None else colors * material.reflectance, mesh.uvs, interior)
     for index, light in enumerate(scene.lights):
         if isinstance(light, SpotLight):
             axis = np.asarray(light.direction, np.float64)

@@ -44,7 +44,9 @@ class Material:
       The default eta=0, k=1 is a perfect mirror, as Mitsuba's material 'none'.
     - ``dielectric``: glass with interior ``ior`` over exterior 1.0; ``roughness`` 0 = smooth; light that
       crosses its surface (either way) is tinted by ``transmittance`` (Mitsuba's specular_transmittance: a
-      closed glass object tints what passes through it twice).
+      closed glass object tints what passes through it twice), and inside it light is absorbed at the rate
+      ``absorption`` per unit length (Beer–Lambert, per channel: Mitsuba's homogeneous interior medium of that
+      sigma_t and albedo 0; the segments a path travels inside a closed glass mesh, ending on its back faces).
     - ``plastic``: Lambertian ``reflectance`` under a dielectric coat of ``ior``, smooth at ``roughness`` 0
       (Mitsuba's ``plastic``, linear: Fresnel-weighted mirror reflection at the coat, the rest diffuse, each way
       through it), else a GGX coat of that alpha (Mitsuba's ``roughplastic``, linear).
@@ -59,6 +61,7 @@ class Material:
     k: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     transmittance: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
+    absorption: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
 
     def __post_init__(self):
         if self.kind not in MATERIAL_KINDS:
@@ -69,6 +72,9 @@ class Material:
         self.eta = _rgb(self.eta, "eta")
         self.k = _rgb(self.k, "k")
         self.emission = _rgb(self.emission, "emission")
+        self.absorption = _rgb(self.absorption, "absorption")
+        if self.kind != "dielectric" and np.any(self.absorption > 0):
+            raise ValueError(f"absorption is a dielectric's (inside its glass), not a {self.kind}'s")
         if not (0.0 <= float(self.roughness) <= 1.0):
             raise ValueError(f"roughness must be in [0, 1], got {self.roughness}")
         if not float(self.ior) > 0.0:
@@ -77,6 +83,10 @@ class Material:
     @property
     def is_emissive(self) -> bool:
         return bool(np.any(self.emission > 0))
+
+    @property
+    def absorbs(self) -> bool:
+        return bool(np.any(self.absorption > 0))
 
 
 @dataclass

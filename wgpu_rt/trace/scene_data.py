@@ -79,8 +79,8 @@ def pack_materials(materials: list[Material]) -> np.ndarray:
         eta, k = m.eta, m.k
         if m.kind == "plastic" and m.roughness >= DELTA_ROUGHNESS:     # a rough coat's table in their words
             eta, k = np.split(coat_words(m.roughness, m.ior), 2)
-        if m.kind == "dielectric":                                      # glass: its tint in eta's
-            eta = m.transmittance
+        if m.kind == "dielectric":                      # glass: its tint in eta's words, its absorption in k's
+            eta, k = m.transmittance, m.absorption
         out[i] = (m.reflectance, MATERIAL_KIND_CODES[m.kind], m.emission, m.roughness, eta, m.ior, k,
                   int(m.is_emissive))
     return out

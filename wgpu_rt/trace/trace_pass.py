@@ -98,6 +98,8 @@ PLAIN_EMISSION = "trace/emission_plain.wgsl"              # what trace/emitters.
 SMOOTH_COATS = "trace/coats_smooth.wgsl"                  # what trace/bsdf_plastic.wgsl imports
 ROUGH_COATS = "trace/coats_rough.wgsl"                    # in its place where a scene has a rough coat
 EMISSION_TEXTURES = "trace/emission_textures.wgsl"        # in its place where a scene's lights have textures
+CLEAR_INTERIORS = "trace/interior_clear.wgsl"             # what trace/trace.wgsl imports
+ABSORBING_INTERIORS = "trace/interior_absorbing.wgsl"     # in its place where a scene's glass absorbs
 STORAGE_TABLES = "trace/shading_tables_storage.wgsl"   # what trace/trace_bindings.wgsl imports
 UNIFORM_TABLES = "trace/shading_tables_uniform.wgsl"
 # Records per table in UNIFORM_TABLES (its array sizes): 16 KiB of materials, 40 KiB of emitters.
@@ -390,6 +392,8 @@ class TracePass(ComputePass):
             modules[PLAIN_EMISSION] = EMISSION_TEXTURES
         if any(m.kind == "plastic" and m.roughness >= DELTA_ROUGHNESS for m in materials):
             modules[SMOOTH_COATS] = ROUGH_COATS
+        if any(m.absorbs for m in materials):
+            modules[CLEAR_INTERIORS] = ABSORBING_INTERIORS
         self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement, modules)
         self._kernel_options = (traversal, self.placement, modules, len(geometry_buffers))
         self._aux_pipelines: dict[tuple[int, int], object] = {}

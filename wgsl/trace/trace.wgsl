@@ -25,6 +25,7 @@
 // #import trace/emitters.wgsl
 // #import trace/camera.wgsl
 // #import trace/surface.wgsl
+// #import trace/interior_clear.wgsl
 
 const RR_DEPTH: u32 = 5u;
 // Mesa's llvmpipe/lavapipe ends every loop of an invocation once its loops have gone round 65535 times
@@ -118,6 +119,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     let position = origin + hit.t * dir;
     let material = surface_colored(materials[tri_material(hit.prim)], hit);
     let cos_front = -dot(geometric_normal, dir);
+    (*path).throughput *= interior_transmittance(material, cos_front, hit.t);
 
     if HAS_AREA_LIGHTS && material.is_emissive != 0u && cos_front > 0.0 {
         var weight = 1.0;
