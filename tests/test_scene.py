@@ -834,7 +834,8 @@ def test_glass_takes_an_absorption_and_nothing_else_does(tmp_path):
     from wgpu_rt.scene.loader import parse_scene
 
     data = {"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]},
-            "materials": {"bottle": {"kind": "dielectric", "absorption": [0.3, 2.0, 0.0]}, "clear": {"kind": "dielectric"}},
+            "materials": {"bottle": {"kind": "dielectric", "absorption": [0.3, 2.0, 0.0]},
+                          "clear": {"kind": "dielectric"}},
             "meshes": [{"shape": "sphere", "material": "bottle"}, {"shape": "cube", "material": "clear"}]}
     materials = parse_scene(data, "scene.json", tmp_path).materials
     np.testing.assert_allclose(materials["bottle"].absorption, [0.3, 2.0, 0.0])

@@ -25,7 +25,8 @@ BSDF its material maps to:
   plugins.
 
 The sensor is a ``perspective`` camera (``thinlens`` with an aperture) with a box pixel filter and an
-``independent`` sampler seeded with ``seed``; the integrator (above) has the same ``max_depth``. Needs the ``bench`` extra.
+``independent`` sampler seeded with ``seed``; the integrator (above) has the same ``max_depth``. Needs the
+``bench`` extra.
 
 ``load_mitsuba`` sets Mitsuba to the fastest variant this machine has (``variant_choice``: cuda_ad_rgb where
 Dr.Jit finds a CUDA GPU, else llvm_ad_rgb when Debian's LLVM 19 is installed (`apt-get install -y libllvm19`;
@@ -234,9 +235,10 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         if emission is not None and mesh.emission_texture is not None:
             emission = textured_reflectance(mi, mesh.emission_texture, emission)   # radiance, tinted alike
         interior = None
-        if material.absorbs:      # its sigma_t texture holds reflectance-like values, at most 1: a scale carries the rest
+        if material.absorbs:      # its sigma_t holds values of at most 1, as a reflectance: a scale carries the rest
             peak = float(material.absorption.max())
-            interior = {"type": "homogeneous", "sigma_t": _rgb(material.absorption / peak), "scale": peak, "albedo": 0.0}
+            interior = {"type": "homogeneous", "sigma_t": _rgb(material.absorption / peak), "scale": peak,
+                        "albedo": 0.0}
         result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
                                     bsdf, emission,
                                     None if colors is None else colors * material.reflectance, mesh.uvs, interior)
