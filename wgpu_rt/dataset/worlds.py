@@ -43,7 +43,9 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
 - in the training family only, sometimes a screen between the camera and its target, cut out by a procedural
   alpha (``SCREEN_SHARE``, ``screen_texture``: a lattice, a perforated sheet or leaves), so the denoiser sees
   the sharp edges of holes and what shows and shines through them, as foliage and fences in users' files give
-  them; from a stream of its own (also version 8).
+  them; from a stream of its own (also version 8);
+- in the training family only, some glass absorbing inside (``ABSORBING_GLASS_SHARE``: coloured deeper where it
+  is thicker, as glTF's volume extension makes it), from a stream of its own (``WORLDS_VERSION`` 9).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -96,8 +98,9 @@ UP = np.array([0.0, 1.0, 0.0])
 CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, metres
 # What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
 # worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera; 5: skies as environment maps;
-# 6: coated (plastic) materials; 7: normal maps on set surfaces; 8: rough coats, tinted glass, cut-out screens.
-WORLDS_VERSION = 8
+# 6: coated (plastic) materials; 7: normal maps on set surfaces; 8: rough coats, tinted glass, cut-out screens;
+# 9: absorbing glass.
+WORLDS_VERSION = 9
 LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
 PAINTED_SHARE = 0.5         # of the training worlds
 LENS_SHARE = 0.25           # of the training worlds
@@ -108,6 +111,8 @@ PLASTIC_SHARE = 0.3         # of the training worlds' matte materials (not emitt
 ROUGH_COAT_SHARE = 0.5      # of those coats
 ROUGH_COAT_ALPHAS = (0.02, 0.6)   # a rough coat's GGX alpha, log-uniform
 TINTED_GLASS_SHARE = 0.4    # of the training worlds' glass materials
+ABSORBING_GLASS_SHARE = 0.4   # of the training worlds' glass materials
+ABSORPTION_DISTANCES = (0.05, 1.0)   # metres over which absorbing glass keeps its colour, log-uniform
 SCREEN_SHARE = 0.5          # of the training worlds (about two in three of those have room for it clear of glass)
 SCREENS = ("lattice", "perforated", "leaves")
 SCREEN_SIZE = 64            # texels a side of a screen's texture (it repeats)
@@ -164,6 +169,7 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
         world.coat_materials(np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0A7])),
                              np.random.default_rng(np.random.SeedSequence([int(seed), 0xC0A8])))
         world.tint_glass(np.random.default_rng(np.random.SeedSequence([int(seed), 0x71A7])))
+        world.absorb_in_glass(np.random.default_rng(np.random.SeedSequence([int(seed), 0xAB50])))
         world.add_normal_maps(np.random.default_rng(np.random.SeedSequence([int(seed), 0xB0B5])))
         world.add_screen(np.random.default_rng(np.random.SeedSequence([int(seed), 0x5C2E])))
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
@@ -482,6 +488,19 @@ class _World:
             tinted, colour, peak = rng.uniform() < TINTED_GLASS_SHARE, rng.uniform(0.25, 1.0, 3), rng.uniform(0.75, 1)
             if tinted:
                 material.transmittance = (colour / colour.max() * peak).astype(np.float32)
+
+    def absorb_in_glass(self, rng: np.random.Generator) -> None:
+        """Each glass material (glass is given to closed shapes and slabs only, which have an inside) absorbs,
+        with probability ABSORBING_GLASS_SHARE, at a rate that leaves a colour whose channels are 0.05–0.9 after a
+        distance drawn from ABSORPTION_DISTANCES: thin panes barely tinted, bulky objects deep in colour."""
+        for name in sorted(self.materials):
+            material = self.materials[name]
+            if material.kind != "dielectric":
+                continue
+            absorbing, colour = rng.uniform() < ABSORBING_GLASS_SHARE, rng.uniform(0.05, 0.9, 3)
+            distance = float(np.exp(rng.uniform(*np.log(ABSORPTION_DISTANCES))))
+            if absorbing:
+                material.absorption = (-np.log(colour) / distance).astype(np.float32)
 
     def add_normal_maps(self, rng: np.random.Generator) -> None:
         """With probability NORMAL_MAP_SHARE, each flat set surface (a rectangle: floor, ceiling, walls, the
