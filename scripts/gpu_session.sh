@@ -79,11 +79,14 @@
 # them, and `tests` checks them under a shrunken limit. Session 48 had no GPU; since then the training worlds are
 # worlds_version 6 (§47: a quarter of the cameras through a thin lens, half the skies as environment maps, three
 # in ten matte materials coated as plastic); session 49 made it 7 (§48: normal maps on some worlds' floors and
-# walls) and session 50 8 (§49: half the coats rough, some glass tinted, cut-out screens in view), so call 1's
-# renders are the first with any of them (the screens' golds render through Mitsuba's volpath);
-# train_eval should also score
+# walls), session 50 8 (§49: half the coats rough, some glass tinted, cut-out screens in view) and session 51 9
+# (§50: some glass absorbing inside), so call 1's renders are the first with any of them (the screens' and the
+# absorbing glass's golds render through Mitsuba's volpath); since session 51 the albedo seen through mirrors and
+# glass is tinted by their colour (guide albedo 4, §50), so older datasets' albedo differs there;
+# train_check scores shipped and new on the scenes of those features too (FEATURE_SCENES: `painted`,
 # benchmarks/scenes/plaza-lens.toml, examples/sky-courtyard.toml, examples/still-life.toml (rough coats since
-# session 50) and examples/leaf-screen.toml (cut-outs) (bench_spp.py).
+# session 50), examples/leaf-screen.toml (cut-outs) and examples/coloured-glass.toml (absorbing glass, session 51);
+# bench_spp.py at 256² against Mitsuba's 4096-spp gold, as BENCHMARKS.md §47–§50 scored them on lavapipe).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
 # half_math (the denoised images of each half-precision math against onnxruntime's),
@@ -99,8 +102,8 @@
 # TRAIN_MINUTES on training worlds rendered at 256² with built-in views and 96² worlds mixed in, the
 # model in $OUT/model; DEADLINE unset, PART_LIMIT=280, ARCHIVE set), train_eval (that model, or TRAINED=DIR,
 # scored on the held-out worlds against OIDN), train_check (train_eval,
-# then shipped and new on §14's checks at 256² and 128²; in a second call at once, while the machine
-# is warm, or after carrying the model back in as TRAINED). Both render the held-out worlds first
+# then shipped and new on §14's checks at 256² and 128² and on FEATURE_SCENES; in a second call at once, while
+# the machine is warm, or after carrying the model back in as TRAINED). Both render the held-out worlds first
 # unless they are there. SIZE (default 1080p) shrinks
 # everything for a dry run on lavapipe: SIZE=small. Each part stops after PART_LIMIT seconds (default
 # 300), and parts that would start after DEADLINE seconds (default: none) are skipped, so a call keeps
@@ -145,6 +148,9 @@ CHECK_SCENES="cornell cornell-glossy sun-room world-2147483661 world-2147483667 
     world-2147483670 world-2147483656 world-2147483648 world-2147483651 world-2147483652 world-2147483654"
 CHECK_SCENES_SMALL="world-2147483648 world-2147483651 world-2147483653 cornell cornell-glossy sun-room
     world-2147483660 world-2147483661"
+FEATURE_SCENES="painted benchmarks/scenes/plaza-lens.toml examples/sky-courtyard.toml examples/still-life.toml
+    examples/leaf-screen.toml examples/coloured-glass.toml"
+FEATURE_VIEW=$([ $small = 1 ] && echo 32 || echo 256)
 TRACE_SPP=$([ $small = 1 ] && echo 4 || echo 64)   # at 16 spp 1024² the fixed costs of a render weigh in
 
 part() {   # part NAME COMMAND...: run, keep its output, go on after a failure
@@ -308,6 +314,9 @@ export_onnx(UNet(widths=tuple(map(int, sys.argv[2:])), bottom_merge='add'), sys.
                 --gold-cache /tmp/gold --aux 4 --delta-factor 2 --worlds 0 --models "$set" --scenes $CHECK_SCENES
             part check_${name}_$CHECK_VIEW python3 benchmarks/bench_spp.py --size $CHECK_VIEW --spp 1 4 \
                 --gold-spp $GOLD --gold-cache /tmp/gold --seeds 2 --models "$set" --scenes $CHECK_SCENES_SMALL
+            part features_${name} python3 benchmarks/bench_spp.py --size $FEATURE_VIEW --spp 1 4 16 --seeds 2 \
+                --gold-renderer mitsuba --gold-spp $GOLD --gold-cache /tmp/gold --oidn-quality balanced \
+                --models "$set" --scenes $FEATURE_SCENES
         done ;;
     *) echo "unknown part $what (tests, nn, half_math, nn_widths, nn_variants, trace, frame, heldout, train," \
             "train_eval, train_check)"; exit 2 ;;

@@ -392,10 +392,23 @@ def test_aux_albedo_behind_a_pane_of_glass_is_noise_free(gpu, delta_samples):
     pixel behind glass (8 by default; an odd count too) share the first glass bounce's two lobes in
     proportion to F, each weighed by its lobe's share, and leave the slab along its more likely lobe. Picking the lobes at random, as the
     tracer does, spread these pixels by ±0.046 around the mean and fails this test."""
-    from wgpu_rt.trace.scene_data import camera_vectors
-
     scene = parse_scene(PANE_SCENE, "pane", Path("."))
     albedo = _albedo(gpu, scene, 1, min(4, delta_samples), delta_samples)[..., 0]
+    cos_i, cos_t = _pane_cosines(scene)
+    fresnel = 0.5 * (((cos_i - 1.5 * cos_t) / (cos_i + 1.5 * cos_t)) ** 2
+                     + ((1.5 * cos_i - cos_t) / (1.5 * cos_i + cos_t)) ** 2)
+    expected = WALL_ALBEDO * (1 - fresnel)
+    np.testing.assert_allclose(albedo[BEHIND_PANE], expected[BEHIND_PANE], atol=0.004)
+
+
+BEHIND_PANE = (slice(12, 20), slice(12, 20))   # well inside the pane's image, away from its rims
+PANE_THICKNESS = 0.04
+
+
+def _pane_cosines(scene) -> tuple[np.ndarray, np.ndarray]:
+    """(32, 32) cosines of each pixel centre's ray with the pane's normal, outside and inside the glass."""
+    from wgpu_rt.trace.scene_data import camera_vectors
+
     view = camera_vectors(scene.camera, 32, 32)
     centres = (np.arange(32) + 0.5) / 32
     film_y, film_x = np.meshgrid(centres, centres, indexing="ij")
@@ -403,12 +416,26 @@ def test_aux_albedo_behind_a_pane_of_glass_is_noise_free(gpu, delta_samples):
     dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
     tilt = np.radians(PANE_TILT_DEG)
     cos_i = np.abs(dirs @ np.array([np.sin(tilt), 0.0, np.cos(tilt)]))
-    cos_t = np.sqrt(1 - (1 - cos_i ** 2) / 1.5 ** 2)
-    fresnel = 0.5 * (((cos_i - 1.5 * cos_t) / (cos_i + 1.5 * cos_t)) ** 2
-                     + ((1.5 * cos_i - cos_t) / (1.5 * cos_i + cos_t)) ** 2)
-    expected = WALL_ALBEDO * (1 - fresnel)
-    behind_pane = (slice(12, 20), slice(12, 20))   # well inside the pane's image, away from its rims
-    np.testing.assert_allclose(albedo[behind_pane], expected[behind_pane], atol=0.004)
+    return cos_i, np.sqrt(1 - (1 - cos_i ** 2) / 1.5 ** 2)
+
+
+@pytest.mark.parametrize("aux_samples", [0, 4])
+def test_albedo_through_tinted_absorbing_glass_carries_the_light_s_colour(gpu, aux_samples):
+    """Behind the pane tinted by a transmittance T at each crossing and absorbing at a rate σ inside, the albedo the
+    denoiser sees (the tracer's own at 256 spp, the aux pass's) is the clear pane's times T² exp(−σ L), L the
+    length of the ray's way through the glass: the colour the wall's light takes on the way, so that the colour
+    over the albedo there is the wall's own irradiance. (With the tint left out, that ratio carried the glass's
+    colour, unlike anywhere the wall is seen directly.)"""
+    tint, absorption = np.array([0.9, 0.6, 0.8]), np.array([0.0, 5.0, 20.0])
+    clear = parse_scene(PANE_SCENE, "pane", Path("."))
+    coloured = parse_scene(PANE_SCENE, "pane", Path("."))
+    coloured.materials["glass"].transmittance = np.float32(tint)
+    coloured.materials["glass"].absorption = np.float32(absorption)
+    spp = 1 if aux_samples else 256
+    ratio = _albedo(gpu, coloured, spp, aux_samples) / _albedo(gpu, clear, spp, aux_samples)
+    _, cos_t = _pane_cosines(clear)
+    expected = tint ** 2 * np.exp(-absorption * PANE_THICKNESS / cos_t[..., None])
+    np.testing.assert_allclose(ratio[BEHIND_PANE], expected[BEHIND_PANE], rtol=0.02)   # (jitter moves L)
 
 
 GLOW_REFLECTANCE = 0.3

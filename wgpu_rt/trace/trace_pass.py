@@ -89,8 +89,9 @@ AUX_DELTA_FACTOR = 2
 AUX_LENS_FACTOR = 4
 # What the albedo plane holds (wgsl/trace/guide_albedo.wgsl): where a path escapes, since version 2 the
 # background's radiance, at most 1 (in 1, datasets rendered before, 0); on an emitter, since version 3 at
-# least 0.5 grey (in 1 and 2 its reflectance, 0 for a black lamp). A dataset records its version.
-GUIDE_ALBEDO = 3
+# least 0.5 grey (in 1 and 2 its reflectance, 0 for a black lamp); seen through mirrors and smooth glass, since
+# version 4 tinted by their colour (delta_albedo_tint: before, untinted). A dataset records its version.
+GUIDE_ALBEDO = 4
 
 
 CUTOUTS = "trace/cutouts.wgsl"   # in place of accel/cutouts_none.wgsl where a scene cuts surfaces away

@@ -932,7 +932,8 @@ def train(config: TrainConfig, progress: bool = True) -> dict | None:
 # What a dataset's albedo planes held before each change of the renderer's convention
 # (trace_pass.GUIDE_ALBEDO), by the version that changed it
 GUIDE_ALBEDO_CHANGES = {2: "escaping paths with albedo 0",
-                        3: "emitters with their reflectance as albedo, 0 for a black lamp"}
+                        3: "emitters with their reflectance as albedo, 0 for a black lamp",
+                        4: "the albedo through mirrors and glass untinted by their colour"}
 
 
 def _older_guide_albedo(version: int) -> str:

@@ -17,7 +17,8 @@
 // Only pixels behind mirrors and glass take the extra samples (a pixel seen directly varies only by its
 // jitter at edges). (The count depends on what the first paths met, so at the rim of a glass object the
 // average leans slightly towards its delta side.)
-// Albedo as the tracer takes it (trace/guide_albedo.wgsl: an escape's is the background's radiance);
+// Albedo as the tracer takes it (trace/guide_albedo.wgsl: an escape's is the background's radiance; what is seen
+// through a delta bounce tinted by its colour, delta_albedo_tint, and through absorbing glass by what it keeps);
 // running out of max_depth inside the chain counts as albedo 0, as in the tracer. Like
 // the tracer (LOOP_BUDGET in trace/trace.wgsl), an invocation starts no new sample once its loops have
 // gone round AUX_LOOP_BUDGET times (lavapipe ends loops at 65535 turns per dispatch) and averages the
@@ -33,6 +34,7 @@
 // #import trace/guide_albedo.wgsl
 // #import trace/camera.wgsl
 // #import trace/surface.wgsl
+// #import trace/interior_clear.wgsl
 
 override AUX_SAMPLES: u32 = 4u;
 override AUX_DELTA_SAMPLES: u32 = 8u;   // at least AUX_SAMPLES (trace_pass.py sees to it)
@@ -57,7 +59,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
     var sampling = inside;
     var met_delta = false;
     var loop_passes = 0u;
-    var weight = 1.0;          // of the current sample's albedo: its first glass lobe's share
+    var weight = vec3f(1.0);   // of the current sample's albedo: its first glass lobe's share, times its tints
     var met_glass = false;     // has the current sample met smooth glass yet?
     let lens = params.lens_radius > 0.0;
     var normal_sum = vec3f(0.0);   // of the samples' first hits (through a lens)
@@ -76,6 +78,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
             if hit.prim != NO_HIT {
                 let material = surface_colored(materials[tri_material(hit.prim)], hit);
                 let delta = material_is_delta(material);
+                weight *= interior_transmittance(material, -dot(traced.geometric_normal, dir), hit.t);
                 if lens && depth == 0u {   // as the tracer's normal and depth planes take the first hit
                     normal_sum += shading_normal_at(hit, traced.geometric_normal, material, dir);
                     depth_sum += dot(origin + hit.t * dir - params.camera_origin, params.camera_forward);
@@ -96,15 +99,16 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                             let n = f32(AUX_DELTA_SAMPLES);
                             let reflected = clamp(round(reflectance * n), 1.0, n - 1.0);
                             take_reflection = f32(index) < reflected;
-                            weight = select((1.0 - reflectance) * n / (n - reflected), reflectance * n / reflected,
-                                            take_reflection);
+                            weight *= select((1.0 - reflectance) * n / (n - reflected), reflectance * n / reflected,
+                                             take_reflection);
                         }
                         met_glass = true;
                     }
                     // (dielectric_sample reflects when its u_lobe is below F: 0 does unless F = 0, 1 does not unless F = 1;
                     // a lobe of share 0 ends the sample below)
                     let bs = bsdf_sample(material, wi, select(1.0, 0.0, take_reflection), next_2d(&sampler));
-                    if weight > 0.0 && any(bs.weight != vec3f(0.0)) {
+                    if any(weight > vec3f(0.0)) && any(bs.weight != vec3f(0.0)) {
+                        weight *= delta_albedo_tint(bs);
                         let position = origin + hit.t * dir;
                         dir = normalize(to_world(frame, bs.wo));
                         origin = offset_ray_origin(position, geometric_normal, dir);
@@ -124,7 +128,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                 origin = ray.origin;
                 dir = ray.dir;
                 depth = 0u;
-                weight = 1.0;
+                weight = vec3f(1.0);
                 met_glass = false;
             }
         }

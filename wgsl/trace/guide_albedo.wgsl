@@ -31,6 +31,15 @@ fn surface_albedo(m: Material) -> vec3f {
     return m.reflectance;
 }
 
+// What a delta bounce tints the albedo seen through it by: the colour of its sample's weight without the 1/eta²
+// by which a refraction scales radiance (a glass's transmittance; a metal mirror's Fresnel colour times its tint;
+// 1 for a glass's reflection, whose share of the pixel the lobe's pick sets). So the albedo behind coloured glass
+// or a gold mirror carries the colour the light does, and the irradiance the denoiser reads there (colour over
+// albedo) is the surface's own, as where it is seen directly (BENCHMARKS.md §50).
+fn delta_albedo_tint(bs: BsdfSample) -> vec3f {
+    return bs.weight * (bs.eta * bs.eta);
+}
+
 // A path that escapes the scene along `dir`.
 fn background_albedo(dir: vec3f) -> vec3f {
     return clamp(background_radiance(dir), vec3f(0.0), vec3f(1.0));

@@ -47,7 +47,7 @@ struct Path {
     previous_importance: f32,   // and the emitter groups' importances summed there (emitters.wgsl)
     radiance: vec3f,
     previous_delta: bool,       // that sample came from a delta lobe (no MIS for what it hits)
-    albedo: vec3f,
+    albedo: vec3f,              // while pending, the tint of the delta bounces so far (delta_albedo_tint)
     albedo_pending: bool,       // no non-delta surface met yet
     normal: vec3f,
     linear_depth: f32,
@@ -87,7 +87,7 @@ fn start_path(sampler: ptr<function, Sampler>, pixel_corner: vec2f) -> Path {
     let film = pixel_corner + next_2d(sampler);
     let ray = camera_ray(film, sampler);
     return Path(ray.origin, 0u, ray.dir, 1.0, vec3f(1.0), 0.0, ray.origin,
-                0.0, vec3f(0.0), true, vec3f(0.0), WRITE_AOVS, vec3f(0.0), 0.0, film, vec2f(0.0));
+                0.0, vec3f(0.0), true, vec3f(1.0), WRITE_AOVS, vec3f(0.0), 0.0, film, vec2f(0.0));
 }
 
 // Shades where the path's last segment landed (`traced`), leaving the next-event estimate made there in
@@ -100,7 +100,8 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     let depth = (*path).depth;
     if hit.prim == NO_HIT {
         if WRITE_AOVS && (*path).albedo_pending {
-            (*path).albedo = background_albedo(dir);
+            (*path).albedo *= background_albedo(dir);
+            (*path).albedo_pending = false;
         }
         if HAS_ANALYTIC_LIGHTS && params.background_share > 0.0 {
             var weight = 1.0;
@@ -119,7 +120,11 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     let position = origin + hit.t * dir;
     let material = surface_colored(materials[tri_material(hit.prim)], hit);
     let cos_front = -dot(geometric_normal, dir);
-    (*path).throughput *= interior_transmittance(material, cos_front, hit.t);
+    let interior = interior_transmittance(material, cos_front, hit.t);
+    (*path).throughput *= interior;
+    if WRITE_AOVS && (*path).albedo_pending {
+        (*path).albedo *= interior;
+    }
 
     if HAS_AREA_LIGHTS && material.is_emissive != 0u && cos_front > 0.0 {
         var weight = 1.0;
@@ -145,7 +150,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
             }
         }
         if (*path).albedo_pending && !material_is_delta(material) {
-            (*path).albedo = surface_albedo(material);
+            (*path).albedo *= surface_albedo(material);
             (*path).albedo_pending = false;
         }
     }
@@ -181,6 +186,9 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
         return false;
     }
     var throughput = (*path).throughput * bs.weight * mapped;
+    if WRITE_AOVS && (*path).albedo_pending {      // (so the bounce is a delta one)
+        (*path).albedo *= delta_albedo_tint(bs);
+    }
     let eta_scale = (*path).eta_scale * bs.eta;
     (*path).dir = next_dir;
     (*path).origin = offset_ray_origin(position, geometric_normal, next_dir);
@@ -251,7 +259,7 @@ fn trace_samples(pixel: u32, xy: vec2u, first_index: u32, taken: u32) -> SampleS
         if tracing && !extend_path(&path, &sampler, traced, &shadow) {
             sums.radiance += select(vec3f(0.0), path.radiance, is_finite_vec3(path.radiance));
             if WRITE_AOVS {
-                sums.albedo += path.albedo;
+                sums.albedo += select(path.albedo, vec3f(0.0), path.albedo_pending);   // 0: lost in the chain
                 sums.normal += path.normal;
                 sums.depth += path.linear_depth;
                 sums.motion += path.motion;
