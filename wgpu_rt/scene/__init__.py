@@ -2,7 +2,8 @@
 
 ``load_scene(spec, mesh=None)`` is the one entry point: ``spec`` is a built-in name (see
 ``BUILTIN_SCENES``), a path to a .json/.toml scene file, a mesh file (the built-in ``mesh`` scene around it, in
-its own materials), or a ``Scene`` (returned as is).
+its own materials; a glTF file with a camera is a scene of its own, ``gltf_scene``), or a ``Scene`` (returned as
+is).
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from pathlib import Path
 
 from ..errors import SceneError
 from .builtin import BUILTIN_SCENES, builtin_scene
+from .file_materials import GLTF_SUFFIXES
+from .gltf_scene import gltf_scene
 from .loader import SCENE_SUFFIXES, load_scene_file
 from .meshio import MESH_SUFFIXES
 from .model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene, SpotLight
@@ -29,7 +32,8 @@ def load_scene(spec, mesh=None) -> Scene:
     if isinstance(spec, str) and spec in BUILTIN_SCENES:
         return builtin_scene(spec, mesh=mesh)
     if Path(spec).suffix.lower() in MESH_SUFFIXES:
-        return builtin_scene("mesh", mesh=spec)
+        own = gltf_scene(spec) if Path(spec).suffix.lower() in GLTF_SUFFIXES else None
+        return own or builtin_scene("mesh", mesh=spec)
     if Path(spec).suffix.lower() in SCENE_SUFFIXES or Path(spec).exists():
         return load_scene_file(spec)
     raise SceneError(f"{spec}: neither a built-in scene ({', '.join(sorted(BUILTIN_SCENES))}), "

@@ -56,8 +56,9 @@ def pbr_material(base_color, metallic: float, roughness: float, transmission: fl
     return Material("diffuse", reflectance=base_color, emission=emission)
 
 
-class _Reader:
-    """One material's fields, each checked against its range, errors naming the file and the material."""
+class FieldReader:
+    """The fields of one entry of a glTF or MTL file (a material, a node, a light), each checked against its range,
+    errors naming the file and the entry ("where")."""
 
     def __init__(self, where: str, data: dict):
         self.where, self.data = where, data
@@ -96,7 +97,7 @@ def _texture_mean(image, where: str) -> np.ndarray:
     return pixels.mean(axis=0) / 255.0
 
 
-def _uv_matrix(transform: _Reader) -> np.ndarray:
+def _uv_matrix(transform: FieldReader) -> np.ndarray:
     """glTF's KHR_texture_transform as a 3×3 matrix: offset · rotation · scale, the rotation turning the
     coordinates counter-clockwise in glTF's frame (v down), so that the image turns clockwise."""
     offset = transform.numbers("offset", [0.0, 0.0], length=2, low=-np.inf, high=np.inf)
@@ -138,19 +139,19 @@ def gltf_material(entry: dict, where: str, trimesh_material=None) -> Material:
     PBRMaterial of it) lends its decoded textures for their means."""
     if not isinstance(entry, dict):
         raise SceneError(f"{where}: expected an object, got {entry!r}")
-    pbr = _Reader(where, entry.get("pbrMetallicRoughness") or {})
+    pbr = FieldReader(where, entry.get("pbrMetallicRoughness") or {})
     extensions = entry.get("extensions") or {}
     base = pbr.numbers("baseColorFactor", [1.0, 1.0, 1.0, 1.0], length=4)[:3]
     metallic = pbr.numbers("metallicFactor", 1.0)
     roughness = pbr.numbers("roughnessFactor", 1.0)
-    top = _Reader(where, entry)
+    top = FieldReader(where, entry)
     emission = top.numbers("emissiveFactor", [0.0, 0.0, 0.0], length=3)
-    strength = _Reader(where, extensions.get("KHR_materials_emissive_strength") or {})
+    strength = FieldReader(where, extensions.get("KHR_materials_emissive_strength") or {})
     emission = emission * strength.numbers("emissiveStrength", 1.0, high=np.inf)
-    transmission = _Reader(where, extensions.get("KHR_materials_transmission") or {})
+    transmission = FieldReader(where, extensions.get("KHR_materials_transmission") or {})
     transmission = transmission.numbers("transmissionFactor", 0.0)
-    ior = _Reader(where, extensions.get("KHR_materials_ior") or {}).numbers("ior", 1.5, low=1.0, high=np.inf)
-    absorption = _volume_absorption(_Reader(where, extensions.get("KHR_materials_volume") or {}))
+    ior = FieldReader(where, extensions.get("KHR_materials_ior") or {}).numbers("ior", 1.5, low=1.0, high=np.inf)
+    absorption = _volume_absorption(FieldReader(where, extensions.get("KHR_materials_volume") or {}))
     textures = trimesh_material
     if getattr(textures, "metallicRoughnessTexture", None) is not None:
         # glTF: roughness in the green channel, metalness in the blue, both linear.
@@ -163,7 +164,7 @@ def gltf_material(entry: dict, where: str, trimesh_material=None) -> Material:
 LEAST_ATTENUATION_COLOR = 1e-10
 
 
-def _volume_absorption(volume: _Reader) -> np.ndarray:
+def _volume_absorption(volume: FieldReader) -> np.ndarray:
     """The absorption per unit length of a glTF ``KHR_materials_volume`` (0 without one, or for a thin wall)."""
     thickness = volume.numbers("thicknessFactor", 0.0, high=np.inf)
     colour = volume.numbers("attenuationColor", [1.0, 1.0, 1.0], length=3)
@@ -181,7 +182,7 @@ def obj_material(simple, where: str) -> Material:
     Blender writes as ``Ns`` (r = 1 − √(Ns/1000)) where ``Ks`` is not black; without either, diffuse; glass, tinted
     by the transmission filter ``Tf`` (not by ``Kd``), where
     ``illum`` is 4, 6, 7 or 9 or the dissolve ``d`` is below 1 (``Tr`` above 0), of index ``Ni``."""
-    fields = _Reader(where, {key.lower(): value for key, value in (getattr(simple, "kwargs", None) or {}).items()})
+    fields = FieldReader(where, {key.lower(): value for key, value in (getattr(simple, "kwargs", None) or {}).items()})
     base = fields.numbers("kd", 0.8, length=3)
     specular = "pr" in fields.data or bool(np.any(fields.numbers("ks", 0.0, length=3) > 0))
     if "pr" in fields.data:
@@ -273,7 +274,7 @@ class FileMaterials:
         texture, label = self._texture_info(geometry, "normalTexture")
         if texture is None:
             return 1.0
-        return _Reader(f"{self.path}: material {label!r}: normalTexture", texture).numbers("scale", 1.0, high=np.inf)
+        return FieldReader(f"{self.path}: material {label!r}: normalTexture", texture).numbers("scale", 1.0, high=np.inf)
 
     def texture_transform(self, geometry) -> np.ndarray | None:
         """The 3×3 matrix (of glTF's texture coordinates, v down) of the ``KHR_texture_transform`` on
@@ -288,7 +289,7 @@ class FileMaterials:
             where = f"{self.path}: material {label!r}: {key}'s KHR_texture_transform"
             if not isinstance(transform, dict):
                 raise SceneError(f"{where}: expected an object, got {transform!r}")
-            matrices[key] = _uv_matrix(_Reader(where, transform))
+            matrices[key] = _uv_matrix(FieldReader(where, transform))
         if any(not np.allclose(matrix, next(iter(matrices.values()))) for matrix in matrices.values()):
             raise SceneError(f"{self.path}: material {label!r}: its textures have different KHR_texture_transforms "
                              f"({', '.join(matrices)}); the tracer reads them at one set of coordinates")

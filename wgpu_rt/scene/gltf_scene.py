@@ -1,0 +1,168 @@
+"""A glTF file that brings its own camera as a whole scene: its meshes where its nodes place them, in its own
+materials, seen through its first camera and lit by its ``KHR_lights_punctual`` lights.
+
+A file without a camera stays an object to look at: ``load_scene`` sets it in the built-in ``mesh`` room. With one,
+nothing is added or moved, as a scene exported from Blender expects:
+
+- the camera: the first node of the default scene (depth first, in file order) that has a ``perspective`` camera;
+  glTF's camera looks down its node's −z with +y up; ``yfov`` is the vertical field of view (the render's own size
+  sets the aspect ratio, not ``aspectRatio``). An orthographic camera is refused by name.
+- lights: glTF's are photometric (candela for point and spot lights, lux for directional ones) and the tracer's are
+  radiometric, so each is divided by 683 lm/W (the luminous efficacy of 555 nm light; Blender's importer does the
+  same), its ``color`` a per-channel factor. A spot's cone has glTF's outer angle as its cut-off and its inner angle
+  as its beam width (the fall-off between is Mitsuba's, linear in angle, where glTF suggests one in the cosine); a
+  directional or spot light points down its node's −z. ``range`` is not read (light falls off with distance
+  squared, as glTF asks where it is absent).
+- a file with no light of its own (no punctual light, no emissive material) is lit by a white sky of radiance 1, so
+  that it does not render black; one with lights has a black background (glTF has no environment).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneError
+from .file_materials import FieldReader, gltf_json
+from .meshio import load_mesh_file
+from .model import Camera, DirectionalLight, Material, PointLight, Scene, SpotLight
+
+LUMENS_PER_WATT = 683.0     # glTF's candela and lux over the tracer's W·sr⁻¹ and W·m⁻²
+UNLIT_SKY = 1.0             # the background's radiance for a file that brings no light
+
+
+def _node_matrix(node: dict, where: str) -> np.ndarray:
+    """A node's local transform: its ``matrix`` (column-major), else translation · rotation · scale."""
+    fields = FieldReader(where, node)
+    if "matrix" in node:
+        matrix = fields.numbers("matrix", None, length=16, low=-np.inf, high=np.inf).reshape(4, 4).T
+        return matrix
+    translation = fields.numbers("translation", [0.0, 0.0, 0.0], length=3, low=-np.inf, high=np.inf)
+    quaternion = fields.numbers("rotation", [0.0, 0.0, 0.0, 1.0], length=4, low=-1.0, high=1.0)
+    if not np.linalg.norm(quaternion) > 0:
+        fields.fail(f"rotation must be a unit quaternion, got {quaternion.tolist()}")
+    x, y, z, w = quaternion / np.linalg.norm(quaternion)
+    scale = fields.numbers("scale", [1.0, 1.0, 1.0], length=3, low=-np.inf, high=np.inf)
+    rotation = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    matrix = np.eye(4)
+    matrix[:3, :3] = rotation * scale
+    matrix[:3, 3] = translation
+    return matrix
+
+
+def placed_nodes(tree: dict, path: Path) -> list[tuple[int, np.ndarray]]:
+    """(node index, world matrix) of every node of the file's default scene, depth first in file order (a node
+    reached twice, or a cycle, is a SceneError)."""
+    nodes = tree.get("nodes") or []
+    if not isinstance(nodes, list):
+        raise SceneError(f"{path}: the glTF file's nodes are not a list")
+    scenes = tree.get("scenes")
+    if scenes:
+        chosen = tree.get("scene", 0)
+        if not (isinstance(chosen, int) and 0 <= chosen < len(scenes)) or not isinstance(scenes[chosen], dict):
+            raise SceneError(f"{path}: the glTF file's scene {chosen!r} is not one of its {len(scenes)} scenes")
+        roots = scenes[chosen].get("nodes") or []
+    else:
+        children = {child for node in nodes if isinstance(node, dict) for child in node.get("children") or []}
+        roots = [i for i in range(len(nodes)) if i not in children]
+    placed, seen = [], set()
+    stack = [(index, np.eye(4)) for index in reversed(roots)]
+    while stack:
+        index, parent = stack.pop()
+        if not (isinstance(index, int) and 0 <= index < len(nodes)) or not isinstance(nodes[index], dict):
+            raise SceneError(f"{path}: node {index!r} is not one of the file's {len(nodes)} nodes")
+        if index in seen:
+            raise SceneError(f"{path}: node {index} is reached twice in the scene's hierarchy")
+        seen.add(index)
+        world = parent @ _node_matrix(nodes[index], f"{path}: node {index}")
+        placed.append((index, world))
+        stack.extend((child, world) for child in reversed(nodes[index].get("children") or []))
+    return placed
+
+
+def _direction(world: np.ndarray, local) -> np.ndarray:
+    direction = world[:3, :3] @ np.asarray(local, np.float64)
+    return direction / np.linalg.norm(direction)
+
+
+def _camera(tree: dict, placed: list, path: Path) -> Camera | None:
+    """The first placed camera's view (None where no node has a camera)."""
+    cameras = tree.get("cameras") or []
+    for index, world in placed:
+        number = tree["nodes"][index].get("camera")
+        if number is None:
+            continue
+        where = f"{path}: camera {number!r} (node {index})"
+        if not (isinstance(number, int) and 0 <= number < len(cameras)) or not isinstance(cameras[number], dict):
+            raise SceneError(f"{where}: not one of the file's {len(cameras)} cameras")
+        entry = cameras[number]
+        if entry.get("type") != "perspective":
+            raise SceneError(f"{where}: a {entry.get('type')!r} camera; only perspective cameras are rendered")
+        perspective = FieldReader(where, entry.get("perspective") or {})
+        if "yfov" not in perspective.data:
+            perspective.fail("a perspective camera without a yfov")
+        yfov = perspective.numbers("yfov", None, high=np.pi)
+        if not np.all(np.isfinite(world)) or abs(np.linalg.det(world[:3, :3])) < 1e-12:
+            raise SceneError(f"{where}: its node's transform is singular or not finite")
+        origin = world[:3, 3]
+        try:
+            return Camera(origin, origin + _direction(world, [0, 0, -1]), up=_direction(world, [0, 1, 0]),
+                          fov=float(np.degrees(yfov)), fov_axis="y")
+        except ValueError as err:
+            raise SceneError(f"{where}: {err}") from err
+    return None
+
+
+def _lights(tree: dict, placed: list, path: Path) -> list:
+    """The placed KHR_lights_punctual lights, in the tracer's units."""
+    catalogue = ((tree.get("extensions") or {}).get("KHR_lights_punctual") or {}).get("lights") or []
+    lights = []
+    for index, world in placed:
+        number = ((tree["nodes"][index].get("extensions") or {}).get("KHR_lights_punctual") or {}).get("light")
+        if number is None:
+            continue
+        where = f"{path}: light {number!r} (node {index})"
+        if not (isinstance(number, int) and 0 <= number < len(catalogue)) or not isinstance(catalogue[number], dict):
+            raise SceneError(f"{where}: not one of the file's {len(catalogue)} KHR_lights_punctual lights")
+        entry = catalogue[number]
+        fields = FieldReader(where, entry)
+        power = (fields.numbers("color", [1.0, 1.0, 1.0], length=3)
+                 * fields.numbers("intensity", 1.0, high=np.inf) / LUMENS_PER_WATT).astype(np.float32)
+        kind = entry.get("type")
+        position, aim = world[:3, 3].astype(np.float32), _direction(world, [0, 0, -1]).astype(np.float32)
+        if kind == "point":
+            lights.append(PointLight(position, power))
+        elif kind == "directional":
+            lights.append(DirectionalLight(aim, power))
+        elif kind == "spot":
+            cone = FieldReader(where, entry.get("spot") or {})
+            outer = cone.numbers("outerConeAngle", np.pi / 4, high=np.pi / 2)
+            inner = cone.numbers("innerConeAngle", 0.0, high=np.pi / 2)
+            if not 0.0 <= inner < outer:
+                raise SceneError(f"{where}: innerConeAngle must be below outerConeAngle, got {inner} and {outer}")
+            lights.append(SpotLight(position, power, direction=aim, cutoff_angle=float(np.degrees(outer)),
+                                    beam_width=float(np.degrees(inner))))
+        else:
+            raise SceneError(f"{where}: unknown light type {kind!r} (point, spot or directional)")
+    return lights
+
+
+def gltf_scene(path) -> Scene | None:
+    """The scene of a glTF file with a camera (see the module's doc); None for a file without one."""
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"{path}: mesh file not found")
+    tree = gltf_json(path)
+    placed = placed_nodes(tree, path)
+    camera = _camera(tree, placed, path)
+    if camera is None:
+        return None
+    materials = {"clay": Material("diffuse", reflectance=(0.7, 0.7, 0.7))}
+    meshes = load_mesh_file(path, material="clay", materials=materials)
+    lights = _lights(tree, placed, path)
+    lit = bool(lights) or any(materials[mesh.material].is_emissive for mesh in meshes)
+    background = np.zeros(3, np.float32) if lit else np.full(3, UNLIT_SKY, np.float32)
+    return Scene(camera, meshes, materials, lights=lights, background=background, name=f"gltf:{path.name}")
