@@ -190,8 +190,10 @@ def test_to_mitsuba_converts_every_feature(mi, spec):
 
     scene = load_scene(spec)
     converted = to_mitsuba(scene, 8, 6, 2, max_depth=5, frame=scene.frame_count - 1, seed=3)
-    # volpath passes a mask's holes (a cut-out surface) as the tracer does; path otherwise
-    integrator = "volpath" if any(mesh.is_cut_out for mesh in scene.meshes) else "path"
+    # volpath passes a mask's holes (a cut-out surface) as the tracer does and has media (absorbing glass); path
+    # otherwise
+    integrator = "volpath" if any(mesh.is_cut_out or scene.materials[mesh.material].absorbs
+                                  for mesh in scene.meshes) else "path"
     assert converted["integrator"] == {"type": integrator, "max_depth": 5}
     assert converted["sensor"]["film"]["rfilter"] == {"type": "box"}
     image = np.array(mi.render(mi.load_dict(converted)))
