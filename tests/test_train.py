@@ -1090,10 +1090,15 @@ def test_the_card_of_a_stopped_worlds_render_says_how_many_worlds_it_holds(tmp_p
     assert "adapter: 2 of 150 generated worlds of the training family;" in line and "2 views rendered" in line
 
 
+UNTINTED = "the albedo through mirrors and glass untinted by their colour"
+
+
 @pytest.mark.parametrize("version, words", [
-    (1, "escaping paths with albedo 0; emitters with their reflectance as albedo, 0 for a black lamp "
-        "(rendered before the guide albedo's version 2)"),
-    (2, "emitters with their reflectance as albedo, 0 for a black lamp (rendered before the guide albedo's version 3)"),
+    (1, "escaping paths with albedo 0; emitters with their reflectance as albedo, 0 for a black lamp; "
+        f"{UNTINTED} (rendered before the guide albedo's version 2)"),
+    (2, f"emitters with their reflectance as albedo, 0 for a black lamp; {UNTINTED} (rendered before the guide "
+        "albedo's version 3)"),
+    (3, f"{UNTINTED} (rendered before the guide albedo's version 4)"),
 ])
 def test_the_card_says_which_albedo_an_older_dataset_holds(tiny_dataset, tmp_path, version, words):
     """A dataset rendered under an older guide albedo (its manifest's ``guide_albedo``, 1 where absent) is

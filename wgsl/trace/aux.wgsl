@@ -7,7 +7,8 @@
 // lobes; no lights, no shading), which costs a few primary rays per sample instead of full paths. A pixel
 // whose first AUX_SAMPLES paths meet a mirror or smooth glass goes on to AUX_DELTA_SAMPLES (n), and its
 // lobes are not left to chance: at a path's first smooth-glass bounce the sample's number picks the lobe
-// (samples 0 .. k − 1 reflect, k = F·n rounded and kept within 1 .. n − 1 for Fresnel reflectance F) and
+// (samples 0 .. k − 1 reflect, k = F·n rounded and kept within 1 .. n − 1 for Fresnel reflectance F; a thin pane's
+// F is its two faces' together, thin_dielectric_reflectance) and
 // weighs it by its share (F·n / k reflected, (1 − F)·n / (n − k) refracted). Where F and what lies behind
 // vary little across the pixel (a pane, a flat face) its samples then add up to F·(reflected albedo) +
 // (1 − F)·(refracted albedo) with no lobe noise left; elsewhere the estimate stays unbiased over the
@@ -91,8 +92,10 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
                     let frame = frame_from_normal(shading_normal_at(hit, geometric_normal, material, dir));
                     let wi = to_local(frame, -dir);
                     var take_reflection = true;   // a mirror's only lobe
-                    if HAS_DIELECTRIC && material.kind == MATERIAL_DIELECTRIC {
-                        let reflectance = fresnel_dielectric(wi.z, material.ior).reflectance;
+                    let thin = material.kind == MATERIAL_THIN_DIELECTRIC;
+                    if HAS_DIELECTRIC && (material.kind == MATERIAL_DIELECTRIC || thin) {
+                        let reflectance = select(fresnel_dielectric(wi.z, material.ior).reflectance,
+                                                 thin_dielectric_reflectance(wi.z, material.ior), thin);
                         take_reflection = reflectance > 0.5;   // past the first glass bounce: the major lobe
                         if !met_glass && AUX_DELTA_SAMPLES >= 2u {
                             // the sample's number picks the lobe: the first `reflected` samples reflect

@@ -18,6 +18,9 @@ fn bsdf_eval(m: Material, wi: vec3f, wo: vec3f) -> BsdfEval {
     if HAS_DIELECTRIC && m.kind == MATERIAL_PLASTIC {
         return plastic_eval(m, wi, wo);
     }
+    if HAS_DIELECTRIC && m.kind == MATERIAL_THIN_DIELECTRIC {
+        return BsdfEval(vec3f(0.0), 0.0);      // delta lobes only
+    }
     return diffuse_eval(m, wi, wo);
 }
 
@@ -30,6 +33,9 @@ fn bsdf_sample(m: Material, wi: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
     }
     if HAS_DIELECTRIC && m.kind == MATERIAL_PLASTIC {
         return plastic_sample(m, wi, u_lobe, u);
+    }
+    if HAS_DIELECTRIC && m.kind == MATERIAL_THIN_DIELECTRIC {
+        return thin_dielectric_sample(m, wi, u_lobe);
     }
     return diffuse_sample(m, wi, u);
 }

@@ -3,7 +3,9 @@
 // (Fresnel-weighted choice, so the weight is 1 or the radiance scale 1/eta²). Rough: Walter et al.'s
 // GGX microfacet BSDF with the visible normals of the incident side sampled, as Mitsuba's
 // roughdielectric (weight G1(wo), times 1/eta² for transmission). Transmission either way is tinted by
-// the material's transmittance (Mitsuba's specular_transmittance).
+// the material's transmittance (Mitsuba's specular_transmittance). A thin dielectric (a pane of no thickness,
+// Mitsuba's thindielectric; shaded two-sided, wi.z > 0) reflects or lets light straight through, by the
+// reflectance of its two faces summed over the bounces between them (thin_dielectric_reflectance).
 
 // #import trace/material.wgsl
 // #import trace/microfacet.wgsl
@@ -104,4 +106,18 @@ fn dielectric_sample(m: Material, wi: vec3f, u_lobe: f32, u: vec2f) -> BsdfSampl
     let pdf = (1.0 - fr.reflectance) * pdf_h * fr.eta_ti * fr.eta_ti * abs(dot_wo_h) / (denom * denom);
     let weight = ggx_g1(wo, h, alpha) / (fr.eta_ti * fr.eta_ti);
     return BsdfSample(wo, pdf, weight * dielectric_transmittance(m), fr.eta_ti, false);
+}
+
+// The reflectance of a pane of index `ior` at incidence cosine `cos_i`: its faces' R plus what bounces between
+// them and leaves on the side it came from, R + (1 − R)² R / (1 − R²) (= 2R / (1 + R)).
+fn thin_dielectric_reflectance(cos_i: f32, ior: f32) -> f32 {
+    let r = fresnel_dielectric(abs(cos_i), ior).reflectance;
+    return select(1.0, 2.0 * r / (1.0 + r), r < 1.0);
+}
+
+fn thin_dielectric_sample(m: Material, wi: vec3f, u_lobe: f32) -> BsdfSample {
+    if u_lobe < thin_dielectric_reflectance(wi.z, m.ior) {
+        return BsdfSample(vec3f(-wi.x, -wi.y, wi.z), 0.0, vec3f(1.0), 1.0, true);
+    }
+    return BsdfSample(-wi, 0.0, dielectric_transmittance(m), 1.0, true);
 }

@@ -8,6 +8,7 @@ const MATERIAL_DIFFUSE: u32 = 0u;
 const MATERIAL_CONDUCTOR: u32 = 1u;
 const MATERIAL_DIELECTRIC: u32 = 2u;
 const MATERIAL_PLASTIC: u32 = 3u;      // compiled with the glass (HAS_DIELECTRIC): its coat is one
+const MATERIAL_THIN_DIELECTRIC: u32 = 4u;   // a pane of no thickness (HAS_DIELECTRIC too), always smooth
 const DELTA_ROUGHNESS: f32 = 1e-4;
 
 struct Material {
@@ -16,7 +17,7 @@ struct Material {
     emission: vec3f,
     roughness: f32,
     eta: vec3f,     // conductor: real part of the complex index of refraction; rough plastic: its coat's table;
-                    // dielectric: the tint of light crossing it (dielectric_transmittance)
+                    // dielectric, thin or not: the tint of light crossing it (dielectric_transmittance)
     ior: f32,       // dielectric: interior index over an exterior of 1
     k: vec3f,       // conductor: imaginary part; rough plastic: the rest of the table (trace/bsdf_plastic.wgsl)
     is_emissive: u32,
