@@ -292,6 +292,25 @@ def test_absorbing_glass_matches_mitsuba(gpu, roughness):
     assert weaker_distance > 3 * distance
 
 
+def test_thin_glass_matches_mitsuba(gpu):
+    """A tinted pane of no thickness across half of cornell-glossy's view, turned 35°: the room it reflects (both
+    faces' reflections and the bounces between them) and the room it lets straight through, as Mitsuba's
+    thindielectric; the untinted pane is told apart."""
+    from wgpu_rt.scene.builtin import shape
+    from wgpu_rt.scene.model import Material
+    from wgpu_rt.scene.transforms import compose, rotate, scale, translate
+
+    def paned(tint):
+        scene = load_scene("cornell-glossy")
+        scene.materials["pane"] = Material("thin_dielectric", ior=1.5, transmittance=tint)
+        scene.meshes.append(shape("pane", "rectangle", "pane",
+                                  compose(translate([0.35, 0.0, 1.8]), rotate([0, 1, 0], 35), scale(0.6))))
+        return scene
+
+    distance, clear_distance = _matches_mitsuba(paned([0.4, 0.8, 0.6]), paned([1.0, 1.0, 1.0]))
+    assert clear_distance > 2 * distance
+
+
 def _coated(kind: str, ior: float, roughness: float = 0.0):
     """cornell-glossy with its walls, floor and boxes made ``kind`` (plastic: their colours under a coat)."""
     scene = load_scene("cornell-glossy")

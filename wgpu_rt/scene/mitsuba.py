@@ -8,7 +8,8 @@ BSDF its material maps to:
   int_ior = ior, ext_ior = 1, linear; conductor →
   ``conductor`` (roughness 0) or ``roughconductor`` (GGX, alpha = roughness) with eta, k and
   specular_reflectance; dielectric → ``dielectric`` or
-  ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1, specular_transmittance = transmittance; an absorbing
+  ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1, specular_transmittance = transmittance (thin_dielectric →
+  ``thindielectric``, likewise); an absorbing
   one's mesh has a ``homogeneous`` interior medium of sigma_t = absorption and albedo 0.
 - a cut-out mesh's BSDF is wrapped in ``mask`` (``cutout_opacity``);
 - with a cut-out or an interior medium the integrator is ``volpath``, else ``path``;
@@ -45,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from .model import (CUTOUT_ALPHA, DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8,
+from .model import (CUTOUT_ALPHA, GLASS_KINDS, DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8,
                     sample_alpha, vertex_colors_as_rendered)
 from .transforms import transform_normals, transform_points
 
@@ -120,8 +121,8 @@ def material_to_bsdf(material: Material, vertex_colored: bool = False, reflectan
         if material.roughness > 0:
             bsdf.update(type="roughconductor", distribution="ggx", alpha=float(material.roughness))
         return bsdf
-    bsdf = {"type": "dielectric", "int_ior": float(material.ior), "ext_ior": 1.0,
-            "specular_transmittance": _rgb(material.transmittance)}
+    bsdf = {"type": "thindielectric" if material.kind == "thin_dielectric" else "dielectric",
+            "int_ior": float(material.ior), "ext_ior": 1.0, "specular_transmittance": _rgb(material.transmittance)}
     if material.roughness > 0:
         bsdf.update(type="roughdielectric", distribution="ggx", alpha=float(material.roughness))
     return bsdf
@@ -129,12 +130,12 @@ def material_to_bsdf(material: Material, vertex_colored: bool = False, reflectan
 
 def surface_bsdf(material: Material, vertex_colored: bool = False, reflectance: dict | None = None,
                  wrap=None) -> dict:
-    """``material_to_bsdf`` made two-sided where our tracer is (every kind but dielectric), after ``wrap`` (a
+    """``material_to_bsdf`` made two-sided where our tracer is (every kind but glass), after ``wrap`` (a
     function of a BSDF dict, e.g. a normal map's) wraps it: inside ``twosided``, which flips a back face's
     directions first, the normal map tilts the normal as the tracer does on a front face."""
     bsdf = material_to_bsdf(material, vertex_colored, reflectance)
     bsdf = bsdf if wrap is None else wrap(bsdf)
-    return bsdf if material.kind == "dielectric" else {"type": "twosided", "bsdf": bsdf}
+    return bsdf if material.kind in GLASS_KINDS else {"type": "twosided", "bsdf": bsdf}   # (thindielectric is both)
 
 
 def _mitsuba_mesh(mi, name: str, vertices, faces, normals, bsdf: dict, emission, vertex_reflectance=None,

@@ -13,7 +13,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "plastic")
+MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "plastic", "thin_dielectric")
+GLASS_KINDS = ("dielectric", "thin_dielectric")
 FOV_AXES = ("x", "y", "smaller", "larger")
 # Narrower than this, float32 ray directions no longer tell neighbouring pixels apart (tan(fov/2) / 128
 # is float32's epsilon at 256 pixels); towards 0 the 1/tan(fov/2) of the motion vectors overflows.
@@ -47,6 +48,10 @@ class Material:
       closed glass object tints what passes through it twice), and inside it light is absorbed at the rate
       ``absorption`` per unit length (Beer–Lambert, per channel: Mitsuba's homogeneous interior medium of that
       sigma_t and albedo 0; the segments a path travels inside a closed glass mesh, ending on its back faces).
+    - ``thin_dielectric``: a smooth pane of glass of ``ior`` with no thickness (Mitsuba's ``thindielectric``): light
+      goes straight through it or is reflected, by the Fresnel reflectance summed over the reflections inside the
+      pane, R + (1 − R)² R / (1 − R²); tinted by ``transmittance`` where it passes. For windows and films modelled
+      as single surfaces (a closed solid is a ``dielectric``); it has no inside to absorb in, and no roughness.
     - ``plastic``: Lambertian ``reflectance`` under a dielectric coat of ``ior``, smooth at ``roughness`` 0
       (Mitsuba's ``plastic``, linear: Fresnel-weighted mirror reflection at the coat, the rest diffuse, each way
       through it), else a GGX coat of that alpha (Mitsuba's ``roughplastic``, linear).
@@ -75,6 +80,8 @@ class Material:
         self.absorption = _rgb(self.absorption, "absorption")
         if self.kind != "dielectric" and np.any(self.absorption > 0):
             raise ValueError(f"absorption is a dielectric's (inside its glass), not a {self.kind}'s")
+        if self.kind == "thin_dielectric" and float(self.roughness) > 0:
+            raise ValueError(f"a thin_dielectric is smooth (Mitsuba's thindielectric), got roughness {self.roughness}")
         if not (0.0 <= float(self.roughness) <= 1.0):
             raise ValueError(f"roughness must be in [0, 1], got {self.roughness}")
         if not float(self.ior) > 0.0:

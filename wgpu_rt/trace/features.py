@@ -18,7 +18,7 @@ from .scene_data import emitter_group_count
 
 @dataclass(frozen=True)
 class SceneFeatures:
-    has_dielectric: bool = True      # any glass, or a plastic's coat
+    has_dielectric: bool = True      # any glass (thin too), or a plastic's coat
     has_conductor: bool = True
     has_area_lights: bool = True
     has_analytic_lights: bool = True  # point or directional lights, or a non-black background
@@ -34,7 +34,7 @@ class SceneFeatures:
         used = {mesh.material for mesh in scene.meshes}
         kinds = {scene.materials[name].kind for name in used}
         return cls(
-            has_dielectric=bool({"dielectric", "plastic"} & kinds),
+            has_dielectric=bool({"dielectric", "thin_dielectric", "plastic"} & kinds),
             has_conductor="conductor" in kinds,
             has_area_lights=any(scene.materials[name].is_emissive for name in used),
             has_analytic_lights=bool(scene.lights) or bool(np.any(np.asarray(scene.background) > 0)),

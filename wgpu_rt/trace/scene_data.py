@@ -33,10 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..accel.geometry import NO_TEXTURE
-from ..scene.model import DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8
+from ..scene.model import GLASS_KINDS, DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8
 from .coat import coat_words
 
-MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "plastic": 3}
+MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "plastic": 3, "thin_dielectric": 4}
 EMITTER_TRIANGLE, EMITTER_POINT, EMITTER_DIRECTIONAL, EMITTER_BACKGROUND = range(4)
 # how a group's irradiance estimate is reckoned (wgsl/trace/emitters.wgsl's group_importance)
 GROUP_CONSTANT, GROUP_POINT, GROUP_SOLID, GROUP_FLAT = range(4)
@@ -79,7 +79,7 @@ def pack_materials(materials: list[Material]) -> np.ndarray:
         eta, k = m.eta, m.k
         if m.kind == "plastic" and m.roughness >= DELTA_ROUGHNESS:     # a rough coat's table in their words
             eta, k = np.split(coat_words(m.roughness, m.ior), 2)
-        if m.kind == "dielectric":                      # glass: its tint in eta's words, its absorption in k's
+        if m.kind in GLASS_KINDS:                       # glass: its tint in eta's words, its absorption in k's
             eta, k = m.transmittance, m.absorption
         out[i] = (m.reflectance, MATERIAL_KIND_CODES[m.kind], m.emission, m.roughness, eta, m.ior, k,
                   int(m.is_emissive))
