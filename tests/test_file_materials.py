@@ -107,6 +107,31 @@ def test_a_gltf_glass_volume_absorbs_as_its_attenuation_colour_and_distance_say(
     assert {materials[f"thing/{name}"].kind for name in ("thick", "thin", "endless")} == {"dielectric"}
 
 
+def test_smooth_glass_on_an_open_surface_is_a_thin_pane_and_on_a_closed_one_a_solid(tmp_path):
+    """A glTF glass on a single rectangle (open edges: a window) becomes a thin_dielectric of its ior and tint; the
+    same material on a closed box (whose texture seams split its vertices) stays a dielectric."""
+    glass = PBRMaterial(name="glass", baseColorFactor=[0.8, 0.9, 1.0, 1.0], metallicFactor=0.0, roughnessFactor=0.0)
+    scene = trimesh.Scene()
+    pane = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]], process=False)
+    box = trimesh.creation.box()
+    box = trimesh.Trimesh(box.vertices[box.faces].reshape(-1, 3), np.arange(36).reshape(12, 3), process=False)
+    for name, mesh in (("pane", pane), ("box", box)):
+        mesh.visual = trimesh.visual.TextureVisuals(uv=np.zeros((len(mesh.vertices), 2)), material=glass)
+        scene.add_geometry(mesh, node_name=name)
+
+    def transmissive(materials):
+        materials[0]["extensions"] = {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                                      "KHR_materials_ior": {"ior": 1.4}}
+
+    (tmp_path / "glass.glb").write_bytes(edit_glb_json(scene.export(file_type="glb"), lambda tree:
+                                                       transmissive(tree["materials"])))
+    loaded = load_scene(_scene_file(tmp_path, {"file": "glass.glb"}))
+    kinds = {mesh.name: loaded.materials[mesh.material] for mesh in loaded.meshes[1:]}
+    assert kinds["glass/box"].kind == "dielectric" and kinds["glass/pane"].kind == "thin_dielectric"
+    assert kinds["glass/pane"].ior == pytest.approx(1.4)
+    np.testing.assert_allclose(kinds["glass/pane"].transmittance, [0.8, 0.9, 1.0], atol=1 / 255)
+
+
 def test_a_materials_metallic_roughness_texture_counts_by_its_mean(tmp_path):
     # Green (roughness) 0.2 and blue (metalness) 1 over the whole image: a smooth metal from rough factors.
     image = Image.new("RGB", (4, 4), (0, 51, 255))

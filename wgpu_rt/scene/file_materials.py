@@ -1,5 +1,5 @@
 """A mesh file's own materials → ``Material``: glTF's metallic-roughness model (with its transmission, volume, ior
-and emissive-strength extensions) and OBJ's MTL statements, mapped onto the tracer's four kinds.
+and emissive-strength extensions) and OBJ's MTL statements, mapped onto the tracer's kinds.
 
 Both formats describe a surface by a base colour, how metallic it is, a perceptual roughness ``r`` (the GGX
 alpha is r², as glTF defines it), how much light it transmits and what it emits. The tracer has no blend of
@@ -9,7 +9,9 @@ them, so each material becomes the one kind that carries most of its look:
   surface transmits by it; the tracer, as Mitsuba's specular_transmittance, at each crossing); with a volume
   (``KHR_materials_volume`` of a thickness above 0; 0 is glTF's thin wall, which has no inside) light inside it is
   absorbed at −ln(attenuationColor) / attenuationDistance per unit of the file's world (Beer–Lambert, as glTF
-  defines it: what crosses that distance keeps the attenuation colour);
+  defines it: what crosses that distance keeps the attenuation colour); smooth glass on a geometry with an open
+  edge (a window pane or a shell modelled as one surface) becomes a ``thin_dielectric`` of the same ior and
+  tint (``FileMaterials.as_thin``; a solid dielectric there would bend the world behind it for good);
 - else metallic ≥ 0.5: ``conductor`` whose Fresnel term is 1, tinted by the base colour (glTF's metals reflect
   their base colour head-on and rise to white only at grazing angles, which this leaves out);
 - else ``plastic``: the base colour under a coat of the file's ior and GGX alpha r² (glTF's non-metals are a
@@ -311,6 +313,16 @@ class FileMaterials:
             return None
         label = trimesh_material.name or "material"
         return self._add(label, lambda: obj_material(trimesh_material, f"{self.path}: material {label!r}"))
+
+    def as_thin(self, name: str) -> str:
+        """The name of a thin, smooth pane of the file's smooth glass material ``name`` (``name``/thin, made once): for
+        geometry with an open edge, which has no inside for a solid ``dielectric`` to refract into and out of."""
+        glass = self.materials[name]
+        thin = f"{name}/thin"
+        if thin not in self.materials:
+            self.materials[thin] = Material("thin_dielectric", ior=glass.ior, transmittance=glass.transmittance,
+                                            emission=glass.emission)
+        return thin
 
     def _add(self, label: str, make) -> str:
         name = f"{self.base}/{label}"

@@ -347,6 +347,16 @@ def _mtl_image(path: Path, key: str, where: str, decoded: dict) -> np.ndarray:
     return decoded[("file", path)][0]
 
 
+def _is_open_smooth_glass(material, vertices: np.ndarray, faces: np.ndarray) -> bool:
+    """Whether a smooth ``dielectric`` is on a surface with an open edge (an edge of one triangle only, once the
+    vertices that a texture or normal seam splits are merged back): a pane or a shell of no thickness."""
+    if material.kind != "dielectric" or material.roughness > 0:
+        return False
+    merged = trimesh.Trimesh(vertices, faces, process=False)
+    merged.merge_vertices(merge_tex=True, merge_norm=True)
+    return not merged.is_watertight
+
+
 def load_mesh_file(path: Path, material: str | None, name: str | None = None, vertex_colors: bool = True,
                    texture: np.ndarray | None = None, materials: dict | None = None,
                    normal_map: np.ndarray | None = None, emission_texture: np.ndarray | None = None) -> list:
@@ -420,6 +430,8 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         surface = (own.material_of(geometry, geometry_name) if materials is not None else None) or material
         if surface is None:
             raise SceneError(f"{where}: has no material of its own; give the mesh entry a 'material'")
+        if surface in own.materials and _is_open_smooth_glass(own.materials[surface], vertices, faces):
+            surface = own.as_thin(surface)
         blended = texture is None and getattr(getattr(geometry.visual, "material", None), "alphaMode", None) == "BLEND"
         first_placement[geometry_name] = Mesh(label, vertices.astype(np.float32), faces.astype(np.uint32),
                                               surface, normals=normals,
