@@ -130,3 +130,15 @@ def test_a_bad_camera_node_or_light_is_refused_by_name(tmp_path, change, message
     path.write_bytes(edit_glb_json(path.read_bytes(), change))
     with pytest.raises(SceneError, match=r"room\.glb: " + message):
         load_scene(path)
+
+
+def test_the_gallery_example_is_a_scene_of_its_own():
+    """examples/meshes/gallery.glb (examples/meshes/make_gallery.py): its camera, its three lights, its glass ball
+    absorbing inside by its volume extension."""
+    from pathlib import Path
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "examples" / "meshes" / "gallery.glb")
+    assert scene.name == "gltf:gallery.glb" and scene.camera.fov_axis == "y"
+    assert sorted(type(light).__name__ for light in scene.lights) == ["DirectionalLight", "PointLight", "SpotLight"]
+    assert scene.materials["gallery/amber"].kind == "dielectric" and scene.materials["gallery/amber"].absorbs
+    np.testing.assert_array_equal(scene.background, [0, 0, 0])
