@@ -14,7 +14,8 @@ FRAMES_WITHOUT_CONFIRMATION = 100_000   # more output files than this need --max
 def add_arguments(parser) -> None:
     parser.add_argument("scene", help="built-in scene (cornell, cornell-glossy, sun-room, painted, textured, mesh, "
                         "moving), a .json/.toml scene file, or a mesh file (.obj/.ply/.glb…: the 'mesh' scene "
-                        "around it, in its own materials)")
+                        "around it, in its own materials; a glTF file with a camera: its own scene, camera and "
+                        "lights)")
     parser.add_argument("--spp", type=int, default=None,
                         help="samples per pixel per frame (default 64; 1 with --denoise; not with --adaptive)")
     parser.add_argument("--size", default="256x256", help="WIDTHxHEIGHT (default 256x256)")
