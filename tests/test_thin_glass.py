@@ -30,7 +30,8 @@ def _pane_scene(turn: float = 0.0, kind: str = "thin_dielectric") -> dict:
 
 def _pane_transmittance(cos_i: float) -> float:
     cos_t = np.sqrt(1 - (1 - cos_i ** 2) / 1.5 ** 2)
-    r = 0.5 * (((cos_i - 1.5 * cos_t) / (cos_i + 1.5 * cos_t)) ** 2 + ((1.5 * cos_i - cos_t) / (1.5 * cos_i + cos_t)) ** 2)
+    r = 0.5 * (((cos_i - 1.5 * cos_t) / (cos_i + 1.5 * cos_t)) ** 2
+               + ((1.5 * cos_i - cos_t) / (1.5 * cos_i + cos_t)) ** 2)
     return 1 - 2 * r / (1 + r)
 
 
@@ -67,3 +68,60 @@ def test_a_thin_pane_has_no_roughness_and_no_inside(field, value, message):
     data["materials"]["pane"][field] = value
     with pytest.raises(SceneError, match=r"materials\.pane: " + message):
         parse_scene(data, "pane", Path("."))
+
+
+def _skylight(pane: str | None, light: dict) -> dict:
+    """A grey floor seen from above (from under the skylight), lit by ``light`` through a horizontal skylight pane
+    at height 1.5 (``pane``: its kind, or None for no pane)."""
+    data = {"camera": {"origin": [0, 1, 0.001], "target": [0, 0, 0], "fov": 30},
+            "materials": {"floor": {"reflectance": 0.5}},
+            "meshes": [{"name": "floor", "shape": "rectangle", "material": "floor",
+                        "transform": {"rotate": {"axis": [1, 0, 0], "angle": -90}, "scale": 3}}],
+            "lights": [light]}
+    if pane is not None:
+        data["materials"]["pane"] = {"kind": pane, "ior": 1.5 if pane == "thin_dielectric" else 1.0,
+                                     "transmittance": TINT}
+        data["meshes"].append({"name": "pane", "shape": "rectangle", "material": "pane",
+                               "transform": {"rotate": {"axis": [1, 0, 0], "angle": 90}, "scale": 4,
+                                             "translate": [0, 1.5, 0]}})
+    return data
+
+
+@pytest.mark.parametrize("instanced", [False, True])
+def test_a_sun_shines_through_a_thin_pane_dimmed_and_tinted(gpu, instanced):
+    """A sun 40° from the zenith lights the floor through the skylight (direct light only): the shadow ray of its
+    sample crosses the pane and keeps the pane's transmittance at 40° times its tint; a solid glass sheet there
+    would leave the floor black (a path cannot meet the sun by chance). The same with the pane an instance whose
+    material is the instance's (a two-level scene)."""
+    sun = {"type": "directional", "direction": [np.sin(np.radians(40)), -np.cos(np.radians(40)), 0], "irradiance": 2}
+    options = dict(spp=4, size=(8, 8), max_depth=2, aovs=())
+    bare = render(parse_scene(_skylight(None, sun), "bare", Path(".")), **options).color
+    data = _skylight("thin_dielectric", sun)
+    if instanced:
+        pane = data["meshes"][-1]
+        pane["material"] = "floor"
+        pane["instances"] = [{"transform": pane.pop("transform"), "material": "pane"},
+                             {"transform": {"translate": [0, -5, 0]}}]
+    paned = render(parse_scene(data, "paned", Path(".")), **options).color
+    expected = _pane_transmittance(np.cos(np.radians(40))) * np.array(TINT)
+    np.testing.assert_allclose(paned / bare, np.broadcast_to(expected, paned.shape), rtol=1e-4)
+
+
+def test_a_lamp_through_a_thin_pane_is_counted_once(gpu):
+    """An area lamp above the skylight, at max depth 3: its light reaches the floor both by light samples through
+    the pane and by paths that cross the pane and meet it, weighed against each other as if the pane were not
+    there; a pane of index 1 and white tint (it reflects nothing) then changes nothing but the noise, where counting
+    the lamp twice would add up to half again."""
+    data_bare = _skylight(None, {"type": "point", "position": [5, 5, 5], "intensity": 0})
+    data_pane = _skylight("dielectric", {"type": "point", "position": [5, 5, 5], "intensity": 0})
+    data_pane["materials"]["pane"] = {"kind": "thin_dielectric", "ior": 1.0}
+    for data in (data_bare, data_pane):
+        data["lights"] = []
+        data["materials"]["lamp"] = {"reflectance": 0.0, "emission": 4.0}
+        data["meshes"].append({"name": "lamp", "shape": "rectangle", "material": "lamp",
+                               "transform": {"rotate": {"axis": [1, 0, 0], "angle": 90}, "scale": 0.5,
+                                             "translate": [0.3, 2.5, 0]}})
+    options = dict(spp=512, size=(8, 8), max_depth=3, aovs=())
+    bare = render(parse_scene(data_bare, "bare", Path(".")), **options).color
+    paned = render(parse_scene(data_pane, "paned", Path(".")), **options).color
+    np.testing.assert_allclose(paned.mean(), bare.mean(), rtol=0.01)

@@ -3,9 +3,9 @@ scene exported from Blender arrives (`wgpu-rt render examples/meshes/gallery.glb
 
 A room open towards the camera, a window opening in its left wall; a low sun shining in through it, a spot light over
 a plinth and a dim point light; on the plinth a rough gold ball, on the floor in the sun an amber glass ball that
-absorbs inside (KHR_materials_volume) and a glossy red torus. (No pane in the window: glass blocks next-event
-estimation's shadow rays, so a sun, which paths cannot meet by chance, would not shine through one, here as in
-Mitsuba.) Run from the repository root:
+absorbs inside (KHR_materials_volume) and a glossy red torus. (No pane in the window: the tracer's shadow rays
+cross thin panes, Mitsuba's stop at them, and a sun, which paths cannot meet by chance, would then light the room
+only in ours; without one, Mitsuba's render is the gold.) Run from the repository root:
     python examples/meshes/make_gallery.py
 """
 

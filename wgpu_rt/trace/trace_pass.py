@@ -100,6 +100,8 @@ SMOOTH_COATS = "trace/coats_smooth.wgsl"                  # what trace/bsdf_plas
 ROUGH_COATS = "trace/coats_rough.wgsl"                    # in its place where a scene has a rough coat
 EMISSION_TEXTURES = "trace/emission_textures.wgsl"        # in its place where a scene's lights have textures
 CLEAR_INTERIORS = "trace/interior_clear.wgsl"             # what trace/trace.wgsl imports
+NO_PANES = "accel/panes_none.wgsl"                        # what accel/walk_tree.wgsl imports
+SHADOW_PANES = "trace/shadow_panes.wgsl"                  # in its place where a scene has a thin pane
 ABSORBING_INTERIORS = "trace/interior_absorbing.wgsl"     # in its place where a scene's glass absorbs
 STORAGE_TABLES = "trace/shading_tables_storage.wgsl"   # what trace/trace_bindings.wgsl imports
 UNIFORM_TABLES = "trace/shading_tables_uniform.wgsl"
@@ -395,6 +397,8 @@ class TracePass(ComputePass):
             modules[SMOOTH_COATS] = ROUGH_COATS
         if any(m.absorbs for m in materials):
             modules[CLEAR_INTERIORS] = ABSORBING_INTERIORS
+        if any(m.kind == "thin_dielectric" for m in materials):
+            modules[NO_PANES] = SHADOW_PANES
         self.pipeline = trace_pipeline(ctx, self.features, len(geometry_buffers), traversal, self.placement, modules)
         self._kernel_options = (traversal, self.placement, modules, len(geometry_buffers))
         self._aux_pipelines: dict[tuple[int, int], object] = {}

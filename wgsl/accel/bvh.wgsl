@@ -25,7 +25,8 @@
 
 // geometric_normal: tri_geometric_normal(hit.prim), from the vertices the walk already fetched.
 // loop_passes: how many times the walk's loops went round (see LOOP_BUDGET in trace/trace.wgsl).
-struct RayPairHit { hit: Hit, occluded: bool, geometric_normal: vec3f, loop_passes: u32 }
+// shadow_tint: what the shadow ray keeps of its light through thin panes (accel/panes_none.wgsl; 1 without any).
+struct RayPairHit { hit: Hit, occluded: bool, geometric_normal: vec3f, loop_passes: u32, shadow_tint: vec3f }
 
 // The closest hit of (origin, dir) in (0, t_max) (t_max = 0: no such ray) and whether anything lies
 // in (0, shadow_length) along (shadow_origin, shadow_dir) (only when trace_shadow).
@@ -43,7 +44,7 @@ fn trace_ray_pair(origin: vec3f, dir: vec3f, t_max: f32, shadow_origin: vec3f, s
     let shadow_ray = traversal_ray(shadow_origin, shadow_dir);
     var state = WalkState(Hit(t_max, 0.0, 0.0, NO_HIT),
                           TrianglePositions(vec3f(0.0), vec3f(1.0, 0.0, 0.0), vec3f(0.0, 1.0, 0.0)),
-                          NO_INSTANCE, !trace_shadow, 0u);
+                          NO_INSTANCE, !trace_shadow, 0u, vec3f(1.0));
     if !HAS_INSTANCES {
         walk_scene(&state, ray, shadow_ray, shadow_length, dir);
     } else {
@@ -74,7 +75,8 @@ fn trace_ray_pair(origin: vec3f, dir: vec3f, t_max: f32, shadow_origin: vec3f, s
             remember_hit(state.hit.prim, state.hit_instance);
         }
     }
-    return RayPairHit(state.hit, state.occluded, triangle_normal(state.hit_triangle), state.loop_passes);
+    return RayPairHit(state.hit, state.occluded, triangle_normal(state.hit_triangle), state.loop_passes,
+                      state.shadow_tint);
 }
 
 // A triangle of an instance's bottom level (`record`) in world space.

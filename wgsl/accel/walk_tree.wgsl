@@ -20,6 +20,7 @@
 // #import accel/geometry_bindings.wgsl
 // #import accel/traversal_lanes.wgsl
 // #import accel/cutouts_none.wgsl
+// #import accel/panes_none.wgsl
 
 const NO_HIT: u32 = 0xffffffffu;
 const BVH_TINY_DIR: f32 = 1e-20;     // direction components below this are treated as this (no 1/0)
@@ -121,13 +122,15 @@ fn triangle_normal(p: TrianglePositions) -> vec3f {
 }
 
 // What a walk has found so far: the closest hit (its triangle as stored and the instance it belongs
-// to), whether the shadow ray is blocked, and the loop passes spent.
+// to), whether the shadow ray is blocked, what it keeps of its light through the thin panes it crosses
+// (pane_transmittance; 1 without them), and the loop passes spent.
 struct WalkState {
     hit: Hit,
     hit_triangle: TrianglePositions,
     hit_instance: u32,
     occluded: bool,
     loop_passes: u32,
+    shadow_tint: vec3f,
 }
 
 // Tests the stored triangles first .. end (fetched by bvh_triangle) against both rays; where a triangle is
@@ -143,7 +146,12 @@ fn test_triangles(state: ptr<function, WalkState>, ray: TraversalRay, shadow_ray
             (*state).hit_triangle = p;
             (*state).hit_instance = instance;
         }
-        (*state).occluded = (*state).occluded || blocks(shadow_ray, p, shadow_length, prim);
+        if !SHADOWS_CROSS_PANES {
+            (*state).occluded = (*state).occluded || blocks(shadow_ray, p, shadow_length, prim);
+        } else if !(*state).occluded && blocks(shadow_ray, p, shadow_length, prim) {
+            (*state).shadow_tint *= pane_transmittance(prim, instance, p, 1.0 / shadow_ray.inv_dir);
+            (*state).occluded = all((*state).shadow_tint == vec3f(0.0));
+        }
     }
 }
 

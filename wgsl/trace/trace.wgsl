@@ -111,7 +111,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
             }
             (*path).radiance += (*path).throughput * background_radiance(dir) * weight;
         }
-        if WRITE_AOVS && HAS_MOTION && depth == 0u {
+        if WRITE_AOVS && HAS_MOTION && depth == 0u && !(SHADOWS_CROSS_PANES && (*path).linear_depth != 0.0) {
             (*path).motion = previous_film_position(dir, (*path).film) - (*path).film;
         }
         return false;
@@ -129,8 +129,10 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     if HAS_AREA_LIGHTS && material.is_emissive != 0u && cos_front > 0.0 {
         var weight = 1.0;
         if !(*path).previous_delta {
+            // (past a crossed pane the light is as far as the vertex that sampled the way to it)
+            let light_distance = select(hit.t, distance((*path).previous_position, position), SHADOWS_CROSS_PANES);
             let light_pdf = triangle_emitter_pdf((*path).previous_position, (*path).previous_importance, hit.prim,
-                                                 hit.t, cos_front);
+                                                 light_distance, cos_front);
             weight = power_heuristic((*path).previous_pdf, light_pdf);
         }
         let emitted = material.emission * triangle_emission_color(hit.prim, hit.u, hit.v);
@@ -140,7 +142,8 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     let normals = shading_normals_at(hit, geometric_normal, material, dir);
     let shading_normal = normals.mapped;
     if WRITE_AOVS {
-        if depth == 0u {
+        // the first hit (a crossed pane keeps depth 0, its linear depth written)
+        if depth == 0u && !(SHADOWS_CROSS_PANES && (*path).linear_depth != 0.0) {
             (*path).normal = shading_normal;
             (*path).linear_depth = dot(position - params.camera_origin, params.camera_forward);
             if HAS_MOTION {
@@ -154,7 +157,10 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
             (*path).albedo_pending = false;
         }
     }
-    if depth + 1u >= params.max_depth {
+    // A thin pane crossed by its transmission lobe is no vertex of the path (trace/shadow_panes.wgsl): no depth, no
+    // MIS, so paths reach what light samples reach through it; its reflection is one.
+    let pane = SHADOWS_CROSS_PANES && material.kind == MATERIAL_THIN_DIELECTRIC;
+    if depth + 1u >= params.max_depth && !pane {
         return false;
     }
 
@@ -185,6 +191,10 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     if all(bs.weight == vec3f(0.0)) || mapped == 0.0 {
         return false;
     }
+    let crossed = pane && bs.wo.z < 0.0;
+    if pane && !crossed && depth + 1u >= params.max_depth {
+        return false;
+    }
     var throughput = (*path).throughput * bs.weight * mapped;
     if WRITE_AOVS && (*path).albedo_pending {      // (so the bounce is a delta one)
         (*path).albedo *= delta_albedo_tint(bs);
@@ -192,6 +202,10 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     let eta_scale = (*path).eta_scale * bs.eta;
     (*path).dir = next_dir;
     (*path).origin = offset_ray_origin(position, geometric_normal, next_dir);
+    if crossed {
+        (*path).throughput = throughput;
+        return true;
+    }
     (*path).previous_pdf = bs.pdf;
     (*path).previous_position = position;
     (*path).previous_importance = importance_total;
@@ -253,7 +267,7 @@ fn trace_samples(pixel: u32, xy: vec2u, first_index: u32, taken: u32) -> SampleS
         loop_passes += traced.loop_passes + 1u;
         // a non-finite contribution (a degenerate configuration) is dropped rather than poisoning the pixel
         if shadow.pending && !traced.occluded && is_finite_vec3(shadow.contribution) {
-            sums.radiance += shadow.contribution;
+            sums.radiance += select(shadow.contribution, shadow.contribution * traced.shadow_tint, SHADOWS_CROSS_PANES);
         }
         shadow.pending = false;
         if tracing && !extend_path(&path, &sampler, traced, &shadow) {
