@@ -9,7 +9,9 @@ BSDF its material maps to:
   ``conductor`` (roughness 0) or ``roughconductor`` (GGX, alpha = roughness) with eta, k and
   specular_reflectance; dielectric → ``dielectric`` or
   ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1, specular_transmittance = transmittance (thin_dielectric →
-  ``thindielectric``, likewise); an absorbing
+  ``thindielectric``, likewise, whose shadow rays stop at it where the tracer's cross it: a sun or point light
+  shining through a pane lights Mitsuba's image only by paths that meet it, never, so such a scene has no Mitsuba
+  gold); an absorbing
   one's mesh has a ``homogeneous`` interior medium of sigma_t = absorption and albedo 0.
 - a cut-out mesh's BSDF is wrapped in ``mask`` (``cutout_opacity``);
 - with a cut-out or an interior medium the integrator is ``volpath``, else ``path``;
