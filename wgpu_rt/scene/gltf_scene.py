@@ -53,6 +53,13 @@ def _node_matrix(node: dict, where: str) -> np.ndarray:
     return matrix
 
 
+def _entry(entries: list, number, where: str, what: str) -> dict:
+    """``entries[number]``: a SceneError naming ``where`` unless ``number`` picks one of the file's ``what``."""
+    if not (isinstance(number, int) and 0 <= number < len(entries)) or not isinstance(entries[number], dict):
+        raise SceneError(f"{where}: not one of the file's {len(entries)} {what}")
+    return entries[number]
+
+
 def placed_nodes(tree: dict, path: Path) -> list[tuple[int, np.ndarray]]:
     """(node index, world matrix) of every node of the file's default scene, depth first in file order (a node
     reached twice, or a cycle, is a SceneError)."""
@@ -62,9 +69,7 @@ def placed_nodes(tree: dict, path: Path) -> list[tuple[int, np.ndarray]]:
     scenes = tree.get("scenes")
     if scenes:
         chosen = tree.get("scene", 0)
-        if not (isinstance(chosen, int) and 0 <= chosen < len(scenes)) or not isinstance(scenes[chosen], dict):
-            raise SceneError(f"{path}: the glTF file's scene {chosen!r} is not one of its {len(scenes)} scenes")
-        roots = scenes[chosen].get("nodes") or []
+        roots = _entry(scenes, chosen, f"{path}: scene {chosen!r}", "scenes").get("nodes") or []
     else:
         children = {child for node in nodes if isinstance(node, dict) for child in node.get("children") or []}
         roots = [i for i in range(len(nodes)) if i not in children]
@@ -72,8 +77,7 @@ def placed_nodes(tree: dict, path: Path) -> list[tuple[int, np.ndarray]]:
     stack = [(index, np.eye(4)) for index in reversed(roots)]
     while stack:
         index, parent = stack.pop()
-        if not (isinstance(index, int) and 0 <= index < len(nodes)) or not isinstance(nodes[index], dict):
-            raise SceneError(f"{path}: node {index!r} is not one of the file's {len(nodes)} nodes")
+        _entry(nodes, index, f"{path}: node {index!r}", "nodes")
         if index in seen:
             raise SceneError(f"{path}: node {index} is reached twice in the scene's hierarchy")
         seen.add(index)
@@ -83,9 +87,12 @@ def placed_nodes(tree: dict, path: Path) -> list[tuple[int, np.ndarray]]:
     return placed
 
 
-def _direction(world: np.ndarray, local) -> np.ndarray:
-    direction = world[:3, :3] @ np.asarray(local, np.float64)
-    return direction / np.linalg.norm(direction)
+def _aimed(world: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A node's position and its −z and +y directions in the world (a SceneError for a singular placement)."""
+    if not np.all(np.isfinite(world)) or abs(np.linalg.det(world[:3, :3])) < 1e-12:
+        raise SceneError(f"{where}: its node's transform is singular or not finite")
+    forward, up = world[:3, :3] @ [0.0, 0.0, -1.0], world[:3, :3] @ [0.0, 1.0, 0.0]
+    return world[:3, 3], forward / np.linalg.norm(forward), up / np.linalg.norm(up)
 
 
 def _camera(tree: dict, placed: list, path: Path) -> Camera | None:
@@ -96,21 +103,16 @@ def _camera(tree: dict, placed: list, path: Path) -> Camera | None:
         if number is None:
             continue
         where = f"{path}: camera {number!r} (node {index})"
-        if not (isinstance(number, int) and 0 <= number < len(cameras)) or not isinstance(cameras[number], dict):
-            raise SceneError(f"{where}: not one of the file's {len(cameras)} cameras")
-        entry = cameras[number]
+        entry = _entry(cameras, number, where, "cameras")
         if entry.get("type") != "perspective":
             raise SceneError(f"{where}: a {entry.get('type')!r} camera; only perspective cameras are rendered")
         perspective = FieldReader(where, entry.get("perspective") or {})
         if "yfov" not in perspective.data:
             perspective.fail("a perspective camera without a yfov")
         yfov = perspective.numbers("yfov", None, high=np.pi)
-        if not np.all(np.isfinite(world)) or abs(np.linalg.det(world[:3, :3])) < 1e-12:
-            raise SceneError(f"{where}: its node's transform is singular or not finite")
-        origin = world[:3, 3]
+        origin, forward, up = _aimed(world, where)
         try:
-            return Camera(origin, origin + _direction(world, [0, 0, -1]), up=_direction(world, [0, 1, 0]),
-                          fov=float(np.degrees(yfov)), fov_axis="y")
+            return Camera(origin, origin + forward, up=up, fov=float(np.degrees(yfov)), fov_axis="y")
         except ValueError as err:
             raise SceneError(f"{where}: {err}") from err
     return None
@@ -125,14 +127,12 @@ def _lights(tree: dict, placed: list, path: Path) -> list:
         if number is None:
             continue
         where = f"{path}: light {number!r} (node {index})"
-        if not (isinstance(number, int) and 0 <= number < len(catalogue)) or not isinstance(catalogue[number], dict):
-            raise SceneError(f"{where}: not one of the file's {len(catalogue)} KHR_lights_punctual lights")
-        entry = catalogue[number]
+        entry = _entry(catalogue, number, where, "KHR_lights_punctual lights")
         fields = FieldReader(where, entry)
         power = (fields.numbers("color", [1.0, 1.0, 1.0], length=3)
                  * fields.numbers("intensity", 1.0, high=np.inf) / LUMENS_PER_WATT).astype(np.float32)
         kind = entry.get("type")
-        position, aim = world[:3, 3].astype(np.float32), _direction(world, [0, 0, -1]).astype(np.float32)
+        position, aim, _ = (vector.astype(np.float32) for vector in _aimed(world, where))
         if kind == "point":
             lights.append(PointLight(position, power))
         elif kind == "directional":
