@@ -4,6 +4,8 @@
 // path segments (1 = emission only, 2 = direct lighting); Russian roulette from depth 5 on with
 // continuation probability min(max(throughput)·eta², 0.95). Diffuse and metal surfaces are two-sided
 // (the shading frame faces the incoming ray); glass keeps its outward normal to tell inside from out.
+// Where Mitsuba differs: shadow rays cross thin panes, and crossing one is no vertex and no segment
+// (trace/shadow_panes.wgsl).
 //
 // `main` (uniform passes): one invocation is one pixel; a workgroup of 64 is an 8×8 tile. It takes the
 // samples [chunk_start, chunk_start + chunk_size) of this pass's count, numbered after the samples the
