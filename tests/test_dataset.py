@@ -143,6 +143,33 @@ def test_mitsuba_golds_without_mitsuba_fail_before_anything_is_written(tmp_path,
     assert not (tmp_path / "data").exists()
 
 
+def test_mitsuba_golds_of_a_scene_with_a_light_through_a_thin_pane_are_refused_before_anything_is_written(tmp_path):
+    """Mitsuba's shadow rays stop at thin panes, ours cross them: a scene with a pane and a point, spot or directional
+    light has no Mitsuba gold, so --gold-renderer mitsuba refuses it by name; without the light (an area light alone,
+    which Mitsuba's paths meet through the pane) it is rendered."""
+    scene = {"camera": {"origin": [0, 1, 3], "target": [0, 0, 0]},
+             "materials": {"pane": {"kind": "thin_dielectric"}, "floor": {}},
+             "meshes": [{"shape": "rectangle", "material": "floor", "transform": {"rotate": {"axis": [1, 0, 0],
+                                                                                             "angle": -90}}},
+                        {"shape": "rectangle", "material": "pane", "transform": {"translate": [0, 0.5, 1]}}],
+             "lights": [{"type": "point", "position": [0, 2, 2], "intensity": 1}]}
+    (tmp_path / "window.json").write_text(json.dumps(scene))
+    def gold_color(scene, size, spp, max_depth, seed, frame):
+        return np.ones((size[1], size[0], 3), np.float32)
+
+    config = DatasetConfig(scenes=(str(tmp_path / "window.json"),), views=1, size=8, spp=(1,), gold=4,
+                           gold_renderer="mitsuba", sequence_fraction=0.0)
+    with pytest.raises(DatasetError, match=r"window\.json: Mitsuba's shadow rays stop at thin panes"):
+        TruthEngine(config, tmp_path / "data", renderer=fake_render, gold_color=gold_color)
+    assert not (tmp_path / "data").exists()
+    scene["lights"] = []
+    scene["materials"]["lamp"] = {"emission": 2}
+    scene["meshes"].append({"shape": "rectangle", "material": "lamp", "transform": {"translate": [0, 2, -1]}})
+    (tmp_path / "window.json").write_text(json.dumps(scene))
+    TruthEngine(config, tmp_path / "data", renderer=fake_render, gold_color=gold_color).run(progress=False)
+    assert (tmp_path / "data" / "views" / "v00000" / frame_file(0, "gold")).exists()
+
+
 def test_noisy_copies_extend_a_finished_dataset_with_new_noise_only(tmp_path):
     """Raising noisy_copies on a finished dataset renders just the copies (1-spp, fresh seeds), leaves
     every earlier file as it was, and the reader hands them out beside the frame's first render."""
@@ -615,3 +642,21 @@ def test_sigterm_stops_the_command_and_its_shards_with_the_manifest_written(tmp_
             os.killpg(process.pid, 0)
         views = json.loads((out / "manifest.json").read_text())["views"]
         assert 1 <= len(views) < 200 and len(load_views(out)) == len(views)
+
+
+def test_randomized_materials_keep_a_glasss_tint_and_absorption_and_a_thin_pane_smooth():
+    """The dataset's material jitter changes reflectance, roughness and a glass's ior, and keeps the rest: a glass's
+    transmittance and absorption (dropped before), a thin pane's zero roughness."""
+    from wgpu_rt.dataset.variety import randomize_materials
+    from wgpu_rt.scene.model import Camera, Material, Scene
+
+    materials = {"amber": Material("dielectric", transmittance=(0.9, 0.6, 0.3), absorption=(0.5, 1.0, 3.0)),
+                 "pane": Material("thin_dielectric", ior=1.5, transmittance=(0.8, 0.9, 1.0))}
+    scene = Scene(Camera([0, 0, 3], [0, 0, 0]), [], materials)
+    randomize_materials(scene, np.random.default_rng(3))
+    amber, pane = scene.materials["amber"], scene.materials["pane"]
+    np.testing.assert_allclose(amber.transmittance, [0.9, 0.6, 0.3])
+    np.testing.assert_allclose(amber.absorption, [0.5, 1.0, 3.0])
+    assert amber.roughness > 0 and pane.kind == "thin_dielectric" and pane.roughness == 0
+    assert 1.3 <= pane.ior <= 1.8 and pane.ior != 1.5
+    np.testing.assert_allclose(pane.transmittance, [0.8, 0.9, 1.0])

@@ -281,6 +281,14 @@ class TruthEngine:
         self.out = Path(out)
         # Load everything a view may draw now: a bad scene or mesh fails before any file is written.
         self._bases = {scene: load_scene(scene) for scene in config.scenes}
+        if config.gold_renderer == "mitsuba":
+            from ..scene.mitsuba import lights_through_panes
+
+            for name, scene in self._bases.items():
+                if lights_through_panes(scene):
+                    raise DatasetError(f"{name}: Mitsuba's shadow rays stop at thin panes, so its gold would miss "
+                                       f"the scene's point, spot or directional light through them; render this "
+                                       f"scene's golds with --gold-renderer ours")
         self._mesh_files = load_mesh_folder(config.mesh_dir) if config.mesh_dir else []
         if config.mesh_dir and not self._mesh_files:
             raise DatasetError(f"{config.mesh_dir}: --meshes holds no mesh files ({', '.join(MESH_SUFFIXES)})")

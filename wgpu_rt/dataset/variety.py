@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import SceneError
 from ..scene.meshio import MESH_SUFFIXES
-from ..scene.model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene
+from ..scene.model import GLASS_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight, Scene
 
 # Shapes the training views use; HELD_OUT_SHAPES appear only in test views, so the benchmark sees
 # geometry the networks never saw.
@@ -102,15 +102,18 @@ def blackbody_tint(kelvin: float) -> np.ndarray:
 
 
 def randomize_materials(scene: Scene, rng: np.random.Generator) -> None:
-    """Jitter every non-emissive material in place: reflectance, roughness and IOR."""
+    """Jitter every non-emissive material in place: reflectance, roughness (a thin pane stays smooth) and a glass's
+    IOR; the rest (a glass's tint and absorption, a metal's index) kept."""
     for name, mat in list(scene.materials.items()):
         if mat.is_emissive:
             continue
         tint = rng.uniform(0.6, 1.4, 3) * rng.uniform(0.7, 1.2)
         reflectance = np.clip(mat.reflectance * tint, 0.02, 0.95)
+        # (drawn only where they were before thin panes, so a seed's views stay what they were)
         roughness = float(rng.uniform(0.02, 0.6)) if mat.kind != "diffuse" else mat.roughness
-        ior = float(rng.uniform(1.3, 1.8)) if mat.kind == "dielectric" else mat.ior
-        scene.materials[name] = Material(mat.kind, reflectance, roughness, ior, mat.eta, mat.k, mat.emission)
+        ior = float(rng.uniform(1.3, 1.8)) if mat.kind in GLASS_KINDS else mat.ior
+        scene.materials[name] = replace(mat, reflectance=reflectance, ior=ior,
+                                        roughness=0.0 if mat.kind == "thin_dielectric" else roughness)
 
 
 def random_material(rng: np.random.Generator) -> Material:

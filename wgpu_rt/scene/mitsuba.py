@@ -8,10 +8,10 @@ BSDF its material maps to:
   int_ior = ior, ext_ior = 1, linear; conductor →
   ``conductor`` (roughness 0) or ``roughconductor`` (GGX, alpha = roughness) with eta, k and
   specular_reflectance; dielectric → ``dielectric`` or
-  ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1, specular_transmittance = transmittance (thin_dielectric →
-  ``thindielectric``, likewise, whose shadow rays stop at it where the tracer's cross it: a sun or point light
-  shining through a pane lights Mitsuba's image only by paths that meet it, never, so such a scene has no Mitsuba
-  gold); an absorbing
+  ``roughdielectric`` (GGX) with int_ior = ior, ext_ior = 1, specular_transmittance = transmittance
+  (thin_dielectric → ``thindielectric``, likewise, whose shadow rays stop at it where the tracer's cross it: a sun or
+  point light shining through a pane lights Mitsuba's image only by paths that meet it, never, so such a scene has
+  no Mitsuba gold: ``lights_through_panes``); an absorbing
   one's mesh has a ``homogeneous`` interior medium of sigma_t = absorption and albedo 0.
 - a cut-out mesh's BSDF is wrapped in ``mask`` (``cutout_opacity``);
 - with a cut-out or an interior medium the integrator is ``volpath``, else ``path``;
@@ -48,9 +48,15 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from .model import (CUTOUT_ALPHA, GLASS_KINDS, DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8,
-                    sample_alpha, vertex_colors_as_rendered)
+from .model import (CUTOUT_ALPHA, GLASS_KINDS, DirectionalLight, Material, PointLight, Scene, SpotLight,
+                    linear_from_srgb8, sample_alpha, vertex_colors_as_rendered)
 from .transforms import transform_normals, transform_points
+
+
+def lights_through_panes(scene: Scene) -> bool:
+    """Whether ``scene`` has a thin pane and a point, spot or directional light: light Mitsuba cannot render
+    (its shadow rays stop at the pane, where the tracer's cross it, and no path meets such a light by chance)."""
+    return bool(scene.lights) and any(scene.materials[m.material].kind == "thin_dielectric" for m in scene.meshes)
 
 
 def _rgb(value) -> dict:
