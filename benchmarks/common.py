@@ -192,8 +192,13 @@ def _gold_by_mitsuba(args) -> bool:
 def mitsuba_gold(scene, size, spp: int, max_depth: int, seed: int, frame: int = 0) -> np.ndarray:
     """(H, W, 3) float32: Mitsuba's render of ``scene`` at ``frame`` (wgpu_rt.scene.mitsuba.render_in_passes:
     passes seeded ``seed``, ``seed`` + 1, …); exit status 2 with a one-line message when Mitsuba 3 does not
-    load."""
-    from wgpu_rt.scene.mitsuba import render_in_passes
+    load, or cannot render the scene's light (lights_through_panes)."""
+    from wgpu_rt.scene.mitsuba import lights_through_panes, render_in_passes
+
+    if lights_through_panes(scene):
+        print(f"--gold-renderer mitsuba: {scene.name}: Mitsuba's shadow rays stop at thin panes, so its gold would "
+              "miss the point, spot or directional light through them; leave the gold to our tracer", file=sys.stderr)
+        raise SystemExit(2)
 
     try:
         mi, _ = mitsuba()
