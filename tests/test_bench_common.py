@@ -119,13 +119,31 @@ def test_a_mitsuba_gold_is_the_sample_weighted_mean_of_its_passes(common, monkey
         gold_renderer, gold_spp, max_depth, gold_cache = "mitsuba", 1100, 8, str(tmp_path)
 
     class Scene:
-        name = "box"
+        name, lights = "box", []
 
     gold = common.gold_render(Scene(), (4, 2), Args())
     assert calls == [(367, 12345), (367, 12346), (366, 12347)]
     np.testing.assert_allclose(gold, (367 * 0 + 367 * 1 + 366 * 2) / 1100, rtol=1e-6)
     assert (tmp_path / "box_4x2_1100spp_depth8_mitsuba.npy").exists()
     assert common.gold_render(Scene(), (4, 2), Args()).shape == (2, 4, 3) and len(calls) == 3, "read back"
+
+
+def test_no_mitsuba_gold_for_a_light_through_a_thin_pane(common, monkeypatch, capsys):
+    """Mitsuba's shadow rays stop at thin panes: a scene with one and a point light gets no Mitsuba gold (exit 2, one
+    line naming it), before Mitsuba is asked for anything."""
+    from pathlib import Path
+
+    from wgpu_rt.scene.loader import parse_scene
+
+    monkeypatch.setattr(common, "mitsuba", lambda: (None, "fake"))
+    scene = parse_scene({"camera": {"origin": [0, 0, 3], "target": [0, 0, 0]},
+                         "materials": {"pane": {"kind": "thin_dielectric"}},
+                         "meshes": [{"shape": "rectangle", "material": "pane"}],
+                         "lights": [{"type": "point", "position": [0, 0, -2], "intensity": 1}]}, "window", Path("."))
+    with pytest.raises(SystemExit) as stop:
+        common.mitsuba_gold(scene, (4, 2), 16, 4, 1)
+    assert stop.value.code == 2
+    assert "window: Mitsuba's shadow rays stop at thin panes" in capsys.readouterr().err
 
 
 def test_a_mitsuba_gold_frame_is_mitsubas_radiance_at_that_frame_with_our_motion(common, monkeypatch, tmp_path):
@@ -152,7 +170,7 @@ def test_a_mitsuba_gold_frame_is_mitsubas_radiance_at_that_frame_with_our_motion
         gold_renderer, gold_spp, max_depth, gold_cache = "mitsuba", 600, 8, str(tmp_path)
 
     class Scene:
-        name = "box"
+        name, lights = "box", []
 
     color, motion = common.gold_frame(Scene(), (4, 2), Args(), 2)
     assert mitsuba_calls == [(300, 14345, 2), (300, 14346, 2)]
