@@ -85,7 +85,8 @@
 # glass is tinted by their colour (guide albedo 4, §50), so older datasets' albedo differs there;
 # train_check scores shipped and new on the scenes of those features too (FEATURE_SCENES: `painted`,
 # benchmarks/scenes/plaza-lens.toml, examples/sky-courtyard.toml, examples/still-life.toml (rough coats since
-# session 50), examples/leaf-screen.toml (cut-outs) and examples/coloured-glass.toml (absorbing glass, session 51);
+# session 50), examples/leaf-screen.toml (cut-outs), examples/coloured-glass.toml (absorbing glass, session 51) and
+# examples/meshes/gallery.glb (a glTF file's own camera and lights, session 51);
 # bench_spp.py at 256² against Mitsuba's 4096-spp gold, as BENCHMARKS.md §47–§50 scored them on lavapipe).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
@@ -149,7 +150,7 @@ CHECK_SCENES="cornell cornell-glossy sun-room world-2147483661 world-2147483667 
 CHECK_SCENES_SMALL="world-2147483648 world-2147483651 world-2147483653 cornell cornell-glossy sun-room
     world-2147483660 world-2147483661"
 FEATURE_SCENES="painted benchmarks/scenes/plaza-lens.toml examples/sky-courtyard.toml examples/still-life.toml
-    examples/leaf-screen.toml examples/coloured-glass.toml"
+    examples/leaf-screen.toml examples/coloured-glass.toml examples/meshes/gallery.glb"
 FEATURE_VIEW=$([ $small = 1 ] && echo 32 || echo 256)
 TRACE_SPP=$([ $small = 1 ] && echo 4 || echo 64)   # at 16 spp 1024² the fixed costs of a render weigh in
 
