@@ -22,6 +22,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import trimesh
 
 from ..errors import SceneError
 from .file_materials import FieldReader, gltf_json
@@ -36,19 +37,14 @@ def _node_matrix(node: dict, where: str) -> np.ndarray:
     """A node's local transform: its ``matrix`` (column-major), else translation · rotation · scale."""
     fields = FieldReader(where, node)
     if "matrix" in node:
-        matrix = fields.numbers("matrix", None, length=16, low=-np.inf, high=np.inf).reshape(4, 4).T
-        return matrix
+        return fields.numbers("matrix", None, length=16, low=-np.inf, high=np.inf).reshape(4, 4).T
     translation = fields.numbers("translation", [0.0, 0.0, 0.0], length=3, low=-np.inf, high=np.inf)
-    quaternion = fields.numbers("rotation", [0.0, 0.0, 0.0, 1.0], length=4, low=-1.0, high=1.0)
-    if not np.linalg.norm(quaternion) > 0:
-        fields.fail(f"rotation must be a unit quaternion, got {quaternion.tolist()}")
-    x, y, z, w = quaternion / np.linalg.norm(quaternion)
+    x, y, z, w = fields.numbers("rotation", [0.0, 0.0, 0.0, 1.0], length=4, low=-1.0, high=1.0)
+    if not np.linalg.norm([x, y, z, w]) > 0:
+        fields.fail(f"rotation must be a unit quaternion, got {[x, y, z, w]}")
     scale = fields.numbers("scale", [1.0, 1.0, 1.0], length=3, low=-np.inf, high=np.inf)
-    rotation = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-    matrix = np.eye(4)
-    matrix[:3, :3] = rotation * scale
+    matrix = trimesh.transformations.quaternion_matrix([w, x, y, z])    # (w first; normalized there)
+    matrix[:3, :3] *= scale
     matrix[:3, 3] = translation
     return matrix
 
@@ -60,7 +56,7 @@ def _entry(entries: list, number, where: str, what: str) -> dict:
     return entries[number]
 
 
-def placed_nodes(tree: dict, path: Path) -> list[tuple[int, np.ndarray]]:
+def _placed_nodes(tree: dict, path: Path) -> list[tuple[int, np.ndarray]]:
     """(node index, world matrix) of every node of the file's default scene, depth first in file order (a node
     reached twice, or a cycle, is a SceneError)."""
     nodes = tree.get("nodes") or []
@@ -156,7 +152,7 @@ def gltf_scene(path) -> Scene | None:
     if not path.is_file():
         raise SceneError(f"{path}: mesh file not found")
     tree = gltf_json(path)
-    placed = placed_nodes(tree, path)
+    placed = _placed_nodes(tree, path)
     camera = _camera(tree, placed, path)
     if camera is None:
         return None
