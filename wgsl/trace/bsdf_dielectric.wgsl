@@ -109,10 +109,10 @@ fn dielectric_sample(m: Material, wi: vec3f, u_lobe: f32, u: vec2f) -> BsdfSampl
 }
 
 // The reflectance of a pane of index `ior` at incidence cosine `cos_i`: its faces' R plus what bounces between
-// them and leaves on the side it came from, R + (1 − R)² R / (1 − R²) (= 2R / (1 + R)).
+// them and leaves on the side it came from, R + (1 − R)² R / (1 − R²) = 2R / (1 + R) (1 where R is).
 fn thin_dielectric_reflectance(cos_i: f32, ior: f32) -> f32 {
     let r = fresnel_dielectric(abs(cos_i), ior).reflectance;
-    return select(1.0, 2.0 * r / (1.0 + r), r < 1.0);
+    return 2.0 * r / (1.0 + r);
 }
 
 fn thin_dielectric_sample(m: Material, wi: vec3f, u_lobe: f32) -> BsdfSample {
