@@ -29,10 +29,14 @@ fn fresnel_diffuse_reflectance(eta: f32) -> f32 {
 }
 
 // Half `i` (0 … 11) of a rough coat's table, packed two to a word in its eta and k.
+// (components picked by selects: an array indexed at run time sits in memory on most drivers)
 fn coat_half(m: Material, i: u32) -> f32 {
-    var words = array<u32, 6>(bitcast<u32>(m.eta.x), bitcast<u32>(m.eta.y), bitcast<u32>(m.eta.z),
-                              bitcast<u32>(m.k.x), bitcast<u32>(m.k.y), bitcast<u32>(m.k.z));
-    return unpack2x16float(words[i >> 1u])[i & 1u];
+    let word = i >> 1u;
+    let three = select(m.k, m.eta, word < 3u);
+    let component = word % 3u;
+    let halves = unpack2x16float(bitcast<u32>(select(select(three.z, three.y, component == 1u), three.x,
+                                                     component == 0u)));
+    return select(halves.x, halves.y, (i & 1u) == 1u);
 }
 
 // The share of light arriving at cos θ = `cos_theta` that passes the coat into the base.
