@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 import trimesh
 from gltf_files import edit_glb_json
-from PIL import Image
 from trimesh.visual.material import PBRMaterial
 
 from wgpu_rt.errors import SceneError
@@ -130,18 +129,6 @@ def test_smooth_glass_on_an_open_surface_is_a_thin_pane_and_on_a_closed_one_a_so
     assert kinds["glass/box"].kind == "dielectric" and kinds["glass/pane"].kind == "thin_dielectric"
     assert kinds["glass/pane"].ior == pytest.approx(1.4)
     np.testing.assert_allclose(kinds["glass/pane"].transmittance, [0.8, 0.9, 1.0], atol=1 / 255)
-
-
-def test_a_materials_metallic_roughness_texture_counts_by_its_mean(tmp_path):
-    # Green (roughness) 0.2 and blue (metalness) 1 over the whole image: a smooth metal from rough factors.
-    image = Image.new("RGB", (4, 4), (0, 51, 255))
-    shiny = PBRMaterial(name="shiny", metallicFactor=1.0, roughnessFactor=1.0, metallicRoughnessTexture=image)
-    box = trimesh.creation.box()
-    box.visual = trimesh.visual.TextureVisuals(uv=np.zeros((len(box.vertices), 2)), material=shiny)
-    box.export(tmp_path / "shiny.glb")
-    scene = load_scene(_scene_file(tmp_path, {"file": "shiny.glb"}))
-    material = scene.materials["shiny/shiny"]
-    assert material.kind == "conductor" and material.roughness == pytest.approx(0.04, abs=1e-3)
 
 
 def test_an_entrys_material_overrides_the_files_and_instances_keep_their_parts_own(tmp_path):

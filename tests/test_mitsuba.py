@@ -359,6 +359,48 @@ def test_rough_plastic_matches_mitsuba(gpu, roughness, ior):
     assert smooth_distance > 1.5 * distance
 
 
+def _metal_rough_mapped(swap: bool):
+    """cornell-glossy with its walls, floor and boxes made plastics of roughness 0.5 under metal-rough maps of 4×4
+    texels: metal (of a roughness of its own, 0.2 to 0.7), half metal or plastic; ``swap`` makes the metal texels
+    plastic and the plastic ones metal."""
+    scene = _coated("plastic", 1.5, 0.25)
+    rng = np.random.default_rng(8)
+    for mesh in scene.meshes:
+        if mesh.name == "light" or scene.materials[mesh.material].kind != "plastic":
+            continue
+        codes = np.zeros((4, 4, 3), np.uint8)
+        codes[..., 2] = rng.choice(np.uint8([0, 128, 255]), (4, 4))
+        codes[..., 1] = np.where(codes[..., 2] == 255, rng.integers(51, 179, (4, 4)), 128)
+        if swap:
+            codes[..., 1] = np.where(codes[..., 2] == 0, codes[..., 1], 128)
+            codes[..., 2] = 255 - codes[..., 2]
+        mesh.metal_rough_map = codes
+        mesh.uvs = (0.75 * (mesh.vertices[:, :2] + mesh.vertices[:, 2:]) + 0.5).astype(np.float32)
+    return scene
+
+
+def test_metal_rough_maps_match_mitsuba(gpu):
+    """Plastics whose metal-rough maps make some texels glTF's metal of their own roughness and some half metal: as
+    Mitsuba's blendbsdf of the plastic and a roughconductor, weighted by the metalness, its alpha a bitmap; the maps
+    with metal and plastic texels swapped are told apart."""
+    distance, swapped_distance = _matches_mitsuba(_metal_rough_mapped(False), _metal_rough_mapped(True))
+    assert swapped_distance > 2 * distance
+
+
+def test_a_metal_rough_map_that_varies_a_plastics_roughness_is_refused_for_mitsuba_by_name():
+    """Mitsuba's roughplastic has one roughness: the conversion says so, naming the mesh."""
+    from wgpu_rt.errors import SceneError
+
+    scene = _metal_rough_mapped(False)
+    floor = next(m for m in scene.meshes if m.name == "floor")
+    floor.metal_rough_map = floor.metal_rough_map.copy()
+    floor.metal_rough_map[0, 0] = (0, 60, 0)
+    if use_variant(mi) is None:
+        pytest.skip("no Mitsuba variant loads in this build")
+    with pytest.raises(SceneError, match="mesh 'floor': its metal-rough map's roughness varies where it is plastic"):
+        to_mitsuba(scene, 8, 8, 4, 4)
+
+
 @pytest.mark.parametrize("alpha, ior", [(0.02, 1.5), (0.3, 1.5), (0.3, 1.33), (0.9, 2.0)])
 def test_rough_coat_tables_are_mitsubas(alpha, ior):
     """wgpu_rt/trace/coat.py's t(μ) and internal reflectance against the ones Mitsuba's roughplastic was built

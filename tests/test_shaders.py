@@ -28,18 +28,20 @@ def test_every_trace_specialization_builds(gpu):
 
 
 @pytest.mark.parametrize("walk", ["threaded", "wide"])
-@pytest.mark.parametrize("swaps", ["cutouts", "emission textures", "rough coats", "absorbing glass", "panes", "all"])
-def test_the_kernels_of_cut_outs_emission_textures_rough_coats_and_absorbing_glass_build_with_each_walk(gpu, walk,
-                                                                                                      swaps):
+@pytest.mark.parametrize("swaps", ["cutouts", "emission textures", "rough coats", "absorbing glass", "panes",
+                                   "metal-rough maps", "all"])
+def test_every_swapped_in_module_builds_with_each_walk(gpu, walk, swaps):
     """Scenes with cut-out surfaces swap trace/cutouts.wgsl into the walks' triangle test, scenes whose lights have
     emission textures trace/emission_textures.wgsl into the light sampling, scenes with a rough coat
     trace/coats_rough.wgsl into the plastic, scenes with absorbing glass trace/interior_absorbing.wgsl into the path's
-    throughput, scenes with thin panes trace/shadow_panes.wgsl into the walks' shadow test: the kernel builds so with
-    both walks, every feature on and every feature off."""
+    throughput, scenes with thin panes trace/shadow_panes.wgsl into the walks' shadow test, scenes with metal-rough
+    maps trace/metal_rough_maps.wgsl into the hit's material: the kernel builds so with both walks, every feature on
+    and every feature off."""
     from wgpu_rt.accel.geometry import BVH_LAYOUTS, NO_CUTOUTS, THREADED_WALK
     from wgpu_rt.trace.features import SceneFeatures
-    from wgpu_rt.trace.trace_pass import (ABSORBING_INTERIORS, CLEAR_INTERIORS, CUTOUTS, EMISSION_TEXTURES, NO_PANES,
-                                          PLAIN_EMISSION, ROUGH_COATS, SHADOW_PANES, SMOOTH_COATS, trace_pipeline)
+    from wgpu_rt.trace.trace_pass import (ABSORBING_INTERIORS, CLEAR_INTERIORS, CUTOUTS, EMISSION_TEXTURES,
+                                          METAL_ROUGH_MAPS, NO_METAL_ROUGH_MAPS, NO_PANES, PLAIN_EMISSION, ROUGH_COATS,
+                                          SHADOW_PANES, SMOOTH_COATS, trace_pipeline)
 
     modules = {THREADED_WALK: BVH_LAYOUTS[walk]}
     if swaps in ("cutouts", "all"):
@@ -52,5 +54,7 @@ def test_the_kernels_of_cut_outs_emission_textures_rough_coats_and_absorbing_gla
         modules[CLEAR_INTERIORS] = ABSORBING_INTERIORS
     if swaps in ("panes", "all"):
         modules[NO_PANES] = SHADOW_PANES
+    if swaps in ("metal-rough maps", "all"):
+        modules[NO_METAL_ROUGH_MAPS] = METAL_ROUGH_MAPS
     for features in (SceneFeatures.everything(), SceneFeatures.all_combinations()[0]):
         assert trace_pipeline(gpu, features, geometry_bindings=4, geometry_modules=modules) is not None

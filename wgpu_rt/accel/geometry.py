@@ -162,7 +162,10 @@ def _mesh_colors(mesh) -> np.ndarray:
 
 
 NO_TEXTURE = 0xFFFFFFFF   # a triangle record's texture (or normal map) index where its mesh has none
-TEXTURE_RECORD_WORDS = 8  # per triangle: texture index, (u, v) of its three vertices, normal map index
+TEXTURE_RECORD_WORDS = 8  # per triangle: texture index, (u, v) of its three vertices, normal and metal-rough maps
+# A record's last word holds two image indices: its normal map's in the low half, its metal-rough map's in the high
+# half, each NO_MAP where the mesh has none (so NO_TEXTURE there means neither); a scene has at most NO_MAP images.
+NO_MAP = 0xFFFF
 CUTOUT_FLAG = 0x80000000  # on a record's texture index: its alpha cuts the surface away (wgsl/trace/cutouts.wgsl)
 BLEND_FLAG = 0x40000000   # with CUTOUT_FLAG: stochastically, alpha the probability of a surface there
 # accel/walk_tree.wgsl imports NO_CUTOUTS; a path-tracing kernel of a scene with cut-out surfaces swaps in the
@@ -190,15 +193,16 @@ def _mesh_texture_records(mesh, textures: dict[int, int]) -> np.ndarray:
     """(F, TEXTURE_RECORD_WORDS) u32 per face: the index in ``textures`` (image id → index; NO_TEXTURE without
     one) of its mesh's texture, with CUTOUT_FLAG where the texture has an alpha channel (which cuts the surface
     away; BLEND_FLAG too where the mesh's alpha_mode is "blend"), its vertices' texture coordinates as float32
-    bits, and the index of its mesh's normal map (SceneError where an image or the coordinates are malformed,
-    naming the mesh)."""
+    bits, and the indices of its mesh's normal map and metal-rough map (NO_MAP where it has none; SceneError where an
+    image or the coordinates are malformed, naming the mesh)."""
     faces = np.asarray(mesh.faces, np.int64)
     records = np.zeros((len(faces), TEXTURE_RECORD_WORDS), np.uint32)
     records[:, [0, 7]] = NO_TEXTURE
-    has_image = mesh.texture is not None or mesh.normal_map is not None or mesh.emission_texture is not None
+    has_image = any(image is not None for image in (mesh.texture, mesh.normal_map, mesh.emission_texture,
+                                                      mesh.metal_rough_map))
     if has_image != (mesh.uvs is not None):
-        raise SceneError(f"mesh {mesh.name!r}: a texture, normal map or emission texture needs its coordinates (uvs), "
-                         f"and coordinates one of them")
+        raise SceneError(f"mesh {mesh.name!r}: a texture, normal map, emission texture or metal-rough map needs its "
+                         f"coordinates (uvs), and coordinates one of them")
     if not has_image:
         return records
     uvs = np.asarray(mesh.uvs)
@@ -215,9 +219,14 @@ def _mesh_texture_records(mesh, textures: dict[int, int]) -> np.ndarray:
         records[:, 0] = textures[id(mesh.texture)] | flags
     if mesh.emission_texture is not None:
         _check_image(mesh, mesh.emission_texture, "emission_texture")
-    if mesh.normal_map is not None:
-        _check_image(mesh, mesh.normal_map, "normal_map")
-        records[:, 7] = textures[id(mesh.normal_map)]
+    if len(textures) > NO_MAP:
+        raise SceneError(f"a scene may have at most {NO_MAP} images (textures and maps), this one has {len(textures)}")
+    maps = [NO_MAP, NO_MAP]
+    for slot, (image, what) in enumerate(((mesh.normal_map, "normal_map"), (mesh.metal_rough_map, "metal_rough_map"))):
+        if image is not None:
+            _check_image(mesh, image, what)
+            maps[slot] = textures[id(image)]
+    records[:, 7] = maps[0] | maps[1] << 16
     records[:, 1:7] = uvs.astype(np.float32)[faces].reshape(len(faces), 6).view(np.uint32)
     return records
 

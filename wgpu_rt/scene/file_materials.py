@@ -19,8 +19,11 @@ them, so each material becomes the one kind that carries most of its look:
 - an OBJ material that names no specular colour (black or absent ``Ks``) and no ``Pr``: ``diffuse``.
 
 Emission is the emissive colour times its strength (its emissive texture, read per texel, tints it:
-``meshio.file_emission_texture``). A material's metallic-roughness texture counts by its mean (the tracer keeps
-one roughness and metalness per material); the base colour texture is read per texel (``meshio.file_texture``).
+``meshio.file_emission_texture``). A material's metallic-roughness texture is read per texel: the material becomes
+the ``plastic`` of its base colour and ior, and its meshes carry the texture with the factors applied
+(``meshio.file_metal_rough_map``, ``Mesh.metal_rough_map``), which makes each point that plastic or the metal
+above, of the texel's roughness; on glass its roughness counts by its mean (a dielectric keeps one). The base colour
+texture is read per texel (``meshio.file_texture``).
 Values outside glTF's ranges are a SceneError naming the file and the material.
 """
 
@@ -156,9 +159,10 @@ def gltf_material(entry: dict, where: str, trimesh_material=None) -> Material:
     absorption = _volume_absorption(FieldReader(where, extensions.get("KHR_materials_volume") or {}))
     textures = trimesh_material
     if getattr(textures, "metallicRoughnessTexture", None) is not None:
-        # glTF: roughness in the green channel, metalness in the blue, both linear.
-        mean = _texture_mean(textures.metallicRoughnessTexture, where)
-        roughness, metallic = roughness * mean[1], metallic * mean[2]
+        if transmission < 0.5:     # a plastic its meshes' metal-rough map turns to metal and roughens per point
+            return pbr_material(base, 0.0, roughness, ior=ior, emission=emission)
+        # glass keeps one roughness: glTF's roughness in the green channel (linear), by its mean
+        roughness *= _texture_mean(textures.metallicRoughnessTexture, where)[1]
     return pbr_material(base, metallic, roughness, transmission, ior, emission, absorption=absorption)
 
 
@@ -266,7 +270,8 @@ class FileMaterials:
         if index is None:
             return None, ""
         entry = self.entries[index]
-        info = (entry.get("pbrMetallicRoughness") or {}).get(key) if key == "baseColorTexture" else entry.get(key)
+        pbr = key in ("baseColorTexture", "metallicRoughnessTexture")
+        info = (entry.get("pbrMetallicRoughness") or {}).get(key) if pbr else entry.get(key)
         return (info if isinstance(info, dict) else None), entry.get("name") or f"material{index}"
 
     def normal_scale(self, geometry) -> float:
@@ -280,10 +285,10 @@ class FileMaterials:
 
     def texture_transform(self, geometry) -> np.ndarray | None:
         """The 3×3 matrix (of glTF's texture coordinates, v down) of the ``KHR_texture_transform`` on
-        ``geometry``'s glTF material's base colour, normal and emissive textures, None where none has one. The tracer
-        reads them at one set of coordinates, so two different transforms are a SceneError."""
+        ``geometry``'s glTF material's base colour, normal, emissive and metallic-roughness textures, None where none
+        has one. The tracer reads them at one set of coordinates, so two different transforms are a SceneError."""
         matrices = {}
-        for key in ("baseColorTexture", "normalTexture", "emissiveTexture"):
+        for key in ("baseColorTexture", "normalTexture", "emissiveTexture", "metallicRoughnessTexture"):
             texture, label = self._texture_info(geometry, key)
             transform = ((texture or {}).get("extensions") or {}).get("KHR_texture_transform")
             if transform is None:

@@ -349,19 +349,24 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         texture = with_cutout(texture[..., :3], texture[..., 3], cutoff)
     normal_map = _image_file(fields, "normal_map", folder, read_texture_image)
     glow = _image_file(fields, "emission_texture", folder, read_texture_image)
+    metal_rough = _image_file(fields, "metal_rough_map", folder, read_texture_image)
+    if metal_rough is not None and (material is None or materials[material].kind != "plastic"):
+        fields.fail("a metal-rough map makes each point of a plastic that plastic or a metal: give the entry a "
+                    "plastic 'material'", "metal_rough_map")
     if has_shape:
         kind = fields.string("shape", choices=PRIMITIVES)
         vertices, faces, normals = primitive(kind)
         base = name or kind
         parts = [Mesh(base, vertices, faces, material, normals=normals)]
-        images = {"texture": texture, "normal_map": normal_map, "emission_texture": glow}
+        images = {"texture": texture, "normal_map": normal_map, "emission_texture": glow,
+                  "metal_rough_map": metal_rough}
         if any(image is not None for image in images.values()):
             uvs = primitive_uvs(kind)
             if uvs is None:
                 key = next(key for key, image in images.items() if image is not None)
                 fields.fail(f"a {kind} has no texture coordinates; give a mesh file that has them", key)
             parts[0].texture, parts[0].normal_map, parts[0].emission_texture = texture, normal_map, glow
-            parts[0].uvs = uvs
+            parts[0].metal_rough_map, parts[0].uvs = metal_rough, uvs
     else:
         file = fields.string("file")
         path = Path(file) if Path(file).is_absolute() else folder / file
@@ -373,7 +378,7 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         try:
             parts = load_mesh_file(path, material, base, vertex_colors=colors, texture=texture,
                                    materials=own if material is None else None, normal_map=normal_map,
-                                   emission_texture=glow)
+                                   emission_texture=glow, metal_rough_map=metal_rough)
         except SceneError as err:
             fields.fail(str(err), "file")
         for taken in own:
@@ -388,8 +393,8 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         if np.any(repeat <= 0) or np.any(repeat > MAX_TEXTURE_REPEAT):
             fields.fail(f"expected counts in (0, {MAX_TEXTURE_REPEAT:g}], got {repeat.tolist()}", "texture_repeat")
         if all(part.uvs is None for part in parts):
-            fields.fail("the mesh has no texture to repeat (give 'texture', 'normal_map' or 'emission_texture', or a "
-                        "mesh file with one)", "texture_repeat")
+            fields.fail("the mesh has no texture to repeat (give 'texture', 'normal_map', 'emission_texture' or "
+                        "'metal_rough_map', or a mesh file with one)", "texture_repeat")
         for part in parts:
             if part.uvs is not None:
                 part.uvs = (part.uvs * repeat).astype(np.float32)

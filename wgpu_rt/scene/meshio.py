@@ -190,6 +190,28 @@ def file_normal_map(geometry: trimesh.Trimesh, where: str, decoded: dict, scale:
     return decoded[key][0]
 
 
+def file_metal_rough_map(geometry: trimesh.Trimesh, where: str, decoded: dict, ior: float) -> np.ndarray | None:
+    """A geometry's glTF metallic-roughness texture as its ``Mesh.metal_rough_map``: (H, W, 3) uint8 codes, the
+    roughness (green) and metalness (blue) times the material's roughnessFactor and metallicFactor (glTF's default
+    1 where absent), red 0; None where its material has none. ``decoded`` shares one array among the geometries
+    whose materials have the same image, factors and ``ior`` (the coat of the plastic it is on)."""
+    material = getattr(geometry.visual, "material", None)
+    image = getattr(material, "metallicRoughnessTexture", None)
+    if image is None:
+        return None
+    pixels = _decode(image, decoded, f"{where}: cannot read its metallic-roughness texture")
+    if pixels is None:
+        return None
+    factors = tuple(1.0 if getattr(material, name, None) is None else float(getattr(material, name))
+                    for name in ("roughnessFactor", "metallicFactor"))
+    key = ("metal-rough", id(pixels), factors, float(ior))
+    if key not in decoded:
+        baked = np.zeros_like(pixels)
+        baked[..., 1:] = np.clip(np.round(pixels[..., 1:] * np.asarray(factors)), 0, 255)
+        decoded[key] = (baked, pixels)
+    return decoded[key][0]
+
+
 # MTL texture options and how many values each takes (the rest of a statement is the file's name).
 MTL_OPTIONS = {"-bm": 1, "-clamp": 1, "-blendu": 1, "-blendv": 1, "-boost": 1, "-mm": 2, "-o": 3, "-s": 3, "-t": 3,
                "-texres": 1, "-imfchan": 1, "-cc": 1, "-type": 1}
@@ -359,7 +381,8 @@ def _is_open_smooth_glass(material, vertices: np.ndarray, faces: np.ndarray) -> 
 
 def load_mesh_file(path: Path, material: str | None, name: str | None = None, vertex_colors: bool = True,
                    texture: np.ndarray | None = None, materials: dict | None = None,
-                   normal_map: np.ndarray | None = None, emission_texture: np.ndarray | None = None) -> list:
+                   normal_map: np.ndarray | None = None, emission_texture: np.ndarray | None = None,
+                   metal_rough_map: np.ndarray | None = None) -> list:
     """The meshes of the file at ``path``, all with ``material``, named ``name`` (default: file stem), with
     the file's vertex colours or texture (``file_vertex_colors``, ``file_texture``) unless ``vertex_colors``
     is False; ``texture`` (an (H, W, 3) uint8 image) replaces the file's images at the file's texture
@@ -367,8 +390,9 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
     that has a material of its own in the file (glTF's, an OBJ file's MTL: ``file_materials``) takes it, added
     to ``materials`` under its name, and the others ``material`` (a SceneError where that is None). A geometry's
     normal map is the file's (a glTF material's normal texture), or ``normal_map`` in its place, and its emission
-    texture likewise (``file_emission_texture``, or ``emission_texture``), read at the same coordinates; where the
-    file's own images are read, through the material's KHR_texture_transform."""
+    texture likewise (``file_emission_texture``, or ``emission_texture``), read at the same coordinates; so is a
+    geometry's metal-rough map (``metal_rough_map``, else ``file_metal_rough_map`` where it takes the file's
+    plastic); where the file's own images are read, through the material's KHR_texture_transform."""
     from .file_materials import FileMaterials, transformed_uvs
     from .model import Mesh
 
@@ -419,17 +443,23 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
                                                                            own.normal_scale(geometry), path.parent)
         glow = emission_texture if emission_texture is not None else file_emission_texture(geometry, where, decoded,
                                                                                            path.parent)
-        uvs = file_uvs(geometry) if uvs is None and (relief is not None or glow is not None) else uvs
-        for what, image_read in (("normal map", relief), ("emission texture", glow)):
-            if image_read is not None and uvs is None:
-                raise SceneError(f"{where}: has no texture coordinates for the {what} to be read at")
-        file_images = ((texture is None and image is not None) or (normal_map is None and relief is not None)
-                       or (emission_texture is None and glow is not None))
-        if file_images and (matrix := own.texture_transform(geometry)) is not None:
-            uvs = transformed_uvs(uvs, matrix)
         surface = (own.material_of(geometry, geometry_name) if materials is not None else None) or material
         if surface is None:
             raise SceneError(f"{where}: has no material of its own; give the mesh entry a 'material'")
+        file_material = own.materials.get(surface)
+        metal_rough = metal_rough_map
+        if metal_rough is None and file_material is not None and file_material.kind == "plastic":
+            metal_rough = file_metal_rough_map(geometry, where, decoded, file_material.ior)
+        maps = (relief, glow, metal_rough)
+        uvs = file_uvs(geometry) if uvs is None and any(m is not None for m in maps) else uvs
+        for what, image_read in zip(("normal map", "emission texture", "metallic-roughness texture"), maps):
+            if image_read is not None and uvs is None:
+                raise SceneError(f"{where}: has no texture coordinates for the {what} to be read at")
+        file_images = ((texture is None and image is not None) or (normal_map is None and relief is not None)
+                       or (emission_texture is None and glow is not None)
+                       or (metal_rough_map is None and metal_rough is not None))
+        if file_images and (matrix := own.texture_transform(geometry)) is not None:
+            uvs = transformed_uvs(uvs, matrix)
         if surface in own.materials and _is_open_smooth_glass(own.materials[surface], vertices, faces):
             surface = own.as_thin(surface)
         blended = texture is None and getattr(getattr(geometry.visual, "material", None), "alphaMode", None) == "BLEND"
@@ -437,7 +467,8 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
                                               surface, normals=normals,
                                               transform=np.asarray(transform, np.float32), colors=colors,
                                               texture=image, uvs=uvs, normal_map=relief, emission_texture=glow,
-                                              alpha_mode="blend" if blended else "mask")
+                                              alpha_mode="blend" if blended else "mask",
+                                              metal_rough_map=metal_rough)
         meshes.append(first_placement[geometry_name])
     if not meshes:
         raise SceneError(f"{path}: the mesh file has no triangles")

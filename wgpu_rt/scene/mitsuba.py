@@ -13,6 +13,8 @@ BSDF its material maps to:
   point light shining through a pane lights Mitsuba's image only by paths that meet it, never, so such a scene has
   no Mitsuba gold: ``lights_through_panes``); an absorbing
   one's mesh has a ``homogeneous`` interior medium of sigma_t = absorption and albedo 0.
+- a plastic with a metal-rough map is a ``blendbsdf`` of it and glTF's metal weighted by the map's metalness
+  (``metal_rough_bsdf``; only where the plastic's texels share one roughness);
 - a cut-out mesh's BSDF is wrapped in ``mask`` (``cutout_opacity``);
 - with a cut-out or an interior medium the integrator is ``volpath``, else ``path``;
 - a mesh's vertex colours become a "vertex_color" mesh attribute its BSDF's reflectance reads, a texture a
@@ -109,6 +111,37 @@ def normal_mapped_bsdf(mi, normal_map: np.ndarray, bsdf: dict) -> dict:
                           "wrap_mode": "repeat"}}
 
 
+def _raw_bitmap(mi, values: np.ndarray) -> dict:
+    """A ``bitmap`` of (H, W) or (H, W, C) float ``values`` read raw, filtered and wrapped as the tracer samples."""
+    values = np.asarray(values, np.float32)
+    values = values[..., None] if values.ndim == 2 else values
+    return {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(values)), "raw": True,
+            "filter_type": "bilinear", "wrap_mode": "repeat"}
+
+
+LEAST_MAPPED_ALPHA = 1e-4    # a metal-rough map's metal is at least this rough in Mitsuba (GGX of alpha 0 is not)
+
+
+def metal_rough_bsdf(mi, mesh, material: Material, reflectance: dict | None = None) -> dict:
+    """Mitsuba's ``blendbsdf`` for a mesh with a metal-rough map on its plastic ``material`` (``Mesh.metal_rough_map``):
+    weighted by the map's metalness (blue), the plastic and glTF's metal (``roughconductor``, eta 0 and k 1, alpha
+    the map's roughness squared per texel), as the tracer picks between them. Mitsuba's ``roughplastic`` has one
+    roughness, so a map whose roughness varies over its plastic texels (metalness below 1) is a SceneError."""
+    codes = np.asarray(mesh.metal_rough_map, np.float64)
+    roughness, metalness = codes[..., 1] / 255.0, codes[..., 2] / 255.0
+    plastic = roughness[metalness < 1.0]
+    if plastic.size and np.ptp(plastic) > 0:
+        raise SceneError(f"mesh {mesh.name!r}: its metal-rough map's roughness varies where it is plastic "
+                         f"({plastic.min():.3f} to {plastic.max():.3f}); Mitsuba's roughplastic has one")
+    coat = Material("plastic", reflectance=material.reflectance, ior=material.ior,
+                    roughness=float(plastic[0] ** 2) if plastic.size else 0.0)
+    metal = {"type": "roughconductor", "distribution": "ggx", "eta": 0.0, "k": 1.0,
+             "alpha": _raw_bitmap(mi, np.maximum(roughness ** 2, LEAST_MAPPED_ALPHA)),
+             "specular_reflectance": reflectance or _rgb(material.reflectance)}
+    return {"type": "blendbsdf", "weight": _raw_bitmap(mi, metalness),
+            "bsdf_0": material_to_bsdf(coat, reflectance=reflectance), "bsdf_1": metal}
+
+
 def material_to_bsdf(material: Material, vertex_colored: bool = False, reflectance: dict | None = None) -> dict:
     """The Mitsuba BSDF dict for ``material``, as seen from its front face; ``vertex_colored``: its
     reflectance read from the mesh's "vertex_color" attribute (VERTEX_REFLECTANCE); ``reflectance``: a
@@ -137,11 +170,11 @@ def material_to_bsdf(material: Material, vertex_colored: bool = False, reflectan
 
 
 def surface_bsdf(material: Material, vertex_colored: bool = False, reflectance: dict | None = None,
-                 wrap=None) -> dict:
-    """``material_to_bsdf`` made two-sided where our tracer is (every kind but glass), after ``wrap`` (a
-    function of a BSDF dict, e.g. a normal map's) wraps it: inside ``twosided``, which flips a back face's
-    directions first, the normal map tilts the normal as the tracer does on a front face."""
-    bsdf = material_to_bsdf(material, vertex_colored, reflectance)
+                 wrap=None, bsdf: dict | None = None) -> dict:
+    """``material_to_bsdf`` (or ``bsdf`` in its place) made two-sided where our tracer is (every kind but glass),
+    after ``wrap`` (a function of a BSDF dict, e.g. a normal map's) wraps it: inside ``twosided``, which flips a
+    back face's directions first, the normal map tilts the normal as the tracer does on a front face."""
+    bsdf = bsdf or material_to_bsdf(material, vertex_colored, reflectance)
     bsdf = bsdf if wrap is None else wrap(bsdf)
     return bsdf if material.kind in GLASS_KINDS else {"type": "twosided", "bsdf": bsdf}   # (thindielectric is both)
 
@@ -237,7 +270,10 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
                              f"weight needs a texture's mean); give the mesh a texture or another material")
         textured = None if mesh.texture is None else textured_reflectance(mi, mesh.texture, material.reflectance)
         tilted = None if mesh.normal_map is None else partial(normal_mapped_bsdf, mi, mesh.normal_map)
-        bsdf = surface_bsdf(material, colors is not None, textured, tilted)
+        if mesh.metal_rough_map is not None and material.kind != "plastic":
+            raise SceneError(f"mesh {mesh.name!r}: a metal-rough map needs a plastic material, got {material.kind!r}")
+        blend = None if mesh.metal_rough_map is None else metal_rough_bsdf(mi, mesh, material, textured)
+        bsdf = surface_bsdf(material, colors is not None, textured, tilted, blend)
         if mesh.is_cut_out:
             bsdf = {"type": "mask", "opacity": cutout_opacity(mi, mesh.texture, mesh.alpha_mode), "bsdf": bsdf}
         emission = material.emission if material.is_emissive else None

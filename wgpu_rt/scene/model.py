@@ -193,6 +193,13 @@ class Mesh:
     # colour multiplies the emission of the mesh's material (glTF's emissiveTexture), seen and sampled alike.
     emission_texture: np.ndarray | None = None
     alpha_mode: str = "mask"
+    # glTF's metallic-roughness texture at the same coordinates, its material's factors applied: (H, W, 3) uint8
+    # codes read raw and bilinearly, the perceptual roughness r in green (GGX alpha r²) and the metalness in blue
+    # (red unused). Only on a ``plastic`` (the base colour under a coat of its ior): at each point the surface is
+    # the metal of glTF (a ``conductor`` of Fresnel 1 tinted by the reflectance) with probability its metalness,
+    # else the plastic, either of the texel's roughness: glTF's blend of the two in expectation, as Mitsuba's
+    # ``blendbsdf`` (wgsl/trace/metal_rough_maps.wgsl).
+    metal_rough_map: np.ndarray | None = None
 
     def transform_at(self, frame: int) -> np.ndarray:
         return _interpolate(self.keyframes, frame, self.transform)
@@ -210,20 +217,21 @@ class Mesh:
     def shape_key(self) -> tuple[int, ...]:
         """Equal for meshes that share their arrays (instances of one shape), else different."""
         return (id(self.vertices), id(self.faces), id(self.normals), id(self.colors), id(self.texture), id(self.uvs),
-                id(self.normal_map), id(self.emission_texture), hash(self.alpha_mode))
+                id(self.normal_map), id(self.emission_texture), hash(self.alpha_mode), id(self.metal_rough_map))
 
     def instance(self, name: str, material: str | None = None, transform=None, keyframes=None) -> Mesh:
         """Another placement of this mesh's shape (its arrays shared, not copied, and made read-only so
         that an edit cannot move every instance at once), with its own name, material (default: this
         mesh's), transform (default: identity) and keyframes (default: none)."""
         for array in (self.vertices, self.faces, self.normals, self.colors, self.texture, self.uvs, self.normal_map,
-                      self.emission_texture):
+                      self.emission_texture, self.metal_rough_map):
             if array is not None:
                 array.flags.writeable = False
         placement = np.eye(4) if transform is None else transform
         return Mesh(name, self.vertices, self.faces, self.material if material is None else material,
                     self.normals, np.asarray(placement, np.float32), dict(keyframes or {}), self.colors,
-                    self.texture, self.uvs, self.normal_map, self.emission_texture, self.alpha_mode)
+                    self.texture, self.uvs, self.normal_map, self.emission_texture, self.alpha_mode,
+                    self.metal_rough_map)
 
 
 def srgb8(colors: np.ndarray) -> np.ndarray:
@@ -405,10 +413,11 @@ class Scene:
                       (1 - w) * a.focus_distance + w * b.focus_distance)
 
     def textures(self) -> list[np.ndarray]:
-        """The meshes' texture images, normal maps and emission textures, each distinct array once, in order of
-        first appearance (a mesh's image's index in this list is the one the tracer stores for its triangles)."""
-        images = [image for m in self.meshes for image in (m.texture, m.normal_map, m.emission_texture)
-                  if image is not None]
+        """The meshes' texture images, normal maps, emission textures and metal-rough maps, each distinct array once,
+        in order of first appearance (a mesh's image's index in this list is the one the tracer stores for its
+        triangles)."""
+        images = [image for m in self.meshes
+                  for image in (m.texture, m.normal_map, m.emission_texture, m.metal_rough_map) if image is not None]
         return list({id(image): image for image in images}.values())
 
     def shapes(self) -> list[list[int]]:

@@ -12,6 +12,10 @@ coordinates on Mitsuba's 64 angles (μ = j / 63), which reproduces Mitsuba's own
 reads t at COAT_KNOTS angles μ = (i / (COAT_KNOTS − 1))², linearly between them in √μ, from half-floats packed
 into the six words a plastic's record does not otherwise use (its conductor fields), the internal reflectance
 in the twelfth half.
+
+A plastic whose roughness varies over its surface (a metal-rough map, wgsl/trace/metal_rough_maps.wgsl) has these
+six words at COAT_LEVELS perceptual roughnesses r = i / (COAT_LEVELS − 1) (alpha r²; ``coat_levels``), and a point
+of roughness r takes each half linearly between the two levels about it (``coat_words_between``).
 """
 
 from __future__ import annotations
@@ -26,6 +30,8 @@ QUADRATURE = 64                 # midpoints per sample coordinate of the visible
 # The least value a knot is stored as: a half-float below 2^-14 would sit in the high half of a word as a
 # denormal float32, which a device may flush to zero on the way; the loss at μ ≈ 0 weighs nothing.
 LEAST_KNOT = 1e-4
+COAT_LEVELS = 9                 # a varying coat's tables at r = i / 8 (alpha r²)
+LEVEL_FLOOR = 1e-3              # the alpha of level 0 (a coat smoother than DELTA_ROUGHNESS is shaded as smooth)
 
 
 def _fresnel(cos_i: np.ndarray, eta: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -106,3 +112,20 @@ def coat_transmittance(words: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """t(μ) as the kernel reads it from ``coat_words`` (the numpy reference of bsdf_plastic.wgsl's)."""
     knots = np.asarray(words, np.float32).view(np.float16).astype(np.float64)[:COAT_KNOTS]
     return np.interp(np.sqrt(np.clip(mu, 0.0, 1.0)), np.arange(COAT_KNOTS) / (COAT_KNOTS - 1), knots)
+
+
+def coat_levels(ior: float) -> np.ndarray:
+    """(COAT_LEVELS, 6) float32: ``coat_words`` at perceptual roughnesses r = i / (COAT_LEVELS − 1), alpha r²
+    (LEVEL_FLOOR at r = 0), for a coat of index ``ior``."""
+    roughness = np.arange(COAT_LEVELS) / (COAT_LEVELS - 1)
+    return np.stack([coat_words(max(r * r, LEVEL_FLOOR), ior) for r in roughness])
+
+
+def coat_words_between(levels: np.ndarray, roughness: float) -> np.ndarray:
+    """The six words a point of perceptual ``roughness`` takes from ``coat_levels``: each half-float linearly
+    between the two levels about it (the numpy reference of wgsl/trace/metal_rough_maps.wgsl's)."""
+    x = float(np.clip(roughness, 0.0, 1.0)) * (COAT_LEVELS - 1)
+    i = min(int(x), COAT_LEVELS - 2)
+    halves = np.asarray(levels, np.float32).view(np.float16).astype(np.float32)
+    mixed = halves[i] + (x - i) * (halves[i + 1] - halves[i])
+    return mixed.astype(np.float16).view(np.float32)

@@ -33,6 +33,8 @@ class SceneFeatures:
     def of(cls, scene: Scene, write_aovs: bool = True) -> "SceneFeatures":
         used = {mesh.material for mesh in scene.meshes}
         kinds = {scene.materials[name].kind for name in used}
+        if any(mesh.metal_rough_map is not None for mesh in scene.meshes):
+            kinds |= {"conductor", "plastic"}      # each point of such a plastic may be glTF's metal instead
         return cls(
             has_dielectric=bool({"dielectric", "thin_dielectric", "plastic"} & kinds),
             has_conductor="conductor" in kinds,

@@ -33,8 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..accel.geometry import NO_TEXTURE
+from ..errors import SceneError
 from ..scene.model import GLASS_KINDS, DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8
-from .coat import coat_words
+from .coat import coat_levels, coat_words
 
 MATERIAL_KIND_CODES = {"diffuse": 0, "conductor": 1, "dielectric": 2, "plastic": 3, "thin_dielectric": 4}
 EMITTER_TRIANGLE, EMITTER_POINT, EMITTER_DIRECTIONAL, EMITTER_BACKGROUND = range(4)
@@ -87,32 +88,58 @@ def pack_materials(materials: list[Material]) -> np.ndarray:
 
 
 TEXTURE_HEADER_WORDS = 4   # where the triangle records start, the texture count, two spare words
-TEXTURE_ENTRY_WORDS = 4    # per texture: its first texel's word, width, height, a spare word
+TEXTURE_ENTRY_WORDS = 4    # per texture: its first texel's word, width, height, its coat levels' first word
 
 
-def pack_textures(textures: list[np.ndarray], records: np.ndarray | None) -> np.ndarray:
+def pack_textures(textures: list[np.ndarray], records: np.ndarray | None,
+                  coat_iors: dict[int, float] | None = None) -> np.ndarray:
     """The surface-texture buffer (bind group 1, binding 5; wgsl/trace/surface_textures.wgsl) as u32 words:
     a header (where the triangle records start, the image count), an entry per image of ``textures``
-    ((H, W, 3) uint8 codes: sRGB textures, raw normal maps; (H, W, 4): a texture with alpha, in the top
-    byte), the per-triangle ``records``
+    ((H, W, 3) uint8 codes: sRGB textures, raw normal and metal-rough maps; (H, W, 4): a texture with alpha, in the
+    top byte), the per-triangle ``records``
     (wgpu_rt.accel.geometry's texture records, in the geometry's stored order), then every image's codes
-    packed (R in the low byte), row 0 the image's top. Without records (no texture or normal map), a header
-    alone."""
+    packed (R in the low byte), row 0 the image's top, a metal-rough map's followed by the coat tables of its
+    plastic (``coat_iors``: image index → the coat's ior; wgpu_rt.trace.coat.coat_levels), which its entry's fourth
+    word points at. Without records (no texture or map), a header alone."""
     header = np.zeros(TEXTURE_HEADER_WORDS, np.uint32)
     if records is None:
         return header
+    coat_iors = coat_iors or {}
     entries = np.zeros((len(textures), TEXTURE_ENTRY_WORDS), np.uint32)
     header[0] = TEXTURE_HEADER_WORDS + entries.size
     header[1] = len(textures)
     start = header[0] + records.size
     texels = []
-    for entry, image in zip(entries, textures):
+    for index, (entry, image) in enumerate(zip(entries, textures)):
         codes = np.asarray(image, np.uint32)
         entry[:3] = start, image.shape[1], image.shape[0]
         alpha = codes[..., 3] << 24 if codes.shape[2] == 4 else 0
         texels.append((codes[..., 0] | codes[..., 1] << 8 | codes[..., 2] << 16 | alpha).ravel())
         start += texels[-1].size
+        if index in coat_iors:
+            entry[3] = start
+            texels.append(coat_levels(coat_iors[index]).view(np.uint32).ravel())
+            start += texels[-1].size
     return np.concatenate([header, entries.ravel(), np.asarray(records, np.uint32).ravel(), *texels])
+
+
+def metal_rough_coats(scene: Scene) -> dict[int, float]:
+    """For ``pack_textures``: each metal-rough map's image index in ``scene.textures()`` → the ior of its mesh's
+    plastic (a SceneError where a map is on another kind, or one map on plastics of different iors)."""
+    numbers = {id(image): i for i, image in enumerate(scene.textures())}
+    iors: dict[int, float] = {}
+    for mesh in scene.meshes:
+        if mesh.metal_rough_map is None:
+            continue
+        material = scene.materials[mesh.material]
+        if material.kind != "plastic":
+            raise SceneError(f"mesh {mesh.name!r}: a metal-rough map needs a plastic material (it makes each point "
+                             f"the plastic or glTF's metal), got {material.kind!r} ({mesh.material!r})")
+        index = numbers[id(mesh.metal_rough_map)]
+        if iors.setdefault(index, float(material.ior)) != float(material.ior):
+            raise SceneError(f"mesh {mesh.name!r}: its metal-rough map is on plastics of two iors "
+                             f"({iors[index]:g} and {material.ior:g}); give each its own copy of the image")
+    return iors
 
 
 ENVIRONMENT_HEADER_WORDS = 4   # width, height, the sampling weights' total, a spare word

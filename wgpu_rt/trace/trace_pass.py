@@ -49,6 +49,7 @@ from .scene_data import (
     build_emitter_table,
     camera_vectors,
     emissive_triangles,
+    metal_rough_coats,
     pack_environment,
     pack_materials,
     pack_textures,
@@ -103,6 +104,8 @@ CLEAR_INTERIORS = "trace/interior_clear.wgsl"             # what trace/trace.wgs
 NO_PANES = "accel/panes_none.wgsl"                        # what accel/walk_tree.wgsl imports
 SHADOW_PANES = "trace/shadow_panes.wgsl"                  # in its place where a scene has a thin pane
 ABSORBING_INTERIORS = "trace/interior_absorbing.wgsl"     # in its place where a scene's glass absorbs
+NO_METAL_ROUGH_MAPS = "trace/metal_rough_none.wgsl"       # what trace/surface.wgsl imports
+METAL_ROUGH_MAPS = "trace/metal_rough_maps.wgsl"          # in its place where a mesh has a metal-rough map
 STORAGE_TABLES = "trace/shading_tables_storage.wgsl"   # what trace/trace_bindings.wgsl imports
 UNIFORM_TABLES = "trace/shading_tables_uniform.wgsl"
 # Records per table in UNIFORM_TABLES (its array sizes): 16 KiB of materials, 40 KiB of emitters.
@@ -393,7 +396,10 @@ class TracePass(ComputePass):
         if any(mesh.emission_texture is not None and scene.materials[mesh.material].is_emissive
                for mesh in scene.meshes):
             modules[PLAIN_EMISSION] = EMISSION_TEXTURES
-        if any(m.kind == "plastic" and m.roughness >= DELTA_ROUGHNESS for m in materials):
+        metal_rough = any(mesh.metal_rough_map is not None for mesh in scene.meshes)
+        if metal_rough:
+            modules[NO_METAL_ROUGH_MAPS] = METAL_ROUGH_MAPS
+        if metal_rough or any(m.kind == "plastic" and m.roughness >= DELTA_ROUGHNESS for m in materials):
             modules[SMOOTH_COATS] = ROUGH_COATS
         if any(m.absorbs for m in materials):
             modules[CLEAR_INTERIORS] = ABSORBING_INTERIORS
@@ -435,7 +441,7 @@ class TracePass(ComputePass):
             self._materials = ctx.upload(material_records, label="materials")
             self._emitters = ctx.upload(emitters.records, label="emitters")
         self._triangle_entry = ctx.upload(emitters.triangle_entry, label="triangle emitter entries")
-        textures = pack_textures(scene.textures(), geometry.texture_records)
+        textures = pack_textures(scene.textures(), geometry.texture_records, metal_rough_coats(scene))
         ctx.check_buffer_size(textures.nbytes, f"scene {scene.name!r}: surface textures")
         self._textures = ctx.upload(textures, label="surface textures")
         environment = pack_environment(scene.environment)

@@ -77,7 +77,7 @@ fn aux(@builtin(workgroup_id) tile: vec3u, @builtin(local_invocation_index) loca
         if sampling {
             var sample_done = true;
             if hit.prim != NO_HIT {
-                let material = surface_colored(materials[tri_material(hit.prim)], hit);
+                let material = surface_material(materials[tri_material(hit.prim)], hit);
                 let delta = material_is_delta(material);
                 weight *= interior_transmittance(material, -dot(traced.geometric_normal, dir), hit.t);
                 if lens && depth == 0u {   // as the tracer's normal and depth planes take the first hit

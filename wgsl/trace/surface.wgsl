@@ -8,11 +8,12 @@
 // #import accel/bvh.wgsl
 // #import trace/material.wgsl
 // #import trace/surface_textures.wgsl
+// #import trace/metal_rough_none.wgsl
 
-// A hit's material (its triangle's) with the reflectance tinted by its mesh's vertex colours or texture
-// there (each white where the mesh has none).
-fn surface_colored(material: Material, hit: Hit) -> Material {
-    var tinted = material;
+// A hit's material (its triangle's) as its point has it: the reflectance tinted by its mesh's vertex colours or
+// texture there (each white where the mesh has none), the kind and roughness its metal-rough map gives it there.
+fn surface_material(material: Material, hit: Hit) -> Material {
+    var tinted = metal_rough_mapped(material, hit);
     if HAS_SURFACE_COLORS {
         tinted.reflectance *= tri_color(hit.prim, hit.u, hit.v) * texture_color(hit.prim, hit.u, hit.v);
     }

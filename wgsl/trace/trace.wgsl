@@ -120,7 +120,7 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
     }
     let geometric_normal = traced.geometric_normal;
     let position = origin + hit.t * dir;
-    let material = surface_colored(materials[tri_material(hit.prim)], hit);
+    let material = surface_material(materials[tri_material(hit.prim)], hit);
     let cos_front = -dot(geometric_normal, dir);
     let interior = interior_transmittance(material, cos_front, hit.t);
     (*path).throughput *= interior;
