@@ -80,13 +80,15 @@
 # worlds_version 6 (§47: a quarter of the cameras through a thin lens, half the skies as environment maps, three
 # in ten matte materials coated as plastic); session 49 made it 7 (§48: normal maps on some worlds' floors and
 # walls), session 50 8 (§49: half the coats rough, some glass tinted, cut-out screens in view) and session 51 9
-# (§50: some glass absorbing inside), so call 1's renders are the first with any of them (the screens' and the
+# (§50: some glass absorbing inside), session 52 10 (§51: worn metal, metal-rough maps on some matte surfaces),
+# so call 1's renders are the first with any of them (the screens' and the
 # absorbing glass's golds render through Mitsuba's volpath); since session 51 the albedo seen through mirrors and
 # glass is tinted by their colour (guide albedo 4, §50), so older datasets' albedo differs there;
 # train_check scores shipped and new on the scenes of those features too (FEATURE_SCENES: `painted`,
 # benchmarks/scenes/plaza-lens.toml, examples/sky-courtyard.toml, examples/still-life.toml (rough coats since
 # session 50), examples/leaf-screen.toml (cut-outs), examples/coloured-glass.toml (absorbing glass, session 51) and
-# examples/meshes/gallery.glb (a glTF file's own camera and lights, session 51);
+# examples/meshes/gallery.glb (a glTF file's own camera and lights, session 51) and examples/worn-metal.toml
+# (metal-rough maps, session 52);
 # bench_spp.py at 256² against Mitsuba's 4096-spp gold, as BENCHMARKS.md §47–§50 scored them on lavapipe).
 # Parts: tests (the whole suite, CI=true, on TEST_WORKERS workers, default 8), nn (profile of the shipped
 # denoiser at 1080p as the default picks and in fp32, engine steps against torch cuDNN and OIDN CUDA),
@@ -150,7 +152,7 @@ CHECK_SCENES="cornell cornell-glossy sun-room world-2147483661 world-2147483667 
 CHECK_SCENES_SMALL="world-2147483648 world-2147483651 world-2147483653 cornell cornell-glossy sun-room
     world-2147483660 world-2147483661"
 FEATURE_SCENES="painted benchmarks/scenes/plaza-lens.toml examples/sky-courtyard.toml examples/still-life.toml
-    examples/leaf-screen.toml examples/coloured-glass.toml examples/meshes/gallery.glb"
+    examples/leaf-screen.toml examples/coloured-glass.toml examples/meshes/gallery.glb examples/worn-metal.toml"
 FEATURE_VIEW=$([ $small = 1 ] && echo 32 || echo 256)
 TRACE_SPP=$([ $small = 1 ] && echo 4 || echo 64)   # at 16 spp 1024² the fixed costs of a render weigh in
 

@@ -163,3 +163,16 @@ def test_a_scene_files_metal_rough_map_on_a_shape(tmp_path):
 def test_bad_metal_rough_map_entries_are_refused_by_field(tmp_path, material, entry, message):
     with pytest.raises(SceneError, match=message):
         load_scene(_scene_file(tmp_path, material, **entry))
+
+
+def test_the_kernel_and_the_packing_agree_on_their_constants():
+    """The coat levels' count and the empty map index are written in the WGSL as well as in Python."""
+    import re
+
+    from wgpu_rt.accel.geometry import NO_MAP
+    from wgpu_rt.shaders import read_wgsl
+
+    kernel = read_wgsl("trace/metal_rough_maps.wgsl")
+    assert int(re.search(r"const COAT_LEVELS: u32 = (\d+)u;", kernel).group(1)) == COAT_LEVELS
+    assert int(re.search(r"const NO_MAP: u32 = (0x[0-9a-f]+)u;", kernel).group(1), 16) == NO_MAP
+    assert "& 0xffffu" in read_wgsl("trace/surface_textures.wgsl") and NO_MAP == 0xFFFF

@@ -177,6 +177,14 @@ def _with_and_without(monkeypatch, share: str, seed: int, frames: int = 1):
     return taken, generate_world(seed, frames=frames)
 
 
+def _without_worn_metal(monkeypatch) -> None:
+    """Worn metal off: it makes plastics of the matte and coated surfaces that the other streams leave (taking a
+    coat's ior, a normal map's or a screen's coordinates), so those streams' tests compare worlds without it."""
+    from wgpu_rt.dataset import worlds as worlds_module
+
+    monkeypatch.setattr(worlds_module, "METAL_ROUGH_SHARE", 0.0)
+
+
 def _assert_alike_but(changed, plain, seed: int, allowed=lambda key: False) -> None:
     """``changed`` holds every number of ``plain`` where it sits, equal, but at the keys ``allowed`` says may
     differ (see ``_arrays``)."""
@@ -205,11 +213,12 @@ def test_lamps_in_view_leave_every_other_choice_and_the_held_out_family_alone(mo
 def test_painting_leaves_every_other_choice_and_the_held_out_family_alone(monkeypatch):
     """Painted surfaces draw from a random stream of their own: a painted training world is the world without
     paint, its painted meshes subdivided (the same bounds) and given vertex colours in [0, 1] (never glass or
-    an emitter); a held-out world is never painted (its gold images stay valid). (Coats are left out: a
-    painted mesh's material is never coated.)"""
+    an emitter); a held-out world is never painted (its gold images stay valid). (Coats and worn metal are left
+    out: a painted mesh's material is never coated or worn.)"""
     from wgpu_rt.dataset import worlds as worlds_module
 
     monkeypatch.setattr(worlds_module, "PLASTIC_SHARE", 0.0)
+    _without_worn_metal(monkeypatch)
     painted_meshes = 0
     for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
         painted, plain = _with_and_without(monkeypatch, "PAINTED_SHARE", seed)
@@ -281,6 +290,7 @@ def test_coats_leave_every_other_choice_and_the_held_out_family_alone(monkeypatc
     """Coated materials draw from a random stream of their own: a training world with them is the world
     without them but for some matte materials turned plastic of the same colour, some of them under a rough coat;
     a held-out world has none."""
+    _without_worn_metal(monkeypatch)
     coated = rough = 0
     for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
         with_coats, plain = _with_and_without(monkeypatch, "PLASTIC_SHARE", seed)
@@ -340,6 +350,7 @@ def test_screens_leave_every_other_choice_and_the_held_out_family_alone(monkeypa
     keeps clear of glass and lamps (none where it would not); a held-out world never has one."""
     from wgpu_rt.scene.transforms import transform_points
 
+    _without_worn_metal(monkeypatch)
     screens = 0
     for seed in [world_seed("training", n) for n in range(24)] + [world_seed("held_out", n) for n in range(6)]:
         with_screen, plain = _with_and_without(monkeypatch, "SCREEN_SHARE", seed)
@@ -378,6 +389,7 @@ def test_normal_maps_leave_every_other_choice_and_the_held_out_family_alone(monk
     a held-out world never has one."""
     from wgpu_rt.dataset.worlds import RELIEF_SIZE, SET_RECTANGLES
 
+    _without_worn_metal(monkeypatch)
     mapped_surfaces = 0
     for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
         mapped, plain = _with_and_without(monkeypatch, "NORMAL_MAP_SHARE", seed)
@@ -394,6 +406,37 @@ def test_normal_maps_leave_every_other_choice_and_the_held_out_family_alone(monk
             assert 5 <= np.percentile(tilts, 95) <= 50, (seed, mesh.name)
         _assert_alike_but(mapped, plain, seed)
     assert mapped_surfaces >= 6
+
+
+def test_worn_metal_leaves_every_other_choice_and_the_held_out_family_alone(monkeypatch):
+    """Worn metal draws from a random stream of its own: a training world with it is the world without it but for
+    some matte or coated surfaces made plastics of their colour under a metal-rough map (fully metal or matte texels,
+    the matte ones of one roughness, as Mitsuba's roughplastic has); a held-out world never has one."""
+    from wgpu_rt.dataset.worlds import WORN_SIZE
+
+    worn_surfaces = 0
+    for seed in [world_seed("training", n) for n in range(12)] + [world_seed("held_out", n) for n in range(6)]:
+        worn, plain = _with_and_without(monkeypatch, "METAL_ROUGH_SHARE", seed)
+        mapped = [mesh for mesh in worn.meshes if mesh.metal_rough_map is not None]
+        assert not mapped or family_of(seed) == "training"
+        assert all(mesh.metal_rough_map is None for mesh in plain.meshes)
+        before = {mesh.name: plain.materials[mesh.material] for mesh in plain.meshes}
+        for mesh in mapped:
+            worn_surfaces += 1
+            material, was = worn.materials[mesh.material], before[mesh.name]
+            assert material.kind == "plastic" and was.kind in ("diffuse", "plastic") and not was.is_emissive
+            np.testing.assert_array_equal(material.reflectance, was.reflectance)
+            codes = mesh.metal_rough_map
+            assert codes.shape == (WORN_SIZE, WORN_SIZE, 3) and mesh.uvs.shape == (len(mesh.vertices), 2)
+            metal = codes[..., 2] == 255
+            assert set(np.unique(codes[..., 2])) <= {0, 255} and 0.1 < metal.mean() < 0.9, (seed, mesh.name)
+            assert len(np.unique(codes[..., 1][~metal])) == 1
+        changed = {key: value for key, value in _arrays(worn).items() if not key.endswith("/worn")}
+        expected = _arrays(plain)
+        assert changed.keys() == expected.keys()
+        for key in expected:
+            np.testing.assert_array_equal(changed[key], expected[key], err_msg=f"{seed}: {key}")
+    assert worn_surfaces >= 6
 
 
 def test_a_quarter_of_the_training_worlds_look_through_a_lens(worlds):

@@ -45,7 +45,12 @@ and the same mesh files give the same ``Scene`` on every machine. A world is
   the sharp edges of holes and what shows and shines through them, as foliage and fences in users' files give
   them; from a stream of its own (also version 8);
 - in the training family only, some glass absorbing inside (``ABSORBING_GLASS_SHARE``: coloured deeper where it
-  is thicker, as glTF's volume extension makes it), from a stream of its own (``WORLDS_VERSION`` 9).
+  is thicker, as glTF's volume extension makes it), from a stream of its own (``WORLDS_VERSION`` 9);
+- in the training family only, sometimes worn metal (``METAL_ROUGH_SHARE``, ``worn_metal_map``): matte and coated
+  surfaces and objects made plastics under a metal-rough map — metal tiles among matte ones, metal stripes, or
+  blotches of matte patina on metal — so the denoiser sees a surface turn from metal to non-metal from one texel to
+  the next, as glTF files' metallic-roughness textures make most real objects; from a stream of its own
+  (``WORLDS_VERSION`` 10).
 
 Families. Seeds in ``[0, 2³¹)`` are the ``training`` family, ``[2³¹, 2³²)`` the ``held_out`` family.
 Each family has its own procedural shapes (``FAMILY_SHAPES``) and its own share of a mesh folder (a
@@ -99,8 +104,8 @@ CAMERA_MARGIN = 0.15    # closest the camera comes to a wall or the ceiling, met
 # What a world of a seed holds changes with this; datasets record it (truth.check_config). 2: training
 # worlds may hold lamps in view; 3: painted surfaces; 4: a thin-lens camera; 5: skies as environment maps;
 # 6: coated (plastic) materials; 7: normal maps on set surfaces; 8: rough coats, tinted glass, cut-out screens;
-# 9: absorbing glass.
-WORLDS_VERSION = 9
+# 9: absorbing glass; 10: worn metal (metal-rough maps).
+WORLDS_VERSION = 10
 LAMPS_IN_VIEW_SHARE = 0.3   # of the training worlds (not those lit only indirectly)
 PAINTED_SHARE = 0.5         # of the training worlds
 LENS_SHARE = 0.25           # of the training worlds
@@ -122,6 +127,13 @@ NORMAL_MAP_SHARE = 0.4      # of the training worlds; each flat set surface of t
 RELIEFS = ("tiles", "planks", "bumps", "ripples")
 RELIEF_SIZE = 64            # texels a side of a normal map (it repeats)
 RELIEF_PERIODS = (0.05, 1.0)   # metres one repeat of a normal map spans, log-uniform
+METAL_ROUGH_SHARE = 0.35    # of the training worlds; each matte or coated surface of those then worn with odds 1/3
+WORN_PATTERNS = ("tiles", "stripes", "blotches")
+WORN_SIZE = 64              # texels a side of a metal-rough map (it repeats)
+WORN_PERIODS = (0.1, 1.5)   # metres one repeat of a metal-rough map spans, log-uniform
+# A worn metal's perceptual roughness (GGX alpha 0.06–0.56, as the objects' rough metals): smoother metal walls and
+# floors under a sun or a tiny lamp throw glossy caustics over the room that 4096-spp golds leave speckled
+WORN_METAL_ROUGHNESS = (0.25, 0.75)
 PAINT_EDGE = 0.02           # surfaces are subdivided until their edges are at most this share of the set's size
 
 
@@ -172,6 +184,7 @@ def generate_world(seed: int, mesh_dir: str | Path | None = None, frames: int = 
         world.absorb_in_glass(np.random.default_rng(np.random.SeedSequence([int(seed), 0xAB50])))
         world.add_normal_maps(np.random.default_rng(np.random.SeedSequence([int(seed), 0xB0B5])))
         world.add_screen(np.random.default_rng(np.random.SeedSequence([int(seed), 0x5C2E])))
+        world.wear_metal(np.random.default_rng(np.random.SeedSequence([int(seed), 0x3E7A])))
     return world.scene(f"world-{seed}/{setup}/{lighting}", frames)
 
 
@@ -520,6 +533,31 @@ class _World:
             mesh.uvs = ((mesh.vertices[:, :2] + 1.0) * half_sizes / period).astype(np.float32)
             mesh.normal_map = image
 
+    def wear_metal(self, rng: np.random.Generator) -> None:
+        """With probability METAL_ROUGH_SHARE, each matte or coated surface (set surfaces, objects, a screen) that
+        neither emits nor is painted (Mitsuba's plastic, the golds' renderer, cannot read vertex colours) becomes
+        with odds one third worn metal: a plastic of its colour (its own coat, or one of index 1.5) under a metal-rough
+        map (``worn_metal_map``) repeating every WORN_PERIODS metres, at coordinates (x + z, y) of its points scaled
+        to the world (a surface with coordinates already, a normal map's or a screen's, keeps them)."""
+        if rng.uniform() >= METAL_ROUGH_SHARE:
+            return
+        for mesh in self.meshes:
+            material = self.materials[mesh.material]
+            if material.kind not in ("diffuse", "plastic") or material.is_emissive or mesh.colors is not None:
+                continue
+            taken, period = rng.uniform() < 1 / 3, float(np.exp(rng.uniform(*np.log(WORN_PERIODS))))
+            image = worn_metal_map(rng)
+            if not taken:
+                continue
+            if mesh.uvs is None:
+                points = mesh.vertices * np.linalg.norm(mesh.transform[:3, :3].astype(np.float64), axis=0)
+                mesh.uvs = (np.stack([points[:, 0] + points[:, 2], points[:, 1]], -1) / period).astype(np.float32)
+            mesh.metal_rough_map = image
+            worn = f"{mesh.name}/worn"
+            self.materials[worn] = Material("plastic", reflectance=material.reflectance,
+                                            ior=material.ior if material.kind == "plastic" else 1.5)
+            mesh.material = worn
+
     def add_screen(self, rng: np.random.Generator) -> None:
         """With probability SCREEN_SHARE, a screen between the camera and its target: 25–60 % of the way there,
         30–80 % of the view's half-width across, off the view's centre by up to half of it and turned by up to
@@ -677,6 +715,38 @@ def relief_normal_map(rng: np.random.Generator) -> np.ndarray:
     normal = np.stack([-slope * dh_du, -slope * dh_dv, np.ones((n, n))], -1)
     normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
     return np.round((normal + 1.0) / 2.0 * 255.0).astype(np.uint8)
+
+
+def worn_metal_map(rng: np.random.Generator) -> np.ndarray:
+    """A WORN_SIZE² metal-rough map (uint8 codes: roughness in green, metalness in blue), seamless when repeated,
+    of one of WORN_PATTERNS: square metal tiles among matte ones (a thin matte joint around each), metal stripes,
+    or matte blotches (patina, paint) on metal covering 20–60 % of it. Metal texels are fully metal, of a roughness
+    in WORN_METAL_ROUGHNESS that varies by tile or stripe and a little across; the matte ones share one roughness, 0.3–1 (as
+    Mitsuba's roughplastic has one, so that the golds can be Mitsuba's)."""
+    kind = WORN_PATTERNS[int(rng.integers(len(WORN_PATTERNS)))]
+    n = WORN_SIZE
+    y, x = (np.mgrid[0:n, 0:n] + 0.5) / n
+    count = int(rng.integers(2, 6))
+    if kind == "tiles":
+        row, column = np.floor(y * count).astype(int), np.floor(x * count).astype(int)
+        metal = ((row + column) % 2 == 0) & (np.minimum(_to_edge(x * count), _to_edge(y * count)) > 0.04)
+        rough = rng.uniform(*WORN_METAL_ROUGHNESS, (count, count))[row, column]
+    elif kind == "stripes":
+        along = x if rng.uniform() < 0.5 else y
+        metal = _to_edge(along * count) > rng.uniform(0.1, 0.35)
+        rough = rng.uniform(*WORN_METAL_ROUGHNESS, count)[np.floor(along * count).astype(int)]
+    else:
+        field = np.zeros((n, n))
+        for _ in range(int(rng.integers(3, 7))):
+            fx, fy = rng.integers(-4, 5, 2)
+            field += np.sin(2 * np.pi * (fx * x + fy * y + rng.uniform()))
+        metal = field > np.quantile(field, rng.uniform(0.2, 0.6))
+        rough = np.full((n, n), rng.uniform(*WORN_METAL_ROUGHNESS))
+    rough = np.clip(rough + rng.normal(0.0, 0.03, (n, n)), 0.02, 1.0)
+    codes = np.zeros((n, n, 3), np.uint8)
+    codes[..., 1] = np.round(np.where(metal, rough, rng.uniform(0.3, 1.0)) * 255)
+    codes[..., 2] = np.where(metal, 255, 0)
+    return codes
 
 
 def screen_texture(rng: np.random.Generator) -> np.ndarray:

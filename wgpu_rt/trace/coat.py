@@ -30,7 +30,7 @@ QUADRATURE = 64                 # midpoints per sample coordinate of the visible
 # The least value a knot is stored as: a half-float below 2^-14 would sit in the high half of a word as a
 # denormal float32, which a device may flush to zero on the way; the loss at μ ≈ 0 weighs nothing.
 LEAST_KNOT = 1e-4
-COAT_LEVELS = 9                 # a varying coat's tables at r = i / 8 (alpha r²)
+COAT_LEVELS = 17                # a varying coat's tables at r = i / 16 (alpha r²)
 LEVEL_FLOOR = 1e-3              # the alpha of level 0 (a coat smoother than DELTA_ROUGHNESS is shaded as smooth)
 
 

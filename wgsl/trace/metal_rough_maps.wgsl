@@ -11,7 +11,7 @@
 // #import trace/surface_textures.wgsl
 // #import trace/sampling.wgsl
 
-const COAT_LEVELS: u32 = 9u;                // == wgpu_rt.trace.coat.COAT_LEVELS
+const COAT_LEVELS: u32 = 17u;               // == wgpu_rt.trace.coat.COAT_LEVELS
 const COAT_WORDS: u32 = 6u;                 // a coat table's words (a plastic record's eta and k)
 const NO_MAP: u32 = 0xffffu;                // == wgpu_rt.accel.geometry.NO_MAP
 const METAL_SALT: u32 = 0x6d657461u;        // keeps the metal's hash apart from a blended cut-out's
