@@ -51,7 +51,7 @@ import numpy as np
 
 from ..errors import SceneError
 from .model import (CUTOUT_ALPHA, GLASS_KINDS, DirectionalLight, Material, PointLight, Scene, SpotLight,
-                    linear_from_srgb8, sample_alpha, vertex_colors_as_rendered)
+                    linear_from_srgb8, sample_alpha, sample_texture, vertex_colors_as_rendered)
 from .transforms import transform_normals, transform_points
 
 
@@ -79,7 +79,15 @@ def textured_reflectance(mi, texture: np.ndarray, reflectance: np.ndarray) -> di
             "filter_type": "bilinear", "wrap_mode": "repeat"}
 
 
-CUTOUT_OVERSAMPLING = 4   # cutout_opacity's grid per texel and axis
+CUTOUT_OVERSAMPLING = 4   # cutout_opacity's and mapped_alpha's grid per texel and axis
+
+
+def _texel_grid(height: int, width: int, factor: int) -> np.ndarray:
+    """(height · factor · width · factor, 2) coordinates of the centres of a grid ``factor`` times finer than an
+    image's texels, row by row from the image's top (v = 1)."""
+    rows, columns = np.meshgrid((np.arange(height * factor) + 0.5) / (height * factor),
+                                (np.arange(width * factor) + 0.5) / (width * factor), indexing="ij")
+    return np.stack([columns.ravel(), 1.0 - rows.ravel()], -1)
 
 
 def cutout_opacity(mi, texture: np.ndarray, alpha_mode: str = "mask") -> dict:
@@ -94,10 +102,8 @@ def cutout_opacity(mi, texture: np.ndarray, alpha_mode: str = "mask") -> dict:
                 "wrap_mode": "repeat"}
     height, width = texture.shape[:2]
     factor = max(1, min(CUTOUT_OVERSAMPLING, 4096 // max(height, width)))
-    rows, columns = np.meshgrid((np.arange(height * factor) + 0.5) / (height * factor),
-                                (np.arange(width * factor) + 0.5) / (width * factor), indexing="ij")
-    uvs = np.stack([columns.ravel(), 1.0 - rows.ravel()], -1)
-    kept = (sample_alpha(texture, uvs) >= CUTOUT_ALPHA).astype(np.float32).reshape(rows.shape)
+    uvs = _texel_grid(height, width, factor)
+    kept = (sample_alpha(texture, uvs) >= CUTOUT_ALPHA).astype(np.float32).reshape(height * factor, width * factor)
     return {"type": "bitmap", "bitmap": mi.Bitmap(kept[..., None]), "raw": True, "filter_type": "nearest",
             "wrap_mode": "repeat"}
 
@@ -122,11 +128,23 @@ def _raw_bitmap(mi, values: np.ndarray) -> dict:
 LEAST_MAPPED_ALPHA = 1e-4    # a metal-rough map's metal is at least this rough in Mitsuba (GGX of alpha 0 is not)
 
 
+def mapped_alpha(mi, metal_rough_map: np.ndarray) -> dict:
+    """A ``bitmap`` of the GGX alpha a metal-rough map gives, the square of its bilinear roughness as the tracer
+    takes it, on a grid up to CUTOUT_OVERSAMPLING times finer than the map's (Mitsuba's bilinear alpha between
+    texels would be the mean of their squares, rougher than the tracer's between a smooth and a rough texel)."""
+    height, width = metal_rough_map.shape[:2]
+    factor = max(1, min(CUTOUT_OVERSAMPLING, 4096 // max(height, width)))
+    roughness = sample_texture(metal_rough_map, _texel_grid(height, width, factor), srgb=False)[:, 1]
+    alpha = np.maximum(roughness.astype(np.float64) ** 2, LEAST_MAPPED_ALPHA)
+    return _raw_bitmap(mi, alpha.reshape(height * factor, width * factor))
+
+
 def metal_rough_bsdf(mi, mesh, material: Material, reflectance: dict | None = None) -> dict:
     """Mitsuba's ``blendbsdf`` for a mesh with a metal-rough map on its plastic ``material`` (``Mesh.metal_rough_map``):
-    weighted by the map's metalness (blue), the plastic and glTF's metal (``roughconductor``, eta 0 and k 1, alpha
-    the map's roughness squared per texel), as the tracer picks between them. Mitsuba's ``roughplastic`` has one
-    roughness, so a map whose roughness varies over its plastic texels (metalness below 1) is a SceneError."""
+    weighted by the map's metalness (blue), the plastic and glTF's metal (``roughconductor``, eta 0 and k 1, its
+    alpha ``mapped_alpha``), as the tracer picks between them. Mitsuba's ``roughplastic`` has one roughness, so a
+    map whose roughness varies over its plastic texels (metalness below 1) is a SceneError; where a plastic texel
+    meets a metal one of another roughness the tracer's plastic takes the roughness between them, Mitsuba's its own."""
     codes = np.asarray(mesh.metal_rough_map, np.float64)
     roughness, metalness = codes[..., 1] / 255.0, codes[..., 2] / 255.0
     plastic = roughness[metalness < 1.0]
@@ -136,7 +154,7 @@ def metal_rough_bsdf(mi, mesh, material: Material, reflectance: dict | None = No
     coat = Material("plastic", reflectance=material.reflectance, ior=material.ior,
                     roughness=float(plastic[0] ** 2) if plastic.size else 0.0)
     metal = {"type": "roughconductor", "distribution": "ggx", "eta": 0.0, "k": 1.0,
-             "alpha": _raw_bitmap(mi, np.maximum(roughness ** 2, LEAST_MAPPED_ALPHA)),
+             "alpha": mapped_alpha(mi, mesh.metal_rough_map),
              "specular_reflectance": reflectance or _rgb(material.reflectance)}
     return {"type": "blendbsdf", "weight": _raw_bitmap(mi, metalness),
             "bsdf_0": material_to_bsdf(coat, reflectance=reflectance), "bsdf_1": metal}
