@@ -176,3 +176,28 @@ def test_the_kernel_and_the_packing_agree_on_their_constants():
     assert int(re.search(r"const COAT_LEVELS: u32 = (\d+)u;", kernel).group(1)) == COAT_LEVELS
     assert int(re.search(r"const NO_MAP: u32 = (0x[0-9a-f]+)u;", kernel).group(1), 16) == NO_MAP
     assert "& 0xffffu" in read_wgsl("trace/surface_textures.wgsl") and NO_MAP == 0xFFFF
+
+
+def _obj_with(tmp_path, statements: str):
+    (tmp_path / "tri.obj").write_text("mtllib tri.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                      "usemtl m\nf 1/1 2/2 3/3\n")
+    (tmp_path / "tri.mtl").write_text("newmtl m\nKd 0.5 0.4 0.3\n" + statements)
+    return tmp_path / "tri.obj"
+
+
+def test_an_obj_materials_roughness_and_metalness_images_are_its_meshes_map(tmp_path):
+    """The MTL PBR extension's ``map_Pr`` and ``map_Pm`` (grey, read raw): the roughness in green, the metalness in
+    blue, a missing one's scalar in its place (``Pm`` here), the metalness image resized to the roughness image's."""
+    roughness = np.arange(12, dtype=np.uint8).reshape(3, 4) * 20
+    Image.fromarray(roughness).save(tmp_path / "rough.png")
+    Image.fromarray(np.full((6, 8), 255, np.uint8)).save(tmp_path / "metal.png")
+    mesh, material = _loaded(_obj_with(tmp_path, "map_Pr rough.png\nmap_Pm metal.png\n"))
+    assert material.kind == "plastic"
+    np.testing.assert_allclose(material.reflectance, [0.5, 0.4, 0.3])
+    np.testing.assert_array_equal(mesh.metal_rough_map[..., 1], roughness)
+    np.testing.assert_array_equal(mesh.metal_rough_map[..., 2], 255)
+    mesh, _ = _loaded(_obj_with(tmp_path, "map_Pr rough.png\nPm 0.4\n"))
+    np.testing.assert_array_equal(mesh.metal_rough_map[..., 2], round(0.4 * 255))
+    (tmp_path / "rough.png").unlink()
+    with pytest.raises(SceneError, match=r"its material's map_Pr: .*rough.png: texture image not found"):
+        _loaded(_obj_with(tmp_path, "map_Pr rough.png\n"))

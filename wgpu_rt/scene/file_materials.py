@@ -16,7 +16,9 @@ them, so each material becomes the one kind that carries most of its look:
   their base colour head-on and rise to white only at grazing angles, which this leaves out);
 - else ``plastic``: the base colour under a coat of the file's ior and GGX alpha r² (glTF's non-metals are a
   diffuse base under a specular layer of ior 1.5, F0 = 0.04; smooth at r = 0, Mitsuba's roughplastic above);
-- an OBJ material that names no specular colour (black or absent ``Ks``) and no ``Pr``: ``diffuse``.
+- an OBJ material that names no specular colour (black or absent ``Ks``) and no ``Pr``: ``diffuse``; one with a
+  ``map_Pr`` or ``map_Pm`` image (the MTL PBR extension's roughness and metalness per texel) that is not glass: the
+  ``plastic`` of its ``Kd`` under the metal-rough map of them (``meshio.obj_metal_rough_map``).
 
 Emission is the emissive colour times its strength (its emissive texture, read per texel, tints it:
 ``meshio.file_emission_texture``). A material's metallic-roughness texture is read per texel: the material becomes
@@ -40,6 +42,7 @@ from .model import Material
 
 # OBJ illumination models that mean refraction (4: glass, 6, 7: refraction with Fresnel, 9: glass, no ray trace).
 OBJ_GLASS_ILLUMS = {4, 6, 7, 9}
+OBJ_METAL_ROUGH_MAPS = ("map_pr", "map_pm")   # the MTL PBR extension's roughness and metalness images
 GLTF_SUFFIXES = (".glb", ".gltf")
 
 
@@ -182,24 +185,34 @@ def _volume_absorption(volume: FieldReader) -> np.ndarray:
     return (np.log(1.0 / np.maximum(colour, LEAST_ATTENUATION_COLOR)) / distance).astype(np.float32)
 
 
+def obj_roughness(fields: FieldReader) -> float:
+    """An MTL material's perceptual roughness (its statements lower-cased in ``fields``): ``Pr``, else the one
+    Blender writes as ``Ns`` (r = 1 − √(Ns/1000)) where ``Ks`` is not black, else 1."""
+    if "pr" in fields.data:
+        return fields.numbers("pr", 1.0)
+    if np.any(fields.numbers("ks", 0.0, length=3) > 0):
+        return float(1.0 - np.sqrt(min(fields.numbers("ns", 0.0, high=np.inf), 1000.0) / 1000.0))
+    return 1.0
+
+
 def obj_material(simple, where: str) -> Material:
     """The tracer's material for an OBJ file's MTL material (trimesh's SimpleMaterial): ``Kd`` the base
     colour, ``Ke`` emission, ``Pm``/``Pr`` (the MTL PBR extension) metalness and roughness, else the roughness
     Blender writes as ``Ns`` (r = 1 − √(Ns/1000)) where ``Ks`` is not black; without either, diffuse; glass, tinted
     by the transmission filter ``Tf`` (not by ``Kd``), where
-    ``illum`` is 4, 6, 7 or 9 or the dissolve ``d`` is below 1 (``Tr`` above 0), of index ``Ni``."""
+    ``illum`` is 4, 6, 7 or 9 or the dissolve ``d`` is below 1 (``Tr`` above 0), of index ``Ni``. A material that
+    is not glass with a ``map_Pr`` or ``map_Pm`` image is the plastic of its ``Kd`` that its meshes' metal-rough map
+    (``meshio.obj_metal_rough_map``) makes metal or not per point."""
     fields = FieldReader(where, {key.lower(): value for key, value in (getattr(simple, "kwargs", None) or {}).items()})
     base = fields.numbers("kd", 0.8, length=3)
     specular = "pr" in fields.data or bool(np.any(fields.numbers("ks", 0.0, length=3) > 0))
-    if "pr" in fields.data:
-        roughness = fields.numbers("pr", 1.0)
-    elif specular:
-        roughness = 1.0 - np.sqrt(min(fields.numbers("ns", 0.0, high=np.inf), 1000.0) / 1000.0)
-    else:
-        roughness = 1.0
+    roughness = obj_roughness(fields)
     dissolve = fields.numbers("d", 1.0) if "d" in fields.data else 1.0 - fields.numbers("tr", 0.0)
     glass = int(fields.numbers("illum", 2, high=10)) in OBJ_GLASS_ILLUMS or dissolve < 1.0
     ior = fields.numbers("ni", 1.5, low=1.0, high=np.inf) if glass else 1.5
+    if not glass and any(key in fields.data for key in OBJ_METAL_ROUGH_MAPS):
+        # a plastic that its meshes' metal-rough map (meshio.obj_metal_rough_map) turns to metal and roughens per point
+        return pbr_material(base, 0.0, roughness, ior=ior, emission=fields.numbers("ke", 0.0, length=3, high=np.inf))
     return pbr_material(base, fields.numbers("pm", 0.0), roughness, float(glass), ior,
                         fields.numbers("ke", 0.0, length=3, high=np.inf), specular,
                         transmittance=fields.numbers("tf", 1.0, length=3))

@@ -190,15 +190,18 @@ def file_normal_map(geometry: trimesh.Trimesh, where: str, decoded: dict, scale:
     return decoded[key][0]
 
 
-def file_metal_rough_map(geometry: trimesh.Trimesh, where: str, decoded: dict, ior: float) -> np.ndarray | None:
+def file_metal_rough_map(geometry: trimesh.Trimesh, where: str, decoded: dict, ior: float,
+                         folder: Path | None = None) -> np.ndarray | None:
     """A geometry's glTF metallic-roughness texture as its ``Mesh.metal_rough_map``: (H, W, 3) uint8 codes, the
     roughness (green) and metalness (blue) times the material's roughnessFactor and metallicFactor (glTF's default
-    1 where absent), red 0; None where its material has none. ``decoded`` shares one array among the geometries
-    whose materials have the same image, factors and ``ior`` (the coat of the plastic it is on)."""
+    1 where absent), red 0; or its OBJ material's (``obj_metal_rough_map``, its files relative to ``folder``); None
+    where its material has none. ``decoded`` shares one array among the geometries whose materials have the same
+    image, factors and ``ior`` (the coat of the plastic it is on)."""
     material = getattr(geometry.visual, "material", None)
     image = getattr(material, "metallicRoughnessTexture", None)
     if image is None:
-        return None
+        statements = getattr(material, "kwargs", None)
+        return obj_metal_rough_map(statements, folder, where, decoded, ior) if folder and statements else None
     pixels = _decode(image, decoded, f"{where}: cannot read its metallic-roughness texture")
     if pixels is None:
         return None
@@ -209,6 +212,36 @@ def file_metal_rough_map(geometry: trimesh.Trimesh, where: str, decoded: dict, i
         baked = np.zeros_like(pixels)
         baked[..., 1:] = np.clip(np.round(pixels[..., 1:] * np.asarray(factors)), 0, 255)
         decoded[key] = (baked, pixels)
+    return decoded[key][0]
+
+
+def obj_metal_rough_map(statements: dict, folder: Path, where: str, decoded: dict, ior: float) -> np.ndarray | None:
+    """An OBJ material's ``map_Pr`` (roughness) and ``map_Pm`` (metalness) images, the MTL PBR extension's, as a
+    ``Mesh.metal_rough_map`` (read raw, their first channel: grey images); where one of them is absent its scalar
+    (``Pr``, else the roughness ``Ns`` gives where ``Ks`` is not black, else 1; ``Pm``, else 0) stands for it, and
+    the metalness image is resized to the roughness image's size where they differ. None without either image."""
+    from PIL import Image
+
+    from .file_materials import FieldReader, obj_roughness
+
+    names = {key: _mtl_texture(statements[key])[0] for key in ("map_pr", "map_pm")
+             if isinstance(statements.get(key), (list, tuple))}
+    names = {key: name for key, name in names.items() if name}
+    if not names:
+        return None
+    key = ("metal-rough", tuple((folder / name).resolve() for name in names.values()), float(ior))
+    if key not in decoded:
+        fields = FieldReader(where, {k.lower(): v for k, v in statements.items()})
+        images = {k: _mtl_image(folder / name, k.replace("map_p", "map_P"), where, decoded)[..., 0]
+                  for k, name in names.items()}
+        shape = images.get("map_pr", images.get("map_pm")).shape
+        if "map_pm" in images and images["map_pm"].shape != shape:
+            resized = Image.fromarray(images["map_pm"]).resize((shape[1], shape[0]), Image.BILINEAR)
+            images["map_pm"] = np.asarray(resized, np.uint8)
+        codes = np.zeros((*shape, 3), np.uint8)
+        codes[..., 1] = images.get("map_pr", round(255 * obj_roughness(fields)))
+        codes[..., 2] = images.get("map_pm", round(255 * fields.numbers("pm", 0.0)))
+        decoded[key] = (codes, None)
     return decoded[key][0]
 
 
@@ -449,7 +482,7 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         file_material = own.materials.get(surface)
         metal_rough = metal_rough_map
         if metal_rough is None and file_material is not None and file_material.kind == "plastic":
-            metal_rough = file_metal_rough_map(geometry, where, decoded, file_material.ior)
+            metal_rough = file_metal_rough_map(geometry, where, decoded, file_material.ior, path.parent)
         maps = (relief, glow, metal_rough)
         uvs = file_uvs(geometry) if uvs is None and any(m is not None for m in maps) else uvs
         for what, image_read in zip(("normal map", "emission texture", "metallic-roughness texture"), maps):
