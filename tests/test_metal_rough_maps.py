@@ -1,12 +1,14 @@
 """Metal-rough maps (glTF's metallic-roughness texture read per texel, ``Mesh.metal_rough_map``): each point of the
 plastic it is on is glTF's metal with probability the map's metalness, else the plastic, of the map's roughness there
 (wgsl/trace/metal_rough_maps.wgsl). Here: a map of three bands renders each band as the uniform material it stands
-for, the loader's reading of a glTF file's texture, and the errors; Mitsuba's agreement is in tests/test_mitsuba.py."""
+for, the loaders' reading of a glTF texture, an OBJ's map_Pr / map_Pm and a scene file's entry, and the errors;
+Mitsuba's agreement is in tests/test_mitsuba.py."""
 
 import numpy as np
 import pytest
 import trimesh
 from PIL import Image
+from test_normal_maps import _obj_with
 from trimesh.visual.material import PBRMaterial
 
 from wgpu_rt.errors import SceneError
@@ -172,17 +174,9 @@ def test_the_kernel_and_the_packing_agree_on_their_constants():
     from wgpu_rt.accel.geometry import NO_MAP
     from wgpu_rt.shaders import read_wgsl
 
-    kernel = read_wgsl("trace/metal_rough_maps.wgsl")
+    kernel, images = read_wgsl("trace/metal_rough_maps.wgsl"), read_wgsl("trace/texture_images.wgsl")
     assert int(re.search(r"const COAT_LEVELS: u32 = (\d+)u;", kernel).group(1)) == COAT_LEVELS
-    assert int(re.search(r"const NO_MAP: u32 = (0x[0-9a-f]+)u;", kernel).group(1), 16) == NO_MAP
-    assert "& 0xffffu" in read_wgsl("trace/surface_textures.wgsl") and NO_MAP == 0xFFFF
-
-
-def _obj_with(tmp_path, statements: str):
-    (tmp_path / "tri.obj").write_text("mtllib tri.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
-                                      "usemtl m\nf 1/1 2/2 3/3\n")
-    (tmp_path / "tri.mtl").write_text("newmtl m\nKd 0.5 0.4 0.3\n" + statements)
-    return tmp_path / "tri.obj"
+    assert int(re.search(r"const NO_MAP: u32 = (0x[0-9a-f]+)u;", images).group(1), 16) == NO_MAP
 
 
 def test_an_obj_materials_roughness_and_metalness_images_are_its_meshes_map(tmp_path):
@@ -193,7 +187,7 @@ def test_an_obj_materials_roughness_and_metalness_images_are_its_meshes_map(tmp_
     Image.fromarray(np.full((6, 8), 255, np.uint8)).save(tmp_path / "metal.png")
     mesh, material = _loaded(_obj_with(tmp_path, "map_Pr rough.png\nmap_Pm metal.png\n"))
     assert material.kind == "plastic"
-    np.testing.assert_allclose(material.reflectance, [0.5, 0.4, 0.3])
+    np.testing.assert_allclose(material.reflectance, 0.5)
     np.testing.assert_array_equal(mesh.metal_rough_map[..., 1], roughness)
     np.testing.assert_array_equal(mesh.metal_rough_map[..., 2], 255)
     mesh, _ = _loaded(_obj_with(tmp_path, "map_Pr rough.png\nPm 0.4\n"))

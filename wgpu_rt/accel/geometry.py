@@ -161,7 +161,7 @@ def _mesh_colors(mesh) -> np.ndarray:
     return (codes[:, 0] | codes[:, 1] << 8 | codes[:, 2] << 16)[faces]
 
 
-NO_TEXTURE = 0xFFFFFFFF   # a triangle record's texture (or normal map) index where its mesh has none
+NO_TEXTURE = 0xFFFFFFFF   # a triangle record's texture index where its mesh has none (in its maps' word: neither)
 TEXTURE_RECORD_WORDS = 8  # per triangle: texture index, (u, v) of its three vertices, normal and metal-rough maps
 # A record's last word holds two image indices: its normal map's in the low half, its metal-rough map's in the high
 # half, each NO_MAP where the mesh has none (so NO_TEXTURE there means neither); a scene has at most NO_MAP images.

@@ -721,8 +721,8 @@ def worn_metal_map(rng: np.random.Generator) -> np.ndarray:
     """A WORN_SIZE² metal-rough map (uint8 codes: roughness in green, metalness in blue), seamless when repeated,
     of one of WORN_PATTERNS: square metal tiles among matte ones (a thin matte joint around each), metal stripes,
     or matte blotches (patina, paint) on metal covering 20–60 % of it. Metal texels are fully metal, of a roughness
-    in WORN_METAL_ROUGHNESS that varies by tile or stripe and a little across; the matte ones share one roughness, 0.3–1 (as
-    Mitsuba's roughplastic has one, so that the golds can be Mitsuba's)."""
+    in WORN_METAL_ROUGHNESS that varies by tile or stripe and a little across; the matte ones share one roughness,
+    0.3–1 (as Mitsuba's roughplastic has one, so that the golds can be Mitsuba's)."""
     kind = WORN_PATTERNS[int(rng.integers(len(WORN_PATTERNS)))]
     n = WORN_SIZE
     y, x = (np.mgrid[0:n, 0:n] + 0.5) / n

@@ -256,6 +256,7 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
 
     if use_variant(mi) is None:
         raise RuntimeError(f"no Mitsuba variant of {CROSS_CHECK_VARIANTS} loads in this build")
+    scene.metal_rough_iors()      # (refuses a metal-rough map on anything but a plastic, naming the mesh)
     camera = scene.camera_at(frame)
     lens = {"type": "thinlens", "aperture_radius": camera.aperture_radius,
             "focus_distance": camera.focus_distance} if camera.aperture_radius > 0 else {"type": "perspective"}
@@ -288,8 +289,6 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
                              f"weight needs a texture's mean); give the mesh a texture or another material")
         textured = None if mesh.texture is None else textured_reflectance(mi, mesh.texture, material.reflectance)
         tilted = None if mesh.normal_map is None else partial(normal_mapped_bsdf, mi, mesh.normal_map)
-        if mesh.metal_rough_map is not None and material.kind != "plastic":
-            raise SceneError(f"mesh {mesh.name!r}: a metal-rough map needs a plastic material, got {material.kind!r}")
         blend = None if mesh.metal_rough_map is None else metal_rough_bsdf(mi, mesh, material, textured)
         bsdf = surface_bsdf(material, colors is not None, textured, tilted, blend)
         if mesh.is_cut_out:

@@ -420,6 +420,25 @@ class Scene:
                   for image in (m.texture, m.normal_map, m.emission_texture, m.metal_rough_map) if image is not None]
         return list({id(image): image for image in images}.values())
 
+    def metal_rough_iors(self) -> dict[int, float]:
+        """Each metal-rough map (by ``id``) → the ior of the plastic it is on, whose coat tables it carries on the
+        device; a SceneError naming the mesh where a map is on another kind, or one map on plastics of two iors."""
+        from ..errors import SceneError
+
+        iors: dict[int, float] = {}
+        for mesh in self.meshes:
+            if mesh.metal_rough_map is None:
+                continue
+            material = self.materials[mesh.material]
+            if material.kind != "plastic":
+                raise SceneError(f"mesh {mesh.name!r}: a metal-rough map needs a plastic material (it makes each "
+                                 f"point the plastic or glTF's metal), got {material.kind!r} ({mesh.material!r})")
+            ior = iors.setdefault(id(mesh.metal_rough_map), float(material.ior))
+            if ior != float(material.ior):
+                raise SceneError(f"mesh {mesh.name!r}: its metal-rough map is on plastics of two iors ({ior:g} and "
+                                 f"{material.ior:g}); give each its own copy of the image")
+        return iors
+
     def shapes(self) -> list[list[int]]:
         """Indices into ``meshes`` grouped by shape (``Mesh.shape_key``), in order of first appearance:
         a group of several is one shape placed several times."""

@@ -33,7 +33,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..accel.geometry import NO_TEXTURE
-from ..errors import SceneError
 from ..scene.model import GLASS_KINDS, DirectionalLight, Material, PointLight, Scene, SpotLight, linear_from_srgb8
 from .coat import coat_levels, coat_words
 
@@ -124,22 +123,10 @@ def pack_textures(textures: list[np.ndarray], records: np.ndarray | None,
 
 
 def metal_rough_coats(scene: Scene) -> dict[int, float]:
-    """For ``pack_textures``: each metal-rough map's image index in ``scene.textures()`` → the ior of its mesh's
-    plastic (a SceneError where a map is on another kind, or one map on plastics of different iors)."""
+    """For ``pack_textures``: each metal-rough map's image index in ``scene.textures()`` → the ior of the plastic it
+    is on (``Scene.metal_rough_iors``, which refuses a map on another kind)."""
     numbers = {id(image): i for i, image in enumerate(scene.textures())}
-    iors: dict[int, float] = {}
-    for mesh in scene.meshes:
-        if mesh.metal_rough_map is None:
-            continue
-        material = scene.materials[mesh.material]
-        if material.kind != "plastic":
-            raise SceneError(f"mesh {mesh.name!r}: a metal-rough map needs a plastic material (it makes each point "
-                             f"the plastic or glTF's metal), got {material.kind!r} ({mesh.material!r})")
-        index = numbers[id(mesh.metal_rough_map)]
-        if iors.setdefault(index, float(material.ior)) != float(material.ior):
-            raise SceneError(f"mesh {mesh.name!r}: its metal-rough map is on plastics of two iors "
-                             f"({iors[index]:g} and {material.ior:g}); give each its own copy of the image")
-    return iors
+    return {numbers[key]: ior for key, ior in scene.metal_rough_iors().items()}
 
 
 ENVIRONMENT_HEADER_WORDS = 4   # width, height, the sampling weights' total, a spare word

@@ -13,7 +13,6 @@
 
 const COAT_LEVELS: u32 = 17u;               // == wgpu_rt.trace.coat.COAT_LEVELS
 const COAT_WORDS: u32 = 6u;                 // a coat table's words (a plastic record's eta and k)
-const NO_MAP: u32 = 0xffffu;                // == wgpu_rt.accel.geometry.NO_MAP
 const METAL_SALT: u32 = 0x6d657461u;        // keeps the metal's hash apart from a blended cut-out's
 
 // Word `w` of the coat table at roughness level position `x` (in [0, COAT_LEVELS − 1]) of the levels at `first`.

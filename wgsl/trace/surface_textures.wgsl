@@ -3,12 +3,11 @@
 // a metal-rough map's coat levels' first word), a record per stored triangle (its texture, or NO_TEXTURE, with
 // CUTOUT_FLAG where the texture's alpha cuts the surface away and BLEND_FLAG where it does so stochastically,
 // trace/cutouts.wgsl; its vertices' texture coordinates as f32 bits; its normal map in the low half of a word and
-// its metal-rough map in the high half, each 0xffff where it has none: trace/metal_rough_maps.wgsl), then the
-// texels as packed 8-bit codes (alpha,
-// where an image has one, in the top byte), row 0 the image's top. An image is sampled as Mitsuba's bitmap with
-// bilinear filtering and repeat wrapping: coordinates wrapped to [0, 1), v = 1 at the top, texel centres at
-// half-integers, the four texels decoded (a texture's from sRGB, a normal map's raw) and blended (numpy
-// reference: wgpu_rt.scene.model.sample_texture; a normal map's tilt: mapped_normal).
+// its metal-rough map in the high half, each NO_MAP where it has none: trace/metal_rough_maps.wgsl), then the
+// texels as packed 8-bit codes (alpha, where an image has one, in the top byte), row 0 the image's top. An image is
+// sampled as Mitsuba's bitmap with bilinear filtering and repeat wrapping: coordinates wrapped to [0, 1), v = 1 at
+// the top, texel centres at half-integers, the four texels decoded (a texture's from sRGB, a map's raw) and blended
+// (numpy reference: wgpu_rt.scene.model.sample_texture; a normal map's tilt: mapped_normal).
 
 // #import accel/bvh.wgsl
 // #import trace/texture_images.wgsl
@@ -54,8 +53,8 @@ fn normal_mapped(prim: u32, u: f32, v: f32, normal: vec3f) -> vec3f {
         return normal;
     }
     let record = texture_record(prim);
-    let map = surface_textures[record + 7u] & 0xffffu;
-    if map == 0xffffu {
+    let map = surface_textures[record + 7u] & NO_MAP;
+    if map == NO_MAP {
         return normal;
     }
     let p = tri_vertices(prim);

@@ -5,6 +5,7 @@
 @group(1) @binding(5) var<storage, read> surface_textures: array<u32>;
 
 const NO_TEXTURE: u32 = 0xffffffffu;        // == wgpu_rt.accel.geometry.NO_TEXTURE
+const NO_MAP: u32 = 0xffffu;                // == wgpu_rt.accel.geometry.NO_MAP (a record's maps' halves)
 const TEXTURE_RECORD_WORDS: u32 = 8u;       // == wgpu_rt.accel.geometry.TEXTURE_RECORD_WORDS
 const TEXTURE_HEADER_WORDS: u32 = 4u;       // == wgpu_rt.trace.scene_data.TEXTURE_HEADER_WORDS
 const TEXTURE_ENTRY_WORDS: u32 = 4u;        // == wgpu_rt.trace.scene_data.TEXTURE_ENTRY_WORDS
