@@ -106,6 +106,19 @@ def test_a_gltf_glass_volume_absorbs_as_its_attenuation_colour_and_distance_say(
     assert {materials[f"thing/{name}"].kind for name in ("thick", "thin", "endless")} == {"dielectric"}
 
 
+@pytest.mark.parametrize("transform, factor", [({"scale": 0.01}, 0.01), ({"scale": [2.0, 4.0, 1.0]}, 2.0),
+                                               ({"rotate": {"axis": [0, 1, 0], "angle": 30}}, 1.0)])
+def test_a_scaled_entry_rescales_its_files_absorption(tmp_path, transform, factor):
+    """glTF gives attenuationDistance in the file's world: an entry that scales the file (a model in centimetres
+    brought to metres) divides its glass's absorption by that scale (the cube root of the transform's determinant), so
+    the glass keeps its colour; a turn changes nothing."""
+    glasses = [PBRMaterial(name=name, metallicFactor=0.0) for name in ("thick", "thin", "endless")]
+    path = _glb(tmp_path, glasses, edit=_volumes)
+    materials = load_scene(_scene_file(tmp_path, {"file": path.name, "transform": transform})).materials
+    np.testing.assert_allclose(materials["thing/thick"].absorption, np.log([2.0, 1.0, 4.0]) / 2.0 / factor, rtol=1e-5)
+    assert not materials["thing/thin"].absorbs
+
+
 def test_smooth_glass_on_an_open_surface_is_a_thin_pane_and_on_a_closed_one_a_solid(tmp_path):
     """A glTF glass on a single rectangle (open edges: a window) becomes a thin_dielectric of its ior and tint; the
     same material on a closed box (whose texture seams split its vertices) stays a dielectric."""
