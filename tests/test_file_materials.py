@@ -221,3 +221,15 @@ def test_an_obj_materials_bad_value_is_refused_by_name(tmp_path):
     (tmp_path / "tri.mtl").write_text("newmtl odd\nKd 0.5 0.5 0.5\nNi 0.5\nillum 4\n")
     with pytest.raises(SceneError, match=r"tri.obj: material 'odd': ni must be in \[1, inf\]"):
         load_scene(_scene_file(tmp_path, {"file": "tri.obj"}))
+
+
+def test_the_mesh_room_rescales_a_files_absorption_as_it_fits_the_file(tmp_path):
+    """``load_scene('mesh', mesh=...)`` scales a file to fit its room: its glass's absorption follows that scale."""
+    glasses = [PBRMaterial(name=name, metallicFactor=0.0) for name in ("thick", "thin", "endless")]
+    path = _glb(tmp_path, glasses, edit=_volumes)
+    scene = load_scene("mesh", mesh=path)
+    thick = next(mesh for mesh in scene.meshes if mesh.material.endswith("/thick"))
+    fit = abs(np.linalg.det(thick.transform[:3, :3].astype(np.float64))) ** (1 / 3)
+    assert abs(fit - 1) > 0.1
+    np.testing.assert_allclose(scene.materials[thick.material].absorption, np.log([2.0, 1.0, 4.0]) / 2.0 / fit,
+                               rtol=1e-5)

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
+from .file_materials import placed_absorption
 from .meshio import load_mesh_file
 from .model import Camera, Material, Mesh, Scene
 from .primitives import primitive, primitive_uvs
@@ -120,7 +121,8 @@ def mesh_room(path) -> Scene:
         raise SceneError("the 'mesh' scene needs a mesh file: load_scene('mesh', mesh=PATH) or --mesh PATH")
     materials, meshes = _cornell_room()
     materials["clay"] = Material("diffuse", reflectance=(0.7, 0.7, 0.7))
-    loaded = load_mesh_file(Path(path), material="clay", materials=materials)
+    own: dict = {}
+    loaded = load_mesh_file(Path(path), material="clay", materials=own)
     placed = [transform_points(m.transform, m.vertices) for m in loaded]   # a file's nodes place its parts
     lo = np.min([v.min(axis=0) for v in placed], axis=0).astype(np.float64)
     hi = np.max([v.max(axis=0) for v in placed], axis=0).astype(np.float64)
@@ -132,6 +134,7 @@ def mesh_room(path) -> Scene:
     place = compose(translate([0, -1 + fit * (hi[1] - lo[1]) / 2, 0]), scale(fit), translate(-center))
     for item in loaded:
         item.transform = compose(place, item.transform)
+    materials.update(placed_absorption(own, place))
     return Scene(_cornell_camera(), meshes + loaded, materials, name=f"mesh:{Path(path).name}")
 
 

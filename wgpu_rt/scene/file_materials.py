@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import json
 import struct
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -183,6 +184,17 @@ def _volume_absorption(volume: FieldReader) -> np.ndarray:
     if distance == 0.0:
         volume.fail("attenuationDistance must be above 0, got 0")
     return (np.log(1.0 / np.maximum(colour, LEAST_ATTENUATION_COLOR)) / distance).astype(np.float32)
+
+
+def placed_absorption(own: dict[str, Material], transform: np.ndarray) -> dict[str, Material]:
+    """A mesh file's own materials as ``transform`` places the file in a scene: its absorbing glass's absorption (per
+    unit of the file's world, as glTF's attenuationDistance is given) divided by the transform's scale (the cube root
+    of its determinant's size), so that a model scaled from centimetres to metres keeps its colour."""
+    factor = float(abs(np.linalg.det(np.asarray(transform, np.float64)[:3, :3]))) ** (1.0 / 3.0)
+    if factor == 1.0 or not 0.0 < factor < np.inf:     # (a singular transform is refused where it is placed)
+        return own
+    return {name: replace(m, absorption=(m.absorption / factor).astype(np.float32)) if m.absorbs else m
+            for name, m in own.items()}
 
 
 def obj_roughness(fields: FieldReader) -> float:

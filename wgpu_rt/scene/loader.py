@@ -11,13 +11,13 @@ import itertools
 import json
 import reprlib
 import tomllib
-from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import SceneError
+from .file_materials import placed_absorption
 from .meshio import load_mesh_file, read_environment_image, read_texture_image, with_cutout
 from .model import (ALPHA_MODES, FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight,
                     Scene, SpotLight)
@@ -288,17 +288,6 @@ def _frame_of(fields: _Fields) -> int:
     return frame
 
 
-def _absorption_rescaled(own: dict[str, Material], transform: np.ndarray) -> dict[str, Material]:
-    """A mesh file's own materials as its entry's ``transform`` places them: its absorbing glass's absorption (per
-    unit of the file's world, as glTF's attenuationDistance is given) divided by the transform's scale (the cube root
-    of its determinant's size), so that a model scaled from centimetres to metres keeps its colour."""
-    factor = float(abs(np.linalg.det(np.asarray(transform, np.float64)[:3, :3]))) ** (1.0 / 3.0)
-    if factor == 1.0 or not 0.0 < factor < np.inf:     # (a singular transform is refused where it is placed)
-        return own
-    return {name: replace(m, absorption=(m.absorption / factor).astype(np.float32)) if m.absorbs else m
-            for name, m in own.items()}
-
-
 def _placement(fields: _Fields) -> tuple[np.ndarray, dict[int, tuple[str, np.ndarray]]]:
     """An entry's ``transform`` (float64; identity if absent) and ``keyframes`` (frame → (the keyframe's
     field name, its float64 matrix))."""
@@ -396,7 +385,7 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         for taken in own:
             if taken in materials:
                 fields.fail(f"the file's material {taken!r} has the name of another material: name the mesh", "file")
-        materials.update(_absorption_rescaled(own, transform))
+        materials.update(placed_absorption(own, transform))
     if alpha_mode == "blend":
         for part in parts:
             part.alpha_mode = "blend"
