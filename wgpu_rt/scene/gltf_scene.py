@@ -15,6 +15,9 @@ nothing is added or moved, as a scene exported from Blender expects:
   squared, as glTF asks where it is absent).
 - a file with no light of its own (no punctual light, no emissive material) is lit by a white sky of radiance 1, so
   that it does not render black; one with lights has a black background (glTF has no environment).
+- animations: the nodes' translation, rotation and scale channels (``gltf_animation``) move the meshes and the camera,
+  a keyframe at every frame (FRAME_RATE a second to the last key); each mesh trimesh reads is the node whose world
+  matrix at rest and vertex count are its (``_mesh_nodes``). Lights keep their rest pose.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import trimesh
 
 from ..errors import SceneError
 from .file_materials import FieldReader, gltf_json
+from .gltf_animation import FRAME_RATE, frame_count, local_matrix, read_animations
 from .meshio import load_mesh_file
 from .model import Camera, DirectionalLight, Material, PointLight, Scene, SpotLight
 
@@ -56,9 +60,11 @@ def _entry(entries: list, number, where: str, what: str) -> dict:
     return entries[number]
 
 
-def _placed_nodes(tree: dict, path: Path) -> list[tuple[int, np.ndarray]]:
+def _placed_nodes(tree: dict, path: Path, channels: dict | None = None,
+                  t: float = 0.0) -> list[tuple[int, np.ndarray]]:
     """(node index, world matrix) of every node of the file's default scene, depth first in file order (a node
-    reached twice, or a cycle, is a SceneError)."""
+    reached twice, or a cycle, is a SceneError); with ``channels`` (``gltf_animation.read_animations``) as they
+    animate the nodes at time ``t``."""
     nodes = tree.get("nodes") or []
     if not isinstance(nodes, list):
         raise SceneError(f"{path}: the glTF file's nodes are not a list")
@@ -77,7 +83,10 @@ def _placed_nodes(tree: dict, path: Path) -> list[tuple[int, np.ndarray]]:
         if index in seen:
             raise SceneError(f"{path}: node {index} is reached twice in the scene's hierarchy")
         seen.add(index)
-        world = parent @ _node_matrix(nodes[index], f"{path}: node {index}")
+        local = _node_matrix(nodes[index], f"{path}: node {index}")
+        if channels:
+            local = local_matrix(nodes[index], channels.get(index, []), t, local)
+        world = parent @ local
         placed.append((index, world))
         stack.extend((child, world) for child in reversed(nodes[index].get("children") or []))
     return placed
@@ -146,6 +155,54 @@ def _lights(tree: dict, placed: list, path: Path) -> list:
     return lights
 
 
+def _mesh_nodes(tree: dict, placed: list, meshes: list) -> list[int | None]:
+    """The node each of ``meshes`` (trimesh's reading of the file, one per placed primitive) stands for: a node
+    with a mesh whose world matrix (``placed``, at rest) is the mesh's placement and one of whose primitives has
+    as many vertices; among several alike (coinciding copies of one mesh), each taken in turn. None where none is."""
+    accessors, entries = tree.get("accessors") or [], tree.get("meshes") or []
+
+    def vertex_counts(node: dict) -> set:
+        number = node.get("mesh")
+        if not (isinstance(number, int) and 0 <= number < len(entries)):
+            return set()
+        positions = [(p.get("attributes") or {}).get("POSITION") for p in entries[number].get("primitives") or []]
+        return {accessors[a].get("count") for a in positions if isinstance(a, int) and 0 <= a < len(accessors)}
+
+    counts = {index: vertex_counts(tree["nodes"][index]) for index, _ in placed}
+    taken: dict[tuple[int, int], int] = {}
+    found = []
+    for mesh in meshes:
+        alike = [index for index, world in placed if len(mesh.vertices) in counts[index]
+                 and np.allclose(world, mesh.transform, rtol=1e-5, atol=1e-5)]
+        key = (len(mesh.vertices), tuple(np.round(np.asarray(mesh.transform, np.float64), 4).ravel()))
+        turn = taken.get(key, 0)
+        taken[key] = turn + 1
+        found.append(alike[turn % len(alike)] if alike else None)
+    return found
+
+
+def _animate(tree: dict, path: Path, placed: list, camera: Camera, meshes: list) -> tuple[dict[int, Camera], int]:
+    """Keyframes at every frame for the meshes whose nodes the file animates (set on them) and the camera's
+    (returned, with the frame count); none and 1 for a file without animations. ``placed``: the nodes at rest."""
+    channels = read_animations(path, tree)
+    if not channels:
+        return {}, 1
+    frames = frame_count(channels, str(path))
+    poses = [_placed_nodes(tree, path, channels, f / FRAME_RATE) for f in range(frames)]
+    nodes = _mesh_nodes(tree, placed, meshes)
+    worlds = [dict(pose) for pose in poses]
+    for mesh, node in zip(meshes, nodes):
+        if node is None:
+            continue
+        keys = {f: worlds[f][node].astype(np.float32) for f in range(frames)}
+        if any(not np.array_equal(matrix, mesh.transform) for matrix in keys.values()):
+            mesh.keyframes = keys
+    cameras = {f: _camera(tree, pose, path) for f, pose in enumerate(poses)}
+    moving = any(c.origin.tobytes() + c.target.tobytes() + c.up.tobytes() != camera.origin.tobytes()
+                 + camera.target.tobytes() + camera.up.tobytes() for c in cameras.values())
+    return (cameras if moving else {}), frames
+
+
 def gltf_scene(path) -> Scene | None:
     """The scene of a glTF file with a camera (see the module's doc); None for a file without one."""
     path = Path(path)
@@ -161,4 +218,6 @@ def gltf_scene(path) -> Scene | None:
     lights = _lights(tree, placed, path)
     lit = bool(lights) or any(materials[mesh.material].is_emissive for mesh in meshes)
     background = np.zeros(3, np.float32) if lit else np.full(3, UNLIT_SKY, np.float32)
-    return Scene(camera, meshes, materials, lights=lights, background=background, name=f"gltf:{path.name}")
+    cameras, frames = _animate(tree, path, placed, camera, meshes)
+    return Scene(cameras.get(0, camera), meshes, materials, lights=lights, background=background,
+                 camera_keyframes=cameras, frame_count=frames, name=f"gltf:{path.name}")

@@ -1,0 +1,91 @@
+"""A glTF file's node animations (wgpu_rt/scene/gltf_animation.py) move a scene file's meshes and camera frame by
+frame: translation, rotation (slerp) and scale channels, LINEAR, STEP and CUBICSPLINE, FRAME_RATE frames a second."""
+
+import numpy as np
+import pytest
+import trimesh
+from gltf_files import with_accessors
+
+from wgpu_rt.errors import SceneError
+from wgpu_rt.scene import load_scene
+from wgpu_rt.scene.gltf_animation import FRAME_RATE
+
+CAMERA = {"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}
+HALF_TURN_ABOUT_Y = [0.0, 1.0, 0.0, 0.0]
+
+
+def _animated(tmp_path, channels, arrays, name="moving.glb"):
+    """Two boxes (nodes 0 and 1, the second 3 units along x) and a camera at (0, 1, 8) (node 2); ``channels`` are
+    (node, path, interpolation, input, output) with input and output indices into ``arrays``, appended as
+    accessors."""
+    scene = trimesh.Scene()
+    scene.add_geometry(trimesh.creation.box(extents=(1, 1, 1)), node_name="still")
+    scene.add_geometry(trimesh.creation.box(extents=(0.5, 0.5, 0.5)), node_name="mover",
+                       transform=trimesh.transformations.translation_matrix([3, 0, 0]))
+
+    def edit(tree, first):
+        tree["nodes"].append({"camera": 0, "translation": [0, 1, 8]})
+        tree["scenes"][0]["nodes"].append(len(tree["nodes"]) - 1)
+        tree["cameras"] = [CAMERA]
+        names = [node.get("name") for node in tree["nodes"]]
+        samplers, targets = [], []
+        for node, path, interpolation, given, taken in channels:
+            index = names.index(node) if isinstance(node, str) else len(tree["nodes"]) - 1
+            samplers.append({"input": first + given, "output": first + taken, "interpolation": interpolation})
+            targets.append({"sampler": len(samplers) - 1, "target": {"node": index, "path": path}})
+        tree["animations"] = [{"samplers": samplers, "channels": targets}]
+
+    data = scene.export(file_type="glb")
+    (tmp_path / name).write_bytes(with_accessors(data, arrays, edit))
+    return load_scene(tmp_path / name)
+
+
+def _mover(scene):
+    return next(mesh for mesh in scene.meshes if mesh.name.endswith("mover"))
+
+
+def test_a_linear_translation_moves_its_mesh_frame_by_frame(tmp_path):
+    """Keys at 0 and 1 s: 25 frames at 24 a second, the box at (3 + 2 t, 0, 0), the other box and the camera still."""
+    scene = _animated(tmp_path, [("mover", "translation", "LINEAR", 0, 1)],
+                      [[0.0, 1.0], [[3, 0, 0], [5, 0, 0]]])
+    assert scene.frame_count == int(FRAME_RATE) + 1 and not scene.camera_keyframes
+    mover, still = _mover(scene), next(m for m in scene.meshes if m.name.endswith("still"))
+    for frame in (0, 6, 24):
+        np.testing.assert_allclose(mover.transform_at(frame)[:3, 3], [3 + 2 * frame / FRAME_RATE, 0, 0], atol=1e-5)
+    assert not still.keyframes and scene.has_motion
+
+
+def test_step_and_cubic_spline_keys(tmp_path):
+    """STEP holds a key until the next; CUBICSPLINE with flat tangents eases between keys (smoothstep: at a quarter
+    of the way, 5/32 of the distance)."""
+    scene = _animated(tmp_path, [("mover", "translation", "STEP", 0, 1)], [[0.0, 1.0], [[3, 0, 0], [5, 0, 0]]])
+    np.testing.assert_allclose(_mover(scene).transform_at(23)[:3, 3], [3, 0, 0], atol=1e-5)
+    np.testing.assert_allclose(_mover(scene).transform_at(24)[:3, 3], [5, 0, 0], atol=1e-5)
+    cubic = [[0, 0, 0], [3, 0, 0], [0, 0, 0], [0, 0, 0], [5, 0, 0], [0, 0, 0]]   # in-tangent, value, out-tangent
+    scene = _animated(tmp_path, [("mover", "translation", "CUBICSPLINE", 0, 1)], [[0.0, 1.0], cubic])
+    np.testing.assert_allclose(_mover(scene).transform_at(6)[:3, 3], [3 + 2 * 5 / 32, 0, 0], atol=1e-5)
+
+
+def test_a_rotation_slerps_and_a_camera_follows_its_node(tmp_path):
+    """A half turn about +y over 2 s passes an eighth of a turn at 0.5 s (slerp: an element-wise blend of the
+    quaternions would have turned 36.9°) and a quarter at 1 s; a camera node moved along x takes the scene's camera
+    with it, frame by frame."""
+    scene = _animated(tmp_path, [("mover", "rotation", "LINEAR", 0, 1), (None, "translation", "LINEAR", 0, 2)],
+                      [[0.0, 2.0], [[0, 0, 0, 1], HALF_TURN_ABOUT_Y], [[0, 1, 8], [4, 1, 8]]])
+    assert scene.frame_count == 2 * int(FRAME_RATE) + 1
+    for frame, degrees in ((12, 45.0), (24, 90.0)):
+        turned = _mover(scene).transform_at(frame)[:3, :3] @ [1, 0, 0]
+        np.testing.assert_allclose(turned, [np.cos(np.radians(degrees)), 0, -np.sin(np.radians(degrees))], atol=1e-5)
+    np.testing.assert_allclose(scene.camera_at(24).origin, [2, 1, 8], atol=1e-5)
+    np.testing.assert_allclose(scene.camera_at(48).origin, [4, 1, 8], atol=1e-5)
+    np.testing.assert_allclose(scene.camera.origin, [0, 1, 8], atol=1e-5)
+
+
+@pytest.mark.parametrize("arrays, message", [
+    ([[0.0, 1.0], [[3, 0, 0]]], r"animation 0 channel 0: 2 key times but 1 values of 3 for its linear translation"),
+    ([[1.0, 0.0], [[3, 0, 0], [5, 0, 0]]], r"animation 0 channel 0: key times must rise"),
+    ([[0.0, 4000.0], [[3, 0, 0], [5, 0, 0]]], r"moving.glb: its animations run 4000 s, longer than the 3600 s read"),
+])
+def test_bad_animations_are_refused_by_channel(tmp_path, arrays, message):
+    with pytest.raises(SceneError, match=message):
+        _animated(tmp_path, [("mover", "translation", "LINEAR", 0, 1)], arrays)

@@ -1,0 +1,196 @@
+"""A glTF file's node animations, sampled at the scene's frames: what moves its meshes and its camera.
+
+glTF animates a node by channels, each a sampler's keyframe times (seconds) and values for the node's translation,
+rotation (a unit quaternion) or scale, interpolated STEP, LINEAR (rotations by slerp) or CUBICSPLINE (Hermite, each
+key with its in- and out-tangent). ``NodeAnimation.read`` reads them (accessors from the .glb's binary chunk, a
+.gltf's buffer files or data URIs; floats, or normalized integers as glTF allows for rotations); ``local_matrix``
+is a node's transform at a time, its animated parts in place of the node's own. Frames are FRAME_RATE a second from
+time 0 to the last key. Morph-target weights and skins are not read (a skinned mesh keeps its rest pose).
+"""
+
+from __future__ import annotations
+
+import base64
+import struct
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from ..errors import SceneError
+
+FRAME_RATE = 24.0      # frames a second: glTF's times are seconds, a scene's frames are numbered
+PATHS = {"translation": 3, "rotation": 4, "scale": 3}
+COMPONENTS = {5120: ("<i1", 127.0), 5121: ("<u1", 255.0), 5122: ("<i2", 32767.0), 5123: ("<u2", 65535.0),
+              5125: ("<u4", None), 5126: ("<f4", None)}
+WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+
+
+class _Buffers:
+    """A glTF file's buffers, read when first asked for: a .glb's binary chunk, a .gltf's files or data URIs."""
+
+    def __init__(self, path: Path, tree: dict):
+        self.path, self.tree, self._data = path, tree, {}
+
+    def buffer(self, index: int) -> bytes:
+        if index not in self._data:
+            entries = self.tree.get("buffers") or []
+            if not (isinstance(index, int) and 0 <= index < len(entries)):
+                raise SceneError(f"{self.path}: buffer {index!r} is not one of the file's {len(entries)}")
+            uri = entries[index].get("uri")
+            if uri is None:
+                self._data[index] = self._binary_chunk()
+            elif uri.startswith("data:"):
+                self._data[index] = base64.b64decode(uri.split(",", 1)[1])
+            else:
+                file = self.path.parent / uri
+                if not file.is_file():
+                    raise SceneError(f"{self.path}: buffer {index}: {file} not found")
+                self._data[index] = file.read_bytes()
+        return self._data[index]
+
+    def _binary_chunk(self) -> bytes:
+        data = self.path.read_bytes()
+        if data[:4] != b"glTF":
+            raise SceneError(f"{self.path}: a buffer without a uri needs a .glb's binary chunk")
+        offset = 12 + 8 + struct.unpack_from("<I", data, 12)[0]
+        if offset + 8 > len(data) or data[offset + 4:offset + 8] != b"BIN\0":
+            raise SceneError(f"{self.path}: the .glb has no binary chunk")
+        return data[offset + 8:offset + 8 + struct.unpack_from("<I", data, offset)[0]]
+
+    def accessor(self, index, where: str) -> np.ndarray:
+        """(count, width) float64 values of accessor ``index`` (normalized integers as glTF maps them)."""
+        accessors = self.tree.get("accessors") or []
+        if not (isinstance(index, int) and 0 <= index < len(accessors)):
+            raise SceneError(f"{where}: accessor {index!r} is not one of the file's {len(accessors)}")
+        entry = accessors[index]
+        kind, width = COMPONENTS.get(entry.get("componentType")), WIDTHS.get(entry.get("type"))
+        if kind is None or width is None or "bufferView" not in entry or "sparse" in entry:
+            raise SceneError(f"{where}: accessor {index} holds {entry.get('type')!r} of component type "
+                             f"{entry.get('componentType')!r} (or is sparse, or has no bufferView): not read")
+        views, number = self.tree.get("bufferViews") or [], entry["bufferView"]
+        if not (isinstance(number, int) and 0 <= number < len(views)):
+            raise SceneError(f"{where}: accessor {index}'s bufferView {number!r} is not one of the file's")
+        view = views[number]
+        dtype, scale = np.dtype(kind[0]), kind[1]
+        count, stride = int(entry.get("count", 0)), int(view.get("byteStride") or dtype.itemsize * width)
+        start = int(view.get("byteOffset", 0)) + int(entry.get("byteOffset", 0))
+        data = self.buffer(view.get("buffer"))
+        if count < 1 or start + stride * (count - 1) + dtype.itemsize * width > len(data):
+            raise SceneError(f"{where}: accessor {index} runs past the end of its buffer")
+        values = np.stack([np.frombuffer(data, dtype, width, start + stride * i) for i in range(count)])
+        values = values.astype(np.float64)
+        if scale is not None and entry.get("normalized"):
+            values = np.maximum(values / scale, -1.0)
+        return values
+
+
+def _slerp(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:
+    """Unit quaternions (x, y, z, w) ``a`` → ``b`` at ``w`` along the shorter arc."""
+    if np.dot(a, b) < 0:
+        b = -b
+    cos = float(np.clip(np.dot(a, b), -1.0, 1.0))
+    if cos > 0.9995:
+        q = a + w * (b - a)
+    else:
+        angle = np.arccos(cos)
+        q = (np.sin((1 - w) * angle) * a + np.sin(w * angle) * b) / np.sin(angle)
+    return q / np.linalg.norm(q)
+
+
+class Channel:
+    """One animated property of one node: keyframe ``times``, their ``values`` (CUBICSPLINE: in-tangent, value,
+    out-tangent per key) and the interpolation."""
+
+    def __init__(self, path: str, times: np.ndarray, values: np.ndarray, interpolation: str, where: str):
+        if times.shape[1] != 1:
+            raise SceneError(f"{where}: its key times must be one number each, got {times.shape[1]}")
+        times = times[:, 0]
+        keys = len(times)
+        if interpolation not in ("LINEAR", "STEP", "CUBICSPLINE"):
+            raise SceneError(f"{where}: unknown interpolation {interpolation!r} (LINEAR, STEP or CUBICSPLINE)")
+        if values.shape != ((3 if interpolation == "CUBICSPLINE" else 1) * keys, PATHS[path]):
+            raise SceneError(f"{where}: {keys} key times but {len(values)} values of {values.shape[1]} for its "
+                             f"{interpolation.lower()} {path}")
+        if not (np.all(np.isfinite(times)) and np.all(np.isfinite(values)) and np.all(np.diff(times) > 0)):
+            raise SceneError(f"{where}: key times must rise and every value be finite")
+        self.path, self.times, self.values, self.interpolation = path, times, values, interpolation
+
+    def at(self, t: float) -> np.ndarray:
+        times, cubic = self.times, self.interpolation == "CUBICSPLINE"
+        value = (lambda k: self.values[3 * k + 1]) if cubic else (lambda k: self.values[k])   # noqa: E731
+        if t <= times[0] or len(times) == 1:
+            result = value(0)
+        elif t >= times[-1]:
+            result = value(len(times) - 1)
+        else:
+            k = int(np.searchsorted(times, t, side="right")) - 1
+            span = times[k + 1] - times[k]
+            w = (t - times[k]) / span
+            if self.interpolation == "STEP":
+                result = value(k)
+            elif cubic:
+                out_tangent, in_tangent = self.values[3 * k + 2] * span, self.values[3 * (k + 1)] * span
+                w2, w3 = w * w, w * w * w
+                result = ((2 * w3 - 3 * w2 + 1) * value(k) + (w3 - 2 * w2 + w) * out_tangent
+                          + (-2 * w3 + 3 * w2) * value(k + 1) + (w3 - w2) * in_tangent)
+            elif self.path == "rotation":
+                result = _slerp(value(k), value(k + 1), w)
+            else:
+                result = (1 - w) * value(k) + w * value(k + 1)
+        if self.path == "rotation":
+            result = result / max(np.linalg.norm(result), 1e-12)
+        return result
+
+
+def read_animations(path: Path, tree: dict) -> dict[int, list[Channel]]:
+    """Every node's animated channels (node index → its channels), across all the file's animations."""
+    buffers, channels = _Buffers(path, tree), {}
+    nodes = tree.get("nodes") or []
+    for a, animation in enumerate(tree.get("animations") or []):
+        samplers = animation.get("samplers") or []
+        for c, channel in enumerate(animation.get("channels") or []):
+            where = f"{path}: animation {a} channel {c}"
+            target = channel.get("target") or {}
+            node, kind = target.get("node"), target.get("path")
+            if kind not in PATHS:
+                continue                  # morph-target weights (and extensions' paths) are not read
+            if not (isinstance(node, int) and 0 <= node < len(nodes)):
+                raise SceneError(f"{where}: target node {node!r} is not one of the file's {len(nodes)} nodes")
+            number = channel.get("sampler")
+            if not (isinstance(number, int) and 0 <= number < len(samplers)):
+                raise SceneError(f"{where}: sampler {number!r} is not one of the animation's {len(samplers)}")
+            sampler = samplers[number]
+            times = buffers.accessor(sampler.get("input"), where)
+            values = buffers.accessor(sampler.get("output"), where)
+            channels.setdefault(node, []).append(Channel(kind, times, values, sampler.get("interpolation", "LINEAR"),
+                                                         where))
+    return channels
+
+
+LONGEST = 3600.0       # seconds: an animation whose keys run longer is refused (each frame is a keyframe)
+
+
+def frame_count(channels: dict[int, list[Channel]], where: str) -> int:
+    """Frames at FRAME_RATE from time 0 through the last key of any channel (1 without animation)."""
+    last = max((channel.times[-1] for node in channels.values() for channel in node), default=0.0)
+    if last > LONGEST:
+        raise SceneError(f"{where}: its animations run {last:g} s, longer than the {LONGEST:g} s read")
+    return int(np.floor(max(last, 0.0) * FRAME_RATE + 1e-6)) + 1
+
+
+def local_matrix(node: dict, channels: list[Channel], t: float, fixed: np.ndarray) -> np.ndarray:
+    """A node's transform at time ``t``: ``fixed`` (its own) where no channel animates it, else translation ·
+    rotation · scale with the animated parts at ``t`` and the rest the node's own."""
+    if not channels:
+        return fixed
+    parts = {"translation": np.asarray(node.get("translation", [0.0, 0.0, 0.0]), np.float64),
+             "rotation": np.asarray(node.get("rotation", [0.0, 0.0, 0.0, 1.0]), np.float64),
+             "scale": np.asarray(node.get("scale", [1.0, 1.0, 1.0]), np.float64)}
+    for channel in channels:
+        parts[channel.path] = channel.at(t)
+    x, y, z, w = parts["rotation"]
+    matrix = trimesh.transformations.quaternion_matrix([w, x, y, z])
+    matrix[:3, :3] *= parts["scale"]
+    matrix[:3, 3] = parts["translation"]
+    return matrix
