@@ -89,3 +89,20 @@ def test_a_rotation_slerps_and_a_camera_follows_its_node(tmp_path):
 def test_bad_animations_are_refused_by_channel(tmp_path, arrays, message):
     with pytest.raises(SceneError, match=message):
         _animated(tmp_path, [("mover", "translation", "LINEAR", 0, 1)], arrays)
+
+
+def test_the_turntable_example_turns_its_box_and_moves_its_camera_in():
+    """examples/meshes/turntable.glb (make_turntable.py): 49 frames; the brass box, under its metallic-roughness
+    texture, a full turn over them (a quarter at frame 12); the camera a unit nearer at the end; the rest still."""
+    from pathlib import Path
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "examples" / "meshes" / "turntable.glb")
+    assert scene.frame_count == 49 and scene.name == "gltf:turntable.glb"
+    box = next(mesh for mesh in scene.meshes if mesh.name.endswith("brass-box"))
+    assert box.metal_rough_map is not None and scene.materials[box.material].kind == "plastic"
+    np.testing.assert_allclose(box.transform_at(12)[:3, :3] @ [1, 0, 0], [0, 0, -1], atol=1e-5)
+    np.testing.assert_allclose(box.transform_at(48), box.transform_at(0), atol=1e-5)
+    assert all(not mesh.keyframes for mesh in scene.meshes if mesh is not box)
+    start, end = scene.camera_at(0), scene.camera_at(48)
+    assert np.linalg.norm(start.origin - start.target) == pytest.approx(1.0, abs=1e-5)   # (target: a unit ahead)
+    assert np.linalg.norm(end.origin - np.float32([0, 0.6, 0])) < np.linalg.norm(start.origin - np.float32([0, 0.6, 0]))
