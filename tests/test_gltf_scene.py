@@ -142,3 +142,22 @@ def test_the_gallery_example_is_a_scene_of_its_own():
     assert sorted(type(light).__name__ for light in scene.lights) == ["DirectionalLight", "PointLight", "SpotLight"]
     assert scene.materials["gallery/amber"].kind == "dielectric" and scene.materials["gallery/amber"].absorbs
     np.testing.assert_array_equal(scene.background, [0, 0, 0])
+
+
+def test_a_camera_is_picked_by_its_index_or_its_name_or_its_nodes(tmp_path):
+    """With two cameras, the first placed is taken unless ``camera`` names another: by its index in the file's
+    cameras, its name or its node's; an unknown one is refused listing them, and a scene without glTF cameras
+    refuses any."""
+    path = _glb(tmp_path, nodes=[{"camera": 0, "translation": [0, 0, 4]},
+                                 {"name": "side", "camera": 1, "translation": [4, 0, 0],
+                                  "rotation": QUARTER_TURN_ABOUT_Y}],
+                cameras=[CAMERA, {**CAMERA, "name": "wide", "perspective": {"yfov": 1.0}}])
+    np.testing.assert_allclose(load_scene(path).camera.origin, [0, 0, 4], atol=1e-6)
+    for choice in ("1", "wide", "side"):
+        scene = load_scene(path, camera=choice)
+        np.testing.assert_allclose(scene.camera.origin, [4, 0, 0], atol=1e-6)
+        assert scene.camera.fov == pytest.approx(np.degrees(1.0))
+    with pytest.raises(SceneError, match=r"room.glb: no camera 'top'; its cameras: 0 \(node \d+\), 1 \(side\)"):
+        load_scene(path, camera="top")
+    with pytest.raises(SceneError, match=r"cornell: a camera choice \(camera=/--camera top\) is for a glTF file"):
+        load_scene("cornell", camera="top")

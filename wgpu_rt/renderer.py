@@ -118,7 +118,8 @@ class Renderer:
     def __init__(self, scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adaptive=None,
                  temporal=False, max_depth: int = 8, seed: int = 0, aovs=DEFAULT_AOVS, tonemap: str | None = None,
                  exposure: float = 0.0, srgb: bool = True, display: str = "rgba8", precision: str = "auto",
-                 models_dir=None, networks: dict | None = None, mesh=None, ctx=None, progress: bool = False,
+                 models_dir=None, networks: dict | None = None, mesh=None, camera: str | None = None, ctx=None,
+                 progress: bool = False,
                  timings: bool | None = None, aux_samples: int | None = None, hdr: bool = True,
                  quality: str = "balanced", low_band: bool | None = None, chroma: bool = True,
                  post_filter: bool = True, white_balance: bool = True, auto_exposure: bool | None = None):
@@ -153,7 +154,7 @@ class Renderer:
         from .gpu import get_context
         from .scene import load_scene
 
-        self.scene = load_scene(scene, mesh=mesh)
+        self.scene = load_scene(scene, mesh=mesh, camera=camera)
         self.ctx = ctx or get_context()
         networks = dict(networks or {})
         if denoise and "denoiser" not in networks:
@@ -290,7 +291,8 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       log-average of its 8×8 tiles' means, so that the network reads the frame alike at any scale of its
       light, and the error predictor and confidence model read their radiance at a key of their own;
       False: every network at the scale the frame has; None: each as it was trained, its ONNX metadata),
-      ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``ctx``,
+      ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``camera`` (a glTF
+      scene's camera by index or name), ``ctx``,
       ``progress`` (a progress bar, on a terminal), ``timings`` (per-stage GPU times; default: when the
       adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a

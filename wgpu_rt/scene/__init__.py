@@ -19,20 +19,27 @@ from .meshio import MESH_SUFFIXES
 from .model import Camera, DirectionalLight, Material, Mesh, PointLight, Scene, SpotLight
 
 
-def load_scene(spec, mesh=None) -> Scene:
-    """The Scene that ``spec`` names; ``mesh`` is the mesh file of the built-in 'mesh' scene."""
+def load_scene(spec, mesh=None, camera: str | None = None) -> Scene:
+    """The Scene that ``spec`` names; ``mesh`` is the mesh file of the built-in 'mesh' scene; ``camera`` picks one
+    of a glTF scene's cameras (``gltf_scene``)."""
     if not isinstance(spec, (str, Path, Scene)):
         raise SceneError(f"a scene is a built-in name, a scene file path or a Scene, not {type(spec).__name__}")
     if mesh is not None and spec != "mesh":
         # Silently rendering the scene without the mesh would look like the mesh was lost.
         raise SceneError(f"{spec if isinstance(spec, (str, Path)) else 'a Scene object'}: takes no mesh file "
                          f"(mesh=/--mesh {mesh} is only for the built-in 'mesh' scene)")
+    is_gltf = isinstance(spec, (str, Path)) and Path(spec).suffix.lower() in GLTF_SUFFIXES
+    if camera is not None and not is_gltf:
+        raise SceneError(f"{spec if isinstance(spec, (str, Path)) else 'a Scene object'}: a camera choice "
+                         f"(camera=/--camera {camera}) is for a glTF file with cameras")
     if isinstance(spec, Scene):
         return spec
     if isinstance(spec, str) and spec in BUILTIN_SCENES:
         return builtin_scene(spec, mesh=mesh)
     if Path(spec).suffix.lower() in MESH_SUFFIXES:
-        own = gltf_scene(spec) if Path(spec).suffix.lower() in GLTF_SUFFIXES else None
+        own = gltf_scene(spec, camera) if is_gltf else None
+        if own is None and camera is not None:
+            raise SceneError(f"{spec}: has no camera for camera=/--camera {camera} to pick")
         return own or builtin_scene("mesh", mesh=spec)
     if Path(spec).suffix.lower() in SCENE_SUFFIXES or Path(spec).exists():
         return load_scene_file(spec)

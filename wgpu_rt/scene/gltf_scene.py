@@ -4,7 +4,8 @@ materials, seen through its first camera and lit by its ``KHR_lights_punctual`` 
 A file without a camera stays an object to look at: ``load_scene`` sets it in the built-in ``mesh`` room. With one,
 nothing is added or moved, as a scene exported from Blender expects:
 
-- the camera: the first node of the default scene (depth first, in file order) that has a ``perspective`` camera;
+- the camera: the first node of the default scene (depth first, in file order) that has a camera, or the one picked
+  by its camera's index or name or its node's name (``--camera``); a ``perspective`` one;
   glTF's camera looks down its node's −z with +y up; ``yfov`` is the vertical field of view (the render's own size
   sets the aspect ratio, not ``aspectRatio``). An orthographic camera is refused by name.
 - lights: glTF's are photometric (candela for point and spot lights, lux for directional ones) and the tracer's are
@@ -100,13 +101,30 @@ def _aimed(world: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, np.nd
     return world[:3, 3], forward / np.linalg.norm(forward), up / np.linalg.norm(up)
 
 
-def _camera(tree: dict, placed: list, path: Path) -> Camera | None:
-    """The first placed camera's view (None where no node has a camera)."""
-    cameras = tree.get("cameras") or []
+def _camera_node(tree: dict, placed: list, path: Path, choice: str | None) -> int | None:
+    """The node whose camera the scene is seen through: the first placed node with a camera, or with ``choice`` the
+    one whose camera's index or name, or node's name, it is (a SceneError listing them where none is); None where no
+    node has a camera."""
+    cameras, nodes = tree.get("cameras") or [], tree["nodes"]
+    held = [index for index, _ in placed if nodes[index].get("camera") is not None]
+    if choice is None or not held:
+        return held[0] if held else None
+    for index in held:
+        number = nodes[index]["camera"]
+        entry = _entry(cameras, number, f"{path}: camera {number!r} (node {index})", "cameras")
+        if choice in (str(number), entry.get("name"), nodes[index].get("name")):
+            return index
+    names = ", ".join(f"{nodes[i]['camera']} ({nodes[i].get('name') or f'node {i}'})" for i in held)
+    raise SceneError(f"{path}: no camera {choice!r}; its cameras: {names}")
+
+
+def _camera(tree: dict, placed: list, path: Path, choice: str | None = None) -> Camera | None:
+    """The view through the camera ``_camera_node`` picks (None where no node has a camera)."""
+    cameras, chosen = tree.get("cameras") or [], _camera_node(tree, placed, path, choice)
     for index, world in placed:
-        number = tree["nodes"][index].get("camera")
-        if number is None:
+        if index != chosen:
             continue
+        number = tree["nodes"][index].get("camera")
         where = f"{path}: camera {number!r} (node {index})"
         entry = _entry(cameras, number, where, "cameras")
         if entry.get("type") != "perspective":
@@ -181,9 +199,11 @@ def _mesh_nodes(tree: dict, placed: list, meshes: list) -> list[int | None]:
     return found
 
 
-def _animate(tree: dict, path: Path, placed: list, camera: Camera, meshes: list) -> tuple[dict[int, Camera], int]:
+def _animate(tree: dict, path: Path, placed: list, camera: Camera, meshes: list,
+             choice: str | None) -> tuple[dict[int, Camera], int]:
     """Keyframes at every frame for the meshes whose nodes the file animates (set on them) and the camera's
-    (returned, with the frame count); none and 1 for a file without animations. ``placed``: the nodes at rest."""
+    (returned, with the frame count); none and 1 for a file without animations. ``placed``: the nodes at rest;
+    ``choice``: the camera's, as ``_camera_node`` takes it."""
     channels = read_animations(path, tree)
     if not channels:
         return {}, 1
@@ -197,20 +217,22 @@ def _animate(tree: dict, path: Path, placed: list, camera: Camera, meshes: list)
         keys = {f: worlds[f][node].astype(np.float32) for f in range(frames)}
         if any(not np.array_equal(matrix, mesh.transform) for matrix in keys.values()):
             mesh.keyframes = keys
-    cameras = {f: _camera(tree, pose, path) for f, pose in enumerate(poses)}
+    cameras = {f: _camera(tree, pose, path, choice) for f, pose in enumerate(poses)}
     moving = any(c.origin.tobytes() + c.target.tobytes() + c.up.tobytes() != camera.origin.tobytes()
                  + camera.target.tobytes() + camera.up.tobytes() for c in cameras.values())
     return (cameras if moving else {}), frames
 
 
-def gltf_scene(path) -> Scene | None:
-    """The scene of a glTF file with a camera (see the module's doc); None for a file without one."""
+def gltf_scene(path, camera: str | None = None) -> Scene | None:
+    """The scene of a glTF file with a camera (see the module's doc), seen through its first or the ``camera`` it
+    names (an index into the file's cameras, a camera's or a node's name); None for a file without one."""
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"{path}: mesh file not found")
     tree = gltf_json(path)
     placed = _placed_nodes(tree, path)
-    camera = _camera(tree, placed, path)
+    choice = camera
+    camera = _camera(tree, placed, path, choice)
     if camera is None:
         return None
     materials = {"clay": Material("diffuse", reflectance=(0.7, 0.7, 0.7))}
@@ -218,6 +240,6 @@ def gltf_scene(path) -> Scene | None:
     lights = _lights(tree, placed, path)
     lit = bool(lights) or any(materials[mesh.material].is_emissive for mesh in meshes)
     background = np.zeros(3, np.float32) if lit else np.full(3, UNLIT_SKY, np.float32)
-    cameras, frames = _animate(tree, path, placed, camera, meshes)
+    cameras, frames = _animate(tree, path, placed, camera, meshes, choice)
     return Scene(cameras.get(0, camera), meshes, materials, lights=lights, background=background,
                  camera_keyframes=cameras, frame_count=frames, name=f"gltf:{path.name}")
