@@ -12,6 +12,7 @@ from wgpu_rt.scene.gltf_animation import FRAME_RATE
 
 CAMERA = {"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}
 HALF_TURN_ABOUT_Y = [0.0, 1.0, 0.0, 0.0]
+STAGE = '[camera]\norigin = [0, 2, 12]\ntarget = [0, 0, 0]\n\n[materials.white]\nreflectance = 0.8\n\n'
 
 
 def _animated(tmp_path, channels, arrays, name="moving.glb"):
@@ -106,3 +107,20 @@ def test_the_turntable_example_turns_its_box_and_moves_its_camera_in():
     start, end = scene.camera_at(0), scene.camera_at(48)
     assert np.linalg.norm(start.origin - start.target) == pytest.approx(1.0, abs=1e-5)   # (target: a unit ahead)
     assert np.linalg.norm(end.origin - np.float32([0, 0.6, 0])) < np.linalg.norm(start.origin - np.float32([0, 0.6, 0]))
+
+
+def test_a_scene_files_entry_plays_its_glb_animation_under_its_transform(tmp_path):
+    """A glTF file placed by a scene file's mesh entry moves as the file animates it, under the entry's transform
+    (here lifted by 1 and scaled by 2), and the scene has the animation's frames; an entry with keyframes of its
+    own takes those instead."""
+    _animated(tmp_path, [("mover", "translation", "LINEAR", 0, 1)], [[0.0, 1.0], [[3, 0, 0], [5, 0, 0]]])
+    entry = '[[meshes]]\nfile = "moving.glb"\nmaterial = "white"\ntransform = { scale = 2.0, translate = [0, 1, 0] }\n'
+    (tmp_path / "stage.toml").write_text(STAGE + entry)
+    scene = load_scene(tmp_path / "stage.toml")
+    assert scene.frame_count == int(FRAME_RATE) + 1
+    np.testing.assert_allclose(_mover(scene).transform_at(12)[:3, 3], [2 * 4, 1, 0], atol=1e-5)
+    keyed = entry + 'keyframes = [{ frame = 0 }, { frame = 4, translate = [0, 3, 0] }]\n'
+    (tmp_path / "stage.toml").write_text(STAGE + keyed)
+    scene = load_scene(tmp_path / "stage.toml")
+    assert scene.frame_count == 5
+    np.testing.assert_allclose(_mover(scene).transform_at(4)[:3, 3], [3, 3, 0], atol=1e-5)

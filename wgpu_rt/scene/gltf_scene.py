@@ -199,28 +199,24 @@ def _mesh_nodes(tree: dict, placed: list, meshes: list) -> list[int | None]:
     return found
 
 
-def _animate(tree: dict, path: Path, placed: list, camera: Camera, meshes: list,
-             choice: str | None) -> tuple[dict[int, Camera], int]:
-    """Keyframes at every frame for the meshes whose nodes the file animates (set on them) and the camera's
-    (returned, with the frame count); none and 1 for a file without animations. ``placed``: the nodes at rest;
-    ``choice``: the camera's, as ``_camera_node`` takes it."""
+def node_animation(path, meshes: list, tree: dict | None = None) -> tuple[int, list[dict | None], list]:
+    """A glTF file's node animations as they move ``meshes`` (``load_mesh_file``'s reading of the file): the frame
+    count (1 without animations), each mesh's world matrix (float32, in the file's world) at every frame or None where
+    its node does not move, and every node's (index, world matrix) at each frame (``_placed_nodes``)."""
+    path = Path(path)
+    tree = gltf_json(path) if tree is None else tree
     channels = read_animations(path, tree)
     if not channels:
-        return {}, 1
+        return 1, [None] * len(meshes), []
     frames = frame_count(channels, str(path))
     poses = [_placed_nodes(tree, path, channels, f / FRAME_RATE) for f in range(frames)]
-    nodes = _mesh_nodes(tree, placed, meshes)
     worlds = [dict(pose) for pose in poses]
-    for mesh, node in zip(meshes, nodes):
-        if node is None:
-            continue
-        keys = {f: worlds[f][node].astype(np.float32) for f in range(frames)}
-        if any(not np.array_equal(matrix, mesh.transform) for matrix in keys.values()):
-            mesh.keyframes = keys
-    cameras = {f: _camera(tree, pose, path, choice) for f, pose in enumerate(poses)}
-    moving = any(c.origin.tobytes() + c.target.tobytes() + c.up.tobytes() != camera.origin.tobytes()
-                 + camera.target.tobytes() + camera.up.tobytes() for c in cameras.values())
-    return (cameras if moving else {}), frames
+    moves = []
+    for mesh, node in zip(meshes, _mesh_nodes(tree, _placed_nodes(tree, path), meshes)):
+        keys = None if node is None else {f: worlds[f][node].astype(np.float32) for f in range(frames)}
+        still = keys is None or all(np.array_equal(matrix, mesh.transform) for matrix in keys.values())
+        moves.append(None if still else keys)
+    return frames, moves, poses
 
 
 def gltf_scene(path, camera: str | None = None) -> Scene | None:
@@ -240,6 +236,12 @@ def gltf_scene(path, camera: str | None = None) -> Scene | None:
     lights = _lights(tree, placed, path)
     lit = bool(lights) or any(materials[mesh.material].is_emissive for mesh in meshes)
     background = np.zeros(3, np.float32) if lit else np.full(3, UNLIT_SKY, np.float32)
-    cameras, frames = _animate(tree, path, placed, camera, meshes, choice)
+    frames, moves, poses = node_animation(path, meshes, tree)
+    for mesh, keys in zip(meshes, moves):
+        mesh.keyframes = keys or {}
+    cameras = {f: _camera(tree, pose, path, choice) for f, pose in enumerate(poses)}
+    if all(c.origin.tobytes() + c.target.tobytes() + c.up.tobytes()
+           == camera.origin.tobytes() + camera.target.tobytes() + camera.up.tobytes() for c in cameras.values()):
+        cameras = {}
     return Scene(cameras.get(0, camera), meshes, materials, lights=lights, background=background,
                  camera_keyframes=cameras, frame_count=frames, name=f"gltf:{path.name}")

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from .file_materials import placed_absorption
+from .file_materials import GLTF_SUFFIXES, placed_absorption
+from .gltf_scene import node_animation
 from .meshio import load_mesh_file, read_environment_image, read_texture_image, with_cutout
 from .model import (ALPHA_MODES, FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight,
                     Scene, SpotLight)
@@ -350,6 +351,7 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         texture = with_cutout(texture[..., :3], texture[..., 3], cutoff)
     normal_map = _image_file(fields, "normal_map", folder, read_texture_image)
     glow = _image_file(fields, "emission_texture", folder, read_texture_image)
+    moves: list = []                # a glTF file's node animation of each part (gltf_scene.node_animation)
     metal_rough = _image_file(fields, "metal_rough_map", folder, read_texture_image)
     if metal_rough is not None and (material is None or materials[material].kind != "plastic"):
         fields.fail("a metal-rough map makes each point of a plastic that plastic or a metal: give the entry a "
@@ -380,6 +382,8 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
             parts = load_mesh_file(path, material, base, vertex_colors=colors, texture=texture,
                                    materials=own if material is None else None, normal_map=normal_map,
                                    emission_texture=glow, metal_rough_map=metal_rough)
+            if path.suffix.lower() in GLTF_SUFFIXES:
+                moves = node_animation(path, parts)[1]
         except SceneError as err:
             fields.fail(str(err), "file")
         for taken in own:
@@ -401,8 +405,12 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
                 part.uvs = (part.uvs * repeat).astype(np.float32)
     fields.done()
     if instances is None:
-        for part in parts:
+        for part, keys in zip(parts, moves or [None] * len(parts)):
             _place(part, fields, transform, keyframes)
+            if keys and not keyframes:       # the file's animation, where the entry has no keyframes of its own
+                part.keyframes = {frame: _check_placement(fields, "file", compose(transform, world, dtype=np.float64),
+                                                          part) for frame, world in keys.items()}
+                _check_blends(fields, part)
         return parts
     return _instances(fields, instances, parts, base, (transform, keyframes), materials)
 
