@@ -77,6 +77,8 @@ def test_a_rotation_slerps_and_a_camera_follows_its_node(tmp_path):
     for frame, degrees in ((12, 45.0), (24, 90.0)):
         turned = _mover(scene).transform_at(frame)[:3, :3] @ [1, 0, 0]
         np.testing.assert_allclose(turned, [np.cos(np.radians(degrees)), 0, -np.sin(np.radians(degrees))], atol=1e-5)
+        # (its node's own translation, written by trimesh as a matrix, kept where only its rotation is animated)
+        np.testing.assert_allclose(_mover(scene).transform_at(frame)[:3, 3], [3, 0, 0], atol=1e-5)
     np.testing.assert_allclose(scene.camera_at(24).origin, [2, 1, 8], atol=1e-5)
     np.testing.assert_allclose(scene.camera_at(48).origin, [4, 1, 8], atol=1e-5)
     np.testing.assert_allclose(scene.camera.origin, [0, 1, 8], atol=1e-5)

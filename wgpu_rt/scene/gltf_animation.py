@@ -2,7 +2,7 @@
 
 glTF animates a node by channels, each a sampler's keyframe times (seconds) and values for the node's translation,
 rotation (a unit quaternion) or scale, interpolated STEP, LINEAR (rotations by slerp) or CUBICSPLINE (Hermite, each
-key with its in- and out-tangent). ``NodeAnimation.read`` reads them (accessors from the .glb's binary chunk, a
+key with its in- and out-tangent). ``read_animations`` reads them (accessors from the .glb's binary chunk, a
 .gltf's buffer files or data URIs; floats, or normalized integers as glTF allows for rotations); ``local_matrix``
 is a node's transform at a time, its animated parts in place of the node's own. Frames are FRAME_RATE a second from
 time 0 to the last key. Morph-target weights and skins are not read (a skinned mesh keeps its rest pose).
@@ -13,6 +13,7 @@ from __future__ import annotations
 import base64
 import struct
 from pathlib import Path
+from urllib.parse import unquote
 
 import numpy as np
 import trimesh
@@ -40,10 +41,15 @@ class _Buffers:
             uri = entries[index].get("uri")
             if uri is None:
                 self._data[index] = self._binary_chunk()
+            elif not isinstance(uri, str):
+                raise SceneError(f"{self.path}: buffer {index}: its uri must be a string, got {uri!r}")
             elif uri.startswith("data:"):
-                self._data[index] = base64.b64decode(uri.split(",", 1)[1])
+                try:
+                    self._data[index] = base64.b64decode(uri.split(",", 1)[1], validate=True)
+                except (IndexError, ValueError) as err:
+                    raise SceneError(f"{self.path}: buffer {index}: its data URI is not base64 ({err})") from err
             else:
-                file = self.path.parent / uri
+                file = self.path.parent / unquote(uri)
                 if not file.is_file():
                     raise SceneError(f"{self.path}: buffer {index}: {file} not found")
                 self._data[index] = file.read_bytes()
@@ -64,6 +70,8 @@ class _Buffers:
         if not (isinstance(index, int) and 0 <= index < len(accessors)):
             raise SceneError(f"{where}: accessor {index!r} is not one of the file's {len(accessors)}")
         entry = accessors[index]
+        if not isinstance(entry, dict):
+            raise SceneError(f"{where}: accessor {index} is not an object")
         kind, width = COMPONENTS.get(entry.get("componentType")), WIDTHS.get(entry.get("type"))
         if kind is None or width is None or "bufferView" not in entry or "sparse" in entry:
             raise SceneError(f"{where}: accessor {index} holds {entry.get('type')!r} of component type "
@@ -73,8 +81,11 @@ class _Buffers:
             raise SceneError(f"{where}: accessor {index}'s bufferView {number!r} is not one of the file's")
         view = views[number]
         dtype, scale = np.dtype(kind[0]), kind[1]
-        count, stride = int(entry.get("count", 0)), int(view.get("byteStride") or dtype.itemsize * width)
-        start = int(view.get("byteOffset", 0)) + int(entry.get("byteOffset", 0))
+        try:
+            count, stride = int(entry.get("count", 0)), int(view.get("byteStride") or dtype.itemsize * width)
+            start = int(view.get("byteOffset", 0)) + int(entry.get("byteOffset", 0))
+        except (AttributeError, TypeError, ValueError) as err:
+            raise SceneError(f"{where}: accessor {index} or its bufferView has a malformed field ({err})") from err
         data = self.buffer(view.get("buffer"))
         if count < 1 or start + stride * (count - 1) + dtype.itemsize * width > len(data):
             raise SceneError(f"{where}: accessor {index} runs past the end of its buffer")
@@ -148,17 +159,21 @@ def read_animations(path: Path, tree: dict) -> dict[int, list[Channel]]:
     buffers, channels = _Buffers(path, tree), {}
     nodes = tree.get("nodes") or []
     for a, animation in enumerate(tree.get("animations") or []):
+        if not isinstance(animation, dict):
+            raise SceneError(f"{path}: animation {a} is not an object")
         samplers = animation.get("samplers") or []
         for c, channel in enumerate(animation.get("channels") or []):
             where = f"{path}: animation {a} channel {c}"
-            target = channel.get("target") or {}
+            target = channel.get("target") if isinstance(channel, dict) else None
+            if not isinstance(target, dict):
+                raise SceneError(f"{where}: expected an object with a target")
             node, kind = target.get("node"), target.get("path")
             if kind not in PATHS:
                 continue                  # morph-target weights (and extensions' paths) are not read
             if not (isinstance(node, int) and 0 <= node < len(nodes)):
                 raise SceneError(f"{where}: target node {node!r} is not one of the file's {len(nodes)} nodes")
             number = channel.get("sampler")
-            if not (isinstance(number, int) and 0 <= number < len(samplers)):
+            if not (isinstance(number, int) and 0 <= number < len(samplers)) or not isinstance(samplers[number], dict):
                 raise SceneError(f"{where}: sampler {number!r} is not one of the animation's {len(samplers)}")
             sampler = samplers[number]
             times = buffers.accessor(sampler.get("input"), where)
@@ -181,12 +196,18 @@ def frame_count(channels: dict[int, list[Channel]], where: str) -> int:
 
 def local_matrix(node: dict, channels: list[Channel], t: float, fixed: np.ndarray) -> np.ndarray:
     """A node's transform at time ``t``: ``fixed`` (its own) where no channel animates it, else translation ·
-    rotation · scale with the animated parts at ``t`` and the rest the node's own."""
+    rotation · scale with the animated parts at ``t`` and the rest the node's own (a node's matrix taken apart into
+    them: glTF animates only nodes without one, but trimesh writes every node's as a matrix)."""
     if not channels:
         return fixed
-    parts = {"translation": np.asarray(node.get("translation", [0.0, 0.0, 0.0]), np.float64),
-             "rotation": np.asarray(node.get("rotation", [0.0, 0.0, 0.0, 1.0]), np.float64),
-             "scale": np.asarray(node.get("scale", [1.0, 1.0, 1.0]), np.float64)}
+    if "matrix" in node:     # (glTF animates TRS nodes; a matrix, as trimesh writes them, is taken apart into one)
+        scale, _, angles, translation, _ = trimesh.transformations.decompose_matrix(fixed)
+        w, x, y, z = trimesh.transformations.quaternion_from_euler(*angles)
+        parts = {"translation": translation, "rotation": np.array([x, y, z, w]), "scale": scale}
+    else:
+        parts = {"translation": np.asarray(node.get("translation", [0.0, 0.0, 0.0]), np.float64),
+                 "rotation": np.asarray(node.get("rotation", [0.0, 0.0, 0.0, 1.0]), np.float64),
+                 "scale": np.asarray(node.get("scale", [1.0, 1.0, 1.0]), np.float64)}
     for channel in channels:
         parts[channel.path] = channel.at(t)
     x, y, z, w = parts["rotation"]
