@@ -187,7 +187,7 @@ def _mesh_nodes(tree: dict, placed: list, meshes: list) -> list[int | None]:
         return {accessors[a].get("count") for a in positions if isinstance(a, int) and 0 <= a < len(accessors)}
 
     counts = {index: vertex_counts(tree["nodes"][index]) for index, _ in placed}
-    taken: dict[tuple[int, int], int] = {}
+    taken: dict[tuple, int] = {}    # (vertex count, rounded placement) → meshes matched so far
     found = []
     for mesh in meshes:
         alike = [index for index, world in placed if len(mesh.vertices) in counts[index]
