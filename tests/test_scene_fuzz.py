@@ -146,3 +146,53 @@ def test_random_values_load_or_fail_with_one_line(folder, changes):
     assert np.all(np.isfinite(scene.background)) and np.all(scene.background >= 0)
     for light in scene.lights:
         assert all(np.all(np.isfinite(np.asarray(v, np.float32))) for v in vars(light).values())
+
+
+def _turntable_tree() -> tuple[bytes, dict]:
+    from pathlib import Path
+
+    data = (Path(__file__).resolve().parents[1] / "examples" / "meshes" / "turntable.glb").read_bytes()
+    length = int.from_bytes(data[12:16], "little")
+    return data, json.loads(data[20:20 + length])
+
+
+def _animation_paths(tree: dict) -> list:
+    """The paths into a glTF tree that its animation reading walks: its animations, their accessors and buffer views,
+    and the nodes they move."""
+    animated = {channel["target"]["node"] for a in tree["animations"] for channel in a["channels"]}
+    used = {i for a in tree["animations"] for s in a["samplers"] for i in (s["input"], s["output"])}
+    views = {tree["accessors"][i]["bufferView"] for i in used}
+    return ([("animations",) + p for p in field_paths(tree["animations"])]
+            + [("accessors", i) + p for i in used for p in field_paths(tree["accessors"][i])]
+            + [("bufferViews", i) + p for i in views for p in field_paths(tree["bufferViews"][i])]
+            + [("nodes", i) + p for i in animated for p in field_paths(tree["nodes"][i])])
+
+
+TURNTABLE_DATA, TURNTABLE = _turntable_tree()
+GLTF_EDITS = st.lists(st.tuples(st.sampled_from(_animation_paths(TURNTABLE)),
+                                st.one_of(st.tuples(json_values), st.none())), min_size=1, max_size=3)
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(changes=GLTF_EDITS)
+def test_random_values_in_a_gltf_animation_load_or_fail_with_one_line(tmp_path_factory, changes):
+    """The turntable's animations, their accessors, buffer views and nodes given random values: the file loads with
+    finite placements at every frame, or stops with one line naming it."""
+    from gltf_files import edit_glb_json
+
+    def edit(tree):
+        for path, replacement in changes:
+            apply(tree, path, replacement)
+    path = tmp_path_factory.mktemp("gltf") / "turntable.glb"
+    path.write_bytes(edit_glb_json(TURNTABLE_DATA, edit))
+    try:
+        scene = load_scene(path)
+    except WgpuRtError as err:
+        message = str(err)
+        assert message.startswith(f"{path}") and "\n" not in message, message
+        return
+    for frame in range(0, scene.frame_count, max(1, scene.frame_count // 4)):
+        camera = scene.camera_at(frame)
+        assert all(np.all(np.isfinite(v)) for v in (camera.origin, *camera.basis()))
+        assert all(np.all(np.isfinite(mesh.transform_at(frame))) for mesh in scene.meshes)

@@ -65,6 +65,12 @@ def pbr_material(base_color, metallic: float, roughness: float, transmission: fl
     return Material("diffuse", reflectance=base_color, emission=emission)
 
 
+def _short(value) -> str:
+    """``value``'s repr, cut to 60 characters (a field may hold anything)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 class FieldReader:
     """The fields of one entry of a glTF or MTL file (a material, a node, a light), each checked against its range,
     errors naming the file and the entry ("where")."""
@@ -81,16 +87,17 @@ class FieldReader:
         value = self.data.get(key, default)
         try:
             array = np.asarray(value, np.float64).reshape(-1)
-        except (TypeError, ValueError):
-            self.fail(f"{key} must be numbers, got {value!r}")
+        except (TypeError, ValueError, OverflowError):
+            self.fail(f"{key} must be numbers, got {_short(value)}")
         wanted = length or 1
         if len(array) == 1:
             array = np.broadcast_to(array, (wanted,))
         if len(array) < wanted or (length is None and len(array) != 1):
-            self.fail(f"{key} must be {'a number' if length is None else f'1 or {length} numbers'}, got {value!r}")
+            wanted_text = "a number" if length is None else f"1 or {length} numbers"
+            self.fail(f"{key} must be {wanted_text}, got {_short(value)}")
         array = array[:wanted]
         if not np.all(np.isfinite(array)) or np.any(array < low) or np.any(array > high):
-            self.fail(f"{key} must be in [{low:g}, {high:g}], got {value!r}")
+            self.fail(f"{key} must be in [{low:g}, {high:g}], got {_short(value)}")
         return array if length is not None else float(array[0])
 
 

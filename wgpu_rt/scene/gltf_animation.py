@@ -158,17 +158,21 @@ def read_animations(path: Path, tree: dict) -> dict[int, list[Channel]]:
     """Every node's animated channels (node index → its channels), across all the file's animations."""
     buffers, channels = _Buffers(path, tree), {}
     nodes = tree.get("nodes") or []
-    for a, animation in enumerate(tree.get("animations") or []):
-        if not isinstance(animation, dict):
-            raise SceneError(f"{path}: animation {a} is not an object")
-        samplers = animation.get("samplers") or []
-        for c, channel in enumerate(animation.get("channels") or []):
+    animations = tree.get("animations") or []
+    if not isinstance(animations, list):
+        raise SceneError(f"{path}: the glTF file's animations are not a list")
+    for a, animation in enumerate(animations):
+        samplers, listed = (animation.get("samplers") or [], animation.get("channels") or []) \
+            if isinstance(animation, dict) else (None, None)
+        if not (isinstance(samplers, list) and isinstance(listed, list)):
+            raise SceneError(f"{path}: animation {a} is not an object with lists of samplers and channels")
+        for c, channel in enumerate(listed):
             where = f"{path}: animation {a} channel {c}"
             target = channel.get("target") if isinstance(channel, dict) else None
             if not isinstance(target, dict):
                 raise SceneError(f"{where}: expected an object with a target")
             node, kind = target.get("node"), target.get("path")
-            if kind not in PATHS:
+            if not isinstance(kind, str) or kind not in PATHS:
                 continue                  # morph-target weights (and extensions' paths) are not read
             if not (isinstance(node, int) and 0 <= node < len(nodes)):
                 raise SceneError(f"{where}: target node {node!r} is not one of the file's {len(nodes)} nodes")
@@ -194,14 +198,19 @@ def frame_count(channels: dict[int, list[Channel]], where: str) -> int:
     return int(np.floor(max(last, 0.0) * FRAME_RATE + 1e-6)) + 1
 
 
-def local_matrix(node: dict, channels: list[Channel], t: float, fixed: np.ndarray) -> np.ndarray:
+def local_matrix(node: dict, channels: list[Channel], t: float, fixed: np.ndarray, where: str) -> np.ndarray:
     """A node's transform at time ``t``: ``fixed`` (its own) where no channel animates it, else translation ·
     rotation · scale with the animated parts at ``t`` and the rest the node's own (a node's matrix taken apart into
-    them: glTF animates only nodes without one, but trimesh writes every node's as a matrix)."""
+    them: glTF animates only nodes without one, but trimesh writes every node's as a matrix); errors name ``where``."""
     if not channels:
         return fixed
     if "matrix" in node:     # (glTF animates TRS nodes; a matrix, as trimesh writes them, is taken apart into one)
-        scale, _, angles, translation, _ = trimesh.transformations.decompose_matrix(fixed)
+        try:
+            with np.errstate(divide="raise", invalid="raise", over="raise"):
+                scale, _, angles, translation, _ = trimesh.transformations.decompose_matrix(fixed)
+        except (ValueError, FloatingPointError) as err:
+            raise SceneError(f"{where}: an animated node's matrix must be a translation, rotation and scale ({err})") \
+                from err
         w, x, y, z = trimesh.transformations.quaternion_from_euler(*angles)
         parts = {"translation": translation, "rotation": np.array([x, y, z, w]), "scale": scale}
     else:

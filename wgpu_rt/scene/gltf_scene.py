@@ -86,7 +86,7 @@ def _placed_nodes(tree: dict, path: Path, channels: dict | None = None,
         seen.add(index)
         local = _node_matrix(nodes[index], f"{path}: node {index}")
         if channels:
-            local = local_matrix(nodes[index], channels.get(index, []), t, local)
+            local = local_matrix(nodes[index], channels.get(index, []), t, local, f"{path}: node {index}")
         world = parent @ local
         placed.append((index, world))
         stack.extend((child, world) for child in reversed(nodes[index].get("children") or []))
@@ -95,8 +95,8 @@ def _placed_nodes(tree: dict, path: Path, channels: dict | None = None,
 
 def _aimed(world: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A node's position and its −z and +y directions in the world (a SceneError for a singular placement)."""
-    if not np.all(np.isfinite(world)) or abs(np.linalg.det(world[:3, :3])) < 1e-12:
-        raise SceneError(f"{where}: its node's transform is singular or not finite")
+    if not np.all(np.abs(world) <= np.finfo(np.float32).max) or abs(np.linalg.det(world[:3, :3])) < 1e-12:
+        raise SceneError(f"{where}: its node's transform is singular or not finite in float32")
     forward, up = world[:3, :3] @ [0.0, 0.0, -1.0], world[:3, :3] @ [0.0, 1.0, 0.0]
     return world[:3, 3], forward / np.linalg.norm(forward), up / np.linalg.norm(up)
 
