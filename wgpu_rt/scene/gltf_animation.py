@@ -87,8 +87,8 @@ class _Buffers:
         except (AttributeError, TypeError, ValueError) as err:
             raise SceneError(f"{where}: accessor {index} or its bufferView has a malformed field ({err})") from err
         data = self.buffer(view.get("buffer"))
-        if count < 1 or start + stride * (count - 1) + dtype.itemsize * width > len(data):
-            raise SceneError(f"{where}: accessor {index} runs past the end of its buffer")
+        if count < 1 or start < 0 or stride < 1 or start + stride * (count - 1) + dtype.itemsize * width > len(data):
+            raise SceneError(f"{where}: accessor {index} lies outside its buffer (or is empty)")
         values = np.stack([np.frombuffer(data, dtype, width, start + stride * i) for i in range(count)])
         values = values.astype(np.float64)
         if scale is not None and entry.get("normalized"):

@@ -447,7 +447,8 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
     decoded: dict = {}                          # the file's images, decoded (_decode)
     own = FileMaterials(path, base)     # the file's materials: taken where ``materials`` asks, else for scales
     for node in scene.graph.nodes_geometry:
-        transform, geometry_name = scene.graph[node]
+        with np.errstate(over="ignore", invalid="ignore"):      # (trimesh's rigidity check on a huge matrix)
+            transform, geometry_name = scene.graph[node]
         if not np.all(np.abs(np.asarray(transform, np.float64)) <= np.finfo(np.float32).max):
             raise SceneError(f"{path}: node {node!r}: its placement is not finite in float32")
         geometry = scene.geometry[geometry_name]
