@@ -157,15 +157,16 @@ def _turntable_tree() -> tuple[bytes, dict]:
 
 
 def _animation_paths(tree: dict) -> list:
-    """The paths into a glTF tree that its animation reading walks: its animations, their accessors and buffer views,
-    and the nodes they move."""
+    """The paths into a glTF tree that its animation, camera and material reading walks: its animations, their
+    accessors and buffer views, the nodes they move, its cameras and its materials."""
     animated = {channel["target"]["node"] for a in tree["animations"] for channel in a["channels"]}
     used = {i for a in tree["animations"] for s in a["samplers"] for i in (s["input"], s["output"])}
     views = {tree["accessors"][i]["bufferView"] for i in used}
     return ([("animations",) + p for p in field_paths(tree["animations"])]
             + [("accessors", i) + p for i in used for p in field_paths(tree["accessors"][i])]
             + [("bufferViews", i) + p for i in views for p in field_paths(tree["bufferViews"][i])]
-            + [("nodes", i) + p for i in animated for p in field_paths(tree["nodes"][i])])
+            + [("nodes", i) + p for i in animated for p in field_paths(tree["nodes"][i])]
+            + [(key,) + p for key in ("cameras", "materials") for p in field_paths(tree[key])])
 
 
 TURNTABLE_DATA, TURNTABLE = _turntable_tree()
@@ -177,8 +178,8 @@ GLTF_EDITS = st.lists(st.tuples(st.sampled_from(_animation_paths(TURNTABLE)),
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(changes=GLTF_EDITS)
 def test_random_values_in_a_gltf_animation_load_or_fail_with_one_line(tmp_path_factory, changes):
-    """The turntable's animations, their accessors, buffer views and nodes given random values: the file loads with
-    finite placements at every frame, or stops with one line naming it."""
+    """The turntable's animations, their accessors, buffer views and nodes, its cameras and materials given random
+    values: the file loads with finite placements at every frame, or stops with one line naming it."""
     from gltf_files import edit_glb_json
 
     def edit(tree):

@@ -76,6 +76,8 @@ class FieldReader:
     errors naming the file and the entry ("where")."""
 
     def __init__(self, where: str, data: dict):
+        if not isinstance(data, dict):
+            raise SceneError(f"{where}: expected an object, got {_short(data)}")
         self.where, self.data = where, data
 
     def fail(self, message: str):
@@ -261,6 +263,7 @@ class FileMaterials:
     def _gltf_index(self, trimesh_material) -> int | None:
         """The index in the file's materials list of trimesh's reading of one: by name, else by its factors."""
         name = getattr(trimesh_material, "name", None)
+        name = name if isinstance(name, str) else None       # (a name that is not a string names nothing)
         named = [i for i, entry in enumerate(self.entries) if isinstance(entry, dict) and entry.get("name") == name]
         if name and named:
             return named[0]
