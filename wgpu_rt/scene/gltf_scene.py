@@ -56,9 +56,21 @@ def _node_matrix(node: dict, where: str) -> np.ndarray:
 
 def _entry(entries: list, number, where: str, what: str) -> dict:
     """``entries[number]``: a SceneError naming ``where`` unless ``number`` picks one of the file's ``what``."""
+    entries = entries if isinstance(entries, list) else []
     if not (isinstance(number, int) and 0 <= number < len(entries)) or not isinstance(entries[number], dict):
         raise SceneError(f"{where}: not one of the file's {len(entries)} {what}")
     return entries[number]
+
+
+def _field(container: dict, key: str, kind: type, where: str):
+    """``container[key]``, of type ``kind`` (an empty one where absent or null; a SceneError naming ``where``
+    otherwise)."""
+    value = container.get(key)
+    if value is None:
+        return kind()
+    if not isinstance(value, kind):
+        raise SceneError(f"{where}: {key} must be {'an object' if kind is dict else 'a list'}, got {value!r:.60}")
+    return value
 
 
 def _placed_nodes(tree: dict, path: Path, channels: dict | None = None,
@@ -72,9 +84,11 @@ def _placed_nodes(tree: dict, path: Path, channels: dict | None = None,
     scenes = tree.get("scenes")
     if scenes:
         chosen = tree.get("scene", 0)
-        roots = _entry(scenes, chosen, f"{path}: scene {chosen!r}", "scenes").get("nodes") or []
+        roots = _field(_entry(scenes, chosen, f"{path}: scene {chosen!r}", "scenes"), "nodes", list,
+                       f"{path}: scene {chosen!r}")
     else:
-        children = {child for node in nodes if isinstance(node, dict) for child in node.get("children") or []}
+        children = {child for node in nodes if isinstance(node, dict) and isinstance(node.get("children"), list)
+                    for child in node["children"] if isinstance(child, int)}
         roots = [i for i in range(len(nodes)) if i not in children]
     placed, seen = [], set()
     stack = [(index, np.eye(4)) for index in reversed(roots)]
@@ -89,7 +103,8 @@ def _placed_nodes(tree: dict, path: Path, channels: dict | None = None,
             local = local_matrix(nodes[index], channels.get(index, []), t, local, f"{path}: node {index}")
         world = parent @ local
         placed.append((index, world))
-        stack.extend((child, world) for child in reversed(nodes[index].get("children") or []))
+        children = _field(nodes[index], "children", list, f"{path}: node {index}")
+        stack.extend((child, world) for child in reversed(children))
     return placed
 
 
@@ -143,10 +158,13 @@ def _camera(tree: dict, placed: list, path: Path, choice: str | None = None) -> 
 
 def _lights(tree: dict, placed: list, path: Path) -> list:
     """The placed KHR_lights_punctual lights, in the tracer's units."""
-    catalogue = ((tree.get("extensions") or {}).get("KHR_lights_punctual") or {}).get("lights") or []
+    extension = _field(_field(tree, "extensions", dict, str(path)), "KHR_lights_punctual", dict, f"{path}: extensions")
+    catalogue = _field(extension, "lights", list, f"{path}: KHR_lights_punctual")
     lights = []
     for index, world in placed:
-        number = ((tree["nodes"][index].get("extensions") or {}).get("KHR_lights_punctual") or {}).get("light")
+        where = f"{path}: node {index}"
+        own = _field(_field(tree["nodes"][index], "extensions", dict, where), "KHR_lights_punctual", dict, where)
+        number = own.get("light")
         if number is None:
             continue
         where = f"{path}: light {number!r} (node {index})"
