@@ -148,15 +148,15 @@ def test_random_values_load_or_fail_with_one_line(folder, changes):
         assert all(np.all(np.isfinite(np.asarray(v, np.float32))) for v in vars(light).values())
 
 
-def _turntable_tree() -> tuple[bytes, dict]:
+def _glb_tree(name: str) -> tuple[bytes, dict]:
     from pathlib import Path
 
-    data = (Path(__file__).resolve().parents[1] / "examples" / "meshes" / "turntable.glb").read_bytes()
+    data = (Path(__file__).resolve().parents[1] / "examples" / "meshes" / name).read_bytes()
     length = int.from_bytes(data[12:16], "little")
     return data, json.loads(data[20:20 + length])
 
 
-def _animation_paths(tree: dict) -> list:
+def _turntable_paths(tree: dict) -> list:
     """The paths into a glTF tree that its animation, camera and material reading walks: its animations, their
     accessors and buffer views, the nodes they move, its cameras and its materials."""
     animated = {channel["target"]["node"] for a in tree["animations"] for channel in a["channels"]}
@@ -169,24 +169,35 @@ def _animation_paths(tree: dict) -> list:
             + [(key,) + p for key in ("cameras", "materials") for p in field_paths(tree[key])])
 
 
-TURNTABLE_DATA, TURNTABLE = _turntable_tree()
-GLTF_EDITS = st.lists(st.tuples(st.sampled_from(_animation_paths(TURNTABLE)),
-                                st.one_of(st.tuples(json_values), st.none())), min_size=1, max_size=3)
+def _gallery_paths(tree: dict) -> list:
+    """The paths that its lights, node hierarchy and materials are read from."""
+    return [(key,) + p for key in ("extensions", "nodes", "materials", "scenes") for p in field_paths(tree[key])]
+
+
+GLTF_FILES = {name: (data, paths(tree)) for name, paths in (("turntable.glb", _turntable_paths),
+                                                              ("gallery.glb", _gallery_paths))
+              for data, tree in [_glb_tree(name)]}
 
 
 @pytest.mark.filterwarnings("error::RuntimeWarning")
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(changes=GLTF_EDITS)
-def test_random_values_in_a_gltf_animation_load_or_fail_with_one_line(tmp_path_factory, changes):
-    """The turntable's animations, their accessors, buffer views and nodes, its cameras and materials given random
-    values: the file loads with finite placements at every frame, or stops with one line naming it."""
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(name=st.sampled_from(sorted(GLTF_FILES)), data=st.data())
+def test_random_values_in_a_gltf_file_load_or_fail_with_one_line(tmp_path_factory, name, data):
+    """The example glTF files with random values in the fields their scenes are read from (the turntable's
+    animations, accessors, buffer views, animated nodes, cameras and materials; the gallery's lights, nodes,
+    materials and scene roots): the file loads with finite placements at every frame, or stops with one line
+    naming it."""
     from gltf_files import edit_glb_json
+
+    glb, paths = GLTF_FILES[name]
+    changes = data.draw(st.lists(st.tuples(st.sampled_from(paths), st.one_of(st.tuples(json_values), st.none())),
+                                 min_size=1, max_size=3))
 
     def edit(tree):
         for path, replacement in changes:
             apply(tree, path, replacement)
-    path = tmp_path_factory.mktemp("gltf") / "turntable.glb"
-    path.write_bytes(edit_glb_json(TURNTABLE_DATA, edit))
+    path = tmp_path_factory.mktemp("gltf") / name
+    path.write_bytes(edit_glb_json(glb, edit))
     try:
         scene = load_scene(path)
     except WgpuRtError as err:
