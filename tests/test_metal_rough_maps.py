@@ -135,9 +135,25 @@ def test_on_glass_the_texture_counts_by_its_mean(tmp_path):
     assert material.roughness == pytest.approx(0.2 ** 2, rel=0.02)
 
 
-def test_a_map_on_anything_but_plastic_is_refused_by_mesh(gpu):
-    scene = _scene(_metal(50), _band_map())
-    with pytest.raises(SceneError, match=r"mesh 'square': a metal-rough map needs a plastic material"):
+COPPER = dict(eta=[0.27, 0.68, 1.32], k=[3.61, 2.63, 2.29])
+
+
+def test_on_a_conductor_a_map_roughens_it_per_point(gpu):
+    """A copper square under a map of two roughnesses (its metalness left out: the copper is metal everywhere), each
+    half against the square in copper of that roughness, within 1 %."""
+    codes = np.zeros((2, 16, 3), np.uint8)
+    codes[:, :8, 1], codes[:, 8:, 1] = 77, 179
+    banded = _image(_scene(Material("conductor", **COPPER, roughness=0.5), codes))
+    half = SIZE // 2
+    for columns, code in ((slice(3, half - 3), 77), (slice(half + 3, SIZE - 3), 179)):
+        alone = _image(_scene(Material("conductor", **COPPER, roughness=(code / 255) ** 2)))
+        np.testing.assert_allclose(banded[:, columns].mean((0, 1)), alone[:, columns].mean((0, 1)), rtol=0.01)
+    assert abs(banded[:, 3:half - 3].mean() / banded[:, half + 3:-3].mean() - 1) > 0.1
+
+
+def test_a_map_on_anything_but_plastic_or_a_conductor_is_refused_by_mesh(gpu):
+    scene = _scene(Material("diffuse"), _band_map())
+    with pytest.raises(SceneError, match=r"mesh 'square': a metal-rough map needs a plastic .* or a conductor"):
         render(scene, spp=1, size=(8, 8))
 
 
@@ -159,7 +175,7 @@ def test_a_scene_files_metal_rough_map_on_a_shape(tmp_path):
 
 
 @pytest.mark.parametrize("material, entry, message", [
-    ("conductor", dict(shape="rectangle", metal_rough_map="bands.png"), r"metal_rough_map: .*give the entry a plastic"),
+    ("diffuse", dict(shape="rectangle", metal_rough_map="bands.png"), r"metal_rough_map: .*give the entry a plastic"),
     ("plastic", dict(shape="sphere", metal_rough_map="bands.png"), r"metal_rough_map: a sphere has no texture coord"),
 ])
 def test_bad_metal_rough_map_entries_are_refused_by_field(tmp_path, material, entry, message):

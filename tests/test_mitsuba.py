@@ -387,6 +387,27 @@ def test_metal_rough_maps_match_mitsuba(gpu):
     assert swapped_distance > 2 * distance
 
 
+def _roughened_metal(flat: bool):
+    """cornell-glossy with its walls, floor and boxes metal, each under a 4×4 metal-rough map of roughnesses 0.15–0.8
+    (``flat``: 0.5 all over)."""
+    scene = _coated("conductor", 1.5, 0.25)
+    rng = np.random.default_rng(9)
+    for mesh in scene.meshes:
+        if scene.materials[mesh.material].kind == "conductor" and mesh.name != "light":
+            codes = np.zeros((4, 4, 3), np.uint8)
+            codes[..., 1] = 128 if flat else rng.integers(38, 204, (4, 4))
+            mesh.metal_rough_map = codes
+            mesh.uvs = (0.75 * (mesh.vertices[:, :2] + mesh.vertices[:, 2:]) + 0.5).astype(np.float32)
+    return scene
+
+
+def test_a_metal_rough_map_on_a_conductor_matches_mitsuba(gpu):
+    """A conductor roughened per texel by a map: as Mitsuba's roughconductor with an alpha bitmap; the map at one
+    roughness is told apart."""
+    distance, flat_distance = _matches_mitsuba(_roughened_metal(False), _roughened_metal(True))
+    assert flat_distance > 1.5 * distance
+
+
 def test_a_metal_rough_map_that_varies_a_plastics_roughness_is_refused_for_mitsuba_by_name():
     """Mitsuba's roughplastic has one roughness: the conversion says so, naming the mesh."""
     from wgpu_rt.errors import SceneError

@@ -353,9 +353,9 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
     glow = _image_file(fields, "emission_texture", folder, read_texture_image)
     moves: list = []                # a glTF file's node animation of each part (gltf_scene.node_animation)
     metal_rough = _image_file(fields, "metal_rough_map", folder, read_texture_image)
-    if metal_rough is not None and (material is None or materials[material].kind != "plastic"):
-        fields.fail("a metal-rough map makes each point of a plastic that plastic or a metal: give the entry a "
-                    "plastic 'material'", "metal_rough_map")
+    if metal_rough is not None and (material is None or materials[material].kind not in ("plastic", "conductor")):
+        fields.fail("a metal-rough map makes each point of a plastic that plastic or a metal, or roughens a "
+                    "conductor per point: give the entry a plastic or conductor 'material'", "metal_rough_map")
     if has_shape:
         kind = fields.string("shape", choices=PRIMITIVES)
         vertices, faces, normals = primitive(kind)

@@ -14,7 +14,8 @@ BSDF its material maps to:
   no Mitsuba gold: ``lights_through_panes``); an absorbing
   one's mesh has a ``homogeneous`` interior medium of sigma_t = absorption and albedo 0.
 - a plastic with a metal-rough map is a ``blendbsdf`` of it and glTF's metal weighted by the map's metalness
-  (``metal_rough_bsdf``; only where the plastic's texels share one roughness);
+  (``metal_rough_bsdf``; only where the plastic's texels share one roughness); a conductor with one a
+  ``roughconductor`` whose alpha is a bitmap of the map's (``mapped_alpha``);
 - a cut-out mesh's BSDF is wrapped in ``mask`` (``cutout_opacity``);
 - with a cut-out or an interior medium the integrator is ``volpath``, else ``path``;
 - a mesh's vertex colours become a "vertex_color" mesh attribute its BSDF's reflectance reads, a texture a
@@ -289,7 +290,12 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
                              f"weight needs a texture's mean); give the mesh a texture or another material")
         textured = None if mesh.texture is None else textured_reflectance(mi, mesh.texture, material.reflectance)
         tilted = None if mesh.normal_map is None else partial(normal_mapped_bsdf, mi, mesh.normal_map)
-        blend = None if mesh.metal_rough_map is None else metal_rough_bsdf(mi, mesh, material, textured)
+        blend = None
+        if mesh.metal_rough_map is not None and material.kind == "plastic":
+            blend = metal_rough_bsdf(mi, mesh, material, textured)
+        elif mesh.metal_rough_map is not None:     # a conductor the map roughens per point
+            blend = {**material_to_bsdf(material, colors is not None, textured), "type": "roughconductor",
+                     "distribution": "ggx", "alpha": mapped_alpha(mi, mesh.metal_rough_map)}
         bsdf = surface_bsdf(material, colors is not None, textured, tilted, blend)
         if mesh.is_cut_out:
             bsdf = {"type": "mask", "opacity": cutout_opacity(mi, mesh.texture, mesh.alpha_mode), "bsdf": bsdf}

@@ -195,10 +195,11 @@ class Mesh:
     alpha_mode: str = "mask"
     # glTF's metallic-roughness texture at the same coordinates, its material's factors applied: (H, W, 3) uint8
     # codes read raw and bilinearly, the perceptual roughness r in green (GGX alpha r²) and the metalness in blue
-    # (red unused). Only on a ``plastic`` (the base colour under a coat of its ior): at each point the surface is
-    # the metal of glTF (a ``conductor`` of Fresnel 1 tinted by the reflectance) with probability its metalness,
-    # else the plastic, either of the texel's roughness: glTF's blend of the two in expectation, as Mitsuba's
-    # ``blendbsdf`` (wgsl/trace/metal_rough_maps.wgsl).
+    # (red unused). On a ``plastic`` (the base colour under a coat of its ior): at each point the surface is the
+    # metal of glTF (a ``conductor`` of Fresnel 1 tinted by the reflectance) with probability its metalness, else
+    # the plastic, either of the texel's roughness: glTF's blend of the two in expectation, as Mitsuba's
+    # ``blendbsdf`` (wgsl/trace/metal_rough_maps.wgsl). On a ``conductor``: its roughness per point (the metalness
+    # not read). On another kind, an error.
     metal_rough_map: np.ndarray | None = None
 
     def transform_at(self, frame: int) -> np.ndarray:
@@ -421,8 +422,9 @@ class Scene:
         return list({id(image): image for image in images}.values())
 
     def metal_rough_iors(self) -> dict[int, float]:
-        """Each metal-rough map (by ``id``) → the ior of the plastic it is on, whose coat tables it carries on the
-        device; a SceneError naming the mesh where a map is on another kind, or one map on plastics of two iors."""
+        """Each metal-rough map on a plastic (by ``id``) → the plastic's ior, whose coat tables it carries on the
+        device; a SceneError naming the mesh where a map is on a kind other than a plastic or a conductor, or one
+        map on plastics of two iors."""
         from ..errors import SceneError
 
         iors: dict[int, float] = {}
@@ -430,9 +432,12 @@ class Scene:
             if mesh.metal_rough_map is None:
                 continue
             material = self.materials[mesh.material]
-            if material.kind != "plastic":
-                raise SceneError(f"mesh {mesh.name!r}: a metal-rough map needs a plastic material (it makes each "
-                                 f"point the plastic or glTF's metal), got {material.kind!r} ({mesh.material!r})")
+            if material.kind not in ("plastic", "conductor"):
+                raise SceneError(f"mesh {mesh.name!r}: a metal-rough map needs a plastic (each point the plastic or "
+                                 f"glTF's metal) or a conductor (roughened per point), got {material.kind!r} "
+                                 f"({mesh.material!r})")
+            if material.kind == "conductor":
+                continue
             ior = iors.setdefault(id(mesh.metal_rough_map), float(material.ior))
             if ior != float(material.ior):
                 raise SceneError(f"mesh {mesh.name!r}: its metal-rough map is on plastics of two iors ({ior:g} and "

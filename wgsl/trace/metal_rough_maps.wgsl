@@ -1,5 +1,6 @@
 // A hit's material as its mesh's metal-rough map makes it (glTF's metallic-roughness texture, its factors applied
-// at loading: wgpu_rt.scene.model.Mesh.metal_rough_map). The map is only on plastics; at a point of the map's
+// at loading: wgpu_rt.scene.model.Mesh.metal_rough_map). On a conductor the map's roughness (green) is its GGX
+// alpha's square root per point and the metalness is not read. On a plastic, at a point of the map's
 // roughness r and metalness m (green and blue, raw, bilinearly) the surface is glTF's metal (a conductor of Fresnel
 // 1 tinted by the reflectance) with probability m, decided by a hash of the point (its triangle and barycentrics,
 // as a blended cut-out's: trace/cutouts.wgsl), else the plastic, either of GGX alpha r²: in expectation glTF's
@@ -24,7 +25,7 @@ fn coat_word_between(first: u32, x: f32, w: u32) -> f32 {
 }
 
 fn metal_rough_mapped(material: Material, hit: Hit) -> Material {
-    if surface_textures[1] == 0u || material.kind != MATERIAL_PLASTIC {
+    if surface_textures[1] == 0u || (material.kind != MATERIAL_PLASTIC && material.kind != MATERIAL_CONDUCTOR) {
         return material;
     }
     let record = texture_record(hit.prim);
@@ -35,6 +36,9 @@ fn metal_rough_mapped(material: Material, hit: Hit) -> Material {
     let texel = sample_image(map, record_uv(record, hit.u, hit.v), false);
     var mapped = material;
     mapped.roughness = texel.y * texel.y;
+    if material.kind == MATERIAL_CONDUCTOR {     // a metal of its own everywhere: the map roughens it, no more
+        return mapped;
+    }
     let h = hash_combine(hash_combine(hash_combine(bitcast<u32>(hit.u), bitcast<u32>(hit.v)), hit.prim), METAL_SALT);
     if f32(h >> 8u) * (1.0 / 16777216.0) < texel.z {
         mapped.kind = MATERIAL_CONDUCTOR;
