@@ -15,7 +15,7 @@ BSDF its material maps to:
   one's mesh has a ``homogeneous`` interior medium of sigma_t = absorption and albedo 0.
 - a plastic with a metal-rough map is a ``blendbsdf`` of it and glTF's metal weighted by the map's metalness
   (``metal_rough_bsdf``; only where the plastic's texels share one roughness); a conductor with one a
-  ``roughconductor`` whose alpha is a bitmap of the map's (``mapped_alpha``);
+  ``roughconductor`` whose alpha is a bitmap of the map's (``mapped_alpha``), likewise;
 - a cut-out mesh's BSDF is wrapped in ``mask`` (``cutout_opacity``);
 - with a cut-out or an interior medium the integrator is ``volpath``, else ``path``;
 - a mesh's vertex colours become a "vertex_color" mesh attribute its BSDF's reflectance reads, a texture a
@@ -140,12 +140,17 @@ def mapped_alpha(mi, metal_rough_map: np.ndarray) -> dict:
     return _raw_bitmap(mi, alpha.reshape(height * factor, width * factor))
 
 
-def metal_rough_bsdf(mi, mesh, material: Material, reflectance: dict | None = None) -> dict:
-    """Mitsuba's ``blendbsdf`` for a mesh with a metal-rough map on its plastic ``material`` (``Mesh.metal_rough_map``):
-    weighted by the map's metalness (blue), the plastic and glTF's metal (``roughconductor``, eta 0 and k 1, its
-    alpha ``mapped_alpha``), as the tracer picks between them. Mitsuba's ``roughplastic`` has one roughness, so a
-    map whose roughness varies over its plastic texels (metalness below 1) is a SceneError; where a plastic texel
-    meets a metal one of another roughness the tracer's plastic takes the roughness between them, Mitsuba's its own."""
+def metal_rough_bsdf(mi, mesh, material: Material, vertex_colored: bool = False,
+                     reflectance: dict | None = None) -> dict:
+    """Mitsuba's BSDF for a mesh with a metal-rough map (``Mesh.metal_rough_map``). On a conductor ``material``: its
+    ``roughconductor`` of alpha ``mapped_alpha``. On a plastic: a ``blendbsdf`` weighted by the map's metalness
+    (blue) of the plastic and glTF's metal (``roughconductor``, eta 0 and k 1, alpha ``mapped_alpha``), as the tracer
+    picks between them. Mitsuba's ``roughplastic`` has one roughness, so a map whose roughness varies over its
+    plastic texels (metalness below 1) is a SceneError; where a plastic texel meets a metal one of another roughness
+    the tracer's plastic takes the roughness between them, Mitsuba's its own."""
+    if material.kind == "conductor":
+        return {**material_to_bsdf(material, vertex_colored, reflectance), "type": "roughconductor",
+                "distribution": "ggx", "alpha": mapped_alpha(mi, mesh.metal_rough_map)}
     codes = np.asarray(mesh.metal_rough_map, np.float64)
     roughness, metalness = codes[..., 1] / 255.0, codes[..., 2] / 255.0
     plastic = roughness[metalness < 1.0]
@@ -290,13 +295,9 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
                              f"weight needs a texture's mean); give the mesh a texture or another material")
         textured = None if mesh.texture is None else textured_reflectance(mi, mesh.texture, material.reflectance)
         tilted = None if mesh.normal_map is None else partial(normal_mapped_bsdf, mi, mesh.normal_map)
-        blend = None
-        if mesh.metal_rough_map is not None and material.kind == "plastic":
-            blend = metal_rough_bsdf(mi, mesh, material, textured)
-        elif mesh.metal_rough_map is not None:     # a conductor the map roughens per point
-            blend = {**material_to_bsdf(material, colors is not None, textured), "type": "roughconductor",
-                     "distribution": "ggx", "alpha": mapped_alpha(mi, mesh.metal_rough_map)}
-        bsdf = surface_bsdf(material, colors is not None, textured, tilted, blend)
+        mapped = (None if mesh.metal_rough_map is None
+                  else metal_rough_bsdf(mi, mesh, material, colors is not None, textured))
+        bsdf = surface_bsdf(material, colors is not None, textured, tilted, mapped)
         if mesh.is_cut_out:
             bsdf = {"type": "mask", "opacity": cutout_opacity(mi, mesh.texture, mesh.alpha_mode), "bsdf": bsdf}
         emission = material.emission if material.is_emissive else None
