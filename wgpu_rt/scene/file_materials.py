@@ -65,7 +65,7 @@ def pbr_material(base_color, metallic: float, roughness: float, transmission: fl
     return Material("diffuse", reflectance=base_color, emission=emission)
 
 
-def _short(value) -> str:
+def shown(value) -> str:
     """``value``'s repr, cut to 60 characters (a field may hold anything)."""
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
@@ -77,7 +77,7 @@ class FieldReader:
 
     def __init__(self, where: str, data: dict):
         if not isinstance(data, dict):
-            raise SceneError(f"{where}: expected an object, got {_short(data)}")
+            raise SceneError(f"{where}: expected an object, got {shown(data)}")
         self.where, self.data = where, data
 
     def fail(self, message: str):
@@ -90,16 +90,16 @@ class FieldReader:
         try:
             array = np.asarray(value, np.float64).reshape(-1)
         except (TypeError, ValueError, OverflowError):
-            self.fail(f"{key} must be numbers, got {_short(value)}")
+            self.fail(f"{key} must be numbers, got {shown(value)}")
         wanted = length or 1
         if len(array) == 1:
             array = np.broadcast_to(array, (wanted,))
         if len(array) < wanted or (length is None and len(array) != 1):
             wanted_text = "a number" if length is None else f"1 or {length} numbers"
-            self.fail(f"{key} must be {wanted_text}, got {_short(value)}")
+            self.fail(f"{key} must be {wanted_text}, got {shown(value)}")
         array = array[:wanted]
         if not np.all(np.isfinite(array)) or np.any(array < low) or np.any(array > high):
-            self.fail(f"{key} must be in [{low:g}, {high:g}], got {_short(value)}")
+            self.fail(f"{key} must be in [{low:g}, {high:g}], got {shown(value)}")
         return array if length is not None else float(array[0])
 
 

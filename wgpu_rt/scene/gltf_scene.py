@@ -29,7 +29,7 @@ import numpy as np
 import trimesh
 
 from ..errors import SceneError
-from .file_materials import FieldReader, gltf_json
+from .file_materials import FieldReader, gltf_json, shown
 from .gltf_animation import FRAME_RATE, frame_count, local_matrix, read_animations
 from .meshio import load_mesh_file
 from .model import Camera, DirectionalLight, Material, PointLight, Scene, SpotLight
@@ -69,7 +69,7 @@ def _field(container: dict, key: str, kind: type, where: str):
     if value is None:
         return kind()
     if not isinstance(value, kind):
-        raise SceneError(f"{where}: {key} must be {'an object' if kind is dict else 'a list'}, got {value!r:.60}")
+        raise SceneError(f"{where}: {key} must be {'an object' if kind is dict else 'a list'}, got {shown(value)}")
     return value
 
 
@@ -135,25 +135,23 @@ def _camera_node(tree: dict, placed: list, path: Path, choice: str | None) -> in
 
 def _camera(tree: dict, placed: list, path: Path, choice: str | None = None) -> Camera | None:
     """The view through the camera ``_camera_node`` picks (None where no node has a camera)."""
-    cameras, chosen = tree.get("cameras") or [], _camera_node(tree, placed, path, choice)
-    for index, world in placed:
-        if index != chosen:
-            continue
-        number = tree["nodes"][index].get("camera")
-        where = f"{path}: camera {number!r} (node {index})"
-        entry = _entry(cameras, number, where, "cameras")
-        if entry.get("type") != "perspective":
-            raise SceneError(f"{where}: a {entry.get('type')!r} camera; only perspective cameras are rendered")
-        perspective = FieldReader(where, entry.get("perspective") or {})
-        if "yfov" not in perspective.data:
-            perspective.fail("a perspective camera without a yfov")
-        yfov = perspective.numbers("yfov", None, high=np.pi)
-        origin, forward, up = _aimed(world, where)
-        try:
-            return Camera(origin, origin + forward, up=up, fov=float(np.degrees(yfov)), fov_axis="y")
-        except ValueError as err:
-            raise SceneError(f"{where}: {err}") from err
-    return None
+    index = _camera_node(tree, placed, path, choice)
+    if index is None:
+        return None
+    number = tree["nodes"][index].get("camera")
+    where = f"{path}: camera {number!r} (node {index})"
+    entry = _entry(tree.get("cameras"), number, where, "cameras")
+    if entry.get("type") != "perspective":
+        raise SceneError(f"{where}: a {entry.get('type')!r} camera; only perspective cameras are rendered")
+    perspective = FieldReader(where, entry.get("perspective") or {})
+    if "yfov" not in perspective.data:
+        perspective.fail("a perspective camera without a yfov")
+    yfov = perspective.numbers("yfov", None, high=np.pi)
+    origin, forward, up = _aimed(dict(placed)[index], where)
+    try:
+        return Camera(origin, origin + forward, up=up, fov=float(np.degrees(yfov)), fov_axis="y")
+    except ValueError as err:
+        raise SceneError(f"{where}: {err}") from err
 
 
 def _lights(tree: dict, placed: list, path: Path) -> list:
