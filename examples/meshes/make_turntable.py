@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from make_gallery import look_rotation     # (this folder is on the path when the script runs)
 from PIL import Image
 from trimesh.visual.material import PBRMaterial
 
@@ -54,18 +55,6 @@ def textured_box(extents) -> trimesh.Trimesh:
 def plain(mesh: trimesh.Trimesh, material: PBRMaterial) -> trimesh.Trimesh:
     mesh.visual = trimesh.visual.TextureVisuals(uv=np.zeros((len(mesh.vertices), 2)), material=material)
     return mesh
-
-
-def look_rotation(origin, target) -> list[float]:
-    """glTF's (x, y, z, w) quaternion that turns a node's −z towards ``target`` from ``origin``, +y kept up."""
-    forward = np.subtract(target, origin, dtype=float)
-    forward /= np.linalg.norm(forward)
-    right = np.cross(forward, [0.0, 1.0, 0.0])
-    right /= np.linalg.norm(right)
-    matrix = np.eye(4)
-    matrix[:3, :3] = np.column_stack([right, np.cross(right, forward), -forward])
-    w, x, y, z = trimesh.transformations.quaternion_from_matrix(matrix)
-    return [float(x), float(y), float(z), float(w)]
 
 
 def build() -> bytes:
