@@ -33,8 +33,9 @@ class SceneFeatures:
     def of(cls, scene: Scene, write_aovs: bool = True) -> "SceneFeatures":
         used = {mesh.material for mesh in scene.meshes}
         kinds = {scene.materials[name].kind for name in used}
-        if any(mesh.metal_rough_map is not None for mesh in scene.meshes):
-            kinds |= {"conductor", "plastic"}      # each point of such a plastic may be glTF's metal instead
+        if any(mesh.metal_rough_map is not None and scene.materials[mesh.material].kind == "plastic"
+               for mesh in scene.meshes):
+            kinds.add("conductor")      # each point of a plastic under a metal-rough map may be glTF's metal instead
         return cls(
             has_dielectric=bool({"dielectric", "thin_dielectric", "plastic"} & kinds),
             has_conductor="conductor" in kinds,

@@ -396,10 +396,10 @@ class TracePass(ComputePass):
         if any(mesh.emission_texture is not None and scene.materials[mesh.material].is_emissive
                for mesh in scene.meshes):
             modules[PLAIN_EMISSION] = EMISSION_TEXTURES
-        metal_rough = any(mesh.metal_rough_map is not None for mesh in scene.meshes)
-        if metal_rough:
+        if any(mesh.metal_rough_map is not None for mesh in scene.meshes):
             modules[NO_METAL_ROUGH_MAPS] = METAL_ROUGH_MAPS
-        if metal_rough or any(m.kind == "plastic" and m.roughness >= DELTA_ROUGHNESS for m in materials):
+        mapped_coat = bool(scene.metal_rough_iors())       # a plastic whose roughness a map sets per point
+        if mapped_coat or any(m.kind == "plastic" and m.roughness >= DELTA_ROUGHNESS for m in materials):
             modules[SMOOTH_COATS] = ROUGH_COATS
         if any(m.absorbs for m in materials):
             modules[CLEAR_INTERIORS] = ABSORBING_INTERIORS
