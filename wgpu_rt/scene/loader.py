@@ -23,15 +23,10 @@ from .meshio import load_mesh_file, read_environment_image, read_texture_image, 
 from .model import (ALPHA_MODES, FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight,
                     Scene, SpotLight)
 from .primitives import PRIMITIVES, primitive, primitive_uvs
-from .transforms import compose, rotate, scale, translate
+from .transforms import WORLD_LIMIT, compose, float32_placement, invertible32, rotate, scale, translate
 
 SCENE_SUFFIXES = (".json", ".toml")
 TRANSFORM_KEYS = ("translate", "rotate", "scale", "matrix")
-FLOAT32_MAX = float(np.finfo(np.float32).max)
-# Positions (camera, point lights, placed vertices) stay within ±1e9: the tracer squares squared edge
-# lengths (triangle normals) in float32, so surfaces lose their normals beyond about 4e9 (measured: a
-# cube of half-size 3e9 renders without its emission, one of 1e9 exactly as one of 1).
-WORLD_LIMIT = 1e9
 MAX_TEXTURE_REPEAT = 1e4   # beyond it float32 coordinates (24-bit mantissa) no longer resolve a texel of a 1k image
 _MISSING = object()
 
@@ -182,36 +177,19 @@ def _transform(fields: _Fields) -> np.ndarray:
     return compose(*parts, dtype=np.float64)
 
 
-def _invertible32(matrix: np.ndarray) -> bool:
-    """Whether float32 holds the inverse of ``matrix`` (shading normals and motion vectors use it)."""
-    try:
-        return bool(np.all(np.abs(np.linalg.inv(matrix.astype(np.float64))) <= FLOAT32_MAX))
-    except np.linalg.LinAlgError:
-        return False
-
-
-def _check_matrix(fields: _Fields, key: str, matrix: np.ndarray, what: str) -> np.ndarray:
-    """``matrix`` (float64) as float32, refused naming the field unless float32 holds it and its inverse."""
-    with np.errstate(over="ignore"):        # an overflow becomes inf, which is refused below
-        placed = matrix.astype(np.float32)
-    if not np.all(np.isfinite(placed)):
-        fields.fail(f"{what} overflows float32 (±3.4e38)", key)
-    if not _invertible32(placed):
-        fields.fail(f"{what} is singular in float32 (a zero or vanishing scale)", key)
+def _check_matrix(fields: _Fields, key: str, matrix: np.ndarray, what: str, vertices=None) -> np.ndarray:
+    """``matrix`` (float64) as float32, refused naming the field unless float32 holds it and its inverse (and with
+    ``vertices``, every placed vertex: ``float32_placement``)."""
+    placed, problem = float32_placement(matrix, vertices)
+    if problem:
+        fields.fail(f"{what} {problem}", key)
     return placed
 
 
 def _check_placement(fields: _Fields, key: str, matrix: np.ndarray, mesh: Mesh) -> np.ndarray:
     """``matrix`` (float64, object → world) as the float32 transform of ``mesh``, refused naming the field
-    unless float32 holds it, its inverse and every placed vertex."""
-    what = f"the transform of mesh {mesh.name!r}"
-    placed = _check_matrix(fields, key, matrix, what)
-    # |world| <= |linear| · max|vertex| + |translation| per axis, for every frame between keyframes too
-    # (an element-wise blend of matrices stays under the larger bound).
-    reach = np.abs(placed[:3, :3].astype(np.float64)) @ np.abs(mesh.vertices).max(axis=0) + np.abs(placed[:3, 3])
-    if not np.all(reach <= WORLD_LIMIT):
-        fields.fail(f"{what} puts vertices beyond ±{WORLD_LIMIT:g} (the tracer's float32 range)", key)
-    return placed
+    unless float32 holds it, its inverse and every placed vertex (for every frame between keyframes too)."""
+    return _check_matrix(fields, key, matrix, f"the transform of mesh {mesh.name!r}", mesh.vertices)
 
 
 def _check_blends(fields: _Fields, mesh: Mesh) -> None:
@@ -226,7 +204,7 @@ def _check_blends(fields: _Fields, mesh: Mesh) -> None:
         for root in np.roots(cubic):
             if abs(root.imag) < 1e-6 and 0 < root.real < 1:     # a double root can come out complex
                 for frame in {lo + int(np.floor(root.real * (hi - lo))), lo + int(np.ceil(root.real * (hi - lo)))}:
-                    if not _invertible32(mesh.transform_at(frame)):
+                    if not invertible32(mesh.transform_at(frame)):
                         fields.fail(f"the transform of mesh {mesh.name!r} blends to a singular one at frame "
                                     f"{frame}, between keyframes {lo} and {hi}: add keyframes", "keyframes")
 
