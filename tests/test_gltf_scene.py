@@ -122,8 +122,11 @@ def test_a_point_light_renders_at_its_intensity_over_683(gpu, tmp_path):
      r"light 0 \(node 2\): unknown light type 'area'"),
     (lambda tree: tree["extensions"]["KHR_lights_punctual"]["lights"][0].update(intensity=-1),
      r"light 0 \(node 2\): intensity must be in \[0, inf\]"),
+    (lambda tree: tree["nodes"][0].update(matrix=[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 2e9, 0, 0, 1]),
+     r"mesh 'room': its placement puts vertices beyond ±1e\+09"),
+    (lambda tree: tree["nodes"][1].update(translation=[0, 0, 2e9]), r"camera 0 \(node 1\): placed beyond ±1e\+09"),
 ])
-def test_a_bad_camera_node_or_light_is_refused_by_name(tmp_path, change, message):
+def test_a_bad_camera_node_light_or_placement_is_refused_by_name(tmp_path, change, message):
     path = _glb(tmp_path, nodes=[{"camera": 0, "translation": [0, 0, 5]},
                                  {"extensions": {"KHR_lights_punctual": {"light": 0}}}],
                 cameras=[CAMERA], lights=[{"type": "point"}])

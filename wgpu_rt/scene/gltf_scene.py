@@ -33,6 +33,7 @@ from .file_materials import FieldReader, gltf_json, shown
 from .gltf_animation import FRAME_RATE, frame_count, local_matrix, read_animations
 from .meshio import load_mesh_file
 from .model import Camera, DirectionalLight, Material, PointLight, Scene, SpotLight
+from .transforms import WORLD_LIMIT, float32_placement
 
 LUMENS_PER_WATT = 683.0     # glTF's candela and lux over the tracer's W·sr⁻¹ and W·m⁻²
 UNLIT_SKY = 1.0             # the background's radiance for a file that brings no light
@@ -112,6 +113,8 @@ def _aimed(world: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, np.nd
     """A node's position and its −z and +y directions in the world (a SceneError for a singular placement)."""
     if not np.all(np.abs(world) <= np.finfo(np.float32).max) or abs(np.linalg.det(world[:3, :3])) < 1e-12:
         raise SceneError(f"{where}: its node's transform is singular or not finite in float32")
+    if np.any(np.abs(world[:3, 3]) > WORLD_LIMIT):
+        raise SceneError(f"{where}: placed beyond ±{WORLD_LIMIT:g} (the tracer's float32 range)")
     forward, up = world[:3, :3] @ [0.0, 0.0, -1.0], world[:3, :3] @ [0.0, 1.0, 0.0]
     return world[:3, 3], forward / np.linalg.norm(forward), up / np.linalg.norm(up)
 
@@ -255,6 +258,11 @@ def gltf_scene(path, camera: str | None = None) -> Scene | None:
     frames, moves, poses = node_animation(path, meshes, tree)
     for mesh, keys in zip(meshes, moves):
         mesh.keyframes = keys or {}
+        for frame, matrix in [(None, mesh.transform), *mesh.keyframes.items()]:
+            problem = float32_placement(matrix, mesh.vertices)[1]     # as a scene file's placements are checked
+            if problem:
+                at = "" if frame is None else f" at frame {frame}"
+                raise SceneError(f"{path}: mesh {mesh.name!r}{at}: its placement {problem}")
     cameras = {f: _camera(tree, pose, path, choice) for f, pose in enumerate(poses)}
     if all(c.origin.tobytes() + c.target.tobytes() + c.up.tobytes()
            == camera.origin.tobytes() + camera.target.tobytes() + camera.up.tobytes() for c in cameras.values()):
