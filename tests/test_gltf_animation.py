@@ -15,16 +15,21 @@ HALF_TURN_ABOUT_Y = [0.0, 1.0, 0.0, 0.0]
 STAGE = '[camera]\norigin = [0, 2, 12]\ntarget = [0, 0, 0]\n\n[materials.white]\nreflectance = 0.8\n\n'
 
 
-def _animated(tmp_path, channels, arrays, name="moving.glb"):
-    """Two boxes (nodes 0 and 1, the second 3 units along x) and a camera at (0, 1, 8) (node 2); ``channels`` are
-    (node, path, interpolation, input, output) with input and output indices into ``arrays``, appended as
-    accessors."""
+def _animated(tmp_path, channels, arrays, name="moving.glb", lamp=None):
+    """Two boxes (nodes 0 and 1, the second 3 units along x), with ``lamp`` a node "lamp" at (0, 3, 0) holding that
+    KHR_lights_punctual light, and a camera at (0, 1, 8) (the last node); ``channels`` are (node, path,
+    interpolation, input, output) with input and output indices into ``arrays``, appended as accessors."""
     scene = trimesh.Scene()
     scene.add_geometry(trimesh.creation.box(extents=(1, 1, 1)), node_name="still")
     scene.add_geometry(trimesh.creation.box(extents=(0.5, 0.5, 0.5)), node_name="mover",
                        transform=trimesh.transformations.translation_matrix([3, 0, 0]))
 
     def edit(tree, first):
+        if lamp is not None:
+            tree["nodes"].append({"name": "lamp", "translation": [0, 3, 0],
+                                  "extensions": {"KHR_lights_punctual": {"light": 0}}})
+            tree["scenes"][0]["nodes"].append(len(tree["nodes"]) - 1)
+            tree["extensions"] = {"KHR_lights_punctual": {"lights": [lamp]}}
         tree["nodes"].append({"camera": 0, "translation": [0, 1, 8]})
         tree["scenes"][0]["nodes"].append(len(tree["nodes"]) - 1)
         tree["cameras"] = [CAMERA]
@@ -82,6 +87,25 @@ def test_a_rotation_slerps_and_a_camera_follows_its_node(tmp_path):
     np.testing.assert_allclose(scene.camera_at(24).origin, [2, 1, 8], atol=1e-5)
     np.testing.assert_allclose(scene.camera_at(48).origin, [4, 1, 8], atol=1e-5)
     np.testing.assert_allclose(scene.camera.origin, [0, 1, 8], atol=1e-5)
+
+
+def test_a_light_follows_its_animated_node(tmp_path):
+    """A spot on a node that slides along x and turns a quarter about x over 1 s: at each frame the light sits where
+    its node is and shines down the node's −z (slerped: the angle in step with time); the boxes stay still."""
+    quarter_about_x = [np.sin(np.pi / 4), 0.0, 0.0, np.cos(np.pi / 4)]
+    scene = _animated(tmp_path, [("lamp", "translation", "LINEAR", 0, 1), ("lamp", "rotation", "LINEAR", 0, 2)],
+                      [[0.0, 1.0], [[0, 3, 0], [2, 3, 0]], [[0, 0, 0, 1], quarter_about_x]],
+                      lamp={"type": "spot", "intensity": 683.0, "spot": {"outerConeAngle": 0.5}})
+    assert scene.has_moving_lights and not scene.has_motion and scene.frame_count == int(FRAME_RATE) + 1
+    for frame in (0, 12, 24):
+        spot = scene.lights_at(frame)[0]
+        t = frame / FRAME_RATE
+        np.testing.assert_allclose(spot.position, [2 * t, 3, 0], atol=1e-5)
+        angle = np.pi / 2 * t
+        np.testing.assert_allclose(spot.direction, [0, np.sin(angle), -np.cos(angle)], atol=1e-5)
+    still = _animated(tmp_path, [("mover", "translation", "LINEAR", 0, 1)], [[0.0, 1.0], [[3, 0, 0], [5, 0, 0]]],
+                      lamp={"type": "point"})
+    assert not still.has_moving_lights and not still.lights[0].keyframes
 
 
 @pytest.mark.parametrize("arrays, message", [

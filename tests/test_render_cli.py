@@ -37,6 +37,16 @@ def test_png_preview_and_frame_pattern(gpu, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f002.png", "f003.png"]
 
 
+def test_one_frame_by_its_number(gpu, tmp_path):
+    """--frames N renders frame N alone (no {frame} field needed): frame 5 of `moving`, as 5:6 renders it."""
+    for frames, name in (("5", "one.exr"), ("5:6", "range_{frame}.exr"), ("0", "first.exr")):
+        assert main(["render", "moving", "--spp", "1", "--size", "8x8", "--frames", frames, "--aov", "",
+                     "--out", str(tmp_path / name)]) == 0
+    one = read_exr(tmp_path / "one.exr")["color"]
+    np.testing.assert_array_equal(one, read_exr(tmp_path / "range_5.exr")["color"])
+    assert not np.array_equal(one, read_exr(tmp_path / "first.exr")["color"])
+
+
 def test_frames_into_a_new_folder(gpu, tmp_path):
     """As the README shows: --out out/{frame:04d}.exr creates the folder."""
     assert main(["render", "moving", "--spp", "1", "--size", "8x8", "--frames", "0:2",
@@ -56,7 +66,8 @@ def test_output_under_a_file_is_refused(tmp_path, capsys):
     (["--spp", "0"], "--spp"),
     (["--max-depth", "0"], "--max-depth"),
     (["--aov", "albedo,velocity"], "velocity"),
-    (["--frames", "3"], "--frames"),
+    (["--frames", "3.5"], "--frames '3.5': expected a frame number N or A:B"),
+    (["--frames", "-1"], "frames are numbered from 0"),
     (["--frames", "4:2"], "--frames"),
     (["--frames", "0:3"], "{frame}"),
     (["--out", "OUT.jpg"], ".exr or .png"),

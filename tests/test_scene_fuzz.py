@@ -16,7 +16,8 @@ from wgpu_rt.errors import WgpuRtError
 from wgpu_rt.scene import load_scene
 
 # Every kind of field: camera keyframes, all material kinds, each transform form, a mesh file, a texture
-# that cuts its surface out, mesh keyframes, instances (still, in their own material, animated), both light types.
+# that cuts its surface out, mesh keyframes, instances (still, in their own material, animated), every light type,
+# light keyframes.
 VALID = {
     "name": "fuzz",
     "frame_count": 3,
@@ -47,7 +48,11 @@ VALID = {
                        {"keyframes": [{"frame": 0, "scale": 2}, {"frame": 2, "translate": [0.1, 0, 0]}]}]},
     ],
     "lights": [{"type": "point", "position": [0.5, 0.6, 1.0], "intensity": [2, 2, 2]},
-               {"type": "directional", "direction": [-0.3, -1, -0.2], "irradiance": 0.5}],
+               {"type": "directional", "direction": [-0.3, -1, -0.2], "irradiance": 0.5,
+                "keyframes": [{"frame": 1}, {"frame": 2, "direction": [0.3, -1, 0], "irradiance": [1, 0.5, 0]}]},
+               {"type": "spot", "position": [0, 0.9, 0], "target": [0, -1, 0], "intensity": 3, "cutoff_angle": 30,
+                "keyframes": [{"frame": 0, "beam_width": 10},
+                              {"frame": 2, "position": [0.3, 0.9, 0], "target": [0, -1, 0.2], "intensity": 0}]}],
     "background": [0.02, 0.03, 0.05],
 }
 
@@ -113,7 +118,8 @@ def test_the_unedited_scene_loads(folder):
     path = folder / "valid.json"
     path.write_text(json.dumps(VALID))
     scene = load_scene(path)
-    assert len(scene.meshes) == 8 and len(scene.lights) == 2 and scene.frame_count == 3
+    assert len(scene.meshes) == 8 and len(scene.lights) == 3 and scene.frame_count == 3
+    assert scene.has_moving_lights
     assert scene.shapes()[-1] == [5, 6, 7]
     assert scene.meshes[4].is_cut_out
 
@@ -150,8 +156,8 @@ def _loads_finite_or_fails_with_one_line(path, frames) -> None:
             assert all(np.all(np.isfinite(a)) for a in (levels.triangles, top["lo"], top["hi"], motion,
                                                          records["to_world"], records["normal_to_world"]))
     assert np.all(np.isfinite(scene.background)) and np.all(scene.background >= 0)
-    for light in scene.lights:
-        assert all(np.all(np.isfinite(np.asarray(v, np.float32))) for v in vars(light).values())
+    for light in (light for frame in frames if frame < scene.frame_count for light in scene.lights_at(frame)):
+        assert all(np.all(np.isfinite(np.asarray(v, np.float32))) for v in vars(light).values() if not isinstance(v, dict))
 
 
 def _glb_tree(name: str) -> tuple[bytes, dict]:

@@ -242,7 +242,7 @@ class Renderer:
         running on the device while the caller holds this one; the first result carries the setup time
         (the renderer's, and what the first frame would build on its way: its BVH and the networks' plans
         are built here, before any frame's clock starts, as a peer's scene load is)."""
-        listed = _frame_list(frames, self.scene.frame_count, self.scene.has_motion)
+        listed = _frame_list(frames, self.scene.frame_count, self.scene.is_animated)
         started = time.perf_counter()
         self.pipeline.prepare(listed[0])   # the first frame's BVH, uploads and network plans: set-up
         setup_seconds = self.setup_seconds + time.perf_counter() - started

@@ -26,7 +26,8 @@ def add_arguments(parser) -> None:
                         help="comma-separated AOV layers for .exr output: albedo, normal, depth, motion, spp, "
                         "half_radiance and half_spp (the mean after half the samples, for `wgpu-rt denoise`), "
                         "radiance (the samples' mean before --denoise) ('' for none)")
-    parser.add_argument("--frames", help="A:B renders frames A..B-1 (the output needs a {frame} field)")
+    parser.add_argument("--frames", help="N renders frame N; A:B renders frames A..B-1 (the output needs a {frame} "
+                        "field)")
     parser.add_argument("--mesh", help="mesh file for the built-in 'mesh' scene")
     parser.add_argument("--camera", help="which of a glTF scene's cameras to see it through: an index into the "
                         "file's cameras, or a camera's or its node's name (default: the first placed)")
@@ -55,11 +56,12 @@ def parse_frames(text: str | None) -> range:
     if text is None:
         return range(0, 1)
     try:
-        start, stop = (int(v) for v in text.split(":"))
+        start, stop = (int(v) for v in text.split(":")) if ":" in text else (int(text), int(text) + 1)
     except ValueError:
-        raise WgpuRtError(f"--frames {text!r}: expected A:B with integers A < B, e.g. 0:16") from None
+        raise WgpuRtError(f"--frames {text!r}: expected a frame number N or A:B with integers A < B, e.g. 0:16") \
+            from None
     if not 0 <= start < stop:
-        raise WgpuRtError(f"--frames {text!r}: need 0 <= A < B")
+        raise WgpuRtError(f"--frames {text!r}: " + ("need 0 <= A < B" if ":" in text else "frames are numbered from 0"))
     return range(start, stop)
 
 

@@ -146,7 +146,7 @@ def randomize_lighting(scene: Scene, rng: np.random.Generator) -> None:
             lights.append(DirectionalLight((-toward_sun).astype(np.float32),
                                            blackbody_tint(rng.uniform(3500, 7500)) * strength))
         else:
-            lights.append(replace(light, intensity=np.asarray(light.intensity) * scale))   # a spot stays a spot
+            lights.append(light.scaled(scale))   # a spot stays a spot
     lo, hi = scene_bounds(scene)
     extent = float(np.max(hi - lo))
     for _ in range(int(rng.integers(0, 3))):

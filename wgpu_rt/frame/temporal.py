@@ -79,7 +79,7 @@ class TemporalSettings:
 def frame_change(scene, previous_frame: int | None, frame: int) -> str:
     """How ``frame`` relates to ``previous_frame``: ``cut`` (no usable history: first frame, a jump in
     time, or a camera move beyond CUT_ANGLE_DEGREES / CUT_DISTANCE_FRACTION of the view distance),
-    ``static`` (same camera and object transforms) or ``moving``."""
+    ``static`` (same camera, object transforms and lights) or ``moving``."""
     if previous_frame is None or frame - previous_frame != 1:
         return "cut"
     before, now = scene.camera_at(previous_frame), scene.camera_at(frame)
@@ -93,7 +93,8 @@ def frame_change(scene, previous_frame: int | None, frame: int) -> str:
                    and np.array_equal(before.up, now.up) and before.fov == now.fov)
     same_objects = all(np.array_equal(m.transform_at(previous_frame), m.transform_at(frame))
                        for m in scene.meshes)
-    return "static" if same_camera and same_objects else "moving"
+    same_lights = not scene.has_moving_lights or scene.lights_key(previous_frame) == scene.lights_key(frame)
+    return "static" if same_camera and same_objects and same_lights else "moving"
 
 
 # -- numpy references (images (H, W, C); history (H, W, 8), reprojected (H, W, 5)) ---------------------

@@ -1,4 +1,4 @@
-"""A glTF file's node animations, sampled at the scene's frames: what moves its meshes and its camera.
+"""A glTF file's node animations, sampled at the scene's frames: what moves its meshes, its camera and its lights.
 
 glTF animates a node by channels, each a sampler's keyframe times (seconds) and values for the node's translation,
 rotation (a unit quaternion) or scale, interpolated STEP, LINEAR (rotations by slerp) or CUBICSPLINE (Hermite, each

@@ -17,8 +17,8 @@ nothing is added or moved, as a scene exported from Blender expects:
 - a file with no light of its own (no punctual light, no emissive material) is lit by a white sky of radiance 1, so
   that it does not render black; one with lights has a black background (glTF has no environment).
 - animations: the nodes' translation, rotation and scale channels (``gltf_animation``) move the meshes and the camera,
-  a keyframe at every frame (FRAME_RATE a second to the last key); each mesh trimesh reads is the node whose world
-  matrix at rest and vertex count are its (``_mesh_nodes``). Lights keep their rest pose.
+  and the lights, a keyframe at every frame (FRAME_RATE a second to the last key); each mesh trimesh reads is the
+  node whose world matrix at rest and vertex count are its (``_mesh_nodes``).
 """
 
 from __future__ import annotations
@@ -263,6 +263,11 @@ def gltf_scene(path, camera: str | None = None) -> Scene | None:
             if problem:
                 at = "" if frame is None else f" at frame {frame}"
                 raise SceneError(f"{path}: mesh {mesh.name!r}{at}: its placement {problem}")
+    posed = [_lights(tree, pose, path) for pose in poses]
+    for index, light in enumerate(lights):      # a light on an animated node follows it
+        keys = {f: frame_lights[index] for f, frame_lights in enumerate(posed)}
+        if any(key.state != light.state for key in keys.values()):
+            light.keyframes = keys
     cameras = {f: _camera(tree, pose, path, choice) for f, pose in enumerate(poses)}
     if all(c.origin.tobytes() + c.target.tobytes() + c.up.tobytes()
            == camera.origin.tobytes() + camera.target.tobytes() + camera.up.tobytes() for c in cameras.values()):

@@ -428,34 +428,69 @@ def _instances(fields: _Fields, entries: list[_Fields], parts: list[Mesh], base:
     return placed
 
 
+LIGHT_TURN_LIMIT = 120.0    # degrees a light may turn between two keyframes (its direction is blended between them)
+
+
 def _light(fields: _Fields):
-    kind = fields.string("type", choices=("point", "spot", "directional"))
+    """A light entry, with its ``keyframes`` (each the light's fields that change there)."""
+    light = _light_state(fields)
+    for key in fields.tables("keyframes"):
+        frame = _frame_of(key)
+        if frame in light.keyframes:
+            key.fail(f"a second keyframe for frame {frame}", "frame")
+        light.keyframes[frame] = _light_state(key, base=light)
+    keys = sorted(light.keyframes)
+    for lo, hi in zip(keys, keys[1:]):
+        if hasattr(light, "direction"):
+            start, end = light.keyframes[lo].direction, light.keyframes[hi].direction
+            turn = np.degrees(np.arccos(np.clip(np.dot(start, end), -1.0, 1.0)))
+            if turn > LIGHT_TURN_LIMIT:
+                fields.fail(f"turns {turn:.0f}° between frames {lo} and {hi} (its direction is blended between "
+                            f"keyframes: at most {LIGHT_TURN_LIMIT:g}°); add keyframes between them", "keyframes")
+    fields.done()
+    return light
+
+
+def _light_state(fields: _Fields, base=None):
+    """A light of the entry's ``type`` from its fields, or with ``base`` a keyframe of ``base`` (its frame read
+    already): its fields where the keyframe gives them, else the base light's."""
+    def given(key, **checks):
+        if base is not None and not fields.has(key):
+            return np.asarray(getattr(base, key), np.float64)
+        return fields.vector(key, **checks)
+
+    if base is None:
+        kind = fields.string("type", choices=("point", "spot", "directional"))
+    else:
+        kind = {DirectionalLight: "directional", SpotLight: "spot", PointLight: "point"}[type(base)]
     if kind == "point":
-        light = PointLight(fields.vector("position", position=True).astype(np.float32),
-                           fields.vector("intensity", broadcast=True, non_negative=True).astype(np.float32))
+        light = PointLight(given("position", position=True).astype(np.float32),
+                           given("intensity", broadcast=True, non_negative=True).astype(np.float32))
     elif kind == "spot":
-        position = fields.vector("position", position=True).astype(np.float32)
-        if fields.has("direction") == fields.has("target"):
+        position = given("position", position=True).astype(np.float32)
+        if fields.has("direction") and fields.has("target") or base is None and not (
+                fields.has("direction") or fields.has("target")):
             fields.fail("give exactly one of 'direction' (3 numbers) or 'target' (a point the spot aims at)")
-        aim = "direction" if fields.has("direction") else "target"
-        direction = (fields.vector("direction") if aim == "direction"
-                     else fields.vector("target", position=True) - position)
+        aim = "target" if fields.has("target") else "direction"
+        direction = (fields.vector("target", position=True) - position if aim == "target" else given("direction"))
         if not np.linalg.norm(direction) > 0:
             fields.fail("must not be zero" if aim == "direction" else "must differ from the position", aim)
-        intensity = fields.vector("intensity", broadcast=True, non_negative=True).astype(np.float32)
-        cutoff = fields.number("cutoff_angle", 20.0)
-        beam = fields.number("beam_width") if fields.has("beam_width") else None
+        intensity = given("intensity", broadcast=True, non_negative=True).astype(np.float32)
+        cutoff = fields.number("cutoff_angle", 20.0 if base is None else base.cutoff_angle)
+        beam = (fields.number("beam_width") if fields.has("beam_width")
+                else None if base is None or fields.has("cutoff_angle") else base.beam_width)
         try:
             light = SpotLight(position, intensity, direction, cutoff, beam)
         except ValueError as err:
             fields.fail(str(err), "cutoff_angle" if str(err).startswith("cutoff") else "beam_width")
     else:
-        direction = fields.vector("direction")
+        direction = given("direction")
         if not np.linalg.norm(direction) > 0:
             fields.fail("the direction must not be zero", "direction")
         light = DirectionalLight((direction / np.linalg.norm(direction)).astype(np.float32),
-                                 fields.vector("irradiance", broadcast=True, non_negative=True).astype(np.float32))
-    fields.done()
+                                 given("irradiance", broadcast=True, non_negative=True).astype(np.float32))
+    if base is not None:
+        fields.done()
     return light
 
 
@@ -490,7 +525,8 @@ def parse_scene(data, source: str, folder: Path) -> Scene:
         top.fail("turns an environment map: give 'environment' too", "environment_rotate")
     background = top.vector("background", [0.0, 0.0, 0.0] if environment is None else [1.0, 1.0, 1.0],
                             broadcast=True, non_negative=True)
-    last_key = max([*camera_keyframes, *(f for m in meshes for f in m.keyframes)], default=0)
+    last_key = max([*camera_keyframes, *(f for m in meshes for f in m.keyframes),
+                    *(f for light in lights for f in light.keyframes)], default=0)
     frame_count = top.integer("frame_count", last_key + 1)
     if frame_count < 1:
         top.fail(f"expected at least 1 frame, got {frame_count}", "frame_count")

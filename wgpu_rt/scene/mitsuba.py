@@ -311,7 +311,7 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
                                     bsdf, emission,
                                     None if colors is None else colors * material.reflectance, mesh.uvs, interior)
-    for index, light in enumerate(scene.lights):
+    for index, light in enumerate(scene.lights_at(frame)):
         if isinstance(light, SpotLight):
             axis = np.asarray(light.direction, np.float64)
             up = np.cross(axis, [1.0, 0.0, 0.0] if abs(axis[0]) < 0.9 else [0.0, 1.0, 0.0])

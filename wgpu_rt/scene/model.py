@@ -3,13 +3,14 @@
 Units and conventions follow Mitsuba 3 so that scenes can be compared pixel for pixel: right-handed
 world space, a look-at camera with a field of view in degrees measured along ``fov_axis``, linear RGB
 reflectances in [0, 1], emitted radiance in W·sr⁻¹·m⁻² per channel. Animation is per integer frame:
-``Camera`` and object transforms are given as keyframes and linearly interpolated (look-at vectors for
-the camera, matrices element-wise for objects; keyframes are meant to be dense enough for that).
+``Camera``, object transforms and lights are given as keyframes and linearly interpolated (look-at vectors
+for the camera, matrices element-wise for objects, a light's numbers each; keyframes are meant to be dense
+enough for that).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -325,9 +326,52 @@ def sample_environment(image: np.ndarray, directions: np.ndarray) -> np.ndarray:
 
 
 @dataclass
-class PointLight:
+class _Light:
+    """What the light kinds share: ``keyframes`` (frame → the light's state there, a light of its kind without
+    keyframes of its own). Between keyframes every number is interpolated linearly (a direction renormalized),
+    outside them the nearest holds, as for meshes; the light's own fields are its state without keyframes."""
+
+    keyframes: dict = field(default_factory=dict, kw_only=True)
+    POWER = ""                      # the field that scales with the light's strength
+
+    def at(self, frame: int):
+        """The light's state at ``frame`` (without keyframes)."""
+        if not self.keyframes:
+            return self
+        lo, hi, w = _bracket(sorted(self.keyframes), frame)
+        start, end = self.keyframes[lo], self.keyframes[hi]
+        if w == 0:
+            return start
+        state = {f.name: (1 - w) * np.asarray(getattr(start, f.name), np.float64)
+                 + w * np.asarray(getattr(end, f.name), np.float64)
+                 for f in fields(start) if f.name != "keyframes"}
+        if "direction" in state:
+            state["direction"] = state["direction"] / np.linalg.norm(state["direction"])
+        return type(start)(**{name: value.astype(np.float32) if value.ndim else float(value)
+                              for name, value in state.items()})
+
+    def scaled(self, factor: float):
+        """This light ``factor`` times as strong, at every keyframe."""
+        return replace(self, **{self.POWER: getattr(self, self.POWER) * np.float32(factor)},
+                       keyframes={f: key.scaled(factor) for f, key in self.keyframes.items()})
+
+    @property
+    def state(self) -> bytes:
+        """Its fields but the keyframes: equal for lights that shine alike."""
+        return b"".join(np.asarray(getattr(self, f.name), np.float64).tobytes()
+                        for f in fields(self) if f.name != "keyframes")
+
+    @property
+    def moves(self) -> bool:
+        """Whether its keyframes hold more than one state."""
+        return len({key.state for key in self.keyframes.values()}) > 1
+
+
+@dataclass
+class PointLight(_Light):
     position: np.ndarray
     intensity: np.ndarray           # W·sr⁻¹ per channel
+    POWER = "intensity"
 
 
 @dataclass
@@ -361,9 +405,10 @@ class SpotLight(PointLight):
 
 
 @dataclass
-class DirectionalLight:
+class DirectionalLight(_Light):
     direction: np.ndarray           # direction the light travels (from the light toward the scene)
     irradiance: np.ndarray          # W·m⁻² per channel on a surface facing it
+    POWER = "irradiance"
 
 
 @dataclass
@@ -397,17 +442,10 @@ class Scene:
     def camera_at(self, frame: int) -> Camera:
         if not self.camera_keyframes:
             return self.camera
-        keys = sorted(self.camera_keyframes)
-        if frame <= keys[0]:
-            return self.camera_keyframes[keys[0]]
-        if frame >= keys[-1]:
-            return self.camera_keyframes[keys[-1]]
-        hi = next(k for k in keys if k >= frame)
-        lo = max(k for k in keys if k <= frame)
+        lo, hi, w = _bracket(sorted(self.camera_keyframes), frame)
         a, b = self.camera_keyframes[lo], self.camera_keyframes[hi]
-        if hi == lo:
+        if w == 0:
             return a
-        w = (frame - lo) / (hi - lo)
         mix = lambda x, y: ((1 - w) * x + w * y).astype(np.float32)  # noqa: E731
         return Camera(mix(a.origin, b.origin), mix(a.target, b.target), mix(a.up, b.up),
                       (1 - w) * a.fov + w * b.fov, a.fov_axis, (1 - w) * a.aperture_radius + w * b.aperture_radius,
@@ -458,6 +496,24 @@ class Scene:
         return any(len(group) > 1 for group in self.shapes())
 
     @property
+    def has_moving_lights(self) -> bool:
+        """Whether a light's keyframes move it or change its strength or cone."""
+        return any(light.moves for light in self.lights)
+
+    @property
+    def is_animated(self) -> bool:
+        """Whether its frames differ (the camera, a mesh or a light moves)."""
+        return self.has_motion or self.has_moving_lights
+
+    def lights_at(self, frame: int) -> list:
+        """Its lights as they are at ``frame`` (``_Light.at``)."""
+        return [light.at(frame) for light in self.lights]
+
+    def lights_key(self, frame: int) -> bytes:
+        """Its lights' states at ``frame``: equal for frames they light alike."""
+        return b"".join(light.state for light in self.lights_at(frame))
+
+    @property
     def has_motion(self) -> bool:
         cams = {(c.origin.tobytes(), c.target.tobytes(), c.up.tobytes(), c.fov)
                 for c in self.camera_keyframes.values()}
@@ -468,22 +524,24 @@ class Scene:
         light: the same scene in other units, which renders as this one times ``factor``."""
         factor = np.float32(factor)
         materials = {name: replace(m, emission=m.emission * factor) for name, m in self.materials.items()}
-        lights = [replace(light, intensity=light.intensity * factor) if isinstance(light, PointLight)
-                  else replace(light, irradiance=light.irradiance * factor) for light in self.lights]
+        lights = [light.scaled(factor) for light in self.lights]
         return replace(self, materials=materials, lights=lights, background=self.background * factor)
+
+
+def _bracket(keys: list[int], frame: int) -> tuple[int, int, float]:
+    """The keyframes (sorted ``keys``) about ``frame`` and its weight between them: (lo, hi, w), the value at the
+    frame (1 − w)·value(lo) + w·value(hi); w = 0 on a key and outside the keys (where the nearest holds)."""
+    if frame <= keys[0]:
+        return keys[0], keys[0], 0.0
+    if frame >= keys[-1]:
+        return keys[-1], keys[-1], 0.0
+    lo = max(k for k in keys if k <= frame)
+    hi = min(k for k in keys if k >= frame)
+    return lo, hi, 0.0 if lo == hi else (frame - lo) / (hi - lo)
 
 
 def _interpolate(keyframes: dict[int, np.ndarray], frame: int, default: np.ndarray) -> np.ndarray:
     if not keyframes:
         return np.asarray(default, np.float32)
-    keys = sorted(keyframes)
-    if frame <= keys[0]:
-        return np.asarray(keyframes[keys[0]], np.float32)
-    if frame >= keys[-1]:
-        return np.asarray(keyframes[keys[-1]], np.float32)
-    lo = max(k for k in keys if k <= frame)
-    hi = min(k for k in keys if k >= frame)
-    if lo == hi:
-        return np.asarray(keyframes[lo], np.float32)
-    w = (frame - lo) / (hi - lo)
+    lo, hi, w = _bracket(sorted(keyframes), frame)
     return ((1 - w) * np.asarray(keyframes[lo]) + w * np.asarray(keyframes[hi])).astype(np.float32)

@@ -46,6 +46,9 @@ FLAT_TOLERANCE = 1e-5         # a group is flat if its normals and vertices devi
 LUMINANCE = np.array([0.212671, 0.715160, 0.072169])
 DELTA_ROUGHNESS = 1e-4        # below it a lobe is a Dirac delta (wgsl/trace/material.wgsl)
 VIEW_RADIUS_FLOOR = 1e-6   # a framed region counts as at least this fraction of the bounding radius
+# A light of an animated scene that is dark at a frame keeps its record, picked by this power (never in practice,
+# and it gives nothing when it is): the table keeps one layout across the frames (TracePass.set_frame).
+DARK_LIGHT_POWER = 1e-30
 
 MATERIAL_DTYPE = np.dtype([
     ("reflectance", "<f4", 3), ("kind", "<u4"), ("emission", "<f4", 3), ("roughness", "<f4"),
@@ -302,9 +305,9 @@ def _clustered(groups: list[tuple]) -> tuple[list[tuple], np.ndarray]:
 
 def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray, material_ids: np.ndarray,
                         materials: list[Material], scene_radius: float,
-                        object_ids: np.ndarray | None = None) -> EmitterTable:
-    """The emitter table of ``scene``'s lights and of its emissive triangles ``numbers`` (from
-    ``emissive_triangles``), whose world-space vertices are ``triangles`` (len(numbers), 3, 3); the
+                        object_ids: np.ndarray | None = None, frame: int = 0) -> EmitterTable:
+    """The emitter table of ``scene``'s lights as they are at ``frame`` and of its emissive triangles ``numbers``
+    (from ``emissive_triangles``), whose world-space vertices are ``triangles`` (len(numbers), 3, 3); the
     scene has len(material_ids) triangles, triangle t of mesh ``object_ids[t]`` (default: all of one)."""
     numbers = np.asarray(numbers, np.intp)
     tri = np.asarray(triangles, np.float64).reshape(-1, 3, 3)
@@ -337,7 +340,7 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
 
     lights = []  # (kind, position, edge1, radiance, power, group kind, importance power, edge2)
     radius = min(scene_radius, max(view_radius(scene.camera), VIEW_RADIUS_FLOOR * scene_radius))
-    for light in scene.lights:
+    for light in scene.lights_at(frame):
         if isinstance(light, PointLight):
             intensity = np.asarray(light.intensity, np.float64)
             spot = isinstance(light, SpotLight)
@@ -356,6 +359,8 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
         luminance = max(float(LUMINANCE @ background), 1e-6)
         lights.append((EMITTER_BACKGROUND, 0, 0, background, 4 * np.pi ** 2 * radius ** 2 * luminance,
                        GROUP_CONSTANT, np.pi * luminance, 0))
+    if scene.has_moving_lights:     # every light keeps its record, dark or not
+        lights = [(*light[:4], max(light[4], DARK_LIGHT_POWER), *light[5:]) for light in lights]
     lights = [light for light in lights if light[4] > 0]
 
     triangle_count = len(numbers)

@@ -380,7 +380,7 @@ class TracePass(ComputePass):
         materials = [scene.materials[n] for n in scene_material_names(scene)]
         emissive = emissive_triangles(geometry.material_ids, materials)
         emitters = build_emitter_table(scene, emissive, geometry.triangles[emissive], geometry.material_ids,
-                                       materials, _scene_radius(geometry.triangles), geometry.object_ids)
+                                       materials, _scene_radius(geometry.triangles), geometry.object_ids, frame)
         if len(emitters.groups) > 1 and not self.features.has_emitter_groups:
             raise ValueError(f"scene {scene.name!r} has {len(emitters.groups)} emitter groups, but its kernel's "
                              f"features leave emitter groups out")
@@ -412,9 +412,10 @@ class TracePass(ComputePass):
         self._geometry, self._geometry_buffers = geometry, geometry_buffers
         instanced = isinstance(geometry, InstancedGeometry)
         self._placed = geometry.transform_key(geometry.frame) if instanced else None
-        # Moving emissive meshes: the emitter table follows them (set_frame rebuilds it from the frame's
-        # placed triangles, with the scene radius of the frame the pass was built at).
+        # Moving emissive meshes and animated lights: the emitter table follows them (set_frame rebuilds it from
+        # the frame's placed triangles and lights, with the scene radius of the frame the pass was built at).
         self._moving_emitters = instanced and InstancedGeometry.moves_emitters(scene)
+        self._lights = scene.lights_key(frame) if scene.has_moving_lights else None
         self._shading = (materials, emissive, _scene_radius(geometry.triangles))
         # Enough samples per dispatch to keep the device busy and the tail short (a subgroup runs until
         # its last invocation has traced its last path: ~11% idle turns at 16 samples, 15% at 8 on
@@ -455,14 +456,18 @@ class TracePass(ComputePass):
 
     def set_frame(self, scene: Scene, frame: int, seed: int) -> None:
         """Point the pass at another frame of the same geometry (camera, previous camera, seed): the
-        uploaded geometry, materials and emitters are kept; a two-level geometry's instances move to
-        the frame (only its small per-frame buffers are rewritten, and only when they change)."""
+        uploaded geometry and materials are kept; a two-level geometry's instances move to the frame (only
+        its small per-frame buffers are rewritten, and only when they change), and the emitter table follows
+        moving emissive meshes and animated lights."""
         placed = self._geometry.transform_key(frame) if self._placed is not None else None
-        if placed != self._placed:
+        lights = scene.lights_key(frame) if self._lights is not None else None
+        moved = placed != self._placed
+        if moved:
             self._geometry.write_frame(self.ctx, self._geometry_buffers, frame)
             self._placed = placed
-            if self._moving_emitters:
-                self._move_emitters(scene, frame)
+        if (moved and self._moving_emitters) or lights != self._lights:
+            self._move_emitters(scene, frame)
+            self._lights = lights
         self._params = self._frame_params(scene, frame, self._max_depth, seed, self._emitter_table)
 
     def _emitter_bytes(self, emitters) -> bytes:
@@ -470,11 +475,15 @@ class TracePass(ComputePass):
         return (_padded(records, UNIFORM_TABLE_CAPACITY["emitters"]) if self.placement.tables else records).tobytes()
 
     def _move_emitters(self, scene: Scene, frame: int) -> None:
-        """Rebuild the emitter table for the emissive meshes where ``frame`` puts them and rewrite it in
-        place (a transform is never singular, so no emissive triangle appears or vanishes)."""
+        """Rebuild the emitter table for the emissive meshes and lights where ``frame`` puts them and rewrite it
+        in place (a transform is never singular, so no emissive triangle appears or vanishes, and an animated
+        scene's lights keep their records when dark: ``DARK_LIGHT_POWER``)."""
         materials, emissive, radius = self._shading
-        emitters = build_emitter_table(scene, emissive, self._geometry.placed_triangles(frame, emissive),
-                                       self._geometry.material_ids, materials, radius, self._geometry.object_ids)
+        geometry = self._geometry
+        triangles = (geometry.placed_triangles(frame, emissive) if isinstance(geometry, InstancedGeometry)
+                     else geometry.triangles[emissive])
+        emitters = build_emitter_table(scene, emissive, triangles, geometry.material_ids, materials, radius,
+                                       geometry.object_ids, frame)
         if emitters.count != self._emitter_table.count:
             raise ValueError(f"scene {scene.name!r}, frame {frame}: {emitters.count} emitters, "
                              f"{self._emitter_table.count} at the pass's first frame")
