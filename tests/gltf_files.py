@@ -18,21 +18,26 @@ def edit_glb_json(data: bytes, edit) -> bytes:
     return b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
 
 
+COMPONENT_TYPES = {np.dtype(np.uint8): 5121, np.dtype(np.uint16): 5123, np.dtype(np.float32): 5126}
+
+
 def with_accessors(data: bytes, arrays: list, edit) -> bytes:
-    """The .glb ``data`` with ``arrays`` (float32) appended to its binary chunk, each as a bufferView and an accessor
-    of its own (SCALAR, VEC3 or VEC4 by its columns), then its JSON passed through ``edit(tree, first)``, ``first``
-    the first new accessor's index."""
+    """The .glb ``data`` with ``arrays`` (float32, or uint8/uint16 where given so) appended to its binary chunk, each
+    as a bufferView and an accessor of its own (SCALAR, VEC3, VEC4 or MAT4 by its columns), then its JSON passed
+    through ``edit(tree, first)``, ``first`` the first new accessor's index."""
     length = struct.unpack_from("<I", data, 12)[0]
     tree = json.loads(data[20:20 + length])
     binary_at = 20 + length
     binary = bytearray(data[binary_at + 8:binary_at + 8 + struct.unpack_from("<I", data, binary_at)[0]])
     first = len(tree["accessors"])
     for array in arrays:
-        array = np.asarray(array, np.float32).reshape(len(array), -1)
+        array = np.asarray(array)
+        array = (array if array.dtype in COMPONENT_TYPES else array.astype(np.float32)).reshape(len(array), -1)
         binary += b"\0" * (-len(binary) % 4)
         tree["bufferViews"].append({"buffer": 0, "byteOffset": len(binary), "byteLength": array.nbytes})
-        tree["accessors"].append({"bufferView": len(tree["bufferViews"]) - 1, "componentType": 5126,
-                                  "count": len(array), "type": {1: "SCALAR", 3: "VEC3", 4: "VEC4"}[array.shape[1]]})
+        tree["accessors"].append({"bufferView": len(tree["bufferViews"]) - 1,
+                                  "componentType": COMPONENT_TYPES[array.dtype], "count": len(array),
+                                  "type": {1: "SCALAR", 3: "VEC3", 4: "VEC4", 16: "MAT4"}[array.shape[1]]})
         binary += array.tobytes()
     binary += b"\0" * (-len(binary) % 4)
     tree["buffers"][0]["byteLength"] = len(binary)

@@ -201,7 +201,7 @@ class Renderer:
 
         def trace_for(frame: int, seed_frame: int):
             seed = (self.seed + seed_frame) % 2 ** 32
-            key = b"".join(m.transform_at(frame).tobytes() for m in scene.meshes)
+            key = b"".join(m.pose_key(frame) for m in scene.meshes)
             trace = traced.get(follows_every_frame) or traced.get(key)
             if trace is None:   # objects moved: new BVH, new uploads (the last time, when instanced)
                 moved = bool(traced)

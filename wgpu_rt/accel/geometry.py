@@ -245,18 +245,20 @@ def _scene_texture_records(scene: Scene, meshes) -> np.ndarray | None:
     return np.concatenate([_mesh_texture_records(scene.meshes[i], textures) for i in meshes])
 
 
-def _mesh_triangles(mesh, transform: np.ndarray, face_normals: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """``mesh``'s triangles (F, 3, 3) and per-vertex shading normals (F, 3, 3), both mapped by
-    ``transform`` (object → the space they are stored in). A mesh without vertex normals gets its face
+def _mesh_triangles(mesh, transform: np.ndarray, frame: int, face_normals: bool = True) -> tuple[np.ndarray,
+                                                                                                 np.ndarray]:
+    """``mesh``'s triangles (F, 3, 3) and per-vertex shading normals (F, 3, 3) in its shape at ``frame``, both
+    mapped by ``transform`` (object → the space they are stored in). A mesh without vertex normals gets its face
     normals, or with ``face_normals`` False zeros, which the kernels replace by the geometric normal
     (an instance's world normal follows its world winding, which a mirroring transform reverses)."""
     faces = np.asarray(mesh.faces, np.int64)
     transform = np.asarray(transform, np.float64)
-    triangles = transform_points(transform, mesh.vertices)[faces]
-    if mesh.normals is None:
+    triangles = transform_points(transform, mesh.vertices_at(frame))[faces]
+    normals = mesh.normals_at(frame)
+    if normals is None:
         normals = np.repeat(_face_normals(triangles)[:, None] * face_normals, 3, axis=1)
     else:
-        normals = transform_normals(transform, mesh.normals)[faces]
+        normals = transform_normals(transform, normals)[faces]
     return triangles, normals
 
 
@@ -270,10 +272,31 @@ def _material_ids(scene: Scene) -> list[int]:
 
 
 def object_motion(scene: Scene, frame: int) -> np.ndarray:
-    """(O, 4, 4) f32 per mesh: world at ``frame`` → world at the frame before."""
-    return np.asarray([mesh.transform_at(frame - 1).astype(np.float64)
+    """(O, 4, 4) f32 per mesh: world at ``frame`` → world at the frame before. A deforming mesh's vertices move
+    each their own way: its map is the affine one that best fits them (least squares), which the motion vectors
+    follow (exact for a mesh that only moves, an approximation for a bending one)."""
+    return np.asarray([_deforming_motion(mesh, frame) if mesh.deforms
+                       else mesh.transform_at(frame - 1).astype(np.float64)
                        @ np.linalg.inv(mesh.transform_at(frame).astype(np.float64)) for mesh in scene.meshes],
                       np.float32)
+
+
+def _deforming_motion(mesh, frame: int) -> np.ndarray:
+    """The affine map (4, 4) that takes a deforming mesh's world vertices at ``frame`` closest to where they were
+    at the frame before (least squares; identity where they hold still)."""
+    now = transform_points(mesh.transform_at(frame).astype(np.float64), mesh.vertices_at(frame))
+    before = transform_points(mesh.transform_at(frame - 1).astype(np.float64), mesh.vertices_at(frame - 1))
+    if np.array_equal(now, before):
+        return np.eye(4)
+    # The fit of the change, before − now = Dᵀ (now − centre) + d: centred so that it loses no digits to a mesh
+    # far from the origin, and of least norm, so that a direction the vertices do not span (a flat mesh's normal)
+    # keeps the identity.
+    centre = now.mean(0)
+    change, *_ = np.linalg.lstsq(np.column_stack([now - centre, np.ones(len(now))]), before - now, rcond=None)
+    motion = np.eye(4)
+    motion[:3, :3] += change[:3].T
+    motion[:3, 3] = change[3] - change[:3].T @ centre
+    return motion
 
 
 def _check_triangles(scene: Scene, triangles: list[np.ndarray]) -> np.ndarray:
@@ -327,7 +350,7 @@ class GeometryBuffers:
         material_ids = _material_ids(scene)
         triangles, normals, colors, materials, objects = [], [], [], [], []
         for object_id, mesh in enumerate(scene.meshes):
-            world, shading = _mesh_triangles(mesh, mesh.transform_at(frame))
+            world, shading = _mesh_triangles(mesh, mesh.transform_at(frame), frame)
             triangles.append(world)
             normals.append(shading)
             colors.append(_mesh_colors(mesh))
@@ -520,7 +543,7 @@ class InstancedGeometry:
         stored, normals, colors, materials, objects, self._bvhs, textures = ([] for _ in range(7))
         for meshes, world_space in self.levels:
             level = [_mesh_triangles(scene.meshes[i], scene.meshes[i].transform_at(frame) if world_space
-                                     else np.eye(4), face_normals=False) for i in meshes]
+                                     else np.eye(4), frame, face_normals=False) for i in meshes]
             triangles = _check_triangles(scene, [t for t, _ in level])
             bvh = build_bvh(triangles, leaf_traversal_cost(small_leaves))
             order = bvh.order
@@ -579,8 +602,9 @@ class InstancedGeometry:
     @staticmethod
     def suits(scene: Scene) -> bool:
         """Whether ``scene`` has a moving mesh or a shape placed several times (a moving emitter too: the
-        tracer's emitter table follows it, wgpu_rt.trace.TracePass.set_frame)."""
-        return scene.has_instances or any(mesh.is_animated for mesh in scene.meshes)
+        tracer's emitter table follows it, wgpu_rt.trace.TracePass.set_frame), and no mesh that changes shape
+        (the bottom levels are built once: a deforming scene is built anew in one level at every frame)."""
+        return not scene.deforms and (scene.has_instances or any(mesh.is_animated for mesh in scene.meshes))
 
     @staticmethod
     def moves_emitters(scene: Scene) -> bool:

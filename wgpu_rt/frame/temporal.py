@@ -91,8 +91,7 @@ def frame_change(scene, previous_frame: int | None, frame: int) -> str:
         return "cut"
     same_camera = (np.array_equal(before.origin, now.origin) and np.array_equal(before.target, now.target)
                    and np.array_equal(before.up, now.up) and before.fov == now.fov)
-    same_objects = all(np.array_equal(m.transform_at(previous_frame), m.transform_at(frame))
-                       for m in scene.meshes)
+    same_objects = all(m.pose_key(previous_frame) == m.pose_key(frame) for m in scene.meshes)
     same_lights = not scene.has_moving_lights or scene.lights_key(previous_frame) == scene.lights_key(frame)
     return "static" if same_camera and same_objects and same_lights else "moving"
 

@@ -5,7 +5,8 @@ rotation (a unit quaternion) or scale, interpolated STEP, LINEAR (rotations by s
 key with its in- and out-tangent). ``read_animations`` reads them (accessors from the .glb's binary chunk, a
 .gltf's buffer files or data URIs; floats, or normalized integers as glTF allows for rotations); ``local_matrix``
 is a node's transform at a time, its animated parts in place of the node's own. Frames are FRAME_RATE a second from
-time 0 to the last key. Morph-target weights and skins are not read (a skinned mesh keeps its rest pose).
+time 0 to the last key. A ``weights`` channel is read as a channel of its node's morph-target weights, which
+``gltf_skins`` mixes.
 """
 
 from __future__ import annotations
@@ -21,13 +22,14 @@ import trimesh
 from ..errors import SceneError
 
 FRAME_RATE = 24.0      # frames a second: glTF's times are seconds, a scene's frames are numbered
+MOST_ELEMENTS = 1 << 26   # an accessor's elements read at most (a count beyond is a malformed file)
 PATHS = {"translation": 3, "rotation": 4, "scale": 3}
 COMPONENTS = {5120: ("<i1", 127.0), 5121: ("<u1", 255.0), 5122: ("<i2", 32767.0), 5123: ("<u2", 65535.0),
               5125: ("<u4", None), 5126: ("<f4", None)}
-WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 
 
-class _Buffers:
+class GltfBuffers:
     """A glTF file's buffers, read when first asked for: a .glb's binary chunk, a .gltf's files or data URIs."""
 
     def __init__(self, path: Path, tree: dict):
@@ -65,7 +67,8 @@ class _Buffers:
         return data[offset + 8:offset + 8 + struct.unpack_from("<I", data, offset)[0]]
 
     def accessor(self, index, where: str) -> np.ndarray:
-        """(count, width) float64 values of accessor ``index`` (normalized integers as glTF maps them)."""
+        """(count, width) float64 values of accessor ``index`` (normalized integers as glTF maps them; a sparse
+        accessor's values put over its bufferView's, or over zeros where it has none; a MAT4 column by column)."""
         accessors = self.tree.get("accessors") or []
         if not (isinstance(index, int) and 0 <= index < len(accessors)):
             raise SceneError(f"{where}: accessor {index!r} is not one of the file's {len(accessors)}")
@@ -73,27 +76,63 @@ class _Buffers:
         if not isinstance(entry, dict):
             raise SceneError(f"{where}: accessor {index} is not an object")
         kind, width = COMPONENTS.get(entry.get("componentType")), WIDTHS.get(entry.get("type"))
-        if kind is None or width is None or "bufferView" not in entry or "sparse" in entry:
+        sparse = entry.get("sparse")
+        if kind is None or width is None or ("bufferView" not in entry and sparse is None):
             raise SceneError(f"{where}: accessor {index} holds {entry.get('type')!r} of component type "
-                             f"{entry.get('componentType')!r} (or is sparse, or has no bufferView): not read")
-        views, number = self.tree.get("bufferViews") or [], entry["bufferView"]
-        if not (isinstance(number, int) and 0 <= number < len(views)):
-            raise SceneError(f"{where}: accessor {index}'s bufferView {number!r} is not one of the file's")
-        view = views[number]
+                             f"{entry.get('componentType')!r} (or has neither a bufferView nor sparse values): "
+                             f"not read")
         dtype, scale = np.dtype(kind[0]), kind[1]
         try:
-            count, stride = int(entry.get("count", 0)), int(view.get("byteStride") or dtype.itemsize * width)
+            count = int(entry.get("count", 0))
+        except (TypeError, ValueError) as err:
+            raise SceneError(f"{where}: accessor {index} has a malformed count ({err})") from err
+        if count < 1 or count > MOST_ELEMENTS:
+            raise SceneError(f"{where}: accessor {index} holds {count!r} elements (1 to {MOST_ELEMENTS:,} are read)")
+        values = (self._view_values(entry, entry["bufferView"], dtype, width, count, where, index)
+                  if "bufferView" in entry else np.zeros((count, width)))
+        if sparse is not None:
+            self._put_sparse(values, sparse, dtype, width, where, index)
+        if scale is not None and entry.get("normalized"):
+            values = np.maximum(values / scale, -1.0)
+        return values
+
+    def _view_values(self, entry: dict, number, dtype: np.dtype, width: int, count: int, where: str,
+                     index: int) -> np.ndarray:
+        """(count, width) float64: ``count`` elements of ``width`` ``dtype`` values from bufferView ``number``,
+        starting at ``entry``'s byteOffset."""
+        views = self.tree.get("bufferViews") or []
+        if not (isinstance(number, int) and 0 <= number < len(views)) or not isinstance(views[number], dict):
+            raise SceneError(f"{where}: accessor {index}'s bufferView {number!r} is not one of the file's")
+        view = views[number]
+        try:
+            stride = int(view.get("byteStride") or dtype.itemsize * width)
             start = int(view.get("byteOffset", 0)) + int(entry.get("byteOffset", 0))
         except (AttributeError, TypeError, ValueError) as err:
             raise SceneError(f"{where}: accessor {index} or its bufferView has a malformed field ({err})") from err
         data = self.buffer(view.get("buffer"))
-        if count < 1 or start < 0 or stride < 1 or start + stride * (count - 1) + dtype.itemsize * width > len(data):
-            raise SceneError(f"{where}: accessor {index} lies outside its buffer (or is empty)")
-        values = np.stack([np.frombuffer(data, dtype, width, start + stride * i) for i in range(count)])
-        values = values.astype(np.float64)
-        if scale is not None and entry.get("normalized"):
-            values = np.maximum(values / scale, -1.0)
-        return values
+        if start < 0 or stride < 1 or start + stride * (count - 1) + dtype.itemsize * width > len(data):
+            raise SceneError(f"{where}: accessor {index} lies outside its buffer")
+        rows = np.ndarray((count, width), dtype, data, start, (stride, dtype.itemsize))
+        return rows.astype(np.float64)
+
+    def _put_sparse(self, values: np.ndarray, sparse, dtype: np.dtype, width: int, where: str, index: int) -> None:
+        """Write a sparse accessor's substituted elements into ``values``."""
+        if not (isinstance(sparse, dict) and isinstance(sparse.get("indices"), dict)
+                and isinstance(sparse.get("values"), dict)):
+            raise SceneError(f"{where}: accessor {index}'s sparse field needs indices and values objects")
+        try:
+            count = int(sparse.get("count", 0))
+        except (TypeError, ValueError) as err:
+            raise SceneError(f"{where}: accessor {index}'s sparse count is malformed ({err})") from err
+        kind = COMPONENTS.get(sparse["indices"].get("componentType"))
+        if not 1 <= count <= len(values) or kind is None or kind[0] not in ("<u1", "<u2", "<u4"):
+            raise SceneError(f"{where}: accessor {index}'s sparse count or index type is not valid")
+        at = self._view_values(sparse["indices"], sparse["indices"].get("bufferView"), np.dtype(kind[0]), 1, count,
+                               where, index)[:, 0].astype(np.int64)
+        if np.any(at >= len(values)):
+            raise SceneError(f"{where}: accessor {index}'s sparse indices reach past its {len(values)} elements")
+        values[at] = self._view_values(sparse["values"], sparse["values"].get("bufferView"), dtype, width, count,
+                                       where, index)
 
 
 def _slerp(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:
@@ -113,14 +152,19 @@ class Channel:
     """One animated property of one node: keyframe ``times``, their ``values`` (CUBICSPLINE: in-tangent, value,
     out-tangent per key) and the interpolation."""
 
-    def __init__(self, path: str, times: np.ndarray, values: np.ndarray, interpolation: str, where: str):
+    def __init__(self, path: str, times: np.ndarray, values: np.ndarray, interpolation: str, where: str,
+                 width: int | None = None):
+        """``width``: the numbers in each value (default: its path's; the morph targets' count for weights)."""
         if times.shape[1] != 1:
             raise SceneError(f"{where}: its key times must be one number each, got {times.shape[1]}")
         times = times[:, 0]
         keys = len(times)
         if interpolation not in ("LINEAR", "STEP", "CUBICSPLINE"):
             raise SceneError(f"{where}: unknown interpolation {interpolation!r} (LINEAR, STEP or CUBICSPLINE)")
-        if values.shape != ((3 if interpolation == "CUBICSPLINE" else 1) * keys, PATHS[path]):
+        width = width or PATHS[path]
+        if path == "weights" and values.shape[1] == 1 and values.size % width == 0:
+            values = values.reshape(-1, width)       # (weights come as scalars, a key's targets in turn)
+        if values.shape != ((3 if interpolation == "CUBICSPLINE" else 1) * keys, width):
             raise SceneError(f"{where}: {keys} key times but {len(values)} values of {values.shape[1]} for its "
                              f"{interpolation.lower()} {path}")
         if not (np.all(np.isfinite(times)) and np.all(np.isfinite(values)) and np.all(np.diff(times) > 0)):
@@ -156,7 +200,7 @@ class Channel:
 
 def read_animations(path: Path, tree: dict) -> dict[int, list[Channel]]:
     """Every node's animated channels (node index → its channels), across all the file's animations."""
-    buffers, channels = _Buffers(path, tree), {}
+    buffers, channels = GltfBuffers(path, tree), {}
     nodes = tree.get("nodes") or []
     animations = tree.get("animations") or []
     if not isinstance(animations, list):
@@ -172,10 +216,13 @@ def read_animations(path: Path, tree: dict) -> dict[int, list[Channel]]:
             if not isinstance(target, dict):
                 raise SceneError(f"{where}: expected an object with a target")
             node, kind = target.get("node"), target.get("path")
-            if not isinstance(kind, str) or kind not in PATHS:
-                continue                  # morph-target weights (and extensions' paths) are not read
+            if not isinstance(kind, str) or kind not in (*PATHS, "weights"):
+                continue                  # (extensions' paths are not read)
             if not (isinstance(node, int) and 0 <= node < len(nodes)):
                 raise SceneError(f"{where}: target node {node!r} is not one of the file's {len(nodes)} nodes")
+            width = morph_target_count(tree, node, where) if kind == "weights" else None
+            if width == 0:
+                continue                  # weights of a node without morph targets move nothing
             number = channel.get("sampler")
             if not (isinstance(number, int) and 0 <= number < len(samplers)) or not isinstance(samplers[number], dict):
                 raise SceneError(f"{where}: sampler {number!r} is not one of the animation's {len(samplers)}")
@@ -183,8 +230,23 @@ def read_animations(path: Path, tree: dict) -> dict[int, list[Channel]]:
             times = buffers.accessor(sampler.get("input"), where)
             values = buffers.accessor(sampler.get("output"), where)
             channels.setdefault(node, []).append(Channel(kind, times, values, sampler.get("interpolation", "LINEAR"),
-                                                         where))
+                                                         where, width))
     return channels
+
+
+def morph_target_count(tree: dict, node: int, where: str) -> int:
+    """How many morph targets the mesh of node ``node`` has (0 without a mesh or targets; a SceneError where its
+    primitives disagree, as glTF requires them to agree)."""
+    entry = (tree.get("nodes") or [])[node]
+    number, meshes = entry.get("mesh") if isinstance(entry, dict) else None, tree.get("meshes") or []
+    if not (isinstance(number, int) and 0 <= number < len(meshes) and isinstance(meshes[number], dict)):
+        return 0
+    primitives = meshes[number].get("primitives") or []
+    counts = {len(p.get("targets") or []) if isinstance(p, dict) else 0 for p in primitives}
+    if len(counts) > 1:
+        raise SceneError(f"{where}: mesh {number}'s primitives have different numbers of morph targets "
+                         f"{sorted(counts)}")
+    return counts.pop() if counts else 0
 
 
 LONGEST = 3600.0       # seconds: an animation whose keys run longer is refused (each frame is a keyframe)
@@ -202,6 +264,7 @@ def local_matrix(node: dict, channels: list[Channel], t: float, fixed: np.ndarra
     """A node's transform at time ``t``: ``fixed`` (its own) where no channel animates it, else translation ·
     rotation · scale with the animated parts at ``t`` and the rest the node's own (a node's matrix taken apart into
     them: glTF animates only nodes without one, but trimesh writes every node's as a matrix); errors name ``where``."""
+    channels = [channel for channel in channels if channel.path in PATHS]
     if not channels:
         return fixed
     if "matrix" in node:     # (glTF animates TRS nodes; a matrix, as trimesh writes them, is taken apart into one)

@@ -18,7 +18,8 @@ nothing is added or moved, as a scene exported from Blender expects:
   that it does not render black; one with lights has a black background (glTF has no environment).
 - animations: the nodes' translation, rotation and scale channels (``gltf_animation``) move the meshes and the camera,
   and the lights, a keyframe at every frame (FRAME_RATE a second to the last key); each mesh trimesh reads is the
-  node whose world matrix at rest and vertex count are its (``_mesh_nodes``).
+  node whose world matrix at rest and vertex count are its (``_mesh_nodes``). Skins and morph targets bend the
+  meshes (``gltf_skins``).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import trimesh
 from ..errors import SceneError
 from .file_materials import FieldReader, gltf_json, shown
 from .gltf_animation import FRAME_RATE, frame_count, local_matrix, read_animations
+from .gltf_skins import Bending, bending
 from .meshio import load_mesh_file
 from .model import Camera, DirectionalLight, Material, PointLight, Scene, SpotLight
 from .transforms import WORLD_LIMIT, float32_placement
@@ -221,21 +223,57 @@ def _mesh_nodes(tree: dict, placed: list, meshes: list) -> list[int | None]:
 def node_animation(path, meshes: list, tree: dict | None = None) -> tuple[int, list[dict | None], list]:
     """A glTF file's node animations as they move ``meshes`` (``load_mesh_file``'s reading of the file): the frame
     count (1 without animations), each mesh's world matrix (float32, in the file's world) at every frame or None where
-    its node does not move, and every node's (index, world matrix) at each frame (``_placed_nodes``)."""
+    its node does not move, and every node's (index, world matrix) at each frame (``_placed_nodes``; none without
+    animations). A mesh that a skin or morph targets bend (``gltf_skins``) is posed in place: its vertices and normals
+    those of frame 0 and ``vertex_keyframes`` / ``normal_keyframes`` where it changes shape; a skinned one lies in the
+    world (identity transform, None among the matrices)."""
     path = Path(path)
     tree = gltf_json(path) if tree is None else tree
     channels = read_animations(path, tree)
-    if not channels:
-        return 1, [None] * len(meshes), []
-    frames = frame_count(channels, str(path))
-    poses = [_placed_nodes(tree, path, channels, f / FRAME_RATE) for f in range(frames)]
+    rest = _placed_nodes(tree, path)
+    frames = frame_count(channels, str(path)) if channels else 1
+    poses = [_placed_nodes(tree, path, channels, f / FRAME_RATE) for f in range(frames)] if channels else [rest]
     worlds = [dict(pose) for pose in poses]
     moves = []
-    for mesh, node in zip(meshes, _mesh_nodes(tree, _placed_nodes(tree, path), meshes)):
-        keys = None if node is None else {f: worlds[f][node].astype(np.float32) for f in range(frames)}
+    for mesh, node in zip(meshes, _mesh_nodes(tree, rest, meshes)):
+        weights = [channel for channel in channels.get(node, []) if channel.path == "weights"]
+        bent = None if node is None else bending(path, tree, node, mesh.vertices, mesh.normals, weights, worlds,
+                                                 [f / FRAME_RATE for f in range(frames)])
+        if bent is not None:
+            _pose(mesh, bent)
+            if bent.skinned:
+                moves.append(None)
+                continue
+        keys = None if node is None or not channels else {f: worlds[f][node].astype(np.float32)
+                                                            for f in range(frames)}
         still = keys is None or all(np.array_equal(matrix, mesh.transform) for matrix in keys.values())
         moves.append(None if still else keys)
-    return frames, moves, poses
+    return frames, moves, poses if channels else []
+
+
+def _pose(mesh, bent: Bending) -> None:
+    """Give ``mesh`` the shapes ``bent`` holds (new arrays: another placement of its shape keeps its own)."""
+    mesh.vertices = bent.vertices[0]
+    if bent.normals is not None:
+        mesh.normals = bent.normals[0]
+    if any(not np.array_equal(shape, bent.vertices[0]) for shape in bent.vertices[1:]):
+        mesh.vertex_keyframes = dict(enumerate(bent.vertices))
+        mesh.normal_keyframes = {} if bent.normals is None else dict(enumerate(bent.normals))
+    if bent.skinned:
+        mesh.transform = np.eye(4, dtype=np.float32)
+
+
+def check_placements(mesh, where: str) -> None:
+    """A SceneError naming ``where`` and ``mesh`` unless float32 holds its placement and every vertex it places, at
+    rest and at every keyframe of its transform or its shape (``transforms.float32_placement``)."""
+    frames = sorted({*mesh.keyframes, *mesh.vertex_keyframes})
+    for frame in [None, *frames]:
+        matrix = mesh.transform if frame is None else mesh.transform_at(frame)
+        vertices = mesh.vertices if frame is None else mesh.vertices_at(frame)
+        problem = float32_placement(matrix, vertices)[1]
+        if problem:
+            at = "" if frame is None else f" at frame {frame}"
+            raise SceneError(f"{where}: mesh {mesh.name!r}{at}: its placement {problem}")
 
 
 def gltf_scene(path, camera: str | None = None) -> Scene | None:
@@ -258,11 +296,7 @@ def gltf_scene(path, camera: str | None = None) -> Scene | None:
     frames, moves, poses = node_animation(path, meshes, tree)
     for mesh, keys in zip(meshes, moves):
         mesh.keyframes = keys or {}
-        for frame, matrix in [(None, mesh.transform), *mesh.keyframes.items()]:
-            problem = float32_placement(matrix, mesh.vertices)[1]     # as a scene file's placements are checked
-            if problem:
-                at = "" if frame is None else f" at frame {frame}"
-                raise SceneError(f"{path}: mesh {mesh.name!r}{at}: its placement {problem}")
+        check_placements(mesh, str(path))        # as a scene file's placements are checked
     posed = [_lights(tree, pose, path) for pose in poses]
     for index, light in enumerate(lights):      # a light on an animated node follows it
         keys = {f: frame_lights[index] for f, frame_lights in enumerate(posed)}

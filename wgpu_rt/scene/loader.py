@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import SceneError
 from .file_materials import GLTF_SUFFIXES, placed_absorption
-from .gltf_scene import node_animation
+from .gltf_scene import check_placements, node_animation
 from .meshio import load_mesh_file, read_environment_image, read_texture_image, with_cutout
 from .model import (ALPHA_MODES, FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight,
                     Scene, SpotLight)
@@ -389,8 +389,16 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
                 part.keyframes = {frame: _check_placement(fields, "file", compose(transform, world, dtype=np.float64),
                                                           part) for frame, world in keys.items()}
                 _check_blends(fields, part)
-        return parts
-    return _instances(fields, instances, parts, base, (transform, keyframes), materials)
+        placed = parts
+    else:
+        placed = _instances(fields, instances, parts, base, (transform, keyframes), materials)
+    for part in placed:
+        if part.vertex_keyframes:            # the shapes a skin or morph targets bend it to, placed
+            try:
+                check_placements(part, fields.source)
+            except SceneError as err:
+                fields.fail(str(err).removeprefix(f"{fields.source}: "), "file")
+    return placed
 
 
 def _instances(fields: _Fields, entries: list[_Fields], parts: list[Mesh], base: str, placement: tuple,

@@ -287,7 +287,8 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
     for index, mesh in enumerate(scene.meshes):
         material = scene.materials[mesh.material]
         transform = mesh.transform_at(frame)
-        normals = None if mesh.normals is None else transform_normals(transform, mesh.normals)
+        normals = mesh.normals_at(frame)
+        normals = None if normals is None else transform_normals(transform, normals)
         key = f"mesh{index:04d}-" + re.sub(r"[^A-Za-z0-9_-]", "_", mesh.name)
         colors = vertex_colors_as_rendered(mesh)
         if colors is not None and material.kind == "plastic":
@@ -308,7 +309,7 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
             peak = float(material.absorption.max())
             interior = {"type": "homogeneous", "sigma_t": _rgb(material.absorption / peak), "scale": peak,
                         "albedo": 0.0}
-        result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices), mesh.faces, normals,
+        result[key] = _mitsuba_mesh(mi, key, transform_points(transform, mesh.vertices_at(frame)), mesh.faces, normals,
                                     bsdf, emission,
                                     None if colors is None else colors * material.reflectance, mesh.uvs, interior)
     for index, light in enumerate(scene.lights_at(frame)):

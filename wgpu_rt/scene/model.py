@@ -202,9 +202,36 @@ class Mesh:
     # ``blendbsdf`` (wgsl/trace/metal_rough_maps.wgsl). On a ``conductor``: its roughness per point (the metalness
     # not read). On another kind, an error.
     metal_rough_map: np.ndarray | None = None
+    # A deforming mesh (a glTF skin or morph targets): frame → its (V, 3) float32 vertices in its object space, and
+    # where it has normals frame → its (V, 3) normals; blended linearly between keyframes (normals renormalized), the
+    # nearest outside them, as ``keyframes``; placed by ``transform_at`` as ever. Empty: ``vertices`` at every frame.
+    vertex_keyframes: dict[int, np.ndarray] = field(default_factory=dict)
+    normal_keyframes: dict[int, np.ndarray] = field(default_factory=dict)
 
     def transform_at(self, frame: int) -> np.ndarray:
         return _interpolate(self.keyframes, frame, self.transform)
+
+    def vertices_at(self, frame: int) -> np.ndarray:
+        """(V, 3) float32: its vertices at ``frame``, in its object space."""
+        return _interpolate(self.vertex_keyframes, frame, self.vertices)
+
+    def normals_at(self, frame: int) -> np.ndarray | None:
+        """(V, 3) float32 unit vertex normals at ``frame`` in its object space (None where it has none)."""
+        if self.normals is None or not self.normal_keyframes:
+            return self.normals
+        normals = _interpolate(self.normal_keyframes, frame, self.normals)
+        length = np.linalg.norm(normals, axis=1, keepdims=True)
+        return np.where(length > 0, normals / np.maximum(length, 1e-30), self.normals).astype(np.float32)
+
+    @property
+    def deforms(self) -> bool:
+        """Whether its vertex keyframes hold more than one shape."""
+        return len({v.tobytes() for v in self.vertex_keyframes.values()}) > 1
+
+    def pose_key(self, frame: int) -> bytes:
+        """Its placement, and a deforming mesh's shape, at ``frame``: equal for frames where it is the same."""
+        key = self.transform_at(frame).tobytes()
+        return key + self.vertices_at(frame).tobytes() if self.deforms else key
 
     @property
     def is_cut_out(self) -> bool:
@@ -219,7 +246,8 @@ class Mesh:
     def shape_key(self) -> tuple[int, ...]:
         """Equal for meshes that share their arrays (instances of one shape), else different."""
         return (id(self.vertices), id(self.faces), id(self.normals), id(self.colors), id(self.texture), id(self.uvs),
-                id(self.normal_map), id(self.emission_texture), hash(self.alpha_mode), id(self.metal_rough_map))
+                id(self.normal_map), id(self.emission_texture), hash(self.alpha_mode), id(self.metal_rough_map),
+                id(self.vertex_keyframes) if self.vertex_keyframes else 0)
 
     def instance(self, name: str, material: str | None = None, transform=None, keyframes=None) -> Mesh:
         """Another placement of this mesh's shape (its arrays shared, not copied, and made read-only so
@@ -233,7 +261,7 @@ class Mesh:
         return Mesh(name, self.vertices, self.faces, self.material if material is None else material,
                     self.normals, np.asarray(placement, np.float32), dict(keyframes or {}), self.colors,
                     self.texture, self.uvs, self.normal_map, self.emission_texture, self.alpha_mode,
-                    self.metal_rough_map)
+                    self.metal_rough_map, self.vertex_keyframes, self.normal_keyframes)
 
 
 def srgb8(colors: np.ndarray) -> np.ndarray:
@@ -517,7 +545,12 @@ class Scene:
     def has_motion(self) -> bool:
         cams = {(c.origin.tobytes(), c.target.tobytes(), c.up.tobytes(), c.fov)
                 for c in self.camera_keyframes.values()}
-        return len(cams) > 1 or any(m.is_animated for m in self.meshes)
+        return len(cams) > 1 or any(m.is_animated or m.deforms for m in self.meshes)
+
+    @property
+    def deforms(self) -> bool:
+        """Whether a mesh changes shape from frame to frame (``Mesh.vertex_keyframes``)."""
+        return any(m.deforms for m in self.meshes)
 
     def with_light_scaled(self, factor: float) -> Scene:
         """A copy whose every source (emission, point and sun lights, background) gives ``factor`` times the
