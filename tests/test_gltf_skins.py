@@ -167,3 +167,23 @@ def test_a_bent_frame_renders_as_the_still_mesh_of_its_shape(gpu, tmp_path):
         expected = render(still, spp=2, size=(24, 16), max_depth=2, aovs=(), frames=frame, seed=3).color
         np.testing.assert_array_equal(result.color, expected)
     assert np.abs(results[0].color - results[1].color).max() > 0.1        # (the elbow's half has turned)
+
+
+def test_the_swaying_example_bends_its_reeds_and_squashes_its_blob():
+    """examples/meshes/swaying.glb (make_swaying.py): 49 frames; each reed's root ring stays while its tip sways;
+    the blob is squashed fully at 0.5 s (weight sin²(πt)), 0.65 as tall and 1.25 as wide, resting on the floor."""
+    from pathlib import Path
+
+    scene = load_scene(Path(__file__).resolve().parents[1] / "examples" / "meshes" / "swaying.glb")
+    assert scene.frame_count == 49 and not scene.camera_keyframes
+    reeds = [mesh for mesh in scene.meshes if "reed" in mesh.name]
+    assert len(reeds) == 3 and all(reed.deforms for reed in reeds)
+    for reed in reeds:
+        rest, swayed = reed.vertices_at(0), reed.vertices_at(30)
+        np.testing.assert_allclose(swayed[:16], rest[:16], atol=1e-5)          # the root ring
+        assert np.linalg.norm(swayed[-1] - rest[-1]) > 0.05                     # the tip
+    (blob,) = [mesh for mesh in scene.meshes if "blob" in mesh.name]
+    rest, squashed = (blob.transform_at(f)[:3, :3] @ blob.vertices_at(f).T + blob.transform_at(f)[:3, 3:]
+                      for f in (0, 12))
+    np.testing.assert_allclose(np.ptp(squashed, axis=1) / np.ptp(rest, axis=1), [1.25, 0.65, 1.25], rtol=1e-3)
+    np.testing.assert_allclose([rest[1].min(), squashed[1].min()], 0.0, atol=1e-3)

@@ -187,19 +187,33 @@ def _gallery_paths(tree: dict) -> list:
     return [(key,) + p for key in ("extensions", "nodes", "materials", "scenes") for p in field_paths(tree[key])]
 
 
+def _swaying_paths(tree: dict) -> list:
+    """The paths that bend its meshes: its skins, meshes (attributes, morph targets, weights), the accessors and
+    buffer views these name, and its animations."""
+    used = {tree["skins"][s]["inverseBindMatrices"] for s in range(len(tree["skins"]))}
+    used |= {a for mesh in tree["meshes"] for p in mesh["primitives"] for key, a in p["attributes"].items()
+             if key.startswith(("JOINTS", "WEIGHTS"))}
+    used |= {a for mesh in tree["meshes"] for p in mesh["primitives"] for t in p.get("targets", []) for a in t.values()}
+    views = {tree["accessors"][i]["bufferView"] for i in used}
+    return ([(key,) + p for key in ("skins", "meshes", "animations") for p in field_paths(tree[key])]
+            + [("accessors", i) + p for i in used for p in field_paths(tree["accessors"][i])]
+            + [("bufferViews", i) + p for i in views for p in field_paths(tree["bufferViews"][i])])
+
+
 GLTF_FILES = {name: (data, paths(tree)) for name, paths in (("turntable.glb", _turntable_paths),
-                                                              ("gallery.glb", _gallery_paths))
+                                                              ("gallery.glb", _gallery_paths),
+                                                              ("swaying.glb", _swaying_paths))
               for data, tree in [_glb_tree(name)]}
 
 
 @pytest.mark.filterwarnings("error::RuntimeWarning")
-@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(name=st.sampled_from(sorted(GLTF_FILES)), data=st.data())
 def test_random_values_in_a_gltf_file_load_or_fail_with_one_line(tmp_path_factory, name, data):
     """The example glTF files with random values in the fields their scenes are read from (the turntable's
     animations, accessors, buffer views, animated nodes, cameras and materials; the gallery's lights, nodes,
-    materials and scene roots): the file loads with a finite camera and geometry at frames through its animation, or
-    stops with one line naming it."""
+    materials and scene roots; what bends swaying's meshes): the file loads with a finite camera and geometry at
+    frames through its animation, or stops with one line naming it."""
     from gltf_files import edit_glb_json
 
     glb, paths = GLTF_FILES[name]

@@ -106,13 +106,17 @@ def _running(op, bins: np.ndarray, reverse: bool = False) -> np.ndarray:
     return out
 
 
+MIN_BIN_EXTENT = 1e-30   # centroids spread over less than this along an axis all fall in one bin of it
+
+
 def _sah_costs(bounds, segment, counts, c_lo, c_hi, bins):
     """SAH cost (3, bins - 1, nodes) of every bin boundary of every axis, and each triangle's bin
     (n, 3). ``bounds`` is (9, n): lo, hi and centroid rows of the nodes' triangles. Tables are
     bins-major so the prefix scans run as ``bins`` vector operations."""
     nodes_here = len(counts)
     extent = c_hi - c_lo
-    bin_scale = np.where(extent > 0, bins * (1 - 1e-6) / np.where(extent > 0, extent, 1), 0.0).astype(np.float32)
+    spread = extent > MIN_BIN_EXTENT      # (narrower, bins / extent would overflow float32: one bin)
+    bin_scale = np.where(spread, bins * (1 - 1e-6) / np.where(spread, extent, 1), 0.0).astype(np.float32)
     prim_bins = ((bounds[6:9] - np.take(c_lo.T, segment, axis=1))
                  * np.take(bin_scale.T, segment, axis=1)).astype(np.int32)
     np.clip(prim_bins, 0, bins - 1, out=prim_bins)

@@ -31,7 +31,7 @@ import trimesh
 
 from ..errors import SceneError
 from .file_materials import FieldReader, gltf_json, shown
-from .gltf_animation import FRAME_RATE, frame_count, local_matrix, read_animations
+from .gltf_animation import FRAME_RATE, GltfBuffers, frame_count, local_matrix, read_animations
 from .gltf_skins import Bending, bending
 from .meshio import load_mesh_file
 from .model import Camera, DirectionalLight, Material, PointLight, Scene, SpotLight
@@ -194,28 +194,36 @@ def _lights(tree: dict, placed: list, path: Path) -> list:
     return lights
 
 
-def _mesh_nodes(tree: dict, placed: list, meshes: list) -> list[int | None]:
+def _mesh_nodes(path: Path, tree: dict, placed: list, meshes: list) -> list[int | None]:
     """The node each of ``meshes`` (trimesh's reading of the file, one per placed primitive) stands for: a node
     with a mesh whose world matrix (``placed``, at rest) is the mesh's placement and one of whose primitives has
-    as many vertices; among several alike (coinciding copies of one mesh), each taken in turn. None where none is."""
+    as many vertices; among several alike, the ones whose primitive holds the very same vertices, each taken in turn
+    (coinciding copies of one mesh). None where none is."""
     accessors, entries = tree.get("accessors") or [], tree.get("meshes") or []
+    buffers = GltfBuffers(path, tree)
 
-    def vertex_counts(node: dict) -> set:
+    def positions(node: dict) -> list[int]:
         number = node.get("mesh")
         if not (isinstance(number, int) and 0 <= number < len(entries)):
-            return set()
-        positions = [(p.get("attributes") or {}).get("POSITION") for p in entries[number].get("primitives") or []]
-        return {accessors[a].get("count") for a in positions if isinstance(a, int) and 0 <= a < len(accessors)}
+            return []
+        found = [(p.get("attributes") or {}).get("POSITION") for p in entries[number].get("primitives") or []]
+        return [a for a in found if isinstance(a, int) and 0 <= a < len(accessors)]
 
-    counts = {index: vertex_counts(tree["nodes"][index]) for index, _ in placed}
-    taken: dict[tuple, int] = {}    # (vertex count, rounded placement) → meshes matched so far
+    def holds(index: int, vertices: np.ndarray) -> bool:
+        return any(accessors[a].get("count") == len(vertices)
+                   and np.array_equal(buffers.accessor(a, f"{path}: node {index}").astype(np.float32), vertices)
+                   for a in positions(tree["nodes"][index]))
+
+    counts = {index: {accessors[a].get("count") for a in positions(tree["nodes"][index])} for index, _ in placed}
+    taken: dict[tuple, int] = {}    # the candidates → meshes matched among them so far
     found = []
     for mesh in meshes:
         alike = [index for index, world in placed if len(mesh.vertices) in counts[index]
                  and np.allclose(world, mesh.transform, rtol=1e-5, atol=1e-5)]
-        key = (len(mesh.vertices), tuple(np.round(np.asarray(mesh.transform, np.float64), 4).ravel()))
-        turn = taken.get(key, 0)
-        taken[key] = turn + 1
+        if len(alike) > 1:
+            alike = [index for index in alike if holds(index, np.asarray(mesh.vertices, np.float32))] or alike
+        turn = taken.get(tuple(alike), 0)
+        taken[tuple(alike)] = turn + 1
         found.append(alike[turn % len(alike)] if alike else None)
     return found
 
@@ -235,7 +243,7 @@ def node_animation(path, meshes: list, tree: dict | None = None) -> tuple[int, l
     poses = [_placed_nodes(tree, path, channels, f / FRAME_RATE) for f in range(frames)] if channels else [rest]
     worlds = [dict(pose) for pose in poses]
     moves = []
-    for mesh, node in zip(meshes, _mesh_nodes(tree, rest, meshes)):
+    for mesh, node in zip(meshes, _mesh_nodes(path, tree, rest, meshes)):
         weights = [channel for channel in channels.get(node, []) if channel.path == "weights"]
         bent = None if node is None else bending(path, tree, node, mesh.vertices, mesh.normals, weights, worlds,
                                                  [f / FRAME_RATE for f in range(frames)])

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SceneError
+from .file_materials import FieldReader
 from .gltf_animation import Channel, GltfBuffers
 
 
@@ -71,10 +72,8 @@ def _morph(tree: dict, buffers: GltfBuffers, node: dict, primitive: dict, count:
     if positions.shape[1:] != (count, 3) or (normals is not None and normals.shape[1:] != (count, 3)):
         raise SceneError(f"{where}: a morph target's offsets must be {count} VEC3s, one a vertex")
     mesh = tree["meshes"][node["mesh"]]
-    weights = node.get("weights", mesh.get("weights", [0.0] * len(targets)))
-    weights = np.asarray(weights if isinstance(weights, list) else [], np.float64)
-    if weights.shape != (len(targets),) or not np.all(np.isfinite(weights)):
-        raise SceneError(f"{where}: its morph weights must be {len(targets)} finite numbers")
+    holder = node if "weights" in node else mesh       # (a node's weights stand in for its mesh's)
+    weights = FieldReader(where, holder).numbers("weights", 0.0, length=len(targets), low=-np.inf, high=np.inf)
     return positions, normals, weights
 
 
