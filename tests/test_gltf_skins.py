@@ -187,3 +187,13 @@ def test_the_swaying_example_bends_its_reeds_and_squashes_its_blob():
                       for f in (0, 12))
     np.testing.assert_allclose(np.ptp(squashed, axis=1) / np.ptp(rest, axis=1), [1.25, 0.65, 1.25], rtol=1e-3)
     np.testing.assert_allclose([rest[1].min(), squashed[1].min()], 0.0, atol=1e-3)
+
+
+def test_bent_shapes_beyond_the_memory_held_are_refused(tmp_path, monkeypatch):
+    """Every frame's shape is held: a file whose bent meshes would pass MOST_BENT_BYTES over its frames stops with
+    one line saying how much (here the strip's 6 vertices × 25 frames × 24 bytes, 3600 bytes, against 1000)."""
+    import importlib
+
+    monkeypatch.setattr(importlib.import_module("wgpu_rt.scene.gltf_scene"), "MOST_BENT_BYTES", 1000)
+    with pytest.raises(SceneError, match=r"skinned.glb: its skinned or morphed meshes would take 0.0 GiB over its 25 "):
+        load_scene(_strip_file(tmp_path))

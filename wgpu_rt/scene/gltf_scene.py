@@ -32,13 +32,14 @@ import trimesh
 from ..errors import SceneError
 from .file_materials import FieldReader, gltf_json, shown
 from .gltf_animation import FRAME_RATE, GltfBuffers, frame_count, local_matrix, read_animations
-from .gltf_skins import Bending, bending
+from .gltf_skins import Bending, bending, bends
 from .meshio import load_mesh_file
 from .model import Camera, DirectionalLight, Material, PointLight, Scene, SpotLight
 from .transforms import WORLD_LIMIT, float32_placement
 
 LUMENS_PER_WATT = 683.0     # glTF's candela and lux over the tracer's W·sr⁻¹ and W·m⁻²
 UNLIT_SKY = 1.0             # the background's radiance for a file that brings no light
+MOST_BENT_BYTES = 2 ** 30   # the bent meshes' vertices and normals held for all frames at most
 
 
 def _node_matrix(node: dict, where: str) -> np.ndarray:
@@ -194,13 +195,13 @@ def _lights(tree: dict, placed: list, path: Path) -> list:
     return lights
 
 
-def _mesh_nodes(path: Path, tree: dict, placed: list, meshes: list) -> list[int | None]:
+def _mesh_nodes(buffers: GltfBuffers, placed: list, meshes: list) -> list[int | None]:
     """The node each of ``meshes`` (trimesh's reading of the file, one per placed primitive) stands for: a node
     with a mesh whose world matrix (``placed``, at rest) is the mesh's placement and one of whose primitives has
     as many vertices; among several alike, the ones whose primitive holds the very same vertices, each taken in turn
     (coinciding copies of one mesh). None where none is."""
+    path, tree = buffers.path, buffers.tree
     accessors, entries = tree.get("accessors") or [], tree.get("meshes") or []
-    buffers = GltfBuffers(path, tree)
 
     def positions(node: dict) -> list[int]:
         number = node.get("mesh")
@@ -242,10 +243,16 @@ def node_animation(path, meshes: list, tree: dict | None = None) -> tuple[int, l
     frames = frame_count(channels, str(path)) if channels else 1
     poses = [_placed_nodes(tree, path, channels, f / FRAME_RATE) for f in range(frames)] if channels else [rest]
     worlds = [dict(pose) for pose in poses]
-    moves = []
-    for mesh, node in zip(meshes, _mesh_nodes(path, tree, rest, meshes)):
+    moves, buffers = [], GltfBuffers(path, tree)
+    nodes = _mesh_nodes(buffers, rest, meshes)
+    bent_bytes = frames * sum(24 * len(mesh.vertices) for mesh, node in zip(meshes, nodes)
+                              if node is not None and bends(tree, tree["nodes"][node]))
+    if bent_bytes > MOST_BENT_BYTES:
+        raise SceneError(f"{path}: its skinned or morphed meshes would take {bent_bytes / 2 ** 30:.1f} GiB over its "
+                         f"{frames} frames (a shape a frame; at most {MOST_BENT_BYTES / 2 ** 30:g} GiB are held)")
+    for mesh, node in zip(meshes, nodes):
         weights = [channel for channel in channels.get(node, []) if channel.path == "weights"]
-        bent = None if node is None else bending(path, tree, node, mesh.vertices, mesh.normals, weights, worlds,
+        bent = None if node is None else bending(buffers, node, mesh.vertices, mesh.normals, weights, worlds,
                                                  [f / FRAME_RATE for f in range(frames)])
         if bent is not None:
             _pose(mesh, bent)

@@ -45,7 +45,7 @@ def _primitive(tree: dict, buffers: GltfBuffers, node: dict, vertices: np.ndarra
     return None
 
 
-def _bends(tree: dict, node: dict) -> bool:
+def bends(tree: dict, node: dict) -> bool:
     """Whether ``node`` has a skin or its mesh morph targets."""
     meshes, number = tree.get("meshes") or [], node.get("mesh")
     if node.get("skin") is not None:
@@ -128,16 +128,17 @@ def _blend_normals(linear: np.ndarray, normals: np.ndarray) -> np.ndarray:
     return np.where(length > 1e-30, mapped / np.maximum(length, 1e-30), normals)
 
 
-def bending(path, tree: dict, node_index: int, vertices: np.ndarray, normals: np.ndarray | None,
+def bending(buffers: GltfBuffers, node_index: int, vertices: np.ndarray, normals: np.ndarray | None,
             weight_channels: list[Channel], poses: list[dict], times: list[float]) -> Bending | None:
     """The shape at each of ``times`` (the frames' seconds; ``poses`` the nodes' world matrices at each) of the mesh
-    trimesh read as ``vertices`` and ``normals`` from the primitive of node ``node_index``, bent by its morph targets
-    (``weight_channels``: the node's weights channels) and skin; None where neither bends it."""
+    trimesh read as ``vertices`` and ``normals`` from the primitive of node ``node_index`` of the file ``buffers``
+    reads, bent by its morph targets (``weight_channels``: the node's weights channels) and skin; None where neither
+    bends it."""
+    tree = buffers.tree
     node = tree["nodes"][node_index]
-    if not _bends(tree, node):
+    if not bends(tree, node):
         return None
-    where = f"{path}: node {node_index}"
-    buffers = GltfBuffers(path, tree)
+    where = f"{buffers.path}: node {node_index}"
     primitive = _primitive(tree, buffers, node, vertices, where)
     if primitive is None:
         return None
