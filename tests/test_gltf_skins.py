@@ -1,18 +1,21 @@
 """glTF skins and morph targets (wgpu_rt/scene/gltf_skins.py): a skinned strip bends where its second joint turns
 (linear blend skinning against its closed form, normals by the inverse transpose), morph targets mix by animated
-weights; the tracer builds each frame's shape, and its motion vectors follow the best affine fit."""
+weights; the tracer builds each frame's shape, and a hit's motion follows its triangle's corners."""
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
 from gltf_files import with_accessors
 
-from wgpu_rt.accel.geometry import GeometryBuffers, InstancedGeometry, object_motion
+from wgpu_rt.accel.geometry import GeometryBuffers, InstancedGeometry
 from wgpu_rt.errors import SceneError
 from wgpu_rt.scene import load_scene
 from wgpu_rt.scene.gltf_animation import FRAME_RATE
-from wgpu_rt.scene.model import Camera, Material, Mesh, Scene
+from wgpu_rt.scene.model import Mesh, Scene
 
+ROOT_EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "meshes"
 CAMERA = {"type": "perspective", "perspective": {"yfov": 0.6, "znear": 0.1}}
 # a strip along x from 0 to 2, 0.2 wide in y: vertices (x, ±0.1, 0) at x = 0, 1, 2
 STRIP = np.array([[x, y, 0.0] for x in (0.0, 1.0, 2.0) for y in (-0.1, 0.1)])
@@ -99,27 +102,44 @@ def test_morph_targets_mix_by_their_animated_weights(tmp_path):
         np.testing.assert_allclose(strip.vertices_at(frame), expected, atol=1e-6)
 
 
-def test_the_tracer_builds_each_frames_shape_and_fits_its_motion(tmp_path):
-    """The single-level geometry of frame 24 holds the bent strip; a deforming scene is never built in two levels
-    (its bottom level would be frozen); the motion map of a deforming mesh that in fact only slides is that slide
-    exactly, and of the bending strip the least-squares fit (its root's vertices, which stay, map near themselves)."""
+def test_the_tracer_builds_each_frames_shape(tmp_path):
+    """The single-level geometry of frame 24 holds the bent strip, and where its triangles were at frame 23 for
+    the motion vectors; a bending scene is never built in two levels (its bottom level would be frozen)."""
     scene = load_scene(_strip_file(tmp_path))
-    (strip,), strip_index = scene.meshes, 0
+    (strip,) = scene.meshes
     geometry = GeometryBuffers.build(scene, 24)
-    placed = geometry.triangles[geometry.object_ids == strip_index].reshape(-1, 3)
-    np.testing.assert_allclose(np.unique(np.round(placed, 5), axis=0),
-                               np.unique(np.round(strip.vertices_at(24), 5), axis=0), atol=1e-5)
+    np.testing.assert_allclose(geometry.triangles, strip.vertices_at(24)[strip.faces][geometry.bvh.order], atol=1e-6)
+    np.testing.assert_allclose(geometry.previous_triangles, strip.vertices_at(23)[strip.faces][geometry.bvh.order],
+                               atol=1e-6)
+    assert GeometryBuffers.build(load_scene(ROOT_EXAMPLES / "turntable.glb"), 3).previous_triangles is None
     assert not InstancedGeometry.suits(scene)
-    motion = object_motion(scene, 24)[strip_index].astype(np.float64)
-    now, before = strip.vertices_at(24), strip.vertices_at(23)
-    mapped = now @ motion[:3, :3].T + motion[:3, 3]
-    assert np.abs(mapped - before).max() < 0.5 * np.abs(now - before).max()
 
-    sliding = Mesh("slide", STRIP.astype(np.float32), STRIP_FACES.astype(np.uint32), "m",
-                   vertex_keyframes={0: STRIP.astype(np.float32), 4: (STRIP + [0.4, 0.2, 0]).astype(np.float32)})
-    still = Scene(Camera([0, 0, 5], [0, 0, 0]), [sliding], {"m": Material()})
-    np.testing.assert_allclose(object_motion(still, 2)[0][:3, 3], [-0.1, -0.05, 0], atol=1e-6)
-    np.testing.assert_allclose(object_motion(still, 2)[0][:3, :3], np.eye(3), atol=1e-6)
+
+def test_a_hit_on_a_bending_mesh_was_where_its_triangle_was(gpu, tmp_path):
+    """On the GPU, a hit point's previous position is the blend of its triangle's corners at the frame before by its
+    barycentrics (accel/motion_vertices.wgsl): for rays at the strip's elbow half at frame 12, as the numpy blend
+    has it, and not where its node's (still) transform would put it."""
+    from wgpu_rt.accel.ray_query import RayQuery, query_rays
+
+    scene = load_scene(_strip_file(tmp_path))
+    (strip,) = scene.meshes
+    geometry = GeometryBuffers.build(scene, 12)
+    corners = strip.vertices_at(12)[STRIP_FACES[2:]].astype(np.float64)   # the far half's two triangles
+    rng = np.random.default_rng(4)
+    shares = rng.dirichlet([2, 2, 2], 40)
+    which = np.arange(40) % 2
+    targets = np.einsum("nk,nkj->nj", shares, corners[which])
+    facing = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])[which]
+    origins = targets + facing / np.linalg.norm(facing, axis=1, keepdims=True)
+    hits, surfaces = RayQuery(gpu, geometry).intersect(query_rays(origins, targets - origins))
+    hit = hits["prim"] != 0xFFFFFFFF
+    assert hit.sum() > 20
+    prim, u, v = hits["prim"][hit], hits["u"][hit], hits["v"][hit]
+    weights = np.stack([1 - u - v, u, v], 1)
+    expected = np.einsum("nk,nkj->nj", weights, geometry.previous_triangles[prim].astype(np.float64))
+    now = np.einsum("nk,nkj->nj", weights, geometry.triangles[prim].astype(np.float64))
+    np.testing.assert_allclose(surfaces["previous_position"][hit], expected, atol=1e-5)
+    assert np.abs(expected - now).max() > 100 * 1e-5    # (the strip bent between the frames: 0.004 at most)
 
 
 def test_mitsubas_scene_of_a_frame_has_that_frames_shape(mi, tmp_path):
@@ -172,9 +192,7 @@ def test_a_bent_frame_renders_as_the_still_mesh_of_its_shape(gpu, tmp_path):
 def test_the_swaying_example_bends_its_reeds_and_squashes_its_blob():
     """examples/meshes/swaying.glb (make_swaying.py): 49 frames; each reed's root ring stays while its tip sways;
     the blob is squashed fully at 0.5 s (weight sin²(πt)), 0.65 as tall and 1.25 as wide, resting on the floor."""
-    from pathlib import Path
-
-    scene = load_scene(Path(__file__).resolve().parents[1] / "examples" / "meshes" / "swaying.glb")
+    scene = load_scene(ROOT_EXAMPLES / "swaying.glb")
     assert scene.frame_count == 49 and not scene.camera_keyframes
     reeds = [mesh for mesh in scene.meshes if "reed" in mesh.name]
     assert len(reeds) == 3 and all(reed.deforms for reed in reeds)

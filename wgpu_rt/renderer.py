@@ -201,7 +201,8 @@ class Renderer:
 
         def trace_for(frame: int, seed_frame: int):
             seed = (self.seed + seed_frame) % 2 ** 32
-            key = b"".join(m.pose_key(frame) for m in scene.meshes)
+            # (a bending mesh's geometry holds where its vertices were at the frame before too)
+            key = b"".join(m.pose_key(frame) + (m.pose_key(frame - 1) if m.deforms else b"") for m in scene.meshes)
             trace = traced.get(follows_every_frame) or traced.get(key)
             if trace is None:   # objects moved: new BVH, new uploads (the last time, when instanced)
                 moved = bool(traced)

@@ -14,7 +14,8 @@ See ARCHITECTURE.md, "Geometry". The GPU layout, in binding order, matches wgsl/
    space, zero for meshes without vertex normals) and the ids (two-level: an instance's own override
    them, except the world-space level's).
 3. ``object_motion``: one column-major mat4x4f per object (mesh index): world at this frame → world
-   at the previous frame.
+   at the previous frame; where a mesh bends, each triangle's world vertices at the previous frame instead
+   (``previous_triangles``, three vec4f a triangle).
 4. two-level only: ``instances``, INSTANCE_DTYPE per instance (wgsl/accel/instances.wgsl).
 """
 
@@ -57,6 +58,10 @@ LEAF_MASK = (1 << LEAF_COUNT_BITS) - 1
 # accel/bvh.wgsl imports THREADED_WALK; a geometry's walk_module names the one its node layout needs.
 THREADED_WALK = "accel/walk_threaded.wgsl"
 WIDE_WALK = "accel/walk_wide.wgsl"
+# accel/bvh.wgsl imports MOTION_OBJECTS (binding 3: a matrix an object); a geometry whose meshes bend swaps in
+# MOTION_VERTICES (binding 3: each triangle's vertices at the frame before).
+MOTION_OBJECTS = "accel/motion_objects.wgsl"
+MOTION_VERTICES = "accel/motion_vertices.wgsl"
 # layout -> the module that walks it; "wide8" is "wide" with its boxes quantized to 8 bits (64-byte nodes)
 BVH_LAYOUTS = {"threaded": THREADED_WALK, "wide": WIDE_WALK, "wide8": WIDE_WALK}
 # accel/walk_wide.wgsl imports WIDE_NODE_FULL; layout "wide8" swaps in QUANTIZED_WIDE_NODE
@@ -95,6 +100,8 @@ def geometry_modules(geometry) -> dict:
     """The module swaps for kernels that trace ``geometry``: its instances and walk modules, and its
     geometry words module where it is fetched as rows."""
     modules = {NO_INSTANCES: geometry.instances_module, THREADED_WALK: geometry.walk_module}
+    if getattr(geometry, "previous_triangles", None) is not None:
+        modules[MOTION_OBJECTS] = MOTION_VERTICES
     if geometry.row_loads:
         modules[GEOMETRY_WORDS] = GEOMETRY_ROWS
     if geometry.layout == "wide8":
@@ -272,31 +279,11 @@ def _material_ids(scene: Scene) -> list[int]:
 
 
 def object_motion(scene: Scene, frame: int) -> np.ndarray:
-    """(O, 4, 4) f32 per mesh: world at ``frame`` → world at the frame before. A deforming mesh's vertices move
-    each their own way: its map is the affine one that best fits them (least squares), which the motion vectors
-    follow (exact for a mesh that only moves, an approximation for a bending one)."""
-    return np.asarray([_deforming_motion(mesh, frame) if mesh.deforms
-                       else mesh.transform_at(frame - 1).astype(np.float64)
+    """(O, 4, 4) f32 per mesh: world at ``frame`` → world at the frame before (a bending mesh's points each move
+    their own way: see GeometryBuffers.previous_triangles)."""
+    return np.asarray([mesh.transform_at(frame - 1).astype(np.float64)
                        @ np.linalg.inv(mesh.transform_at(frame).astype(np.float64)) for mesh in scene.meshes],
                       np.float32)
-
-
-def _deforming_motion(mesh, frame: int) -> np.ndarray:
-    """The affine map (4, 4) that takes a deforming mesh's world vertices at ``frame`` closest to where they were
-    at the frame before (least squares; identity where they hold still)."""
-    now = transform_points(mesh.transform_at(frame).astype(np.float64), mesh.vertices_at(frame))
-    before = transform_points(mesh.transform_at(frame - 1).astype(np.float64), mesh.vertices_at(frame - 1))
-    if np.array_equal(now, before):
-        return np.eye(4)
-    # The fit of the change, before − now = Dᵀ (now − centre) + d: centred so that it loses no digits to a mesh
-    # far from the origin, and of least norm, so that a direction the vertices do not span (a flat mesh's normal)
-    # keeps the identity.
-    centre = now.mean(0)
-    change, *_ = np.linalg.lstsq(np.column_stack([now - centre, np.ones(len(now))]), before - now, rcond=None)
-    motion = np.eye(4)
-    motion[:3, :3] += change[:3].T
-    motion[:3, 3] = change[3] - change[:3].T @ centre
-    return motion
 
 
 def _check_triangles(scene: Scene, triangles: list[np.ndarray]) -> np.ndarray:
@@ -318,6 +305,9 @@ class GeometryBuffers:
     object_motion: np.ndarray      # (O, 4, 4) f32 world at this frame → world at the previous frame
     texture_records: np.ndarray | None   # (T, TEXTURE_RECORD_WORDS) u32 (_mesh_texture_records), None: no texture
     bvh: Bvh
+    # (T, 3, 3) f32 world-space vertices at the frame before, BVH order, where a mesh bends (Mesh.vertex_keyframes):
+    # binding 3 then holds them in place of object_motion (MOTION_VERTICES). None: every mesh is rigid.
+    previous_triangles: np.ndarray | None = None
     layout: str = "threaded"       # binding 0's node layout: a key of BVH_LAYOUTS
     row_loads: bool = False        # kernels fetch nodes and positions as rows (ROW_LOADS)
     small_leaves: bool = False     # ``bvh`` was built with small leaves (SMALL_LEAVES)
@@ -349,6 +339,8 @@ class GeometryBuffers:
         threaded (``as_variant`` for others)."""
         material_ids = _material_ids(scene)
         triangles, normals, colors, materials, objects = [], [], [], [], []
+        previous = [_mesh_triangles(mesh, mesh.transform_at(frame - 1), frame - 1)[0]
+                    for mesh in scene.meshes] if scene.deforms else None
         for object_id, mesh in enumerate(scene.meshes):
             world, shading = _mesh_triangles(mesh, mesh.transform_at(frame), frame)
             triangles.append(world)
@@ -362,7 +354,8 @@ class GeometryBuffers:
         textures = _scene_texture_records(scene, range(len(scene.meshes)))
         return cls(all_triangles[order], np.concatenate(normals)[order], np.concatenate(colors)[order],
                    np.concatenate(materials)[order], np.concatenate(objects)[order], object_motion(scene, frame),
-                   None if textures is None else textures[order], bvh, small_leaves=small_leaves)
+                   None if textures is None else textures[order], bvh,
+                   None if previous is None else _check_triangles(scene, previous)[order], small_leaves=small_leaves)
 
     def as_variant(self, variant: str) -> "GeometryBuffers":
         """This geometry laid out and fetched as ``variant`` (bvh_variants): the same BVH, or where the
@@ -384,7 +377,8 @@ class GeometryBuffers:
                 self, triangles=self.triangles[order], shading_normals=self.shading_normals[order],
                 vertex_colors=self.vertex_colors[order], material_ids=self.material_ids[order],
                 object_ids=self.object_ids[order], bvh=bvh, small_leaves=small_leaves,
-                texture_records=None if self.texture_records is None else self.texture_records[order])
+                texture_records=None if self.texture_records is None else self.texture_records[order],
+                previous_triangles=None if self.previous_triangles is None else self.previous_triangles[order])
         return rebuilt[small_leaves]
 
     @property
@@ -406,7 +400,12 @@ class GeometryBuffers:
         """The four arrays of bind group 0, laid out byte for byte as wgsl/accel/bvh.wgsl reads them."""
         positions, attributes = _pack_triangles(self.triangles, self.shading_normals, self.vertex_colors,
                                                 self.material_ids, self.object_ids)
-        return [self._nodes(orderings), positions, attributes, _column_major(self.object_motion)]
+        if self.previous_triangles is None:
+            motion = _column_major(self.object_motion)
+        else:
+            motion = np.zeros((len(self.previous_triangles) * 3, 4), np.float32)
+            motion[:, :3] = self.previous_triangles.reshape(-1, 3)
+        return [self._nodes(orderings), positions, attributes, motion]
 
     @property
     def fits_uniform(self) -> bool:

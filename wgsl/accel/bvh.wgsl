@@ -22,6 +22,7 @@
 // #import accel/walk_tree.wgsl
 // #import accel/instances_none.wgsl
 // #import accel/walk_threaded.wgsl
+// #import accel/motion_objects.wgsl
 
 // geometric_normal: tri_geometric_normal(hit.prim), from the vertices the walk already fetched.
 // loop_passes: how many times the walk's loops went round (see LOOP_BUDGET in trace/trace.wgsl).
@@ -168,10 +169,6 @@ fn tri_object(prim: u32) -> u32 {
     let placed = placed_triangle(prim);
     let own = placed.record.object;
     return select(tri_attributes[placed.stored].object, own, HAS_INSTANCES && own != FROM_TRIANGLE);
-}
-
-fn object_to_previous(object: u32) -> mat4x4f {
-    return object_motion[object];
 }
 
 // A ray origin for leaving the surface at p (geometric normal n) toward side sign(dot(n, dir)),

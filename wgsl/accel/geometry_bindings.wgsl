@@ -35,7 +35,7 @@ const NO_INSTANCE: u32 = 0xffffffffu;
 const FROM_TRIANGLE: u32 = 0xffffffffu;
 
 @group(0) @binding(2) var<storage, read> tri_attributes: array<TriAttributes>;
-@group(0) @binding(3) var<storage, read> object_motion: array<mat4x4f>;     // world now → world previous frame
+// (binding 3, what motion vectors read, is declared by accel/motion_objects.wgsl or accel/motion_vertices.wgsl)
 
 // Bit k set where dir's component k is negative: the node copy (wgpu_rt.bvh.ordered_threaded_nodes)
 // whose order suits rays of that direction.

@@ -9,7 +9,7 @@ struct QueryRay { origin: vec3f, t_max: f32, dir: vec3f, offset: u32, normal: ve
 struct HitSurface {
     shading_normal: vec3f, material: u32,
     geometric_normal: vec3f, object: u32,
-    previous_position: vec3f, _pad: u32,   // the hit point mapped by object_to_previous
+    previous_position: vec3f, _pad: u32,   // where the hit point was at the frame before (previous_position)
 }
 
 @group(1) @binding(0) var<storage, read> rays: array<QueryRay>;
@@ -36,7 +36,7 @@ fn intersect(@builtin(global_invocation_id) id: vec3u, @builtin(local_invocation
         let position = (1.0 - hit.u - hit.v) * p[0] + hit.u * p[1] + hit.v * p[2];
         surface = HitSurface(tri_shading_normal(hit.prim, hit.u, hit.v), tri_material(hit.prim),
                              tri_geometric_normal(hit.prim), object,
-                             (object_to_previous(object) * vec4f(position, 1.0)).xyz, 0u);
+                             previous_position(hit.prim, hit.u, hit.v, position), 0u);
     }
     surfaces[id.x] = surface;
 }

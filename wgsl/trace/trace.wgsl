@@ -149,9 +149,9 @@ fn extend_path(path: ptr<function, Path>, sampler: ptr<function, Sampler>, trace
             (*path).normal = shading_normal;
             (*path).linear_depth = dot(position - params.camera_origin, params.camera_forward);
             if HAS_MOTION {
-                let previous_position = (object_to_previous(tri_object(hit.prim)) * vec4f(position, 1.0)).xyz;
+                let before = previous_position(hit.prim, hit.u, hit.v, position);
                 let film = (*path).film;
-                (*path).motion = previous_film_position(previous_position - params.previous_origin, film) - film;
+                (*path).motion = previous_film_position(before - params.previous_origin, film) - film;
             }
         }
         if (*path).albedo_pending && !material_is_delta(material) {
