@@ -507,3 +507,20 @@ def test_blended_panels_match_mitsuba(gpu):
 
     distance, masked_distance = _matches_mitsuba(panel("blend"), panel("mask"))
     assert masked_distance > 2 * distance
+
+
+@pytest.mark.parametrize("mode", ["mask", "blend"])
+def test_cut_out_emitters_match_mitsuba(gpu, mode):
+    """An emissive panel cut out by a checker's alpha (or blended by a ramp of it) facing a floor, seen from behind:
+    its light through and around its holes as Mitsuba's area emitter whose radiance is baked to 0 in them (or times
+    the alpha: ``mitsuba.cut_out_radiance``), under a mask; the panel uncut is told apart."""
+    from test_cutouts import FACING_FLOOR, _checker, _square, lamp_scene
+
+    texture = _checker()
+    if mode == "blend":
+        texture[..., 3] = np.round(np.tile(np.linspace(0, 255, 4), (4, 1))).astype(np.uint8)
+    panel = _square("panel", "white", FACING_FLOOR, texture)
+    panel.alpha_mode = mode
+    whole = _square("panel", "white", FACING_FLOOR, _checker(alpha=False))
+    distance, whole_distance = _matches_mitsuba(lamp_scene([panel]), lamp_scene([whole]))
+    assert whole_distance > 2 * distance

@@ -244,11 +244,6 @@ def _scene_texture_records(scene: Scene, meshes) -> np.ndarray | None:
     textures = {id(image): index for index, image in enumerate(scene.textures())}
     if not textures and all(scene.meshes[i].uvs is None for i in meshes):
         return None
-    for i in meshes:
-        mesh = scene.meshes[i]
-        if mesh.is_cut_out and scene.materials[mesh.material].is_emissive:
-            raise SceneError(f"mesh {mesh.name!r}: an emitter cannot be cut out (its light is sampled over whole "
-                             f"triangles); give its texture no alpha or its material no emission")
     return np.concatenate([_mesh_texture_records(scene.meshes[i], textures) for i in meshes])
 
 

@@ -242,7 +242,11 @@ def morph_target_count(tree: dict, node: int, where: str) -> int:
     if not (isinstance(number, int) and 0 <= number < len(meshes) and isinstance(meshes[number], dict)):
         return 0
     primitives = meshes[number].get("primitives") or []
-    counts = {len(p.get("targets") or []) if isinstance(p, dict) else 0 for p in primitives}
+    targets = [p.get("targets") or [] if isinstance(p, dict) else [] for p in
+               (primitives if isinstance(primitives, list) else [])]
+    if not all(isinstance(t, list) for t in targets):
+        raise SceneError(f"{where}: mesh {number}'s morph targets must be lists")
+    counts = {len(t) for t in targets}
     if len(counts) > 1:
         raise SceneError(f"{where}: mesh {number}'s primitives have different numbers of morph targets "
                          f"{sorted(counts)}")

@@ -52,7 +52,8 @@ def bends(tree: dict, node: dict) -> bool:
         return True
     if not (isinstance(number, int) and 0 <= number < len(meshes) and isinstance(meshes[number], dict)):
         return False
-    return any(isinstance(p, dict) and p.get("targets") for p in meshes[number].get("primitives") or [])
+    primitives = meshes[number].get("primitives") or []
+    return any(isinstance(p, dict) and p.get("targets") for p in (primitives if isinstance(primitives, list) else []))
 
 
 def _morph(tree: dict, buffers: GltfBuffers, node: dict, primitive: dict, count: int, where: str):

@@ -101,12 +101,32 @@ def cutout_opacity(mi, texture: np.ndarray, alpha_mode: str = "mask") -> dict:
         alpha = np.ascontiguousarray(np.asarray(texture)[..., 3:], np.float32) / 255.0
         return {"type": "bitmap", "bitmap": mi.Bitmap(alpha), "raw": True, "filter_type": "bilinear",
                 "wrap_mode": "repeat"}
-    height, width = texture.shape[:2]
-    factor = max(1, min(CUTOUT_OVERSAMPLING, 4096 // max(height, width)))
-    uvs = _texel_grid(height, width, factor)
-    kept = (sample_alpha(texture, uvs) >= CUTOUT_ALPHA).astype(np.float32).reshape(height * factor, width * factor)
+    shape, uvs = _cutout_grid(texture)
+    kept = (sample_alpha(texture, uvs) >= CUTOUT_ALPHA).astype(np.float32).reshape(shape)
     return {"type": "bitmap", "bitmap": mi.Bitmap(kept[..., None]), "raw": True, "filter_type": "nearest",
             "wrap_mode": "repeat"}
+
+
+def _cutout_grid(texture: np.ndarray) -> tuple[tuple[int, int], np.ndarray]:
+    """The (rows, columns) of a grid up to CUTOUT_OVERSAMPLING times finer than a cut-out ``texture``'s texels, and
+    the (N, 2) coordinates of its cells' centres, row by row (``_texel_grid``)."""
+    height, width = texture.shape[:2]
+    factor = max(1, min(CUTOUT_OVERSAMPLING, 4096 // max(height, width)))
+    return (height * factor, width * factor), _texel_grid(height, width, factor)
+
+
+def cut_out_radiance(mi, mesh, emission: np.ndarray) -> dict:
+    """The radiance of a cut-out emitter: ``emission`` (times the mesh's emission texture) where the tracer keeps the
+    surface and 0 in its holes ("blend": times the alpha, the share of crossings that meet it), baked on
+    ``_cutout_grid`` and read nearest. Mitsuba's area emitter ignores its shape's mask; the tracer's light samples
+    and paths find no light in a hole."""
+    shape, uvs = _cutout_grid(mesh.texture)
+    alpha = sample_alpha(mesh.texture, uvs).astype(np.float64)
+    share = alpha if mesh.alpha_mode == "blend" else (alpha >= CUTOUT_ALPHA).astype(np.float64)
+    colour = 1.0 if mesh.emission_texture is None else sample_texture(mesh.emission_texture, uvs)
+    radiance = (share[:, None] * colour * np.asarray(emission, np.float64)).reshape(*shape, 3)
+    return {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(radiance, np.float32)), "raw": True,
+            "filter_type": "nearest", "wrap_mode": "repeat"}
 
 
 def normal_mapped_bsdf(mi, normal_map: np.ndarray, bsdf: dict) -> dict:
@@ -302,7 +322,9 @@ def to_mitsuba(scene: Scene, width: int, height: int, spp: int, max_depth: int, 
         if mesh.is_cut_out:
             bsdf = {"type": "mask", "opacity": cutout_opacity(mi, mesh.texture, mesh.alpha_mode), "bsdf": bsdf}
         emission = material.emission if material.is_emissive else None
-        if emission is not None and mesh.emission_texture is not None:
+        if emission is not None and mesh.is_cut_out:
+            emission = cut_out_radiance(mi, mesh, emission)
+        elif emission is not None and mesh.emission_texture is not None:
             emission = textured_reflectance(mi, mesh.emission_texture, emission)   # radiance, tinted alike
         interior = None
         if material.absorbs:      # its sigma_t holds values of at most 1, as a reflectance: a scale carries the rest

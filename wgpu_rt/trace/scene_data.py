@@ -335,6 +335,10 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
             if image is not None:
                 object_image[o] = image_numbers[id(image)]
                 object_colour[o] = means.setdefault(id(image), srgb8_mean(image))
+    if object_ids is not None:      # a cut-out emitter gives light where it is there: its share of the texels
+        for o in np.unique(triangle_object):
+            if scene.meshes[o].is_cut_out:
+                object_colour[o] *= cut_out_coverage(scene.meshes[o])
     triangle_image = object_image[triangle_object]
     triangle_power = np.pi * area * ((emission * object_colour[triangle_object]) @ LUMINANCE)
 
@@ -413,6 +417,18 @@ def build_emitter_table(scene: Scene, numbers: np.ndarray, triangles: np.ndarray
         return EmitterTable(records, table, triangle_entry)
     return EmitterTable(records, table, triangle_entry, int(records["group"][background[0]]),
                         float(records["share"][background[0]]))
+
+
+LEAST_COVERAGE = 1e-3     # a cut-out emitter's power counts at least this share of its area (never 0)
+
+
+def cut_out_coverage(mesh) -> float:
+    """The share of a cut-out mesh's texels that are there: those of alpha at least one half (glTF's MASK), or the
+    mean alpha (BLEND); at least LEAST_COVERAGE. An estimate for picking lights by power (the texture's repeats
+    and the triangles' coordinates are not followed)."""
+    alpha = np.asarray(mesh.texture)[..., 3]
+    share = float(np.mean(alpha) / 255.0) if mesh.alpha_mode == "blend" else float(np.mean(alpha >= 128))
+    return max(share, LEAST_COVERAGE)
 
 
 def srgb8_mean(image: np.ndarray) -> np.ndarray:

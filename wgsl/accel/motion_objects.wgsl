@@ -3,6 +3,7 @@
 // object. accel/bvh.wgsl imports this module; a scene whose meshes bend swaps in accel/motion_vertices.wgsl.
 
 // #import accel/geometry_bindings.wgsl
+// #import accel/bvh.wgsl
 
 @group(0) @binding(3) var<storage, read> object_motion: array<mat4x4f>;
 
