@@ -33,6 +33,40 @@ def look_rotation(origin, target) -> list[float]:
     return [float(x), float(y), float(z), float(w)]
 
 
+def split_glb(data: bytes) -> tuple[dict, bytearray]:
+    """A .glb's JSON tree and its binary chunk (to edit, then ``join_glb``)."""
+    length = struct.unpack_from("<I", data, 12)[0]
+    binary_at = 20 + length
+    return (json.loads(data[20:20 + length]),
+            bytearray(data[binary_at + 8:binary_at + 8 + struct.unpack_from("<I", data, binary_at)[0]]))
+
+
+def add_accessor(tree: dict, binary: bytearray, values, kind: str, dtype=np.float32, bounds: bool = False) -> int:
+    """Append ``values`` to ``binary`` as a bufferView and an accessor of ``kind`` (float32, or uint16 joints), with
+    min and max where glTF asks for them (key times, or ``bounds``); returns the accessor's index."""
+    array = np.ascontiguousarray(values, dtype)
+    binary.extend(b"\0" * (-len(binary) % 4))
+    tree["bufferViews"].append({"buffer": 0, "byteOffset": len(binary), "byteLength": array.nbytes})
+    entry = {"bufferView": len(tree["bufferViews"]) - 1, "componentType": 5123 if dtype == np.uint16 else 5126,
+             "count": len(array), "type": kind}
+    if kind == "SCALAR" or bounds:
+        entry.update(min=np.min(array, 0).reshape(-1).tolist(), max=np.max(array, 0).reshape(-1).tolist())
+    tree["accessors"].append(entry)
+    binary.extend(array.tobytes())
+    return len(tree["accessors"]) - 1
+
+
+def join_glb(tree: dict, binary: bytearray) -> bytes:
+    """The .glb of ``tree`` and ``binary`` (padded to 4 bytes, the buffer's length set)."""
+    binary.extend(b"\0" * (-len(binary) % 4))
+    tree["buffers"][0]["byteLength"] = len(binary)
+    text = json.dumps(tree, separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 4)
+    body = (struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(binary), b"BIN\0")
+            + bytes(binary))
+    return b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
+
+
 def textured(mesh: trimesh.Trimesh, material: PBRMaterial) -> trimesh.Trimesh:
     mesh.visual = trimesh.visual.TextureVisuals(uv=np.zeros((len(mesh.vertices), 2)), material=material)
     return mesh

@@ -10,13 +10,11 @@ second: 49 frames; a still camera, a low sun and a cool fill light. Run from the
     python examples/meshes/make_swaying.py
 """
 
-import json
-import struct
 from pathlib import Path
 
 import numpy as np
 import trimesh
-from make_gallery import look_rotation     # (this folder is on the path when the script runs)
+from make_gallery import add_accessor, join_glb, look_rotation, split_glb   # (this folder is on the path)
 from trimesh.visual.material import PBRMaterial
 
 HERE = Path(__file__).parent
@@ -112,23 +110,10 @@ def build() -> bytes:
     blob.visual = trimesh.visual.TextureVisuals(uv=np.zeros((len(blob.vertices), 2)), material=materials["jelly"])
     scene.add_geometry(blob, node_name="blob", geom_name="blob",
                        transform=trimesh.transformations.translation_matrix(BLOB_CENTRE))
-    data = scene.export(file_type="glb")
-    length = struct.unpack_from("<I", data, 12)[0]
-    tree = json.loads(data[20:20 + length])
-    binary_at = 20 + length
-    binary = bytearray(data[binary_at + 8:binary_at + 8 + struct.unpack_from("<I", data, binary_at)[0]])
+    tree, binary = split_glb(scene.export(file_type="glb"))
 
-    def accessor(values, kind: str, dtype=np.float32) -> int:
-        array = np.ascontiguousarray(values, dtype)
-        binary.extend(b"\0" * (-len(binary) % 4))
-        tree["bufferViews"].append({"buffer": 0, "byteOffset": len(binary), "byteLength": array.nbytes})
-        entry = {"bufferView": len(tree["bufferViews"]) - 1, "count": len(array), "type": kind,
-                 "componentType": 5123 if dtype == np.uint16 else 5126}
-        if kind == "SCALAR" or (kind == "VEC3" and dtype == np.float32):
-            entry.update(min=np.min(array, 0).reshape(-1).tolist(), max=np.max(array, 0).reshape(-1).tolist())
-        tree["accessors"].append(entry)
-        binary.extend(array.tobytes())
-        return len(tree["accessors"]) - 1
+    def accessor(values, kind: str, dtype=np.float32, bounds: bool = False) -> int:
+        return add_accessor(tree, binary, values, kind, dtype, bounds)
 
     names = [node.get("name") for node in tree["nodes"]]
     times = np.linspace(0.0, SECONDS, KEYS)
@@ -161,7 +146,7 @@ def build() -> bytes:
     flat = squashed(blob)
     blob_mesh = tree["meshes"][tree["nodes"][blob_node]["mesh"]]
     blob_mesh["primitives"][0]["targets"] = [
-        {"POSITION": accessor(flat.vertices - blob.vertices, "VEC3"),
+        {"POSITION": accessor(flat.vertices - blob.vertices, "VEC3", bounds=True),
          "NORMAL": accessor(flat.vertex_normals - blob.vertex_normals, "VEC3")}]
     blob_mesh["weights"] = [0.0]
     samplers.append({"input": key_times, "output": accessor(np.sin(2 * np.pi * times / SECONDS) ** 2, "SCALAR")})
@@ -181,14 +166,7 @@ def build() -> bytes:
          "rotation": look_rotation([2.5, 2.0, 1.5], [0.0, 0.0, 0.0])},
         {"name": "fill", "extensions": {"KHR_lights_punctual": {"light": 1}}, "translation": [-1.8, 2.2, 2.0]}]
     tree["scenes"][0]["nodes"] += list(range(first, first + 3))
-    binary.extend(b"\0" * (-len(binary) % 4))
-    tree["buffers"][0]["byteLength"] = len(binary)
-    text = json.dumps(tree, separators=(",", ":")).encode()
-    text += b" " * (-len(text) % 4)
-    body = (struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(binary), b"BIN\0")
-            + bytes(binary))
-    return b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
-
+    return join_glb(tree, binary)
 
 if __name__ == "__main__":
     OUT.write_bytes(build())

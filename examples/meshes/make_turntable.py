@@ -10,13 +10,11 @@ pose. A low sun from the left and a dim fill light. Run from the repository root
     python examples/meshes/make_turntable.py
 """
 
-import json
-import struct
 from pathlib import Path
 
 import numpy as np
 import trimesh
-from make_gallery import look_rotation     # (this folder is on the path when the script runs)
+from make_gallery import add_accessor, join_glb, look_rotation, split_glb   # (this folder is on the path)
 from PIL import Image
 from trimesh.visual.material import PBRMaterial
 
@@ -76,22 +74,10 @@ def build() -> bytes:
         scene.add_geometry(mesh, node_name=name, geom_name=name)
     scene.add_geometry(box, node_name="brass-box", geom_name="brass-box",
                        transform=trimesh.transformations.translation_matrix((0, 0.5001, 0)))
-    data = scene.export(file_type="glb")
-    length = struct.unpack_from("<I", data, 12)[0]
-    tree = json.loads(data[20:20 + length])
-    binary_at = 20 + length
-    binary = bytearray(data[binary_at + 8:binary_at + 8 + struct.unpack_from("<I", data, binary_at)[0]])
+    tree, binary = split_glb(scene.export(file_type="glb"))
 
     def accessor(values, kind: str) -> int:
-        array = np.asarray(values, np.float32)
-        binary.extend(b"\0" * (-len(binary) % 4))
-        tree["bufferViews"].append({"buffer": 0, "byteOffset": len(binary), "byteLength": array.nbytes})
-        entry = {"bufferView": len(tree["bufferViews"]) - 1, "componentType": 5126, "count": len(array), "type": kind}
-        if kind == "SCALAR":
-            entry.update(min=[float(array.min())], max=[float(array.max())])
-        tree["accessors"].append(entry)
-        binary.extend(array.tobytes())
-        return len(tree["accessors"]) - 1
+        return add_accessor(tree, binary, values, kind)
 
     turn_times = accessor(np.linspace(0, TURN_SECONDS, 5), "SCALAR")
     angles = np.linspace(0, 2 * np.pi, 5)
@@ -117,14 +103,7 @@ def build() -> bytes:
         {"input": dolly_times, "output": dolly, "interpolation": "LINEAR"}], "channels": [
         {"sampler": 0, "target": {"node": names.index("brass-box"), "path": "rotation"}},
         {"sampler": 1, "target": {"node": first, "path": "translation"}}]}]
-    binary.extend(b"\0" * (-len(binary) % 4))
-    tree["buffers"][0]["byteLength"] = len(binary)
-    text = json.dumps(tree, separators=(",", ":")).encode()
-    text += b" " * (-len(text) % 4)
-    body = (struct.pack("<I4s", len(text), b"JSON") + text + struct.pack("<I4s", len(binary), b"BIN\0")
-            + bytes(binary))
-    return b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body
-
+    return join_glb(tree, binary)
 
 if __name__ == "__main__":
     OUT.write_bytes(build())
