@@ -35,8 +35,10 @@ def _primitive(tree: dict, buffers: GltfBuffers, node: dict, vertices: np.ndarra
     number = node.get("mesh")
     if not (isinstance(number, int) and 0 <= number < len(meshes)):
         return None
-    for primitive in meshes[number].get("primitives") or []:
-        position = (primitive.get("attributes") or {}).get("POSITION") if isinstance(primitive, dict) else None
+    primitives = meshes[number].get("primitives") or []
+    for primitive in primitives if isinstance(primitives, list) else []:
+        attributes = primitive.get("attributes") if isinstance(primitive, dict) else None
+        position = attributes.get("POSITION") if isinstance(attributes, dict) else None
         if not (isinstance(position, int) and 0 <= position < len(accessors)
                 and isinstance(accessors[position], dict) and accessors[position].get("count") == len(vertices)):
             continue

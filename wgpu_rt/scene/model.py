@@ -225,8 +225,11 @@ class Mesh:
 
     @property
     def deforms(self) -> bool:
-        """Whether its vertex keyframes hold more than one shape."""
-        return len({v.tobytes() for v in self.vertex_keyframes.values()}) > 1
+        """Whether its vertex keyframes hold more than one shape (asked every frame: it stops at the first
+        keyframe that differs from the first)."""
+        shapes = iter(self.vertex_keyframes.values())
+        first = next(shapes, None)
+        return any(not np.array_equal(shape, first) for shape in shapes)
 
     def pose_key(self, frame: int) -> bytes:
         """Its placement, and a deforming mesh's shape, at ``frame``: equal for frames where it is the same."""
