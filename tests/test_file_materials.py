@@ -85,6 +85,26 @@ def test_a_gltf_files_materials_name_kind_and_values(tmp_path):
     np.testing.assert_allclose(unnamed.reflectance, [0.2, 0.4, 0.6], atol=1 / 255)
 
 
+def _lacquer(materials):
+    for material in materials:
+        material["extensions"] = {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0, "clearcoatRoughnessFactor": 0.2}}
+    materials[2]["extensions"]["KHR_materials_clearcoat"]["clearcoatFactor"] = 0.3
+
+
+def test_a_clear_coat_on_a_non_metal_is_its_plastics_coat(tmp_path):
+    """KHR_materials_clearcoat of factor ≥ 0.5 over a rough non-metal: the plastic's coat takes the clear coat's
+    roughness (alpha 0.2² where the base's was 0.9²); a metal under it and a faint coat (0.3) keep their own."""
+    wood = PBRMaterial(name="wood", baseColorFactor=[0.5, 0.3, 0.1, 1.0], metallicFactor=0.0, roughnessFactor=0.9)
+    paint = PBRMaterial(name="paint", baseColorFactor=[0.8, 0.1, 0.1, 1.0], metallicFactor=1.0, roughnessFactor=0.5)
+    dull = PBRMaterial(name="dull", baseColorFactor=[0.5, 0.5, 0.5, 1.0], metallicFactor=0.0, roughnessFactor=0.9)
+    path = _glb(tmp_path, [wood, paint, dull], edit=_lacquer)
+    scene = load_scene(_scene_file(tmp_path, {"file": path.name}))
+    wood, paint, dull = (scene.materials[f"thing/{name}"] for name in ("wood", "paint", "dull"))
+    assert (wood.kind, wood.roughness) == ("plastic", pytest.approx(0.04))
+    assert (paint.kind, paint.roughness) == ("conductor", pytest.approx(0.25))
+    assert (dull.kind, dull.roughness) == ("plastic", pytest.approx(0.81))
+
+
 def _volumes(materials):
     for material, volume in zip(materials, [{"thicknessFactor": 0.2, "attenuationColor": [0.5, 1.0, 0.25],
                                              "attenuationDistance": 2.0},
@@ -192,8 +212,13 @@ def _bad_volume(materials):
     materials[0]["extensions"] = {"KHR_materials_volume": {"thicknessFactor": 1.0, "attenuationDistance": 0}}
 
 
+def _bad_coat(materials):
+    materials[0]["extensions"] = {"KHR_materials_clearcoat": {"clearcoatFactor": 2}}
+
+
 @pytest.mark.parametrize("edit, message", [
     (_bad_metal, r"material 'gold': metallicFactor must be in \[0, 1\], got 2"),
+    (_bad_coat, r"material 'gold': clearcoatFactor must be in \[0, 1\], got 2"),
     (_bad_ior, r"material 'gold': ior must be in \[1, inf\], got 0.5"),
     (_bad_volume, r"material 'gold': attenuationDistance must be above 0, got 0"),
 ])

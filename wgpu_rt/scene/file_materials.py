@@ -1,5 +1,5 @@
-"""A mesh file's own materials → ``Material``: glTF's metallic-roughness model (with its transmission, volume, ior
-and emissive-strength extensions) and OBJ's MTL statements, mapped onto the tracer's kinds.
+"""A mesh file's own materials → ``Material``: glTF's metallic-roughness model (with its transmission, volume, ior,
+emissive-strength and clearcoat extensions) and OBJ's MTL statements, mapped onto the tracer's kinds.
 
 Both formats describe a surface by a base colour, how metallic it is, a perceptual roughness ``r`` (the GGX
 alpha is r², as glTF defines it), how much light it transmits and what it emits. The tracer has no blend of
@@ -15,7 +15,9 @@ them, so each material becomes the one kind that carries most of its look:
 - else metallic ≥ 0.5: ``conductor`` whose Fresnel term is 1, tinted by the base colour (glTF's metals reflect
   their base colour head-on and rise to white only at grazing angles, which this leaves out);
 - else ``plastic``: the base colour under a coat of the file's ior and GGX alpha r² (glTF's non-metals are a
-  diffuse base under a specular layer of ior 1.5, F0 = 0.04; smooth at r = 0, Mitsuba's roughplastic above);
+  diffuse base under a specular layer of ior 1.5, F0 = 0.04; smooth at r = 0, Mitsuba's roughplastic above); with
+  ``KHR_materials_clearcoat`` of a factor ≥ 0.5 (lacquer, varnish, a car's paint over a non-metal) the coat is the
+  clear coat, of its ``clearcoatRoughnessFactor`` (its textures are not read; a metal keeps its own roughness);
 - an OBJ material that names no specular colour (black or absent ``Ks``) and no ``Pr``: ``diffuse``; one with a
   ``map_Pr`` or ``map_Pm`` image (the MTL PBR extension's roughness and metalness per texel) that is not glass: the
   ``plastic`` of its ``Kd`` under the metal-rough map of them (``meshio.obj_metal_rough_map``).
@@ -170,6 +172,9 @@ def gltf_material(entry: dict, where: str, trimesh_material=None) -> Material:
     transmission = transmission.numbers("transmissionFactor", 0.0)
     ior = FieldReader(where, extensions.get("KHR_materials_ior") or {}).numbers("ior", 1.5, low=1.0, high=np.inf)
     absorption = _volume_absorption(FieldReader(where, extensions.get("KHR_materials_volume") or {}))
+    coat = FieldReader(where, extensions.get("KHR_materials_clearcoat") or {})
+    if coat.numbers("clearcoatFactor", 0.0) >= 0.5 and metallic < 0.5 and transmission < 0.5:
+        roughness = coat.numbers("clearcoatRoughnessFactor", 0.0)     # a lacquered non-metal: the coat's gloss
     textures = trimesh_material
     if getattr(textures, "metallicRoughnessTexture", None) is not None:
         if transmission < 0.5:     # a plastic its meshes' metal-rough map turns to metal and roughens per point
