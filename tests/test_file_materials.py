@@ -258,3 +258,17 @@ def test_the_mesh_room_rescales_a_files_absorption_as_it_fits_the_file(tmp_path)
     assert abs(fit - 1) > 0.1
     np.testing.assert_allclose(scene.materials[thick.material].absorption, np.log([2.0, 1.0, 4.0]) / 2.0 / fit,
                                rtol=1e-5)
+
+
+@pytest.mark.parametrize("extension", ["KHR_draco_mesh_compression", "EXT_meshopt_compression", "KHR_texture_basisu"])
+def test_a_gltf_file_that_requires_an_unread_encoding_is_refused_by_name(tmp_path, extension):
+    """A file that lists in extensionsRequired an encoding not decoded here (trimesh would read its meshes as zeros)
+    stops with one line naming it; listed only as used (the file carries a fallback), it loads."""
+    path = _glb(tmp_path, [PBRMaterial(name="grey")])
+    data = edit_glb_json(path.read_bytes(), lambda t: (t.update(extensionsUsed=[extension],
+                                                                 extensionsRequired=[extension])))
+    path.write_bytes(data)
+    with pytest.raises(SceneError, match=rf"thing.glb: it needs the glTF extension {extension} \("):
+        load_scene(_scene_file(tmp_path, {"file": path.name}))
+    path.write_bytes(edit_glb_json(data, lambda t: t.pop("extensionsRequired")))
+    assert load_scene(_scene_file(tmp_path, {"file": path.name})).meshes

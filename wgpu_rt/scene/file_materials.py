@@ -47,6 +47,10 @@ from .model import Material
 OBJ_GLASS_ILLUMS = {4, 6, 7, 9}
 OBJ_METAL_ROUGH_MAPS = ("map_pr", "map_pm")   # the MTL PBR extension's roughness and metalness images
 GLTF_SUFFIXES = (".glb", ".gltf")
+# Extensions a glTF file may require that encode its data in a way not decoded here (trimesh would read zeros)
+UNREAD_EXTENSIONS = {"KHR_draco_mesh_compression": "Draco-compressed meshes",
+                     "EXT_meshopt_compression": "meshoptimizer-compressed buffers",
+                     "KHR_texture_basisu": "KTX2 / Basis Universal textures"}
 
 
 def pbr_material(base_color, metallic: float, roughness: float, transmission: float = 0.0, ior: float = 1.5,
@@ -151,6 +155,11 @@ def gltf_json(path: Path) -> dict:
         raise SceneError(f"{path}: cannot read the glTF file's JSON ({err})") from err
     if not isinstance(tree, dict):
         raise SceneError(f"{path}: the glTF file's JSON is not an object")
+    required = tree.get("extensionsRequired") or []
+    unread = [name for name in (required if isinstance(required, list) else []) if name in UNREAD_EXTENSIONS]
+    if unread:
+        raise SceneError(f"{path}: it needs the glTF extension {unread[0]} ({UNREAD_EXTENSIONS[unread[0]]}), which "
+                         f"is not read; export the file without it")
     return tree
 
 

@@ -426,12 +426,14 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
     texture likewise (``file_emission_texture``, or ``emission_texture``), read at the same coordinates; so is a
     geometry's metal-rough map (``metal_rough_map``, else ``file_metal_rough_map`` where it takes the file's
     plastic); where the file's own images are read, through the material's KHR_texture_transform."""
-    from .file_materials import FileMaterials, transformed_uvs
+    from .file_materials import GLTF_SUFFIXES, FileMaterials, gltf_json, transformed_uvs
     from .model import Mesh
 
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"{path}: mesh file not found")
+    if path.suffix.lower() in GLTF_SUFFIXES:
+        gltf_json(path)       # (refuses extensions it needs whose data trimesh would read as zeros)
     try:
         scene = trimesh.load(str(path), force="scene", process=False)
     except IndexError as err:
