@@ -200,20 +200,33 @@ def _swaying_paths(tree: dict) -> list:
             + [("bufferViews", i) + p for i in views for p in field_paths(tree["bufferViews"][i])])
 
 
-GLTF_FILES = {name: (data, paths(tree)) for name, paths in (("turntable.glb", _turntable_paths),
-                                                              ("gallery.glb", _gallery_paths),
-                                                              ("swaying.glb", _swaying_paths))
-              for data, tree in [_glb_tree(name)]}
+def _with_a_moving_lamp(name: str) -> tuple[bytes, dict]:
+    """The turntable with its fill light moved by the camera's dolly sampler too (an animated light)."""
+    from gltf_files import edit_glb_json
+
+    data, tree = _glb_tree(name)
+
+    def edit(tree):
+        fill = next(i for i, node in enumerate(tree["nodes"]) if node.get("name") == "fill")
+        tree["animations"][0]["channels"].append({"sampler": 1, "target": {"node": fill, "path": "translation"}})
+        return tree
+    edited = edit_glb_json(data, edit)
+    return edited, edit(tree)
+
+
+GLTF_FILES = {name: (data, paths(tree)) for name, paths, read in (
+    ("turntable.glb", _turntable_paths, _with_a_moving_lamp), ("gallery.glb", _gallery_paths, _glb_tree),
+    ("swaying.glb", _swaying_paths, _glb_tree)) for data, tree in [read(name)]}
 
 
 @pytest.mark.filterwarnings("error::RuntimeWarning")
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(name=st.sampled_from(sorted(GLTF_FILES)), data=st.data())
 def test_random_values_in_a_gltf_file_load_or_fail_with_one_line(tmp_path_factory, name, data):
-    """The example glTF files with random values in the fields their scenes are read from (the turntable's
-    animations, accessors, buffer views, animated nodes, cameras and materials; the gallery's lights, nodes,
-    materials and scene roots; what bends swaying's meshes): the file loads with a finite camera and geometry at
-    frames through its animation, or stops with one line naming it."""
+    """The example glTF files with random values in the fields their scenes are read from (the turntable's, its
+    fill light animated too: animations, accessors, buffer views, animated nodes, cameras and materials; the
+    gallery's lights, nodes, materials and scene roots; what bends swaying's meshes): the file loads with a finite
+    camera, lights and geometry at frames through its animation, or stops with one line naming it."""
     from gltf_files import edit_glb_json
 
     glb, paths = GLTF_FILES[name]
