@@ -150,3 +150,19 @@ def test_a_scene_files_entry_plays_its_glb_animation_under_its_transform(tmp_pat
     scene = load_scene(tmp_path / "stage.toml")
     assert scene.frame_count == 5
     np.testing.assert_allclose(_mover(scene).transform_at(4)[:3, 3], [3, 3, 0], atol=1e-5)
+
+
+def test_instances_of_an_animated_glb_each_play_its_animation_under_their_placement(tmp_path):
+    """Placed twice by `instances`, the file's animation moves each instance's parts under its own placement (1 up,
+    and 4 along x and half-size); an instance with keyframes of its own takes those instead."""
+    _animated(tmp_path, [("mover", "translation", "LINEAR", 0, 1)], [[0.0, 1.0], [[3, 0, 0], [5, 0, 0]]])
+    entry = ('[[meshes]]\nfile = "moving.glb"\nmaterial = "white"\ntransform = { translate = [0, 1, 0] }\n'
+             'instances = [{ name = "a" }, { name = "b", transform = { scale = 0.5, translate = [4, 0, 0] } }, '
+             '{ name = "c", keyframes = [{ frame = 0 }, { frame = 2, translate = [0, 0, 1] }] }]\n')
+    (tmp_path / "stage.toml").write_text(STAGE + entry)
+    scene = load_scene(tmp_path / "stage.toml")
+    movers = {mesh.name.split("/")[0]: mesh for mesh in scene.meshes if mesh.name.endswith("mover")}
+    np.testing.assert_allclose(movers["a"].transform_at(12)[:3, 3], [4, 1, 0], atol=1e-5)
+    np.testing.assert_allclose(movers["b"].transform_at(12)[:3, 3], [4 + 0.5 * 4, 0.5, 0], atol=1e-5)
+    np.testing.assert_allclose(movers["c"].transform_at(12)[:3, 3], [3, 1, 1], atol=1e-5)     # its own keys
+    assert scene.has_instances

@@ -391,7 +391,7 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
                 _check_blends(fields, part)
         placed = parts
     else:
-        placed = _instances(fields, instances, parts, base, (transform, keyframes), materials)
+        placed = _instances(fields, instances, parts, base, (transform, keyframes), materials, moves)
     for part in placed:
         if part.vertex_keyframes:            # the shapes a skin or morph targets bend it to, placed
             try:
@@ -402,11 +402,13 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
 
 
 def _instances(fields: _Fields, entries: list[_Fields], parts: list[Mesh], base: str, placement: tuple,
-               materials: dict) -> list[Mesh]:
+               materials: dict, file_moves: list) -> list[Mesh]:
     """The ``parts`` of a mesh entry placed once per entry of its ``instances`` list, sharing their
     arrays. An instance is placed by its own transform (or keyframes) applied after the entry's own
     ``placement`` (transform, keyframes), which poses the shape for all of them; only one of the two
-    may be animated. Instances are named ``base[i]`` unless named."""
+    may be animated. Where neither is, the file's own animation (``file_moves``: each part's world matrices by
+    frame, or None) moves each instance's parts under its placement. Instances are named ``base[i]`` unless
+    named."""
     transform, keyframes = placement
     if not entries:
         fields.fail("expected at least one instance (leave 'instances' out to place the mesh once)", "instances")
@@ -428,10 +430,14 @@ def _instances(fields: _Fields, entries: list[_Fields], parts: list[Mesh], base:
         else:           # the entry's keyframes, each followed by the instance's placement
             frames = {frame: ("transform", compose(where, matrix, dtype=np.float64))
                       for frame, (_, matrix) in keyframes.items()}
-        for part in parts:
+        for part, keys in zip(parts, file_moves or [None] * len(parts)):
             mesh = part.instance(label + part.name[len(base):], material, part.transform)
-            _place(mesh, entry, compose(where, transform, dtype=np.float64), frames,
-                   keyframe_fields=entry if moves else fields)
+            pose = compose(where, transform, dtype=np.float64)
+            _place(mesh, entry, pose, frames, keyframe_fields=entry if moves else fields)
+            if keys and not frames:      # the file's animation, where neither the entry nor the instance has keys
+                mesh.keyframes = {frame: _check_placement(fields, "file", compose(pose, world, dtype=np.float64), mesh)
+                                  for frame, world in keys.items()}
+                _check_blends(fields, mesh)
             placed.append(mesh)
     return placed
 
