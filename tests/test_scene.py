@@ -570,7 +570,7 @@ def test_garbage_text_mesh_files(tmp_path, name):
 
 def test_malformed_binary_mesh(tmp_path):
     (tmp_path / "mesh.glb").write_bytes(b"glTF\x02\x00\x00\x00garbage")
-    with pytest.raises(SceneError, match="mesh.glb: cannot read mesh file"):
+    with pytest.raises(SceneError, match="mesh.glb: cannot read the glTF file.s JSON"):
         load_scene(scene_with_mesh(tmp_path, "mesh.glb"))
 
 
