@@ -166,3 +166,16 @@ def test_instances_of_an_animated_glb_each_play_its_animation_under_their_placem
     np.testing.assert_allclose(movers["b"].transform_at(12)[:3, 3], [4 + 0.5 * 4, 0.5, 0], atol=1e-5)
     np.testing.assert_allclose(movers["c"].transform_at(12)[:3, 3], [3, 1, 1], atol=1e-5)     # its own keys
     assert scene.has_instances
+
+
+def test_the_mesh_room_plays_a_glb_animation_fitted_by_its_rest_pose(tmp_path):
+    """`load_scene("mesh", mesh=...)`: the file fitted into the room by its rest pose, its animation then playing
+    at that fit (the mover's 2 units of travel scaled by it), for the animation's frames."""
+    _animated(tmp_path, [("mover", "translation", "LINEAR", 0, 1)], [[0.0, 1.0], [[3, 0, 0], [5, 0, 0]]])
+    scene = load_scene("mesh", mesh=tmp_path / "moving.glb")
+    assert scene.frame_count == int(FRAME_RATE) + 1 and scene.has_motion
+    mover = _mover(scene)
+    fit = mover.transform[0, 0] / 1.0          # (the box's rest placement: the fit's scale, no rotation)
+    travel = mover.transform_at(24)[:3, 3] - mover.transform_at(0)[:3, 3]
+    np.testing.assert_allclose(travel, [2 * fit, 0, 0], atol=1e-5)
+    np.testing.assert_allclose(mover.transform_at(0), mover.transform, atol=1e-6)

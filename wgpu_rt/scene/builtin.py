@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from .file_materials import placed_absorption
+from .file_materials import GLTF_SUFFIXES, placed_absorption
+from .gltf_scene import check_placements, node_animation
 from .meshio import load_mesh_file
 from .model import Camera, Material, Mesh, Scene
 from .primitives import primitive, primitive_uvs
@@ -115,14 +116,18 @@ def sun_room() -> Scene:
 
 
 def mesh_room(path) -> Scene:
-    """The Cornell room (without its boxes) with the mesh at ``path`` standing on the floor, in the file's own
-    materials where it has them (glTF's, an OBJ file's MTL), grey clay elsewhere."""
+    """The Cornell room (without its boxes) with the mesh at ``path`` standing on the floor (fitted by its rest
+    pose), in the file's own materials where it has them (glTF's, an OBJ file's MTL), grey clay elsewhere; a glTF
+    file's animation plays, its skins and morph targets bending its meshes (``gltf_scene.node_animation``)."""
     if path is None:
         raise SceneError("the 'mesh' scene needs a mesh file: load_scene('mesh', mesh=PATH) or --mesh PATH")
     materials, meshes = _cornell_room()
     materials["clay"] = Material("diffuse", reflectance=(0.7, 0.7, 0.7))
     own: dict = {}
     loaded = load_mesh_file(Path(path), material="clay", materials=own)
+    frames, moves = 1, [None] * len(loaded)
+    if Path(path).suffix.lower() in GLTF_SUFFIXES:      # its animation plays (skins and morph targets bend in place)
+        frames, moves, _ = node_animation(path, loaded)
     placed = [transform_points(m.transform, m.vertices) for m in loaded]   # a file's nodes place its parts
     lo = np.min([v.min(axis=0) for v in placed], axis=0).astype(np.float64)
     hi = np.max([v.max(axis=0) for v in placed], axis=0).astype(np.float64)
@@ -132,10 +137,12 @@ def mesh_room(path) -> Scene:
     fit = 1.2 / size
     center = (lo + hi) / 2
     place = compose(translate([0, -1 + fit * (hi[1] - lo[1]) / 2, 0]), scale(fit), translate(-center))
-    for item in loaded:
+    for item, keys in zip(loaded, moves):
         item.transform = compose(place, item.transform)
+        item.keyframes = {frame: compose(place, world).astype(np.float32) for frame, world in (keys or {}).items()}
+        check_placements(item, str(path))
     materials.update(placed_absorption(own, place))
-    return Scene(_cornell_camera(), meshes + loaded, materials, name=f"mesh:{Path(path).name}")
+    return Scene(_cornell_camera(), meshes + loaded, materials, frame_count=frames, name=f"mesh:{Path(path).name}")
 
 
 MOVING_FRAMES = 16
