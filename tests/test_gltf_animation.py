@@ -179,3 +179,48 @@ def test_the_mesh_room_plays_a_glb_animation_fitted_by_its_rest_pose(tmp_path):
     travel = mover.transform_at(24)[:3, 3] - mover.transform_at(0)[:3, 3]
     np.testing.assert_allclose(travel, [2 * fit, 0, 0], atol=1e-5)
     np.testing.assert_allclose(mover.transform_at(0), mover.transform, atol=1e-6)
+
+
+def test_alternative_clips_play_the_first_or_the_one_picked(tmp_path):
+    """Two animations moving the same node's translation (clips: "left" then "right") are alternatives: the first
+    plays unless `animation` picks the other by name or index; animations of different nodes play together."""
+    path = tmp_path / "clips.glb"
+
+    def clips(tree, first):
+        mover = next(i for i, node in enumerate(tree["nodes"]) if node.get("name") == "mover")
+        tree["animations"] = [
+            {"name": name, "samplers": [{"input": first, "output": first + offset}],
+             "channels": [{"sampler": 0, "target": {"node": mover, "path": "translation"}}]}
+            for name, offset in (("left", 1), ("right", 2))]
+
+    scene = trimesh.Scene()
+    scene.add_geometry(trimesh.creation.box(extents=(0.5, 0.5, 0.5)), node_name="mover",
+                       transform=trimesh.transformations.translation_matrix([3, 0, 0]))
+    arrays = [[0.0, 1.0], [[3, 0, 0], [1, 0, 0]], [[3, 0, 0], [5, 0, 0]]]
+    path.write_bytes(with_accessors(scene.export(file_type="glb"), arrays, clips))
+    for choice, end in ((None, 1), ("right", 5), ("1", 5), ("0", 1)):
+        room = load_scene("mesh", mesh=path, animation=choice)
+        (box,) = [mesh for mesh in room.meshes if mesh.name.startswith("clips")]
+        travel = (box.transform_at(24)[0, 3] - box.transform_at(0)[0, 3]) / box.transform[0, 0]
+        assert travel == pytest.approx(end - 3, abs=1e-5), choice
+    with pytest.raises(SceneError, match=r"clips.glb: no animation 'walk'; its animations: 0 \(left\), 1 \(right\)"):
+        load_scene("mesh", mesh=path, animation="walk")
+    with pytest.raises(SceneError, match=r"an animation choice \(animation=/--animation 0\) is for a glTF file"):
+        load_scene("cornell", animation="0")
+    entry = '[[meshes]]\nfile = "clips.glb"\nmaterial = "white"\nanimation = "right"\n'
+    (tmp_path / "stage.toml").write_text(STAGE + entry)
+    (box,) = [mesh for mesh in load_scene(tmp_path / "stage.toml").meshes if mesh.name.startswith("clips")]
+    assert box.transform_at(24)[0, 3] == pytest.approx(5, abs=1e-5)
+    (tmp_path / "stage.toml").write_text(STAGE + entry.replace('"right"', "true"))
+    with pytest.raises(SceneError, match=r"meshes\[0\].animation: expected the index or name of one of a glTF"):
+        load_scene(tmp_path / "stage.toml")
+
+    def apart(tree, first):      # "left" on the mover, another animation on a second box: no conflict, both play
+        clips(tree, first)
+        other = next(i for i, node in enumerate(tree["nodes"]) if node.get("name") == "other")
+        tree["animations"][1]["channels"][0]["target"]["node"] = other
+
+    scene.add_geometry(trimesh.creation.box(extents=(0.3, 0.3, 0.3)), node_name="other")
+    path.write_bytes(with_accessors(scene.export(file_type="glb"), arrays, apart))
+    room = load_scene("mesh", mesh=path)
+    assert sum(mesh.is_animated for mesh in room.meshes) == 2

@@ -70,6 +70,7 @@ def test_output_under_a_file_is_refused(tmp_path, capsys):
     (["--frames", "-1"], "frames are numbered from 0"),
     (["--frames", "4:2"], "--frames"),
     (["--frames", "0:3"], "{frame}"),
+    (["--animation", "walk"], "an animation choice (animation=/--animation walk) is for a glTF file"),
     (["--out", "OUT.jpg"], ".exr or .png"),
 ])
 def test_bad_arguments(tmp_path, capsys, args, message):

@@ -118,7 +118,8 @@ class Renderer:
     def __init__(self, scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adaptive=None,
                  temporal=False, max_depth: int = 8, seed: int = 0, aovs=DEFAULT_AOVS, tonemap: str | None = None,
                  exposure: float = 0.0, srgb: bool = True, display: str = "rgba8", precision: str = "auto",
-                 models_dir=None, networks: dict | None = None, mesh=None, camera: str | None = None, ctx=None,
+                 models_dir=None, networks: dict | None = None, mesh=None, camera: str | None = None,
+                 animation: str | None = None, ctx=None,
                  progress: bool = False,
                  timings: bool | None = None, aux_samples: int | None = None, hdr: bool = True,
                  quality: str = "balanced", low_band: bool | None = None, chroma: bool = True,
@@ -154,7 +155,7 @@ class Renderer:
         from .gpu import get_context
         from .scene import load_scene
 
-        self.scene = load_scene(scene, mesh=mesh, camera=camera)
+        self.scene = load_scene(scene, mesh=mesh, camera=camera, animation=animation)
         self.ctx = ctx or get_context()
         networks = dict(networks or {})
         if denoise and "denoiser" not in networks:
@@ -293,7 +294,7 @@ def render(scene, spp: int = 1, size=(256, 256), *, denoise: bool = False, adapt
       light, and the error predictor and confidence model read their radiance at a key of their own;
       False: every network at the scale the frame has; None: each as it was trained, its ONNX metadata),
       ``models_dir``, ``networks`` ({"denoiser": model, …} to use instead of loading), ``mesh``, ``camera`` (a glTF
-      scene's camera by index or name), ``ctx``,
+      scene's camera by index or name), ``animation`` (which of a glTF file's animations plays), ``ctx``,
       ``progress`` (a progress bar, on a terminal), ``timings`` (per-stage GPU times; default: when the
       adapter has them),
       ``hdr`` (True: read back the linear HDR colour; False leaves ``color`` None and saves its 12 bytes a

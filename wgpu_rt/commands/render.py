@@ -31,6 +31,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--mesh", help="mesh file for the built-in 'mesh' scene")
     parser.add_argument("--camera", help="which of a glTF scene's cameras to see it through: an index into the "
                         "file's cameras, or a camera's or its node's name (default: the first placed)")
+    parser.add_argument("--animation", help="which of a glTF file's animations plays: an index into the file's "
+                        "animations or an animation's name (default: all of them where no two move the same "
+                        "node, else the first)")
     parser.add_argument("-o", "--out", default="render.exr",
                         help="output .exr or .png; may hold {frame}, e.g. out/{frame:04d}.exr")
     add_display_flags(parser)
@@ -128,8 +131,8 @@ def run(args) -> int:
     renderer = Renderer(args.scene, spp, size, denoise=args.denoise, adaptive=args.adaptive,
                         temporal=args.temporal, max_depth=args.max_depth, seed=args.seed,
                         aovs=() if png else aovs, tonemap=operator if png else None, exposure=exposure, display="f32",
-                        precision=args.precision, mesh=args.mesh, camera=args.camera, progress=True,
-                        aux_samples=args.aux_samples,
+                        precision=args.precision, mesh=args.mesh, camera=args.camera, animation=args.animation,
+                        progress=True, aux_samples=args.aux_samples,
                         hdr=not png, quality=args.quality, models_dir=args.models, **denoiser_options(args))
     mean_spp = args.adaptive if args.adaptive is not None else spp
     for result in renderer.frames(frames):

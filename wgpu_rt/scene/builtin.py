@@ -115,10 +115,11 @@ def sun_room() -> Scene:
     return Scene(_cornell_camera(), meshes, materials, name="sun-room")
 
 
-def mesh_room(path) -> Scene:
+def mesh_room(path, animation: str | None = None) -> Scene:
     """The Cornell room (without its boxes) with the mesh at ``path`` standing on the floor (fitted by its rest
     pose), in the file's own materials where it has them (glTF's, an OBJ file's MTL), grey clay elsewhere; a glTF
-    file's animation plays, its skins and morph targets bending its meshes (``gltf_scene.node_animation``)."""
+    file's animation plays (``animation`` picks one), its skins and morph targets bending its meshes
+    (``gltf_scene.node_animation``)."""
     if path is None:
         raise SceneError("the 'mesh' scene needs a mesh file: load_scene('mesh', mesh=PATH) or --mesh PATH")
     materials, meshes = _cornell_room()
@@ -127,7 +128,7 @@ def mesh_room(path) -> Scene:
     loaded = load_mesh_file(Path(path), material="clay", materials=own)
     frames, moves = 1, [None] * len(loaded)
     if Path(path).suffix.lower() in GLTF_SUFFIXES:      # its animation plays (skins and morph targets bend in place)
-        frames, moves, _ = node_animation(path, loaded)
+        frames, moves, _ = node_animation(path, loaded, animation=animation)
     placed = [transform_points(m.transform, m.vertices) for m in loaded]   # a file's nodes place its parts
     lo = np.min([v.min(axis=0) for v in placed], axis=0).astype(np.float64)
     hi = np.max([v.max(axis=0) for v in placed], axis=0).astype(np.float64)
@@ -266,8 +267,9 @@ BUILTIN_SCENES = {"cornell": cornell, "cornell-glossy": cornell_glossy, "sun-roo
                   "mesh": mesh_room, "moving": moving, "painted": painted, "textured": textured}
 
 
-def builtin_scene(name: str, mesh=None) -> Scene:
-    """The built-in scene ``name``; ``mesh`` is the mesh file of the 'mesh' scene."""
+def builtin_scene(name: str, mesh=None, animation: str | None = None) -> Scene:
+    """The built-in scene ``name``; ``mesh`` is the mesh file of the 'mesh' scene (``animation``: which of a glTF
+    file's animations it plays)."""
     if name not in BUILTIN_SCENES:
         raise SceneError(f"unknown built-in scene {name!r}; expected one of {sorted(BUILTIN_SCENES)}")
-    return mesh_room(mesh) if name == "mesh" else BUILTIN_SCENES[name]()
+    return mesh_room(mesh, animation) if name == "mesh" else BUILTIN_SCENES[name]()

@@ -198,39 +198,64 @@ class Channel:
         return result
 
 
-def read_animations(path: Path, tree: dict) -> dict[int, list[Channel]]:
-    """Every node's animated channels (node index → its channels), across all the file's animations."""
-    buffers, channels = GltfBuffers(path, tree), {}
+def read_animations(path: Path, tree: dict, choice: str | None = None) -> dict[int, list[Channel]]:
+    """The animated channels (node index → its channels) of the animations played: the one ``choice`` names (its
+    index in the file's animations or its name), else every animation where no two move the same property of the
+    same node (as a scene exported object by object has them), else the first (a character's clips, walk and run,
+    each moving the same bones, are alternatives: ``--animation`` picks another)."""
+    buffers = GltfBuffers(path, tree)
     nodes = tree.get("nodes") or []
     animations = tree.get("animations") or []
     if not isinstance(animations, list):
         raise SceneError(f"{path}: the glTF file's animations are not a list")
-    for a, animation in enumerate(animations):
-        samplers, listed = (animation.get("samplers") or [], animation.get("channels") or []) \
-            if isinstance(animation, dict) else (None, None)
-        if not (isinstance(samplers, list) and isinstance(listed, list)):
-            raise SceneError(f"{path}: animation {a} is not an object with lists of samplers and channels")
-        for c, channel in enumerate(listed):
-            where = f"{path}: animation {a} channel {c}"
-            target = channel.get("target") if isinstance(channel, dict) else None
-            if not isinstance(target, dict):
-                raise SceneError(f"{where}: expected an object with a target")
-            node, kind = target.get("node"), target.get("path")
-            if not isinstance(kind, str) or kind not in (*PATHS, "weights"):
-                continue                  # (extensions' paths are not read)
-            if not (isinstance(node, int) and 0 <= node < len(nodes)):
-                raise SceneError(f"{where}: target node {node!r} is not one of the file's {len(nodes)} nodes")
-            width = morph_target_count(tree, node, where) if kind == "weights" else None
-            if width == 0:
-                continue                  # weights of a node without morph targets move nothing
-            number = channel.get("sampler")
-            if not (isinstance(number, int) and 0 <= number < len(samplers)) or not isinstance(samplers[number], dict):
-                raise SceneError(f"{where}: sampler {number!r} is not one of the animation's {len(samplers)}")
-            sampler = samplers[number]
-            times = buffers.accessor(sampler.get("input"), where)
-            values = buffers.accessor(sampler.get("output"), where)
-            channels.setdefault(node, []).append(Channel(kind, times, values, sampler.get("interpolation", "LINEAR"),
-                                                         where, width))
+    read = [_animation_channels(buffers, a, animation, nodes) for a, animation in enumerate(animations)]
+    if choice is not None:
+        names = [a.get("name") if isinstance(a, dict) else None for a in animations]
+        picked = [a for a, name in enumerate(names) if choice in (str(a), name)]
+        if not picked:
+            listed = ", ".join(f"{a} ({name})" if name else str(a) for a, name in enumerate(names)) or "none"
+            raise SceneError(f"{path}: no animation {choice!r}; its animations: {listed}")
+        read = [read[picked[0]]]
+    else:
+        targets = [(node, channel.path) for channels in read for node, kept in channels.items() for channel in kept]
+        if len(targets) != len(set(targets)):
+            read = read[:1]
+    channels: dict[int, list[Channel]] = {}
+    for animation in read:
+        for node, kept in animation.items():
+            channels.setdefault(node, []).extend(kept)
+    return channels
+
+
+def _animation_channels(buffers: GltfBuffers, a: int, animation, nodes: list) -> dict[int, list[Channel]]:
+    """The channels of animation ``a`` of the file ``buffers`` reads, by node (the paths read: translation,
+    rotation, scale, and morph-target weights of a node with targets)."""
+    samplers, listed = (animation.get("samplers") or [], animation.get("channels") or []) \
+        if isinstance(animation, dict) else (None, None)
+    if not (isinstance(samplers, list) and isinstance(listed, list)):
+        raise SceneError(f"{buffers.path}: animation {a} is not an object with lists of samplers and channels")
+    channels: dict[int, list[Channel]] = {}
+    for c, channel in enumerate(listed):
+        where = f"{buffers.path}: animation {a} channel {c}"
+        target = channel.get("target") if isinstance(channel, dict) else None
+        if not isinstance(target, dict):
+            raise SceneError(f"{where}: expected an object with a target")
+        node, kind = target.get("node"), target.get("path")
+        if not isinstance(kind, str) or kind not in (*PATHS, "weights"):
+            continue                  # (extensions' paths are not read)
+        if not (isinstance(node, int) and 0 <= node < len(nodes)):
+            raise SceneError(f"{where}: target node {node!r} is not one of the file's {len(nodes)} nodes")
+        width = morph_target_count(buffers.tree, node, where) if kind == "weights" else None
+        if width == 0:
+            continue                  # weights of a node without morph targets move nothing
+        number = channel.get("sampler")
+        if not (isinstance(number, int) and 0 <= number < len(samplers)) or not isinstance(samplers[number], dict):
+            raise SceneError(f"{where}: sampler {number!r} is not one of the animation's {len(samplers)}")
+        sampler = samplers[number]
+        times = buffers.accessor(sampler.get("input"), where)
+        values = buffers.accessor(sampler.get("output"), where)
+        channels.setdefault(node, []).append(Channel(kind, times, values, sampler.get("interpolation", "LINEAR"),
+                                                     where, width))
     return channels
 
 

@@ -229,16 +229,18 @@ def _mesh_nodes(buffers: GltfBuffers, placed: list, meshes: list) -> list[int | 
     return found
 
 
-def node_animation(path, meshes: list, tree: dict | None = None) -> tuple[int, list[dict | None], list]:
+def node_animation(path, meshes: list, tree: dict | None = None,
+                   animation: str | None = None) -> tuple[int, list[dict | None], list]:
     """A glTF file's node animations as they move ``meshes`` (``load_mesh_file``'s reading of the file): the frame
     count (1 without animations), each mesh's world matrix (float32, in the file's world) at every frame or None where
     its node does not move, and every node's (index, world matrix) at each frame (``_placed_nodes``; none without
-    animations). A mesh that a skin or morph targets bend (``gltf_skins``) is posed in place: its vertices and normals
+    animations; ``animation`` picks the animation played, ``read_animations``). A mesh that a skin or morph targets
+    bend (``gltf_skins``) is posed in place: its vertices and normals
     those of frame 0 and ``vertex_keyframes`` / ``normal_keyframes`` where it changes shape; a skinned one lies in the
     world (identity transform, None among the matrices)."""
     path = Path(path)
     tree = gltf_json(path) if tree is None else tree
-    channels = read_animations(path, tree)
+    channels = read_animations(path, tree, animation)
     rest = _placed_nodes(tree, path)
     frames = frame_count(channels, str(path)) if channels else 1
     poses = [_placed_nodes(tree, path, channels, f / FRAME_RATE) for f in range(frames)] if channels else [rest]
@@ -291,9 +293,10 @@ def check_placements(mesh, where: str) -> None:
             raise SceneError(f"{where}: mesh {mesh.name!r}{at}: its placement {problem}")
 
 
-def gltf_scene(path, camera: str | None = None) -> Scene | None:
+def gltf_scene(path, camera: str | None = None, animation: str | None = None) -> Scene | None:
     """The scene of a glTF file with a camera (see the module's doc), seen through its first or the ``camera`` it
-    names (an index into the file's cameras, a camera's or a node's name); None for a file without one."""
+    names (an index into the file's cameras, a camera's or a node's name), playing ``animation`` (an index or a
+    name; default: ``read_animations``'); None for a file without one."""
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"{path}: mesh file not found")
@@ -308,7 +311,7 @@ def gltf_scene(path, camera: str | None = None) -> Scene | None:
     lights = _lights(tree, placed, path)
     lit = bool(lights) or any(materials[mesh.material].is_emissive for mesh in meshes)
     background = np.zeros(3, np.float32) if lit else np.full(3, UNLIT_SKY, np.float32)
-    frames, moves, poses = node_animation(path, meshes, tree)
+    frames, moves, poses = node_animation(path, meshes, tree, animation)
     for mesh, keys in zip(meshes, moves):
         mesh.keyframes = keys or {}
         check_placements(mesh, str(path))        # as a scene file's placements are checked

@@ -353,6 +353,12 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         path = Path(file) if Path(file).is_absolute() else folder / file
         base = name or path.stem
         colors = fields.raw("vertex_colors", True)
+        animation = fields.raw("animation", None)     # which of a glTF file's animations plays (index or name)
+        if animation is not None and (not isinstance(animation, (str, int)) or isinstance(animation, bool)
+                                      or path.suffix.lower() not in GLTF_SUFFIXES):
+            fields.fail(f"expected the index or name of one of a glTF file's animations, got {_show(animation)}",
+                        "animation")
+        animation = None if animation is None else str(animation)
         if not isinstance(colors, bool):
             fields.fail(f"expected true or false, got {_show(colors)}", "vertex_colors")
         own: dict = {}      # the file's materials, where the entry names none
@@ -361,7 +367,7 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
                                    materials=own if material is None else None, normal_map=normal_map,
                                    emission_texture=glow, metal_rough_map=metal_rough)
             if path.suffix.lower() in GLTF_SUFFIXES:
-                moves = node_animation(path, parts)[1]
+                moves = node_animation(path, parts, animation=animation)[1]
         except SceneError as err:
             fields.fail(str(err), "file")
         for taken in own:
