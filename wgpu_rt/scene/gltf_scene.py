@@ -235,9 +235,9 @@ def node_animation(path, meshes: list, tree: dict | None = None,
     count (1 without animations), each mesh's world matrix (float32, in the file's world) at every frame or None where
     its node does not move, and every node's (index, world matrix) at each frame (``_placed_nodes``; none without
     animations; ``animation`` picks the animation played, ``read_animations``). A mesh that a skin or morph targets
-    bend (``gltf_skins``) is posed in place: its vertices and normals
-    those of frame 0 and ``vertex_keyframes`` / ``normal_keyframes`` where it changes shape; a skinned one lies in the
-    world (identity transform, None among the matrices)."""
+    bend (``gltf_skins``) is posed in place: its vertices and normals those of frame 0 and ``vertex_keyframes`` /
+    ``normal_keyframes`` where it changes shape; a skinned one lies in the world (identity transform, None among the
+    matrices)."""
     path = Path(path)
     tree = gltf_json(path) if tree is None else tree
     channels = read_animations(path, tree, animation)
