@@ -23,7 +23,7 @@ COMPONENT_TYPES = {np.dtype(np.uint8): 5121, np.dtype(np.uint16): 5123, np.dtype
 
 def with_accessors(data: bytes, arrays: list, edit) -> bytes:
     """The .glb ``data`` with ``arrays`` (float32, or uint8/uint16 where given so) appended to its binary chunk, each
-    as a bufferView and an accessor of its own (SCALAR, VEC3, VEC4 or MAT4 by its columns), then its JSON passed
+    as a bufferView and an accessor of its own (SCALAR, VEC2, VEC3, VEC4 or MAT4 by its columns), then its JSON passed
     through ``edit(tree, first)``, ``first`` the first new accessor's index."""
     length = struct.unpack_from("<I", data, 12)[0]
     tree = json.loads(data[20:20 + length])
@@ -37,7 +37,7 @@ def with_accessors(data: bytes, arrays: list, edit) -> bytes:
         tree["bufferViews"].append({"buffer": 0, "byteOffset": len(binary), "byteLength": array.nbytes})
         tree["accessors"].append({"bufferView": len(tree["bufferViews"]) - 1,
                                   "componentType": COMPONENT_TYPES[array.dtype], "count": len(array),
-                                  "type": {1: "SCALAR", 3: "VEC3", 4: "VEC4", 16: "MAT4"}[array.shape[1]]})
+                                  "type": {1: "SCALAR", 2: "VEC2", 3: "VEC3", 4: "VEC4", 16: "MAT4"}[array.shape[1]]})
         binary += array.tobytes()
     binary += b"\0" * (-len(binary) % 4)
     tree["buffers"][0]["byteLength"] = len(binary)

@@ -272,3 +272,44 @@ def test_a_gltf_file_that_requires_an_unread_encoding_is_refused_by_name(tmp_pat
         load_scene(_scene_file(tmp_path, {"file": path.name}))
     path.write_bytes(edit_glb_json(data, lambda t: t.pop("extensionsRequired")))
     assert load_scene(_scene_file(tmp_path, {"file": path.name})).meshes
+
+
+def _second_set_glb(tmp_path, normal_set: int | None = None):
+    """A box whose base colour texture is read at TEXCOORD_1 (each vertex at (0.1 + 0.01 i, 0.2) in glTF's
+    coordinates, v down), TEXCOORD_0 being trimesh's own; with ``normal_set`` a normal texture too, at that set."""
+    from gltf_files import with_accessors
+    from PIL import Image
+
+    box = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+    image = Image.fromarray(np.arange(48, dtype=np.uint8).reshape(4, 4, 3))
+    material = PBRMaterial(name="painted", baseColorTexture=image, normalTexture=image if normal_set is not None
+                           else None)
+    box.visual = trimesh.visual.TextureVisuals(uv=np.zeros((len(box.vertices), 2)), material=material)
+    scene = trimesh.Scene()
+    scene.add_geometry(box, node_name="part0")
+    second = np.column_stack([0.1 + 0.01 * np.arange(len(box.vertices)), np.full(len(box.vertices), 0.2)])
+
+    def edit(tree, first):
+        tree["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_1"] = first
+        tree["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"] = 1
+        if normal_set is not None:
+            tree["materials"][0]["normalTexture"]["texCoord"] = normal_set
+
+    data = with_accessors(scene.export(file_type="glb"), [second], edit)
+    (tmp_path / "thing.glb").write_bytes(data)
+    return tmp_path / "thing.glb", second
+
+
+def test_textures_read_at_a_second_coordinate_set(tmp_path):
+    """A material whose textures are read at TEXCOORD_1 takes those coordinates (v flipped as trimesh flips
+    TEXCOORD_0's); textures at two sets are refused naming the material."""
+    path, second = _second_set_glb(tmp_path)
+    (mesh,) = load_scene(_scene_file(tmp_path, {"file": path.name})).meshes[1:]
+    np.testing.assert_allclose(mesh.uvs, np.column_stack([second[:, 0], 1 - second[:, 1]]), atol=1e-6)
+    path, _ = _second_set_glb(tmp_path, normal_set=1)
+    (mesh,) = load_scene(_scene_file(tmp_path, {"file": path.name})).meshes[1:]
+    assert mesh.normal_map is not None and np.allclose(mesh.uvs[:, 0], second[:, 0])
+    path, _ = _second_set_glb(tmp_path, normal_set=0)
+    with pytest.raises(SceneError, match=r"material 'painted': its textures are read at texture coordinate sets "
+                                         r"baseColorTexture 1, normalTexture 0; the tracer reads one set"):
+        load_scene(_scene_file(tmp_path, {"file": path.name}))

@@ -351,6 +351,50 @@ class FileMaterials:
                              f"({', '.join(matrices)}); the tracer reads them at one set of coordinates")
         return next(iter(matrices.values()), None)
 
+    def texture_coordinates(self, geometry) -> np.ndarray | None:
+        """(V, 2) float32: the glTF texture coordinate set ``TEXCOORD_n`` that ``geometry``'s material reads its base
+        colour, normal, emissive and metallic-roughness textures at, where that is not the first (trimesh reads
+        ``TEXCOORD_0`` alone), v = 1 at the image's top as trimesh has it; None where they read the first. Textures
+        at two sets are a SceneError (the tracer reads them at one)."""
+        sets, label = {}, ""
+        for key in ("baseColorTexture", "normalTexture", "emissiveTexture", "metallicRoughnessTexture"):
+            texture, named = self._texture_info(geometry, key)
+            if texture is not None:
+                label = named
+                sets[key] = texture.get("texCoord", 0)
+        if not any(sets.values()):
+            return None
+        if len(set(map(repr, sets.values()))) > 1:
+            raise SceneError(f"{self.path}: material {label!r}: its textures are read at texture coordinate sets "
+                             f"{', '.join(f'{key} {n!r}' for key, n in sets.items())}; the tracer reads one set")
+        number = next(iter(sets.values()))
+        if not isinstance(number, int) or isinstance(number, bool) or number < 0:
+            raise SceneError(f"{self.path}: material {label!r}: texCoord must be a set's number, got {shown(number)}")
+        coordinates = self._primitive_attribute(geometry, f"TEXCOORD_{number}", label)
+        if coordinates.shape != (len(geometry.vertices), 2) or not np.all(np.isfinite(coordinates)):
+            raise SceneError(f"{self.path}: material {label!r}: its TEXCOORD_{number} is not one finite VEC2 a vertex")
+        return np.column_stack([coordinates[:, 0], 1.0 - coordinates[:, 1]]).astype(np.float32)
+
+    def _primitive_attribute(self, geometry, name: str, label: str) -> np.ndarray:
+        """The attribute ``name`` of the glTF primitive trimesh read as ``geometry`` (the one whose POSITION values
+        are its vertices); a SceneError where none has one."""
+        from .gltf_animation import GltfBuffers
+
+        tree = gltf_json(self.path)
+        buffers, vertices = GltfBuffers(self.path, tree), np.asarray(geometry.vertices, np.float32)
+        accessors = tree.get("accessors") or []
+        for mesh in tree.get("meshes") or []:
+            for primitive in (mesh.get("primitives") or []) if isinstance(mesh, dict) else []:
+                attributes = primitive.get("attributes") if isinstance(primitive, dict) else None
+                position = attributes.get("POSITION") if isinstance(attributes, dict) else None
+                if not (isinstance(position, int) and 0 <= position < len(accessors) and name in attributes
+                        and isinstance(accessors[position], dict)
+                        and accessors[position].get("count") == len(vertices)):
+                    continue
+                if np.array_equal(buffers.accessor(position, str(self.path)).astype(np.float32), vertices):
+                    return buffers.accessor(attributes[name], f"{self.path}: material {label!r}: {name}")
+        raise SceneError(f"{self.path}: material {label!r}: its textures are read at {name}, which its mesh has not")
+
     def material_of(self, geometry, geometry_name: str) -> str | None:
         """The name of ``geometry``'s material in the file, None where the file gives it none."""
         trimesh_material = getattr(geometry.visual, "material", None)

@@ -496,6 +496,8 @@ def load_mesh_file(path: Path, material: str | None, name: str | None = None, ve
         file_images = ((texture is None and image is not None) or (normal_map is None and relief is not None)
                        or (emission_texture is None and glow is not None)
                        or (metal_rough_map is None and metal_rough is not None))
+        if file_images and (second := own.texture_coordinates(geometry)) is not None:
+            uvs = second              # (the material's textures read at another set than TEXCOORD_0)
         if file_images and (matrix := own.texture_transform(geometry)) is not None:
             uvs = transformed_uvs(uvs, matrix)
         if surface in own.materials and _is_open_smooth_glass(own.materials[surface], vertices, faces):
