@@ -262,6 +262,7 @@ class FileMaterials:
         self.path, self.base = Path(path), base
         self.gltf = self.path.suffix.lower() in GLTF_SUFFIXES
         self._entries: list | None = None
+        self._buffers = None     # (gltf_animation.GltfBuffers, when a texture coordinate set is read)
         self.materials: dict[str, Material] = {}
 
     @property
@@ -380,20 +381,16 @@ class FileMaterials:
         are its vertices); a SceneError where none has one."""
         from .gltf_animation import GltfBuffers
 
-        tree = gltf_json(self.path)
-        buffers, vertices = GltfBuffers(self.path, tree), np.asarray(geometry.vertices, np.float32)
-        accessors = tree.get("accessors") or []
-        for mesh in tree.get("meshes") or []:
-            for primitive in (mesh.get("primitives") or []) if isinstance(mesh, dict) else []:
-                attributes = primitive.get("attributes") if isinstance(primitive, dict) else None
-                position = attributes.get("POSITION") if isinstance(attributes, dict) else None
-                if not (isinstance(position, int) and 0 <= position < len(accessors) and name in attributes
-                        and isinstance(accessors[position], dict)
-                        and accessors[position].get("count") == len(vertices)):
-                    continue
-                if np.array_equal(buffers.accessor(position, str(self.path)).astype(np.float32), vertices):
-                    return buffers.accessor(attributes[name], f"{self.path}: material {label!r}: {name}")
-        raise SceneError(f"{self.path}: material {label!r}: its textures are read at {name}, which its mesh has not")
+        if self._buffers is None:
+            self._buffers = GltfBuffers(self.path, gltf_json(self.path))
+        meshes = self._buffers.tree.get("meshes") or []
+        primitives = [p for mesh in (meshes if isinstance(meshes, list) else []) if isinstance(mesh, dict)
+                      and isinstance(mesh.get("primitives"), list) for p in mesh["primitives"]]
+        primitive = self._buffers.primitive_holding(primitives, geometry.vertices, name)
+        if primitive is None:
+            raise SceneError(f"{self.path}: material {label!r}: its textures are read at {name}, which its mesh has "
+                             f"not")
+        return self._buffers.accessor(primitive["attributes"][name], f"{self.path}: material {label!r}: {name}")
 
     def material_of(self, geometry, geometry_name: str) -> str | None:
         """The name of ``geometry``'s material in the file, None where the file gives it none."""

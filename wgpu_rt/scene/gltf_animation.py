@@ -29,11 +29,38 @@ COMPONENTS = {5120: ("<i1", 127.0), 5121: ("<u1", 255.0), 5122: ("<i2", 32767.0)
 WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 
 
+def node_primitives(tree: dict, node: dict) -> list:
+    """The primitives of glTF node ``node``'s mesh ([] where it has none, or they are not a list)."""
+    meshes, number = tree.get("meshes") or [], node.get("mesh")
+    if not (isinstance(number, int) and 0 <= number < len(meshes) and isinstance(meshes[number], dict)):
+        return []
+    primitives = meshes[number].get("primitives")
+    return primitives if isinstance(primitives, list) else []
+
+
 class GltfBuffers:
     """A glTF file's buffers, read when first asked for: a .glb's binary chunk, a .gltf's files or data URIs."""
 
     def __init__(self, path: Path, tree: dict):
-        self.path, self.tree, self._data = path, tree, {}
+        self.path, self.tree, self._data, self._positions = path, tree, {}, {}
+
+    def primitive_holding(self, primitives, vertices: np.ndarray, attribute: str = "POSITION") -> dict | None:
+        """The first of ``primitives`` (a glTF mesh's list) with ``attribute`` whose POSITION values are
+        ``vertices`` (trimesh's reading of it: in the file's order), None where none is."""
+        vertices = np.asarray(vertices, np.float32)
+        accessors = self.tree.get("accessors") or []
+        for primitive in primitives if isinstance(primitives, list) else []:
+            attributes = primitive.get("attributes") if isinstance(primitive, dict) else None
+            position = attributes.get("POSITION") if isinstance(attributes, dict) else None
+            if not (isinstance(position, int) and 0 <= position < len(accessors) and attribute in attributes
+                    and isinstance(accessors[position], dict)
+                    and accessors[position].get("count") == len(vertices)):
+                continue
+            if position not in self._positions:
+                self._positions[position] = self.accessor(position, str(self.path)).astype(np.float32)
+            if np.array_equal(self._positions[position], vertices):
+                return primitive
+        return None
 
     def buffer(self, index: int) -> bytes:
         if index not in self._data:

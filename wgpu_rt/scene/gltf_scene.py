@@ -31,7 +31,7 @@ import trimesh
 
 from ..errors import SceneError
 from .file_materials import FieldReader, gltf_json, shown
-from .gltf_animation import FRAME_RATE, GltfBuffers, frame_count, local_matrix, read_animations
+from .gltf_animation import FRAME_RATE, GltfBuffers, frame_count, local_matrix, node_primitives, read_animations
 from .gltf_skins import Bending, bending, bends
 from .meshio import load_mesh_file
 from .model import Camera, DirectionalLight, Material, PointLight, Scene, SpotLight
@@ -200,22 +200,19 @@ def _mesh_nodes(buffers: GltfBuffers, placed: list, meshes: list) -> list[int | 
     with a mesh whose world matrix (``placed``, at rest) is the mesh's placement and one of whose primitives has
     as many vertices; among several alike, the ones whose primitive holds the very same vertices, each taken in turn
     (coinciding copies of one mesh). None where none is."""
-    path, tree = buffers.path, buffers.tree
-    accessors, entries = tree.get("accessors") or [], tree.get("meshes") or []
+    tree = buffers.tree
+    accessors = tree.get("accessors") or []
 
-    def positions(node: dict) -> list[int]:
-        number = node.get("mesh")
-        if not (isinstance(number, int) and 0 <= number < len(entries)):
-            return []
-        found = [(p.get("attributes") or {}).get("POSITION") for p in entries[number].get("primitives") or []]
-        return [a for a in found if isinstance(a, int) and 0 <= a < len(accessors)]
+    def vertex_counts(node: dict) -> set:
+        found = [p.get("attributes") for p in node_primitives(tree, node) if isinstance(p, dict)]
+        positions = [a.get("POSITION") for a in found if isinstance(a, dict)]
+        return {accessors[a].get("count") for a in positions if isinstance(a, int) and 0 <= a < len(accessors)
+                and isinstance(accessors[a], dict)}
 
     def holds(index: int, vertices: np.ndarray) -> bool:
-        return any(accessors[a].get("count") == len(vertices)
-                   and np.array_equal(buffers.accessor(a, f"{path}: node {index}").astype(np.float32), vertices)
-                   for a in positions(tree["nodes"][index]))
+        return buffers.primitive_holding(node_primitives(tree, tree["nodes"][index]), vertices) is not None
 
-    counts = {index: {accessors[a].get("count") for a in positions(tree["nodes"][index])} for index, _ in placed}
+    counts = {index: vertex_counts(tree["nodes"][index]) for index, _ in placed}
     taken: dict[tuple, int] = {}    # the candidates → meshes matched among them so far
     found = []
     for mesh in meshes:

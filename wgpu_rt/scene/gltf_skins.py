@@ -5,7 +5,8 @@ A primitive's vertices are its POSITION (and NORMAL) plus Σ w_k · the offsets 
 a ``skin`` then moves each vertex by the blend Σ u_i · world(joint_i) · inverseBindMatrix_i over its JOINTS_n /
 WEIGHTS_n pairs (linear blend skinning; the weights brought to sum 1), into the world: glTF ignores a skinned mesh's
 own node transform. A normal follows its vertex's blend by the blend's inverse transpose. trimesh reads a
-primitive's vertices in the file's order; each mesh is matched to its primitive by them (``_primitive``).
+primitive's vertices in the file's order; each mesh is matched to its primitive by them
+(``GltfBuffers.primitive_holding``).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import numpy as np
 
 from ..errors import SceneError
 from .file_materials import FieldReader
-from .gltf_animation import Channel, GltfBuffers
+from .gltf_animation import Channel, GltfBuffers, node_primitives
 
 
 @dataclass
@@ -29,33 +30,10 @@ class Bending:
     skinned: bool
 
 
-def _primitive(tree: dict, buffers: GltfBuffers, node: dict, vertices: np.ndarray, where: str) -> dict | None:
-    """The primitive of ``node``'s mesh whose POSITION values are ``vertices`` (trimesh's reading of it)."""
-    meshes, accessors = tree.get("meshes") or [], tree.get("accessors") or []
-    number = node.get("mesh")
-    if not (isinstance(number, int) and 0 <= number < len(meshes)):
-        return None
-    primitives = meshes[number].get("primitives") or []
-    for primitive in primitives if isinstance(primitives, list) else []:
-        attributes = primitive.get("attributes") if isinstance(primitive, dict) else None
-        position = attributes.get("POSITION") if isinstance(attributes, dict) else None
-        if not (isinstance(position, int) and 0 <= position < len(accessors)
-                and isinstance(accessors[position], dict) and accessors[position].get("count") == len(vertices)):
-            continue
-        if np.array_equal(buffers.accessor(position, where).astype(np.float32), np.asarray(vertices, np.float32)):
-            return primitive
-    return None
-
-
 def bends(tree: dict, node: dict) -> bool:
     """Whether ``node`` has a skin or its mesh morph targets."""
-    meshes, number = tree.get("meshes") or [], node.get("mesh")
-    if node.get("skin") is not None:
-        return True
-    if not (isinstance(number, int) and 0 <= number < len(meshes) and isinstance(meshes[number], dict)):
-        return False
-    primitives = meshes[number].get("primitives") or []
-    return any(isinstance(p, dict) and p.get("targets") for p in (primitives if isinstance(primitives, list) else []))
+    return node.get("skin") is not None or any(isinstance(p, dict) and p.get("targets")
+                                               for p in node_primitives(tree, node))
 
 
 def _morph(tree: dict, buffers: GltfBuffers, node: dict, primitive: dict, count: int, where: str):
@@ -142,7 +120,7 @@ def bending(buffers: GltfBuffers, node_index: int, vertices: np.ndarray, normals
     if not bends(tree, node):
         return None
     where = f"{buffers.path}: node {node_index}"
-    primitive = _primitive(tree, buffers, node, vertices, where)
+    primitive = buffers.primitive_holding(node_primitives(tree, node), vertices)
     if primitive is None:
         return None
     morph = _morph(tree, buffers, node, primitive, len(vertices), where)
