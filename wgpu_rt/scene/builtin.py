@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import SceneError
 from .file_materials import GLTF_SUFFIXES, placed_absorption
-from .gltf_scene import check_placements, node_animation
+from .gltf_scene import node_animation, placement_problem
 from .meshio import load_mesh_file
 from .model import Camera, Material, Mesh, Scene
 from .primitives import primitive, primitive_uvs
@@ -141,7 +141,8 @@ def mesh_room(path, animation: str | None = None) -> Scene:
     for item, keys in zip(loaded, moves):
         item.transform = compose(place, item.transform)
         item.keyframes = {frame: compose(place, world).astype(np.float32) for frame, world in (keys or {}).items()}
-        check_placements(item, str(path))
+        if problem := placement_problem(item):
+            raise SceneError(f"{path}: {problem}")
     materials.update(placed_absorption(own, place))
     return Scene(_cornell_camera(), meshes + loaded, materials, frame_count=frames, name=f"mesh:{Path(path).name}")
 

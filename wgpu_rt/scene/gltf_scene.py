@@ -277,17 +277,18 @@ def _pose(mesh, bent: Bending) -> None:
         mesh.transform = np.eye(4, dtype=np.float32)
 
 
-def check_placements(mesh, where: str) -> None:
-    """A SceneError naming ``where`` and ``mesh`` unless float32 holds its placement and every vertex it places, at
-    rest and at every keyframe of its transform or its shape (``transforms.float32_placement``)."""
+def placement_problem(mesh) -> str | None:
+    """What keeps float32 from holding ``mesh``'s placement and every vertex it places, at rest and at every keyframe
+    of its transform or its shape (``transforms.float32_placement``), naming the mesh and frame; None where nothing
+    does."""
     frames = sorted({*mesh.keyframes, *mesh.vertex_keyframes})
     for frame in [None, *frames]:
         matrix = mesh.transform if frame is None else mesh.transform_at(frame)
         vertices = mesh.vertices if frame is None else mesh.vertices_at(frame)
         problem = float32_placement(matrix, vertices)[1]
         if problem:
-            at = "" if frame is None else f" at frame {frame}"
-            raise SceneError(f"{where}: mesh {mesh.name!r}{at}: its placement {problem}")
+            return f"mesh {mesh.name!r}{'' if frame is None else f' at frame {frame}'}: its placement {problem}"
+    return None
 
 
 def gltf_scene(path, camera: str | None = None, animation: str | None = None) -> Scene | None:
@@ -311,7 +312,8 @@ def gltf_scene(path, camera: str | None = None, animation: str | None = None) ->
     frames, moves, poses = node_animation(path, meshes, tree, animation)
     for mesh, keys in zip(meshes, moves):
         mesh.keyframes = keys or {}
-        check_placements(mesh, str(path))        # as a scene file's placements are checked
+        if problem := placement_problem(mesh):        # as a scene file's placements are checked
+            raise SceneError(f"{path}: {problem}")
     posed = [_lights(tree, pose, path) for pose in poses]
     for index, light in enumerate(lights):      # a light on an animated node follows it
         keys = {f: frame_lights[index] for f, frame_lights in enumerate(posed)}

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import SceneError
 from .file_materials import GLTF_SUFFIXES, placed_absorption
-from .gltf_scene import check_placements, node_animation
+from .gltf_scene import node_animation, placement_problem
 from .meshio import load_mesh_file, read_environment_image, read_texture_image, with_cutout
 from .model import (ALPHA_MODES, FOV_AXES, MATERIAL_KINDS, Camera, DirectionalLight, Material, Mesh, PointLight,
                     Scene, SpotLight)
@@ -398,12 +398,9 @@ def _meshes(fields: _Fields, materials: dict, folder: Path) -> list[Mesh]:
         placed = parts
     else:
         placed = _instances(fields, instances, parts, base, (transform, keyframes), materials, moves)
-    for part in placed:
-        if part.vertex_keyframes:            # the shapes a skin or morph targets bend it to, placed
-            try:
-                check_placements(part, fields.source)
-            except SceneError as err:
-                fields.fail(str(err).removeprefix(f"{fields.source}: "), "file")
+    for part in placed:       # the shapes a skin or morph targets bend it to, placed
+        if part.vertex_keyframes and (problem := placement_problem(part)):
+            fields.fail(problem, "file")
     return placed
 
 
