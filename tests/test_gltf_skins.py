@@ -215,3 +215,21 @@ def test_bent_shapes_beyond_the_memory_held_are_refused(tmp_path, monkeypatch):
     monkeypatch.setattr(importlib.import_module("wgpu_rt.scene.gltf_scene"), "MOST_BENT_BYTES", 1000)
     with pytest.raises(SceneError, match=r"skinned.glb: its skinned or morphed meshes would take 0.0 GiB over its 25 "):
         load_scene(_strip_file(tmp_path))
+
+
+def test_a_skin_that_throws_vertices_beyond_float32s_range_is_refused_by_frame(tmp_path):
+    """The elbow also slides to x = 2e9 over the second: the bent strip leaves the tracer's range at some frame, which
+    the file as a scene and a scene file's entry of it both name (the rest pose is within it)."""
+    def slide(tree, first):
+        elbow = next(i for i, node in enumerate(tree["nodes"]) if node.get("name") == "elbow")
+        tree["animations"][0]["samplers"].append({"input": first - 2, "output": first})
+        tree["animations"][0]["channels"].append({"sampler": 1, "target": {"node": elbow, "path": "translation"}})
+
+    path = _strip_file(tmp_path, slide, [[[1, 0, 0], [2e9, 0, 0]]])
+    with pytest.raises(SceneError, match=r"skinned.glb: mesh 'skinned' at frame \d+: its placement puts vertices"):
+        load_scene(path)
+    scene_file = tmp_path / "stage.toml"
+    scene_file.write_text('[camera]\norigin = [0, 0, 5]\ntarget = [0, 0, 0]\n\n[materials.white]\nreflectance = 0.8\n\n'
+                          '[[meshes]]\nfile = "skinned.glb"\nmaterial = "white"\n')
+    with pytest.raises(SceneError, match=r"stage.toml: meshes\[0\].file: mesh 'skinned' at frame \d+: its placement"):
+        load_scene(scene_file)
