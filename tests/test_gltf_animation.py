@@ -207,6 +207,15 @@ def test_alternative_clips_play_the_first_or_the_one_picked(tmp_path):
         load_scene("mesh", mesh=path, animation="walk")
     with pytest.raises(SceneError, match=r"an animation choice \(animation=/--animation 0\) is for a glTF file"):
         load_scene("cornell", animation="0")
+    def broken_second(tree, first):     # a clip not played is not read: its bad sampler stops nothing
+        clips(tree, first)
+        tree["animations"][1]["channels"][0]["sampler"] = 9
+
+    path.write_bytes(with_accessors(scene.export(file_type="glb"), arrays, broken_second))
+    assert load_scene("mesh", mesh=path, animation="left").has_motion
+    with pytest.raises(SceneError, match=r"animation 1 channel 0: sampler 9 is not one of the animation's 1"):
+        load_scene("mesh", mesh=path, animation="right")
+    path.write_bytes(with_accessors(scene.export(file_type="glb"), arrays, clips))
     entry = '[[meshes]]\nfile = "clips.glb"\nmaterial = "white"\nanimation = "right"\n'
     (tmp_path / "stage.toml").write_text(STAGE + entry)
     (box,) = [mesh for mesh in load_scene(tmp_path / "stage.toml").meshes if mesh.name.startswith("clips")]

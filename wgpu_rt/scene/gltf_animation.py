@@ -235,23 +235,32 @@ def read_animations(path: Path, tree: dict, choice: str | None = None) -> dict[i
     animations = tree.get("animations") or []
     if not isinstance(animations, list):
         raise SceneError(f"{path}: the glTF file's animations are not a list")
-    read = [_animation_channels(buffers, a, animation, nodes) for a, animation in enumerate(animations)]
+    channels: dict[int, list[Channel]] = {}
+    for a in _played(path, animations, choice):       # (only those played are read)
+        for node, kept in _animation_channels(buffers, a, animations[a], nodes).items():
+            channels.setdefault(node, []).extend(kept)
+    return channels
+
+
+def _played(path: Path, animations: list, choice: str | None) -> list[int]:
+    """The indices of the animations ``read_animations`` plays, told from what their channels target."""
     if choice is not None:
         names = [a.get("name") if isinstance(a, dict) else None for a in animations]
         picked = [a for a, name in enumerate(names) if choice in (str(a), name)]
         if not picked:
             listed = ", ".join(f"{a} ({name})" if name else str(a) for a, name in enumerate(names)) or "none"
             raise SceneError(f"{path}: no animation {choice!r}; its animations: {listed}")
-        read = [read[picked[0]]]
-    else:
-        targets = [(node, channel.path) for channels in read for node, kept in channels.items() for channel in kept]
-        if len(targets) != len(set(targets)):
-            read = read[:1]
-    channels: dict[int, list[Channel]] = {}
-    for animation in read:
-        for node, kept in animation.items():
-            channels.setdefault(node, []).extend(kept)
-    return channels
+        return picked[:1]
+    seen: set = set()
+    for animation in animations:
+        listed = animation.get("channels") if isinstance(animation, dict) else None
+        aims = [c.get("target") for c in (listed if isinstance(listed, list) else []) if isinstance(c, dict)]
+        targets = {repr((aim.get("node"), aim.get("path"))) for aim in aims
+                   if isinstance(aim, dict) and aim.get("path") in (*PATHS, "weights")}
+        if targets & seen:
+            return [0]           # alternatives moving the same property of a node: the first
+        seen |= targets
+    return list(range(len(animations)))
 
 
 def _animation_channels(buffers: GltfBuffers, a: int, animation, nodes: list) -> dict[int, list[Channel]]:
