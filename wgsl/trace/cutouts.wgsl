@@ -11,6 +11,7 @@
 // #import trace/sampling.wgsl
 
 const CUTOUT_ALPHA: f32 = 0.5;
+const HAS_CUTOUTS: bool = true;
 
 fn triangle_cut_away(stored: u32, u: f32, v: f32) -> bool {
     let record = surface_textures[0] + TEXTURE_RECORD_WORDS * stored;

@@ -129,7 +129,8 @@ fn sample_triangle_emitter(e: Emitter, pmf: f32, x: vec3f, u: vec2f) -> EmitterS
     }
     let pdf = pmf / e.area * dist2 / cos_light;
     // a hole of a cut-out emitter gives nothing (as a path through it meets no light), sampled by area all the same
-    if triangle_cut_away(placed_triangle(e.triangle).stored, b.x, b.y) {
+    // (HAS_CUTOUTS: a scene without cut-outs looks nothing up on this path)
+    if HAS_CUTOUTS && triangle_cut_away(placed_triangle(e.triangle).stored, b.x, b.y) {
         return EmitterSample(dir, dist, vec3f(0.0), pdf);
     }
     return EmitterSample(dir, dist, e.radiance * emission_color(e.emission_image, e.triangle, b.x, b.y) / pdf, pdf);
