@@ -456,8 +456,7 @@ def _light(fields: _Fields):
         if frame in light.keyframes:
             key.fail(f"a second keyframe for frame {frame}", "frame")
         light.keyframes[frame] = _light_state(key, base=light)
-    keys = sorted(light.keyframes)
-    for lo, hi in zip(keys, keys[1:]):
+    for lo, hi in itertools.pairwise(sorted(light.keyframes)):
         if hasattr(light, "direction"):
             start, end = light.keyframes[lo].direction, light.keyframes[hi].direction
             turn = np.degrees(np.arccos(np.clip(np.dot(start, end), -1.0, 1.0)))
